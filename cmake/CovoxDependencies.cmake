@@ -1,0 +1,90 @@
+# Finds what the non-ROS library needs and describes it as one interface target,
+# `covox_dependencies`, plus the function covox_configure_cuda_target().
+
+# Eigen: its CMake package where installed (Debian), else a plain header folder (some GPU images
+# ship only the headers; pass -DCOVOX_EIGEN_INCLUDE_DIR=<folder holding Eigen/Core>).
+find_package(Eigen3 3.3 QUIET NO_MODULE)
+if(NOT TARGET Eigen3::Eigen)
+  find_path(COVOX_EIGEN_INCLUDE_DIR Eigen/Core PATH_SUFFIXES eigen3
+            DOC "Folder holding Eigen/Core")
+  if(NOT COVOX_EIGEN_INCLUDE_DIR)
+    message(FATAL_ERROR "covoxslam: Eigen 3 not found. Install libeigen3-dev (Debian/Ubuntu) or pass "
+                        "-DCOVOX_EIGEN_INCLUDE_DIR=<folder holding Eigen/Core>.")
+  endif()
+  add_library(Eigen3::Eigen INTERFACE IMPORTED)
+  set_target_properties(Eigen3::Eigen PROPERTIES INTERFACE_INCLUDE_DIRECTORIES ${COVOX_EIGEN_INCLUDE_DIR})
+endif()
+find_package(OpenMP REQUIRED COMPONENTS CXX)
+
+# GoogleTest: the installed library where there is one, else built from its sources
+# (Debian/Ubuntu ship them in /usr/src/googletest; COVOX_GTEST_SOURCE_DIR points elsewhere).
+if(COVOX_BUILD_TESTS)
+  find_package(GTest QUIET)
+  if(NOT TARGET GTest::gtest)
+    set(COVOX_GTEST_SOURCE_DIR /usr/src/googletest CACHE PATH "GoogleTest sources, used when no installed GTest is found")
+    if(NOT EXISTS ${COVOX_GTEST_SOURCE_DIR}/CMakeLists.txt)
+      message(FATAL_ERROR "covoxslam: GoogleTest not found. Install libgtest-dev, pass "
+                          "-DCOVOX_GTEST_SOURCE_DIR=<googletest sources>, or -DCOVOX_BUILD_TESTS=OFF.")
+    endif()
+    set(INSTALL_GTEST OFF CACHE BOOL "" FORCE)
+    set(BUILD_GMOCK OFF CACHE BOOL "" FORCE)
+    add_subdirectory(${COVOX_GTEST_SOURCE_DIR} ${CMAKE_BINARY_DIR}/googletest EXCLUDE_FROM_ALL)
+    add_library(GTest::gtest ALIAS gtest)
+    add_library(GTest::gtest_main ALIAS gtest_main)
+  endif()
+endif()
+
+# --- CUDA: optional. Without nvcc the CPU backend still builds and every test runs on it. -----
+set(COVOX_CUDA_ENABLED OFF)
+if(COVOX_WITH_CUDA)
+  include(CheckLanguage)
+  if(NOT CMAKE_CUDA_COMPILER AND EXISTS /usr/local/cuda/bin/nvcc)
+    set(CMAKE_CUDA_COMPILER /usr/local/cuda/bin/nvcc)
+  endif()
+  check_language(CUDA)
+  if(CMAKE_CUDA_COMPILER)
+    set(CMAKE_CUDA_ARCHITECTURES ${COVOX_CUDA_ARCHITECTURES})
+    enable_language(CUDA)
+    set(CMAKE_CUDA_STANDARD 17)
+    set(CMAKE_CUDA_STANDARD_REQUIRED ON)
+    find_package(CUDAToolkit REQUIRED)
+    set(COVOX_CUDA_ENABLED ON)
+  else()
+    message(WARNING "covoxslam: COVOX_WITH_CUDA is ON but no nvcc was found; building the CPU backend only")
+  endif()
+endif()
+
+# --- Thrust/CUB (CCCL) headers: the CPU backend uses Thrust's OpenMP system, so they are needed
+#     even without nvcc. CUDA 12.x/13.x ship them under include/cccl, older toolkits under include.
+find_path(COVOX_THRUST_INCLUDE_DIR thrust/version.h
+  HINTS ${CUDAToolkit_INCLUDE_DIRS} /usr/local/cuda/include
+  PATH_SUFFIXES cccl
+  DOC "Folder holding thrust/version.h (CCCL from the CUDA toolkit, or Debian's libthrust-dev)")
+if(NOT COVOX_THRUST_INCLUDE_DIR)
+  message(FATAL_ERROR "covoxslam: Thrust headers not found. Install the CUDA toolkit (CCCL) or "
+                      "pass -DCOVOX_THRUST_INCLUDE_DIR=<folder holding thrust/version.h>.")
+endif()
+
+add_library(covox_dependencies INTERFACE)
+target_include_directories(covox_dependencies SYSTEM INTERFACE ${COVOX_THRUST_INCLUDE_DIR})
+target_link_libraries(covox_dependencies INTERFACE Eigen3::Eigen OpenMP::OpenMP_CXX)
+# Host compilers see Thrust's OpenMP system as the "device" system, so no CUDA header is pulled
+# into a .cpp file; nvcc keeps the CUDA system for .cu files.
+target_compile_definitions(covox_dependencies INTERFACE
+  $<$<COMPILE_LANGUAGE:CXX>:THRUST_DEVICE_SYSTEM=THRUST_DEVICE_SYSTEM_OMP>
+  COVOX_WITH_CUDA=$<BOOL:${COVOX_CUDA_ENABLED}>)
+target_compile_options(covox_dependencies INTERFACE
+  $<$<COMPILE_LANGUAGE:CXX>:-Wall -Wextra -Wno-unknown-pragmas>)
+if(COVOX_CUDA_ENABLED)
+  target_link_libraries(covox_dependencies INTERFACE CUDA::cudart)
+  target_compile_options(covox_dependencies INTERFACE
+    $<$<COMPILE_LANGUAGE:CUDA>:--expt-relaxed-constexpr --extended-lambda -Xcompiler=-fopenmp -lineinfo>)
+endif()
+
+function(covox_configure_cuda_target target)
+  if(COVOX_CUDA_ENABLED)
+    set_target_properties(${target} PROPERTIES
+      CUDA_ARCHITECTURES "${COVOX_CUDA_ARCHITECTURES}"
+      CUDA_SEPARABLE_COMPILATION OFF)
+  endif()
+endfunction()

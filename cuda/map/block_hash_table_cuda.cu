@@ -1,0 +1,6 @@
+// CUDA instantiation of the BlockHashTable algorithms (same source as the CPU twin).
+#include "covoxslam/map/block_hash_table_impl.h"
+
+namespace covox {
+COVOX_INSTANTIATE_BLOCK_HASH_TABLE(CudaBackend)
+}  // namespace covox

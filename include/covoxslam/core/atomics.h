@@ -1,0 +1,77 @@
+#pragma once
+// Atomics callable from the same kernel body on both backends: CUDA's atomic* in device code,
+// the GCC/Clang __atomic builtins on the host (OpenMP threads).
+#include <cstdint>
+
+#include "covoxslam/core/macros.h"
+
+namespace covox {
+
+// Compare-and-swap; returns the value that was at `address` before (== expected on success).
+COVOX_HD_INLINE uint64_t atomic_compare_exchange(uint64_t* address, uint64_t expected,
+                                                 uint64_t desired) {
+#if COVOX_DEVICE_CODE
+  return atomicCAS(reinterpret_cast<unsigned long long*>(address),
+                   static_cast<unsigned long long>(expected),
+                   static_cast<unsigned long long>(desired));
+#else
+  __atomic_compare_exchange_n(address, &expected, desired, false, __ATOMIC_ACQ_REL,
+                              __ATOMIC_ACQUIRE);
+  return expected;
+#endif
+}
+
+COVOX_HD_INLINE uint32_t atomic_compare_exchange(uint32_t* address, uint32_t expected,
+                                                 uint32_t desired) {
+#if COVOX_DEVICE_CODE
+  return atomicCAS(reinterpret_cast<unsigned int*>(address), expected, desired);
+#else
+  __atomic_compare_exchange_n(address, &expected, desired, false, __ATOMIC_ACQ_REL,
+                              __ATOMIC_ACQUIRE);
+  return expected;
+#endif
+}
+
+// Returns the previous value.
+COVOX_HD_INLINE uint32_t atomic_add(uint32_t* address, uint32_t value) {
+#if COVOX_DEVICE_CODE
+  return atomicAdd(reinterpret_cast<unsigned int*>(address), value);
+#else
+  return __atomic_fetch_add(address, value, __ATOMIC_RELAXED);
+#endif
+}
+
+COVOX_HD_INLINE uint64_t atomic_add(uint64_t* address, uint64_t value) {
+#if COVOX_DEVICE_CODE
+  return atomicAdd(reinterpret_cast<unsigned long long*>(address),
+                   static_cast<unsigned long long>(value));
+#else
+  return __atomic_fetch_add(address, value, __ATOMIC_RELAXED);
+#endif
+}
+
+// Returns the previous value.
+COVOX_HD_INLINE uint32_t atomic_min(uint32_t* address, uint32_t value) {
+#if COVOX_DEVICE_CODE
+  return atomicMin(reinterpret_cast<unsigned int*>(address), value);
+#else
+  uint32_t current = __atomic_load_n(address, __ATOMIC_RELAXED);
+  while (value < current &&
+         !__atomic_compare_exchange_n(address, &current, value, true, __ATOMIC_ACQ_REL,
+                                      __ATOMIC_RELAXED)) {
+  }
+  return current;
+#endif
+}
+
+// A load that other threads' atomics may race with (relaxed on the host; on the GPU a plain
+// load, which is enough where a stale value only sends the caller to a CAS that settles it).
+COVOX_HD_INLINE uint64_t atomic_load_relaxed(const uint64_t* address) {
+#if COVOX_DEVICE_CODE
+  return *reinterpret_cast<const volatile uint64_t*>(address);
+#else
+  return __atomic_load_n(address, __ATOMIC_RELAXED);
+#endif
+}
+
+}  // namespace covox

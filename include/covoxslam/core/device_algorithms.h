@@ -1,0 +1,39 @@
+#pragma once
+// Runtime-dispatched entry points to the parallel primitives for the common element types, for
+// code that is not itself templated on a backend (host-side orchestration, tests, tools). All
+// pointers are memory of `device`. Each one runs the same template body on either backend.
+#include <cstdint>
+
+#include "covoxslam/core/device.h"
+#include "covoxslam/core/stream.h"
+
+namespace covox {
+namespace algorithms {
+
+// y[i] = a * x[i] + y[i] (a parallel_for).
+void scale_add(Device device, const Stream& stream, float a, const float* x, float* y,
+               int64_t count);
+// out[i] = sum of in[0..i).
+void exclusive_scan(Device device, const Stream& stream, const uint32_t* in, int64_t count,
+                    uint32_t* out);
+// Stable sort of keys, values permuted along.
+void sort_by_key(Device device, const Stream& stream, uint64_t* keys, uint32_t* values,
+                 int64_t count);
+// Sums each run of equal consecutive keys; returns the number of runs.
+int64_t reduce_by_key_sum(Device device, const Stream& stream, const uint64_t* keys,
+                          const float* values, int64_t count, uint64_t* keys_out,
+                          float* values_out);
+// Removes consecutive duplicates in place; returns the new count.
+int64_t unique(Device device, const Stream& stream, uint64_t* data, int64_t count);
+double reduce_sum(Device device, const Stream& stream, const double* data, int64_t count);
+// histogram[bins[i]] += 1 for every i, with atomic_add from many threads at once.
+void atomic_histogram(Device device, const Stream& stream, const uint32_t* bins, int64_t count,
+                      uint32_t* histogram);
+// For every i, CAS-claims owners[targets[i]] (initially 0xffffffff) with i if it is smaller than
+// the current owner, so afterwards owners[t] == min{i : targets[i] == t}. Exercises
+// atomic_compare_exchange under contention.
+void atomic_claim_min(Device device, const Stream& stream, const uint32_t* targets, int64_t count,
+                      uint32_t* owners);
+
+}  // namespace algorithms
+}  // namespace covox

@@ -1,0 +1,22 @@
+#pragma once
+#include <cstddef>
+
+#include "covoxslam/core/device.h"
+#include "covoxslam/core/stream.h"
+
+namespace covox {
+
+// Raw memory on a device. Buffer<T> is the typed owner everyone should use; these are its
+// building blocks. Allocation failures throw covox::OutOfMemoryError with the size requested and,
+// on CUDA, the free/total memory of the GPU.
+void* allocate_bytes(Device device, size_t bytes);
+void free_bytes(Device device, void* pointer) noexcept;
+
+// Copies `bytes` between any two devices. When the destination is host memory (CPU) the call
+// returns after the data has arrived; device-to-device copies are queued on `stream`.
+void copy_bytes(void* destination, Device destination_device, const void* source,
+                Device source_device, size_t bytes, const Stream& stream);
+// memset on a device, queued on `stream`.
+void set_bytes(void* destination, Device device, int value, size_t bytes, const Stream& stream);
+
+}  // namespace covox

@@ -1,0 +1,121 @@
+#pragma once
+// Parallel primitives with one call site for both backends.
+//
+//   parallel_for(backend, stream, n, functor)      functor(i) for i in [0, n)
+//   exclusive_scan / sort_by_key / reduce_by_key / unique / reduce / count_if
+//
+// `backend` is a tag (CpuBackend or CudaBackend). The CPU versions use OpenMP and Thrust's
+// omp::par; the CUDA versions, visible only to nvcc, launch a kernel or use Thrust's
+// cuda::par_nosync on the stream. Functors must be COVOX_HD (or `[=] COVOX_HD` lambdas).
+#include <cstdint>
+
+#include <thrust/count.h>
+#include <thrust/reduce.h>
+#include <thrust/scan.h>
+#include <thrust/sort.h>
+#include <thrust/unique.h>
+#include <thrust/system/omp/execution_policy.h>
+
+#include "covoxslam/core/device.h"
+#include "covoxslam/core/macros.h"
+#include "covoxslam/core/stream.h"
+
+#if defined(__CUDACC__)
+#include <cuda_runtime.h>
+#include <thrust/system/cuda/execution_policy.h>
+#include "covoxslam/core/cuda_check.cuh"
+#endif
+
+namespace covox {
+
+// --- execution policies -----------------------------------------------------------------------
+inline auto execution_policy(CpuBackend, const Stream&) { return thrust::omp::par; }
+#if defined(__CUDACC__)
+inline auto execution_policy(CudaBackend, const Stream& stream) {
+  return thrust::cuda::par_nosync.on(static_cast<cudaStream_t>(stream.native_handle()));
+}
+#endif
+
+// --- parallel_for -----------------------------------------------------------------------------
+template <class Functor>
+void parallel_for(CpuBackend, const Stream&, int64_t count, const Functor& functor) {
+#pragma omp parallel for schedule(static)
+  for (int64_t i = 0; i < count; ++i) functor(i);
+}
+
+#if defined(__CUDACC__)
+namespace detail {
+template <class Functor>
+__global__ void parallel_for_kernel(int64_t count, Functor functor) {
+  const int64_t i = static_cast<int64_t>(blockIdx.x) * blockDim.x + threadIdx.x;
+  if (i < count) functor(i);
+}
+}  // namespace detail
+
+template <class Functor>
+void parallel_for(CudaBackend, const Stream& stream, int64_t count, const Functor& functor) {
+  if (count <= 0) return;
+  constexpr int kThreadsPerBlock = 256;
+  const int64_t blocks = (count + kThreadsPerBlock - 1) / kThreadsPerBlock;
+  detail::parallel_for_kernel<<<static_cast<unsigned>(blocks), kThreadsPerBlock, 0,
+                                static_cast<cudaStream_t>(stream.native_handle())>>>(count, functor);
+  cuda_check(cudaGetLastError(), "parallel_for kernel launch");
+}
+#endif
+
+// --- Thrust-backed primitives (same body for both backends) -----------------------------------
+
+// out[i] = sum of in[0..i); `in` and `out` may alias.
+template <class Backend, class T>
+void exclusive_scan(Backend backend, const Stream& stream, const T* in, int64_t count, T* out) {
+  if (count <= 0) return;
+  thrust::exclusive_scan(execution_policy(backend, stream), in, in + count, out, T(0));
+}
+
+// Sorts ascending.
+template <class Backend, class T>
+void sort(Backend backend, const Stream& stream, T* data, int64_t count) {
+  if (count <= 1) return;
+  thrust::sort(execution_policy(backend, stream), data, data + count);
+}
+
+// Sorts keys ascending and permutes values along (stable).
+template <class Backend, class Key, class Value>
+void sort_by_key(Backend backend, const Stream& stream, Key* keys, Value* values, int64_t count) {
+  if (count <= 1) return;
+  thrust::stable_sort_by_key(execution_policy(backend, stream), keys, keys + count, values);
+}
+
+// Merges each run of equal consecutive keys with `op`; returns the number of runs.
+template <class Backend, class Key, class Value, class ReduceOp>
+int64_t reduce_by_key(Backend backend, const Stream& stream, const Key* keys, const Value* values,
+                      int64_t count, Key* keys_out, Value* values_out, ReduceOp op) {
+  if (count <= 0) return 0;
+  auto ends = thrust::reduce_by_key(execution_policy(backend, stream), keys, keys + count, values,
+                                    keys_out, values_out, thrust::equal_to<Key>(), op);
+  return static_cast<int64_t>(ends.first - keys_out);
+}
+
+// Removes consecutive duplicates in place; returns the new count.
+template <class Backend, class T>
+int64_t unique(Backend backend, const Stream& stream, T* data, int64_t count) {
+  if (count <= 0) return 0;
+  return static_cast<int64_t>(thrust::unique(execution_policy(backend, stream), data, data + count) -
+                              data);
+}
+
+template <class Backend, class T, class ReduceOp>
+T reduce(Backend backend, const Stream& stream, const T* data, int64_t count, T init, ReduceOp op) {
+  if (count <= 0) return init;
+  return thrust::reduce(execution_policy(backend, stream), data, data + count, init, op);
+}
+
+template <class Backend, class T, class Predicate>
+int64_t count_if(Backend backend, const Stream& stream, const T* data, int64_t count,
+                 Predicate predicate) {
+  if (count <= 0) return 0;
+  return static_cast<int64_t>(
+      thrust::count_if(execution_policy(backend, stream), data, data + count, predicate));
+}
+
+}  // namespace covox

@@ -1,0 +1,94 @@
+#pragma once
+// TsdfIntegrator: fuses point clouds (LiDAR, or depth images turned into points on the device)
+// into a TsdfMap by raycasting, with the "merged" update of the coVoxSLAM paper (III-C/D):
+//   1. one ray per valid point; its voxel count is known in closed form -> exclusive scan gives
+//      every ray its range in one update array;
+//   2. each ray walks its voxels (Amanatides-Woo) and writes one (voxel, weighted sdf, weight,
+//      weighted colour) update per voxel;
+//   3. updates are sorted by voxel key and merged per voxel with a segmented reduce;
+//   4. the blocks of all touched voxels are allocated in one BlockHashTable::activate batch;
+//   5. one weighted-average write per distinct voxel.
+// No atomics touch voxel data and every step is order-preserving, so results are deterministic
+// run to run, and the CPU twin runs the same code.
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+#include "covoxslam/core/buffer.h"
+#include "covoxslam/core/device.h"
+#include "covoxslam/core/stream.h"
+#include "covoxslam/core/vec3.h"
+#include "covoxslam/integrators/tsdf_integrator_config.h"
+#include "covoxslam/map/tsdf_map.h"
+
+namespace covox {
+
+// What one integration did; counters of dropped input are the "counted, logged drop".
+struct IntegrationStats {
+  int64_t points_in = 0;
+  int64_t surface_rays = 0;
+  int64_t clearing_rays = 0;
+  int64_t dropped_non_finite = 0;
+  int64_t dropped_zero = 0;
+  int64_t dropped_too_close = 0;
+  int64_t dropped_too_far = 0;
+  int64_t voxel_updates = 0;            // before merging
+  int64_t voxels_updated = 0;           // distinct voxels written
+  int64_t voxels_out_of_range = 0;      // updates dropped: voxel outside the key range
+  int64_t blocks_allocated = 0;         // new blocks this call
+
+  int64_t dropped_total() const {
+    return dropped_non_finite + dropped_zero + dropped_too_close + dropped_too_far;
+  }
+};
+
+// Points (and optional colours) in the sensor frame, in memory of the map's device.
+struct PointCloudView {
+  const Vec3f* points = nullptr;
+  const Rgb8* colors = nullptr;  // optional
+  int64_t count = 0;
+};
+
+// A pinhole camera; depth pixel (u, v) with depth z unprojects to ((u-cx) z/fx, (v-cy) z/fy, z).
+struct PinholeIntrinsics {
+  float fx = 0.0f, fy = 0.0f, cx = 0.0f, cy = 0.0f;
+  int width = 0, height = 0;
+};
+
+// A 16-bit depth image as sensors and datasets store it, in memory of the map's device.
+struct DepthImageView {
+  const uint16_t* depth = nullptr;  // row-major, width x height
+  const Rgb8* colors = nullptr;     // optional, registered to the depth image
+  PinholeIntrinsics intrinsics;
+  float depth_units_per_m = 1000.0f;  // 1000 for millimetres (Kinect, 7-Scenes), 6553.5 Replica
+  uint16_t invalid_value = 0;         // 0 is always invalid; this one too (e.g. 65535)
+};
+
+class TsdfIntegrator {
+ public:
+  explicit TsdfIntegrator(const TsdfIntegratorConfig& config);
+  ~TsdfIntegrator();
+  TsdfIntegrator(TsdfIntegrator&&) noexcept;
+  TsdfIntegrator& operator=(TsdfIntegrator&&) noexcept;
+
+  const TsdfIntegratorConfig& config() const { return config_; }
+
+  // Integrates a cloud taken at pose T_map_sensor. Device memory of map.device().
+  IntegrationStats integrate(TsdfMap& map, const PointCloudView& cloud,
+                             const Eigen::Isometry3d& T_map_sensor, const Stream& stream);
+  // Host-memory convenience: uploads, then integrates.
+  IntegrationStats integrate(TsdfMap& map, const std::vector<Vec3f>& points,
+                             const std::vector<Rgb8>& colors, const Eigen::Isometry3d& T_map_sensor);
+  // Unprojects a depth image on the device, then integrates the points.
+  IntegrationStats integrate_depth(TsdfMap& map, const DepthImageView& image,
+                                   const Eigen::Isometry3d& T_map_camera, const Stream& stream);
+
+ private:
+  struct Scratch;
+  TsdfIntegratorConfig config_;
+  std::unique_ptr<Scratch> scratch_;
+};
+
+}  // namespace covox

@@ -1,0 +1,35 @@
+#pragma once
+// Parameters of TSDF integration. Names and meanings follow voxblox, so a voxblox user's
+// configuration carries over; defaults follow voxblox except where noted.
+namespace covox {
+
+struct TsdfIntegratorConfig {
+  // Half-width of the band around the surface where signed distances are stored. Voxels further
+  // in front are "free" (distance clamped to +truncation); further behind are not updated.
+  float truncation_distance_m = 0.6f;  // voxgraph's ARCHE setting: 3 voxels of 0.2 m
+  // Cap on a voxel's accumulated weight: lower values let the map forget faster.
+  float max_weight = 10000.0f;
+  // Points closer than this to the sensor are dropped (robot body, lens dirt).
+  float min_ray_length_m = 0.1f;
+  // Points further than this are dropped, or only clear free space when allow_clear is set.
+  float max_ray_length_m = 5.0f;
+  // Update every voxel from the sensor to the surface (free space), not only the band.
+  bool voxel_carving_enabled = true;
+  // Points beyond max_ray_length_m still carve free space up to max_ray_length_m.
+  bool allow_clear = true;
+  // Weighting (voxblox): constant 1 instead of the inverse-square of the measured range.
+  bool use_const_weight = false;
+  // Linear drop-off of the weight behind the surface, from -voxel_size to -truncation.
+  bool use_weight_dropoff = true;
+  // Multiply the weight of voxels inside the truncation band by sparsity_compensation_factor,
+  // so that sparse LiDAR surface hits are not washed out by the many free-space updates.
+  bool use_sparsity_compensation_factor = false;
+  float sparsity_compensation_factor = 1.0f;
+  // Fuse colour (when the input has it) inside the truncation band.
+  bool integrate_color = true;
+};
+
+// Throws covox::Error naming the first invalid parameter.
+void validate(const TsdfIntegratorConfig& config, float voxel_size_m);
+
+}  // namespace covox

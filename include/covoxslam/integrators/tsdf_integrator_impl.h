@@ -1,0 +1,240 @@
+#pragma once
+// Definitions of the TSDF integration steps (see tsdf_integrator.h for the algorithm), written
+// once for both backends.
+#include <thrust/functional.h>
+#include <thrust/iterator/permutation_iterator.h>
+#include <thrust/reduce.h>
+
+#include "covoxslam/core/eigen_conversions.h"
+#include "covoxslam/core/parallel.h"
+#include "covoxslam/integrators/tsdf_integrator_ops.h"
+
+namespace covox {
+namespace tsdf_detail {
+
+template <class Backend>
+int64_t count_kind(Backend backend, const Stream& stream, const Buffer<tsdf::RaySegment>& rays,
+                   int64_t count, uint8_t kind) {
+  // count_if over a struct array: compare the kind byte only.
+  return count_if(backend, stream, rays.data(), count,
+                  [kind] COVOX_HD(const tsdf::RaySegment& ray) { return ray.kind == kind; });
+}
+
+}  // namespace tsdf_detail
+
+template <class Backend>
+IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConfig& config,
+                                       TsdfMap& map, const PointCloudView& cloud,
+                                       const Eigen::Isometry3d& T_map_sensor,
+                                       TsdfScratchBuffers& scratch, const Stream& stream) {
+  IntegrationStats stats;
+  const int64_t n = cloud.count;
+  stats.points_in = n;
+  if (n == 0) return stats;
+
+  const float voxel_size = map.voxel_size_m();
+  const float inverse_voxel_size = 1.0f / voxel_size;
+  const int32_t voxels_per_side = map.voxels_per_side();
+  const tsdf::RayParameters ray_parameters{to_transform3f(T_map_sensor),
+                                           voxel_size,
+                                           config.truncation_distance_m,
+                                           config.min_ray_length_m,
+                                           config.max_ray_length_m,
+                                           config.voxel_carving_enabled,
+                                           config.allow_clear};
+  const tsdf::WeightParameters weight_parameters{voxel_size,
+                                                 config.truncation_distance_m,
+                                                 config.use_const_weight,
+                                                 config.use_weight_dropoff,
+                                                 config.use_sparsity_compensation_factor,
+                                                 config.sparsity_compensation_factor};
+
+  // 1. rays and their voxel counts
+  scratch.rays.resize_discard(n);
+  scratch.counts.resize_discard(n);
+  scratch.offsets.resize_discard(n);
+  tsdf::RaySegment* rays = scratch.rays.data();
+  uint32_t* counts = scratch.counts.data();
+  const Vec3f* points = cloud.points;
+  parallel_for(backend, stream, n, [=] COVOX_HD(int64_t i) {
+    const tsdf::RaySegment ray = tsdf::make_ray(ray_parameters, points[i]);
+    rays[i] = ray;
+    counts[i] = tsdf::ray_voxel_count(ray, inverse_voxel_size);
+  });
+  stats.surface_rays = tsdf_detail::count_kind(backend, stream, scratch.rays, n, tsdf::kSurfaceRay);
+  stats.clearing_rays = tsdf_detail::count_kind(backend, stream, scratch.rays, n, tsdf::kClearingRay);
+  const int64_t dropped = n - stats.surface_rays - stats.clearing_rays;
+  if (dropped > 0) {
+    stats.dropped_non_finite = tsdf_detail::count_kind(backend, stream, scratch.rays, n, tsdf::kDroppedNonFinite);
+    stats.dropped_zero = tsdf_detail::count_kind(backend, stream, scratch.rays, n, tsdf::kDroppedZero);
+    stats.dropped_too_close = tsdf_detail::count_kind(backend, stream, scratch.rays, n, tsdf::kDroppedTooClose);
+    stats.dropped_too_far = tsdf_detail::count_kind(backend, stream, scratch.rays, n, tsdf::kDroppedTooFar);
+  }
+  exclusive_scan(backend, stream, counts, n, scratch.offsets.data());
+  const int64_t total_updates =
+      static_cast<int64_t>(scratch.offsets.element(n - 1, stream)) + scratch.counts.element(n - 1, stream);
+  stats.voxel_updates = total_updates;
+  if (total_updates == 0) return stats;
+
+  // 2. one update per traversed voxel
+  scratch.keys.resize_discard(total_updates);
+  scratch.order.resize_discard(total_updates);
+  scratch.updates.resize_discard(total_updates);
+  uint64_t* keys = scratch.keys.data();
+  uint32_t* order = scratch.order.data();
+  tsdf::VoxelUpdate* updates = scratch.updates.data();
+  const uint32_t* offsets = scratch.offsets.data();
+  const Rgb8* colors = config.integrate_color ? cloud.colors : nullptr;
+  const float truncation = config.truncation_distance_m;
+  parallel_for(backend, stream, n, [=] COVOX_HD(int64_t i) {
+    const tsdf::RaySegment ray = rays[i];
+    if (ray.kind > tsdf::kClearingRay) return;
+    uint32_t out = offsets[i];
+    const bool clearing = ray.kind == tsdf::kClearingRay;
+    const Rgb8 color = colors ? colors[i] : Rgb8{};
+    tsdf::traverse_ray(ray, inverse_voxel_size, [&](const Index3D& voxel) {
+      const Vec3f center((voxel.x + 0.5f) * voxel_size, (voxel.y + 0.5f) * voxel_size,
+                         (voxel.z + 0.5f) * voxel_size);
+      float distance = clearing ? truncation : (ray.surface - center).dot(ray.direction);
+      float weight = 0.0f;
+      if (distance >= -truncation) {
+        if (distance > truncation) distance = truncation;
+        weight = tsdf::update_weight(weight_parameters, ray.range_m, distance);
+      }
+      const Index3D block(floor_divide(voxel.x, voxels_per_side),
+                          floor_divide(voxel.y, voxels_per_side),
+                          floor_divide(voxel.z, voxels_per_side));
+      const int32_t local = (voxel.x - block.x * voxels_per_side) +
+                            voxels_per_side * ((voxel.y - block.y * voxels_per_side) +
+                                               voxels_per_side * (voxel.z - block.z * voxels_per_side));
+      tsdf::VoxelUpdate update;
+      update.weighted_distance = weight * distance;
+      update.weight = weight;
+      if (colors && !clearing && fabsf(distance) < truncation && weight > 0.0f) {
+        update.weighted_r = weight * color.r;
+        update.weighted_g = weight * color.g;
+        update.weighted_b = weight * color.b;
+        update.color_weight = weight;
+      }
+      keys[out] = weight > 0.0f ? tsdf::pack_update_key(block, local) : tsdf::kZeroWeightUpdateKey;
+      order[out] = out;
+      updates[out] = update;
+      ++out;
+    });
+  });
+
+  stats.voxels_out_of_range = count_if(backend, stream, keys, total_updates, [] COVOX_HD(uint64_t key) {
+    return key == tsdf::kOutOfRangeUpdateKey;
+  });
+
+  // 3. group by voxel and merge (stable sort keeps each voxel's updates in ray order, so the
+  //    float sums are the same every run)
+  sort_by_key(backend, stream, keys, order, total_updates);
+  scratch.merged_keys.resize_discard(total_updates);
+  scratch.merged.resize_discard(total_updates);
+  const auto ordered_updates = thrust::make_permutation_iterator(updates, order);
+  const auto ends = thrust::reduce_by_key(execution_policy(backend, stream), keys, keys + total_updates,
+                                          ordered_updates, scratch.merged_keys.data(),
+                                          scratch.merged.data(), thrust::equal_to<uint64_t>(),
+                                          tsdf::MergeUpdates());
+  int64_t voxel_count = static_cast<int64_t>(ends.first - scratch.merged_keys.data());
+  // Updates to drop (zero weight, outside the key range) sort last: drop their runs.
+  while (voxel_count > 0 &&
+         scratch.merged_keys.element(voxel_count - 1, stream) >= tsdf::kOutOfRangeUpdateKey) {
+    --voxel_count;
+  }
+  stats.voxels_updated = voxel_count;
+  if (voxel_count == 0) return stats;
+
+  // 4. allocate the blocks of all touched voxels in one batch (duplicates are fine)
+  scratch.block_indices.resize_discard(voxel_count);
+  scratch.slots.resize_discard(voxel_count);
+  scratch.is_new.resize_discard(voxel_count);
+  Index3D* block_indices = scratch.block_indices.data();
+  const uint64_t* merged_keys = scratch.merged_keys.data();
+  parallel_for(backend, stream, voxel_count,
+               [=] COVOX_HD(int64_t v) { block_indices[v] = tsdf::update_key_block(merged_keys[v]); });
+  const ActivateResult activation =
+      map.blocks().activate(block_indices, voxel_count, scratch.slots.data(), scratch.is_new.data(), stream);
+  stats.blocks_allocated = activation.num_new;
+  map.ensure_pool_capacity(stream);
+
+  // A new block may reuse the slot of an erased one: clear it before blending.
+  auto tsdf_view = map.tsdf().view();
+  auto color_view = map.color().view();
+  const uint32_t* slots = scratch.slots.data();
+  const uint8_t* is_new = scratch.is_new.data();
+  const int64_t voxels_per_block = map.voxels_per_block();
+  if (activation.num_new > 0) {
+    parallel_for(backend, stream, voxel_count, [=] COVOX_HD(int64_t v) {
+      if (!is_new[v] || slots[v] == kInvalidSlot) return;
+      const int64_t base = static_cast<int64_t>(slots[v]) * voxels_per_block;
+      for (int64_t k = 0; k < voxels_per_block; ++k) {
+        tsdf_view.store(base + k, TsdfVoxel{});
+        color_view.store(base + k, ColorVoxel{});
+      }
+    });
+  }
+
+  // 5. one weighted-average write per distinct voxel
+  const tsdf::VoxelUpdate* merged = scratch.merged.data();
+  const float max_weight = config.max_weight;
+  parallel_for(backend, stream, voxel_count, [=] COVOX_HD(int64_t v) {
+    const uint32_t slot = slots[v];
+    const tsdf::VoxelUpdate update = merged[v];
+    if (slot == kInvalidSlot || update.weight <= 0.0f) return;
+    const int64_t index = static_cast<int64_t>(slot) * voxels_per_block + tsdf::update_key_voxel(merged_keys[v]);
+    TsdfVoxel voxel = tsdf_view.load(index);
+    const float combined = voxel.weight + update.weight;
+    float distance = (voxel.distance_m * voxel.weight + update.weighted_distance) / combined;
+    distance = distance > truncation ? truncation : (distance < -truncation ? -truncation : distance);
+    voxel.distance_m = distance;
+    voxel.weight = combined < max_weight ? combined : max_weight;
+    tsdf_view.store(index, voxel);
+    if (update.color_weight > 0.0f) {
+      ColorVoxel color = color_view.load(index);
+      const float color_combined = color.weight + update.color_weight;
+      const float old_part = color.weight / color_combined;
+      const float inverse_new = 1.0f / color_combined;
+      color.r = static_cast<uint8_t>(fminf(255.0f, color.r * old_part + update.weighted_r * inverse_new + 0.5f));
+      color.g = static_cast<uint8_t>(fminf(255.0f, color.g * old_part + update.weighted_g * inverse_new + 0.5f));
+      color.b = static_cast<uint8_t>(fminf(255.0f, color.b * old_part + update.weighted_b * inverse_new + 0.5f));
+      color.weight = color_combined < max_weight ? color_combined : max_weight;
+      color_view.store(index, color);
+    }
+  });
+  stream.synchronize();
+  return stats;
+}
+
+template <class Backend>
+void tsdf_unproject_depth(Backend backend, const DepthImageView& image, TsdfScratchBuffers& scratch,
+                          const Stream& stream) {
+  const PinholeIntrinsics k = image.intrinsics;
+  const int64_t pixels = static_cast<int64_t>(k.width) * k.height;
+  scratch.points.resize_discard(pixels);
+  Vec3f* points = scratch.points.data();
+  const uint16_t* depth = image.depth;
+  const float metres_per_unit = 1.0f / image.depth_units_per_m;
+  const uint16_t invalid = image.invalid_value;
+  const float inverse_fx = 1.0f / k.fx, inverse_fy = 1.0f / k.fy;
+  parallel_for(backend, stream, pixels, [=] COVOX_HD(int64_t p) {
+    const uint16_t raw = depth[p];
+    if (raw == 0 || raw == invalid) {
+      points[p] = Vec3f(0.0f, 0.0f, 0.0f);  // dropped (and counted) as a zero point
+      return;
+    }
+    const float z = raw * metres_per_unit;
+    const float u = static_cast<float>(p % k.width), v = static_cast<float>(p / k.width);
+    points[p] = Vec3f((u - k.cx) * z * inverse_fx, (v - k.cy) * z * inverse_fy, z);
+  });
+}
+
+#define COVOX_INSTANTIATE_TSDF_INTEGRATOR(Backend)                                                  \
+  template IntegrationStats tsdf_integrate_points<Backend>(                                         \
+      Backend, const TsdfIntegratorConfig&, TsdfMap&, const PointCloudView&,                        \
+      const Eigen::Isometry3d&, TsdfScratchBuffers&, const Stream&);                                \
+  template void tsdf_unproject_depth<Backend>(Backend, const DepthImageView&, TsdfScratchBuffers&,  \
+                                              const Stream&);
+
+}  // namespace covox

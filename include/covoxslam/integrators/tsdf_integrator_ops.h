@@ -1,0 +1,46 @@
+#pragma once
+// Backend-templated steps of TsdfIntegrator (defined in tsdf_integrator_impl.h, instantiated per
+// backend). Scratch buffers are passed in so steady-state frames allocate nothing.
+#include <cstdint>
+
+#include <Eigen/Geometry>
+
+#include "covoxslam/core/buffer.h"
+#include "covoxslam/integrators/tsdf_integrator.h"
+#include "covoxslam/integrators/tsdf_kernels.h"
+
+namespace covox {
+
+struct TsdfScratchBuffers {
+  explicit TsdfScratchBuffers(Device device)
+      : points(device), colors(device), rays(device), counts(device), offsets(device),
+        keys(device), order(device), updates(device), merged_keys(device), merged(device),
+        block_indices(device), slots(device), is_new(device) {}
+  Buffer<Vec3f> points;  // depth images unprojected, or host clouds uploaded
+  Buffer<Rgb8> colors;
+  Buffer<tsdf::RaySegment> rays;
+  Buffer<uint32_t> counts;
+  Buffer<uint32_t> offsets;
+  Buffer<uint64_t> keys;
+  Buffer<uint32_t> order;
+  Buffer<tsdf::VoxelUpdate> updates;
+  Buffer<uint64_t> merged_keys;
+  Buffer<tsdf::VoxelUpdate> merged;
+  Buffer<Index3D> block_indices;
+  Buffer<uint32_t> slots;
+  Buffer<uint8_t> is_new;
+};
+
+template <class Backend>
+IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConfig& config,
+                                       TsdfMap& map, const PointCloudView& cloud,
+                                       const Eigen::Isometry3d& T_map_sensor,
+                                       TsdfScratchBuffers& scratch, const Stream& stream);
+
+// Writes width*height points (invalid pixels become (0,0,0), which integration drops as zero
+// points) and colours into scratch.points / scratch.colors.
+template <class Backend>
+void tsdf_unproject_depth(Backend backend, const DepthImageView& image, TsdfScratchBuffers& scratch,
+                          const Stream& stream);
+
+}  // namespace covox

@@ -1,0 +1,228 @@
+#pragma once
+// Per-ray and per-voxel functions of TSDF raycast integration, shared by both backends.
+#include <cstdint>
+
+#include "covoxslam/core/index3d.h"
+#include "covoxslam/core/macros.h"
+#include "covoxslam/core/vec3.h"
+#include "covoxslam/integrators/tsdf_integrator_config.h"
+
+namespace covox {
+namespace tsdf {
+
+// Update keys pack a voxel as (block index, voxel within block) so that sorting by key groups
+// a block's voxels together. 17 bits per block axis leaves 12 bits for the voxel in a 16^3 block:
+// blocks in [-65536, 65535] per axis, i.e. +-52 km at 5 cm voxels with 16-voxel blocks, +-26 km
+// with 8-voxel blocks of 5 cm. Voxels outside are dropped and counted.
+constexpr int kKeyBlockBits = 17;
+constexpr int kKeyVoxelBits = 12;
+constexpr int32_t kKeyMinBlock = -(1 << (kKeyBlockBits - 1));
+constexpr int32_t kKeyMaxBlock = (1 << (kKeyBlockBits - 1)) - 1;
+// Valid keys use the low 63 bits; the two largest values mark updates to drop, and sort last.
+constexpr uint64_t kZeroWeightUpdateKey = ~uint64_t(0);
+constexpr uint64_t kOutOfRangeUpdateKey = ~uint64_t(0) - 1;
+
+COVOX_HD_INLINE uint64_t pack_update_key(const Index3D& block, int32_t voxel_in_block) {
+  if (block.x < kKeyMinBlock || block.x > kKeyMaxBlock || block.y < kKeyMinBlock ||
+      block.y > kKeyMaxBlock || block.z < kKeyMinBlock || block.z > kKeyMaxBlock) {
+    return kOutOfRangeUpdateKey;
+  }
+  constexpr uint64_t kMask = (uint64_t(1) << kKeyBlockBits) - 1;
+  const uint64_t bx = static_cast<uint64_t>(block.x - kKeyMinBlock) & kMask;
+  const uint64_t by = static_cast<uint64_t>(block.y - kKeyMinBlock) & kMask;
+  const uint64_t bz = static_cast<uint64_t>(block.z - kKeyMinBlock) & kMask;
+  return (((bx << (2 * kKeyBlockBits)) | (by << kKeyBlockBits) | bz) << kKeyVoxelBits) |
+         static_cast<uint64_t>(voxel_in_block);
+}
+
+COVOX_HD_INLINE Index3D update_key_block(uint64_t key) {
+  constexpr uint64_t kMask = (uint64_t(1) << kKeyBlockBits) - 1;
+  const uint64_t block_bits = key >> kKeyVoxelBits;
+  return Index3D(static_cast<int32_t>((block_bits >> (2 * kKeyBlockBits)) & kMask) + kKeyMinBlock,
+                 static_cast<int32_t>((block_bits >> kKeyBlockBits) & kMask) + kKeyMinBlock,
+                 static_cast<int32_t>(block_bits & kMask) + kKeyMinBlock);
+}
+
+COVOX_HD_INLINE int32_t update_key_voxel(uint64_t key) {
+  return static_cast<int32_t>(key & ((uint64_t(1) << kKeyVoxelBits) - 1));
+}
+
+// One voxel's contribution, already multiplied by its weight so that merging updates of the
+// same voxel is a plain sum (sum of w*sdf and of w, then one division).
+struct VoxelUpdate {
+  float weighted_distance = 0.0f;
+  float weight = 0.0f;
+  float weighted_r = 0.0f;
+  float weighted_g = 0.0f;
+  float weighted_b = 0.0f;
+  float color_weight = 0.0f;
+};
+
+struct MergeUpdates {
+  COVOX_HD_INLINE VoxelUpdate operator()(const VoxelUpdate& a, const VoxelUpdate& b) const {
+    VoxelUpdate sum;
+    sum.weighted_distance = a.weighted_distance + b.weighted_distance;
+    sum.weight = a.weight + b.weight;
+    sum.weighted_r = a.weighted_r + b.weighted_r;
+    sum.weighted_g = a.weighted_g + b.weighted_g;
+    sum.weighted_b = a.weighted_b + b.weighted_b;
+    sum.color_weight = a.color_weight + b.color_weight;
+    return sum;
+  }
+};
+
+// Why a point did or did not become a ray.
+enum RayKind : uint8_t {
+  kSurfaceRay = 0,     // normal: carve free space (optional) and update the truncation band
+  kClearingRay = 1,    // beyond max range with allow_clear: carve free space only
+  kDroppedNonFinite = 2,
+  kDroppedZero = 3,
+  kDroppedTooClose = 4,
+  kDroppedTooFar = 5,
+};
+
+struct RaySegment {
+  Vec3f start;      // world, where traversal begins
+  Vec3f end;        // world, where it ends (surface + truncation, or the clearing limit)
+  Vec3f surface;    // world, the measured point
+  Vec3f direction;  // unit, sensor to point
+  float range_m = 0.0f;
+  uint8_t kind = kDroppedNonFinite;
+};
+
+struct RayParameters {
+  Transform3f T_world_sensor;
+  float voxel_size_m;
+  float truncation_distance_m;
+  float min_ray_length_m;
+  float max_ray_length_m;
+  bool voxel_carving_enabled;
+  bool allow_clear;
+};
+
+COVOX_HD_INLINE RaySegment make_ray(const RayParameters& p, const Vec3f& point_sensor) {
+  RaySegment ray;
+  if (!point_sensor.is_finite()) return ray;  // kDroppedNonFinite
+  const float range = point_sensor.norm();
+  if (range <= 0.0f) {
+    ray.kind = kDroppedZero;
+    return ray;
+  }
+  if (range < p.min_ray_length_m) {
+    ray.kind = kDroppedTooClose;
+    return ray;
+  }
+  const Vec3f origin = p.T_world_sensor.translation;
+  ray.surface = p.T_world_sensor * point_sensor;
+  ray.direction = p.T_world_sensor.rotate(point_sensor) * (1.0f / range);
+  ray.range_m = range;
+  if (range > p.max_ray_length_m) {
+    if (!p.allow_clear || !p.voxel_carving_enabled) {
+      ray.kind = kDroppedTooFar;
+      return ray;
+    }
+    ray.kind = kClearingRay;
+    ray.start = origin;
+    ray.end = origin + ray.direction * p.max_ray_length_m;
+    return ray;
+  }
+  ray.kind = kSurfaceRay;
+  ray.end = ray.surface + ray.direction * p.truncation_distance_m;
+  ray.start = p.voxel_carving_enabled ? origin : ray.surface - ray.direction * p.truncation_distance_m;
+  return ray;
+}
+
+COVOX_HD_INLINE Index3D voxel_of(const Vec3f& point, float inverse_voxel_size) {
+  return Index3D(static_cast<int32_t>(floorf(point.x * inverse_voxel_size)),
+                 static_cast<int32_t>(floorf(point.y * inverse_voxel_size)),
+                 static_cast<int32_t>(floorf(point.z * inverse_voxel_size)));
+}
+
+COVOX_HD_INLINE int32_t abs_i32(int32_t v) { return v < 0 ? -v : v; }
+
+// Voxels a segment passes through: one plus the grid lines it crosses on each axis. The
+// traversal below visits exactly this many, so counting needs no traversal.
+COVOX_HD_INLINE uint32_t ray_voxel_count(const RaySegment& ray, float inverse_voxel_size) {
+  if (ray.kind > kClearingRay) return 0;
+  const Index3D first = voxel_of(ray.start, inverse_voxel_size);
+  const Index3D last = voxel_of(ray.end, inverse_voxel_size);
+  return 1u + static_cast<uint32_t>(abs_i32(last.x - first.x) + abs_i32(last.y - first.y) +
+                                    abs_i32(last.z - first.z));
+}
+
+// Amanatides-Woo traversal from ray.start to ray.end, calling visit(voxel) for each of the
+// ray_voxel_count() voxels in order. An axis is only stepped while it has grid lines left to
+// cross, so rounding can never step past the last voxel or change the count.
+template <class Visitor>
+COVOX_HD_INLINE void traverse_ray(const RaySegment& ray, float inverse_voxel_size, Visitor&& visit) {
+  const Vec3f a = ray.start * inverse_voxel_size;
+  const Vec3f b = ray.end * inverse_voxel_size;
+  Index3D current = voxel_of(ray.start, inverse_voxel_size);
+  const Index3D last = voxel_of(ray.end, inverse_voxel_size);
+  const int32_t cur[3] = {current.x, current.y, current.z};
+  const int32_t end[3] = {last.x, last.y, last.z};
+  int32_t position[3] = {cur[0], cur[1], cur[2]};
+  int32_t remaining[3];
+  int32_t step[3];
+  float t_max[3];
+  float t_delta[3];
+  for (int axis = 0; axis < 3; ++axis) {
+    const float delta = b[axis] - a[axis];
+    step[axis] = end[axis] > cur[axis] ? 1 : -1;
+    remaining[axis] = abs_i32(end[axis] - cur[axis]);
+    if (remaining[axis] == 0 || delta == 0.0f) {
+      t_max[axis] = 3.0e38f;
+      t_delta[axis] = 3.0e38f;
+    } else {
+      const float boundary = static_cast<float>(step[axis] > 0 ? cur[axis] + 1 : cur[axis]);
+      t_max[axis] = (boundary - a[axis]) / delta;
+      t_delta[axis] = static_cast<float>(step[axis]) / delta;
+    }
+  }
+  const int32_t total = remaining[0] + remaining[1] + remaining[2];
+  visit(Index3D(position[0], position[1], position[2]));
+  for (int32_t k = 0; k < total; ++k) {
+    int axis = -1;
+    float best = 3.4e38f;
+    for (int candidate = 0; candidate < 3; ++candidate) {
+      if (remaining[candidate] > 0 && t_max[candidate] < best) {
+        best = t_max[candidate];
+        axis = candidate;
+      }
+    }
+    if (axis < 0) {  // degenerate (delta rounded to 0 with lines left): step any axis left
+      axis = remaining[0] > 0 ? 0 : (remaining[1] > 0 ? 1 : 2);
+    }
+    position[axis] += step[axis];
+    --remaining[axis];
+    t_max[axis] += t_delta[axis];
+    visit(Index3D(position[0], position[1], position[2]));
+  }
+}
+
+struct WeightParameters {
+  float voxel_size_m;
+  float truncation_distance_m;
+  bool use_const_weight;
+  bool use_weight_dropoff;
+  bool use_sparsity_compensation_factor;
+  float sparsity_compensation_factor;
+};
+
+// voxblox's weighting. The inverse-square term uses the measured range rather than the
+// camera z: for a LiDAR, z is height, not depth (for a depth camera near the image centre the
+// two agree).
+COVOX_HD_INLINE float update_weight(const WeightParameters& p, float range_m, float distance_m) {
+  float weight = p.use_const_weight ? 1.0f : (range_m > 1e-6f ? 1.0f / (range_m * range_m) : 1.0f);
+  if (p.use_weight_dropoff && distance_m < -p.voxel_size_m) {
+    weight *= (p.truncation_distance_m + distance_m) / (p.truncation_distance_m - p.voxel_size_m);
+    weight = weight > 0.0f ? weight : 0.0f;
+  }
+  if (p.use_sparsity_compensation_factor && fabsf(distance_m) < p.truncation_distance_m) {
+    weight *= p.sparsity_compensation_factor;
+  }
+  return weight;
+}
+
+}  // namespace tsdf
+}  // namespace covox

@@ -1,0 +1,81 @@
+#pragma once
+// BlockHashTable: maps 3-D block indices to slots in pre-allocated voxel pools, on the GPU or
+// the CPU twin. One open-addressing table, no second index, no double indirection.
+//
+// Batch operations take arrays that live on the table's device:
+//   activate(keys)  insert-if-absent; every key gets its slot and whether this call created it
+//   find(keys)      slot or kInvalidSlot
+//   erase(keys)     removes; freed slots are reused by later activations
+// Slots are dense integers [0, slot_count()): the owner of the voxel pool keeps the pool at
+// least slot_count() blocks large. Rehashing (growth) moves keys between buckets but never
+// changes a key's slot.
+#include <cstdint>
+
+#include "covoxslam/core/buffer.h"
+#include "covoxslam/core/device.h"
+#include "covoxslam/core/index3d.h"
+#include "covoxslam/core/stream.h"
+#include "covoxslam/map/block_hash_table_state.h"
+
+namespace covox {
+
+class BlockHashTable {
+ public:
+  explicit BlockHashTable(Device device, const BlockHashTableConfig& config = {});
+
+  BlockHashTable(const BlockHashTable&) = delete;
+  BlockHashTable& operator=(const BlockHashTable&) = delete;
+  BlockHashTable(BlockHashTable&&) noexcept = default;
+  BlockHashTable& operator=(BlockHashTable&&) noexcept = default;
+
+  // Insert-if-absent for `count` keys at `keys` (device memory of this table's device).
+  // slots_out[i] receives the key's slot (kInvalidSlot if the key was rejected), is_new_out[i]
+  // (optional) is 1 for exactly one occurrence of each key this call inserted. Correct when a
+  // batch holds the same key many times. Out-of-range keys and keys that found the table full are
+  // counted in the result and logged; the table stays consistent.
+  ActivateResult activate(const Index3D* keys, int64_t count, uint32_t* slots_out,
+                          uint8_t* is_new_out = nullptr);
+  ActivateResult activate(const Index3D* keys, int64_t count, uint32_t* slots_out,
+                          uint8_t* is_new_out, const Stream& stream);
+
+  // slots_out[i] = slot of keys[i] or kInvalidSlot. Returns how many were found.
+  int64_t find(const Index3D* keys, int64_t count, uint32_t* slots_out) const;
+  int64_t find(const Index3D* keys, int64_t count, uint32_t* slots_out, const Stream& stream) const;
+
+  // Removes the keys (absent and duplicate keys are ignored). Returns how many were removed.
+  int64_t erase(const Index3D* keys, int64_t count);
+  int64_t erase(const Index3D* keys, int64_t count, const Stream& stream);
+
+  // Makes room for `key_count` live keys below the maximum load factor (rehashes if needed).
+  void reserve(int64_t key_count);
+  // Rebuilds the table with `bucket_count` buckets (dropping tombstones); slots are preserved.
+  // Throws covox::Error if the live keys do not fit.
+  void rehash(uint64_t bucket_count);
+  // Removes every key and forgets every slot.
+  void clear();
+
+  // All live keys and their slots (on this table's device), in bucket order.
+  void export_entries(Buffer<Index3D>* keys, Buffer<uint32_t>* slots) const;
+
+  Device device() const { return state_.device; }
+  const BlockHashTableConfig& config() const { return state_.config; }
+  int64_t size() const { return state_.live_count; }
+  uint64_t bucket_count() const { return state_.bucket_count(); }
+  // Live keys per bucket.
+  double load_factor() const;
+  // Live keys plus tombstones per bucket: what probe lengths depend on, and what growth watches.
+  double occupancy() const;
+  // Slots handed out so far (live or freed): the voxel pool needs at least this many blocks.
+  uint32_t slot_count() const { return state_.next_unused_slot; }
+  int64_t total_out_of_range() const { return state_.total_out_of_range; }
+  int64_t total_failed_full() const { return state_.total_failed_full; }
+  int64_t rehash_count() const { return state_.rehash_count; }
+
+ private:
+  const Stream& default_stream() const { return default_stream_; }
+
+  BlockHashTableState state_;
+  Stream default_stream_;
+};
+
+}  // namespace covox

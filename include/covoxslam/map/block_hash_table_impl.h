@@ -1,0 +1,283 @@
+#pragma once
+// The BlockHashTable algorithms, written once over a backend tag and instantiated twice:
+// src/map/block_hash_table_cpu.cpp (CpuBackend) and cuda/map/block_hash_table_cuda.cu
+// (CudaBackend). Only those two files include this header.
+//
+// activate(keys) in four data-parallel passes, none of which waits on another thread:
+//   1. insert:  each key probes and CASes itself into an empty bucket (or finds itself);
+//               the CAS winner flags "new"
+//   2. scan:    exclusive scan of the "new" flags ranks the new keys 0..n_new-1 (input order)
+//   3. assign:  new key with rank r takes freed slot r from the top of the free stack, or the
+//               next never-used slot, and writes it to its bucket
+//   4. gather:  every key (duplicates too) reads its bucket's slot
+// Splitting 3 and 4 is what lets duplicates of a key in one batch see the winner's slot
+// without spinning on it.
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+
+#include "covoxslam/core/error.h"
+#include "covoxslam/core/log.h"
+#include "covoxslam/core/parallel.h"
+#include "covoxslam/map/block_hash_table_ops.h"
+#include "covoxslam/map/block_hash_table_state.h"
+
+namespace covox {
+namespace hash_table_detail {
+
+// Ranks flagged items (exclusive scan) and returns how many are flagged.
+template <class Backend>
+int64_t rank_flags(Backend backend, const Stream& stream, const Buffer<uint32_t>& flags,
+                   Buffer<uint32_t>* ranks, int64_t count) {
+  if (count == 0) return 0;
+  ranks->resize_discard(static_cast<size_t>(count));
+  exclusive_scan(backend, stream, flags.data(), count, ranks->data());
+  return static_cast<int64_t>(ranks->element(count - 1, stream)) + flags.element(count - 1, stream);
+}
+
+template <class Backend>
+void fill_empty(Backend backend, const Stream& stream, Buffer<uint64_t>* keys) {
+  (void)backend;
+  keys->fill_bytes(0xff, stream);  // every byte 0xff == kEmptyBlockKey
+}
+
+inline uint64_t buckets_for(int64_t live_keys, double max_load_factor) {
+  return static_cast<uint64_t>(std::ceil(static_cast<double>(live_keys) / max_load_factor)) + 1;
+}
+
+}  // namespace hash_table_detail
+
+template <class Backend>
+void hash_table_rehash(Backend backend, BlockHashTableState& state, uint64_t new_bucket_count,
+                       const Stream& stream) {
+  if (new_bucket_count < static_cast<uint64_t>(state.live_count) + 1) {
+    throw Error("BlockHashTable::rehash: " + std::to_string(new_bucket_count) +
+                " buckets cannot hold " + std::to_string(state.live_count) + " keys");
+  }
+  Buffer<uint64_t> new_keys(state.device, new_bucket_count);
+  Buffer<uint32_t> new_slots(state.device, new_bucket_count);
+  hash_table_detail::fill_empty(backend, stream, &new_keys);
+  const BlockHashTableView from = state.view();
+  const BlockHashTableView to{new_keys.data(), new_slots.data(), new_bucket_count};
+  parallel_for(backend, stream, static_cast<int64_t>(from.bucket_count), [=] COVOX_HD(int64_t b) {
+    const uint64_t key = from.keys[b];
+    if (!is_live_block_key(key)) return;
+    bool inserted = false;
+    const uint64_t bucket = to.insert(key, &inserted);
+    to.slots[bucket] = from.slots[b];  // live keys are unique, so insert() always succeeds here
+  });
+  stream.synchronize();
+  state.keys = std::move(new_keys);
+  state.slots = std::move(new_slots);
+  state.occupied_count = state.live_count;
+  ++state.rehash_count;
+}
+
+// Counts the distinct keys of a batch that are not in the table yet (the exact growth need).
+template <class Backend>
+int64_t hash_table_count_distinct_missing(Backend backend, BlockHashTableState& state,
+                                          const Index3D* keys, int64_t count,
+                                          const Stream& stream) {
+  state.scratch_keys.resize_discard(static_cast<size_t>(count));
+  uint64_t* missing = state.scratch_keys.data();
+  const BlockHashTableView table = state.view();
+  parallel_for(backend, stream, count, [=] COVOX_HD(int64_t i) {
+    const uint64_t key = pack_block_key(keys[i]);
+    missing[i] = (key != kInvalidBlockKey && table.find(key) == kNoBucket) ? key : kEmptyBlockKey;
+  });
+  sort(backend, stream, missing, count);
+  const int64_t distinct = unique(backend, stream, missing, count);
+  if (distinct == 0) return 0;
+  const bool has_sentinel = state.scratch_keys.element(distinct - 1, stream) == kEmptyBlockKey;
+  return distinct - (has_sentinel ? 1 : 0);
+}
+
+// Grows (or just cleans tombstones out of) the table so that the batch fits below the maximum
+// load factor. The cheap bound (every key new) is tried first; only when it fails is the exact
+// number of distinct new keys computed, so pre-sized tables pay nothing.
+template <class Backend>
+void hash_table_grow_for_batch(Backend backend, BlockHashTableState& state, const Index3D* keys,
+                               int64_t count, const Stream& stream) {
+  const double limit = state.config.max_load_factor * static_cast<double>(state.bucket_count());
+  if (static_cast<double>(state.occupied_count + count) <= limit) return;
+  const int64_t missing = hash_table_count_distinct_missing(backend, state, keys, count, stream);
+  if (static_cast<double>(state.occupied_count + missing) <= limit) return;
+  // Tombstones vanish in a rehash, so size for live + new keys only.
+  uint64_t buckets = std::max<uint64_t>(state.bucket_count(), 16);
+  const int64_t needed = state.live_count + missing;
+  while (static_cast<double>(needed) > state.config.max_load_factor * 0.75 * buckets) buckets *= 2;
+  hash_table_rehash(backend, state, buckets, stream);
+}
+
+template <class Backend>
+ActivateResult hash_table_activate(Backend backend, BlockHashTableState& state,
+                                   const Index3D* keys, int64_t count, uint32_t* slots_out,
+                                   uint8_t* is_new_out, const Stream& stream) {
+  ActivateResult result;
+  if (count <= 0) return result;
+  if (state.config.allow_growth) hash_table_grow_for_batch(backend, state, keys, count, stream);
+
+  state.scratch_buckets.resize_discard(static_cast<size_t>(count));
+  state.scratch_flags.resize_discard(static_cast<size_t>(count));
+  uint64_t* buckets = state.scratch_buckets.data();
+  uint32_t* new_flags = state.scratch_flags.data();
+  const BlockHashTableView table = state.view();
+
+  // 1. insert
+  parallel_for(backend, stream, count, [=] COVOX_HD(int64_t i) {
+    const uint64_t key = pack_block_key(keys[i]);
+    bool inserted = false;
+    buckets[i] = key == kInvalidBlockKey ? kNoBucket : table.insert(key, &inserted);
+    new_flags[i] = inserted ? 1u : 0u;
+  });
+
+  // 2. rank the new keys
+  const int64_t num_new = hash_table_detail::rank_flags(backend, stream, state.scratch_flags,
+                                                        &state.scratch_ranks, count);
+  // 3. assign slots: reuse freed ones first (top of the stack), then never-used ones
+  const uint32_t* ranks = state.scratch_ranks.data();
+  const uint32_t* free_stack = state.free_slots.data();
+  const uint32_t free_count = state.free_count;
+  const uint32_t next_unused = state.next_unused_slot;
+  if (num_new > 0) {
+    parallel_for(backend, stream, count, [=] COVOX_HD(int64_t i) {
+      if (!new_flags[i]) return;
+      const uint32_t rank = ranks[i];
+      table.slots[buckets[i]] =
+          rank < free_count ? free_stack[free_count - 1 - rank] : next_unused + (rank - free_count);
+    });
+  }
+  // 4. gather every key's slot
+  parallel_for(backend, stream, count, [=] COVOX_HD(int64_t i) {
+    const uint64_t bucket = buckets[i];
+    slots_out[i] = bucket < table.bucket_count ? table.slots[bucket] : kInvalidSlot;
+    if (is_new_out) is_new_out[i] = static_cast<uint8_t>(new_flags[i]);
+  });
+
+  const uint32_t reused = static_cast<uint32_t>(std::min<int64_t>(num_new, free_count));
+  state.free_count -= reused;
+  state.next_unused_slot += static_cast<uint32_t>(num_new - reused);
+  state.live_count += num_new;
+  state.occupied_count += num_new;
+  result.num_new = num_new;
+
+  // Failures are rare: one cheap count tells whether the detailed counts are needed.
+  const int64_t failed = count_if(backend, stream, buckets, count,
+                                  [] COVOX_HD(uint64_t bucket) { return bucket >= kTableFullBucket; });
+  if (failed > 0) {
+    result.num_failed_full = count_if(backend, stream, buckets, count, [] COVOX_HD(uint64_t bucket) {
+      return bucket == kTableFullBucket;
+    });
+    result.num_out_of_range = failed - result.num_failed_full;
+    state.total_out_of_range += result.num_out_of_range;
+    state.total_failed_full += result.num_failed_full;
+    if (result.num_out_of_range > 0) {
+      log_warning("BlockHashTable: rejected ", result.num_out_of_range,
+                  " block indices outside the key range [", kMinBlockIndex, ", ", kMaxBlockIndex,
+                  "] per axis (", state.total_out_of_range, " so far); points that far from the "
+                  "map origin are dropped");
+    }
+    if (result.num_failed_full > 0) {
+      log_warning("BlockHashTable is full: ", result.num_failed_full, " keys not inserted (",
+                  state.bucket_count(), " buckets, occupancy ",
+                  static_cast<double>(state.occupied_count) / state.bucket_count(),
+                  "). Enable allow_growth or raise initial_bucket_count.");
+    }
+  }
+  return result;
+}
+
+template <class Backend>
+int64_t hash_table_find(Backend backend, BlockHashTableState& state, const Index3D* keys,
+                        int64_t count, uint32_t* slots_out, const Stream& stream) {
+  if (count <= 0) return 0;
+  const BlockHashTableView table = state.view();
+  parallel_for(backend, stream, count, [=] COVOX_HD(int64_t i) {
+    const uint64_t key = pack_block_key(keys[i]);
+    const uint64_t bucket = key == kInvalidBlockKey ? kNoBucket : table.find(key);
+    slots_out[i] = bucket == kNoBucket ? kInvalidSlot : table.slots[bucket];
+  });
+  return count_if(backend, stream, slots_out, count,
+                  [] COVOX_HD(uint32_t slot) { return slot != kInvalidSlot; });
+}
+
+template <class Backend>
+int64_t hash_table_erase(Backend backend, BlockHashTableState& state, const Index3D* keys,
+                         int64_t count, const Stream& stream) {
+  if (count <= 0) return 0;
+  state.scratch_flags.resize_discard(static_cast<size_t>(count));
+  state.scratch_slots.resize_discard(static_cast<size_t>(count));
+  uint32_t* erased_flags = state.scratch_flags.data();
+  uint32_t* erased_slots = state.scratch_slots.data();
+  const BlockHashTableView table = state.view();
+  parallel_for(backend, stream, count, [=] COVOX_HD(int64_t i) {
+    erased_flags[i] = 0;
+    const uint64_t key = pack_block_key(keys[i]);
+    if (key == kInvalidBlockKey) return;
+    const uint64_t bucket = table.find(key);
+    if (bucket == kNoBucket) return;
+    // Only one of several duplicates wins the CAS and releases the slot.
+    if (atomic_compare_exchange(&table.keys[bucket], key, kErasedBlockKey) == key) {
+      erased_flags[i] = 1;
+      erased_slots[i] = table.slots[bucket];
+      table.slots[bucket] = kInvalidSlot;
+    }
+  });
+  const int64_t num_erased = hash_table_detail::rank_flags(backend, stream, state.scratch_flags,
+                                                           &state.scratch_ranks, count);
+  if (num_erased == 0) return 0;
+  const size_t needed = static_cast<size_t>(state.free_count) + static_cast<size_t>(num_erased);
+  if (state.free_slots.size() < needed) {
+    state.free_slots.resize(std::max<size_t>(needed, state.next_unused_slot), stream);
+  }
+  uint32_t* free_stack = state.free_slots.data();
+  const uint32_t* ranks = state.scratch_ranks.data();
+  const uint32_t free_count = state.free_count;
+  parallel_for(backend, stream, count, [=] COVOX_HD(int64_t i) {
+    if (erased_flags[i]) free_stack[free_count + ranks[i]] = erased_slots[i];
+  });
+  state.free_count += static_cast<uint32_t>(num_erased);
+  state.live_count -= num_erased;
+  return num_erased;
+}
+
+template <class Backend>
+void hash_table_export(Backend backend, BlockHashTableState& state, Buffer<Index3D>* keys_out,
+                       Buffer<uint32_t>* slots_out, const Stream& stream) {
+  const int64_t buckets = static_cast<int64_t>(state.bucket_count());
+  keys_out->resize_discard(static_cast<size_t>(state.live_count));
+  slots_out->resize_discard(static_cast<size_t>(state.live_count));
+  if (state.live_count == 0) return;
+  state.scratch_flags.resize_discard(static_cast<size_t>(buckets));
+  uint32_t* live_flags = state.scratch_flags.data();
+  const BlockHashTableView table = state.view();
+  parallel_for(backend, stream, buckets, [=] COVOX_HD(int64_t b) {
+    live_flags[b] = is_live_block_key(table.keys[b]) ? 1u : 0u;
+  });
+  hash_table_detail::rank_flags(backend, stream, state.scratch_flags, &state.scratch_ranks, buckets);
+  const uint32_t* ranks = state.scratch_ranks.data();
+  Index3D* out_keys = keys_out->data();
+  uint32_t* out_slots = slots_out->data();
+  parallel_for(backend, stream, buckets, [=] COVOX_HD(int64_t b) {
+    if (!live_flags[b]) return;
+    out_keys[ranks[b]] = unpack_block_key(table.keys[b]);
+    out_slots[ranks[b]] = table.slots[b];
+  });
+  stream.synchronize();
+}
+
+// Explicit instantiation list, used by the two backend files.
+#define COVOX_INSTANTIATE_BLOCK_HASH_TABLE(Backend)                                               \
+  template void hash_table_rehash<Backend>(Backend, BlockHashTableState&, uint64_t,              \
+                                           const Stream&);                                       \
+  template ActivateResult hash_table_activate<Backend>(Backend, BlockHashTableState&,            \
+                                                       const Index3D*, int64_t, uint32_t*,       \
+                                                       uint8_t*, const Stream&);                 \
+  template int64_t hash_table_find<Backend>(Backend, BlockHashTableState&, const Index3D*,       \
+                                            int64_t, uint32_t*, const Stream&);                  \
+  template int64_t hash_table_erase<Backend>(Backend, BlockHashTableState&, const Index3D*,      \
+                                             int64_t, const Stream&);                            \
+  template void hash_table_export<Backend>(Backend, BlockHashTableState&, Buffer<Index3D>*,      \
+                                           Buffer<uint32_t>*, const Stream&);
+
+}  // namespace covox

@@ -1,0 +1,64 @@
+#pragma once
+// The data of a BlockHashTable, shared by its CPU and CUDA implementations
+// (block_hash_table_impl.h). Not for direct use: go through BlockHashTable.
+#include <cstdint>
+
+#include "covoxslam/core/buffer.h"
+#include "covoxslam/core/device.h"
+#include "covoxslam/map/block_hash_table_view.h"
+
+namespace covox {
+
+struct BlockHashTableConfig {
+  // Buckets allocated up front. Size it for the expected number of blocks / max_load_factor to
+  // avoid rehashing while mapping (a rehash costs one pass over the table).
+  uint64_t initial_bucket_count = 1 << 16;
+  // Growth happens before (live keys + tombstones) / buckets would pass this. Linear probing
+  // stays fast up to about 0.85; the table stays correct above it when growth is disabled.
+  double max_load_factor = 0.75;
+  // When false the table never rehashes on its own: keys that find no free bucket fail, are
+  // counted, and a warning says the table is full.
+  bool allow_growth = true;
+};
+
+// What one activate() call did.
+struct ActivateResult {
+  int64_t num_new = 0;            // keys this call inserted (each counted once)
+  int64_t num_out_of_range = 0;   // rejected: a component outside [kMinBlockIndex, kMaxBlockIndex]
+  int64_t num_failed_full = 0;    // rejected: no free bucket (growth disabled or impossible)
+  bool ok() const { return num_out_of_range == 0 && num_failed_full == 0; }
+};
+
+struct BlockHashTableState {
+  explicit BlockHashTableState(Device device_in = Device::kCpu)
+      : device(device_in), keys(device_in), slots(device_in), free_slots(device_in),
+        scratch_buckets(device_in), scratch_flags(device_in), scratch_ranks(device_in),
+        scratch_slots(device_in), scratch_keys(device_in) {}
+
+  Device device;
+  BlockHashTableConfig config;
+
+  Buffer<uint64_t> keys;        // bucket -> packed key (or empty / erased)
+  Buffer<uint32_t> slots;       // bucket -> slot
+  Buffer<uint32_t> free_slots;  // stack of slots released by erase(); top is the end
+  uint32_t free_count = 0;
+  uint32_t next_unused_slot = 0;
+
+  int64_t live_count = 0;       // keys present
+  int64_t occupied_count = 0;   // keys present + tombstones
+  int64_t total_out_of_range = 0;
+  int64_t total_failed_full = 0;
+  int64_t rehash_count = 0;
+
+  // Per-batch scratch, kept between calls so steady-state batches allocate nothing.
+  Buffer<uint64_t> scratch_buckets;
+  Buffer<uint32_t> scratch_flags;
+  Buffer<uint32_t> scratch_ranks;
+  Buffer<uint32_t> scratch_slots;
+  Buffer<uint64_t> scratch_keys;
+
+  uint64_t bucket_count() const { return keys.size(); }
+  BlockHashTableView view() { return BlockHashTableView{keys.data(), slots.data(), keys.size()}; }
+};
+
+}  // namespace covox

@@ -1,0 +1,65 @@
+#pragma once
+// TsdfMap: the TSDF and colour voxels of one map (or submap), indexed by one BlockHashTable.
+// Both layers share the block index: a block's slot addresses its voxels in both pools, so colour
+// costs no second lookup. Voxel pools are SoA and grow with the hash table's slot count.
+#include <cstdint>
+#include <vector>
+
+#include "covoxslam/core/device.h"
+#include "covoxslam/core/index3d.h"
+#include "covoxslam/core/soa_container.h"
+#include "covoxslam/core/stream.h"
+#include "covoxslam/map/block_hash_table.h"
+#include "covoxslam/map/voxels.h"
+
+namespace covox {
+
+struct TsdfMapConfig {
+  float voxel_size_m = 0.2f;   // edge length of one voxel
+  int voxels_per_side = 16;    // voxels along one block edge: 8 or 16
+  BlockHashTableConfig block_table;
+};
+
+// One allocated block copied to the host (tests, map files, meshing on the host).
+struct HostBlock {
+  Index3D index;
+  std::vector<TsdfVoxel> tsdf;
+  std::vector<ColorVoxel> color;
+};
+
+class TsdfMap {
+ public:
+  using TsdfStorage = VoxelStorage<TsdfVoxel, Layout::kSoA>;
+  using ColorStorage = VoxelStorage<ColorVoxel, Layout::kSoA>;
+
+  TsdfMap(Device device, const TsdfMapConfig& config);
+
+  Device device() const { return blocks_.device(); }
+  const TsdfMapConfig& config() const { return config_; }
+  float voxel_size_m() const { return config_.voxel_size_m; }
+  int voxels_per_side() const { return config_.voxels_per_side; }
+  int voxels_per_block() const { return config_.voxels_per_side * config_.voxels_per_side * config_.voxels_per_side; }
+  float block_size_m() const { return config_.voxel_size_m * config_.voxels_per_side; }
+  int64_t block_count() const { return blocks_.size(); }
+
+  BlockHashTable& blocks() { return blocks_; }
+  const BlockHashTable& blocks() const { return blocks_; }
+  TsdfStorage& tsdf() { return tsdf_; }
+  ColorStorage& color() { return color_; }
+
+  // Grows both pools to hold every slot the block table has handed out; new voxels are zero.
+  void ensure_pool_capacity(const Stream& stream);
+
+  // Every allocated block with its voxels, sorted by block index.
+  std::vector<HostBlock> snapshot() const;
+
+  void clear();
+
+ private:
+  TsdfMapConfig config_;
+  BlockHashTable blocks_;
+  TsdfStorage tsdf_;
+  ColorStorage color_;
+};
+
+}  // namespace covox

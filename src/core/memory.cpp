@@ -1,0 +1,118 @@
+#include "covoxslam/core/memory.h"
+
+#include <cstdlib>
+#include <cstring>
+#include <sstream>
+
+#include "covoxslam/core/error.h"
+
+#if COVOX_WITH_CUDA
+#include <cuda_runtime_api.h>
+#endif
+
+namespace covox {
+namespace {
+
+constexpr size_t kHostAlignmentBytes = 64;  // one cache line: SIMD loads and no false sharing
+
+std::string mebibytes(size_t bytes) {
+  std::ostringstream text;
+  text << (static_cast<double>(bytes) / (1024.0 * 1024.0)) << " MiB";
+  return text.str();
+}
+
+#if COVOX_WITH_CUDA
+void check(cudaError_t status, const char* what) {
+  if (status == cudaSuccess) return;
+  throw Error(std::string("CUDA error during ") + what + ": " + cudaGetErrorName(status) + " (" +
+              cudaGetErrorString(status) + ")");
+}
+cudaMemcpyKind copy_kind(Device destination, Device source) {
+  if (destination == Device::kCuda) return source == Device::kCuda ? cudaMemcpyDeviceToDevice
+                                                                   : cudaMemcpyHostToDevice;
+  return source == Device::kCuda ? cudaMemcpyDeviceToHost : cudaMemcpyHostToHost;
+}
+#endif
+
+}  // namespace
+
+void* allocate_bytes(Device device, size_t bytes) {
+  if (bytes == 0) return nullptr;
+  if (device == Device::kCuda) {
+#if COVOX_WITH_CUDA
+    void* pointer = nullptr;
+    const cudaError_t status = cudaMalloc(&pointer, bytes);
+    if (status != cudaSuccess) {
+      cudaGetLastError();
+      size_t free_bytes_now = 0, total_bytes = 0;
+      cudaMemGetInfo(&free_bytes_now, &total_bytes);
+      throw OutOfMemoryError("GPU allocation of " + mebibytes(bytes) + " failed (" +
+                             cudaGetErrorString(status) + "); the GPU has " +
+                             mebibytes(free_bytes_now) + " free of " + mebibytes(total_bytes) +
+                             ". Reduce the map size (larger voxels, shorter rays, smaller "
+                             "submaps) or free GPU memory.");
+    }
+    return pointer;
+#else
+    throw NotAvailableError("allocate_bytes: CUDA memory requested in a build without CUDA");
+#endif
+  }
+  const size_t rounded = (bytes + kHostAlignmentBytes - 1) / kHostAlignmentBytes * kHostAlignmentBytes;
+  void* pointer = std::aligned_alloc(kHostAlignmentBytes, rounded);
+  if (!pointer) throw OutOfMemoryError("host allocation of " + mebibytes(bytes) + " failed");
+  return pointer;
+}
+
+void free_bytes(Device device, void* pointer) noexcept {
+  if (!pointer) return;
+  if (device == Device::kCuda) {
+#if COVOX_WITH_CUDA
+    cudaFree(pointer);
+#endif
+    return;
+  }
+  std::free(pointer);
+}
+
+void copy_bytes(void* destination, Device destination_device, const void* source,
+                Device source_device, size_t bytes, const Stream& stream) {
+  if (bytes == 0) return;
+  if (destination_device == Device::kCpu && source_device == Device::kCpu) {
+    std::memcpy(destination, source, bytes);
+    return;
+  }
+#if COVOX_WITH_CUDA
+  cudaStream_t cuda_stream = stream.device() == Device::kCuda
+                                 ? static_cast<cudaStream_t>(stream.native_handle())
+                                 : nullptr;
+  check(cudaMemcpyAsync(destination, source, bytes, copy_kind(destination_device, source_device),
+                        cuda_stream),
+        "copy_bytes");
+  // Host destinations (and host sources, whose memory the caller may reuse) are complete on return.
+  if (destination_device == Device::kCpu || source_device == Device::kCpu) {
+    check(cudaStreamSynchronize(cuda_stream), "copy_bytes synchronize");
+  }
+#else
+  (void)stream;
+  throw NotAvailableError("copy_bytes: CUDA memory used in a build without CUDA");
+#endif
+}
+
+void set_bytes(void* destination, Device device, int value, size_t bytes, const Stream& stream) {
+  if (bytes == 0) return;
+  if (device == Device::kCpu) {
+    std::memset(destination, value, bytes);
+    return;
+  }
+#if COVOX_WITH_CUDA
+  cudaStream_t cuda_stream = stream.device() == Device::kCuda
+                                 ? static_cast<cudaStream_t>(stream.native_handle())
+                                 : nullptr;
+  check(cudaMemsetAsync(destination, value, bytes, cuda_stream), "set_bytes");
+#else
+  (void)stream;
+  throw NotAvailableError("set_bytes: CUDA memory used in a build without CUDA");
+#endif
+}
+
+}  // namespace covox

@@ -1,0 +1,107 @@
+#include "covoxslam/integrators/tsdf_integrator.h"
+
+#include <cmath>
+#include <string>
+
+#include "covoxslam/core/error.h"
+#include "covoxslam/core/log.h"
+#include "covoxslam/integrators/tsdf_integrator_ops.h"
+
+namespace covox {
+
+namespace {
+void require(bool condition, const std::string& message) {
+  if (!condition) throw Error("TSDF integrator: " + message);
+}
+}  // namespace
+
+void validate(const TsdfIntegratorConfig& c, float voxel_size_m) {
+  require(std::isfinite(c.truncation_distance_m) && c.truncation_distance_m > 0.0f,
+          "truncation_distance_m must be positive, got " + std::to_string(c.truncation_distance_m));
+  require(c.truncation_distance_m >= voxel_size_m,
+          "truncation_distance_m (" + std::to_string(c.truncation_distance_m) +
+              ") must be at least one voxel (" + std::to_string(voxel_size_m) + " m)");
+  require(c.max_weight > 0.0f, "max_weight must be positive, got " + std::to_string(c.max_weight));
+  require(c.min_ray_length_m >= 0.0f, "min_ray_length_m must be >= 0, got " + std::to_string(c.min_ray_length_m));
+  require(c.max_ray_length_m > c.min_ray_length_m,
+          "max_ray_length_m (" + std::to_string(c.max_ray_length_m) + ") must exceed min_ray_length_m (" +
+              std::to_string(c.min_ray_length_m) + ")");
+  require(!c.use_sparsity_compensation_factor || c.sparsity_compensation_factor > 0.0f,
+          "sparsity_compensation_factor must be positive, got " + std::to_string(c.sparsity_compensation_factor));
+}
+
+struct TsdfIntegrator::Scratch {
+  explicit Scratch(Device device) : buffers(device) {}
+  TsdfScratchBuffers buffers;
+};
+
+TsdfIntegrator::TsdfIntegrator(const TsdfIntegratorConfig& config) : config_(config) {}
+TsdfIntegrator::~TsdfIntegrator() = default;
+TsdfIntegrator::TsdfIntegrator(TsdfIntegrator&&) noexcept = default;
+TsdfIntegrator& TsdfIntegrator::operator=(TsdfIntegrator&&) noexcept = default;
+
+namespace {
+// Logs dropped input once per call, so a bad sensor shows up without flooding the log.
+void log_drops(const IntegrationStats& stats) {
+  if (stats.dropped_non_finite > 0 || stats.voxels_out_of_range > 0) {
+    log_warning("TSDF integrator: dropped ", stats.dropped_non_finite, " non-finite points of ",
+                stats.points_in, "; ", stats.voxels_out_of_range,
+                " voxel updates outside the map's key range");
+  }
+}
+}  // namespace
+
+IntegrationStats TsdfIntegrator::integrate(TsdfMap& map, const PointCloudView& cloud,
+                                           const Eigen::Isometry3d& T_map_sensor, const Stream& stream) {
+  validate(config_, map.voxel_size_m());
+  if (!T_map_sensor.matrix().allFinite()) {
+    throw Error("TSDF integrator: the sensor pose is not finite; the cloud was not integrated");
+  }
+  if (!scratch_ || scratch_->buffers.rays.device() != map.device()) {
+    scratch_ = std::make_unique<Scratch>(map.device());
+  }
+  const IntegrationStats stats = dispatch(map.device(), [&](auto backend) {
+    return tsdf_integrate_points(backend, config_, map, cloud, T_map_sensor, scratch_->buffers, stream);
+  });
+  log_drops(stats);
+  return stats;
+}
+
+IntegrationStats TsdfIntegrator::integrate(TsdfMap& map, const std::vector<Vec3f>& points,
+                                           const std::vector<Rgb8>& colors,
+                                           const Eigen::Isometry3d& T_map_sensor) {
+  if (!colors.empty() && colors.size() != points.size()) {
+    throw Error("TSDF integrator: " + std::to_string(colors.size()) + " colours for " +
+                std::to_string(points.size()) + " points");
+  }
+  const Stream stream(map.device());
+  if (!scratch_ || scratch_->buffers.rays.device() != map.device()) {
+    scratch_ = std::make_unique<Scratch>(map.device());
+  }
+  scratch_->buffers.points.copy_from_host(points, stream);
+  scratch_->buffers.colors.copy_from_host(colors, stream);
+  PointCloudView view{scratch_->buffers.points.data(), colors.empty() ? nullptr : scratch_->buffers.colors.data(),
+                      static_cast<int64_t>(points.size())};
+  return integrate(map, view, T_map_sensor, stream);
+}
+
+IntegrationStats TsdfIntegrator::integrate_depth(TsdfMap& map, const DepthImageView& image,
+                                                 const Eigen::Isometry3d& T_map_camera, const Stream& stream) {
+  const PinholeIntrinsics& k = image.intrinsics;
+  if (k.width <= 0 || k.height <= 0 || !(k.fx > 0.0f) || !(k.fy > 0.0f)) {
+    throw Error("TSDF integrator: invalid camera intrinsics (width " + std::to_string(k.width) + ", height " +
+                std::to_string(k.height) + ", fx " + std::to_string(k.fx) + ", fy " + std::to_string(k.fy) + ")");
+  }
+  if (!(image.depth_units_per_m > 0.0f)) {
+    throw Error("TSDF integrator: depth_units_per_m must be positive");
+  }
+  if (!scratch_ || scratch_->buffers.rays.device() != map.device()) {
+    scratch_ = std::make_unique<Scratch>(map.device());
+  }
+  dispatch(map.device(), [&](auto backend) { tsdf_unproject_depth(backend, image, scratch_->buffers, stream); });
+  const PointCloudView view{scratch_->buffers.points.data(), image.colors,
+                            static_cast<int64_t>(k.width) * k.height};
+  return integrate(map, view, T_map_camera, stream);
+}
+
+}  // namespace covox

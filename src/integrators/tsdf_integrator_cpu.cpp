@@ -1,0 +1,6 @@
+// CPU (OpenMP) instantiation of TSDF integration.
+#include "covoxslam/integrators/tsdf_integrator_impl.h"
+
+namespace covox {
+COVOX_INSTANTIATE_TSDF_INTEGRATOR(CpuBackend)
+}  // namespace covox

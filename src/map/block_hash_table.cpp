@@ -1,0 +1,107 @@
+#include "covoxslam/map/block_hash_table.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "covoxslam/core/error.h"
+#include "covoxslam/map/block_hash_table_ops.h"
+
+namespace covox {
+namespace {
+
+void validate(const BlockHashTableConfig& config) {
+  if (!(config.max_load_factor > 0.0 && config.max_load_factor < 1.0)) {
+    throw Error("BlockHashTable: max_load_factor must be in (0, 1), got " +
+                std::to_string(config.max_load_factor));
+  }
+  if (config.initial_bucket_count < 2) {
+    throw Error("BlockHashTable: initial_bucket_count must be at least 2, got " +
+                std::to_string(config.initial_bucket_count));
+  }
+}
+
+}  // namespace
+
+BlockHashTable::BlockHashTable(Device device, const BlockHashTableConfig& config)
+    : state_(device), default_stream_(device) {
+  validate(config);
+  state_.config = config;
+  state_.keys.resize_discard(config.initial_bucket_count);
+  state_.slots.resize_discard(config.initial_bucket_count);
+  state_.keys.fill_bytes(0xff, default_stream_);  // all buckets empty
+  default_stream_.synchronize();
+}
+
+ActivateResult BlockHashTable::activate(const Index3D* keys, int64_t count, uint32_t* slots_out,
+                                        uint8_t* is_new_out) {
+  return activate(keys, count, slots_out, is_new_out, default_stream());
+}
+
+ActivateResult BlockHashTable::activate(const Index3D* keys, int64_t count, uint32_t* slots_out,
+                                        uint8_t* is_new_out, const Stream& stream) {
+  return dispatch(state_.device, [&](auto backend) {
+    return hash_table_activate(backend, state_, keys, count, slots_out, is_new_out, stream);
+  });
+}
+
+int64_t BlockHashTable::find(const Index3D* keys, int64_t count, uint32_t* slots_out) const {
+  return find(keys, count, slots_out, default_stream());
+}
+
+int64_t BlockHashTable::find(const Index3D* keys, int64_t count, uint32_t* slots_out,
+                             const Stream& stream) const {
+  // find() changes nothing; the state is only non-const because the algorithms share a signature.
+  auto& state = const_cast<BlockHashTableState&>(state_);
+  return dispatch(state_.device, [&](auto backend) {
+    return hash_table_find(backend, state, keys, count, slots_out, stream);
+  });
+}
+
+int64_t BlockHashTable::erase(const Index3D* keys, int64_t count) {
+  return erase(keys, count, default_stream());
+}
+
+int64_t BlockHashTable::erase(const Index3D* keys, int64_t count, const Stream& stream) {
+  return dispatch(state_.device, [&](auto backend) {
+    return hash_table_erase(backend, state_, keys, count, stream);
+  });
+}
+
+void BlockHashTable::reserve(int64_t key_count) {
+  const double wanted = static_cast<double>(key_count) / state_.config.max_load_factor;
+  if (wanted <= static_cast<double>(bucket_count())) return;
+  rehash(static_cast<uint64_t>(std::ceil(wanted)) + 1);
+}
+
+void BlockHashTable::rehash(uint64_t new_bucket_count) {
+  dispatch(state_.device, [&](auto backend) {
+    hash_table_rehash(backend, state_, new_bucket_count, default_stream());
+  });
+}
+
+void BlockHashTable::clear() {
+  state_.keys.fill_bytes(0xff, default_stream_);
+  default_stream_.synchronize();
+  state_.free_count = 0;
+  state_.next_unused_slot = 0;
+  state_.live_count = 0;
+  state_.occupied_count = 0;
+}
+
+void BlockHashTable::export_entries(Buffer<Index3D>* keys, Buffer<uint32_t>* slots) const {
+  auto& state = const_cast<BlockHashTableState&>(state_);  // scratch only
+  dispatch(state_.device, [&](auto backend) {
+    hash_table_export(backend, state, keys, slots, default_stream());
+  });
+}
+
+double BlockHashTable::load_factor() const {
+  return static_cast<double>(state_.live_count) / static_cast<double>(bucket_count());
+}
+
+double BlockHashTable::occupancy() const {
+  return static_cast<double>(state_.occupied_count) / static_cast<double>(bucket_count());
+}
+
+}  // namespace covox

@@ -1,0 +1,6 @@
+// CPU (OpenMP) instantiation of the BlockHashTable algorithms.
+#include "covoxslam/map/block_hash_table_impl.h"
+
+namespace covox {
+COVOX_INSTANTIATE_BLOCK_HASH_TABLE(CpuBackend)
+}  // namespace covox

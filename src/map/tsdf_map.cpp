@@ -1,0 +1,61 @@
+#include "covoxslam/map/tsdf_map.h"
+
+#include <algorithm>
+#include <numeric>
+#include <string>
+
+#include "covoxslam/core/error.h"
+
+namespace covox {
+
+TsdfMap::TsdfMap(Device device, const TsdfMapConfig& config)
+    : config_(config), blocks_(device, config.block_table), tsdf_(device), color_(device) {
+  if (!(config.voxel_size_m > 0.0f)) {
+    throw Error("voxel_size_m must be positive, got " + std::to_string(config.voxel_size_m));
+  }
+  if (config.voxels_per_side != 8 && config.voxels_per_side != 16) {
+    throw Error("voxels_per_side must be 8 or 16, got " + std::to_string(config.voxels_per_side));
+  }
+}
+
+void TsdfMap::ensure_pool_capacity(const Stream& stream) {
+  const size_t needed = static_cast<size_t>(blocks_.slot_count()) * voxels_per_block();
+  if (tsdf_.size() >= needed) return;
+  // Grow geometrically so that a map growing block by block does not copy its pool every frame.
+  const size_t grown = std::max(needed, tsdf_.size() + tsdf_.size() / 2);
+  tsdf_.resize(grown, stream);
+  color_.resize(grown, stream);
+}
+
+std::vector<HostBlock> TsdfMap::snapshot() const {
+  Buffer<Index3D> keys(device());
+  Buffer<uint32_t> slots(device());
+  blocks_.export_entries(&keys, &slots);
+  const auto host_keys = keys.to_host();
+  const auto host_slots = slots.to_host();
+  const auto tsdf = tsdf_.to_host();
+  const auto color = color_.to_host();
+  std::vector<size_t> order(host_keys.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return host_keys[a] < host_keys[b]; });
+  const size_t per_block = static_cast<size_t>(voxels_per_block());
+  std::vector<HostBlock> blocks;
+  blocks.reserve(order.size());
+  for (size_t i : order) {
+    HostBlock block;
+    block.index = host_keys[i];
+    const size_t begin = static_cast<size_t>(host_slots[i]) * per_block;
+    block.tsdf.assign(tsdf.begin() + begin, tsdf.begin() + begin + per_block);
+    block.color.assign(color.begin() + begin, color.begin() + begin + per_block);
+    blocks.push_back(std::move(block));
+  }
+  return blocks;
+}
+
+void TsdfMap::clear() {
+  blocks_.clear();
+  tsdf_.resize(0);
+  color_.resize(0);
+}
+
+}  // namespace covox

@@ -1,0 +1,6 @@
+// CPU (OpenMP) instantiation of the voxel pool operations.
+#include "covoxslam/map/voxel_pool_ops_impl.h"
+
+namespace covox {
+COVOX_INSTANTIATE_VOXEL_POOL_OPS(CpuBackend)
+}  // namespace covox

@@ -1,0 +1,310 @@
+// BlockHashTable against std::unordered_map (the reference), on every backend, and CPU vs CUDA.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdint>
+#include <random>
+#include <set>
+#include <unordered_map>
+#include <unordered_set>
+#include <vector>
+
+#include "covoxslam/core/buffer.h"
+#include "covoxslam/core/error.h"
+#include "covoxslam/map/block_hash_table.h"
+#include "covoxslam/map/block_key.h"
+#include "support/test_devices.h"
+
+namespace covox {
+namespace {
+
+using testing_support::DeviceTest;
+
+struct IndexHash {
+  size_t operator()(const Index3D& i) const {
+    return std::hash<uint64_t>()((uint64_t(uint32_t(i.x)) << 40) ^ (uint64_t(uint32_t(i.y)) << 20) ^
+                                 uint32_t(i.z));
+  }
+};
+using ReferenceMap = std::unordered_map<Index3D, uint32_t, IndexHash>;
+
+// `count` keys drawn from `distinct` distinct blocks of a cube around the origin: heavy
+// duplication, negative indices included. count == distinct gives each block exactly once.
+std::vector<Index3D> random_blocks(size_t count, size_t distinct, uint32_t seed,
+                                   int32_t half_extent = 2000) {
+  std::mt19937 random(seed);
+  std::uniform_int_distribution<int32_t> coordinate(-half_extent, half_extent);
+  std::unordered_set<Index3D, IndexHash> pool_set;
+  std::vector<Index3D> pool;
+  while (pool.size() < distinct) {
+    const Index3D index(coordinate(random), coordinate(random), coordinate(random));
+    if (pool_set.insert(index).second) pool.push_back(index);
+  }
+  if (count == distinct) return pool;  // every key exactly once, in random order
+  std::uniform_int_distribution<size_t> pick(0, distinct - 1);
+  std::vector<Index3D> keys(count);
+  for (auto& key : keys) key = pool[pick(random)];
+  return keys;
+}
+
+struct ActivateOutput {
+  std::vector<uint32_t> slots;
+  std::vector<uint8_t> is_new;
+  ActivateResult result;
+};
+
+ActivateOutput activate(BlockHashTable& table, const std::vector<Index3D>& keys) {
+  auto keys_device = Buffer<Index3D>::from_host(table.device(), keys);
+  Buffer<uint32_t> slots(table.device(), keys.size());
+  Buffer<uint8_t> is_new(table.device(), keys.size());
+  ActivateOutput output;
+  output.result = table.activate(keys_device.data(), keys.size(), slots.data(), is_new.data());
+  output.slots = slots.to_host();
+  output.is_new = is_new.to_host();
+  return output;
+}
+
+std::vector<uint32_t> find(const BlockHashTable& table, const std::vector<Index3D>& keys) {
+  auto keys_device = Buffer<Index3D>::from_host(table.device(), keys);
+  Buffer<uint32_t> slots(table.device(), keys.size());
+  table.find(keys_device.data(), keys.size(), slots.data());
+  return slots.to_host();
+}
+
+int64_t erase(BlockHashTable& table, const std::vector<Index3D>& keys) {
+  auto keys_device = Buffer<Index3D>::from_host(table.device(), keys);
+  return table.erase(keys_device.data(), keys.size());
+}
+
+// Applies one activate batch to the reference and checks the table's answer against it:
+// known keys keep their slot, each new key is flagged new exactly once, every occurrence of a
+// key in the batch gets the same slot, and no two live keys share a slot.
+void activate_and_check(BlockHashTable& table, ReferenceMap& reference,
+                        const std::vector<Index3D>& keys) {
+  const ActivateOutput output = activate(table, keys);
+  ASSERT_TRUE(output.result.ok());
+  ReferenceMap batch_new;
+  int64_t flagged_new = 0;
+  for (size_t i = 0; i < keys.size(); ++i) {
+    const uint32_t slot = output.slots[i];
+    ASSERT_NE(slot, kInvalidSlot) << "key " << i;
+    auto known = reference.find(keys[i]);
+    if (known != reference.end()) {
+      ASSERT_EQ(slot, known->second) << "a known key changed its slot";
+      ASSERT_EQ(output.is_new[i], 0);
+      continue;
+    }
+    auto [it, first_time] = batch_new.emplace(keys[i], slot);
+    if (!first_time) {
+      ASSERT_EQ(slot, it->second) << "duplicates of one key got different slots";
+    }
+    flagged_new += output.is_new[i];
+  }
+  ASSERT_EQ(flagged_new, static_cast<int64_t>(batch_new.size()))
+      << "each new key must be flagged new exactly once";
+  ASSERT_EQ(output.result.num_new, static_cast<int64_t>(batch_new.size()));
+  for (const auto& entry : batch_new) reference.insert(entry);
+  ASSERT_EQ(table.size(), static_cast<int64_t>(reference.size()));
+  std::unordered_set<uint32_t> used_slots;
+  for (const auto& entry : reference) {
+    ASSERT_TRUE(used_slots.insert(entry.second).second) << "two live keys share slot " << entry.second;
+    ASSERT_LT(entry.second, table.slot_count());
+  }
+}
+
+void expect_table_matches(const BlockHashTable& table, const ReferenceMap& reference) {
+  std::vector<Index3D> keys;
+  std::vector<uint32_t> expected;
+  for (const auto& entry : reference) {
+    keys.push_back(entry.first);
+    expected.push_back(entry.second);
+  }
+  EXPECT_EQ(find(table, keys), expected);
+  EXPECT_EQ(table.size(), static_cast<int64_t>(reference.size()));
+}
+
+class BlockHashTableTest : public DeviceTest {};
+
+TEST_P(BlockHashTableTest, MatchesUnorderedMapOnAMillionDuplicatedKeys) {
+  BlockHashTable table(device(), BlockHashTableConfig{1 << 12, 0.75, true});
+  ReferenceMap reference;
+  const auto keys = random_blocks(1200000, 150000, 1);  // each key about 8 times
+  const size_t batch = 200000;
+  for (size_t begin = 0; begin < keys.size(); begin += batch) {
+    const std::vector<Index3D> part(keys.begin() + begin,
+                                    keys.begin() + std::min(keys.size(), begin + batch));
+    activate_and_check(table, reference, part);
+  }
+  expect_table_matches(table, reference);
+  EXPECT_LE(table.occupancy(), 0.75);
+  // Absent keys are not found.
+  const auto absent = random_blocks(20000, 20000, 99, 1000000);
+  const auto absent_slots = find(table, absent);
+  for (size_t i = 0; i < absent.size(); ++i) {
+    if (!reference.count(absent[i])) {
+      ASSERT_EQ(absent_slots[i], kInvalidSlot);
+    }
+  }
+}
+
+TEST_P(BlockHashTableTest, OneBatchOfOneKeyRepeatedRacesToASingleInsert) {
+  BlockHashTable table(device());
+  const std::vector<Index3D> keys(100000, Index3D(-3, 7, 11));
+  const ActivateOutput output = activate(table, keys);
+  EXPECT_EQ(output.result.num_new, 1);
+  EXPECT_EQ(std::count(output.is_new.begin(), output.is_new.end(), 1), 1);
+  EXPECT_TRUE(std::all_of(output.slots.begin(), output.slots.end(),
+                          [&](uint32_t s) { return s == output.slots[0]; }));
+  EXPECT_EQ(table.size(), 1);
+}
+
+TEST_P(BlockHashTableTest, EraseAndReinsertCyclesReuseSlots) {
+  BlockHashTable table(device(), BlockHashTableConfig{1 << 10, 0.75, true});
+  ReferenceMap reference;
+  const auto universe = random_blocks(60000, 60000, 3);  // distinct
+  activate_and_check(table, reference, universe);
+  std::mt19937 random(5);
+  for (int cycle = 0; cycle < 4; ++cycle) {
+    std::vector<Index3D> to_erase;
+    for (const auto& key : universe) {
+      if (random() % 2 && reference.count(key)) to_erase.push_back(key);
+    }
+    // Duplicates in an erase batch and keys that are absent are both harmless.
+    to_erase.push_back(to_erase.front());
+    to_erase.push_back(Index3D(123456, -654321, 7));
+    const int64_t erased = erase(table, to_erase);
+    std::set<Index3D> distinct_erased(to_erase.begin(), to_erase.end() - 1);
+    EXPECT_EQ(erased, static_cast<int64_t>(distinct_erased.size()));
+    for (const auto& key : distinct_erased) reference.erase(key);
+    expect_table_matches(table, reference);
+    const auto gone = find(table, std::vector<Index3D>(distinct_erased.begin(), distinct_erased.end()));
+    EXPECT_TRUE(std::all_of(gone.begin(), gone.end(), [](uint32_t s) { return s == kInvalidSlot; }));
+    // Re-insert everything (mix of present and absent keys).
+    activate_and_check(table, reference, universe);
+    // Freed slots are reused: the slot range never exceeds the live maximum.
+    EXPECT_EQ(table.slot_count(), universe.size());
+  }
+}
+
+TEST_P(BlockHashTableTest, GrowsThroughSeveralRehashesKeepingSlots) {
+  BlockHashTable table(device(), BlockHashTableConfig{64, 0.7, true});
+  ReferenceMap reference;
+  const auto keys = random_blocks(300000, 100000, 7);
+  for (size_t begin = 0; begin < keys.size(); begin += 25000) {
+    const std::vector<Index3D> part(keys.begin() + begin, keys.begin() + begin + 25000);
+    activate_and_check(table, reference, part);  // checks known keys keep their slots
+  }
+  EXPECT_GE(table.rehash_count(), 3);
+  EXPECT_LE(table.occupancy(), 0.7);
+  expect_table_matches(table, reference);
+}
+
+TEST_P(BlockHashTableTest, StaysCorrectAtHighLoadFactorsWithoutGrowth) {
+  for (const double load : {0.5, 0.7, 0.85, 0.9}) {
+    const size_t key_count = 200000;
+    const uint64_t buckets = static_cast<uint64_t>(key_count / load);
+    BlockHashTable table(device(), BlockHashTableConfig{buckets, 0.5, false});
+    ReferenceMap reference;
+    const auto keys = random_blocks(key_count, key_count, 11);  // distinct
+    activate_and_check(table, reference, keys);
+    EXPECT_EQ(table.bucket_count(), buckets);
+    EXPECT_NEAR(table.load_factor(), load, 0.01);
+    expect_table_matches(table, reference);
+  }
+}
+
+TEST_P(BlockHashTableTest, FullTableFailsCleanlyAndSaysSo) {
+  BlockHashTable table(device(), BlockHashTableConfig{1000, 0.5, false});
+  const auto keys = random_blocks(1500, 1500, 13);
+  const ActivateOutput output = activate(table, keys);
+  EXPECT_EQ(output.result.num_new, 1000);
+  EXPECT_EQ(output.result.num_failed_full, 500);
+  EXPECT_FALSE(output.result.ok());
+  EXPECT_EQ(table.size(), 1000);
+  EXPECT_EQ(table.total_failed_full(), 500);
+  // The keys that made it are all findable with the slot they were given; the others are not.
+  const auto found = find(table, keys);
+  for (size_t i = 0; i < keys.size(); ++i) EXPECT_EQ(found[i], output.slots[i]);
+}
+
+TEST_P(BlockHashTableTest, RejectsOutOfRangeKeysWithoutWrapping) {
+  BlockHashTable table(device());
+  const std::vector<Index3D> keys = {
+      Index3D(kMaxBlockIndex, kMinBlockIndex, 0),      // the extremes are valid
+      Index3D(kMaxBlockIndex + 1, 0, 0),                // would wrap onto kMinBlockIndex
+      Index3D(0, kMinBlockIndex - 1, 0),
+      Index3D(0, 0, 1 << 30),
+      Index3D(kMinBlockIndex, 0, 0)};
+  const ActivateOutput output = activate(table, keys);
+  EXPECT_EQ(output.result.num_out_of_range, 3);
+  EXPECT_EQ(output.result.num_new, 2);
+  EXPECT_EQ(table.total_out_of_range(), 3);
+  EXPECT_NE(output.slots[0], kInvalidSlot);
+  EXPECT_EQ(output.slots[1], kInvalidSlot);
+  EXPECT_EQ(output.slots[2], kInvalidSlot);
+  EXPECT_EQ(output.slots[3], kInvalidSlot);
+  EXPECT_NE(output.slots[4], kInvalidSlot);
+  EXPECT_NE(output.slots[4], output.slots[0]);
+  // An out-of-range key is never found, not even as its wrapped twin.
+  const auto found = find(table, {Index3D(kMaxBlockIndex + 1, 0, 0)});
+  EXPECT_EQ(found[0], kInvalidSlot);
+}
+
+TEST_P(BlockHashTableTest, ExportListsEveryLiveEntry) {
+  BlockHashTable table(device());
+  ReferenceMap reference;
+  activate_and_check(table, reference, random_blocks(5000, 3000, 17));
+  erase(table, {reference.begin()->first});
+  reference.erase(reference.begin());
+  Buffer<Index3D> keys(device());
+  Buffer<uint32_t> slots(device());
+  table.export_entries(&keys, &slots);
+  const auto host_keys = keys.to_host();
+  const auto host_slots = slots.to_host();
+  ASSERT_EQ(host_keys.size(), reference.size());
+  for (size_t i = 0; i < host_keys.size(); ++i) EXPECT_EQ(reference.at(host_keys[i]), host_slots[i]);
+}
+
+TEST(BlockKey, PacksAndUnpacksTheWholeRange) {
+  for (int32_t v : {kMinBlockIndex, -1, 0, 1, kMaxBlockIndex}) {
+    const Index3D index(v, -v - 1 >= kMinBlockIndex ? -v - 1 : v, v / 2);
+    EXPECT_EQ(unpack_block_key(pack_block_key(index)), index);
+    EXPECT_LT(pack_block_key(index), kInvalidBlockKey);
+  }
+  EXPECT_EQ(pack_block_key(Index3D(kMaxBlockIndex + 1, 0, 0)), kInvalidBlockKey);
+}
+
+TEST(BlockHashTableConfigCheck, RejectsBadParameters) {
+  EXPECT_THROW(BlockHashTable(Device::kCpu, BlockHashTableConfig{1024, 1.5, true}), Error);
+  EXPECT_THROW(BlockHashTable(Device::kCpu, BlockHashTableConfig{0, 0.5, true}), Error);
+}
+
+COVOX_INSTANTIATE_ON_ALL_DEVICES(BlockHashTableTest);
+
+// Same batches on both backends: batches of distinct keys get identical slots (slot order is
+// the input order of new keys), and with duplicated batches both map keys to slots one-to-one.
+TEST(BlockHashTableParity, CpuAndCudaAssignConsistentSlots) {
+  COVOX_SKIP_WITHOUT_GPU();
+  BlockHashTable cpu(Device::kCpu, BlockHashTableConfig{256, 0.75, true});
+  BlockHashTable gpu(Device::kCuda, BlockHashTableConfig{256, 0.75, true});
+  const auto distinct = random_blocks(200000, 200000, 21);
+  const auto cpu_distinct = activate(cpu, distinct);
+  const auto gpu_distinct = activate(gpu, distinct);
+  EXPECT_EQ(cpu_distinct.slots, gpu_distinct.slots);
+  EXPECT_EQ(cpu_distinct.is_new, gpu_distinct.is_new);
+
+  const auto duplicated = random_blocks(500000, 50000, 23, 3000);
+  const auto cpu_dup = activate(cpu, duplicated);
+  const auto gpu_dup = activate(gpu, duplicated);
+  EXPECT_EQ(cpu_dup.result.num_new, gpu_dup.result.num_new);
+  std::unordered_map<uint32_t, uint32_t> cpu_to_gpu;
+  for (size_t i = 0; i < duplicated.size(); ++i) {
+    auto [it, inserted] = cpu_to_gpu.emplace(cpu_dup.slots[i], gpu_dup.slots[i]);
+    ASSERT_EQ(it->second, gpu_dup.slots[i]) << "slot partition differs at " << i;
+  }
+  EXPECT_EQ(cpu.size(), gpu.size());
+  EXPECT_EQ(find(cpu, distinct), find(gpu, distinct));
+}
+
+}  // namespace
+}  // namespace covox
