@@ -300,6 +300,29 @@ TEST_P(TsdfIntegratorTest, ColorIsAveragedInsideTheBand) {
   EXPECT_EQ(coloured, 6);  // sdf in {0.25, 0.15, 0.05, -0.05, -0.15, -0.25}
 }
 
+TEST_P(TsdfIntegratorTest, IntensityIsFusedAsGreyWhenThereIsNoColour) {
+  TsdfIntegratorConfig config;
+  config.truncation_distance_m = 0.3f;
+  TsdfMap map(device(), TsdfMapConfig{0.1f, 8, {}});
+  TsdfIntegrator integrator(config);
+  const Stream stream(device());
+  auto points = Buffer<Vec3f>::from_host(device(), {Vec3f(1.0f, 0.05f, 0.05f)});
+  auto intensities = Buffer<float>::from_host(device(), {50.0f});
+  PointCloudView cloud{points.data(), nullptr, 1, intensities.data(), 100.0f};
+  integrator.integrate(map, cloud, Eigen::Isometry3d::Identity(), stream);
+  int grey = 0;
+  for (const HostBlock& block : map.snapshot()) {
+    for (const ColorVoxel& c : block.color) {
+      if (c.weight == 0.0f) continue;
+      EXPECT_EQ(c.r, 127);
+      EXPECT_EQ(c.g, 127);
+      EXPECT_EQ(c.b, 127);
+      ++grey;
+    }
+  }
+  EXPECT_EQ(grey, 6);
+}
+
 TEST_P(TsdfIntegratorTest, SameInputTwiceGivesBitIdenticalMaps) {
   const AnalyticScene scene = make_scene(Shape::kBox);
   std::vector<std::vector<HostBlock>> snapshots;

@@ -54,6 +54,9 @@ void log_drops(const IntegrationStats& stats) {
 IntegrationStats TsdfIntegrator::integrate(TsdfMap& map, const PointCloudView& cloud,
                                            const Eigen::Isometry3d& T_map_sensor, const Stream& stream) {
   validate(config_, map.voxel_size_m());
+  if (cloud.intensities && !(cloud.intensity_max_value > 0.0f)) {
+    throw Error("TSDF integrator: intensity_max_value must be positive");
+  }
   if (!T_map_sensor.matrix().allFinite()) {
     throw Error("TSDF integrator: the sensor pose is not finite; the cloud was not integrated");
   }

@@ -13,6 +13,7 @@
 #include <thrust/reduce.h>
 #include <thrust/scan.h>
 #include <thrust/sort.h>
+#include <thrust/transform_reduce.h>
 #include <thrust/unique.h>
 #include <thrust/system/omp/execution_policy.h>
 
@@ -24,6 +25,7 @@
 #include <cuda_runtime.h>
 #include <thrust/system/cuda/execution_policy.h>
 #include "covoxslam/core/cuda_check.cuh"
+#include "covoxslam/core/cuda_temporary_allocator.cuh"
 #endif
 
 namespace covox {
@@ -31,8 +33,10 @@ namespace covox {
 // --- execution policies -----------------------------------------------------------------------
 inline auto execution_policy(CpuBackend, const Stream&) { return thrust::omp::par; }
 #if defined(__CUDACC__)
+// Temporary storage comes from a per-stream cache (see cuda_temporary_allocator.cuh).
 inline auto execution_policy(CudaBackend, const Stream& stream) {
-  return thrust::cuda::par_nosync.on(static_cast<cudaStream_t>(stream.native_handle()));
+  const auto cuda_stream = static_cast<cudaStream_t>(stream.native_handle());
+  return thrust::cuda::par_nosync(CudaTemporaryAllocator{cuda_stream}).on(cuda_stream);
 }
 #endif
 
@@ -108,6 +112,15 @@ template <class Backend, class T, class ReduceOp>
 T reduce(Backend backend, const Stream& stream, const T* data, int64_t count, T init, ReduceOp op) {
   if (count <= 0) return init;
   return thrust::reduce(execution_policy(backend, stream), data, data + count, init, op);
+}
+
+// op-reduction of transform(data[i]); Result must be trivially copyable.
+template <class Backend, class T, class Result, class Transform, class ReduceOp>
+Result transform_reduce(Backend backend, const Stream& stream, const T* data, int64_t count,
+                        Transform transform, Result init, ReduceOp op) {
+  if (count <= 0) return init;
+  return thrust::transform_reduce(execution_policy(backend, stream), data, data + count, transform,
+                                  init, op);
 }
 
 template <class Backend, class T, class Predicate>

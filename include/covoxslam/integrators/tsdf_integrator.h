@@ -45,10 +45,13 @@ struct IntegrationStats {
 };
 
 // Points (and optional colours) in the sensor frame, in memory of the map's device.
+// Without colours, an intensity channel (LiDAR) is fused as grey: intensity / intensity_max_value.
 struct PointCloudView {
   const Vec3f* points = nullptr;
-  const Rgb8* colors = nullptr;  // optional
+  const Rgb8* colors = nullptr;        // optional
   int64_t count = 0;
+  const float* intensities = nullptr;  // optional, used when colors is null
+  float intensity_max_value = 255.0f;  // intensity shown as white
 };
 
 // A pinhole camera; depth pixel (u, v) with depth z unprojects to ((u-cx) z/fx, (v-cy) z/fy, z).

@@ -12,13 +12,47 @@
 namespace covox {
 namespace tsdf_detail {
 
-template <class Backend>
-int64_t count_kind(Backend backend, const Stream& stream, const Buffer<tsdf::RaySegment>& rays,
-                   int64_t count, uint8_t kind) {
-  // count_if over a struct array: compare the kind byte only.
-  return count_if(backend, stream, rays.data(), count,
-                  [kind] COVOX_HD(const tsdf::RaySegment& ray) { return ray.kind == kind; });
-}
+// Per-kind ray counts and the total voxel count in one reduction (one read-back, not seven).
+struct RayTally {
+  int64_t kinds[6] = {0, 0, 0, 0, 0, 0};
+  int64_t voxels = 0;
+};
+struct TallyRay {
+  float inverse_voxel_size;
+  COVOX_HD_INLINE RayTally operator()(const tsdf::RaySegment& ray) const {
+    RayTally tally;
+    tally.kinds[ray.kind] = 1;
+    tally.voxels = tsdf::ray_voxel_count(ray, inverse_voxel_size);
+    return tally;
+  }
+};
+struct AddTallies {
+  COVOX_HD_INLINE RayTally operator()(const RayTally& a, const RayTally& b) const {
+    RayTally sum;
+    for (int k = 0; k < 6; ++k) sum.kinds[k] = a.kinds[k] + b.kinds[k];
+    sum.voxels = a.voxels + b.voxels;
+    return sum;
+  }
+};
+
+// How many updates carry each of the two "drop me" keys.
+struct DropTally {
+  int64_t zero_weight = 0;
+  int64_t out_of_range = 0;
+};
+struct TallyKey {
+  COVOX_HD_INLINE DropTally operator()(uint64_t key) const {
+    DropTally tally;
+    tally.zero_weight = key == tsdf::kZeroWeightUpdateKey ? 1 : 0;
+    tally.out_of_range = key == tsdf::kOutOfRangeUpdateKey ? 1 : 0;
+    return tally;
+  }
+};
+struct AddDropTallies {
+  COVOX_HD_INLINE DropTally operator()(const DropTally& a, const DropTally& b) const {
+    return DropTally{a.zero_weight + b.zero_weight, a.out_of_range + b.out_of_range};
+  }
+};
 
 }  // namespace tsdf_detail
 
@@ -61,18 +95,17 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
     rays[i] = ray;
     counts[i] = tsdf::ray_voxel_count(ray, inverse_voxel_size);
   });
-  stats.surface_rays = tsdf_detail::count_kind(backend, stream, scratch.rays, n, tsdf::kSurfaceRay);
-  stats.clearing_rays = tsdf_detail::count_kind(backend, stream, scratch.rays, n, tsdf::kClearingRay);
-  const int64_t dropped = n - stats.surface_rays - stats.clearing_rays;
-  if (dropped > 0) {
-    stats.dropped_non_finite = tsdf_detail::count_kind(backend, stream, scratch.rays, n, tsdf::kDroppedNonFinite);
-    stats.dropped_zero = tsdf_detail::count_kind(backend, stream, scratch.rays, n, tsdf::kDroppedZero);
-    stats.dropped_too_close = tsdf_detail::count_kind(backend, stream, scratch.rays, n, tsdf::kDroppedTooClose);
-    stats.dropped_too_far = tsdf_detail::count_kind(backend, stream, scratch.rays, n, tsdf::kDroppedTooFar);
-  }
+  const tsdf_detail::RayTally tally =
+      transform_reduce(backend, stream, scratch.rays.data(), n, tsdf_detail::TallyRay{inverse_voxel_size},
+                       tsdf_detail::RayTally{}, tsdf_detail::AddTallies{});
+  stats.surface_rays = tally.kinds[tsdf::kSurfaceRay];
+  stats.clearing_rays = tally.kinds[tsdf::kClearingRay];
+  stats.dropped_non_finite = tally.kinds[tsdf::kDroppedNonFinite];
+  stats.dropped_zero = tally.kinds[tsdf::kDroppedZero];
+  stats.dropped_too_close = tally.kinds[tsdf::kDroppedTooClose];
+  stats.dropped_too_far = tally.kinds[tsdf::kDroppedTooFar];
   exclusive_scan(backend, stream, counts, n, scratch.offsets.data());
-  const int64_t total_updates =
-      static_cast<int64_t>(scratch.offsets.element(n - 1, stream)) + scratch.counts.element(n - 1, stream);
+  const int64_t total_updates = tally.voxels;
   stats.voxel_updates = total_updates;
   if (total_updates == 0) return stats;
 
@@ -85,13 +118,21 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
   tsdf::VoxelUpdate* updates = scratch.updates.data();
   const uint32_t* offsets = scratch.offsets.data();
   const Rgb8* colors = config.integrate_color ? cloud.colors : nullptr;
+  const float* intensities = config.integrate_color && !colors ? cloud.intensities : nullptr;
+  const float intensity_to_grey = 255.0f / cloud.intensity_max_value;
   const float truncation = config.truncation_distance_m;
   parallel_for(backend, stream, n, [=] COVOX_HD(int64_t i) {
     const tsdf::RaySegment ray = rays[i];
     if (ray.kind > tsdf::kClearingRay) return;
     uint32_t out = offsets[i];
     const bool clearing = ray.kind == tsdf::kClearingRay;
-    const Rgb8 color = colors ? colors[i] : Rgb8{};
+    Rgb8 color = colors ? colors[i] : Rgb8{};
+    if (intensities) {
+      const float grey = intensities[i] * intensity_to_grey;
+      const uint8_t level = static_cast<uint8_t>(grey <= 0.0f ? 0.0f : (grey >= 255.0f ? 255.0f : grey));
+      color = Rgb8{level, level, level};
+    }
+    const bool has_color = colors || intensities;
     tsdf::traverse_ray(ray, inverse_voxel_size, [&](const Index3D& voxel) {
       const Vec3f center((voxel.x + 0.5f) * voxel_size, (voxel.y + 0.5f) * voxel_size,
                          (voxel.z + 0.5f) * voxel_size);
@@ -110,7 +151,7 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
       tsdf::VoxelUpdate update;
       update.weighted_distance = weight * distance;
       update.weight = weight;
-      if (colors && !clearing && fabsf(distance) < truncation && weight > 0.0f) {
+      if (has_color && !clearing && fabsf(distance) < truncation && weight > 0.0f) {
         update.weighted_r = weight * color.r;
         update.weighted_g = weight * color.g;
         update.weighted_b = weight * color.b;
@@ -123,9 +164,9 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
     });
   });
 
-  stats.voxels_out_of_range = count_if(backend, stream, keys, total_updates, [] COVOX_HD(uint64_t key) {
-    return key == tsdf::kOutOfRangeUpdateKey;
-  });
+  const tsdf_detail::DropTally drops = transform_reduce(backend, stream, keys, total_updates, tsdf_detail::TallyKey{},
+                                                        tsdf_detail::DropTally{}, tsdf_detail::AddDropTallies{});
+  stats.voxels_out_of_range = drops.out_of_range;
 
   // 3. group by voxel and merge (stable sort keeps each voxel's updates in ray order, so the
   //    float sums are the same every run)
@@ -138,11 +179,8 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
                                           scratch.merged.data(), thrust::equal_to<uint64_t>(),
                                           tsdf::MergeUpdates());
   int64_t voxel_count = static_cast<int64_t>(ends.first - scratch.merged_keys.data());
-  // Updates to drop (zero weight, outside the key range) sort last: drop their runs.
-  while (voxel_count > 0 &&
-         scratch.merged_keys.element(voxel_count - 1, stream) >= tsdf::kOutOfRangeUpdateKey) {
-    --voxel_count;
-  }
+  // Updates to drop (zero weight, outside the key range) sort last, one run per kind present.
+  voxel_count -= (drops.zero_weight > 0 ? 1 : 0) + (drops.out_of_range > 0 ? 1 : 0);
   stats.voxels_updated = voxel_count;
   if (voxel_count == 0) return stats;
 

@@ -25,14 +25,17 @@
 namespace covox {
 namespace hash_table_detail {
 
-// Ranks flagged items (exclusive scan) and returns how many are flagged.
+// Ranks flagged items (exclusive scan) and returns how many are flagged. `flags` must hold
+// count + 1 elements: the extra one is set to 0 so that the scan's last element is the total,
+// read back with one small copy.
 template <class Backend>
-int64_t rank_flags(Backend backend, const Stream& stream, const Buffer<uint32_t>& flags,
+int64_t rank_flags(Backend backend, const Stream& stream, Buffer<uint32_t>& flags,
                    Buffer<uint32_t>* ranks, int64_t count) {
   if (count == 0) return 0;
-  ranks->resize_discard(static_cast<size_t>(count));
-  exclusive_scan(backend, stream, flags.data(), count, ranks->data());
-  return static_cast<int64_t>(ranks->element(count - 1, stream)) + flags.element(count - 1, stream);
+  set_bytes(flags.data() + count, flags.device(), 0, sizeof(uint32_t), stream);
+  ranks->resize_discard(static_cast<size_t>(count) + 1);
+  exclusive_scan(backend, stream, flags.data(), count + 1, ranks->data());
+  return static_cast<int64_t>(ranks->element(count, stream));
 }
 
 template <class Backend>
@@ -118,7 +121,7 @@ ActivateResult hash_table_activate(Backend backend, BlockHashTableState& state,
   if (state.config.allow_growth) hash_table_grow_for_batch(backend, state, keys, count, stream);
 
   state.scratch_buckets.resize_discard(static_cast<size_t>(count));
-  state.scratch_flags.resize_discard(static_cast<size_t>(count));
+  state.scratch_flags.resize_discard(static_cast<size_t>(count) + 1);
   uint64_t* buckets = state.scratch_buckets.data();
   uint32_t* new_flags = state.scratch_flags.data();
   const BlockHashTableView table = state.view();
@@ -205,7 +208,7 @@ template <class Backend>
 int64_t hash_table_erase(Backend backend, BlockHashTableState& state, const Index3D* keys,
                          int64_t count, const Stream& stream) {
   if (count <= 0) return 0;
-  state.scratch_flags.resize_discard(static_cast<size_t>(count));
+  state.scratch_flags.resize_discard(static_cast<size_t>(count) + 1);
   state.scratch_slots.resize_discard(static_cast<size_t>(count));
   uint32_t* erased_flags = state.scratch_flags.data();
   uint32_t* erased_slots = state.scratch_slots.data();
@@ -248,7 +251,7 @@ void hash_table_export(Backend backend, BlockHashTableState& state, Buffer<Index
   keys_out->resize_discard(static_cast<size_t>(state.live_count));
   slots_out->resize_discard(static_cast<size_t>(state.live_count));
   if (state.live_count == 0) return;
-  state.scratch_flags.resize_discard(static_cast<size_t>(buckets));
+  state.scratch_flags.resize_discard(static_cast<size_t>(buckets) + 1);
   uint32_t* live_flags = state.scratch_flags.data();
   const BlockHashTableView table = state.view();
   parallel_for(backend, stream, buckets, [=] COVOX_HD(int64_t b) {
