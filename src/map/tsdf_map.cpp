@@ -9,7 +9,8 @@
 namespace covox {
 
 TsdfMap::TsdfMap(Device device, const TsdfMapConfig& config)
-    : config_(config), blocks_(device, config.block_table), tsdf_(device), color_(device) {
+    : config_(config), blocks_(device, config.block_table), tsdf_(device), color_(device),
+      esdf_(device), block_changed_(device) {
   if (!(config.voxel_size_m > 0.0f)) {
     throw Error("voxel_size_m must be positive, got " + std::to_string(config.voxel_size_m));
   }
@@ -19,12 +20,18 @@ TsdfMap::TsdfMap(Device device, const TsdfMapConfig& config)
 }
 
 void TsdfMap::ensure_pool_capacity(const Stream& stream) {
-  const size_t needed = static_cast<size_t>(blocks_.slot_count()) * voxels_per_block();
+  const size_t slots = blocks_.slot_count();
+  const size_t needed = slots * voxels_per_block();
   if (tsdf_.size() >= needed) return;
   // Grow geometrically so that a map growing block by block does not copy its pool every frame.
-  const size_t grown = std::max(needed, tsdf_.size() + tsdf_.size() / 2);
+  const size_t grown_slots = std::max(slots, tsdf_.size() / voxels_per_block() * 3 / 2);
+  const size_t grown = grown_slots * voxels_per_block();
   tsdf_.resize(grown, stream);
   color_.resize(grown, stream);
+  esdf_.resize(grown, stream);
+  const size_t old_slots = block_changed_.size();
+  block_changed_.resize(grown_slots, stream);
+  set_bytes(block_changed_.data() + old_slots, device(), 0, grown_slots - old_slots, stream);
 }
 
 std::vector<HostBlock> TsdfMap::snapshot() const {
@@ -35,6 +42,7 @@ std::vector<HostBlock> TsdfMap::snapshot() const {
   const auto host_slots = slots.to_host();
   const auto tsdf = tsdf_.to_host();
   const auto color = color_.to_host();
+  const auto esdf = esdf_.to_host();
   std::vector<size_t> order(host_keys.size());
   std::iota(order.begin(), order.end(), 0);
   std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return host_keys[a] < host_keys[b]; });
@@ -47,6 +55,7 @@ std::vector<HostBlock> TsdfMap::snapshot() const {
     const size_t begin = static_cast<size_t>(host_slots[i]) * per_block;
     block.tsdf.assign(tsdf.begin() + begin, tsdf.begin() + begin + per_block);
     block.color.assign(color.begin() + begin, color.begin() + begin + per_block);
+    block.esdf.assign(esdf.begin() + begin, esdf.begin() + begin + per_block);
     blocks.push_back(std::move(block));
   }
   return blocks;
@@ -56,6 +65,8 @@ void TsdfMap::clear() {
   blocks_.clear();
   tsdf_.resize(0);
   color_.resize(0);
+  esdf_.resize(0);
+  block_changed_.resize(0);
 }
 
 }  // namespace covox

@@ -200,6 +200,8 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
   // A new block may reuse the slot of an erased one: clear it before blending.
   auto tsdf_view = map.tsdf().view();
   auto color_view = map.color().view();
+  uint8_t* block_changed = map.block_changed().data();
+  auto esdf_view = map.esdf().view();
   const uint32_t* slots = scratch.slots.data();
   const uint8_t* is_new = scratch.is_new.data();
   const int64_t voxels_per_block = map.voxels_per_block();
@@ -210,6 +212,7 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
       for (int64_t k = 0; k < voxels_per_block; ++k) {
         tsdf_view.store(base + k, TsdfVoxel{});
         color_view.store(base + k, ColorVoxel{});
+        esdf_view.store(base + k, EsdfVoxel{});
       }
     });
   }
@@ -221,6 +224,7 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
     const uint32_t slot = slots[v];
     const tsdf::VoxelUpdate update = merged[v];
     if (slot == kInvalidSlot || update.weight <= 0.0f) return;
+    block_changed[slot] = 1;  // the same value from every voxel of the block: no race on meaning
     const int64_t index = static_cast<int64_t>(slot) * voxels_per_block + tsdf::update_key_voxel(merged_keys[v]);
     TsdfVoxel voxel = tsdf_view.load(index);
     const float combined = voxel.weight + update.weight;

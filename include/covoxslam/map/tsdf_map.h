@@ -25,12 +25,14 @@ struct HostBlock {
   Index3D index;
   std::vector<TsdfVoxel> tsdf;
   std::vector<ColorVoxel> color;
+  std::vector<EsdfVoxel> esdf;
 };
 
 class TsdfMap {
  public:
   using TsdfStorage = VoxelStorage<TsdfVoxel, Layout::kSoA>;
   using ColorStorage = VoxelStorage<ColorVoxel, Layout::kSoA>;
+  using EsdfStorage = VoxelStorage<EsdfVoxel, Layout::kSoA>;
 
   TsdfMap(Device device, const TsdfMapConfig& config);
 
@@ -46,8 +48,12 @@ class TsdfMap {
   const BlockHashTable& blocks() const { return blocks_; }
   TsdfStorage& tsdf() { return tsdf_; }
   ColorStorage& color() { return color_; }
+  EsdfStorage& esdf() { return esdf_; }
+  // Per slot: 1 when the TSDF of the block changed since the ESDF last saw it.
+  Buffer<uint8_t>& block_changed() { return block_changed_; }
 
-  // Grows both pools to hold every slot the block table has handed out; new voxels are zero.
+  // Grows the pools (and per-slot arrays) to hold every slot the block table has handed out;
+  // new voxels are zero.
   void ensure_pool_capacity(const Stream& stream);
 
   // Every allocated block with its voxels, sorted by block index.
@@ -60,6 +66,8 @@ class TsdfMap {
   BlockHashTable blocks_;
   TsdfStorage tsdf_;
   ColorStorage color_;
+  EsdfStorage esdf_;
+  Buffer<uint8_t> block_changed_;
 };
 
 }  // namespace covox

@@ -46,4 +46,16 @@ struct VoxelFields<ColoredTsdfVoxel> {
                          &ColoredTsdfVoxel::color_weight>;
 };
 
+// Euclidean signed distance (metres) to the nearest surface site, positive in free space.
+// `observed` is 0 where the TSDF never saw the voxel: its distance means nothing there.
+struct EsdfVoxel {
+  float distance_m = 0.0f;
+  uint8_t observed = 0;
+  uint8_t is_site = 0;
+};
+template <>
+struct VoxelFields<EsdfVoxel> {
+  using type = FieldList<&EsdfVoxel::distance_m, &EsdfVoxel::observed, &EsdfVoxel::is_site>;
+};
+
 }  // namespace covox

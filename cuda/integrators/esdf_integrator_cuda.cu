@@ -1,0 +1,6 @@
+// CUDA instantiation of the ESDF update (same source as the CPU twin).
+#include "covoxslam/integrators/esdf_integrator_impl.h"
+
+namespace covox {
+COVOX_INSTANTIATE_ESDF_INTEGRATOR(CudaBackend)
+}  // namespace covox

@@ -1,0 +1,6 @@
+// CPU (OpenMP) instantiation of the ESDF update.
+#include "covoxslam/integrators/esdf_integrator_impl.h"
+
+namespace covox {
+COVOX_INSTANTIATE_ESDF_INTEGRATOR(CpuBackend)
+}  // namespace covox
