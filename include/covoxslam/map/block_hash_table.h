@@ -57,6 +57,10 @@ class BlockHashTable {
   // All live keys and their slots (on this table's device), in bucket order.
   void export_entries(Buffer<Index3D>* keys, Buffer<uint32_t>* slots) const;
 
+  // Plain pointers for lookups inside kernels (find() on the device); valid until the next
+  // activate/erase/rehash/clear.
+  BlockHashTableView device_view() const { return const_cast<BlockHashTableState&>(state_).view(); }
+
   Device device() const { return state_.device; }
   const BlockHashTableConfig& config() const { return state_.config; }
   int64_t size() const { return state_.live_count; }

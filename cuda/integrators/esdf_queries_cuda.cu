@@ -1,0 +1,6 @@
+// CUDA instantiation of the ESDF queries (same source as the CPU twin).
+#include "covoxslam/integrators/esdf_queries_impl.h"
+
+namespace covox {
+COVOX_INSTANTIATE_ESDF_QUERIES(CudaBackend)
+}  // namespace covox

@@ -1,0 +1,6 @@
+// CPU (OpenMP) instantiation of the ESDF queries.
+#include "covoxslam/integrators/esdf_queries_impl.h"
+
+namespace covox {
+COVOX_INSTANTIATE_ESDF_QUERIES(CpuBackend)
+}  // namespace covox
