@@ -11,8 +11,8 @@ namespace {
 // Queries only read the map; the views are non-const because kernels share one view type.
 EsdfLookup make_lookup(const TsdfMap& map) {
   auto& mutable_map = const_cast<TsdfMap&>(map);
-  return EsdfLookup{map.blocks().device_view(), mutable_map.esdf().view(), map.voxels_per_side(),
-                    map.voxel_size_m()};
+  return EsdfLookup{BlockVoxelIndexer{map.blocks().device_view(), map.voxels_per_side()},
+                    mutable_map.esdf().view(), map.voxel_size_m()};
 }
 
 std::vector<SlicePoint> collect_slice(const TsdfMap& map, int32_t layer_min, int32_t layer_max, float z_m,

@@ -41,7 +41,7 @@ struct BoundsOfBlock {
   bool all;
   COVOX_HD_INLINE BlockBounds operator()(int64_t b) const {
     BlockBounds bounds;
-    if (!all && !changed[slots[b]]) return bounds;
+    if (!all && !(changed[slots[b]] & kEsdfPending)) return bounds;
     const Index3D i = indices[b];
     bounds.lo[0] = bounds.hi[0] = i.x;
     bounds.lo[1] = bounds.hi[1] = i.y;
@@ -234,7 +234,10 @@ EsdfUpdateStats esdf_update(Backend backend, const EsdfIntegratorConfig& config,
     esdf.store(index, out);
   });
   stats.voxels_written = write_region.volume();
-  map.block_changed().fill_bytes(0, stream);
+  // Every changed block lies inside the write region: all caught up.
+  parallel_for(backend, stream, block_count, [=] COVOX_HD(int64_t b) {
+    changed[block_slots[b]] &= static_cast<uint8_t>(~kEsdfPending);
+  });
   stream.synchronize();
   return stats;
 }

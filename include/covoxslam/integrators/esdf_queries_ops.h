@@ -6,28 +6,21 @@
 #include "covoxslam/core/buffer.h"
 #include "covoxslam/core/soa_container.h"
 #include "covoxslam/integrators/esdf_queries.h"
-#include "covoxslam/map/block_hash_table_view.h"
+#include "covoxslam/map/block_voxel_indexer.h"
 #include "covoxslam/map/voxels.h"
 
 namespace covox {
 
 // What a kernel needs to look a voxel up by its global index.
 struct EsdfLookup {
-  BlockHashTableView blocks;
+  BlockVoxelIndexer indexer;
   VoxelView<EsdfVoxel, Layout::kSoA> esdf;
-  int32_t side;
   float voxel_size;
 
   // Returns false for unallocated or unobserved voxels.
   COVOX_HD_INLINE bool voxel(const Index3D& v, float* distance) const {
-    const Index3D block(floor_divide(v.x, side), floor_divide(v.y, side), floor_divide(v.z, side));
-    const uint64_t key = pack_block_key(block);
-    if (key == kInvalidBlockKey) return false;
-    const uint64_t bucket = blocks.find(key);
-    if (bucket == kNoBucket) return false;
-    const int64_t local = (v.x - block.x * side) + side * ((v.y - block.y * side) + side * (v.z - block.z * side));
-    const int64_t index = static_cast<int64_t>(blocks.slots[bucket]) * side * side * side + local;
-    if (!esdf.get<&EsdfVoxel::observed>(index)) return false;
+    const int64_t index = indexer.pool_index(v);
+    if (index < 0 || !esdf.get<&EsdfVoxel::observed>(index)) return false;
     *distance = esdf.get<&EsdfVoxel::distance_m>(index);
     return true;
   }

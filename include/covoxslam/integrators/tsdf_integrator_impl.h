@@ -224,7 +224,7 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
     const uint32_t slot = slots[v];
     const tsdf::VoxelUpdate update = merged[v];
     if (slot == kInvalidSlot || update.weight <= 0.0f) return;
-    block_changed[slot] = 1;  // the same value from every voxel of the block: no race on meaning
+    block_changed[slot] = kAllPending;  // every voxel of the block writes the same value
     const int64_t index = static_cast<int64_t>(slot) * voxels_per_block + tsdf::update_key_voxel(merged_keys[v]);
     TsdfVoxel voxel = tsdf_view.load(index);
     const float combined = voxel.weight + update.weight;

@@ -28,6 +28,13 @@ struct HostBlock {
   std::vector<EsdfVoxel> esdf;
 };
 
+// Bits of TsdfMap::block_changed(): integration sets all of them, each consumer clears its own.
+enum BlockChange : uint8_t {
+  kEsdfPending = 1,
+  kMeshPending = 2,
+  kAllPending = kEsdfPending | kMeshPending,
+};
+
 class TsdfMap {
  public:
   using TsdfStorage = VoxelStorage<TsdfVoxel, Layout::kSoA>;
@@ -49,7 +56,7 @@ class TsdfMap {
   TsdfStorage& tsdf() { return tsdf_; }
   ColorStorage& color() { return color_; }
   EsdfStorage& esdf() { return esdf_; }
-  // Per slot: 1 when the TSDF of the block changed since the ESDF last saw it.
+  // Per slot, bits of BlockChange: what has not yet caught up with the block's latest TSDF.
   Buffer<uint8_t>& block_changed() { return block_changed_; }
 
   // Grows the pools (and per-slot arrays) to hold every slot the block table has handed out;

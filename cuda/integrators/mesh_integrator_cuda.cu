@@ -1,0 +1,6 @@
+// CUDA instantiation of marching-cubes extraction (same source as the CPU twin).
+#include "covoxslam/integrators/mesh_integrator_impl.h"
+
+namespace covox {
+COVOX_INSTANTIATE_MESH_INTEGRATOR(CudaBackend)
+}  // namespace covox

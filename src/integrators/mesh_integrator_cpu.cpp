@@ -1,0 +1,6 @@
+// CPU (OpenMP) instantiation of marching-cubes extraction.
+#include "covoxslam/integrators/mesh_integrator_impl.h"
+
+namespace covox {
+COVOX_INSTANTIATE_MESH_INTEGRATOR(CpuBackend)
+}  // namespace covox
