@@ -78,7 +78,10 @@ target_compile_options(covox_dependencies INTERFACE
 if(COVOX_CUDA_ENABLED)
   target_link_libraries(covox_dependencies INTERFACE CUDA::cudart)
   target_compile_options(covox_dependencies INTERFACE
-    $<$<COMPILE_LANGUAGE:CUDA>:--expt-relaxed-constexpr --extended-lambda -Xcompiler=-fopenmp -lineinfo>)
+    $<$<COMPILE_LANGUAGE:CUDA>:--expt-relaxed-constexpr --extended-lambda -Xcompiler=-fopenmp -lineinfo>
+    # No fused multiply-add contraction: the CPU twin does not contract either, and a voxel
+    # boundary decided by one rounding differently would break CPU/GPU parity of the maps.
+    $<$<COMPILE_LANGUAGE:CUDA>:--fmad=false>)
 endif()
 
 function(covox_configure_cuda_target target)
