@@ -6,9 +6,14 @@
 #include <cmath>
 #include <map>
 #include <utility>
+#include <cstring>
+#include <fstream>
+#include <iterator>
+#include <string>
 #include <vector>
 
 #include "covoxslam/integrators/mesh_integrator.h"
+#include "covoxslam/io/mesh_ply.h"
 #include "support/analytic_tsdf.h"
 #include "support/test_devices.h"
 
@@ -113,6 +118,26 @@ TEST_P(MeshIntegratorTest, IncrementalBlockMeshesMatchTheFullExtraction) {
   integrator.update(map, stream);
   const Mesh full = integrator.extract_all(map, stream);
   EXPECT_EQ(integrator.combined_block_meshes().triangle_count(), full.triangle_count());
+}
+
+TEST_P(MeshIntegratorTest, BinaryPlyHoldsEveryVertexAndFace) {
+  const Mesh mesh = mesh_of(device(), &sphere_sdf);
+  const std::string path = ::testing::TempDir() + "/covox_sphere.ply";
+  io::write_mesh_ply(path, mesh);
+  std::ifstream file(path, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
+  const std::string header_end = "end_header\n";
+  const size_t body = bytes.find(header_end) + header_end.size();
+  ASSERT_NE(bytes.find("element vertex " + std::to_string(mesh.vertices_m.size()) + "\n"), std::string::npos);
+  ASSERT_NE(bytes.find("element face " + std::to_string(mesh.triangle_count()) + "\n"), std::string::npos);
+  // Body size: 15 bytes per coloured vertex, 13 per triangle.
+  ASSERT_EQ(bytes.size() - body, mesh.vertices_m.size() * 15 + mesh.triangle_count() * 13);
+  float first[3];
+  std::memcpy(first, bytes.data() + body, sizeof(first));
+  EXPECT_EQ(first[0], mesh.vertices_m[0].x);
+  int32_t last_face[3];
+  std::memcpy(last_face, bytes.data() + bytes.size() - 12, sizeof(last_face));
+  EXPECT_EQ(static_cast<uint32_t>(last_face[2]), mesh.triangles.back());
 }
 
 COVOX_INSTANTIATE_ON_ALL_DEVICES(MeshIntegratorTest);

@@ -61,6 +61,53 @@ std::vector<HostBlock> TsdfMap::snapshot() const {
   return blocks;
 }
 
+void TsdfMap::load_blocks(const std::vector<HostBlock>& blocks, const Stream& stream) {
+  if (block_count() != 0) throw Error("TsdfMap::load_blocks: the map is not empty");
+  const size_t per_block = static_cast<size_t>(voxels_per_block());
+  std::vector<Index3D> indices;
+  std::vector<TsdfVoxel> tsdf;
+  std::vector<ColorVoxel> color;
+  std::vector<EsdfVoxel> esdf;
+  for (const HostBlock& block : blocks) {
+    if (block.tsdf.size() != per_block || block.color.size() != per_block ||
+        (!block.esdf.empty() && block.esdf.size() != per_block)) {
+      throw Error("TsdfMap::load_blocks: a block does not have " + std::to_string(per_block) + " voxels");
+    }
+    indices.push_back(block.index);
+    tsdf.insert(tsdf.end(), block.tsdf.begin(), block.tsdf.end());
+    color.insert(color.end(), block.color.begin(), block.color.end());
+    if (block.esdf.empty()) {
+      esdf.resize(esdf.size() + per_block);
+    } else {
+      esdf.insert(esdf.end(), block.esdf.begin(), block.esdf.end());
+    }
+  }
+  auto keys = Buffer<Index3D>::from_host(device(), indices, stream);
+  Buffer<uint32_t> slots(device(), indices.size());
+  blocks_.reserve(static_cast<int64_t>(indices.size()));
+  const ActivateResult result = blocks_.activate(keys.data(), static_cast<int64_t>(indices.size()), slots.data(),
+                                                 nullptr, stream);
+  if (!result.ok() || result.num_new != static_cast<int64_t>(indices.size())) {
+    clear();
+    throw Error("TsdfMap::load_blocks: the blocks are not distinct valid block indices");
+  }
+  // In an empty table distinct keys take slots 0..n-1 in input order, so the voxels can be
+  // copied as one array. Checked, not assumed.
+  const auto host_slots = slots.to_host(stream);
+  for (size_t i = 0; i < host_slots.size(); ++i) {
+    if (host_slots[i] != i) {
+      clear();
+      throw Error("TsdfMap::load_blocks: unexpected slot order");
+    }
+  }
+  tsdf_.copy_from_host(tsdf, stream);
+  color_.copy_from_host(color, stream);
+  esdf_.copy_from_host(esdf, stream);
+  block_changed_.resize(indices.size(), stream);
+  block_changed_.fill_bytes(kAllPending, stream);
+  stream.synchronize();
+}
+
 void TsdfMap::clear() {
   blocks_.clear();
   tsdf_.resize(0);

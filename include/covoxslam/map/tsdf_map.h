@@ -65,6 +65,9 @@ class TsdfMap {
 
   // Every allocated block with its voxels, sorted by block index.
   std::vector<HostBlock> snapshot() const;
+  // Fills an empty map with `blocks` (as snapshot() returns them); throws covox::Error if the map
+  // is not empty or a block has the wrong number of voxels. ESDF voxels are optional.
+  void load_blocks(const std::vector<HostBlock>& blocks, const Stream& stream);
 
   void clear();
 

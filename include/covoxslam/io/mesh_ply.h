@@ -1,0 +1,15 @@
+#pragma once
+// Binary little-endian PLY export of a mesh (vertex x y z as float, red green blue as uchar,
+// faces as uchar-counted int lists): what rviz-independent viewers (MeshLab, CloudCompare,
+// Open3D) read. Written to a temporary file and renamed.
+#include <string>
+
+#include "covoxslam/integrators/mesh_integrator.h"
+
+namespace covox {
+namespace io {
+
+void write_mesh_ply(const std::string& path, const Mesh& mesh);
+
+}  // namespace io
+}  // namespace covox

@@ -1,0 +1,51 @@
+#include "covoxslam/io/mesh_ply.h"
+
+#include <cstdio>
+#include <fstream>
+
+#include "covoxslam/core/error.h"
+
+namespace covox {
+namespace io {
+
+void write_mesh_ply(const std::string& path, const Mesh& mesh) {
+  const bool has_color = mesh.colors.size() == mesh.vertices_m.size();
+  const std::string temporary = path + ".tmp";
+  {
+    std::ofstream file(temporary, std::ios::binary | std::ios::trunc);
+    if (!file) throw Error("write_mesh_ply: cannot write " + temporary);
+    file << "ply\nformat binary_little_endian 1.0\ncomment written by covoxslam\n"
+         << "element vertex " << mesh.vertices_m.size() << "\n"
+         << "property float x\nproperty float y\nproperty float z\n";
+    if (has_color) file << "property uchar red\nproperty uchar green\nproperty uchar blue\n";
+    file << "element face " << mesh.triangle_count() << "\n"
+         << "property list uchar int vertex_indices\nend_header\n";
+    for (size_t v = 0; v < mesh.vertices_m.size(); ++v) {
+      const float xyz[3] = {mesh.vertices_m[v].x, mesh.vertices_m[v].y, mesh.vertices_m[v].z};
+      file.write(reinterpret_cast<const char*>(xyz), sizeof(xyz));
+      if (has_color) {
+        const unsigned char rgb[3] = {mesh.colors[v].r, mesh.colors[v].g, mesh.colors[v].b};
+        file.write(reinterpret_cast<const char*>(rgb), sizeof(rgb));
+      }
+    }
+    for (size_t t = 0; t < mesh.triangle_count(); ++t) {
+      const unsigned char three = 3;
+      const int32_t indices[3] = {static_cast<int32_t>(mesh.triangles[3 * t]), static_cast<int32_t>(mesh.triangles[3 * t + 1]),
+                                  static_cast<int32_t>(mesh.triangles[3 * t + 2])};
+      file.write(reinterpret_cast<const char*>(&three), 1);
+      file.write(reinterpret_cast<const char*>(indices), sizeof(indices));
+    }
+    file.flush();
+    if (!file) {
+      std::remove(temporary.c_str());
+      throw Error("write_mesh_ply: writing " + temporary + " failed (disk full?)");
+    }
+  }
+  if (std::rename(temporary.c_str(), path.c_str()) != 0) {
+    std::remove(temporary.c_str());
+    throw Error("write_mesh_ply: cannot move " + temporary + " to " + path);
+  }
+}
+
+}  // namespace io
+}  // namespace covox

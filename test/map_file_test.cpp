@@ -1,0 +1,128 @@
+// Map files: save then load is bit-exact; truncated, corrupted and foreign files are rejected.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <cstring>
+#include <unistd.h>
+#include <fstream>
+#include <iterator>
+#include <string>
+#include <vector>
+
+#include "covoxslam/core/error.h"
+#include "covoxslam/integrators/esdf_integrator.h"
+#include "covoxslam/io/map_file.h"
+#include "support/analytic_tsdf.h"
+#include "support/test_devices.h"
+
+namespace covox {
+namespace {
+
+using testing_support::DeviceTest;
+
+std::string temporary_path(const std::string& name) {
+  return ::testing::TempDir() + "/covox_" + name + "_" + std::to_string(::getpid());
+}
+
+std::vector<unsigned char> read_bytes(const std::string& path) {
+  std::ifstream file(path, std::ios::binary);
+  return std::vector<unsigned char>((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
+}
+void write_bytes(const std::string& path, const std::vector<unsigned char>& bytes) {
+  std::ofstream file(path, std::ios::binary | std::ios::trunc);
+  file.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+}
+
+bool same_blocks(const std::vector<HostBlock>& a, const std::vector<HostBlock>& b) {
+  if (a.size() != b.size()) return false;
+  for (size_t i = 0; i < a.size(); ++i) {
+    if (!(a[i].index == b[i].index)) return false;
+    for (size_t k = 0; k < a[i].tsdf.size(); ++k) {
+      if (std::memcmp(&a[i].tsdf[k].distance_m, &b[i].tsdf[k].distance_m, 4) ||
+          std::memcmp(&a[i].tsdf[k].weight, &b[i].tsdf[k].weight, 4) || a[i].color[k].r != b[i].color[k].r ||
+          a[i].color[k].g != b[i].color[k].g || a[i].color[k].b != b[i].color[k].b ||
+          std::memcmp(&a[i].color[k].weight, &b[i].color[k].weight, 4) ||
+          std::memcmp(&a[i].esdf[k].distance_m, &b[i].esdf[k].distance_m, 4) ||
+          a[i].esdf[k].observed != b[i].esdf[k].observed || a[i].esdf[k].is_site != b[i].esdf[k].is_site) {
+        return false;
+      }
+    }
+  }
+  return true;
+}
+
+class MapFileTest : public DeviceTest {
+ protected:
+  io::MapFileContents make_contents() {
+    io::MapFileContents contents;
+    contents.voxel_size_m = 0.1f;
+    contents.voxels_per_side = 8;
+    contents.has_esdf = true;
+    for (int s = 0; s < 2; ++s) {
+      TsdfMap map(device(), TsdfMapConfig{0.1f, 8, {}});
+      const Eigen::Vector3d centre(0.3 * s, 0.1, -0.2);
+      testing_support::fill_tsdf(map, Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(1, 1, 1), 0.4f,
+                                 [&](const Eigen::Vector3d& p) { return (p - centre).norm() - 0.6; });
+      EsdfIntegrator(EsdfIntegratorConfig{}).update(map, Stream(device()));
+      io::SubmapRecord record;
+      record.id = 10 + s;
+      record.T_world_submap.translation() = Eigen::Vector3d(1.5 * s, -2.0, 0.25);
+      record.T_world_submap.linear() = Eigen::AngleAxisd(0.3 * s, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+      record.blocks = map.snapshot();
+      contents.submaps.push_back(std::move(record));
+    }
+    return contents;
+  }
+};
+
+TEST_P(MapFileTest, SaveThenLoadIsBitExact) {
+  const io::MapFileContents saved = make_contents();
+  const std::string path = temporary_path("roundtrip.cvxmap");
+  io::save_map_file(path, saved);
+  const io::MapFileContents loaded = io::load_map_file(path);
+  ASSERT_EQ(loaded.submaps.size(), 2u);
+  EXPECT_EQ(loaded.voxel_size_m, saved.voxel_size_m);
+  EXPECT_TRUE(loaded.has_esdf);
+  for (size_t s = 0; s < 2; ++s) {
+    EXPECT_EQ(loaded.submaps[s].id, saved.submaps[s].id);
+    EXPECT_EQ(loaded.submaps[s].T_world_submap.matrix(), saved.submaps[s].T_world_submap.matrix());
+    EXPECT_TRUE(same_blocks(loaded.submaps[s].blocks, saved.submaps[s].blocks));
+  }
+  // Through the device maps and back.
+  const auto maps = io::make_maps(loaded, device());
+  EXPECT_TRUE(same_blocks(maps[1]->snapshot(), saved.submaps[1].blocks));
+  std::remove(path.c_str());
+}
+
+TEST_P(MapFileTest, TruncatedCorruptedAndForeignFilesAreRejected) {
+  const std::string path = temporary_path("damaged.cvxmap");
+  io::save_map_file(path, make_contents());
+  const auto good = read_bytes(path);
+
+  auto expect_rejected = [&](const std::vector<unsigned char>& bytes, const char* what, const char* message) {
+    write_bytes(path, bytes);
+    try {
+      io::load_map_file(path);
+      ADD_FAILURE() << what << " was accepted";
+    } catch (const Error& error) {
+      EXPECT_NE(std::string(error.what()).find(message), std::string::npos) << what << ": " << error.what();
+    }
+  };
+  expect_rejected(std::vector<unsigned char>(good.begin(), good.begin() + good.size() / 2), "truncated", "checksum");
+  std::vector<unsigned char> flipped = good;
+  flipped[good.size() / 3] ^= 0x10;
+  expect_rejected(flipped, "corrupted", "checksum");
+  expect_rejected(std::vector<unsigned char>(good.begin(), good.begin() + 10), "tiny", "truncated");
+  const std::vector<unsigned char> png = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n', 0, 0, 0, 13};
+  expect_rejected(png, "foreign", "not a covoxslam map");
+  std::vector<unsigned char> future = good;
+  future[8] = 99;  // version
+  expect_rejected(future, "newer version", "version");
+  EXPECT_THROW(io::load_map_file(temporary_path("does_not_exist")), Error);
+  std::remove(path.c_str());
+}
+
+COVOX_INSTANTIATE_ON_ALL_DEVICES(MapFileTest);
+
+}  // namespace
+}  // namespace covox
