@@ -180,7 +180,8 @@ TEST_P(TsdfIntegratorTest, SimulatedDepthCameraMatchesAnalyticSdf) {
         TsdfMap map(device(), TsdfMapConfig{voxel_size, 8, {}});
         TsdfIntegrator integrator(analytic_config(voxel_size));
         const Stream stream(device());
-        for (const auto& pose : viewpoints()) {
+        const auto viewpoints_list = viewpoints();
+        for (const auto& pose : viewpoints_list) {
           // Look down for the plane, sideways into the sphere/room otherwise.
           Eigen::Isometry3d camera = pose;
           camera.linear() =
@@ -191,8 +192,16 @@ TEST_P(TsdfIntegratorTest, SimulatedDepthCameraMatchesAnalyticSdf) {
           const auto depth = testing_support::simulate_depth_mm(
               scene, camera, width, height, f, f, width / 2.0, height / 2.0, max_incidence);
           auto depth_device = Buffer<uint16_t>::from_host(device(), depth);
+          // Every other view passes metres instead of raw millimetres (both inputs are supported).
+          std::vector<float> depth_metres(depth.size());
+          for (size_t p = 0; p < depth.size(); ++p) depth_metres[p] = depth[p] * 1e-3f;
+          auto depth_metres_device = Buffer<float>::from_host(device(), depth_metres);
           DepthImageView image;
-          image.depth = depth_device.data();
+          if (&pose - &viewpoints_list[0] == 1 || &pose - &viewpoints_list[0] == 3) {
+            image.depth_m = depth_metres_device.data();
+          } else {
+            image.depth = depth_device.data();
+          }
           image.intrinsics =
               PinholeIntrinsics{float(f), float(f), width / 2.0f, height / 2.0f, width, height};
           image.depth_units_per_m = 1000.0f;

@@ -95,7 +95,8 @@ IntegrationStats TsdfIntegrator::integrate_depth(TsdfMap& map, const DepthImageV
     throw Error("TSDF integrator: invalid camera intrinsics (width " + std::to_string(k.width) + ", height " +
                 std::to_string(k.height) + ", fx " + std::to_string(k.fx) + ", fy " + std::to_string(k.fy) + ")");
   }
-  if (!(image.depth_units_per_m > 0.0f)) {
+  if (!image.depth && !image.depth_m) throw Error("TSDF integrator: the depth image has no data");
+  if (!image.depth_m && !(image.depth_units_per_m > 0.0f)) {
     throw Error("TSDF integrator: depth_units_per_m must be positive");
   }
   if (!scratch_ || scratch_->buffers.rays.device() != map.device()) {

@@ -60,9 +60,12 @@ struct PinholeIntrinsics {
   int width = 0, height = 0;
 };
 
-// A 16-bit depth image as sensors and datasets store it, in memory of the map's device.
+// A depth image in memory of the map's device: either 16-bit raw values as sensors and datasets
+// store them (`depth`, with depth_units_per_m and invalid_value), or metres (`depth_m`, 0 or
+// non-finite = no measurement).
 struct DepthImageView {
   const uint16_t* depth = nullptr;  // row-major, width x height
+  const float* depth_m = nullptr;   // used instead of `depth` when set
   const Rgb8* colors = nullptr;     // optional, registered to the depth image
   PinholeIntrinsics intrinsics;
   float depth_units_per_m = 1000.0f;  // 1000 for millimetres (Kinect, 7-Scenes), 6553.5 Replica

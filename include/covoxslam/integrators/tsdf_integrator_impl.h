@@ -257,16 +257,23 @@ void tsdf_unproject_depth(Backend backend, const DepthImageView& image, TsdfScra
   scratch.points.resize_discard(pixels);
   Vec3f* points = scratch.points.data();
   const uint16_t* depth = image.depth;
+  const float* depth_m = image.depth_m;
   const float metres_per_unit = 1.0f / image.depth_units_per_m;
   const uint16_t invalid = image.invalid_value;
   const float inverse_fx = 1.0f / k.fx, inverse_fy = 1.0f / k.fy;
   parallel_for(backend, stream, pixels, [=] COVOX_HD(int64_t p) {
-    const uint16_t raw = depth[p];
-    if (raw == 0 || raw == invalid) {
+    float z = 0.0f;
+    if (depth_m) {
+      z = depth_m[p];
+      if (!(z > 0.0f) || !(z < 3.0e38f)) z = 0.0f;  // NaN, Inf, 0 or negative: no measurement
+    } else {
+      const uint16_t raw = depth[p];
+      z = (raw == 0 || raw == invalid) ? 0.0f : raw * metres_per_unit;
+    }
+    if (z == 0.0f) {
       points[p] = Vec3f(0.0f, 0.0f, 0.0f);  // dropped (and counted) as a zero point
       return;
     }
-    const float z = raw * metres_per_unit;
     const float u = static_cast<float>(p % k.width), v = static_cast<float>(p / k.width);
     points[p] = Vec3f((u - k.cx) * z * inverse_fx, (v - k.cy) * z * inverse_fy, z);
   });
