@@ -91,3 +91,28 @@ function(covox_configure_cuda_target target)
       CUDA_SEPARABLE_COMPILATION OFF)
   endif()
 endfunction()
+
+# --- Image codecs for the RGB-D dataset readers (io/). Optional: without them the readers say
+#     which library is missing when asked for a PNG or JPEG, and everything else still works.
+find_package(PNG QUIET)
+find_package(JPEG QUIET)
+add_library(covox_image_codecs INTERFACE)
+if(PNG_FOUND)
+  target_link_libraries(covox_image_codecs INTERFACE PNG::PNG)
+  target_compile_definitions(covox_image_codecs INTERFACE COVOX_HAVE_PNG=1)
+endif()
+if(JPEG_FOUND)
+  target_link_libraries(covox_image_codecs INTERFACE JPEG::JPEG)
+  target_compile_definitions(covox_image_codecs INTERFACE COVOX_HAVE_JPEG=1)
+endif()
+message(STATUS "covoxslam: PNG reader ${PNG_FOUND}, JPEG reader ${JPEG_FOUND}")
+
+# --- Ceres: only a test and benchmark oracle for the pose-graph solver (never linked into the
+#     library). Where it is missing (the GPU machine) the Ceres comparisons skip with a message.
+find_package(Ceres QUIET)
+add_library(covox_ceres_oracle INTERFACE)
+if(Ceres_FOUND)
+  target_link_libraries(covox_ceres_oracle INTERFACE Ceres::ceres)
+  target_compile_definitions(covox_ceres_oracle INTERFACE COVOX_HAVE_CERES=1)
+endif()
+message(STATUS "covoxslam: Ceres oracle ${Ceres_FOUND}")

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "benchmark_report.h"
+#include "command_line.h"
 #include "covoxslam/core/buffer.h"
 #include "covoxslam/core/device.h"
 #include "covoxslam/core/error.h"
@@ -32,44 +33,26 @@ struct Options {
   std::vector<double> load_factors = {0.5, 0.7, 0.85};
   int64_t lookup_blocks = 100000;
   int64_t lookups = 50000000;
-  std::string output = "docs/benchmarks/hash_table.json";
+  std::string output;  // empty: docs/benchmarks/hash_table.json
 };
 
-[[noreturn]] void usage(const std::string& problem) {
-  std::cerr << "benchmark_hash_table: " << problem << "\n"
-            << "usage: benchmark_hash_table [--keys N] [--device all|cuda|cpu] [--repeats N]\n"
-            << "       [--load-factors 0.5,0.7,0.85] [--lookup-blocks N] [--lookups N]\n"
-            << "       [--output docs/benchmarks/hash_table.json]\n";
-  std::exit(2);
-}
-
 Options parse(int argc, char** argv) {
+  tools::CommandLine args(argc, argv,
+                          "usage: benchmark_hash_table [--keys N] [--device all|cuda|cpu] [--repeats N]\n"
+                          "       [--load-factors 0.5,0.7,0.85] [--lookup-blocks N] [--lookups N]\n"
+                          "       [--output docs/benchmarks/hash_table.json]");
   Options options;
-  for (int i = 1; i < argc; ++i) {
-    const std::string flag = argv[i];
-    auto value = [&]() -> std::string {
-      if (i + 1 >= argc) usage(flag + " needs a value");
-      return argv[++i];
-    };
-    try {
-      if (flag == "--keys") options.keys = std::stoll(value());
-      else if (flag == "--device") options.device = value();
-      else if (flag == "--repeats") options.repeats = std::stoi(value());
-      else if (flag == "--lookup-blocks") options.lookup_blocks = std::stoll(value());
-      else if (flag == "--lookups") options.lookups = std::stoll(value());
-      else if (flag == "--output") options.output = value();
-      else if (flag == "--load-factors") {
-        options.load_factors.clear();
-        std::stringstream list(value());
-        for (std::string item; std::getline(list, item, ',');) options.load_factors.push_back(std::stod(item));
-      } else usage("unknown option " + flag);
-    } catch (const std::invalid_argument&) {
-      usage("bad value for " + flag);
-    }
-  }
-  if (options.keys <= 0 || options.repeats <= 0) usage("--keys and --repeats must be positive");
+  options.keys = args.integer("--keys", options.keys);
+  options.device = args.text("--device", options.device);
+  options.repeats = static_cast<int>(args.integer("--repeats", options.repeats));
+  options.load_factors = args.numbers("--load-factors", options.load_factors);
+  options.lookup_blocks = args.integer("--lookup-blocks", options.lookup_blocks);
+  options.lookups = args.integer("--lookups", options.lookups);
+  options.output = args.text("--output", "");
+  args.finish();
+  if (options.keys <= 0 || options.repeats <= 0) args.fail("--keys and --repeats must be positive");
   for (double lf : options.load_factors) {
-    if (!(lf > 0.0 && lf < 1.0)) usage("load factors must be in (0, 1)");
+    if (!(lf > 0.0 && lf < 1.0)) args.fail("load factors must be in (0, 1)");
   }
   return options;
 }
@@ -198,16 +181,9 @@ void benchmark_layout(Device device, const Options& options, const std::string& 
 int main(int argc, char** argv) {
   using namespace covox;
   const Options options = parse(argc, argv);
-  std::vector<Device> devices;
   try {
-    if (options.device == "all") {
-      devices = available_devices();
-      std::reverse(devices.begin(), devices.end());  // GPU first when present
-    } else {
-      devices = {select_device(parse_device_request(options.device))};
-    }
-    std::string device_names;
-    for (Device d : devices) device_names += (device_names.empty() ? "" : "; ") + describe_device(d);
+    const std::vector<Device> devices = tools::benchmark_devices(options.device);
+    const std::string device_names = tools::describe_devices(devices);
     tools::BenchmarkReport report("hash_table", device_names, argc, argv);
     std::cout << "generating " << options.keys << " distinct keys..." << std::endl;
     const auto keys = distinct_keys(options.keys);
@@ -220,7 +196,7 @@ int main(int argc, char** argv) {
     }
     report.print_table(std::cout);
     report.write_json(options.output);
-    std::cout << "wrote " << options.output << std::endl;
+    std::cout << "wrote " << (options.output.empty() ? report.default_json_path() : options.output) << std::endl;
   } catch (const std::exception& error) {
     std::cerr << "benchmark_hash_table: " << error.what() << std::endl;
     return 1;

@@ -15,14 +15,14 @@
 #include <string>
 #include <vector>
 
+#include "benchmark_datasets.h"
 #include "benchmark_report.h"
+#include "command_line.h"
 #include "covoxslam/core/buffer.h"
 #include "covoxslam/core/device.h"
 #include "covoxslam/core/error.h"
 #include "covoxslam/integrators/tsdf_integrator.h"
 #include "covoxslam/io/data_directory.h"
-#include "covoxslam/io/lidar_readers.h"
-#include "covoxslam/io/rgbd_folder.h"
 #include "covoxslam/map/tsdf_map.h"
 
 namespace covox {
@@ -32,40 +32,23 @@ struct Options {
   std::string data;
   std::string device = "all";
   int integrations = 100;
-  std::string output = "docs/benchmarks/tsdf.json";
+  std::string output;
   bool skip_rgbd = false;
 };
 
-[[noreturn]] void usage(const std::string& problem) {
-  std::cerr << "benchmark_tsdf: " << problem << "\n"
-            << "usage: benchmark_tsdf [--data DIR] [--device all|cuda|cpu] [--integrations N]\n"
-            << "       [--output docs/benchmarks/tsdf.json] [--skip-rgbd]\n";
-  std::exit(2);
-}
-
 Options parse(int argc, char** argv) {
+  tools::CommandLine args(argc, argv,
+                          "usage: benchmark_tsdf [--data DIR] [--device all|cuda|cpu] [--integrations N]\n"
+                          "       [--output docs/benchmarks/tsdf.json] [--skip-rgbd]");
   Options options;
-  options.data = io::data_directory();
-  for (int i = 1; i < argc; ++i) {
-    const std::string flag = argv[i];
-    auto value = [&]() -> std::string {
-      if (i + 1 >= argc) usage(flag + " needs a value");
-      return argv[++i];
-    };
-    if (flag == "--data") options.data = value();
-    else if (flag == "--device") options.device = value();
-    else if (flag == "--integrations") options.integrations = std::atoi(value().c_str());
-    else if (flag == "--output") options.output = value();
-    else if (flag == "--skip-rgbd") options.skip_rgbd = true;
-    else usage("unknown option " + flag);
-  }
-  if (options.integrations <= 0) usage("--integrations must be positive");
+  options.data = args.text("--data", io::data_directory());
+  options.device = args.text("--device", options.device);
+  options.integrations = static_cast<int>(args.integer("--integrations", options.integrations));
+  options.output = args.text("--output", "");
+  options.skip_rgbd = args.flag("--skip-rgbd");
+  args.finish();
+  if (options.integrations <= 0) args.fail("--integrations must be positive");
   return options;
-}
-
-double median(std::vector<double> values) {
-  std::sort(values.begin(), values.end());
-  return values[values.size() / 2];
 }
 
 struct Timing {
@@ -74,7 +57,7 @@ struct Timing {
   int64_t blocks = 0;
 };
 
-// Integrates `frames` round-robin into one map `integrations` times; the first pass over the
+// Integrates frames round-robin into one map `integrations` times; the first pass over the
 // frames is a warm-up (allocation of blocks and scratch), not timed.
 template <class IntegrateFrame>
 Timing time_integrations(const Stream& stream, size_t frame_count, int integrations, TsdfMap& map,
@@ -93,7 +76,7 @@ Timing time_integrations(const Stream& stream, size_t frame_count, int integrati
     total_ms += ms;
     updates += stats.voxel_updates;
   }
-  return Timing{median(times), updates / (total_ms * 1e-3), map.block_count()};
+  return Timing{tools::median_of(times), updates / (total_ms * 1e-3), map.block_count()};
 }
 
 void add_rows(tools::BenchmarkReport* report, const std::string& name, const Timing& t) {
@@ -103,18 +86,13 @@ void add_rows(tools::BenchmarkReport* report, const std::string& name, const Tim
 }
 
 void benchmark_lidar(Device device, const Options& options, const std::string& label,
-                     const std::vector<io::PointCloud>& scans, float voxel_size, float max_ray_m,
+                     const tools::DeviceScans& scans, float voxel_size, float max_ray_m,
                      tools::BenchmarkReport* report) {
   const Stream stream(device);
-  std::vector<Buffer<Vec3f>> device_scans;
-  for (const auto& scan : scans) {
-    std::vector<Vec3f> points(scan.points_m.size());
-    for (size_t i = 0; i < points.size(); ++i) {
-      points[i] = Vec3f(scan.points_m[i].x(), scan.points_m[i].y(), scan.points_m[i].z());
-    }
-    device_scans.push_back(Buffer<Vec3f>::from_host(device, points));
-  }
-  TsdfMap map(device, TsdfMapConfig{voxel_size, 16, {}});
+  TsdfMapConfig map_config;
+  map_config.voxel_size_m = voxel_size;
+  map_config.voxels_per_side = 16;
+  TsdfMap map(device, map_config);
   TsdfIntegratorConfig config;
   config.truncation_distance_m = 3.0f * voxel_size;
   config.max_ray_length_m = max_ray_m;
@@ -123,51 +101,31 @@ void benchmark_lidar(Device device, const Options& options, const std::string& l
   config.use_sparsity_compensation_factor = true;
   config.sparsity_compensation_factor = 20.0f;
   TsdfIntegrator integrator(config);
-  const Timing timing = time_integrations(stream, device_scans.size(), options.integrations, map, [&](size_t f) {
-    PointCloudView cloud{device_scans[f].data(), nullptr, static_cast<int64_t>(device_scans[f].size())};
-    return integrator.integrate(map, cloud, Eigen::Isometry3d::Identity(), stream);
+  const Timing timing = time_integrations(stream, scans.size(), options.integrations, map, [&](size_t f) {
+    return integrator.integrate(map, scans.view(f), Eigen::Isometry3d::Identity(), stream);
   });
   add_rows(report, std::string(to_string(device)) + " " + label, timing);
 }
 
-void benchmark_rgbd(Device device, const Options& options, const io::RgbdFolder& folder, float voxel_size,
-                    tools::BenchmarkReport* report) {
+// nvblox was timed on frames 0-69 with depth only; we fuse colour as well, and raycast every
+// pixel with free-space carving (voxblox semantics), `carving` off keeps only the band.
+void benchmark_rgbd(Device device, const Options& options, const tools::DeviceRgbdFrames& frames,
+                    float voxel_size, bool carving, tools::BenchmarkReport* report) {
   const Stream stream(device);
-  const size_t frame_count = std::min<size_t>(70, folder.size());
-  std::vector<Buffer<uint16_t>> depths;
-  std::vector<Buffer<Rgb8>> colors;
-  std::vector<Eigen::Isometry3d> poses;
-  PinholeIntrinsics intrinsics;
-  float units_per_m = 1000.0f;
-  for (size_t f = 0; f < frame_count; ++f) {
-    const io::RgbdFrame frame = folder.load(f);
-    depths.push_back(Buffer<uint16_t>::from_host(device, frame.depth_raw));
-    std::vector<Rgb8> rgb(frame.color.width * frame.color.height);
-    for (size_t p = 0; p < rgb.size(); ++p) {
-      rgb[p] = Rgb8{frame.color.rgb[3 * p], frame.color.rgb[3 * p + 1], frame.color.rgb[3 * p + 2]};
-    }
-    colors.push_back(Buffer<Rgb8>::from_host(device, rgb));
-    poses.push_back(frame.T_world_camera);
-    intrinsics = PinholeIntrinsics{float(frame.intrinsics.fx), float(frame.intrinsics.fy), float(frame.intrinsics.cx),
-                                   float(frame.intrinsics.cy), frame.intrinsics.width, frame.intrinsics.height};
-    units_per_m = frame.depth_units_per_m;
-  }
-  TsdfMap map(device, TsdfMapConfig{voxel_size, 8, {}});
+  TsdfMapConfig map_config;
+  map_config.voxel_size_m = voxel_size;
+  map_config.voxels_per_side = 8;
+  TsdfMap map(device, map_config);
   TsdfIntegratorConfig config;
   config.truncation_distance_m = 4.0f * voxel_size;  // nvblox's default truncation
   config.max_ray_length_m = 5.0f;
+  config.voxel_carving_enabled = carving;
   TsdfIntegrator integrator(config);
-  const Timing timing = time_integrations(stream, frame_count, options.integrations, map, [&](size_t f) {
-    DepthImageView image;
-    image.depth = depths[f].data();
-    image.colors = colors[f].data();
-    image.intrinsics = intrinsics;
-    image.depth_units_per_m = units_per_m;
-    image.invalid_value = 65535;
-    return integrator.integrate_depth(map, image, poses[f], stream);
+  const Timing timing = time_integrations(stream, frames.size(), options.integrations, map, [&](size_t f) {
+    return integrator.integrate_depth(map, frames.view(f), frames.T_world_camera[f], stream);
   });
   add_rows(report, std::string(to_string(device)) + " 7-Scenes " + std::to_string(int(voxel_size * 100 + 0.5)) +
-                       " cm colour", timing);
+                       " cm colour" + (carving ? " carving" : " band only"), timing);
 }
 
 }  // namespace
@@ -177,37 +135,26 @@ int main(int argc, char** argv) {
   using namespace covox;
   const Options options = parse(argc, argv);
   try {
-    std::vector<Device> devices;
-    if (options.device == "all") {
-      devices = available_devices();
-      std::reverse(devices.begin(), devices.end());
-    } else {
-      devices = {select_device(parse_device_request(options.device))};
-    }
-    std::string names;
-    for (Device d : devices) names += (names.empty() ? "" : "; ") + describe_device(d);
+    const std::vector<Device> devices = tools::benchmark_devices(options.device);
+    const std::string names = tools::describe_devices(devices);
     tools::BenchmarkReport report("tsdf", names, argc, argv);
-    std::vector<io::PointCloud> ouster, kitti;
-    for (int i = 0; i < 3; ++i) {
-      ouster.push_back(io::read_float_xyz_bin(options.data + "/lidar-scans/newer_06/deskewed_0" + std::to_string(i) + ".bin"));
-    }
-    for (int i = 0; i < 2; ++i) {
-      kitti.push_back(io::read_float_xyz_bin(options.data + "/lidar-scans/kitti_00/00000" + std::to_string(i) + ".bin"));
-    }
     for (Device device : devices) {
       std::cout << "TSDF on " << describe_device(device) << "..." << std::endl;
+      const tools::DeviceScans ouster = tools::load_ouster_scans(options.data, device);
+      const tools::DeviceScans kitti = tools::load_kitti_scans(options.data, device);
       benchmark_lidar(device, options, "OS1-64 0.2 m, 16 m rays", ouster, 0.2f, 16.0f, &report);
       benchmark_lidar(device, options, "OS1-64 0.1 m, 16 m rays", ouster, 0.1f, 16.0f, &report);
       benchmark_lidar(device, options, "KITTI HDL-64 0.2 m, 50 m rays", kitti, 0.2f, 50.0f, &report);
       if (!options.skip_rgbd) {
-        const io::RgbdFolder folder = io::RgbdFolder::open_7scenes(options.data + "/7scenes-redkitchen");
-        benchmark_rgbd(device, options, folder, 0.05f, &report);
-        benchmark_rgbd(device, options, folder, 0.02f, &report);
+        const tools::DeviceRgbdFrames frames = tools::load_7scenes_frames(options.data, 70, device);
+        for (float voxel_size : {0.05f, 0.02f}) {
+          for (bool carving : {true, false}) benchmark_rgbd(device, options, frames, voxel_size, carving, &report);
+        }
       }
     }
     report.print_table(std::cout);
     report.write_json(options.output);
-    std::cout << "wrote " << options.output << std::endl;
+    std::cout << "wrote " << (options.output.empty() ? report.default_json_path() : options.output) << std::endl;
   } catch (const std::exception& error) {
     std::cerr << "benchmark_tsdf: " << error.what() << std::endl;
     return 1;

@@ -15,6 +15,16 @@ void require(bool condition, const std::string& message) {
 }
 }  // namespace
 
+TsdfIntegrationMethod parse_tsdf_integration_method(const std::string& name) {
+  if (name == "simple") return TsdfIntegrationMethod::kSimple;
+  if (name == "merged") return TsdfIntegrationMethod::kMerged;
+  throw Error("TSDF integrator: unknown method '" + name + "' (expected simple or merged)");
+}
+
+const char* to_string(TsdfIntegrationMethod method) {
+  return method == TsdfIntegrationMethod::kSimple ? "simple" : "merged";
+}
+
 void validate(const TsdfIntegratorConfig& c, float voxel_size_m) {
   require(std::isfinite(c.truncation_distance_m) && c.truncation_distance_m > 0.0f,
           "truncation_distance_m must be positive, got " + std::to_string(c.truncation_distance_m));
@@ -26,6 +36,9 @@ void validate(const TsdfIntegratorConfig& c, float voxel_size_m) {
   require(c.max_ray_length_m > c.min_ray_length_m,
           "max_ray_length_m (" + std::to_string(c.max_ray_length_m) + ") must exceed min_ray_length_m (" +
               std::to_string(c.min_ray_length_m) + ")");
+  require(c.method != TsdfIntegrationMethod::kMerged || c.max_ray_length_m <= tsdf::kMaxMergedRange_m,
+          "max_ray_length_m (" + std::to_string(c.max_ray_length_m) + ") must be at most " +
+              std::to_string(tsdf::kMaxMergedRange_m) + " m with the merged method (use simple beyond)");
   require(!c.use_sparsity_compensation_factor || c.sparsity_compensation_factor > 0.0f,
           "sparsity_compensation_factor must be positive, got " + std::to_string(c.sparsity_compensation_factor));
 }

@@ -10,18 +10,10 @@
 #include "covoxslam/core/buffer.h"
 #include "covoxslam/core/stream.h"
 #include "covoxslam/core/vec3.h"
+#include "covoxslam/map/mesh.h"
 #include "covoxslam/map/tsdf_map.h"
 
 namespace covox {
-
-// A triangle mesh on the host: triangle t uses vertices triangles[3t], [3t+1], [3t+2].
-struct Mesh {
-  std::vector<Vec3f> vertices_m;
-  std::vector<Rgb8> colors;
-  std::vector<uint32_t> triangles;
-  size_t triangle_count() const { return triangles.size() / 3; }
-  bool empty() const { return triangles.empty(); }
-};
 
 struct MeshIntegratorConfig {
   // Cubes with a corner of less TSDF weight are not meshed (unobserved space has no surface).

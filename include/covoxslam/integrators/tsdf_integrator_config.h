@@ -1,9 +1,20 @@
 #pragma once
 // Parameters of TSDF integration. Names and meanings follow voxblox, so a voxblox user's
 // configuration carries over; defaults follow voxblox except where noted.
+#include <string>
+
 namespace covox {
 
+// How points become rays (voxblox's `method`).
+enum class TsdfIntegrationMethod {
+  kSimple,  // one ray per point
+  kMerged,  // points whose surface falls into one voxel share one ray from their mean, with
+            // their summed weight and mean colour (voxblox's default): far fewer rays for dense
+            // depth images and for LiDAR returns near the sensor
+};
+
 struct TsdfIntegratorConfig {
+  TsdfIntegrationMethod method = TsdfIntegrationMethod::kMerged;
   // Half-width of the band around the surface where signed distances are stored. Voxels further
   // in front are "free" (distance clamped to +truncation); further behind are not updated.
   float truncation_distance_m = 0.6f;  // voxgraph's ARCHE setting: 3 voxels of 0.2 m
@@ -28,6 +39,10 @@ struct TsdfIntegratorConfig {
   // Fuse colour (when the input has it) inside the truncation band.
   bool integrate_color = true;
 };
+
+// "simple" or "merged"; throws covox::Error naming the bad value otherwise.
+TsdfIntegrationMethod parse_tsdf_integration_method(const std::string& name);
+const char* to_string(TsdfIntegrationMethod method);
 
 // Throws covox::Error naming the first invalid parameter.
 void validate(const TsdfIntegratorConfig& config, float voxel_size_m);

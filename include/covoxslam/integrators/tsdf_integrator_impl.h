@@ -56,6 +56,75 @@ struct AddDropTallies {
 
 }  // namespace tsdf_detail
 
+// Bundles surface rays by the voxel their point falls into and rewrites scratch.rays with one
+// ray per bundle (see tsdf_ray_merging.h), with its weight (point count) in scratch.ray_weights
+// and, when `has_color`, its mean colour in scratch.ray_colors. Returns the number of rays.
+template <class Backend>
+int64_t tsdf_merge_rays(Backend backend, const tsdf::RayParameters& ray_parameters, int32_t voxels_per_side,
+                        const PointCloudView& cloud, const Rgb8* colors, const float* intensities,
+                        float grey_per_intensity, TsdfScratchBuffers& scratch, const Stream& stream) {
+  const int64_t n = cloud.count;
+  const float inverse_voxel_size = 1.0f / ray_parameters.voxel_size_m;
+  scratch.keys.resize_discard(n);
+  scratch.order.resize_discard(n);
+  scratch.bundles.resize_discard(n);
+  uint64_t* keys = scratch.keys.data();
+  uint32_t* order = scratch.order.data();
+  tsdf::PointBundle* bundles = scratch.bundles.data();
+  const tsdf::RaySegment* rays = scratch.rays.data();
+  const Vec3f* points = cloud.points;
+  parallel_for(backend, stream, n, [=] COVOX_HD(int64_t i) {
+    const tsdf::RaySegment ray = rays[i];
+    keys[i] = tsdf::merge_key(ray, i, inverse_voxel_size, voxels_per_side);
+    order[i] = static_cast<uint32_t>(i);
+    tsdf::PointBundle bundle;
+    if (ray.kind == tsdf::kSurfaceRay) {  // finite: only these are summed
+      bundle.x = tsdf::to_merge_units(points[i].x);
+      bundle.y = tsdf::to_merge_units(points[i].y);
+      bundle.z = tsdf::to_merge_units(points[i].z);
+    }
+    const Rgb8 color = colors ? colors[i] : (intensities ? tsdf::intensity_to_grey(intensities[i], grey_per_intensity) : Rgb8{});
+    bundle.r = color.r;
+    bundle.g = color.g;
+    bundle.b = color.b;
+    bundle.count = 1;
+    bundle.first = static_cast<uint32_t>(i);
+    bundles[i] = bundle;
+  });
+  sort_by_key(backend, stream, keys, order, n);
+  scratch.merged_keys.resize_discard(n);
+  scratch.merged_bundles.resize_discard(n);
+  const auto ordered_bundles = thrust::make_permutation_iterator(bundles, order);
+  const auto ends = thrust::reduce_by_key(execution_policy(backend, stream), keys, keys + n, ordered_bundles,
+                                          scratch.merged_keys.data(), scratch.merged_bundles.data(),
+                                          thrust::equal_to<uint64_t>(), tsdf::AddBundles());
+  const int64_t ray_count = static_cast<int64_t>(ends.first - scratch.merged_keys.data());
+
+  scratch.rays.resize_discard(ray_count);
+  scratch.ray_weights.resize_discard(ray_count);
+  scratch.ray_colors.resize_discard(ray_count);
+  tsdf::RaySegment* merged_rays = scratch.rays.data();
+  float* weights = scratch.ray_weights.data();
+  Rgb8* ray_colors = scratch.ray_colors.data();
+  const tsdf::PointBundle* merged = scratch.merged_bundles.data();
+  parallel_for(backend, stream, ray_count, [=] COVOX_HD(int64_t m) {
+    const tsdf::PointBundle bundle = merged[m];
+    Vec3f point = points[bundle.first];
+    if (bundle.count > 1) {
+      const double scale = 1.0 / (static_cast<double>(bundle.count) * tsdf::kMergeUnitsPerMetre);
+      point = Vec3f(static_cast<float>(bundle.x * scale), static_cast<float>(bundle.y * scale),
+                    static_cast<float>(bundle.z * scale));
+    }
+    merged_rays[m] = tsdf::make_ray(ray_parameters, point);
+    weights[m] = static_cast<float>(bundle.count);
+    const uint32_t half = bundle.count / 2;
+    ray_colors[m] = Rgb8{static_cast<uint8_t>((bundle.r + half) / bundle.count),
+                         static_cast<uint8_t>((bundle.g + half) / bundle.count),
+                         static_cast<uint8_t>((bundle.b + half) / bundle.count)};
+  });
+  return ray_count;
+}
+
 template <class Backend>
 IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConfig& config,
                                        TsdfMap& map, const PointCloudView& cloud,
@@ -83,19 +152,13 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
                                                  config.use_sparsity_compensation_factor,
                                                  config.sparsity_compensation_factor};
 
-  // 1. rays and their voxel counts
+  // 1. rays, and why points did or did not become rays
   scratch.rays.resize_discard(n);
-  scratch.counts.resize_discard(n);
-  scratch.offsets.resize_discard(n);
-  tsdf::RaySegment* rays = scratch.rays.data();
-  uint32_t* counts = scratch.counts.data();
+  tsdf::RaySegment* point_rays = scratch.rays.data();
   const Vec3f* points = cloud.points;
-  parallel_for(backend, stream, n, [=] COVOX_HD(int64_t i) {
-    const tsdf::RaySegment ray = tsdf::make_ray(ray_parameters, points[i]);
-    rays[i] = ray;
-    counts[i] = tsdf::ray_voxel_count(ray, inverse_voxel_size);
-  });
-  const tsdf_detail::RayTally tally =
+  parallel_for(backend, stream, n,
+               [=] COVOX_HD(int64_t i) { point_rays[i] = tsdf::make_ray(ray_parameters, points[i]); });
+  tsdf_detail::RayTally tally =
       transform_reduce(backend, stream, scratch.rays.data(), n, tsdf_detail::TallyRay{inverse_voxel_size},
                        tsdf_detail::RayTally{}, tsdf_detail::AddTallies{});
   stats.surface_rays = tally.kinds[tsdf::kSurfaceRay];
@@ -104,7 +167,34 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
   stats.dropped_zero = tally.kinds[tsdf::kDroppedZero];
   stats.dropped_too_close = tally.kinds[tsdf::kDroppedTooClose];
   stats.dropped_too_far = tally.kinds[tsdf::kDroppedTooFar];
-  exclusive_scan(backend, stream, counts, n, scratch.offsets.data());
+
+  // What each ray carries into the update: per-point colour or intensity, or per-bundle colour
+  // and weight after merging.
+  const Rgb8* colors = config.integrate_color ? cloud.colors : nullptr;
+  const float* intensities = config.integrate_color && !colors ? cloud.intensities : nullptr;
+  const float grey_per_intensity = 255.0f / cloud.intensity_max_value;
+  const bool has_color = colors || intensities;
+  const float* ray_weights = nullptr;
+  int64_t ray_count = n;
+  if (config.method == TsdfIntegrationMethod::kMerged && stats.surface_rays > 0) {
+    ray_count = tsdf_merge_rays(backend, ray_parameters, voxels_per_side, cloud, colors, intensities,
+                                grey_per_intensity, scratch, stream);
+    ray_weights = scratch.ray_weights.data();
+    colors = has_color ? scratch.ray_colors.data() : nullptr;
+    intensities = nullptr;
+    tally = transform_reduce(backend, stream, scratch.rays.data(), ray_count, tsdf_detail::TallyRay{inverse_voxel_size},
+                             tsdf_detail::RayTally{}, tsdf_detail::AddTallies{});
+  }
+  stats.rays_cast = tally.kinds[tsdf::kSurfaceRay] + tally.kinds[tsdf::kClearingRay];
+
+  // voxel counts of the rays -> each ray's range in the update array
+  scratch.counts.resize_discard(ray_count);
+  scratch.offsets.resize_discard(ray_count);
+  tsdf::RaySegment* rays = scratch.rays.data();
+  uint32_t* counts = scratch.counts.data();
+  parallel_for(backend, stream, ray_count,
+               [=] COVOX_HD(int64_t i) { counts[i] = tsdf::ray_voxel_count(rays[i], inverse_voxel_size); });
+  exclusive_scan(backend, stream, counts, ray_count, scratch.offsets.data());
   const int64_t total_updates = tally.voxels;
   stats.voxel_updates = total_updates;
   if (total_updates == 0) return stats;
@@ -117,22 +207,14 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
   uint32_t* order = scratch.order.data();
   tsdf::VoxelUpdate* updates = scratch.updates.data();
   const uint32_t* offsets = scratch.offsets.data();
-  const Rgb8* colors = config.integrate_color ? cloud.colors : nullptr;
-  const float* intensities = config.integrate_color && !colors ? cloud.intensities : nullptr;
-  const float intensity_to_grey = 255.0f / cloud.intensity_max_value;
   const float truncation = config.truncation_distance_m;
-  parallel_for(backend, stream, n, [=] COVOX_HD(int64_t i) {
+  parallel_for(backend, stream, ray_count, [=] COVOX_HD(int64_t i) {
     const tsdf::RaySegment ray = rays[i];
     if (ray.kind > tsdf::kClearingRay) return;
     uint32_t out = offsets[i];
     const bool clearing = ray.kind == tsdf::kClearingRay;
-    Rgb8 color = colors ? colors[i] : Rgb8{};
-    if (intensities) {
-      const float grey = intensities[i] * intensity_to_grey;
-      const uint8_t level = static_cast<uint8_t>(grey <= 0.0f ? 0.0f : (grey >= 255.0f ? 255.0f : grey));
-      color = Rgb8{level, level, level};
-    }
-    const bool has_color = colors || intensities;
+    const Rgb8 color = colors ? colors[i] : (intensities ? tsdf::intensity_to_grey(intensities[i], grey_per_intensity) : Rgb8{});
+    const float ray_weight = ray_weights ? ray_weights[i] : 1.0f;
     tsdf::traverse_ray(ray, inverse_voxel_size, [&](const Index3D& voxel) {
       const Vec3f center((voxel.x + 0.5f) * voxel_size, (voxel.y + 0.5f) * voxel_size,
                          (voxel.z + 0.5f) * voxel_size);
@@ -140,14 +222,8 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
       float weight = 0.0f;
       if (distance >= -truncation) {
         if (distance > truncation) distance = truncation;
-        weight = tsdf::update_weight(weight_parameters, ray.range_m, distance);
+        weight = ray_weight * tsdf::update_weight(weight_parameters, ray.range_m, distance);
       }
-      const Index3D block(floor_divide(voxel.x, voxels_per_side),
-                          floor_divide(voxel.y, voxels_per_side),
-                          floor_divide(voxel.z, voxels_per_side));
-      const int32_t local = (voxel.x - block.x * voxels_per_side) +
-                            voxels_per_side * ((voxel.y - block.y * voxels_per_side) +
-                                               voxels_per_side * (voxel.z - block.z * voxels_per_side));
       tsdf::VoxelUpdate update;
       update.weighted_distance = weight * distance;
       update.weight = weight;
@@ -157,7 +233,7 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
         update.weighted_b = weight * color.b;
         update.color_weight = weight;
       }
-      keys[out] = weight > 0.0f ? tsdf::pack_update_key(block, local) : tsdf::kZeroWeightUpdateKey;
+      keys[out] = weight > 0.0f ? tsdf::voxel_update_key(voxel, voxels_per_side) : tsdf::kZeroWeightUpdateKey;
       order[out] = out;
       updates[out] = update;
       ++out;

@@ -8,6 +8,7 @@
 #include "covoxslam/core/buffer.h"
 #include "covoxslam/integrators/tsdf_integrator.h"
 #include "covoxslam/integrators/tsdf_kernels.h"
+#include "covoxslam/integrators/tsdf_ray_merging.h"
 
 namespace covox {
 
@@ -15,7 +16,8 @@ struct TsdfScratchBuffers {
   explicit TsdfScratchBuffers(Device device)
       : points(device), colors(device), rays(device), counts(device), offsets(device),
         keys(device), order(device), updates(device), merged_keys(device), merged(device),
-        block_indices(device), slots(device), is_new(device) {}
+        block_indices(device), slots(device), is_new(device), bundles(device), merged_bundles(device),
+        ray_colors(device), ray_weights(device) {}
   Buffer<Vec3f> points;  // depth images unprojected, or host clouds uploaded
   Buffer<Rgb8> colors;
   Buffer<tsdf::RaySegment> rays;
@@ -29,6 +31,11 @@ struct TsdfScratchBuffers {
   Buffer<Index3D> block_indices;
   Buffer<uint32_t> slots;
   Buffer<uint8_t> is_new;
+  // merged integration only
+  Buffer<tsdf::PointBundle> bundles;
+  Buffer<tsdf::PointBundle> merged_bundles;
+  Buffer<Rgb8> ray_colors;
+  Buffer<float> ray_weights;
 };
 
 template <class Backend>

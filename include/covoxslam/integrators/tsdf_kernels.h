@@ -47,6 +47,23 @@ COVOX_HD_INLINE int32_t update_key_voxel(uint64_t key) {
   return static_cast<int32_t>(key & ((uint64_t(1) << kKeyVoxelBits) - 1));
 }
 
+// The update key of a global voxel index: its block and its position inside the block.
+COVOX_HD_INLINE uint64_t voxel_update_key(const Index3D& voxel, int32_t voxels_per_side) {
+  const Index3D block(floor_divide(voxel.x, voxels_per_side), floor_divide(voxel.y, voxels_per_side),
+                      floor_divide(voxel.z, voxels_per_side));
+  const int32_t local = (voxel.x - block.x * voxels_per_side) +
+                        voxels_per_side * ((voxel.y - block.y * voxels_per_side) +
+                                           voxels_per_side * (voxel.z - block.z * voxels_per_side));
+  return pack_update_key(block, local);
+}
+
+// A LiDAR intensity shown as a grey level: intensity * grey_per_intensity, clamped to 0..255.
+COVOX_HD_INLINE Rgb8 intensity_to_grey(float intensity, float grey_per_intensity) {
+  const float grey = intensity * grey_per_intensity;
+  const uint8_t level = static_cast<uint8_t>(grey <= 0.0f ? 0.0f : (grey >= 255.0f ? 255.0f : grey));
+  return Rgb8{level, level, level};
+}
+
 // One voxel's contribution, already multiplied by its weight so that merging updates of the
 // same voxel is a plain sum (sum of w*sdf and of w, then one division).
 struct VoxelUpdate {

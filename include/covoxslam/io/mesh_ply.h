@@ -4,7 +4,7 @@
 // Open3D) read. Written to a temporary file and renamed.
 #include <string>
 
-#include "covoxslam/integrators/mesh_integrator.h"
+#include "covoxslam/map/mesh.h"
 
 namespace covox {
 namespace io {

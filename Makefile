@@ -1,0 +1,73 @@
+# covoxslam: the two commands of the README, and the steps they are made of.
+#
+#   make demo   installs what is missing, builds, simulates the default drone flight (cached after
+#               the first run) and maps it, GPU if present, CPU otherwise
+#   make test   installs what is missing, builds everything (library, tools, tests, ROS layer)
+#               and runs the whole test suite
+#
+# Settings (make VAR=value):
+#   CUDA_ARCH   CUDA architectures to compile for. Default: 90 (one architecture, because nvcc on
+#               a 2-core machine is slow); `make release` keeps the full Jetson + desktop list.
+#   WITH_CUDA   ON (default when nvcc exists) or OFF: the CPU backend is always built.
+#   BUILD_DIR   build folder (default build)
+#   JOBS        parallel compile jobs (default: number of cores)
+#   COVOX_DATA_DIR  the shared real sensor data (default ../shared/data)
+SHELL := /bin/bash
+
+# A pyenv/conda python3 ahead of /usr/bin breaks catkin's Python modules: Debian's come first.
+export PATH := /usr/bin:/bin:/usr/sbin:/sbin:/usr/local/cuda/bin:$(PATH)
+
+BUILD_DIR ?= build
+JOBS ?= $(shell nproc 2>/dev/null || echo 2)
+CUDA_ARCH ?= 90
+WITH_CUDA ?= $(if $(wildcard /usr/local/cuda/bin/nvcc),ON,OFF)
+COVOX_DATA_DIR ?= $(abspath $(CURDIR)/../shared/data)
+export COVOX_DATA_DIR
+
+# Debian 12 packages: the library and tests, then the ROS 1 layer (Debian's own ROS packages).
+DEBIAN_BUILD_PACKAGES := cmake make g++ pkg-config libeigen3-dev libgtest-dev libpng-dev \
+  libjpeg-dev zlib1g-dev libceres-dev
+DEBIAN_ROS_PACKAGES := catkin ros-core-dev libroscpp-dev libnodeletlib-dev libnodelet-dev \
+  libtf2-ros-dev libtf2-eigen-dev libpcl-dev libpcl-conversions-dev librosbag-dev pluginlib-dev \
+  libsensor-msgs-dev libnav-msgs-dev libvisualization-msgs-dev libgeometry-msgs-dev \
+  libstd-srvs-dev ros-message-generation librostest-dev python3-rostest
+DEBIAN_PACKAGES := $(DEBIAN_BUILD_PACKAGES) $(DEBIAN_ROS_PACKAGES)
+
+CMAKE_FLAGS := -DCMAKE_BUILD_TYPE=Release -DCOVOX_WITH_CUDA=$(WITH_CUDA) \
+  -DCOVOX_CUDA_ARCHITECTURES="$(CUDA_ARCH)" -DCOVOX_DATA_DIR="$(COVOX_DATA_DIR)"
+
+DEMO_DIR ?= demo_output
+
+.PHONY: all deps build test demo release clean
+
+all: build
+
+# Installs only what is missing, so a second run costs a second, not an apt-get update.
+deps:
+	@missing=$$(for p in $(DEBIAN_PACKAGES); do \
+	    dpkg-query -W -f='$${Status}\n' $$p 2>/dev/null | grep -q 'install ok installed' || echo $$p; \
+	  done); \
+	if [ -n "$$missing" ]; then \
+	  echo "covoxslam: installing Debian packages:" $$missing; \
+	  if [ "$$(id -u)" != 0 ]; then SUDO=sudo; fi; \
+	  $$SUDO apt-get update -qq && \
+	  DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq --no-install-recommends $$missing; \
+	else echo "covoxslam: all Debian packages present"; fi
+
+# Configuring again is cheap and picks up changed settings (CUDA_ARCH, WITH_CUDA).
+build: deps
+	cmake -S . -B $(BUILD_DIR) $(CMAKE_FLAGS)
+	cmake --build $(BUILD_DIR) -j $(JOBS)
+
+test: build
+	cd $(BUILD_DIR) && ctest --output-on-failure -j $(JOBS) --timeout 600
+
+demo: build
+	tools/run_demo.sh $(BUILD_DIR) $(DEMO_DIR)
+
+# What a release builds: every supported CUDA architecture.
+release:
+	$(MAKE) build BUILD_DIR=build_release CUDA_ARCH="72;75;86;87;89;90"
+
+clean:
+	rm -rf $(BUILD_DIR)

@@ -1,0 +1,69 @@
+#pragma once
+// "Merged" integration (voxblox's MergedTsdfIntegrator, the paper's merged rays): points whose
+// measured surface falls into the same voxel are bundled, and one ray is cast from their mean
+// with their summed weight and mean colour. A depth camera puts hundreds of pixels into one
+// 5 cm voxel and a LiDAR many returns into one 20 cm voxel near the sensor, so this removes most
+// of the raycasting while changing the band only by how far the points of one voxel spread.
+//
+// The sums are integers (positions in 2^-30 m, colour channels, counts), so they are exact and
+// independent of the order a backend reduces in: both backends and every run give bit-identical
+// merged rays. A bundle of one point keeps the original point exactly.
+#include <cstdint>
+
+#include "covoxslam/core/macros.h"
+#include "covoxslam/core/vec3.h"
+#include "covoxslam/integrators/tsdf_kernels.h"
+
+namespace covox {
+namespace tsdf {
+
+// Keys of points that are not merged (clearing and dropped rays, surfaces outside the key
+// range): bit 63 plus the point's index, so every one stays alone and they sort after all
+// voxel keys, in input order.
+constexpr uint64_t kUnmergedKeyBit = uint64_t(1) << 63;
+
+// 2^30 units per metre: every float coordinate of magnitude >= 2^-7 m is a whole number of units
+// (its ulp is at least 2^-30), so the mean of identical points is the point itself; and 64-bit
+// sums of 4 million points up to kMaxMergedRange_m away cannot overflow (2^22 * 2^10 * 2^30).
+constexpr float kMergeUnitsPerMetre = 1073741824.0f;
+constexpr float kMaxMergedRange_m = 1000.0f;
+
+struct PointBundle {
+  int64_t x = 0, y = 0, z = 0;  // sum of sensor-frame coordinates, in 2^-30 m
+  uint32_t r = 0, g = 0, b = 0; // sum of colour channels
+  uint32_t count = 0;
+  uint32_t first = 0;           // smallest point index of the bundle
+};
+
+struct AddBundles {
+  COVOX_HD_INLINE PointBundle operator()(const PointBundle& a, const PointBundle& b) const {
+    PointBundle sum;
+    sum.x = a.x + b.x;
+    sum.y = a.y + b.y;
+    sum.z = a.z + b.z;
+    sum.r = a.r + b.r;
+    sum.g = a.g + b.g;
+    sum.b = a.b + b.b;
+    sum.count = a.count + b.count;
+    sum.first = a.first < b.first ? a.first : b.first;
+    return sum;
+  }
+};
+
+COVOX_HD_INLINE int64_t to_merge_units(float metres) {
+  return static_cast<int64_t>(llrintf(metres * kMergeUnitsPerMetre));
+}
+
+// The merge key of a point's ray: the update key of its surface voxel for surface rays, a
+// unique unmerged key otherwise.
+COVOX_HD_INLINE uint64_t merge_key(const RaySegment& ray, int64_t point_index, float inverse_voxel_size,
+                                   int32_t voxels_per_side) {
+  if (ray.kind == kSurfaceRay) {
+    const uint64_t key = voxel_update_key(voxel_of(ray.surface, inverse_voxel_size), voxels_per_side);
+    if (key != kOutOfRangeUpdateKey) return key;
+  }
+  return kUnmergedKeyBit | static_cast<uint64_t>(point_index);
+}
+
+}  // namespace tsdf
+}  // namespace covox

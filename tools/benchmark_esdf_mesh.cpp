@@ -1,0 +1,161 @@
+// ESDF and mesh update times on real data, GPU and CPU twin. Prints two tables and writes
+// docs/benchmarks/esdf.json and docs/benchmarks/mesh.json.
+//
+//   benchmark_esdf_mesh [--data DIR] [--device all|cuda|cpu] [--updates 30] [--skip-rgbd]
+//
+// After each integration (not timed) the incremental ESDF update and the incremental mesh update
+// of the touched blocks are timed; at the end one full ESDF recomputation and one full mesh
+// extraction of the whole map. Cases (issue 4): the Ouster OS1-64 scans at 0.2 m (truncation 3
+// voxels, 16 m rays) and 7-Scenes frames 0-69 at 5 cm, as the TSDF benchmark integrates them.
+#include <chrono>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include "benchmark_datasets.h"
+#include "benchmark_report.h"
+#include "command_line.h"
+#include "covoxslam/core/device.h"
+#include "covoxslam/integrators/esdf_integrator.h"
+#include "covoxslam/integrators/mesh_integrator.h"
+#include "covoxslam/integrators/tsdf_integrator.h"
+#include "covoxslam/io/data_directory.h"
+#include "covoxslam/map/tsdf_map.h"
+
+namespace covox {
+namespace {
+
+struct Options {
+  std::string data;
+  std::string device = "all";
+  int updates = 30;
+  bool skip_rgbd = false;
+};
+
+Options parse(int argc, char** argv) {
+  tools::CommandLine args(argc, argv,
+                          "usage: benchmark_esdf_mesh [--data DIR] [--device all|cuda|cpu] [--updates N]"
+                          " [--skip-rgbd]");
+  Options options;
+  options.data = args.text("--data", io::data_directory());
+  options.device = args.text("--device", options.device);
+  options.updates = static_cast<int>(args.integer("--updates", options.updates));
+  options.skip_rgbd = args.flag("--skip-rgbd");
+  args.finish();
+  if (options.updates <= 0) args.fail("--updates must be positive");
+  return options;
+}
+
+template <class Function>
+double milliseconds(const Stream& stream, Function&& function) {
+  stream.synchronize();
+  const auto start = std::chrono::steady_clock::now();
+  function();
+  stream.synchronize();
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+struct Reports {
+  tools::BenchmarkReport* esdf;
+  tools::BenchmarkReport* mesh;
+};
+
+// Integrates frame (i mod frame_count) `updates` times; after each, times the incremental ESDF
+// and mesh updates. The first pass over the frames is a warm-up and not recorded.
+template <class IntegrateFrame>
+void run_case(const std::string& name, const Stream& stream, TsdfMap& map, size_t frame_count, int updates,
+              float esdf_max_distance_m, IntegrateFrame&& integrate_frame, const Reports& reports) {
+  EsdfIntegratorConfig esdf_config;
+  esdf_config.esdf_max_distance_m = esdf_max_distance_m;
+  EsdfIntegrator esdf(esdf_config);
+  MeshIntegrator mesh;
+  std::vector<double> esdf_ms, mesh_ms, changed_blocks, meshed_blocks;
+  const int warm_up = static_cast<int>(frame_count);
+  for (int i = 0; i < warm_up + updates; ++i) {
+    integrate_frame(static_cast<size_t>(i) % frame_count);
+    EsdfUpdateStats esdf_stats;
+    MeshUpdateStats mesh_stats;
+    const double e = milliseconds(stream, [&] { esdf_stats = esdf.update(map, stream); });
+    const double m = milliseconds(stream, [&] { mesh_stats = mesh.update(map, stream); });
+    if (i < warm_up) continue;
+    esdf_ms.push_back(e);
+    mesh_ms.push_back(m);
+    changed_blocks.push_back(static_cast<double>(esdf_stats.changed_blocks));
+    meshed_blocks.push_back(static_cast<double>(mesh_stats.blocks_meshed));
+  }
+  const double full_esdf_ms = milliseconds(stream, [&] { esdf.update_all(map, stream); });
+  size_t triangles = 0;
+  const double full_mesh_ms = milliseconds(stream, [&] { triangles = mesh.extract_all(map, stream).triangle_count(); });
+
+  reports.esdf->add(name, "incremental update (median)", tools::median_of(esdf_ms), "ms/frame");
+  reports.esdf->add(name, "changed blocks per frame (median)", tools::median_of(changed_blocks), "blocks");
+  reports.esdf->add(name, "full update", full_esdf_ms, "ms");
+  reports.esdf->add(name, "map blocks", static_cast<double>(map.block_count()), "blocks");
+  reports.mesh->add(name, "incremental update (median)", tools::median_of(mesh_ms), "ms/frame");
+  reports.mesh->add(name, "blocks meshed per frame (median)", tools::median_of(meshed_blocks), "blocks");
+  reports.mesh->add(name, "full extraction (welded)", full_mesh_ms, "ms");
+  reports.mesh->add(name, "triangles", static_cast<double>(triangles), "triangles");
+}
+
+void benchmark_lidar(Device device, const Options& options, const Reports& reports) {
+  const Stream stream(device);
+  const tools::DeviceScans scans = tools::load_ouster_scans(options.data, device);
+  TsdfMapConfig map_config;
+  map_config.voxel_size_m = 0.2f;
+  TsdfMap map(device, map_config);
+  TsdfIntegratorConfig config;  // voxgraph's ARCHE setting, as in benchmark_tsdf
+  config.truncation_distance_m = 0.6f;
+  config.max_ray_length_m = 16.0f;
+  config.use_const_weight = true;
+  config.use_sparsity_compensation_factor = true;
+  config.sparsity_compensation_factor = 20.0f;
+  TsdfIntegrator integrator(config);
+  run_case(std::string(to_string(device)) + " OS1-64 0.2 m, ESDF 2 m", stream, map, scans.size(), options.updates,
+           2.0f, [&](size_t f) { integrator.integrate(map, scans.view(f), Eigen::Isometry3d::Identity(), stream); },
+           reports);
+}
+
+void benchmark_rgbd(Device device, const Options& options, const Reports& reports) {
+  const Stream stream(device);
+  const tools::DeviceRgbdFrames frames = tools::load_7scenes_frames(options.data, 70, device);
+  TsdfMapConfig map_config;
+  map_config.voxel_size_m = 0.05f;
+  map_config.voxels_per_side = 8;
+  TsdfMap map(device, map_config);
+  TsdfIntegratorConfig config;
+  config.truncation_distance_m = 0.2f;  // 4 voxels, nvblox's default
+  config.max_ray_length_m = 5.0f;
+  TsdfIntegrator integrator(config);
+  run_case(std::string(to_string(device)) + " 7-Scenes 5 cm, ESDF 2 m", stream, map, frames.size(), options.updates,
+           2.0f, [&](size_t f) { integrator.integrate_depth(map, frames.view(f), frames.T_world_camera[f], stream); },
+           reports);
+}
+
+}  // namespace
+}  // namespace covox
+
+int main(int argc, char** argv) {
+  using namespace covox;
+  const Options options = parse(argc, argv);
+  try {
+    const std::vector<Device> devices = tools::benchmark_devices(options.device);
+    const std::string names = tools::describe_devices(devices);
+    tools::BenchmarkReport esdf_report("esdf", names, argc, argv);
+    tools::BenchmarkReport mesh_report("mesh", names, argc, argv);
+    const Reports reports{&esdf_report, &mesh_report};
+    for (Device device : devices) {
+      std::cout << "ESDF and mesh on " << describe_device(device) << "..." << std::endl;
+      benchmark_lidar(device, options, reports);
+      if (!options.skip_rgbd) benchmark_rgbd(device, options, reports);
+    }
+    esdf_report.print_table(std::cout);
+    mesh_report.print_table(std::cout);
+    esdf_report.write_json();
+    mesh_report.write_json();
+    std::cout << "wrote " << esdf_report.default_json_path() << " and " << mesh_report.default_json_path() << std::endl;
+  } catch (const std::exception& error) {
+    std::cerr << "benchmark_esdf_mesh: " << error.what() << std::endl;
+    return 1;
+  }
+  return 0;
+}

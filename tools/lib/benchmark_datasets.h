@@ -1,0 +1,46 @@
+#pragma once
+// The real-data inputs the benchmarks share (../shared/data, see its README), loaded once from
+// disk and uploaded to a device, so that only integration, not file reading, is timed.
+#include <Eigen/Geometry>
+
+#include <string>
+#include <vector>
+
+#include "covoxslam/core/buffer.h"
+#include "covoxslam/core/device.h"
+#include "covoxslam/core/vec3.h"
+#include "covoxslam/integrators/tsdf_integrator.h"
+
+namespace covox {
+namespace tools {
+
+// LiDAR scans in the sensor frame, on a device.
+struct DeviceScans {
+  std::vector<Buffer<Vec3f>> points;
+  size_t size() const { return points.size(); }
+  PointCloudView view(size_t i) const;
+};
+
+// RGB-D frames (depth in metres, colour, camera-to-world pose), on a device.
+struct DeviceRgbdFrames {
+  std::vector<Buffer<float>> depth_m;
+  std::vector<Buffer<Rgb8>> color;  // empty buffers when loaded without colour
+  std::vector<Eigen::Isometry3d> T_world_camera;
+  PinholeIntrinsics intrinsics;
+  size_t size() const { return depth_m.size(); }
+  DepthImageView view(size_t i) const;
+};
+
+// Newer College Ouster OS1-64 deskewed scans (lidar-scans/newer_06, 3 scans).
+DeviceScans load_ouster_scans(const std::string& data_directory, Device device);
+// KITTI Velodyne HDL-64 scans (lidar-scans/kitti_00, 2 scans).
+DeviceScans load_kitti_scans(const std::string& data_directory, Device device);
+// The first `count` frames of 7scenes-redkitchen (fewer if the folder has fewer).
+DeviceRgbdFrames load_7scenes_frames(const std::string& data_directory, size_t count, Device device,
+                                     bool with_color = true);
+
+// The median of `values` (the upper one of the middle two for an even count); 0 when empty.
+double median_of(std::vector<double> values);
+
+}  // namespace tools
+}  // namespace covox
