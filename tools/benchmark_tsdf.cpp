@@ -55,6 +55,8 @@ struct Timing {
   double median_ms = 0.0;
   double updates_per_s = 0.0;
   int64_t blocks = 0;
+  double rays_per_frame = 0.0;     // after merging points per voxel
+  double updates_per_frame = 0.0;  // voxel updates before the segmented reduce
 };
 
 // Integrates frames round-robin into one map `integrations` times; the first pass over the
@@ -66,6 +68,7 @@ Timing time_integrations(const Stream& stream, size_t frame_count, int integrati
   stream.synchronize();
   std::vector<double> times;
   int64_t updates = 0;
+  int64_t rays = 0;
   double total_ms = 0.0;
   for (int i = 0; i < integrations; ++i) {
     const auto start = std::chrono::steady_clock::now();
@@ -75,19 +78,23 @@ Timing time_integrations(const Stream& stream, size_t frame_count, int integrati
     times.push_back(ms);
     total_ms += ms;
     updates += stats.voxel_updates;
+    rays += stats.rays_cast;
   }
-  return Timing{tools::median_of(times), updates / (total_ms * 1e-3), map.block_count()};
+  return Timing{tools::median_of(times), updates / (total_ms * 1e-3), map.block_count(),
+                static_cast<double>(rays) / integrations, static_cast<double>(updates) / integrations};
 }
 
 void add_rows(tools::BenchmarkReport* report, const std::string& name, const Timing& t) {
   report->add(name, "median integration time", t.median_ms, "ms/frame");
   report->add(name, "voxel updates per second", t.updates_per_s / 1e6, "M/s");
   report->add(name, "allocated blocks", static_cast<double>(t.blocks), "blocks");
+  report->add(name, "rays cast per frame (mean)", t.rays_per_frame, "rays");
+  report->add(name, "voxel updates per frame (mean)", t.updates_per_frame, "updates");
 }
 
 void benchmark_lidar(Device device, const Options& options, const std::string& label,
                      const tools::DeviceScans& scans, float voxel_size, float max_ray_m,
-                     tools::BenchmarkReport* report) {
+                     TsdfIntegrationMethod method, tools::BenchmarkReport* report) {
   const Stream stream(device);
   TsdfMapConfig map_config;
   map_config.voxel_size_m = voxel_size;
@@ -100,11 +107,12 @@ void benchmark_lidar(Device device, const Options& options, const std::string& l
   config.use_weight_dropoff = true;
   config.use_sparsity_compensation_factor = true;
   config.sparsity_compensation_factor = 20.0f;
+  config.method = method;
   TsdfIntegrator integrator(config);
   const Timing timing = time_integrations(stream, scans.size(), options.integrations, map, [&](size_t f) {
     return integrator.integrate(map, scans.view(f), Eigen::Isometry3d::Identity(), stream);
   });
-  add_rows(report, std::string(to_string(device)) + " " + label, timing);
+  add_rows(report, std::string(to_string(device)) + " " + label + ", " + to_string(method), timing);
 }
 
 // nvblox was timed on frames 0-69 with depth only; we fuse colour as well, and raycast every
@@ -142,9 +150,11 @@ int main(int argc, char** argv) {
       std::cout << "TSDF on " << describe_device(device) << "..." << std::endl;
       const tools::DeviceScans ouster = tools::load_ouster_scans(options.data, device);
       const tools::DeviceScans kitti = tools::load_kitti_scans(options.data, device);
-      benchmark_lidar(device, options, "OS1-64 0.2 m, 16 m rays", ouster, 0.2f, 16.0f, &report);
-      benchmark_lidar(device, options, "OS1-64 0.1 m, 16 m rays", ouster, 0.1f, 16.0f, &report);
-      benchmark_lidar(device, options, "KITTI HDL-64 0.2 m, 50 m rays", kitti, 0.2f, 50.0f, &report);
+      const auto merged = TsdfIntegrationMethod::kMerged, simple = TsdfIntegrationMethod::kSimple;
+      benchmark_lidar(device, options, "OS1-64 0.2 m, 16 m rays", ouster, 0.2f, 16.0f, merged, &report);
+      benchmark_lidar(device, options, "OS1-64 0.2 m, 16 m rays", ouster, 0.2f, 16.0f, simple, &report);
+      benchmark_lidar(device, options, "OS1-64 0.1 m, 16 m rays", ouster, 0.1f, 16.0f, merged, &report);
+      benchmark_lidar(device, options, "KITTI HDL-64 0.2 m, 50 m rays", kitti, 0.2f, 50.0f, merged, &report);
       if (!options.skip_rgbd) {
         const tools::DeviceRgbdFrames frames = tools::load_7scenes_frames(options.data, 70, device);
         for (float voxel_size : {0.05f, 0.02f}) {
