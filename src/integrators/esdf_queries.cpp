@@ -25,8 +25,8 @@ std::vector<SlicePoint> collect_slice(const TsdfMap& map, int32_t layer_min, int
   Buffer<float> distances(map.device());
   const int64_t count = dispatch(map.device(), [&](auto backend) {
     return esdf_collect_layer(backend, mutable_map.esdf().view(), block_indices.data(), block_slots.data(),
-                              static_cast<int64_t>(block_indices.size()), map.voxels_per_side(),
-                              map.voxel_size_m(), layer_min, layer_max, &columns, &distances, stream);
+                              static_cast<int64_t>(block_indices.size()), map.voxels_per_side(), layer_min,
+                              layer_max, &columns, &distances, stream);
   });
   auto host_columns = columns.to_host(stream);
   auto host_distances = distances.to_host(stream);

@@ -1,7 +1,9 @@
 #include "covoxslam/integrators/mesh_integrator.h"
 
+#include <map>
 #include <set>
 #include <unordered_map>
+#include <vector>
 
 namespace covox {
 
@@ -35,6 +37,48 @@ Extraction run_extraction(TsdfMap& map, float min_weight, MeshScratchBuffers& sc
   out.mesh.triangles.resize(static_cast<size_t>(3 * triangles));
   out.triangle_blocks = scratch.triangle_blocks.to_host(stream);
   return out;
+}
+
+// Splits the welded result into one mesh per re-meshed block (vertices re-indexed per block):
+// triangles are bucketed by block with a counting sort, and a vertex's index inside the current
+// block is remembered in flat arrays (no hashing), so this stays linear and cheap next to the
+// extraction itself.
+void split_into_block_meshes(const Extraction& extraction, const std::vector<Index3D>& blocks,
+                             std::map<Index3D, Mesh>* block_meshes) {
+  const size_t block_count = blocks.size();
+  const size_t triangle_count = extraction.mesh.triangle_count();
+  std::vector<uint32_t> first_triangle(block_count + 1, 0);
+  for (size_t t = 0; t < triangle_count; ++t) ++first_triangle[extraction.triangle_blocks[t] + 1];
+  for (size_t b = 0; b < block_count; ++b) first_triangle[b + 1] += first_triangle[b];
+  std::vector<uint32_t> by_block(triangle_count);
+  std::vector<uint32_t> next = first_triangle;
+  for (size_t t = 0; t < triangle_count; ++t) by_block[next[extraction.triangle_blocks[t]]++] = static_cast<uint32_t>(t);
+
+  constexpr uint32_t kNone = ~uint32_t(0);
+  std::vector<uint32_t> owner(extraction.mesh.vertices_m.size(), kNone);  // block that indexed it last
+  std::vector<uint32_t> local_index(extraction.mesh.vertices_m.size());
+  const bool has_colors = !extraction.mesh.colors.empty();
+  for (size_t b = 0; b < block_count; ++b) {
+    Mesh mesh;
+    mesh.triangles.reserve(3 * (first_triangle[b + 1] - first_triangle[b]));
+    for (uint32_t i = first_triangle[b]; i < first_triangle[b + 1]; ++i) {
+      for (int k = 0; k < 3; ++k) {
+        const uint32_t v = extraction.mesh.triangles[3 * by_block[i] + k];
+        if (owner[v] != b) {
+          owner[v] = static_cast<uint32_t>(b);
+          local_index[v] = static_cast<uint32_t>(mesh.vertices_m.size());
+          mesh.vertices_m.push_back(extraction.mesh.vertices_m[v]);
+          if (has_colors) mesh.colors.push_back(extraction.mesh.colors[v]);
+        }
+        mesh.triangles.push_back(local_index[v]);
+      }
+    }
+    if (mesh.empty()) {
+      block_meshes->erase(blocks[b]);
+    } else {
+      (*block_meshes)[blocks[b]] = std::move(mesh);
+    }
+  }
 }
 
 }  // namespace
@@ -74,22 +118,7 @@ MeshUpdateStats MeshIntegrator::update(TsdfMap& map, const Stream& stream) {
   scratch.blocks.copy_from_host(last_updated_, stream);
   const Extraction extraction = run_extraction(map, config_.min_weight, scratch, stream);
   stats.triangles = static_cast<int64_t>(extraction.mesh.triangle_count());
-  for (const Index3D& block : last_updated_) block_meshes_.erase(block);
-  // Split the welded result into one mesh per block (vertices re-indexed per block).
-  std::vector<std::unordered_map<uint32_t, uint32_t>> remap(last_updated_.size());
-  for (size_t t = 0; t < extraction.mesh.triangle_count(); ++t) {
-    const uint32_t b = extraction.triangle_blocks[t];
-    Mesh& mesh = block_meshes_[last_updated_[b]];
-    for (int k = 0; k < 3; ++k) {
-      const uint32_t v = extraction.mesh.triangles[3 * t + k];
-      auto [it, inserted] = remap[b].emplace(v, static_cast<uint32_t>(mesh.vertices_m.size()));
-      if (inserted) {
-        mesh.vertices_m.push_back(extraction.mesh.vertices_m[v]);
-        mesh.colors.push_back(extraction.mesh.colors[v]);
-      }
-      mesh.triangles.push_back(it->second);
-    }
-  }
+  split_into_block_meshes(extraction, last_updated_, &block_meshes_);
   return stats;
 }
 

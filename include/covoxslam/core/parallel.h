@@ -17,6 +17,8 @@
 #include <thrust/unique.h>
 #include <thrust/system/omp/execution_policy.h>
 
+#include "covoxslam/core/host_temporary_allocator.h"
+
 #include "covoxslam/core/device.h"
 #include "covoxslam/core/macros.h"
 #include "covoxslam/core/stream.h"
@@ -31,12 +33,14 @@
 namespace covox {
 
 // --- execution policies -----------------------------------------------------------------------
-inline auto execution_policy(CpuBackend, const Stream&) { return thrust::omp::par; }
+// Temporary storage of both backends comes from a per-stream cache (see temporary_cache.h).
+inline auto execution_policy(CpuBackend, const Stream& stream) {
+  return thrust::omp::par(HostTemporaryAllocator{stream.native_handle()});
+}
 #if defined(__CUDACC__)
-// Temporary storage comes from a per-stream cache (see cuda_temporary_allocator.cuh).
 inline auto execution_policy(CudaBackend, const Stream& stream) {
   const auto cuda_stream = static_cast<cudaStream_t>(stream.native_handle());
-  return thrust::cuda::par_nosync(CudaTemporaryAllocator{cuda_stream}).on(cuda_stream);
+  return thrust::cuda::par_nosync(CudaTemporaryAllocator{stream.native_handle()}).on(cuda_stream);
 }
 #endif
 

@@ -18,7 +18,7 @@ void esdf_query_points(Backend backend, EsdfLookup lookup, const Vec3f* points, 
 // [layer_min, layer_max]; the (x, y) column key for squashing.
 template <class Backend>
 int64_t esdf_collect_layer(Backend backend, VoxelView<EsdfVoxel, Layout::kSoA> esdf, const Index3D* block_indices,
-                           const uint32_t* block_slots, int64_t block_count, int32_t side, float voxel_size,
+                           const uint32_t* block_slots, int64_t block_count, int32_t side,
                            int32_t layer_min, int32_t layer_max, Buffer<uint64_t>* column_keys,
                            Buffer<float>* distances, const Stream& stream) {
   const int64_t per_block = static_cast<int64_t>(side) * side * side;
@@ -55,7 +55,7 @@ int64_t esdf_collect_layer(Backend backend, VoxelView<EsdfVoxel, Layout::kSoA> e
   template void esdf_query_points<Backend>(Backend, EsdfLookup, const Vec3f*, int64_t, EsdfSample*,        \
                                            const Stream&);                                                 \
   template int64_t esdf_collect_layer<Backend>(Backend, VoxelView<EsdfVoxel, Layout::kSoA>, const Index3D*, \
-                                               const uint32_t*, int64_t, int32_t, float, int32_t, int32_t,  \
+                                               const uint32_t*, int64_t, int32_t, int32_t, int32_t,         \
                                                Buffer<uint64_t>*, Buffer<float>*, const Stream&);
 
 }  // namespace covox

@@ -68,7 +68,7 @@ void esdf_query_points(Backend backend, EsdfLookup lookup, const Vec3f* points, 
 
 template <class Backend>
 int64_t esdf_collect_layer(Backend backend, VoxelView<EsdfVoxel, Layout::kSoA> esdf, const Index3D* block_indices,
-                           const uint32_t* block_slots, int64_t block_count, int32_t side, float voxel_size,
+                           const uint32_t* block_slots, int64_t block_count, int32_t side,
                            int32_t layer_min, int32_t layer_max, Buffer<uint64_t>* column_keys,
                            Buffer<float>* distances, const Stream& stream);
 

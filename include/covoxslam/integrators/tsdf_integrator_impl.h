@@ -260,20 +260,36 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
   stats.voxels_updated = voxel_count;
   if (voxel_count == 0) return stats;
 
-  // 4. allocate the blocks of all touched voxels in one batch (duplicates are fine)
-  scratch.block_indices.resize_discard(voxel_count);
-  scratch.slots.resize_discard(voxel_count);
-  scratch.is_new.resize_discard(voxel_count);
-  Index3D* block_indices = scratch.block_indices.data();
+  // 4. allocate the distinct blocks of the touched voxels in one batch. Merged keys are sorted
+  //    block-major, so each block's voxels form one run: the run's first voxel names the block and
+  //    a scan ranks the runs. The hash table sees a few hundred blocks, not one key per voxel.
+  scratch.block_flags.resize_discard(voxel_count + 1);
+  scratch.block_ranks.resize_discard(voxel_count + 1);
+  uint32_t* block_flags = scratch.block_flags.data();
   const uint64_t* merged_keys = scratch.merged_keys.data();
-  parallel_for(backend, stream, voxel_count,
-               [=] COVOX_HD(int64_t v) { block_indices[v] = tsdf::update_key_block(merged_keys[v]); });
+  parallel_for(backend, stream, voxel_count + 1, [=] COVOX_HD(int64_t v) {
+    block_flags[v] = v < voxel_count && (v == 0 || (merged_keys[v] >> tsdf::kKeyVoxelBits) !=
+                                                       (merged_keys[v - 1] >> tsdf::kKeyVoxelBits))
+                         ? 1u
+                         : 0u;
+  });
+  exclusive_scan(backend, stream, block_flags, voxel_count + 1, scratch.block_ranks.data());
+  const int64_t block_count = static_cast<int64_t>(scratch.block_ranks.element(voxel_count, stream));
+  scratch.block_indices.resize_discard(block_count);
+  scratch.slots.resize_discard(block_count);
+  scratch.is_new.resize_discard(block_count);
+  Index3D* block_indices = scratch.block_indices.data();
+  const uint32_t* block_ranks = scratch.block_ranks.data();
+  parallel_for(backend, stream, voxel_count, [=] COVOX_HD(int64_t v) {
+    if (block_flags[v]) block_indices[block_ranks[v]] = tsdf::update_key_block(merged_keys[v]);
+  });
   const ActivateResult activation =
-      map.blocks().activate(block_indices, voxel_count, scratch.slots.data(), scratch.is_new.data(), stream);
+      map.blocks().activate(block_indices, block_count, scratch.slots.data(), scratch.is_new.data(), stream);
   stats.blocks_allocated = activation.num_new;
   map.ensure_pool_capacity(stream);
 
-  // A new block may reuse the slot of an erased one: clear it before blending.
+  // Mark the blocks changed (for the ESDF and the mesh) and clear new ones: a new block may
+  // reuse the slot of an erased one.
   auto tsdf_view = map.tsdf().view();
   auto color_view = map.color().view();
   uint8_t* block_changed = map.block_changed().data();
@@ -281,15 +297,17 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
   const uint32_t* slots = scratch.slots.data();
   const uint8_t* is_new = scratch.is_new.data();
   const int64_t voxels_per_block = map.voxels_per_block();
+  parallel_for(backend, stream, block_count, [=] COVOX_HD(int64_t b) {
+    if (slots[b] != kInvalidSlot) block_changed[slots[b]] = kAllPending;
+  });
   if (activation.num_new > 0) {
-    parallel_for(backend, stream, voxel_count, [=] COVOX_HD(int64_t v) {
-      if (!is_new[v] || slots[v] == kInvalidSlot) return;
-      const int64_t base = static_cast<int64_t>(slots[v]) * voxels_per_block;
-      for (int64_t k = 0; k < voxels_per_block; ++k) {
-        tsdf_view.store(base + k, TsdfVoxel{});
-        color_view.store(base + k, ColorVoxel{});
-        esdf_view.store(base + k, EsdfVoxel{});
-      }
+    parallel_for(backend, stream, block_count * voxels_per_block, [=] COVOX_HD(int64_t i) {
+      const int64_t b = i / voxels_per_block;
+      if (!is_new[b] || slots[b] == kInvalidSlot) return;
+      const int64_t index = static_cast<int64_t>(slots[b]) * voxels_per_block + i % voxels_per_block;
+      tsdf_view.store(index, TsdfVoxel{});
+      color_view.store(index, ColorVoxel{});
+      esdf_view.store(index, EsdfVoxel{});
     });
   }
 
@@ -297,10 +315,9 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
   const tsdf::VoxelUpdate* merged = scratch.merged.data();
   const float max_weight = config.max_weight;
   parallel_for(backend, stream, voxel_count, [=] COVOX_HD(int64_t v) {
-    const uint32_t slot = slots[v];
+    const uint32_t slot = slots[block_ranks[v] + block_flags[v] - 1];  // the rank of v's run
     const tsdf::VoxelUpdate update = merged[v];
     if (slot == kInvalidSlot || update.weight <= 0.0f) return;
-    block_changed[slot] = kAllPending;  // every voxel of the block writes the same value
     const int64_t index = static_cast<int64_t>(slot) * voxels_per_block + tsdf::update_key_voxel(merged_keys[v]);
     TsdfVoxel voxel = tsdf_view.load(index);
     const float combined = voxel.weight + update.weight;

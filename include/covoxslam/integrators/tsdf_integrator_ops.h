@@ -17,7 +17,7 @@ struct TsdfScratchBuffers {
       : points(device), colors(device), rays(device), counts(device), offsets(device),
         keys(device), order(device), updates(device), merged_keys(device), merged(device),
         block_indices(device), slots(device), is_new(device), bundles(device), merged_bundles(device),
-        ray_colors(device), ray_weights(device) {}
+        ray_colors(device), ray_weights(device), block_flags(device), block_ranks(device) {}
   Buffer<Vec3f> points;  // depth images unprojected, or host clouds uploaded
   Buffer<Rgb8> colors;
   Buffer<tsdf::RaySegment> rays;
@@ -36,6 +36,9 @@ struct TsdfScratchBuffers {
   Buffer<tsdf::PointBundle> merged_bundles;
   Buffer<Rgb8> ray_colors;
   Buffer<float> ray_weights;
+  // distinct blocks of the merged voxels
+  Buffer<uint32_t> block_flags;
+  Buffer<uint32_t> block_ranks;
 };
 
 template <class Backend>

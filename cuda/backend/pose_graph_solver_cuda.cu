@@ -1,0 +1,9 @@
+// CUDA instantiation of the pose-graph solver (same source as the CPU twin).
+#include "covoxslam/backend/pose_graph_solver_impl.h"
+
+namespace covox {
+namespace backend {
+COVOX_INSTANTIATE_POSE_GRAPH_SOLVER(CudaBackend, Se3Model)
+COVOX_INSTANTIATE_POSE_GRAPH_SOLVER(CudaBackend, FourDofModel)
+}  // namespace backend
+}  // namespace covox

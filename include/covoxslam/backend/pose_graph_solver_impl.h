@@ -1,0 +1,271 @@
+#pragma once
+// Levenberg-Marquardt + PCG over a pose-graph model, written once for both backends. Host code
+// only orchestrates: every per-constraint, per-block and per-entry step is a parallel_for or a
+// reduction on the device (normal_equations_impl.h); the host reads back scalars (costs, dot
+// products) to steer the iteration.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <utility>
+#include <vector>
+
+#include "covoxslam/backend/block_sparse_structure.h"
+#include "covoxslam/backend/normal_equations_impl.h"
+#include "covoxslam/backend/pose_graph_solver_ops.h"
+#include "covoxslam/core/buffer.h"
+
+namespace covox {
+namespace backend {
+
+// Everything one solve needs on the device, allocated once up front.
+template <class Backend, class Model>
+class PoseGraphWorkspace {
+ public:
+  static constexpr int D = Model::kDim;
+  static constexpr int DD = D * D;
+  using Pose = typename Model::Pose;
+
+  PoseGraphWorkspace(const PoseGraph<Model>& graph, const Stream& stream)
+      : stream_(stream),
+        vertex_count_(static_cast<int32_t>(graph.poses.size())),
+        constraint_count_(static_cast<int64_t>(graph.constraints.size())) {
+    const Device device = Backend::kDevice;
+    std::vector<std::pair<int32_t, int32_t>> edges;
+    edges.reserve(graph.constraints.size());
+    for (const auto& c : graph.constraints) edges.emplace_back(c.from, constraint_to(c));
+    const BlockSparseStructure s = build_block_sparse_structure(edges, vertex_count_, graph.fixed_vertex);
+    off_block_count_ = s.off_block_count();
+
+    poses = Buffer<Pose>::from_host(device, graph.poses, stream);
+    candidate = Buffer<Pose>(device, graph.poses.size());
+    constraints = Buffer<typename Model::Constraint>::from_host(device, graph.constraints, stream);
+    const size_t e = graph.constraints.size(), n = graph.poses.size();
+    residuals = Buffer<double>(device, e * D);
+    jac_from = Buffer<double>(device, e * DD);
+    jac_to = Buffer<double>(device, e * DD);
+    costs = Buffer<double>(device, e);
+    hessian_diag = Buffer<double>(device, n * DD);
+    hessian_off = Buffer<double>(device, static_cast<size_t>(off_block_count_) * DD);
+    gradient = Buffer<double>(device, n * D);
+    damping = Buffer<double>(device, n * D);
+    preconditioner = Buffer<double>(device, n * DD);
+    for (Buffer<double>* v : {&step, &cg_r, &cg_z, &cg_p, &cg_q}) *v = Buffer<double>(device, n * D);
+    std::vector<int64_t> iota(n * D);
+    for (size_t i = 0; i < iota.size(); ++i) iota[i] = static_cast<int64_t>(i);
+    indices = Buffer<int64_t>::from_host(device, iota, stream);
+    diag_offsets = Buffer<int32_t>::from_host(device, s.diag_offsets, stream);
+    diag_terms = Buffer<int32_t>::from_host(device, s.diag_terms, stream);
+    off_offsets = Buffer<int32_t>::from_host(device, s.off_offsets, stream);
+    off_terms = Buffer<int32_t>::from_host(device, s.off_terms, stream);
+    row_offsets = Buffer<int32_t>::from_host(device, s.row_offsets, stream);
+    row_entries = Buffer<int32_t>::from_host(device, s.row_entries, stream);
+    row_columns = Buffer<int32_t>::from_host(device, s.row_columns, stream);
+    chain_blocks = Buffer<int32_t>::from_host(device, s.chain_blocks, stream);
+    view_ = StructureView{vertex_count_,       s.fixed_vertex,     off_block_count_,   diag_offsets.data(),
+                          diag_terms.data(),   off_offsets.data(), off_terms.data(),   row_offsets.data(),
+                          row_entries.data(),  row_columns.data()};
+  }
+
+  const StructureView& view() const { return view_; }
+  int64_t unknowns() const { return static_cast<int64_t>(vertex_count_) * D; }
+
+  // Residuals, Jacobians and the cost at `poses`.
+  double evaluate() {
+    evaluate_constraints<Model>(Backend{}, stream_, constraints.data(), constraint_count_, poses.data(),
+                                residuals.data(), jac_from.data(), jac_to.data(), costs.data());
+    return sum_costs();
+  }
+  double cost_at_candidate() {
+    constraint_costs<Model>(Backend{}, stream_, constraints.data(), constraint_count_, candidate.data(),
+                            costs.data());
+    return sum_costs();
+  }
+  void assemble() {
+    assemble_diagonal_and_gradient<D>(Backend{}, stream_, view_, jac_from.data(), jac_to.data(), residuals.data(),
+                                      hessian_diag.data(), gradient.data());
+    assemble_off_diagonal<D>(Backend{}, stream_, view_, jac_from.data(), jac_to.data(), hessian_off.data());
+  }
+  double max_abs_gradient() { return max_abs(Backend{}, stream_, indices.data(), unknowns(), gradient.data()); }
+
+  // Solves (H + damping) step = -g with block-Jacobi PCG; returns the iterations used.
+  int solve_damped(double radius, const PoseGraphSolverOptions& options) {
+    const int64_t n = unknowns();
+    const Backend b{};
+    damping_and_preconditioner<D>(b, stream_, vertex_count_, hessian_diag.data(), radius, options.min_diagonal,
+                                  options.max_diagonal, damping.data(), preconditioner.data());
+    const bool chain = options.preconditioner == PcgPreconditioner::kOdometryChain;
+    if (chain) {
+      factorize_chain<D>(b, stream_, vertex_count_, hessian_diag.data(), hessian_off.data(), damping.data(),
+                         chain_blocks.data(), preconditioner.data());
+    }
+    const auto precondition = [&](const double* in, double* out) {
+      if (chain) {
+        apply_chain_preconditioner<D>(b, stream_, vertex_count_, hessian_off.data(), chain_blocks.data(),
+                                      preconditioner.data(), in, out);
+      } else {
+        apply_preconditioner<D>(b, stream_, vertex_count_, preconditioner.data(), in, out);
+      }
+    };
+    // x = 0, r = -g.
+    double* x = step.data();
+    double* r = cg_r.data();
+    const double* g = gradient.data();
+    parallel_for(b, stream_, n, [=] COVOX_HD(int64_t i) {
+      x[i] = 0.0;
+      r[i] = -g[i];
+    });
+    const double b_norm = std::sqrt(dot(b, stream_, indices.data(), n, r, r));
+    if (b_norm == 0.0) return 0;
+    precondition(r, cg_z.data());
+    cg_p.copy_from(cg_z, stream_);
+    double rz = dot(b, stream_, indices.data(), n, r, cg_z.data());
+    int iteration = 0;
+    while (iteration < options.pcg_max_iterations) {
+      ++iteration;
+      multiply_normal_matrix<D>(b, stream_, view_, hessian_diag.data(), hessian_off.data(), damping.data(),
+                                cg_p.data(), cg_q.data());
+      const double pq = dot(b, stream_, indices.data(), n, cg_p.data(), cg_q.data());
+      if (!(pq > 0.0)) break;  // no further descent direction (rounding at convergence)
+      const double alpha = rz / pq;
+      axpy(b, stream_, n, alpha, cg_p.data(), x);
+      axpy(b, stream_, n, -alpha, cg_q.data(), r);
+      const double r_norm = std::sqrt(dot(b, stream_, indices.data(), n, r, r));
+      if (r_norm <= options.pcg_relative_tolerance * b_norm) break;
+      precondition(r, cg_z.data());
+      const double rz_next = dot(b, stream_, indices.data(), n, r, cg_z.data());
+      xpay(b, stream_, n, cg_z.data(), rz_next / rz, cg_p.data());
+      rz = rz_next;
+    }
+    return iteration;
+  }
+
+  // The decrease of the undamped quadratic model: -(g.step + 0.5 step.H.step).
+  double model_decrease() {
+    const int64_t n = unknowns();
+    multiply_normal_matrix<D>(Backend{}, stream_, view_, hessian_diag.data(), hessian_off.data(), nullptr,
+                              step.data(), cg_q.data());
+    const double g_step = dot(Backend{}, stream_, indices.data(), n, gradient.data(), step.data());
+    const double step_h_step = dot(Backend{}, stream_, indices.data(), n, step.data(), cg_q.data());
+    return -(g_step + 0.5 * step_h_step);
+  }
+  double step_norm() { return std::sqrt(dot(Backend{}, stream_, indices.data(), unknowns(), step.data(), step.data())); }
+  double pose_norm() {
+    return std::sqrt(transform_reduce(
+        Backend{}, stream_, poses.data(), vertex_count_, [] COVOX_HD(const Pose& p) { return Model::squared_norm(p); },
+        0.0, thrust::plus<double>()));
+  }
+  void make_candidate() {
+    plus_poses<Model>(Backend{}, stream_, vertex_count_, poses.data(), step.data(), candidate.data());
+  }
+  void accept_candidate() { std::swap(poses, candidate); }
+
+  Buffer<Pose> poses, candidate;
+  Buffer<typename Model::Constraint> constraints;
+  Buffer<double> residuals, jac_from, jac_to, costs;
+  Buffer<double> hessian_diag, hessian_off, gradient, damping, preconditioner;
+  Buffer<double> step, cg_r, cg_z, cg_p, cg_q;
+  Buffer<int64_t> indices;
+  Buffer<int32_t> diag_offsets, diag_terms, off_offsets, off_terms, row_offsets, row_entries, row_columns;
+  Buffer<int32_t> chain_blocks;
+
+ private:
+  double sum_costs() {
+    return reduce(Backend{}, stream_, costs.data(), constraint_count_, 0.0, thrust::plus<double>());
+  }
+
+  const Stream& stream_;
+  int32_t vertex_count_;
+  int64_t constraint_count_;
+  int64_t off_block_count_ = 0;
+  StructureView view_{};
+};
+
+template <class Backend, class Model>
+PoseGraphSolverSummary solve_pose_graph_on(Backend, PoseGraph<Model>* graph, const PoseGraphSolverOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  PoseGraphSolverSummary summary;
+  const Stream stream(Backend::kDevice);
+  PoseGraphWorkspace<Backend, Model> w(*graph, stream);
+  double cost = w.evaluate();
+  summary.initial_cost = summary.final_cost = cost;
+  if (graph->constraints.empty()) {
+    summary.termination = PoseGraphTermination::kNoConstraints;
+    return summary;
+  }
+  double radius = options.initial_trust_region_radius;
+  double decrease_factor = 2.0;
+  summary.termination = PoseGraphTermination::kMaxIterations;
+  bool need_assembly = true;
+  while (summary.iterations < options.max_iterations) {
+    if (need_assembly) {
+      w.assemble();
+      if (w.max_abs_gradient() <= options.gradient_tolerance) {
+        summary.termination = PoseGraphTermination::kGradientTolerance;
+        break;
+      }
+      need_assembly = false;
+    }
+    ++summary.iterations;
+    summary.pcg_iterations += w.solve_damped(radius, options);
+    const double predicted = w.model_decrease();
+    const double step_norm = w.step_norm();
+    if (step_norm <= options.parameter_tolerance * (w.pose_norm() + options.parameter_tolerance)) {
+      summary.termination = PoseGraphTermination::kParameterTolerance;
+      break;
+    }
+    w.make_candidate();
+    const double candidate_cost = w.cost_at_candidate();
+    const double actual = cost - candidate_cost;
+    const double rho = predicted > 0.0 ? actual / predicted : -1.0;
+    if (std::isfinite(candidate_cost) && rho > options.min_relative_decrease) {
+      w.accept_candidate();
+      ++summary.accepted_steps;
+      const double new_cost = w.evaluate();  // also refreshes the Jacobians at the new poses
+      const double t = 2.0 * rho - 1.0;
+      radius = std::min(options.max_trust_region_radius, radius / std::max(1.0 / 3.0, 1.0 - t * t * t));
+      decrease_factor = 2.0;
+      need_assembly = true;
+      const double old_cost = cost;
+      cost = new_cost;
+      if (old_cost - new_cost <= options.function_tolerance * old_cost) {
+        summary.termination = PoseGraphTermination::kFunctionTolerance;
+        break;
+      }
+    } else {
+      radius /= decrease_factor;
+      decrease_factor *= 2.0;
+      if (radius < options.min_trust_region_radius) {
+        summary.termination = PoseGraphTermination::kTrustRegionCollapsed;
+        break;
+      }
+    }
+  }
+  summary.final_cost = cost;
+  graph->poses = w.poses.to_host(stream);
+  summary.solve_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return summary;
+}
+
+template <class Backend, class Model>
+PoseGraphEvaluation evaluate_pose_graph_on(Backend, const PoseGraph<Model>& graph) {
+  const Stream stream(Backend::kDevice);
+  PoseGraphWorkspace<Backend, Model> w(graph, stream);
+  PoseGraphEvaluation out;
+  out.dimension = Model::kDim;
+  out.cost = w.evaluate();
+  w.assemble();
+  out.residuals = w.residuals.to_host(stream);
+  out.jacobians_from = w.jac_from.to_host(stream);
+  out.jacobians_to = w.jac_to.to_host(stream);
+  out.gradient = w.gradient.to_host(stream);
+  out.hessian_diagonal_blocks = w.hessian_diag.to_host(stream);
+  return out;
+}
+
+#define COVOX_INSTANTIATE_POSE_GRAPH_SOLVER(Backend, Model)                                                  \
+  template PoseGraphSolverSummary solve_pose_graph_on<Backend, Model>(Backend, PoseGraph<Model>*,            \
+                                                                      const PoseGraphSolverOptions&);        \
+  template PoseGraphEvaluation evaluate_pose_graph_on<Backend, Model>(Backend, const PoseGraph<Model>&);
+
+}  // namespace backend
+}  // namespace covox

@@ -1,0 +1,168 @@
+#include "covoxslam/backend/g2o_reader.h"
+
+#include <Eigen/Geometry>
+#include <charconv>
+#include <fstream>
+#include <sstream>
+#include <string_view>
+#include <unordered_map>
+
+#include "covoxslam/core/error.h"
+
+namespace covox {
+namespace backend {
+namespace {
+
+constexpr size_t kVertexFields = 8;        // id + 3 + 4
+constexpr size_t kEdgeFields = 2 + 7 + 21;  // i j + pose + upper triangle
+
+std::vector<std::string_view> tokens_of(std::string_view line) {
+  std::vector<std::string_view> tokens;
+  size_t pos = 0;
+  while (pos < line.size()) {
+    while (pos < line.size() && (line[pos] == ' ' || line[pos] == '\t' || line[pos] == '\r')) ++pos;
+    size_t end = pos;
+    while (end < line.size() && line[end] != ' ' && line[end] != '\t' && line[end] != '\r') ++end;
+    if (end > pos) tokens.push_back(line.substr(pos, end - pos));
+    pos = end;
+  }
+  return tokens;
+}
+
+class LineParser {
+ public:
+  LineParser(const std::string& source, int line_number) : source_(source), line_(line_number) {}
+
+  [[noreturn]] void fail(const std::string& what) const {
+    throw Error(source_ + ":" + std::to_string(line_) + ": " + what);
+  }
+  // std::from_chars ignores the locale, unlike strtod.
+  double number(std::string_view token) const {
+    if (!token.empty() && token.front() == '+') token.remove_prefix(1);
+    double value = 0.0;
+    const auto [end, error] = std::from_chars(token.data(), token.data() + token.size(), value);
+    if (error != std::errc() || end != token.data() + token.size()) fail("'" + std::string(token) + "' is not a number");
+    return value;
+  }
+  int64_t integer(std::string_view token) const {
+    int64_t value = 0;
+    const auto [end, error] = std::from_chars(token.data(), token.data() + token.size(), value);
+    if (error != std::errc() || end != token.data() + token.size()) {
+      fail("'" + std::string(token) + "' is not an integer vertex id");
+    }
+    return value;
+  }
+  Se3Pose pose(const std::vector<std::string_view>& t, size_t first) const {
+    double v[7];
+    for (int k = 0; k < 7; ++k) v[k] = number(t[first + k]);
+    const Eigen::Quaterniond q(v[6], v[3], v[4], v[5]);
+    const double norm = q.norm();
+    if (!(norm > 1e-6) || !std::isfinite(norm)) fail("the quaternion has zero or non-finite length");
+    for (int k = 0; k < 3; ++k) {
+      if (!std::isfinite(v[k])) fail("the translation is not finite");
+    }
+    return make_se3_pose(Eigen::Vector3d(v[0], v[1], v[2]), q);
+  }
+
+ private:
+  const std::string& source_;
+  int line_;
+};
+
+}  // namespace
+
+G2oGraph parse_g2o(const std::string& text, const std::string& source_name) {
+  G2oGraph result;
+  std::unordered_map<int64_t, int32_t> index_of_id;
+  struct PendingEdge {
+    int line;
+    int64_t from_id, to_id;
+    Se3Pose measurement;
+    Eigen::Matrix<double, 6, 6> information;
+  };
+  std::vector<PendingEdge> edges;
+  std::vector<std::pair<int, int64_t>> fixes;
+
+  std::istringstream stream(text);
+  std::string line;
+  int line_number = 0;
+  while (std::getline(stream, line)) {
+    ++line_number;
+    const auto tokens = tokens_of(line);
+    if (tokens.empty() || tokens[0].front() == '#') continue;
+    const LineParser parse(source_name, line_number);
+    const std::string_view tag = tokens[0];
+    const size_t fields = tokens.size() - 1;
+    if (tag == "VERTEX_SE3:QUAT") {
+      if (fields != kVertexFields) {
+        parse.fail("VERTEX_SE3:QUAT needs " + std::to_string(kVertexFields) + " fields (id x y z qx qy qz qw), found " +
+                   std::to_string(fields));
+      }
+      const int64_t id = parse.integer(tokens[1]);
+      const auto inserted = index_of_id.emplace(id, static_cast<int32_t>(result.graph.poses.size()));
+      if (!inserted.second) parse.fail("vertex id " + std::to_string(id) + " appears twice");
+      result.graph.poses.push_back(parse.pose(tokens, 2));
+      result.vertex_ids.push_back(id);
+    } else if (tag == "EDGE_SE3:QUAT") {
+      if (fields != kEdgeFields) {
+        parse.fail("EDGE_SE3:QUAT needs " + std::to_string(kEdgeFields) +
+                   " fields (i j x y z qx qy qz qw and 21 information entries), found " + std::to_string(fields));
+      }
+      PendingEdge edge;
+      edge.line = line_number;
+      edge.from_id = parse.integer(tokens[1]);
+      edge.to_id = parse.integer(tokens[2]);
+      edge.measurement = parse.pose(tokens, 3);
+      size_t next = 10;
+      for (int r = 0; r < 6; ++r) {
+        for (int c = r; c < 6; ++c) {
+          edge.information(r, c) = edge.information(c, r) = parse.number(tokens[next++]);
+        }
+      }
+      edges.push_back(edge);
+    } else if (tag == "FIX") {
+      if (fields != 1) parse.fail("FIX needs one vertex id");
+      fixes.emplace_back(line_number, parse.integer(tokens[1]));
+    } else {
+      parse.fail("unknown g2o tag '" + std::string(tag) +
+                 "' (this reader handles VERTEX_SE3:QUAT, EDGE_SE3:QUAT and FIX)");
+    }
+  }
+  if (result.graph.poses.empty()) throw Error(source_name + ": no VERTEX_SE3:QUAT line: not an SE(3) g2o graph");
+
+  // Edges are resolved after all vertices: g2o files may list them in any order.
+  for (const PendingEdge& edge : edges) {
+    const LineParser parse(source_name, edge.line);
+    const auto from = index_of_id.find(edge.from_id);
+    const auto to = index_of_id.find(edge.to_id);
+    if (from == index_of_id.end()) parse.fail("edge names vertex " + std::to_string(edge.from_id) + ", which has no VERTEX line");
+    if (to == index_of_id.end()) parse.fail("edge names vertex " + std::to_string(edge.to_id) + ", which has no VERTEX line");
+    if (from->second == to->second) parse.fail("edge joins vertex " + std::to_string(edge.from_id) + " to itself");
+    try {
+      result.graph.constraints.push_back(make_se3_constraint(from->second, to->second, edge.measurement, edge.information));
+    } catch (const Error& error) {
+      parse.fail(error.what());
+    }
+  }
+  result.graph.fixed_vertex = 0;
+  if (!fixes.empty()) {
+    const auto fixed = index_of_id.find(fixes.front().second);
+    if (fixed == index_of_id.end()) {
+      LineParser(source_name, fixes.front().first).fail("FIX names vertex " + std::to_string(fixes.front().second) + ", which has no VERTEX line");
+    }
+    result.graph.fixed_vertex = fixed->second;
+  }
+  return result;
+}
+
+G2oGraph read_g2o(const std::string& path) {
+  std::ifstream file(path, std::ios::binary);
+  if (!file) throw Error(path + ": cannot open the g2o file (does it exist and is it readable?)");
+  std::ostringstream contents;
+  contents << file.rdbuf();
+  if (file.bad()) throw Error(path + ": read error");
+  return parse_g2o(contents.str(), path);
+}
+
+}  // namespace backend
+}  // namespace covox

@@ -1,0 +1,9 @@
+// CPU (OpenMP) instantiation of the pose-graph solver.
+#include "covoxslam/backend/pose_graph_solver_impl.h"
+
+namespace covox {
+namespace backend {
+COVOX_INSTANTIATE_POSE_GRAPH_SOLVER(CpuBackend, Se3Model)
+COVOX_INSTANTIATE_POSE_GRAPH_SOLVER(CpuBackend, FourDofModel)
+}  // namespace backend
+}  // namespace covox

@@ -1,0 +1,226 @@
+// The LiDAR simulator: deterministic from its seed, exact against analytic surfaces, its
+// hierarchy finds the same hits as testing every primitive, the odometry drifts at least as much
+// as configured, and flight files read back what was written.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <string>
+
+#include "sim_flight.h"
+#include "sim_flight_file.h"
+#include "sim_lidar.h"
+#include "sim_random.h"
+#include "sim_site.h"
+#include "sim_world.h"
+
+namespace covox {
+namespace sim {
+namespace {
+
+LidarConfig exact_lidar(int columns = 128, int rows = 32) {
+  LidarConfig config;
+  config.columns = columns;
+  config.rows = rows;
+  config.range_noise_m = 0.0;
+  config.dropout_probability = 0.0;
+  return config;
+}
+
+Eigen::Isometry3d pose_at(const Eigen::Vector3d& position_m, double yaw_rad = 0.0) {
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.linear() = Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  pose.translation() = position_m;
+  return pose;
+}
+
+Eigen::Vector3d to_world(const Eigen::Isometry3d& pose, const Vec3f& p) { return pose * Eigen::Vector3d(p.x, p.y, p.z); }
+
+TEST(Simulator, SameSeedGivesIdenticalScansAndOdometry) {
+  const FlightConfig flight;
+  const Figure8Path path(flight);
+  const std::vector<StampedIsometry> truth = simulate_truth(path, flight);
+  LidarConfig lidar;
+  lidar.columns = 128;  // noise and dropouts on, as in a real run
+  std::vector<std::vector<Vec3f>> runs[2];
+  std::vector<StampedIsometry> odometry[2];
+  for (int run = 0; run < 2; ++run) {
+    const Site site = build_site(SiteConfig(), path, 42);
+    odometry[run] = simulate_odometry(truth, DriftConfig(), 42);
+    for (size_t k : {size_t{0}, truth.size() / 4, truth.size() / 2}) {
+      runs[run].push_back(simulate_scan(site.world, lidar, truth[k].pose, stream_seed(42, k)));
+    }
+  }
+  ASSERT_EQ(runs[0].size(), runs[1].size());
+  for (size_t s = 0; s < runs[0].size(); ++s) {
+    ASSERT_GT(runs[0][s].size(), 1000u);
+    ASSERT_EQ(runs[0][s].size(), runs[1][s].size());
+    for (size_t i = 0; i < runs[0][s].size(); ++i) {
+      ASSERT_EQ(runs[0][s][i].x, runs[1][s][i].x);
+      ASSERT_EQ(runs[0][s][i].y, runs[1][s][i].y);
+      ASSERT_EQ(runs[0][s][i].z, runs[1][s][i].z);
+    }
+  }
+  for (size_t k = 0; k < truth.size(); ++k) {
+    ASSERT_TRUE(odometry[0][k].pose.isApprox(odometry[1][k].pose, 0.0));
+  }
+  // Another seed changes the noise.
+  const Site site = build_site(SiteConfig(), path, 42);
+  const std::vector<Vec3f> other = simulate_scan(site.world, lidar, truth[0].pose, stream_seed(43, 0));
+  bool differs = other.size() != runs[0][0].size();
+  for (size_t i = 0; !differs && i < other.size(); ++i) differs = other[i].x != runs[0][0][i].x;
+  EXPECT_TRUE(differs);
+}
+
+TEST(Simulator, RangesMatchAnalyticDistancesToAPlane) {
+  World world;
+  world.add(Plane{});  // z = 0, facing up
+  world.build();
+  const LidarConfig lidar = exact_lidar();
+  const Eigen::Isometry3d pose = pose_at(Eigen::Vector3d(1.0, -2.0, 2.0), 0.4);
+  const std::vector<Vec3f> points = simulate_scan(world, lidar, pose, 1);
+  // Every beam looking down hits the plane at range height / sin(-elevation), and returns when
+  // that is within the range limit.
+  int downward = 0;
+  for (int row = 0; row < lidar.rows; ++row) {
+    const double down = -beam_direction(lidar, row, 0).z();
+    if (down > 0.0 && 2.0 / down <= lidar.max_range_m) downward += lidar.columns;
+  }
+  ASSERT_EQ(static_cast<int>(points.size()), downward);
+  for (const Vec3f& p : points) {
+    const Eigen::Vector3d local(p.x, p.y, p.z);
+    const double expected = 2.0 / (-local.normalized().z());
+    EXPECT_NEAR(local.norm(), expected, 1e-5 * expected);
+    EXPECT_NEAR(to_world(pose, p).z(), 0.0, 1e-5 * expected);
+  }
+}
+
+TEST(Simulator, RangesMatchAnalyticDistancesInsideABoxRoom) {
+  World world;
+  Box room;
+  room.centre_m = Eigen::Vector3d(0.5, 0.0, 1.0);
+  room.half_extent_m = Eigen::Vector3d(4.0, 3.0, 2.5);
+  world.add(room);
+  world.build();
+  const LidarConfig lidar = exact_lidar();
+  const Eigen::Isometry3d pose = pose_at(Eigen::Vector3d(0.0, 0.5, 1.2), -0.3);
+  const std::vector<Vec3f> points = simulate_scan(world, lidar, pose, 1);
+  ASSERT_EQ(static_cast<int>(points.size()), lidar.columns * lidar.rows);  // a closed room: every beam hits
+  for (const Vec3f& p : points) {
+    // Exit distance through the nearest wall, face by face.
+    const Eigen::Vector3d direction = pose.linear() * Eigen::Vector3d(p.x, p.y, p.z).normalized();
+    const Eigen::Vector3d origin = pose.translation() - room.centre_m;
+    double expected = kNoHit;
+    for (int axis = 0; axis < 3; ++axis) {
+      if (std::abs(direction[axis]) < 1e-12) continue;
+      const double wall = direction[axis] > 0 ? room.half_extent_m[axis] : -room.half_extent_m[axis];
+      expected = std::min(expected, (wall - origin[axis]) / direction[axis]);
+    }
+    EXPECT_NEAR(Eigen::Vector3d(p.x, p.y, p.z).norm(), expected, 1e-5 * expected);
+  }
+}
+
+TEST(Simulator, RangesMatchAnalyticDistancesToACylinder) {
+  World world;
+  Cylinder pole;
+  pole.base_centre_m = Eigen::Vector3d(6.0, 1.0, -10.0);
+  pole.radius_m = 1.5;
+  pole.height_m = 20.0;
+  world.add(pole);
+  world.build();
+  const LidarConfig lidar = exact_lidar(720, 16);
+  const Eigen::Isometry3d pose = pose_at(Eigen::Vector3d(0.0, 0.0, 0.0), 0.2);
+  const std::vector<Vec3f> points = simulate_scan(world, lidar, pose, 1);
+  ASSERT_GT(points.size(), 100u);
+  for (const Vec3f& p : points) {
+    const Eigen::Vector3d world_point = to_world(pose, p);
+    // On the mantle, and the nearer of the two crossings: the one facing the sensor.
+    EXPECT_NEAR((world_point - pole.base_centre_m).head<2>().norm(), pole.radius_m, 1e-4);
+    const Eigen::Vector2d outward = (world_point - pole.base_centre_m).head<2>();
+    EXPECT_LT(outward.dot((world_point - pose.translation()).head<2>()), 0.0);
+  }
+  // The beam straight at the axis measures the distance to the axis minus the radius.
+  const double expected = (pole.base_centre_m.head<2>() - pose.translation().head<2>()).norm() - pole.radius_m;
+  const Eigen::Vector3d towards = (pose.inverse() * Eigen::Vector3d(6.0, 1.0, 0.0)).normalized();
+  EXPECT_NEAR(world.intersect(pose.translation(), pose.linear() * towards), expected, 1e-9);
+}
+
+TEST(Simulator, HierarchyFindsTheSameHitsAsTestingEveryPrimitive) {
+  const Figure8Path path{FlightConfig()};
+  const Site site = build_site(SiteConfig(), path, 3);
+  Random random(5);
+  int hits = 0;
+  for (int i = 0; i < 2000; ++i) {
+    const Eigen::Vector3d origin(random.uniform(-60, 60), random.uniform(-40, 40), random.uniform(0.5, 6.0));
+    const Eigen::Vector3d direction = Eigen::Vector3d(random.normal(), random.normal(), random.normal()).normalized();
+    double brute = kNoHit;
+    for (const Box& b : site.world.boxes()) brute = std::min(brute, intersect(b, origin, direction));
+    for (const Cylinder& c : site.world.cylinders()) brute = std::min(brute, intersect(c, origin, direction));
+    for (const Sphere& s : site.world.spheres()) brute = std::min(brute, intersect(s, origin, direction));
+    for (const Triangle& t : site.world.triangles()) brute = std::min(brute, intersect(t, origin, direction));
+    const double fast = site.world.intersect(origin, direction);
+    if (brute == kNoHit) {
+      EXPECT_EQ(fast, kNoHit);
+    } else {
+      ++hits;
+      EXPECT_DOUBLE_EQ(fast, brute);
+    }
+  }
+  EXPECT_GT(hits, 1000);
+}
+
+TEST(Simulator, FlightHasTheRequestedShapeAndOdometryDriftsAtLeastAsConfigured) {
+  const FlightConfig flight;
+  const Figure8Path path(flight);
+  EXPECT_NEAR(path.length_m(), 400.0, 0.5);
+  const std::vector<StampedIsometry> truth = simulate_truth(path, flight);
+  EXPECT_EQ(truth.size(), 2001u);  // 200 s at 10 Hz
+  EXPECT_NEAR((truth[1].pose.translation() - truth[0].pose.translation()).norm(), 0.2, 0.01);
+  for (double minimum_m : {3.0, 6.0}) {
+    DriftConfig drift;
+    drift.min_final_drift_m = minimum_m;
+    const std::vector<StampedIsometry> odometry = simulate_odometry(truth, drift, 11);
+    EXPECT_GE(final_drift_m(truth, odometry), minimum_m);
+    EXPECT_TRUE(odometry[0].pose.isApprox(truth[0].pose));
+    // Drift is in x, y, z and yaw only: roll and pitch stay those of the truth.
+    const Eigen::Vector3d truth_up = truth.back().pose.linear().col(2);
+    const Eigen::Vector3d odometry_up = odometry.back().pose.linear().col(2);
+    EXPECT_NEAR(truth_up.z(), odometry_up.z(), 1e-9);
+  }
+}
+
+TEST(Simulator, FlightFileRoundTrip) {
+  const std::string path = ::testing::TempDir() + "/simulator_test_flight.covoxsim";
+  LidarConfig lidar = exact_lidar(64, 8);
+  std::vector<FlightScan> scans(3);
+  for (size_t k = 0; k < scans.size(); ++k) {
+    scans[k].stamp_s = 1000.0 + 0.1 * k;
+    scans[k].truth = pose_at(Eigen::Vector3d(k, 2.0, 3.0), 0.1 * k);
+    scans[k].odometry = pose_at(Eigen::Vector3d(k + 0.5, 2.0, 3.0), 0.2 * k);
+    for (size_t i = 0; i < 10 * k; ++i) scans[k].points_sensor_m.emplace_back(i, -1.0f * i, 0.5f);
+  }
+  {
+    FlightFileWriter writer(path, 77, lidar);
+    for (const FlightScan& scan : scans) writer.write(scan);
+    writer.close();
+  }
+  FlightFileReader reader(path);
+  EXPECT_EQ(reader.header().seed, 77u);
+  EXPECT_EQ(reader.header().scan_count, 3u);
+  EXPECT_EQ(reader.header().lidar.columns, 64);
+  FlightScan scan;
+  for (const FlightScan& expected : scans) {
+    ASSERT_TRUE(reader.next(&scan));
+    EXPECT_EQ(scan.stamp_s, expected.stamp_s);
+    EXPECT_TRUE(scan.truth.isApprox(expected.truth, 1e-12));
+    EXPECT_TRUE(scan.odometry.isApprox(expected.odometry, 1e-12));
+    ASSERT_EQ(scan.points_sensor_m.size(), expected.points_sensor_m.size());
+    for (size_t i = 0; i < scan.points_sensor_m.size(); ++i) EXPECT_EQ(scan.points_sensor_m[i].y, expected.points_sensor_m[i].y);
+  }
+  EXPECT_FALSE(reader.next(&scan));
+  std::remove(path.c_str());
+}
+
+}  // namespace
+}  // namespace sim
+}  // namespace covox

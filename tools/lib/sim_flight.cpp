@@ -1,0 +1,187 @@
+#include "sim_flight.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "covoxslam/core/error.h"
+#include "sim_random.h"
+
+namespace covox {
+namespace sim {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kGravity_m_per_s2 = 9.81;
+constexpr int kPathSamples = 20000;
+
+double lemniscate_length(double a, double b) {
+  double length = 0.0;
+  Eigen::Vector2d previous(0.0, 0.0);
+  for (int i = 1; i <= kPathSamples; ++i) {
+    const double theta = 2.0 * kPi * i / kPathSamples;
+    const Eigen::Vector2d p(a * std::sin(theta), b * std::sin(theta) * std::cos(theta));
+    length += (p - previous).norm();
+    previous = p;
+  }
+  return length;
+}
+
+double smoothstep(double x) {
+  x = std::clamp(x, 0.0, 1.0);
+  return x * x * (3.0 - 2.0 * x);
+}
+
+Eigen::Matrix3d yaw_rotation(double yaw_rad) {
+  return Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+}
+
+std::vector<StampedIsometry> drifted(const std::vector<StampedIsometry>& truth, const DriftConfig& config,
+                                     uint64_t seed, double scale) {
+  Random random(stream_seed(seed, 0x0D0D0D));
+  std::vector<StampedIsometry> odometry(truth.size());
+  if (truth.empty()) return odometry;
+  const double deg = kPi / 180.0;
+  odometry[0] = truth[0];
+  double yaw_error_rad = 0.0;
+  Eigen::Vector3d position_m = truth[0].pose.translation();
+  for (size_t k = 1; k < truth.size(); ++k) {
+    const double dt = truth[k].stamp_s - truth[k - 1].stamp_s;
+    const double root_dt = std::sqrt(dt);
+    // Drift increments of this step (all scaled together so the shape of the drift is kept).
+    Eigen::Vector3d translation_step = config.bias_velocity_m_per_s * dt;
+    for (int axis = 0; axis < 3; ++axis) {
+      translation_step[axis] += config.translation_random_walk_m_per_sqrt_s * root_dt * random.normal();
+    }
+    const double yaw_step = (config.yaw_bias_deg_per_s * dt +
+                             config.yaw_random_walk_deg_per_sqrt_s * root_dt * random.normal()) * deg;
+    // The true displacement, seen through the odometry's yaw error, plus the translation drift.
+    const Eigen::Vector3d displacement = truth[k].pose.translation() - truth[k - 1].pose.translation();
+    position_m += yaw_rotation(yaw_error_rad) * displacement + scale * translation_step;
+    yaw_error_rad += scale * yaw_step;
+    odometry[k].stamp_s = truth[k].stamp_s;
+    odometry[k].pose.linear() = yaw_rotation(yaw_error_rad) * truth[k].pose.linear();
+    odometry[k].pose.translation() = position_m;
+  }
+  return odometry;
+}
+
+}  // namespace
+
+Figure8Path::Figure8Path(const FlightConfig& config) : config_(config), a_(config.lobe_half_length_m) {
+  if (!(config.lobe_half_length_m > 0.0) || !(config.path_length_m > 0.0) || !(config.speed_m_per_s > 0.0) ||
+      !(config.scan_rate_hz > 0.0)) {
+    throw Error("flight: lobe half length, path length, speed and scan rate must be positive");
+  }
+  // The length grows with B: bisect for the B that gives the requested length.
+  double low = 0.05 * a_, high = 3.0 * a_;
+  if (lemniscate_length(a_, low) > config.path_length_m || lemniscate_length(a_, high) < config.path_length_m) {
+    throw Error("flight: a figure 8 of half length " + std::to_string(a_) + " m cannot be " +
+                std::to_string(config.path_length_m) + " m long; change the lobe half length");
+  }
+  for (int iteration = 0; iteration < 60; ++iteration) {
+    const double middle = 0.5 * (low + high);
+    (lemniscate_length(a_, middle) < config.path_length_m ? low : high) = middle;
+  }
+  b_ = 0.5 * (low + high);
+  theta_.resize(kPathSamples + 1);
+  arc_length_.resize(kPathSamples + 1);
+  Eigen::Vector2d previous(0.0, 0.0);
+  for (int i = 0; i <= kPathSamples; ++i) {
+    theta_[i] = 2.0 * kPi * i / kPathSamples;
+    const Eigen::Vector2d p(a_ * std::sin(theta_[i]), b_ * std::sin(theta_[i]) * std::cos(theta_[i]));
+    arc_length_[i] = i == 0 ? 0.0 : arc_length_[i - 1] + (p - previous).norm();
+    previous = p;
+  }
+}
+
+double Figure8Path::theta_at(double distance_m) const {
+  distance_m = std::clamp(distance_m, 0.0, length_m());
+  const size_t after = std::min<size_t>(
+      std::lower_bound(arc_length_.begin(), arc_length_.end(), distance_m) - arc_length_.begin(),
+      arc_length_.size() - 1);
+  if (after == 0) return theta_[0];
+  const double fraction = (distance_m - arc_length_[after - 1]) / (arc_length_[after] - arc_length_[after - 1]);
+  return theta_[after - 1] + fraction * (theta_[after] - theta_[after - 1]);
+}
+
+Eigen::Vector2d Figure8Path::position_m(double distance_m) const {
+  const double theta = theta_at(distance_m);
+  return Eigen::Vector2d(a_ * std::sin(theta), b_ * std::sin(theta) * std::cos(theta));
+}
+
+Eigen::Vector2d Figure8Path::direction(double distance_m) const {
+  const double theta = theta_at(distance_m);
+  return Eigen::Vector2d(a_ * std::cos(theta), b_ * std::cos(2.0 * theta)).normalized();
+}
+
+double Figure8Path::altitude_m(double distance_m) const {
+  const double d = (position_m(distance_m) - passage_centre_m()).norm();
+  const double blend = smoothstep((d - config_.indoor_radius_m) / config_.altitude_transition_m);
+  return config_.indoor_altitude_m + blend * (config_.cruise_altitude_m - config_.indoor_altitude_m);
+}
+
+double Figure8Path::passage_x_at_m(double y_m) const {
+  // On theta in [pi/4, 3pi/4] (the +x lobe end) y = B/2 sin(2 theta) falls monotonically.
+  double low = 0.25 * kPi, high = 0.75 * kPi;
+  for (int iteration = 0; iteration < 60; ++iteration) {
+    const double middle = 0.5 * (low + high);
+    (b_ * std::sin(middle) * std::cos(middle) > y_m ? low : high) = middle;
+  }
+  return a_ * std::sin(0.5 * (low + high));
+}
+
+std::vector<StampedIsometry> simulate_truth(const Figure8Path& path, const FlightConfig& config) {
+  const double dt = 1.0 / config.scan_rate_hz;
+  const double duration_s = path.length_m() / config.speed_m_per_s;
+  const size_t count = static_cast<size_t>(std::floor(duration_s * config.scan_rate_hz)) + 1;
+  std::vector<StampedIsometry> poses(count);
+  const auto position = [&](double t_s) {
+    const double s = t_s * config.speed_m_per_s;
+    const Eigen::Vector2d xy = path.position_m(s);
+    return Eigen::Vector3d(xy.x(), xy.y(), path.altitude_m(s));
+  };
+  for (size_t k = 0; k < count; ++k) {
+    const double t = k * dt;
+    const double s = t * config.speed_m_per_s;
+    const Eigen::Vector2d heading = path.direction(s);
+    const double yaw = std::atan2(heading.y(), heading.x());
+    // Horizontal acceleration by central differences (one step of 0.05 s), in the yawed frame.
+    const double h = 0.05;
+    const Eigen::Vector3d acceleration = (position(t + h) - 2.0 * position(t) + position(std::max(0.0, t - h))) / (h * h);
+    const Eigen::Vector3d local = yaw_rotation(-yaw) * acceleration;
+    // Thrust tilts towards the acceleration: forward needs pitch down (positive about y in a
+    // forward-left-up frame), left needs roll to the left (negative about x).
+    const double pitch = std::atan2(local.x(), kGravity_m_per_s2);
+    const double roll = -std::atan2(local.y(), kGravity_m_per_s2);
+    poses[k].stamp_s = config.start_time_s + t;
+    poses[k].pose.linear() = (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) *
+                              Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
+                              Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()))
+                                 .toRotationMatrix();
+    poses[k].pose.translation() = position(t);
+  }
+  return poses;
+}
+
+std::vector<StampedIsometry> simulate_odometry(const std::vector<StampedIsometry>& truth,
+                                               const DriftConfig& config, uint64_t seed) {
+  double scale = 1.0;
+  std::vector<StampedIsometry> odometry = drifted(truth, config, seed, scale);
+  // A few rescalings suffice: the final drift is close to linear in the scale.
+  for (int attempt = 0; attempt < 8 && truth.size() > 1; ++attempt) {
+    const double drift = final_drift_m(truth, odometry);
+    if (drift >= config.min_final_drift_m) break;
+    scale *= drift > 1e-6 ? 1.05 * config.min_final_drift_m / drift : 2.0;
+    odometry = drifted(truth, config, seed, scale);
+  }
+  return odometry;
+}
+
+double final_drift_m(const std::vector<StampedIsometry>& truth, const std::vector<StampedIsometry>& odometry) {
+  if (truth.empty() || odometry.size() != truth.size()) return 0.0;
+  return (truth.back().pose.translation() - odometry.back().pose.translation()).norm();
+}
+
+}  // namespace sim
+}  // namespace covox

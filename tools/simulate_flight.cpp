@@ -1,0 +1,111 @@
+// simulate_flight: simulates an ARCHE-like flight (figure 8 through a search-and-rescue site,
+// Ouster OS1-64, drifting odometry) and writes, into one folder:
+//   flight.covoxsim   scans with truth and odometry poses (format: tools/lib/sim_flight_file.h)
+//   world.ply         the ground-truth world mesh
+//   truth.tum         ground-truth sensor poses (TUM)
+//   odometry.tum      odometry sensor poses (TUM)
+// Deterministic: the same options and seed give byte-identical files.
+#include <chrono>
+#include <cstdio>
+#include <iostream>
+#include <string>
+#include <sys/stat.h>
+
+#include "command_line.h"
+#include "covoxslam/core/error.h"
+#include "covoxslam/io/mesh_ply.h"
+#include "covoxslam/io/trajectory_io.h"
+#include "sim_flight.h"
+#include "sim_flight_file.h"
+#include "sim_lidar.h"
+#include "sim_random.h"
+#include "sim_site.h"
+
+namespace {
+
+using namespace covox;
+
+const char kUsage[] =
+    "usage: simulate_flight [--output-dir DIR] [options]\n"
+    "  --output-dir DIR         where the files go (default sim_flight; created if missing)\n"
+    "  --seed N                 world, noise and drift seed (default 1)\n"
+    "  --columns N              LiDAR horizontal resolution (default 1024, OS1-64; 512 or 256 for fast CPU runs)\n"
+    "  --rows N                 LiDAR beams (default 64)\n"
+    "  --range-noise-m S        range noise standard deviation (default 0.02)\n"
+    "  --dropout P              probability that a beam returns nothing (default 0.01)\n"
+    "  --max-range-m R          LiDAR range limit (default 120)\n"
+    "  --path-length-m L        figure-8 length (default 400)\n"
+    "  --speed-m-per-s V        flight speed (default 2)\n"
+    "  --min-drift-m D          least final odometry drift (default 3)\n"
+    "  --max-scans N            stop after N scans (0: the whole flight)\n";
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  tools::CommandLine args(argc, argv, kUsage);
+  const std::string output_dir = args.text("--output-dir", "sim_flight");
+  const uint64_t seed = static_cast<uint64_t>(args.integer("--seed", 1));
+  sim::LidarConfig lidar;
+  lidar.columns = static_cast<int>(args.integer("--columns", lidar.columns));
+  lidar.rows = static_cast<int>(args.integer("--rows", lidar.rows));
+  lidar.range_noise_m = args.number("--range-noise-m", lidar.range_noise_m);
+  lidar.dropout_probability = args.number("--dropout", lidar.dropout_probability);
+  lidar.max_range_m = args.number("--max-range-m", lidar.max_range_m);
+  sim::FlightConfig flight;
+  flight.path_length_m = args.number("--path-length-m", flight.path_length_m);
+  flight.speed_m_per_s = args.number("--speed-m-per-s", flight.speed_m_per_s);
+  sim::DriftConfig drift;
+  drift.min_final_drift_m = args.number("--min-drift-m", drift.min_final_drift_m);
+  const int64_t max_scans = args.integer("--max-scans", 0);
+  args.finish();
+
+  try {
+    sim::validate(lidar);
+    const auto start = std::chrono::steady_clock::now();
+    ::mkdir(output_dir.c_str(), 0755);  // an existing folder is fine; a real failure shows on writing
+    const sim::Figure8Path path(flight);
+    const sim::Site site = sim::build_site(sim::SiteConfig(), path, seed);
+    std::vector<sim::StampedIsometry> truth = sim::simulate_truth(path, flight);
+    std::vector<sim::StampedIsometry> odometry = sim::simulate_odometry(truth, drift, seed);
+    if (max_scans > 0 && static_cast<size_t>(max_scans) < truth.size()) {
+      truth.resize(max_scans);
+      odometry.resize(max_scans);
+    }
+    io::write_mesh_ply(output_dir + "/world.ply", site.world.to_mesh());
+    io::write_tum_trajectory(output_dir + "/truth.tum", sim::to_trajectory(truth));
+    io::write_tum_trajectory(output_dir + "/odometry.tum", sim::to_trajectory(odometry));
+
+    sim::FlightFileWriter writer(output_dir + "/flight.covoxsim", seed, lidar);
+    size_t total_points = 0;
+    for (size_t k = 0; k < truth.size(); ++k) {
+      sim::FlightScan scan;
+      scan.stamp_s = truth[k].stamp_s;
+      scan.truth = truth[k].pose;
+      scan.odometry = odometry[k].pose;
+      scan.points_sensor_m = sim::simulate_scan(site.world, lidar, truth[k].pose, sim::stream_seed(seed, 0x5CA7, k));
+      total_points += scan.points_sensor_m.size();
+      writer.write(scan);
+      if (k % 20 == 0 || k + 1 == truth.size()) {
+        std::fprintf(stderr, "\rsimulating scan %zu / %zu", k + 1, truth.size());
+      }
+    }
+    writer.close();
+    std::fprintf(stderr, "\n");
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    double max_drift = 0.0;
+    for (size_t k = 0; k < truth.size(); ++k) {
+      max_drift = std::max(max_drift, (truth[k].pose.translation() - odometry[k].pose.translation()).norm());
+    }
+    std::printf("world: %zu primitives, %zu buildings, ground %.0f x %.0f m\n", site.world.primitive_count(),
+                site.buildings.size(), site.high_m.x() - site.low_m.x(), site.high_m.y() - site.low_m.y());
+    std::printf("flight: %.1f m figure 8 (lobes %.1f x %.1f m) at %.1f m/s, %zu scans of %d x %d beams, %.0f points/scan\n",
+                path.length_m(), 2.0 * path.lobe_half_length_m(), path.lobe_width_m(), flight.speed_m_per_s,
+                truth.size(), lidar.columns, lidar.rows, truth.empty() ? 0.0 : double(total_points) / truth.size());
+    std::printf("odometry drift: final %.2f m, max %.2f m\n", sim::final_drift_m(truth, odometry), max_drift);
+    std::printf("wrote %s/{flight.covoxsim,world.ply,truth.tum,odometry.tum} in %.1f s\n", output_dir.c_str(), seconds);
+  } catch (const Error& error) {
+    std::cerr << "simulate_flight: " << error.what() << std::endl;
+    return 1;
+  }
+  return 0;
+}
