@@ -38,7 +38,9 @@ CMAKE_FLAGS := -DCMAKE_BUILD_TYPE=Release -DCOVOX_WITH_CUDA=$(WITH_CUDA) \
 
 DEMO_DIR ?= demo_output
 
-.PHONY: all deps build test demo release clean
+DEMO_TARGETS := simulate_flight map_flight evaluate_trajectory
+
+.PHONY: all deps configure build test demo release clean
 
 all: build
 
@@ -55,14 +57,18 @@ deps:
 	else echo "covoxslam: all Debian packages present"; fi
 
 # Configuring again is cheap and picks up changed settings (CUDA_ARCH, WITH_CUDA).
-build: deps
+configure: deps
 	cmake -S . -B $(BUILD_DIR) $(CMAKE_FLAGS)
+
+build: configure
 	cmake --build $(BUILD_DIR) -j $(JOBS)
 
 test: build
 	cd $(BUILD_DIR) && ctest --output-on-failure -j $(JOBS) --timeout 600
 
-demo: build
+# Builds only the programs the demo runs (the test suite is `make test`'s business).
+demo: configure
+	cmake --build $(BUILD_DIR) -j $(JOBS) --target $(DEMO_TARGETS)
 	tools/run_demo.sh $(BUILD_DIR) $(DEMO_DIR)
 
 # What a release builds: every supported CUDA architecture.

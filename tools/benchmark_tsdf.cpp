@@ -34,18 +34,20 @@ struct Options {
   int integrations = 100;
   std::string output;
   bool skip_rgbd = false;
+  bool skip_lidar = false;
 };
 
 Options parse(int argc, char** argv) {
   tools::CommandLine args(argc, argv,
                           "usage: benchmark_tsdf [--data DIR] [--device all|cuda|cpu] [--integrations N]\n"
-                          "       [--output docs/benchmarks/tsdf.json] [--skip-rgbd]");
+                          "       [--output docs/benchmarks/tsdf.json] [--skip-rgbd] [--skip-lidar]");
   Options options;
   options.data = args.text("--data", io::data_directory());
   options.device = args.text("--device", options.device);
   options.integrations = static_cast<int>(args.integer("--integrations", options.integrations));
   options.output = args.text("--output", "");
   options.skip_rgbd = args.flag("--skip-rgbd");
+  options.skip_lidar = args.flag("--skip-lidar");
   args.finish();
   if (options.integrations <= 0) args.fail("--integrations must be positive");
   return options;
@@ -148,13 +150,15 @@ int main(int argc, char** argv) {
     tools::BenchmarkReport report("tsdf", names, argc, argv);
     for (Device device : devices) {
       std::cout << "TSDF on " << describe_device(device) << "..." << std::endl;
-      const tools::DeviceScans ouster = tools::load_ouster_scans(options.data, device);
-      const tools::DeviceScans kitti = tools::load_kitti_scans(options.data, device);
-      const auto merged = TsdfIntegrationMethod::kMerged, simple = TsdfIntegrationMethod::kSimple;
-      benchmark_lidar(device, options, "OS1-64 0.2 m, 16 m rays", ouster, 0.2f, 16.0f, merged, &report);
-      benchmark_lidar(device, options, "OS1-64 0.2 m, 16 m rays", ouster, 0.2f, 16.0f, simple, &report);
-      benchmark_lidar(device, options, "OS1-64 0.1 m, 16 m rays", ouster, 0.1f, 16.0f, merged, &report);
-      benchmark_lidar(device, options, "KITTI HDL-64 0.2 m, 50 m rays", kitti, 0.2f, 50.0f, merged, &report);
+      if (!options.skip_lidar) {
+        const tools::DeviceScans ouster = tools::load_ouster_scans(options.data, device);
+        const tools::DeviceScans kitti = tools::load_kitti_scans(options.data, device);
+        const auto merged = TsdfIntegrationMethod::kMerged, simple = TsdfIntegrationMethod::kSimple;
+        benchmark_lidar(device, options, "OS1-64 0.2 m, 16 m rays", ouster, 0.2f, 16.0f, merged, &report);
+        benchmark_lidar(device, options, "OS1-64 0.2 m, 16 m rays", ouster, 0.2f, 16.0f, simple, &report);
+        benchmark_lidar(device, options, "OS1-64 0.1 m, 16 m rays", ouster, 0.1f, 16.0f, merged, &report);
+        benchmark_lidar(device, options, "KITTI HDL-64 0.2 m, 50 m rays", kitti, 0.2f, 50.0f, merged, &report);
+      }
       if (!options.skip_rgbd) {
         const tools::DeviceRgbdFrames frames = tools::load_7scenes_frames(options.data, 70, device);
         for (float voxel_size : {0.05f, 0.02f}) {

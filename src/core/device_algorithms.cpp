@@ -23,6 +23,10 @@ void sort_by_key(Device device, const Stream& stream, uint64_t* keys, uint32_t* 
                  int64_t count) {
   COVOX_DISPATCH_PRIMITIVE(sort_by_key(stream, keys, values, count));
 }
+void radix_sort_pairs(Device device, const Stream& stream, uint64_t* keys, uint32_t* values, int64_t count,
+                      int key_bits, uint64_t* keys_alt, uint32_t* values_alt) {
+  COVOX_DISPATCH_PRIMITIVE(radix_sort_pairs(stream, keys, values, count, key_bits, keys_alt, values_alt));
+}
 int64_t reduce_by_key_sum(Device device, const Stream& stream, const uint64_t* keys,
                           const float* values, int64_t count, uint64_t* keys_out,
                           float* values_out) {

@@ -5,6 +5,7 @@
 
 #include "covoxslam/core/error.h"
 #include "covoxslam/core/log.h"
+#include "covoxslam/core/radix_sort.h"
 #include "covoxslam/integrators/tsdf_integrator_ops.h"
 
 namespace covox {
@@ -14,6 +15,34 @@ void require(bool condition, const std::string& message) {
   if (!condition) throw Error("TSDF integrator: " + message);
 }
 }  // namespace
+
+namespace tsdf {
+
+FrameKeyCodec make_frame_key_codec(const Index3D& min_voxel, const Index3D& max_voxel, int32_t voxels_per_side) {
+  FrameKeyCodec codec;
+  codec.voxels_per_side = voxels_per_side;
+  codec.voxel_bits = bits_for(static_cast<uint64_t>(voxels_per_side) * voxels_per_side * voxels_per_side - 1);
+  const Index3D low(floor_divide(min_voxel.x, voxels_per_side) - 1, floor_divide(min_voxel.y, voxels_per_side) - 1,
+                    floor_divide(min_voxel.z, voxels_per_side) - 1);
+  const Index3D high(floor_divide(max_voxel.x, voxels_per_side) + 1, floor_divide(max_voxel.y, voxels_per_side) + 1,
+                     floor_divide(max_voxel.z, voxels_per_side) + 1);
+  codec.origin_block = low;
+  const int64_t sx = int64_t(high.x) - low.x + 1, sy = int64_t(high.y) - low.y + 1, sz = int64_t(high.z) - low.z + 1;
+  const double blocks = double(sx) * double(sy) * double(sz);
+  if (!(blocks * double(uint64_t(1) << codec.voxel_bits) < 4.0e18)) {
+    throw Error("TSDF integrator: the frame spans " + std::to_string(sx) + " x " + std::to_string(sy) + " x " +
+                std::to_string(sz) + " blocks, too many for 64-bit update keys; lower max_ray_length_m");
+  }
+  codec.size_x = static_cast<int32_t>(sx);
+  codec.size_y = static_cast<int32_t>(sy);
+  codec.size_z = static_cast<int32_t>(sz);
+  codec.out_of_range_key = static_cast<uint64_t>(sx * sy * sz) << codec.voxel_bits;
+  codec.zero_weight_key = codec.out_of_range_key + 1;
+  codec.key_bits = bits_for(codec.zero_weight_key);
+  return codec;
+}
+
+}  // namespace tsdf
 
 TsdfIntegrationMethod parse_tsdf_integration_method(const std::string& name) {
   if (name == "simple") return TsdfIntegrationMethod::kSimple;

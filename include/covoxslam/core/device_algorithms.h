@@ -19,6 +19,10 @@ void exclusive_scan(Device device, const Stream& stream, const uint32_t* in, int
 // Stable sort of keys, values permuted along.
 void sort_by_key(Device device, const Stream& stream, uint64_t* keys, uint32_t* values,
                  int64_t count);
+// Stable sort by the low key_bits bits of the keys (see radix_sort.h); *_alt are scratch arrays
+// of `count` elements.
+void radix_sort_pairs(Device device, const Stream& stream, uint64_t* keys, uint32_t* values, int64_t count,
+                      int key_bits, uint64_t* keys_alt, uint32_t* values_alt);
 // Sums each run of equal consecutive keys; returns the number of runs.
 int64_t reduce_by_key_sum(Device device, const Stream& stream, const uint64_t* keys,
                           const float* values, int64_t count, uint64_t* keys_out,

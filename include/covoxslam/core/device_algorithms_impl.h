@@ -5,6 +5,7 @@
 #include "covoxslam/core/atomics.h"
 #include "covoxslam/core/device_algorithms_primitives.h"
 #include "covoxslam/core/parallel.h"
+#include "covoxslam/core/radix_sort.h"
 
 namespace covox {
 namespace algorithms {
@@ -21,6 +22,11 @@ void Primitives<Backend>::exclusive_scan(const Stream& stream, const uint32_t* i
 template <class Backend>
 void Primitives<Backend>::sort_by_key(const Stream& stream, uint64_t* keys, uint32_t* values, int64_t count) {
     covox::sort_by_key(Backend{}, stream, keys, values, count);
+  }
+template <class Backend>
+void Primitives<Backend>::radix_sort_pairs(const Stream& stream, uint64_t* keys, uint32_t* values, int64_t count,
+                                           int key_bits, uint64_t* keys_alt, uint32_t* values_alt) {
+    covox::radix_sort_pairs(Backend{}, stream, keys, values, count, key_bits, keys_alt, values_alt);
   }
 template <class Backend>
 int64_t Primitives<Backend>::reduce_by_key_sum(const Stream& stream, const uint64_t* keys, const float* values,

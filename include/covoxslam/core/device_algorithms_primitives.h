@@ -14,6 +14,8 @@ struct Primitives {
   static void exclusive_scan(const Stream& stream, const uint32_t* in, int64_t count,
                              uint32_t* out);
   static void sort_by_key(const Stream& stream, uint64_t* keys, uint32_t* values, int64_t count);
+  static void radix_sort_pairs(const Stream& stream, uint64_t* keys, uint32_t* values, int64_t count, int key_bits,
+                               uint64_t* keys_alt, uint32_t* values_alt);
   static int64_t reduce_by_key_sum(const Stream& stream, const uint64_t* keys, const float* values,
                                    int64_t count, uint64_t* keys_out, float* values_out);
   static int64_t unique(const Stream& stream, uint64_t* data, int64_t count);

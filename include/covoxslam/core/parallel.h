@@ -7,7 +7,11 @@
 // `backend` is a tag (CpuBackend or CudaBackend). The CPU versions use OpenMP and Thrust's
 // omp::par; the CUDA versions, visible only to nvcc, launch a kernel or use Thrust's
 // cuda::par_nosync on the stream. Functors must be COVOX_HD (or `[=] COVOX_HD` lambdas).
+#include <algorithm>
 #include <cstdint>
+#include <vector>
+
+#include <omp.h>
 
 #include <thrust/count.h>
 #include <thrust/reduce.h>
@@ -94,14 +98,64 @@ void sort_by_key(Backend backend, const Stream& stream, Key* keys, Value* values
   thrust::stable_sort_by_key(execution_policy(backend, stream), keys, keys + count, values);
 }
 
+// Merges each run of consecutive keys that are `equal` with `op`, reading values through any
+// random-access iterator (e.g. a permutation of the updates); writes one key and one value per
+// run and returns the number of runs.
+//
+// CPU: Thrust's OpenMP reduce_by_key is a generic, mostly serial algorithm, so the twin splits
+// the keys into one chunk per thread at run boundaries, counts each chunk's runs, and reduces
+// every run left to right in its chunk (deterministic, in input order). CUDA: Thrust's
+// reduce_by_key (a segmented scan).
+template <class Key, class ValueIterator, class Value, class Equal, class ReduceOp>
+int64_t reduce_runs(CpuBackend, const Stream&, const Key* keys, ValueIterator values, int64_t count, Key* keys_out,
+                    Value* values_out, Equal equal, ReduceOp op) {
+  if (count <= 0) return 0;
+  const int threads = omp_get_max_threads();
+  std::vector<int64_t> begins(static_cast<size_t>(threads) + 1, count);
+  begins[0] = 0;
+  for (int t = 1; t < threads; ++t) {
+    int64_t b = std::max(begins[t - 1], count * t / threads);
+    while (b > 0 && b < count && equal(keys[b - 1], keys[b])) ++b;  // do not split a run
+    begins[t] = b;
+  }
+  std::vector<int64_t> first_run(static_cast<size_t>(threads) + 1, 0);
+#pragma omp parallel num_threads(threads)
+  {
+    const int t = omp_get_thread_num();
+    int64_t runs = 0;
+    for (int64_t i = begins[t]; i < begins[t + 1]; ++i) runs += (i == begins[t] || !equal(keys[i - 1], keys[i]));
+    first_run[t + 1] = runs;
+#pragma omp barrier
+#pragma omp single
+    for (int u = 0; u < threads; ++u) first_run[u + 1] += first_run[u];
+    int64_t out = first_run[t] - 1;
+    for (int64_t i = begins[t]; i < begins[t + 1]; ++i) {
+      if (i == begins[t] || !equal(keys[i - 1], keys[i])) {
+        keys_out[++out] = keys[i];
+        values_out[out] = values[i];
+      } else {
+        values_out[out] = op(values_out[out], static_cast<Value>(values[i]));
+      }
+    }
+  }
+  return first_run[threads];
+}
+#if defined(__CUDACC__)
+template <class Key, class ValueIterator, class Value, class Equal, class ReduceOp>
+int64_t reduce_runs(CudaBackend backend, const Stream& stream, const Key* keys, ValueIterator values, int64_t count,
+                    Key* keys_out, Value* values_out, Equal equal, ReduceOp op) {
+  if (count <= 0) return 0;
+  auto ends = thrust::reduce_by_key(execution_policy(backend, stream), keys, keys + count, values, keys_out,
+                                    values_out, equal, op);
+  return static_cast<int64_t>(ends.first - keys_out);
+}
+#endif
+
 // Merges each run of equal consecutive keys with `op`; returns the number of runs.
 template <class Backend, class Key, class Value, class ReduceOp>
 int64_t reduce_by_key(Backend backend, const Stream& stream, const Key* keys, const Value* values,
                       int64_t count, Key* keys_out, Value* values_out, ReduceOp op) {
-  if (count <= 0) return 0;
-  auto ends = thrust::reduce_by_key(execution_policy(backend, stream), keys, keys + count, values,
-                                    keys_out, values_out, thrust::equal_to<Key>(), op);
-  return static_cast<int64_t>(ends.first - keys_out);
+  return reduce_runs(backend, stream, keys, values, count, keys_out, values_out, thrust::equal_to<Key>(), op);
 }
 
 // Removes consecutive duplicates in place; returns the new count.

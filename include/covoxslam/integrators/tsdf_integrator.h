@@ -37,7 +37,7 @@ struct IntegrationStats {
   int64_t rays_cast = 0;                // surface + clearing rays after merging points per voxel
   int64_t voxel_updates = 0;            // before merging
   int64_t voxels_updated = 0;           // distinct voxels written
-  int64_t voxels_out_of_range = 0;      // updates dropped: voxel outside the key range
+  int64_t voxels_out_of_range = 0;      // voxels dropped: block outside the map's key range
   int64_t blocks_allocated = 0;         // new blocks this call
 
   int64_t dropped_total() const {

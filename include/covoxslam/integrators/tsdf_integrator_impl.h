@@ -1,21 +1,30 @@
 #pragma once
 // Definitions of the TSDF integration steps (see tsdf_integrator.h for the algorithm), written
 // once for both backends.
+#include <climits>
+
 #include <thrust/functional.h>
 #include <thrust/iterator/permutation_iterator.h>
 #include <thrust/reduce.h>
 
 #include "covoxslam/core/eigen_conversions.h"
 #include "covoxslam/core/parallel.h"
+#include "covoxslam/core/radix_sort.h"
 #include "covoxslam/integrators/tsdf_integrator_ops.h"
 
 namespace covox {
 namespace tsdf_detail {
 
-// Per-kind ray counts and the total voxel count in one reduction (one read-back, not seven).
+// Per-kind ray counts, the total voxel count and the box of voxels the rays traverse, in one
+// reduction (one read-back, not nine). The box sizes the frame's update keys.
 struct RayTally {
   int64_t kinds[6] = {0, 0, 0, 0, 0, 0};
   int64_t voxels = 0;
+  int32_t low[3] = {INT32_MAX, INT32_MAX, INT32_MAX};
+  int32_t high[3] = {INT32_MIN, INT32_MIN, INT32_MIN};
+
+  Index3D low_voxel() const { return Index3D(low[0], low[1], low[2]); }
+  Index3D high_voxel() const { return Index3D(high[0], high[1], high[2]); }
 };
 struct TallyRay {
   float inverse_voxel_size;
@@ -23,6 +32,15 @@ struct TallyRay {
     RayTally tally;
     tally.kinds[ray.kind] = 1;
     tally.voxels = tsdf::ray_voxel_count(ray, inverse_voxel_size);
+    if (ray.kind <= tsdf::kClearingRay) {  // a segment's voxels lie in the box of its end voxels
+      const Index3D a = tsdf::voxel_of(ray.start, inverse_voxel_size);
+      const Index3D b = tsdf::voxel_of(ray.end, inverse_voxel_size);
+      const int32_t av[3] = {a.x, a.y, a.z}, bv[3] = {b.x, b.y, b.z};
+      for (int axis = 0; axis < 3; ++axis) {
+        tally.low[axis] = av[axis] < bv[axis] ? av[axis] : bv[axis];
+        tally.high[axis] = av[axis] > bv[axis] ? av[axis] : bv[axis];
+      }
+    }
     return tally;
   }
 };
@@ -31,6 +49,10 @@ struct AddTallies {
     RayTally sum;
     for (int k = 0; k < 6; ++k) sum.kinds[k] = a.kinds[k] + b.kinds[k];
     sum.voxels = a.voxels + b.voxels;
+    for (int axis = 0; axis < 3; ++axis) {
+      sum.low[axis] = a.low[axis] < b.low[axis] ? a.low[axis] : b.low[axis];
+      sum.high[axis] = a.high[axis] > b.high[axis] ? a.high[axis] : b.high[axis];
+    }
     return sum;
   }
 };
@@ -41,10 +63,12 @@ struct DropTally {
   int64_t out_of_range = 0;
 };
 struct TallyKey {
+  uint64_t zero_weight_key;
+  uint64_t out_of_range_key;
   COVOX_HD_INLINE DropTally operator()(uint64_t key) const {
     DropTally tally;
-    tally.zero_weight = key == tsdf::kZeroWeightUpdateKey ? 1 : 0;
-    tally.out_of_range = key == tsdf::kOutOfRangeUpdateKey ? 1 : 0;
+    tally.zero_weight = key == zero_weight_key ? 1 : 0;
+    tally.out_of_range = key == out_of_range_key ? 1 : 0;
     return tally;
   }
 };
@@ -60,7 +84,7 @@ struct AddDropTallies {
 // ray per bundle (see tsdf_ray_merging.h), with its weight (point count) in scratch.ray_weights
 // and, when `has_color`, its mean colour in scratch.ray_colors. Returns the number of rays.
 template <class Backend>
-int64_t tsdf_merge_rays(Backend backend, const tsdf::RayParameters& ray_parameters, int32_t voxels_per_side,
+int64_t tsdf_merge_rays(Backend backend, const tsdf::RayParameters& ray_parameters, const tsdf::FrameKeyCodec& codec,
                         const PointCloudView& cloud, const Rgb8* colors, const float* intensities,
                         float grey_per_intensity, TsdfScratchBuffers& scratch, const Stream& stream) {
   const int64_t n = cloud.count;
@@ -75,7 +99,7 @@ int64_t tsdf_merge_rays(Backend backend, const tsdf::RayParameters& ray_paramete
   const Vec3f* points = cloud.points;
   parallel_for(backend, stream, n, [=] COVOX_HD(int64_t i) {
     const tsdf::RaySegment ray = rays[i];
-    keys[i] = tsdf::merge_key(ray, i, inverse_voxel_size, voxels_per_side);
+    keys[i] = tsdf::merge_key(ray, inverse_voxel_size, codec);
     order[i] = static_cast<uint32_t>(i);
     tsdf::PointBundle bundle;
     if (ray.kind == tsdf::kSurfaceRay) {  // finite: only these are summed
@@ -91,14 +115,15 @@ int64_t tsdf_merge_rays(Backend backend, const tsdf::RayParameters& ray_paramete
     bundle.first = static_cast<uint32_t>(i);
     bundles[i] = bundle;
   });
-  sort_by_key(backend, stream, keys, order, n);
+  scratch.keys_alt.resize_discard(n);
+  scratch.order_alt.resize_discard(n);
+  radix_sort_pairs(backend, stream, keys, order, n, codec.key_bits, scratch.keys_alt.data(), scratch.order_alt.data());
   scratch.merged_keys.resize_discard(n);
   scratch.merged_bundles.resize_discard(n);
   const auto ordered_bundles = thrust::make_permutation_iterator(bundles, order);
-  const auto ends = thrust::reduce_by_key(execution_policy(backend, stream), keys, keys + n, ordered_bundles,
-                                          scratch.merged_keys.data(), scratch.merged_bundles.data(),
-                                          thrust::equal_to<uint64_t>(), tsdf::AddBundles());
-  const int64_t ray_count = static_cast<int64_t>(ends.first - scratch.merged_keys.data());
+  const int64_t ray_count = reduce_runs(backend, stream, keys, ordered_bundles, n, scratch.merged_keys.data(),
+                                        scratch.merged_bundles.data(), tsdf::MergeKeysEqual{codec.zero_weight_key},
+                                        tsdf::AddBundles());
 
   scratch.rays.resize_discard(ray_count);
   scratch.ray_weights.resize_discard(ray_count);
@@ -177,7 +202,9 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
   const float* ray_weights = nullptr;
   int64_t ray_count = n;
   if (config.method == TsdfIntegrationMethod::kMerged && stats.surface_rays > 0) {
-    ray_count = tsdf_merge_rays(backend, ray_parameters, voxels_per_side, cloud, colors, intensities,
+    const tsdf::FrameKeyCodec point_codec =
+        tsdf::make_frame_key_codec(tally.low_voxel(), tally.high_voxel(), voxels_per_side);
+    ray_count = tsdf_merge_rays(backend, ray_parameters, point_codec, cloud, colors, intensities,
                                 grey_per_intensity, scratch, stream);
     ray_weights = scratch.ray_weights.data();
     colors = has_color ? scratch.ray_colors.data() : nullptr;
@@ -198,6 +225,7 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
   const int64_t total_updates = tally.voxels;
   stats.voxel_updates = total_updates;
   if (total_updates == 0) return stats;
+  const tsdf::FrameKeyCodec codec = tsdf::make_frame_key_codec(tally.low_voxel(), tally.high_voxel(), voxels_per_side);
 
   // 2. one update per traversed voxel
   scratch.keys.resize_discard(total_updates);
@@ -233,28 +261,29 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
         update.weighted_b = weight * color.b;
         update.color_weight = weight;
       }
-      keys[out] = weight > 0.0f ? tsdf::voxel_update_key(voxel, voxels_per_side) : tsdf::kZeroWeightUpdateKey;
+      keys[out] = weight > 0.0f ? codec.key(voxel) : codec.zero_weight_key;
       order[out] = out;
       updates[out] = update;
       ++out;
     });
   });
 
-  const tsdf_detail::DropTally drops = transform_reduce(backend, stream, keys, total_updates, tsdf_detail::TallyKey{},
+  const tsdf_detail::DropTally drops = transform_reduce(backend, stream, keys, total_updates,
+                                                        tsdf_detail::TallyKey{codec.zero_weight_key, codec.out_of_range_key},
                                                         tsdf_detail::DropTally{}, tsdf_detail::AddDropTallies{});
   stats.voxels_out_of_range = drops.out_of_range;
 
   // 3. group by voxel and merge (stable sort keeps each voxel's updates in ray order, so the
   //    float sums are the same every run)
-  sort_by_key(backend, stream, keys, order, total_updates);
+  scratch.keys_alt.resize_discard(total_updates);
+  scratch.order_alt.resize_discard(total_updates);
+  radix_sort_pairs(backend, stream, keys, order, total_updates, codec.key_bits, scratch.keys_alt.data(),
+                   scratch.order_alt.data());
   scratch.merged_keys.resize_discard(total_updates);
   scratch.merged.resize_discard(total_updates);
   const auto ordered_updates = thrust::make_permutation_iterator(updates, order);
-  const auto ends = thrust::reduce_by_key(execution_policy(backend, stream), keys, keys + total_updates,
-                                          ordered_updates, scratch.merged_keys.data(),
-                                          scratch.merged.data(), thrust::equal_to<uint64_t>(),
-                                          tsdf::MergeUpdates());
-  int64_t voxel_count = static_cast<int64_t>(ends.first - scratch.merged_keys.data());
+  int64_t voxel_count = reduce_runs(backend, stream, keys, ordered_updates, total_updates, scratch.merged_keys.data(),
+                                    scratch.merged.data(), thrust::equal_to<uint64_t>(), tsdf::MergeUpdates());
   // Updates to drop (zero weight, outside the key range) sort last, one run per kind present.
   voxel_count -= (drops.zero_weight > 0 ? 1 : 0) + (drops.out_of_range > 0 ? 1 : 0);
   stats.voxels_updated = voxel_count;
@@ -268,8 +297,8 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
   uint32_t* block_flags = scratch.block_flags.data();
   const uint64_t* merged_keys = scratch.merged_keys.data();
   parallel_for(backend, stream, voxel_count + 1, [=] COVOX_HD(int64_t v) {
-    block_flags[v] = v < voxel_count && (v == 0 || (merged_keys[v] >> tsdf::kKeyVoxelBits) !=
-                                                       (merged_keys[v - 1] >> tsdf::kKeyVoxelBits))
+    block_flags[v] = v < voxel_count && (v == 0 || codec.block_part(merged_keys[v]) !=
+                                                       codec.block_part(merged_keys[v - 1]))
                          ? 1u
                          : 0u;
   });
@@ -281,12 +310,22 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
   Index3D* block_indices = scratch.block_indices.data();
   const uint32_t* block_ranks = scratch.block_ranks.data();
   parallel_for(backend, stream, voxel_count, [=] COVOX_HD(int64_t v) {
-    if (block_flags[v]) block_indices[block_ranks[v]] = tsdf::update_key_block(merged_keys[v]);
+    if (block_flags[v]) block_indices[block_ranks[v]] = codec.block(merged_keys[v]);
   });
   const ActivateResult activation =
       map.blocks().activate(block_indices, block_count, scratch.slots.data(), scratch.is_new.data(), stream);
   stats.blocks_allocated = activation.num_new;
   map.ensure_pool_capacity(stream);
+  const uint32_t* slots = scratch.slots.data();
+  if (activation.num_out_of_range + activation.num_failed_full > 0) {
+    // Rare: count the voxels whose block the hash table rejected (outside its key range, or full).
+    scratch.counts.resize_discard(voxel_count);
+    uint32_t* rejected = scratch.counts.data();
+    parallel_for(backend, stream, voxel_count, [=] COVOX_HD(int64_t v) {
+      rejected[v] = slots[block_ranks[v] + block_flags[v] - 1] == kInvalidSlot ? 1u : 0u;
+    });
+    stats.voxels_out_of_range += count_if(backend, stream, rejected, voxel_count, [] COVOX_HD(uint32_t r) { return r != 0; });
+  }
 
   // Mark the blocks changed (for the ESDF and the mesh) and clear new ones: a new block may
   // reuse the slot of an erased one.
@@ -294,7 +333,6 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
   auto color_view = map.color().view();
   uint8_t* block_changed = map.block_changed().data();
   auto esdf_view = map.esdf().view();
-  const uint32_t* slots = scratch.slots.data();
   const uint8_t* is_new = scratch.is_new.data();
   const int64_t voxels_per_block = map.voxels_per_block();
   parallel_for(backend, stream, block_count, [=] COVOX_HD(int64_t b) {
@@ -318,7 +356,7 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
     const uint32_t slot = slots[block_ranks[v] + block_flags[v] - 1];  // the rank of v's run
     const tsdf::VoxelUpdate update = merged[v];
     if (slot == kInvalidSlot || update.weight <= 0.0f) return;
-    const int64_t index = static_cast<int64_t>(slot) * voxels_per_block + tsdf::update_key_voxel(merged_keys[v]);
+    const int64_t index = static_cast<int64_t>(slot) * voxels_per_block + codec.voxel_in_block(merged_keys[v]);
     TsdfVoxel voxel = tsdf_view.load(index);
     const float combined = voxel.weight + update.weight;
     float distance = (voxel.distance_m * voxel.weight + update.weighted_distance) / combined;

@@ -17,7 +17,8 @@ struct TsdfScratchBuffers {
       : points(device), colors(device), rays(device), counts(device), offsets(device),
         keys(device), order(device), updates(device), merged_keys(device), merged(device),
         block_indices(device), slots(device), is_new(device), bundles(device), merged_bundles(device),
-        ray_colors(device), ray_weights(device), block_flags(device), block_ranks(device) {}
+        ray_colors(device), ray_weights(device), block_flags(device), block_ranks(device), keys_alt(device),
+        order_alt(device) {}
   Buffer<Vec3f> points;  // depth images unprojected, or host clouds uploaded
   Buffer<Rgb8> colors;
   Buffer<tsdf::RaySegment> rays;
@@ -39,6 +40,9 @@ struct TsdfScratchBuffers {
   // distinct blocks of the merged voxels
   Buffer<uint32_t> block_flags;
   Buffer<uint32_t> block_ranks;
+  // radix sort scratch
+  Buffer<uint64_t> keys_alt;
+  Buffer<uint32_t> order_alt;
 };
 
 template <class Backend>

@@ -10,52 +10,51 @@
 namespace covox {
 namespace tsdf {
 
-// Update keys pack a voxel as (block index, voxel within block) so that sorting by key groups
-// a block's voxels together. 17 bits per block axis leaves 12 bits for the voxel in a 16^3 block:
-// blocks in [-65536, 65535] per axis, i.e. +-52 km at 5 cm voxels with 16-voxel blocks, +-26 km
-// with 8-voxel blocks of 5 cm. Voxels outside are dropped and counted.
-constexpr int kKeyBlockBits = 17;
-constexpr int kKeyVoxelBits = 12;
-constexpr int32_t kKeyMinBlock = -(1 << (kKeyBlockBits - 1));
-constexpr int32_t kKeyMaxBlock = (1 << (kKeyBlockBits - 1)) - 1;
-// Valid keys use the low 63 bits; the two largest values mark updates to drop, and sort last.
-constexpr uint64_t kZeroWeightUpdateKey = ~uint64_t(0);
-constexpr uint64_t kOutOfRangeUpdateKey = ~uint64_t(0) - 1;
+// Update keys name a voxel relative to the frame's bounding box of blocks: the block's position
+// in the box (x fastest), then the voxel within the block. Sorting by key therefore groups a
+// block's voxels together, and a frame's keys need only about 20-30 bits (log2 of the box's
+// voxel count), which is all the radix sort pays for. The two values above the largest valid
+// key mark updates to drop; they sort last.
+struct FrameKeyCodec {
+  Index3D origin_block;                        // the box's lowest block
+  int32_t size_x = 1, size_y = 1, size_z = 1;  // blocks per axis
+  int32_t voxels_per_side = 16;
+  int voxel_bits = 12;            // bits of the voxel-within-block index
+  uint64_t out_of_range_key = 0;  // a voxel outside the box (cannot happen for rays inside it)
+  uint64_t zero_weight_key = 1;   // an update that carries no weight; for merging: "alone"
+  int key_bits = 1;               // every key is < 2^key_bits
 
-COVOX_HD_INLINE uint64_t pack_update_key(const Index3D& block, int32_t voxel_in_block) {
-  if (block.x < kKeyMinBlock || block.x > kKeyMaxBlock || block.y < kKeyMinBlock ||
-      block.y > kKeyMaxBlock || block.z < kKeyMinBlock || block.z > kKeyMaxBlock) {
-    return kOutOfRangeUpdateKey;
+  COVOX_HD_INLINE uint64_t key(const Index3D& voxel) const {
+    const Index3D block(floor_divide(voxel.x, voxels_per_side), floor_divide(voxel.y, voxels_per_side),
+                        floor_divide(voxel.z, voxels_per_side));
+    const int32_t bx = block.x - origin_block.x, by = block.y - origin_block.y, bz = block.z - origin_block.z;
+    if (bx < 0 || by < 0 || bz < 0 || bx >= size_x || by >= size_y || bz >= size_z) return out_of_range_key;
+    const int32_t local = (voxel.x - block.x * voxels_per_side) +
+                          voxels_per_side * ((voxel.y - block.y * voxels_per_side) +
+                                             voxels_per_side * (voxel.z - block.z * voxels_per_side));
+    const uint64_t block_number =
+        static_cast<uint64_t>(bx) +
+        static_cast<uint64_t>(size_x) * (static_cast<uint64_t>(by) + static_cast<uint64_t>(size_y) * bz);
+    return (block_number << voxel_bits) | static_cast<uint64_t>(local);
   }
-  constexpr uint64_t kMask = (uint64_t(1) << kKeyBlockBits) - 1;
-  const uint64_t bx = static_cast<uint64_t>(block.x - kKeyMinBlock) & kMask;
-  const uint64_t by = static_cast<uint64_t>(block.y - kKeyMinBlock) & kMask;
-  const uint64_t bz = static_cast<uint64_t>(block.z - kKeyMinBlock) & kMask;
-  return (((bx << (2 * kKeyBlockBits)) | (by << kKeyBlockBits) | bz) << kKeyVoxelBits) |
-         static_cast<uint64_t>(voxel_in_block);
-}
+  // Equal for all voxels of one block.
+  COVOX_HD_INLINE uint64_t block_part(uint64_t key) const { return key >> voxel_bits; }
+  COVOX_HD_INLINE Index3D block(uint64_t key) const {
+    const uint64_t n = key >> voxel_bits;
+    const uint64_t plane = static_cast<uint64_t>(size_x) * size_y;
+    return Index3D(origin_block.x + static_cast<int32_t>(n % size_x),
+                   origin_block.y + static_cast<int32_t>((n % plane) / size_x),
+                   origin_block.z + static_cast<int32_t>(n / plane));
+  }
+  COVOX_HD_INLINE int32_t voxel_in_block(uint64_t key) const {
+    return static_cast<int32_t>(key & ((uint64_t(1) << voxel_bits) - 1));
+  }
+};
 
-COVOX_HD_INLINE Index3D update_key_block(uint64_t key) {
-  constexpr uint64_t kMask = (uint64_t(1) << kKeyBlockBits) - 1;
-  const uint64_t block_bits = key >> kKeyVoxelBits;
-  return Index3D(static_cast<int32_t>((block_bits >> (2 * kKeyBlockBits)) & kMask) + kKeyMinBlock,
-                 static_cast<int32_t>((block_bits >> kKeyBlockBits) & kMask) + kKeyMinBlock,
-                 static_cast<int32_t>(block_bits & kMask) + kKeyMinBlock);
-}
-
-COVOX_HD_INLINE int32_t update_key_voxel(uint64_t key) {
-  return static_cast<int32_t>(key & ((uint64_t(1) << kKeyVoxelBits) - 1));
-}
-
-// The update key of a global voxel index: its block and its position inside the block.
-COVOX_HD_INLINE uint64_t voxel_update_key(const Index3D& voxel, int32_t voxels_per_side) {
-  const Index3D block(floor_divide(voxel.x, voxels_per_side), floor_divide(voxel.y, voxels_per_side),
-                      floor_divide(voxel.z, voxels_per_side));
-  const int32_t local = (voxel.x - block.x * voxels_per_side) +
-                        voxels_per_side * ((voxel.y - block.y * voxels_per_side) +
-                                           voxels_per_side * (voxel.z - block.z * voxels_per_side));
-  return pack_update_key(block, local);
-}
+// The codec for voxels in [min_voxel, max_voxel] (inclusive), padded by one block on every side
+// so that merged rays, whose mean points can round a hair outside their points' hull, stay in.
+// Throws covox::Error if the box is too large for 64-bit keys (a frame thousands of km across).
+FrameKeyCodec make_frame_key_codec(const Index3D& min_voxel, const Index3D& max_voxel, int32_t voxels_per_side);
 
 // A LiDAR intensity shown as a grey level: intensity * grey_per_intensity, clamped to 0..255.
 COVOX_HD_INLINE Rgb8 intensity_to_grey(float intensity, float grey_per_intensity) {

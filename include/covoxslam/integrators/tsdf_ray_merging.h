@@ -17,11 +17,6 @@
 namespace covox {
 namespace tsdf {
 
-// Keys of points that are not merged (clearing and dropped rays, surfaces outside the key
-// range): bit 63 plus the point's index, so every one stays alone and they sort after all
-// voxel keys, in input order.
-constexpr uint64_t kUnmergedKeyBit = uint64_t(1) << 63;
-
 // 2^30 units per metre: every float coordinate of magnitude >= 2^-7 m is a whole number of units
 // (its ulp is at least 2^-30), so the mean of identical points is the point itself; and 64-bit
 // sums of 4 million points up to kMaxMergedRange_m away cannot overflow (2^22 * 2^10 * 2^30).
@@ -54,16 +49,22 @@ COVOX_HD_INLINE int64_t to_merge_units(float metres) {
   return static_cast<int64_t>(llrintf(metres * kMergeUnitsPerMetre));
 }
 
-// The merge key of a point's ray: the update key of its surface voxel for surface rays, a
-// unique unmerged key otherwise.
-COVOX_HD_INLINE uint64_t merge_key(const RaySegment& ray, int64_t point_index, float inverse_voxel_size,
-                                   int32_t voxels_per_side) {
+// The merge key of a point's ray: the key of its surface voxel for surface rays; the codec's
+// "alone" key (its zero-weight key) otherwise, which MergeKeysEqual never merges.
+COVOX_HD_INLINE uint64_t merge_key(const RaySegment& ray, float inverse_voxel_size, const FrameKeyCodec& codec) {
   if (ray.kind == kSurfaceRay) {
-    const uint64_t key = voxel_update_key(voxel_of(ray.surface, inverse_voxel_size), voxels_per_side);
-    if (key != kOutOfRangeUpdateKey) return key;
+    const uint64_t key = codec.key(voxel_of(ray.surface, inverse_voxel_size));
+    if (key != codec.out_of_range_key) return key;
   }
-  return kUnmergedKeyBit | static_cast<uint64_t>(point_index);
+  return codec.zero_weight_key;
 }
+
+// Equality for reduce_by_key over merge keys: rays that must stay alone never merge, so they
+// can share one key (and the stable sort keeps them in input order).
+struct MergeKeysEqual {
+  uint64_t alone_key;
+  COVOX_HD_INLINE bool operator()(uint64_t a, uint64_t b) const { return a == b && a != alone_key; }
+};
 
 }  // namespace tsdf
 }  // namespace covox

@@ -1,0 +1,8 @@
+// CUDA instantiation of submap registration (same source as the CPU twin).
+#include "covoxslam/backend/registration_impl.h"
+
+namespace covox {
+namespace backend {
+COVOX_INSTANTIATE_REGISTRATION(CudaBackend)
+}  // namespace backend
+}  // namespace covox

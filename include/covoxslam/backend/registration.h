@@ -1,0 +1,156 @@
+#pragma once
+// Submap-to-submap registration (paper III-F; voxgraph's `explicit_to_implicit`):
+//   1. registration points of submap i: its surface voxels (|TSDF| small, weight high enough),
+//      deterministically subsampled with `sampling_ratio`, kept on the device;
+//   2. per point p the residual r = sqrt(w) * (D_j(T_Sj^-1 T_Si p) - d_target), where D_j is the
+//      trilinearly interpolated distance field of submap j, with analytic Jacobians with respect
+//      to both 4-DoF poses (x, y, z, yaw) from the field's gradient;
+//   3. a small Levenberg-Marquardt aligner over the relative pose (4x4 system on the host,
+//      residuals, Jacobians and their J^T J reduction in parallel on the device);
+//   4. an overlap test and a pose-graph constraint built from an alignment.
+//
+// Why D_j is not always the plain ESDF: this library's ESDF is the exact distance to the nearest
+// surface *site* (a voxel centre with |TSDF| <= site threshold), so it is zero on a band about
+// two voxels thick and steps in whole voxels next to it. That flat band would leave the aligner
+// blind to sub-voxel offsets (a 5 cm error at 10 cm voxels). With
+// RegistrationDistance::kTsdfNearSurface (the default) corners whose TSDF is observed and within
+// `tsdf_band_m` of the surface use the TSDF distance (sub-voxel accurate), all others the ESDF
+// (far-field gradient that pulls large offsets in). The point's own TSDF distance is then the
+// target (a voxel centre 3 cm in front of the surface should read 3 cm in submap j too), which
+// avoids projecting points onto the isosurface. RegistrationDistance::kEsdf is voxgraph's
+// formulation: the ESDF only, target 0.
+#include <Eigen/Core>
+#include <cstdint>
+#include <vector>
+
+#include "covoxslam/backend/pose_graph_types.h"
+#include "covoxslam/core/buffer.h"
+#include "covoxslam/core/stream.h"
+#include "covoxslam/core/vec3.h"
+#include "covoxslam/map/tsdf_map.h"
+
+namespace covox {
+namespace backend {
+
+// One registration point in its submap's frame (device memory: trivially copyable).
+struct RegistrationPoint {
+  Vec3f position_m;        // voxel centre
+  float tsdf_distance_m = 0.0f;  // the voxel's TSDF distance (target of kTsdfNearSurface)
+  float weight = 0.0f;     // the voxel's TSDF weight
+};
+
+struct RegistrationPointsConfig {
+  // A voxel is a surface voxel when |TSDF| < this many voxels and its weight >= min_weight.
+  float surface_threshold_vox = 1.0f;
+  float min_weight = 1e-4f;
+  // Fraction of surface voxels kept (voxgraph's default 0.05). The choice is a hash of the voxel
+  // index and the seed, so it is deterministic and identical on both backends.
+  float sampling_ratio = 0.05f;
+  uint32_t sampling_seed = 0;
+};
+
+struct RegistrationPoints {
+  explicit RegistrationPoints(Device device = Device::kCpu) : points(device) {}
+  Buffer<RegistrationPoint> points;  // sorted by block index, then voxel: backend independent
+  int64_t surface_voxels = 0;        // surface voxels before sampling
+};
+
+// Throws covox::Error on a bad configuration.
+RegistrationPoints extract_registration_points(const TsdfMap& map, const RegistrationPointsConfig& config,
+                                               const Stream& stream);
+
+enum class RobustLoss { kNone, kHuber, kCauchy };
+enum class RegistrationDistance { kEsdf, kTsdfNearSurface };
+
+struct RegistrationResidualConfig {
+  RegistrationDistance distance = RegistrationDistance::kTsdfNearSurface;
+  // kTsdfNearSurface: TSDF values with |d| below this replace the ESDF at a corner. Keep it below
+  // the truncation distance (TSDF values clamped at the truncation carry no distance).
+  float tsdf_band_m = 0.2f;
+  float min_tsdf_weight = 1e-4f;
+  // Ceres' convention: cost = 0.5 rho(r^2) with scale a; Huber rho(s) = s (s <= a^2),
+  // 2 a sqrt(s) - a^2 beyond; Cauchy rho(s) = a^2 log(1 + s / a^2). The scale is in residual
+  // units, that is metres times sqrt(weight).
+  RobustLoss loss = RobustLoss::kNone;
+  double loss_scale = 0.1;
+};
+
+// The residual of one point and its Jacobians (already multiplied by sqrt(weight), not by the
+// robust loss). `robust_weight` is rho'(r^2), the iteratively-reweighted least-squares weight.
+struct RegistrationResidual {
+  double residual = 0.0;
+  double jacobian_i[4] = {};  // d r / d (x, y, z, yaw) of T_W_Si
+  double jacobian_j[4] = {};  // d r / d (x, y, z, yaw) of T_W_Sj
+  double robust_weight = 0.0;
+  double cost = 0.0;  // 0.5 rho(r^2)
+  uint8_t valid = 0;  // 0: the point fell outside submap j's observed field (skipped)
+};
+
+// Residuals of points of submap i (in map_j's device memory) against submap j.
+void evaluate_registration_residuals(const RegistrationPoints& points_i, const TsdfMap& map_j,
+                                     const Pose4Dof& T_W_Si, const Pose4Dof& T_W_Sj,
+                                     const RegistrationResidualConfig& config,
+                                     Buffer<RegistrationResidual>* residuals, const Stream& stream);
+// Host convenience (tests).
+std::vector<RegistrationResidual> evaluate_registration_residuals(const RegistrationPoints& points_i,
+                                                                  const TsdfMap& map_j, const Pose4Dof& T_W_Si,
+                                                                  const Pose4Dof& T_W_Sj,
+                                                                  const RegistrationResidualConfig& config);
+
+// Sums over the valid points, reduced on the device: the IRLS normal equations of pose i
+// (pose j held fixed).
+struct RegistrationNormalEquations {
+  Eigen::Matrix4d hessian_i = Eigen::Matrix4d::Zero();  // sum rho' J_i^T J_i
+  Eigen::Vector4d gradient_i = Eigen::Vector4d::Zero(); // sum rho' J_i^T r
+  double cost = 0.0;                                    // sum 0.5 rho(r^2)
+  int64_t used_points = 0;
+  int64_t skipped_points = 0;                           // outside submap j's observed field
+};
+RegistrationNormalEquations registration_normal_equations(const RegistrationPoints& points_i, const TsdfMap& map_j,
+                                                          const Pose4Dof& T_W_Si, const Pose4Dof& T_W_Sj,
+                                                          const RegistrationResidualConfig& config,
+                                                          const Stream& stream);
+
+struct RegistrationAlignerConfig {
+  RegistrationResidualConfig residual;
+  int max_iterations = 60;
+  double initial_lambda = 1e-3;        // LM damping relative to diag(H)
+  double translation_tolerance_m = 1e-5;  // converged when a step moves less than both
+  double yaw_tolerance_rad = 1e-6;
+  int64_t min_used_points = 50;        // fewer valid points: no overlap, fail
+};
+
+struct RegistrationResult {
+  Pose4Dof T_Sj_Si;  // the relative pose found: x_Sj = Rz(yaw) x_Si + (x, y, z)
+  double initial_cost = 0.0;
+  double final_cost = 0.0;
+  int iterations = 0;
+  bool converged = false;
+  int64_t used_points = 0;
+  int64_t skipped_points = 0;
+  Eigen::Matrix4d hessian = Eigen::Matrix4d::Zero();  // sum rho' J^T J at the solution
+};
+
+// Aligns submap i (its registration points) to submap j, starting at initial_T_Sj_Si.
+// Throws covox::Error when fewer than min_used_points points overlap submap j's field.
+RegistrationResult align_submaps(const RegistrationPoints& points_i, const TsdfMap& map_j,
+                                 const Pose4Dof& initial_T_Sj_Si, const RegistrationAlignerConfig& config,
+                                 const Stream& stream);
+
+// A relative 4-DoF constraint from j to i (measurement T_Sj_Si) for the pose-graph solver;
+// information = hessian / residual_sigma^2 (the residual's noise in residual units).
+Constraint4Dof make_registration_constraint(int32_t vertex_j, int32_t vertex_i, const RegistrationResult& result,
+                                            double residual_sigma);
+
+// Overlap of two submaps: their block bounding boxes (transformed into the world) intersect, and
+// at least min_shared_blocks block centres of submap i fall into allocated blocks of submap j.
+struct SubmapOverlap {
+  bool bounding_boxes_intersect = false;
+  int64_t shared_blocks = 0;
+  bool overlapping = false;
+};
+SubmapOverlap submap_overlap(const TsdfMap& map_i, const Pose4Dof& T_W_Si, const TsdfMap& map_j,
+                             const Pose4Dof& T_W_Sj, int64_t min_shared_blocks);
+
+}  // namespace backend
+}  // namespace covox

@@ -1,0 +1,211 @@
+#pragma once
+// Device-side pieces of registration (registration.h) and the backend-templated steps, defined in
+// registration_impl.h and instantiated once per backend.
+#include <cmath>
+#include <cstdint>
+
+#include "covoxslam/backend/registration.h"
+#include "covoxslam/core/macros.h"
+#include "covoxslam/integrators/esdf_queries_ops.h"
+
+namespace covox {
+namespace backend {
+
+// Distance field of submap j as the residual sees it: ESDF corners through EsdfLookup, replaced by
+// TSDF corners near the surface when tsdf_band_m > 0 (see registration.h for why).
+struct RegistrationDistanceLookup {
+  EsdfLookup esdf;
+  VoxelView<TsdfVoxel, Layout::kSoA> tsdf;
+  float tsdf_band_m = 0.0f;  // 0: ESDF only (voxgraph)
+  float min_tsdf_weight = 1e-4f;
+
+  COVOX_HD_INLINE bool corner(const Index3D& v, double* distance_m) const {
+    if (tsdf_band_m > 0.0f) {
+      const int64_t index = esdf.indexer.pool_index(v);
+      if (index < 0) return false;
+      const TsdfVoxel voxel = tsdf.load(index);
+      if (voxel.weight >= min_tsdf_weight && fabsf(voxel.distance_m) < tsdf_band_m) {
+        *distance_m = voxel.distance_m;
+        return true;
+      }
+    }
+    float d = 0.0f;
+    if (!esdf.voxel(v, &d)) return false;
+    *distance_m = d;
+    return true;
+  }
+
+  // Trilinear distance and gradient (d distance / d q, frame j). Interpolated in double, unlike
+  // EsdfLookup::sample, so that central differences in the Jacobian test are not float noise.
+  COVOX_HD_INLINE bool sample(double qx, double qy, double qz, double* distance_m, double* gradient) const {
+    const double voxel = esdf.voxel_size;
+    const double gx = qx / voxel - 0.5, gy = qy / voxel - 0.5, gz = qz / voxel - 0.5;
+    const double bx = floor(gx), by = floor(gy), bz = floor(gz);
+    // Beyond the voxel index range int32 would wrap onto other voxels: treat as unobserved.
+    if (!(fabs(bx) < 1e9 && fabs(by) < 1e9 && fabs(bz) < 1e9)) return false;
+    const Index3D base(static_cast<int32_t>(bx), static_cast<int32_t>(by), static_cast<int32_t>(bz));
+    const double fx = gx - bx, fy = gy - by, fz = gz - bz;
+    double d[8];
+    for (int c = 0; c < 8; ++c) {
+      if (!corner(base + Index3D(c & 1, (c >> 1) & 1, (c >> 2) & 1), &d[c])) return false;
+    }
+    const double x00 = d[0] + fx * (d[1] - d[0]), x10 = d[2] + fx * (d[3] - d[2]);
+    const double x01 = d[4] + fx * (d[5] - d[4]), x11 = d[6] + fx * (d[7] - d[6]);
+    const double y0 = x00 + fy * (x10 - x00), y1 = x01 + fy * (x11 - x01);
+    *distance_m = y0 + fz * (y1 - y0);
+    gradient[0] = ((1 - fz) * ((1 - fy) * (d[1] - d[0]) + fy * (d[3] - d[2])) +
+                   fz * ((1 - fy) * (d[5] - d[4]) + fy * (d[7] - d[6]))) / voxel;
+    gradient[1] = ((1 - fz) * (x10 - x00) + fz * (x11 - x01)) / voxel;
+    gradient[2] = (y1 - y0) / voxel;
+    return true;
+  }
+};
+
+// The pair's geometry, composed on the host in double: q = R_ji p + t_ji with
+// R_ji = Rz(yaw_i - yaw_j), t_ji = Rz(yaw_j)^T (t_i - t_j); Rz(yaw_j) turns frame-j gradients
+// into world directions for the translation Jacobians.
+struct RegistrationPairGeometry {
+  double cos_ji = 1.0, sin_ji = 0.0;
+  double t_ji[3] = {0.0, 0.0, 0.0};
+  double cos_j = 1.0, sin_j = 0.0;
+};
+
+struct RobustLossParams {
+  RobustLoss loss = RobustLoss::kNone;
+  double scale = 1.0;
+
+  // rho(s) and rho'(s) for s = r^2.
+  COVOX_HD_INLINE void evaluate(double s, double* rho, double* rho_prime) const {
+    const double a2 = scale * scale;
+    switch (loss) {
+      case RobustLoss::kHuber:
+        if (s <= a2) {
+          *rho = s;
+          *rho_prime = 1.0;
+        } else {
+          const double root = sqrt(s);
+          *rho = 2.0 * scale * root - a2;
+          *rho_prime = scale / root;
+        }
+        return;
+      case RobustLoss::kCauchy:
+        *rho = a2 * log1p(s / a2);
+        *rho_prime = 1.0 / (1.0 + s / a2);
+        return;
+      case RobustLoss::kNone:
+      default:
+        *rho = s;
+        *rho_prime = 1.0;
+        return;
+    }
+  }
+};
+
+// One point's residual, Jacobians and robust weight.
+COVOX_HD_INLINE RegistrationResidual registration_residual(const RegistrationPoint& point,
+                                                           const RegistrationDistanceLookup& lookup,
+                                                           const RegistrationPairGeometry& pair,
+                                                           const RobustLossParams& robust, bool tsdf_target) {
+  RegistrationResidual out;
+  const double px = point.position_m.x, py = point.position_m.y, pz = point.position_m.z;
+  // R_ji p, then q in frame j.
+  const double rx = pair.cos_ji * px - pair.sin_ji * py;
+  const double ry = pair.sin_ji * px + pair.cos_ji * py;
+  const double qx = rx + pair.t_ji[0], qy = ry + pair.t_ji[1], qz = pz + pair.t_ji[2];
+  double distance = 0.0, g[3];
+  if (!lookup.sample(qx, qy, qz, &distance, g)) return out;
+  const double sqrt_weight = sqrt(static_cast<double>(point.weight));
+  const double target = tsdf_target ? static_cast<double>(point.tsdf_distance_m) : 0.0;
+  out.residual = sqrt_weight * (distance - target);
+  // d q / d t_i = Rz_j^T, so d r / d t_i = Rz_j g (and the negative for t_j).
+  const double wx = pair.cos_j * g[0] - pair.sin_j * g[1];
+  const double wy = pair.sin_j * g[0] + pair.cos_j * g[1];
+  const double wz = g[2];
+  // d q / d yaw_i = e_z x (R_ji p) (Rz commutes with e_z x); d q / d yaw_j = -e_z x q.
+  const double dyaw_i = g[0] * (-ry) + g[1] * rx;
+  const double dyaw_j = -(g[0] * (-qy) + g[1] * qx);
+  out.jacobian_i[0] = sqrt_weight * wx;
+  out.jacobian_i[1] = sqrt_weight * wy;
+  out.jacobian_i[2] = sqrt_weight * wz;
+  out.jacobian_i[3] = sqrt_weight * dyaw_i;
+  out.jacobian_j[0] = -sqrt_weight * wx;
+  out.jacobian_j[1] = -sqrt_weight * wy;
+  out.jacobian_j[2] = -sqrt_weight * wz;
+  out.jacobian_j[3] = sqrt_weight * dyaw_j;
+  double rho = 0.0, rho_prime = 0.0;
+  robust.evaluate(out.residual * out.residual, &rho, &rho_prime);
+  out.cost = 0.5 * rho;
+  out.robust_weight = rho_prime;
+  out.valid = 1;
+  return out;
+}
+
+// The reduced sums over points (upper triangle of the 4x4 pose-i block, row-major).
+struct RegistrationSums {
+  double hessian[10] = {};
+  double gradient[4] = {};
+  double cost = 0.0;
+  int64_t used = 0;
+};
+
+struct RegistrationSumsOfResidual {
+  COVOX_HD_INLINE RegistrationSums operator()(const RegistrationResidual& r) const {
+    RegistrationSums s;
+    if (!r.valid) return s;
+    int k = 0;
+    for (int row = 0; row < 4; ++row) {
+      for (int col = row; col < 4; ++col) s.hessian[k++] = r.robust_weight * r.jacobian_i[row] * r.jacobian_i[col];
+      s.gradient[row] = r.robust_weight * r.jacobian_i[row] * r.residual;
+    }
+    s.cost = r.cost;
+    s.used = 1;
+    return s;
+  }
+};
+
+struct AddRegistrationSums {
+  COVOX_HD_INLINE RegistrationSums operator()(const RegistrationSums& a, const RegistrationSums& b) const {
+    RegistrationSums s;
+    for (int k = 0; k < 10; ++k) s.hessian[k] = a.hessian[k] + b.hessian[k];
+    for (int k = 0; k < 4; ++k) s.gradient[k] = a.gradient[k] + b.gradient[k];
+    s.cost = a.cost + b.cost;
+    s.used = a.used + b.used;
+    return s;
+  }
+};
+
+// A deterministic uniform number in [0, 1) per voxel (and seed): the sampling decision.
+COVOX_HD_INLINE double registration_sample_uniform(int32_t x, int32_t y, int32_t z, uint32_t seed) {
+  uint64_t h = (static_cast<uint64_t>(static_cast<uint32_t>(x)) * 0x9E3779B97F4A7C15ull) ^
+               (static_cast<uint64_t>(static_cast<uint32_t>(y)) * 0xC2B2AE3D27D4EB4Full) ^
+               (static_cast<uint64_t>(static_cast<uint32_t>(z)) * 0x165667B19E3779F9ull) ^
+               (static_cast<uint64_t>(seed) << 17);
+  // splitmix64 finaliser: mixes every input bit into the top 53.
+  h ^= h >> 30;
+  h *= 0xBF58476D1CE4E5B9ull;
+  h ^= h >> 27;
+  h *= 0x94D049BB133111EBull;
+  h ^= h >> 31;
+  return static_cast<double>(h >> 11) * (1.0 / 9007199254740992.0);
+}
+
+// Surface voxels of the blocks (given in a fixed order) compacted into `points`; returns the
+// number of surface voxels before sampling.
+template <class Backend>
+int64_t registration_collect_points(Backend backend, VoxelView<TsdfVoxel, Layout::kSoA> tsdf,
+                                    const Index3D* block_indices, const uint32_t* block_slots, int64_t block_count,
+                                    int32_t side, float voxel_size_m, const RegistrationPointsConfig& config,
+                                    Buffer<RegistrationPoint>* points, const Stream& stream);
+
+template <class Backend>
+void registration_evaluate(Backend backend, const RegistrationPoint* points, int64_t count,
+                           RegistrationDistanceLookup lookup, RegistrationPairGeometry pair,
+                           RobustLossParams robust, bool tsdf_target, RegistrationResidual* out,
+                           const Stream& stream);
+
+template <class Backend>
+RegistrationSums registration_reduce(Backend backend, const RegistrationResidual* residuals, int64_t count,
+                                     const Stream& stream);
+
+}  // namespace backend
+}  // namespace covox

@@ -1,0 +1,118 @@
+#pragma once
+// Stable radix sort of (64-bit key, 32-bit value) pairs by the low `key_bits` bits of the keys,
+// on both backends. Integration keys are built relative to the frame's bounding box, so a
+// frame's keys need 20-30 bits, not 64: sorting only those bits takes 3-4 passes of 8 bits
+// instead of the 8 a full 64-bit sort pays for (CUB's begin/end bits on the GPU; an OpenMP LSD
+// radix sort on the CPU twin). Both are stable, so both backends produce the same order.
+//
+// `keys_alt` and `values_alt` are scratch arrays of at least `count` elements on the same device.
+// Keys must be < 2^key_bits (bits above are ignored, so larger keys would sort wrongly).
+#include <algorithm>
+#include <cstdint>
+#include <cstring>
+#include <utility>
+#include <vector>
+
+#include <omp.h>
+
+#include "covoxslam/core/device.h"
+#include "covoxslam/core/stream.h"
+
+#if defined(__CUDACC__)
+#include <cub/device/device_radix_sort.cuh>
+
+#include "covoxslam/core/cuda_check.cuh"
+#include "covoxslam/core/cuda_temporary_allocator.cuh"
+#endif
+
+namespace covox {
+
+inline void radix_sort_pairs(CpuBackend, const Stream&, uint64_t* keys, uint32_t* values, int64_t count,
+                             int key_bits, uint64_t* keys_alt, uint32_t* values_alt) {
+  if (count <= 1 || key_bits <= 0) return;
+  constexpr int kDigitBits = 8;
+  constexpr int kDigits = 1 << kDigitBits;
+  const int passes = (std::min(key_bits, 64) + kDigitBits - 1) / kDigitBits;
+  const int max_threads = omp_get_max_threads();
+  std::vector<int64_t> offsets(static_cast<size_t>(max_threads) * kDigits);
+  uint64_t* source_keys = keys;
+  uint32_t* source_values = values;
+  uint64_t* target_keys = keys_alt;
+  uint32_t* target_values = values_alt;
+  for (int pass = 0; pass < passes; ++pass) {
+    const int shift = pass * kDigitBits;
+#pragma omp parallel num_threads(max_threads)
+    {
+      // Each thread owns one contiguous chunk; digits are placed thread by thread in chunk
+      // order, which keeps equal digits in input order (stable).
+      const int threads = omp_get_num_threads();
+      const int thread = omp_get_thread_num();
+      const int64_t begin = count * thread / threads;
+      const int64_t end = count * (thread + 1) / threads;
+      int64_t* histogram = offsets.data() + static_cast<size_t>(thread) * kDigits;
+      std::fill(histogram, histogram + kDigits, 0);
+      for (int64_t i = begin; i < end; ++i) ++histogram[(source_keys[i] >> shift) & (kDigits - 1)];
+#pragma omp barrier
+#pragma omp single
+      {
+        int64_t running = 0;
+        for (int digit = 0; digit < kDigits; ++digit) {
+          for (int t = 0; t < threads; ++t) {
+            const int64_t n = offsets[static_cast<size_t>(t) * kDigits + digit];
+            offsets[static_cast<size_t>(t) * kDigits + digit] = running;
+            running += n;
+          }
+        }
+      }
+      for (int64_t i = begin; i < end; ++i) {
+        const int64_t position = histogram[(source_keys[i] >> shift) & (kDigits - 1)]++;
+        target_keys[position] = source_keys[i];
+        target_values[position] = source_values[i];
+      }
+    }
+    std::swap(source_keys, target_keys);
+    std::swap(source_values, target_values);
+  }
+  if (source_keys != keys) {  // an odd number of passes left the result in the scratch arrays
+    std::memcpy(keys, source_keys, static_cast<size_t>(count) * sizeof(uint64_t));
+    std::memcpy(values, source_values, static_cast<size_t>(count) * sizeof(uint32_t));
+  }
+}
+
+#if defined(__CUDACC__)
+inline void radix_sort_pairs(CudaBackend, const Stream& stream, uint64_t* keys, uint32_t* values, int64_t count,
+                             int key_bits, uint64_t* keys_alt, uint32_t* values_alt) {
+  if (count <= 1 || key_bits <= 0) return;
+  const auto cuda_stream = static_cast<cudaStream_t>(stream.native_handle());
+  cub::DoubleBuffer<uint64_t> key_buffers(keys, keys_alt);
+  cub::DoubleBuffer<uint32_t> value_buffers(values, values_alt);
+  const int end_bit = std::min(key_bits, 64);
+  size_t temporary_bytes = 0;
+  cuda_check(cub::DeviceRadixSort::SortPairs(nullptr, temporary_bytes, key_buffers, value_buffers, count, 0, end_bit,
+                                             cuda_stream),
+             "radix sort (sizing)");
+  CudaTemporaryAllocator allocator{stream.native_handle()};
+  char* temporary = allocator.allocate(static_cast<std::ptrdiff_t>(temporary_bytes));
+  cuda_check(cub::DeviceRadixSort::SortPairs(temporary, temporary_bytes, key_buffers, value_buffers, count, 0, end_bit,
+                                             cuda_stream),
+             "radix sort");
+  allocator.deallocate(temporary, temporary_bytes);
+  if (key_buffers.Current() != keys) {
+    cuda_check(cudaMemcpyAsync(keys, key_buffers.Current(), count * sizeof(uint64_t), cudaMemcpyDeviceToDevice,
+                               cuda_stream),
+               "radix sort (copy back)");
+    cuda_check(cudaMemcpyAsync(values, value_buffers.Current(), count * sizeof(uint32_t), cudaMemcpyDeviceToDevice,
+                               cuda_stream),
+               "radix sort (copy back)");
+  }
+}
+#endif
+
+// How many bits a key needs to hold values up to `max_key` (at least 1).
+inline int bits_for(uint64_t max_key) {
+  int bits = 1;
+  while (bits < 64 && (max_key >> bits) != 0) ++bits;
+  return bits;
+}
+
+}  // namespace covox

@@ -1,0 +1,331 @@
+#include "covoxslam/backend/registration.h"
+
+#include <Eigen/Cholesky>
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <string>
+#include <unordered_set>
+
+#include "covoxslam/backend/pose_graph.h"
+#include "covoxslam/backend/registration_ops.h"
+#include "covoxslam/core/error.h"
+#include "covoxslam/map/block_key.h"
+
+namespace covox {
+namespace backend {
+namespace {
+
+void check_finite_pose(const Pose4Dof& pose, const char* what) {
+  if (!(std::isfinite(pose.x) && std::isfinite(pose.y) && std::isfinite(pose.z) && std::isfinite(pose.yaw))) {
+    throw Error(std::string("registration: pose ") + what + " is not finite");
+  }
+}
+
+void validate(const RegistrationResidualConfig& config) {
+  if (!(config.tsdf_band_m >= 0.0f) || !std::isfinite(config.tsdf_band_m)) {
+    throw Error("registration: tsdf_band_m must be finite and >= 0, got " + std::to_string(config.tsdf_band_m));
+  }
+  if (config.loss != RobustLoss::kNone && !(config.loss_scale > 0.0 && std::isfinite(config.loss_scale))) {
+    throw Error("registration: a robust loss needs a finite loss_scale > 0, got " +
+                std::to_string(config.loss_scale));
+  }
+}
+
+// The kernels read the map; their views are non-const because kernels share one view type.
+RegistrationDistanceLookup make_lookup(const TsdfMap& map, const RegistrationResidualConfig& config) {
+  auto& mutable_map = const_cast<TsdfMap&>(map);
+  RegistrationDistanceLookup lookup;
+  lookup.esdf = EsdfLookup{BlockVoxelIndexer{map.blocks().device_view(), map.voxels_per_side()},
+                           mutable_map.esdf().view(), map.voxel_size_m()};
+  lookup.tsdf = mutable_map.tsdf().view();
+  lookup.tsdf_band_m = config.distance == RegistrationDistance::kTsdfNearSurface ? config.tsdf_band_m : 0.0f;
+  lookup.min_tsdf_weight = config.min_tsdf_weight;
+  return lookup;
+}
+
+RegistrationPairGeometry make_pair(const Pose4Dof& T_W_Si, const Pose4Dof& T_W_Sj) {
+  RegistrationPairGeometry pair;
+  pair.cos_ji = std::cos(T_W_Si.yaw - T_W_Sj.yaw);
+  pair.sin_ji = std::sin(T_W_Si.yaw - T_W_Sj.yaw);
+  pair.cos_j = std::cos(T_W_Sj.yaw);
+  pair.sin_j = std::sin(T_W_Sj.yaw);
+  const double dx = T_W_Si.x - T_W_Sj.x, dy = T_W_Si.y - T_W_Sj.y;
+  pair.t_ji[0] = pair.cos_j * dx + pair.sin_j * dy;
+  pair.t_ji[1] = -pair.sin_j * dx + pair.cos_j * dy;
+  pair.t_ji[2] = T_W_Si.z - T_W_Sj.z;
+  return pair;
+}
+
+void check_same_device(const RegistrationPoints& points_i, const TsdfMap& map_j) {
+  if (points_i.points.device() != map_j.device()) {
+    throw Error(std::string("registration: the points of submap i live on ") + to_string(points_i.points.device()) +
+                " but submap j on " + to_string(map_j.device()) + "; extract them from a map on the same device");
+  }
+}
+
+}  // namespace
+
+RegistrationPoints extract_registration_points(const TsdfMap& map, const RegistrationPointsConfig& config,
+                                               const Stream& stream) {
+  if (!(config.sampling_ratio > 0.0f && config.sampling_ratio <= 1.0f)) {
+    throw Error("extract_registration_points: sampling_ratio must be in (0, 1], got " +
+                std::to_string(config.sampling_ratio));
+  }
+  if (!(config.surface_threshold_vox > 0.0f) || !std::isfinite(config.surface_threshold_vox)) {
+    throw Error("extract_registration_points: surface_threshold_vox must be finite and > 0, got " +
+                std::to_string(config.surface_threshold_vox));
+  }
+  RegistrationPoints result(map.device());
+  // Blocks in ascending index order: the hash table's slot order differs between backends, and
+  // the point order should not (parity tests, reproducible sampling of the solver's sums).
+  Buffer<Index3D> indices(map.device());
+  Buffer<uint32_t> slots(map.device());
+  map.blocks().export_entries(&indices, &slots);
+  std::vector<Index3D> host_indices = indices.to_host(stream);
+  std::vector<uint32_t> host_slots = slots.to_host(stream);
+  std::vector<size_t> order(host_indices.size());
+  std::iota(order.begin(), order.end(), size_t(0));
+  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return host_indices[a] < host_indices[b]; });
+  std::vector<Index3D> sorted_indices(order.size());
+  std::vector<uint32_t> sorted_slots(order.size());
+  for (size_t k = 0; k < order.size(); ++k) {
+    sorted_indices[k] = host_indices[order[k]];
+    sorted_slots[k] = host_slots[order[k]];
+  }
+  auto device_indices = Buffer<Index3D>::from_host(map.device(), sorted_indices, stream);
+  auto device_slots = Buffer<uint32_t>::from_host(map.device(), sorted_slots, stream);
+  auto& mutable_map = const_cast<TsdfMap&>(map);
+  result.surface_voxels = dispatch(map.device(), [&](auto backend) {
+    return registration_collect_points(backend, mutable_map.tsdf().view(), device_indices.data(),
+                                       device_slots.data(), static_cast<int64_t>(sorted_indices.size()),
+                                       map.voxels_per_side(), map.voxel_size_m(), config, &result.points, stream);
+  });
+  return result;
+}
+
+void evaluate_registration_residuals(const RegistrationPoints& points_i, const TsdfMap& map_j,
+                                     const Pose4Dof& T_W_Si, const Pose4Dof& T_W_Sj,
+                                     const RegistrationResidualConfig& config,
+                                     Buffer<RegistrationResidual>* residuals, const Stream& stream) {
+  validate(config);
+  check_finite_pose(T_W_Si, "T_W_Si");
+  check_finite_pose(T_W_Sj, "T_W_Sj");
+  check_same_device(points_i, map_j);
+  if (residuals->device() != map_j.device()) {
+    throw Error("evaluate_registration_residuals: the residual buffer must live on submap j's device");
+  }
+  const int64_t count = static_cast<int64_t>(points_i.points.size());
+  residuals->resize_discard(static_cast<size_t>(count));
+  const RegistrationDistanceLookup lookup = make_lookup(map_j, config);
+  const RegistrationPairGeometry pair = make_pair(T_W_Si, T_W_Sj);
+  const RobustLossParams robust{config.loss, config.loss_scale};
+  const bool tsdf_target = config.distance == RegistrationDistance::kTsdfNearSurface;
+  dispatch(map_j.device(), [&](auto backend) {
+    registration_evaluate(backend, points_i.points.data(), count, lookup, pair, robust, tsdf_target,
+                          residuals->data(), stream);
+  });
+}
+
+std::vector<RegistrationResidual> evaluate_registration_residuals(const RegistrationPoints& points_i,
+                                                                  const TsdfMap& map_j, const Pose4Dof& T_W_Si,
+                                                                  const Pose4Dof& T_W_Sj,
+                                                                  const RegistrationResidualConfig& config) {
+  const Stream stream(map_j.device());
+  Buffer<RegistrationResidual> residuals(map_j.device());
+  evaluate_registration_residuals(points_i, map_j, T_W_Si, T_W_Sj, config, &residuals, stream);
+  return residuals.to_host(stream);
+}
+
+namespace {
+
+RegistrationNormalEquations normal_equations_into(const RegistrationPoints& points_i, const TsdfMap& map_j,
+                                                  const Pose4Dof& T_W_Si, const Pose4Dof& T_W_Sj,
+                                                  const RegistrationResidualConfig& config,
+                                                  Buffer<RegistrationResidual>* scratch, const Stream& stream) {
+  evaluate_registration_residuals(points_i, map_j, T_W_Si, T_W_Sj, config, scratch, stream);
+  const int64_t count = static_cast<int64_t>(scratch->size());
+  const RegistrationSums sums = dispatch(map_j.device(), [&](auto backend) {
+    return registration_reduce(backend, scratch->data(), count, stream);
+  });
+  RegistrationNormalEquations out;
+  int k = 0;
+  for (int row = 0; row < 4; ++row) {
+    for (int col = row; col < 4; ++col) {
+      out.hessian_i(row, col) = sums.hessian[k];
+      out.hessian_i(col, row) = sums.hessian[k];
+      ++k;
+    }
+    out.gradient_i(row) = sums.gradient[row];
+  }
+  out.cost = sums.cost;
+  out.used_points = sums.used;
+  out.skipped_points = count - sums.used;
+  return out;
+}
+
+}  // namespace
+
+RegistrationNormalEquations registration_normal_equations(const RegistrationPoints& points_i, const TsdfMap& map_j,
+                                                          const Pose4Dof& T_W_Si, const Pose4Dof& T_W_Sj,
+                                                          const RegistrationResidualConfig& config,
+                                                          const Stream& stream) {
+  Buffer<RegistrationResidual> scratch(map_j.device());
+  return normal_equations_into(points_i, map_j, T_W_Si, T_W_Sj, config, &scratch, stream);
+}
+
+RegistrationResult align_submaps(const RegistrationPoints& points_i, const TsdfMap& map_j,
+                                 const Pose4Dof& initial_T_Sj_Si, const RegistrationAlignerConfig& config,
+                                 const Stream& stream) {
+  if (config.max_iterations < 1) {
+    throw Error("align_submaps: max_iterations must be >= 1, got " + std::to_string(config.max_iterations));
+  }
+  // Submap j is the reference frame: T_W_Sj = identity, so T_W_Si is the relative pose itself.
+  const Pose4Dof identity;
+  Buffer<RegistrationResidual> scratch(map_j.device());
+  Pose4Dof pose = initial_T_Sj_Si;
+  RegistrationNormalEquations current =
+      normal_equations_into(points_i, map_j, pose, identity, config.residual, &scratch, stream);
+  auto require_overlap = [&](const RegistrationNormalEquations& eq) {
+    if (eq.used_points < config.min_used_points) {
+      throw Error("align_submaps: only " + std::to_string(eq.used_points) + " of " +
+                  std::to_string(eq.used_points + eq.skipped_points) +
+                  " registration points fall inside submap j's observed field (need " +
+                  std::to_string(config.min_used_points) + "); the submaps do not overlap at this guess");
+    }
+  };
+  require_overlap(current);
+  RegistrationResult result;
+  result.initial_cost = current.cost;
+  double lambda = config.initial_lambda;
+  for (int iteration = 0; iteration < config.max_iterations; ++iteration) {
+    result.iterations = iteration + 1;
+    // LM with damping relative to the diagonal (Marquardt), so metres and radians scale alike.
+    Eigen::Matrix4d damped = current.hessian_i;
+    for (int k = 0; k < 4; ++k) damped(k, k) += lambda * std::max(current.hessian_i(k, k), 1e-12);
+    const Eigen::Vector4d step = damped.ldlt().solve(-current.gradient_i);
+    if (!step.allFinite()) {
+      throw Error("align_submaps: the normal equations are singular (the overlap does not constrain all of x, "
+                  "y, z and yaw)");
+    }
+    Pose4Dof candidate = pose;
+    candidate.x += step(0);
+    candidate.y += step(1);
+    candidate.z += step(2);
+    candidate.yaw += step(3);
+    const RegistrationNormalEquations trial =
+        normal_equations_into(points_i, map_j, candidate, identity, config.residual, &scratch, stream);
+    // Points leaving j's field drop out of the sum; compare mean costs so that losing points is
+    // not mistaken for progress.
+    const double current_mean = current.cost / std::max<int64_t>(current.used_points, 1);
+    const double trial_mean = trial.cost / std::max<int64_t>(trial.used_points, 1);
+    const bool small_step = std::abs(step(0)) < config.translation_tolerance_m &&
+                            std::abs(step(1)) < config.translation_tolerance_m &&
+                            std::abs(step(2)) < config.translation_tolerance_m &&
+                            std::abs(step(3)) < config.yaw_tolerance_rad;
+    if (trial.used_points >= config.min_used_points && trial_mean <= current_mean) {
+      pose = candidate;
+      current = trial;
+      lambda = std::max(lambda / 3.0, 1e-9);
+      if (small_step) {
+        result.converged = true;
+        break;
+      }
+    } else {
+      if (small_step) {  // no smaller step can improve: at the minimum to within the tolerance
+        result.converged = true;
+        break;
+      }
+      lambda *= 4.0;
+    }
+  }
+  result.T_Sj_Si = pose;
+  result.final_cost = current.cost;
+  result.used_points = current.used_points;
+  result.skipped_points = current.skipped_points;
+  result.hessian = current.hessian_i;
+  return result;
+}
+
+Constraint4Dof make_registration_constraint(int32_t vertex_j, int32_t vertex_i, const RegistrationResult& result,
+                                            double residual_sigma) {
+  if (!(residual_sigma > 0.0 && std::isfinite(residual_sigma))) {
+    throw Error("make_registration_constraint: residual_sigma must be finite and > 0, got " +
+                std::to_string(residual_sigma));
+  }
+  // With T_W_Sj = identity the aligner's parameters are exactly the 4-DoF relative measurement
+  // (dx, dy, dz in frame j, dyaw), and the relative residual's Jacobian with respect to the `to`
+  // pose is the identity there: J^T J carries over as the information matrix.
+  const Eigen::Matrix4d information = result.hessian / (residual_sigma * residual_sigma);
+  return make_relative_constraint_4dof(vertex_j, vertex_i, result.T_Sj_Si, information);
+}
+
+SubmapOverlap submap_overlap(const TsdfMap& map_i, const Pose4Dof& T_W_Si, const TsdfMap& map_j,
+                             const Pose4Dof& T_W_Sj, int64_t min_shared_blocks) {
+  check_finite_pose(T_W_Si, "T_W_Si");
+  check_finite_pose(T_W_Sj, "T_W_Sj");
+  if (map_i.block_size_m() != map_j.block_size_m()) {
+    throw Error("submap_overlap: the submaps have different block sizes (" + std::to_string(map_i.block_size_m()) +
+                " and " + std::to_string(map_j.block_size_m()) + " m)");
+  }
+  SubmapOverlap overlap;
+  const Stream stream_i(map_i.device()), stream_j(map_j.device());
+  Buffer<Index3D> indices_i(map_i.device()), indices_j(map_j.device());
+  Buffer<uint32_t> slots_i(map_i.device()), slots_j(map_j.device());
+  map_i.blocks().export_entries(&indices_i, &slots_i);
+  map_j.blocks().export_entries(&indices_j, &slots_j);
+  const std::vector<Index3D> blocks_i = indices_i.to_host(stream_i);
+  const std::vector<Index3D> blocks_j = indices_j.to_host(stream_j);
+  if (blocks_i.empty() || blocks_j.empty()) return overlap;
+  const double block_m = map_i.block_size_m();
+  auto to_world = [](const Pose4Dof& pose, const Eigen::Vector3d& p) {
+    const double c = std::cos(pose.yaw), s = std::sin(pose.yaw);
+    return Eigen::Vector3d(c * p.x() - s * p.y() + pose.x, s * p.x() + c * p.y() + pose.y, p.z() + pose.z);
+  };
+  // World AABB of a submap: the 8 corners of its block-index AABB, transformed.
+  auto world_box = [&](const std::vector<Index3D>& blocks, const Pose4Dof& pose, Eigen::Vector3d* lo,
+                       Eigen::Vector3d* hi) {
+    Eigen::Vector3d block_lo(1e300, 1e300, 1e300), block_hi(-1e300, -1e300, -1e300);
+    for (const Index3D& b : blocks) {
+      const Eigen::Vector3d corner(b.x * block_m, b.y * block_m, b.z * block_m);
+      block_lo = block_lo.cwiseMin(corner);
+      block_hi = block_hi.cwiseMax(corner + Eigen::Vector3d::Constant(block_m));
+    }
+    *lo = Eigen::Vector3d::Constant(1e300);
+    *hi = Eigen::Vector3d::Constant(-1e300);
+    for (int c = 0; c < 8; ++c) {
+      const Eigen::Vector3d corner((c & 1) ? block_hi.x() : block_lo.x(), (c & 2) ? block_hi.y() : block_lo.y(),
+                                   (c & 4) ? block_hi.z() : block_lo.z());
+      const Eigen::Vector3d w = to_world(pose, corner);
+      *lo = lo->cwiseMin(w);
+      *hi = hi->cwiseMax(w);
+    }
+  };
+  Eigen::Vector3d lo_i, hi_i, lo_j, hi_j;
+  world_box(blocks_i, T_W_Si, &lo_i, &hi_i);
+  world_box(blocks_j, T_W_Sj, &lo_j, &hi_j);
+  overlap.bounding_boxes_intersect = (lo_i.array() <= hi_j.array()).all() && (lo_j.array() <= hi_i.array()).all();
+  if (!overlap.bounding_boxes_intersect) return overlap;
+  // Finer check: block centres of i, moved into frame j, landing in allocated blocks of j.
+  // Submaps hold thousands of blocks, not millions: a host set is enough here.
+  std::unordered_set<uint64_t> keys_j;
+  keys_j.reserve(blocks_j.size() * 2);
+  for (const Index3D& b : blocks_j) keys_j.insert(pack_block_key(b));
+  const double c = std::cos(T_W_Sj.yaw), s = std::sin(T_W_Sj.yaw);
+  for (const Index3D& b : blocks_i) {
+    const Eigen::Vector3d centre((b.x + 0.5) * block_m, (b.y + 0.5) * block_m, (b.z + 0.5) * block_m);
+    const Eigen::Vector3d w = to_world(T_W_Si, centre);
+    const Eigen::Vector3d d(w.x() - T_W_Sj.x, w.y() - T_W_Sj.y, w.z() - T_W_Sj.z);
+    const Eigen::Vector3d in_j(c * d.x() + s * d.y(), -s * d.x() + c * d.y(), d.z());
+    const Index3D block(static_cast<int32_t>(std::floor(in_j.x() / block_m)),
+                        static_cast<int32_t>(std::floor(in_j.y() / block_m)),
+                        static_cast<int32_t>(std::floor(in_j.z() / block_m)));
+    const uint64_t key = pack_block_key(block);
+    if (key != kInvalidBlockKey && keys_j.count(key)) ++overlap.shared_blocks;
+  }
+  overlap.overlapping = overlap.shared_blocks >= std::max<int64_t>(min_shared_blocks, 1);
+  return overlap;
+}
+
+}  // namespace backend
+}  // namespace covox

@@ -1,0 +1,8 @@
+// CPU (OpenMP) instantiation of submap registration.
+#include "covoxslam/backend/registration_impl.h"
+
+namespace covox {
+namespace backend {
+COVOX_INSTANTIATE_REGISTRATION(CpuBackend)
+}  // namespace backend
+}  // namespace covox

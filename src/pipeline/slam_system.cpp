@@ -1,0 +1,480 @@
+#include "covoxslam/pipeline/slam_system.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <exception>
+#include <optional>
+#include <string>
+#include <utility>
+
+#include "covoxslam/core/error.h"
+#include "covoxslam/core/log.h"
+
+namespace covox {
+namespace pipeline {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+void require(bool condition, const std::string& message) {
+  if (!condition) throw Error("SLAM configuration: " + message);
+}
+
+// Logs the first drop of a kind and then every 1000th, so a broken sensor cannot flood the log
+// while the counters still say exactly how many were dropped.
+bool should_log_drop(int64_t count_after) { return count_after == 1 || count_after % 1000 == 0; }
+
+}  // namespace
+
+void validate(const SlamConfig& config) {
+  require(std::isfinite(config.map.voxel_size_m) && config.map.voxel_size_m > 0.0f,
+          "map.voxel_size_m must be positive, got " + std::to_string(config.map.voxel_size_m));
+  require(config.map.voxels_per_side == 8 || config.map.voxels_per_side == 16,
+          "map.voxels_per_side must be 8 or 16, got " + std::to_string(config.map.voxels_per_side));
+  validate(config.tsdf, config.map.voxel_size_m);
+  validate(config.submaps);
+  require(config.sensor_queue_size >= 1, "sensor_queue_size must be at least 1");
+  require(config.submap_queue_size >= 1, "submap_queue_size must be at least 1");
+  require(std::isfinite(config.odometry_translation_sigma_m) && config.odometry_translation_sigma_m > 0.0,
+          "odometry_translation_sigma_m must be positive, got " + std::to_string(config.odometry_translation_sigma_m));
+  require(std::isfinite(config.odometry_yaw_sigma_rad) && config.odometry_yaw_sigma_rad > 0.0,
+          "odometry_yaw_sigma_rad must be positive, got " + std::to_string(config.odometry_yaw_sigma_rad));
+  require(config.optimize_every_n_submaps >= 0,
+          "optimize_every_n_submaps must be >= 0, got " + std::to_string(config.optimize_every_n_submaps));
+  if (config.device == Device::kCuda && !cuda_device_available()) {
+    throw NotAvailableError("SLAM configuration: device cuda was asked for but no usable GPU is available "
+                            "(use device auto or cpu)");
+  }
+}
+
+namespace {
+// Validates before any member is built, so a bad configuration fails with its own message.
+const SlamConfig& validated(const SlamConfig& config) {
+  validate(config);
+  return config;
+}
+}  // namespace
+
+SlamSystem::SlamSystem(const SlamConfig& config)
+    : config_(validated(config)),
+      sensor_queue_(config.sensor_queue_size, "sensor queue"),
+      submap_queue_(config.submap_queue_size, "submap queue"),
+      tsdf_integrator_(config.tsdf),
+      frontend_stream_(Stream::create(config.device)),
+      points_buffer_(config.device),
+      colors_buffer_(config.device),
+      esdf_integrator_(config.esdf),
+      mesh_integrator_(config.mesh),
+      backend_stream_(Stream::create(config.device)) {
+  if (config_.start_threads) start();
+}
+
+SlamSystem::~SlamSystem() { shutdown(); }
+
+void SlamSystem::start() {
+  std::lock_guard<std::mutex> lock(lifecycle_mutex_);
+  if (started_ || stopped_) return;
+  started_ = true;
+  running_ = true;
+  frontend_thread_ = std::thread([this] { frontend_loop(); });
+  backend_thread_ = std::thread([this] { backend_loop(); });
+}
+
+bool SlamSystem::add_scan(Scan scan) {
+  // Checks that need no ordering with other callers.
+  const char* problem = nullptr;
+  int64_t* counter = nullptr;
+  {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    ++counters_.scans_received;
+  }
+  if (!accepting_.load()) {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    ++counters_.scans_rejected_not_running;
+    return false;
+  }
+  {
+    std::lock_guard<std::mutex> input_lock(input_mutex_);
+    if (!std::isfinite(scan.stamp_s) || (have_last_stamp_ && !(scan.stamp_s > last_stamp_s_))) {
+      problem = "its stamp is not finite or not after the previous scan's";
+      counter = &counters_.scans_dropped_bad_stamp;
+    } else if (!is_valid_rigid_pose(scan.T_odom_sensor)) {
+      problem = "its odometry pose is not a finite rigid transform";
+      counter = &counters_.scans_dropped_invalid_pose;
+    } else if (scan.points_sensor_m.empty()) {
+      problem = "it has no points";
+      counter = &counters_.scans_dropped_empty_cloud;
+    } else if (!scan.colors.empty() && scan.colors.size() != scan.points_sensor_m.size()) {
+      problem = "its colour count does not match its point count";
+      counter = &counters_.scans_dropped_bad_colors;
+    }
+    if (!problem) {
+      have_last_stamp_ = true;
+      last_stamp_s_ = scan.stamp_s;
+    }
+  }
+  if (problem) {
+    int64_t count_after = 0;
+    {
+      std::lock_guard<std::mutex> lock(state_mutex_);
+      count_after = ++*counter;
+    }
+    if (should_log_drop(count_after)) {
+      log_warning("SLAM: dropped the scan at ", scan.stamp_s, " s because ", problem, " (", count_after,
+                  " such drops so far)");
+    }
+    return false;
+  }
+
+  std::optional<Scan> dropped;
+  const PushResult result = sensor_queue_.push(std::move(scan), &dropped);
+  if (result == PushResult::kRejectedClosed) {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    ++counters_.scans_rejected_not_running;
+    return false;
+  }
+  if (result == PushResult::kQueuedDroppedOldest) {
+    int64_t count_after = 0;
+    {
+      std::lock_guard<std::mutex> lock(state_mutex_);
+      count_after = ++counters_.scans_dropped_queue_full;
+    }
+    if (should_log_drop(count_after)) {
+      log_warning("SLAM: the sensor queue (", config_.sensor_queue_size,
+                  " scans) is full: dropped the oldest scan, at ", dropped ? dropped->stamp_s : 0.0, " s (",
+                  count_after, " so far); the frontend is slower than the sensor");
+    }
+  }
+  return true;
+}
+
+void SlamSystem::finish() {
+  std::lock_guard<std::mutex> lock(lifecycle_mutex_);
+  if (stopped_) return;
+  accepting_ = false;
+  if (!started_) {
+    started_ = true;
+    running_ = true;
+    frontend_thread_ = std::thread([this] { frontend_loop(); });
+    backend_thread_ = std::thread([this] { backend_loop(); });
+  }
+  // Closing (not aborting) lets the frontend drain the sensor queue; it then hands over the
+  // active submap and closes the submap queue, which the backend drains in turn.
+  sensor_queue_.close();
+  join_threads();
+  // The final optimisation runs even when every submap already triggered one: it is what
+  // finish() promises, and later constraint types (registration) will be added just before it.
+  optimize();
+  stopped_ = true;
+  running_ = false;
+}
+
+void SlamSystem::shutdown() {
+  std::lock_guard<std::mutex> lock(lifecycle_mutex_);
+  if (stopped_) return;
+  accepting_ = false;
+  aborted_ = true;
+  const int64_t queued_scans = static_cast<int64_t>(sensor_queue_.abort());
+  submap_queue_.abort();
+  join_threads();
+  {
+    std::lock_guard<std::mutex> state_lock(state_mutex_);
+    counters_.scans_discarded_at_shutdown += queued_scans;
+  }
+  stopped_ = true;
+  running_ = false;
+}
+
+void SlamSystem::join_threads() {
+  if (frontend_thread_.joinable()) frontend_thread_.join();
+  if (backend_thread_.joinable()) backend_thread_.join();
+}
+
+// ---- Frontend ------------------------------------------------------------------------------------
+
+void SlamSystem::frontend_loop() {
+  Scan scan;
+  double waited_s = 0.0;
+  while (sensor_queue_.pop(&scan, &waited_s)) {
+    {
+      std::lock_guard<std::mutex> lock(state_mutex_);
+      timings_.sensor_queue_wait.add(waited_s);
+    }
+    try {
+      process_scan(scan);
+    } catch (const std::exception& error) {
+      int64_t count_after = 0;
+      {
+        std::lock_guard<std::mutex> lock(state_mutex_);
+        count_after = ++counters_.scans_failed;
+      }
+      if (should_log_drop(count_after)) {
+        log_error("SLAM frontend: integrating the scan at ", scan.stamp_s, " s failed: ", error.what());
+      }
+    }
+    if (aborted_.load()) break;
+  }
+  if (!aborted_.load()) {
+    try {
+      hand_over_active_submap();
+    } catch (const std::exception& error) {
+      log_error("SLAM frontend: handing over the last submap failed: ", error.what());
+    }
+  }
+  active_submap_.reset();
+  submap_queue_.close();
+}
+
+void SlamSystem::process_scan(const Scan& scan) {
+  const Eigen::Vector3d position_m = scan.T_odom_sensor.translation();
+  if (active_submap_) {
+    const double step_m = (position_m - last_position_odom_m_).norm();
+    if (should_start_new_submap(config_.submaps, active_submap_->statistics(), scan.stamp_s, step_m)) {
+      hand_over_active_submap();
+    }
+  }
+  if (!active_submap_) {
+    const Eigen::Isometry3d T_odom_submap = gravity_aligned(scan.T_odom_sensor);
+    active_submap_ = std::make_unique<Submap>(next_submap_id_++, config_.device, config_.map, T_odom_submap);
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    ++counters_.submaps_created;
+    created_submap_poses_.push_back(T_odom_submap);
+  }
+
+  const auto start = Clock::now();
+  points_buffer_.copy_from_host(scan.points_sensor_m, frontend_stream_);
+  colors_buffer_.copy_from_host(scan.colors, frontend_stream_);
+  PointCloudView view;
+  view.points = points_buffer_.data();
+  view.colors = scan.colors.empty() ? nullptr : colors_buffer_.data();
+  view.count = static_cast<int64_t>(scan.points_sensor_m.size());
+  const IntegrationStats stats =
+      active_submap_->integrate(tsdf_integrator_, view, scan.T_odom_sensor, scan.stamp_s, frontend_stream_);
+  // Drained before timing and before the next scan overwrites the upload buffers.
+  frontend_stream_.synchronize();
+  const double integrate_s = seconds_since(start);
+  last_position_odom_m_ = position_m;
+
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  timings_.tsdf.add(integrate_s);
+  ++counters_.scans_integrated;
+  counters_.points_integrated += stats.points_in;
+  counters_.points_dropped_by_integrator += stats.dropped_total();
+  trajectory_.push_back(TrajectoryEntry{scan.stamp_s, active_submap_->id(), scan.T_odom_sensor});
+}
+
+void SlamSystem::hand_over_active_submap() {
+  if (!active_submap_) return;
+  std::optional<std::unique_ptr<Submap>> dropped;
+  const int64_t id = active_submap_->id();
+  const PushResult result = submap_queue_.push(std::move(active_submap_), &dropped);
+  active_submap_.reset();
+  if (result == PushResult::kQueued) return;
+  if (result == PushResult::kRejectedClosed) {
+    // Only during shutdown(): the submap is discarded with everything else.
+    return;
+  }
+  int64_t count_after = 0;
+  {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    count_after = ++counters_.submaps_dropped_queue_full;
+  }
+  log_warning("SLAM: the submap queue (", config_.submap_queue_size, " submaps) is full: dropped submap ",
+              (dropped && *dropped) ? (*dropped)->id() : -1, " to queue submap ", id, " (", count_after,
+              " so far); the backend is slower than the frontend");
+}
+
+// ---- Backend -------------------------------------------------------------------------------------
+
+void SlamSystem::backend_loop() {
+  std::unique_ptr<Submap> submap;
+  double waited_s = 0.0;
+  while (submap_queue_.pop(&submap, &waited_s)) {
+    {
+      std::lock_guard<std::mutex> lock(state_mutex_);
+      timings_.submap_queue_wait.add(waited_s);
+    }
+    try {
+      const SubmapFinishTimes times = submap->finish(esdf_integrator_, mesh_integrator_, backend_stream_);
+      {
+        std::lock_guard<std::mutex> lock(state_mutex_);
+        timings_.esdf.add(times.esdf_s);
+        timings_.mesh.add(times.mesh_s);
+        ++counters_.submaps_finished;
+      }
+      add_to_pose_graph(std::move(submap));
+    } catch (const std::exception& error) {
+      {
+        std::lock_guard<std::mutex> lock(state_mutex_);
+        ++counters_.submaps_failed;
+      }
+      log_error("SLAM backend: finishing a submap failed: ", error.what());
+      continue;
+    }
+    const int every = config_.optimize_every_n_submaps;
+    if (every > 0 && !aborted_.load()) {
+      size_t vertices = 0;
+      {
+        std::lock_guard<std::mutex> lock(state_mutex_);
+        vertices = graph_.poses.size();
+      }
+      if (vertices % static_cast<size_t>(every) == 0) optimize();
+    }
+    if (aborted_.load()) break;
+  }
+}
+
+void SlamSystem::add_to_pose_graph(std::unique_ptr<Submap> submap) {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  const int32_t vertex = static_cast<int32_t>(graph_.poses.size());
+  if (vertex == 0) {
+    // The first submap fixes the gauge at its odometry pose (voxgraph's convention), so the world
+    // frame starts as the odometry frame.
+    graph_.fixed_vertex = 0;
+    graph_.poses.push_back(submap->odometry_pose());
+  } else {
+    const Submap& previous = *graph_submaps_.back();
+    const backend::Pose4Dof measurement = relative_pose_4dof(previous.odometry_pose(), submap->odometry_pose());
+    Eigen::Matrix4d information = Eigen::Matrix4d::Zero();
+    const double translation_information = 1.0 / (config_.odometry_translation_sigma_m * config_.odometry_translation_sigma_m);
+    information(0, 0) = information(1, 1) = information(2, 2) = translation_information;
+    information(3, 3) = 1.0 / (config_.odometry_yaw_sigma_rad * config_.odometry_yaw_sigma_rad);
+    graph_.constraints.push_back(backend::make_relative_constraint_4dof(vertex - 1, vertex, measurement, information));
+    ++counters_.odometry_constraints;
+    // Initial guess: the previous corrected pose composed with the odometry step, so a new
+    // submap starts consistent with the correction found so far rather than at raw odometry.
+    const backend::Pose4Dof& base = graph_.poses.back();
+    const double cs = std::cos(base.yaw), sn = std::sin(base.yaw);
+    backend::Pose4Dof guess;
+    guess.x = base.x + cs * measurement.x - sn * measurement.y;
+    guess.y = base.y + sn * measurement.x + cs * measurement.y;
+    guess.z = base.z + measurement.z;
+    guess.yaw = std::atan2(std::sin(base.yaw + measurement.yaw), std::cos(base.yaw + measurement.yaw));
+    graph_.poses.push_back(guess);
+    submap->set_pose(guess);
+  }
+  graph_submaps_.push_back(std::move(submap));
+}
+
+void SlamSystem::optimize() {
+  backend::PoseGraph4Dof graph;
+  {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    if (graph_.poses.size() < 2) return;  // one fixed vertex: nothing to solve
+    graph = graph_;
+  }
+  // Solved on a copy, outside the lock, so the accessors never wait for the solver. Only the
+  // backend thread (or finish() after it joined) changes the graph, so the copy stays current.
+  const auto start = Clock::now();
+  backend::PoseGraphSolverSummary summary;
+  try {
+    summary = backend::solve_pose_graph(&graph, config_.device, config_.solver);
+  } catch (const std::exception& error) {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    ++counters_.optimizations_failed;
+    log_error("SLAM backend: pose-graph optimisation failed: ", error.what());
+    return;
+  }
+  const double solve_s = seconds_since(start);
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  timings_.backend.add(solve_s);
+  ++counters_.optimizations;
+  last_summary_ = summary;
+  graph_.poses = graph.poses;
+  for (size_t i = 0; i < graph_submaps_.size(); ++i) graph_submaps_[i]->set_pose(graph_.poses[i]);
+}
+
+// ---- Accessors -----------------------------------------------------------------------------------
+
+Eigen::Isometry3d SlamSystem::correction_for_locked(int64_t submap_id) const {
+  // graph_submaps_ is in id order (the queues preserve order); the latest submap at or before
+  // `submap_id` carries the correction that applies to its scans.
+  auto after = std::upper_bound(graph_submaps_.begin(), graph_submaps_.end(), submap_id,
+                                [](int64_t id, const std::unique_ptr<Submap>& s) { return id < s->id(); });
+  if (after == graph_submaps_.begin()) return Eigen::Isometry3d::Identity();
+  const Submap& reference = **(after - 1);
+  return reference.T_world_submap() * reference.T_odom_submap().inverse();
+}
+
+std::vector<SubmapInfo> SlamSystem::submaps() const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  std::vector<SubmapInfo> infos;
+  infos.reserve(graph_submaps_.size());
+  for (const auto& submap : graph_submaps_) {
+    SubmapInfo info;
+    info.id = submap->id();
+    info.T_world_submap = submap->T_world_submap();
+    info.T_odom_submap = submap->T_odom_submap();
+    info.statistics = submap->statistics();
+    info.bounding_box_world = submap->bounding_box_world();
+    info.mesh_triangles = static_cast<int64_t>(submap->mesh().triangle_count());
+    infos.push_back(info);
+  }
+  return infos;
+}
+
+std::vector<StampedPose> SlamSystem::corrected_trajectory() const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  std::vector<StampedPose> trajectory;
+  trajectory.reserve(trajectory_.size());
+  for (const TrajectoryEntry& entry : trajectory_) {
+    trajectory.push_back(StampedPose{entry.stamp_s, correction_for_locked(entry.submap_id) * entry.T_odom_sensor});
+  }
+  return trajectory;
+}
+
+Mesh SlamSystem::combined_mesh() const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  Mesh combined;
+  for (const auto& submap : graph_submaps_) {
+    const Mesh& mesh = submap->mesh();
+    const Eigen::Isometry3f T_world_submap = submap->T_world_submap().cast<float>();
+    const uint32_t offset = static_cast<uint32_t>(combined.vertices_m.size());
+    for (const Vec3f& v : mesh.vertices_m) {
+      const Eigen::Vector3f p = T_world_submap * Eigen::Vector3f(v.x, v.y, v.z);
+      combined.vertices_m.emplace_back(p.x(), p.y(), p.z());
+    }
+    // Colours stay per vertex; a submap without colours gets grey so the arrays stay aligned.
+    if (mesh.colors.size() == mesh.vertices_m.size()) {
+      combined.colors.insert(combined.colors.end(), mesh.colors.begin(), mesh.colors.end());
+    } else {
+      combined.colors.insert(combined.colors.end(), mesh.vertices_m.size(), Rgb8{128, 128, 128});
+    }
+    for (uint32_t index : mesh.triangles) combined.triangles.push_back(index + offset);
+  }
+  return combined;
+}
+
+std::vector<SubmapSnapshot> SlamSystem::submap_snapshots() const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  std::vector<SubmapSnapshot> snapshots;
+  snapshots.reserve(graph_submaps_.size());
+  for (const auto& submap : graph_submaps_) {
+    snapshots.push_back(SubmapSnapshot{submap->id(), submap->T_world_submap(), submap->map().snapshot()});
+  }
+  return snapshots;
+}
+
+SlamCounters SlamSystem::counters() const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  return counters_;
+}
+
+SlamTimings SlamSystem::timings() const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  return timings_;
+}
+
+backend::PoseGraphSolverSummary SlamSystem::last_solver_summary() const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  return last_summary_;
+}
+
+}  // namespace pipeline
+}  // namespace covox

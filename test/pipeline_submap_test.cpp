@@ -1,0 +1,181 @@
+// Submaps: the creation policy (time, distance, blocks) as a pure decision, the 4-DoF pose helpers
+// the backend relies on, and one submap built from simulated scans and finished.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include "covoxslam/core/error.h"
+#include "covoxslam/pipeline/submap.h"
+#include "support/analytic_scene.h"
+
+namespace covox {
+namespace pipeline {
+namespace {
+
+SubmapStatistics active_submap(int64_t scans, double start_stamp_s, double distance_m, int64_t blocks) {
+  SubmapStatistics statistics;
+  statistics.scans = scans;
+  statistics.start_stamp_s = start_stamp_s;
+  statistics.end_stamp_s = start_stamp_s;
+  statistics.distance_travelled_m = distance_m;
+  statistics.blocks = blocks;
+  return statistics;
+}
+
+TEST(PipelineSubmapPolicy, TimeIntervalEndsASubmapWhenTheIntervalHasPassed) {
+  SubmapPolicyConfig config;
+  config.policy = SubmapCreationPolicy::kTimeInterval;
+  config.interval_s = 10.0;
+  const SubmapStatistics active = active_submap(5, 100.0, 50.0, 5000);
+  EXPECT_FALSE(should_start_new_submap(config, active, 109.99, 1.0));
+  EXPECT_TRUE(should_start_new_submap(config, active, 110.0, 0.0));
+  EXPECT_TRUE(should_start_new_submap(config, active, 125.0, 0.0));
+}
+
+TEST(PipelineSubmapPolicy, DistanceEndsASubmapWhenThePathReachesTheThreshold) {
+  SubmapPolicyConfig config;
+  config.policy = SubmapCreationPolicy::kDistanceTravelled;
+  config.distance_m = 10.0;
+  const SubmapStatistics active = active_submap(5, 0.0, 9.0, 5000);
+  EXPECT_FALSE(should_start_new_submap(config, active, 1000.0, 0.5));  // time does not matter
+  EXPECT_TRUE(should_start_new_submap(config, active, 1.0, 1.0));
+}
+
+TEST(PipelineSubmapPolicy, BlockCountEndsASubmapOnceItHasEnoughBlocks) {
+  SubmapPolicyConfig config;
+  config.policy = SubmapCreationPolicy::kBlockCount;
+  config.max_blocks = 100;
+  EXPECT_FALSE(should_start_new_submap(config, active_submap(5, 0.0, 100.0, 99), 1000.0, 100.0));
+  EXPECT_TRUE(should_start_new_submap(config, active_submap(5, 0.0, 0.0, 100), 0.1, 0.0));
+}
+
+TEST(PipelineSubmapPolicy, AnEmptySubmapNeverEnds) {
+  SubmapPolicyConfig config;
+  config.policy = SubmapCreationPolicy::kBlockCount;
+  config.max_blocks = 1;
+  EXPECT_FALSE(should_start_new_submap(config, active_submap(0, 0.0, 0.0, 10), 100.0, 100.0));
+}
+
+TEST(PipelineSubmapPolicy, NamesParseAndBadValuesAreNamed) {
+  EXPECT_EQ(parse_submap_creation_policy("blocks"), SubmapCreationPolicy::kBlockCount);
+  EXPECT_EQ(parse_submap_creation_policy("time"), SubmapCreationPolicy::kTimeInterval);
+  EXPECT_EQ(parse_submap_creation_policy("distance"), SubmapCreationPolicy::kDistanceTravelled);
+  EXPECT_STREQ(to_string(SubmapCreationPolicy::kDistanceTravelled), "distance");
+  EXPECT_THROW(parse_submap_creation_policy("hourly"), Error);
+  SubmapPolicyConfig config;
+  config.policy = SubmapCreationPolicy::kTimeInterval;
+  config.interval_s = 0.0;
+  try {
+    validate(config);
+    FAIL() << "expected covox::Error";
+  } catch (const Error& error) {
+    EXPECT_NE(std::string(error.what()).find("interval_s"), std::string::npos) << error.what();
+  }
+  config.policy = SubmapCreationPolicy::kBlockCount;
+  config.max_blocks = 0;
+  EXPECT_THROW(validate(config), Error);
+}
+
+TEST(PipelineSubmapPose, GravityAlignmentKeepsPositionAndHeadingOnly) {
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.linear() = (Eigen::AngleAxisd(0.7, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(0.1, Eigen::Vector3d::UnitY()) *
+                   Eigen::AngleAxisd(-0.05, Eigen::Vector3d::UnitX()))
+                      .toRotationMatrix();
+  pose.translation() = Eigen::Vector3d(1.0, -2.0, 3.0);
+  const backend::Pose4Dof pose_4dof = pose_4dof_from_isometry(pose);
+  EXPECT_NEAR(pose_4dof.yaw, 0.7, 1e-12);
+  EXPECT_DOUBLE_EQ(pose_4dof.z, 3.0);
+  const Eigen::Isometry3d aligned = gravity_aligned(pose);
+  EXPECT_TRUE(aligned.translation().isApprox(pose.translation()));
+  EXPECT_NEAR((aligned.linear() * Eigen::Vector3d::UnitZ() - Eigen::Vector3d::UnitZ()).norm(), 0.0, 1e-12);
+}
+
+TEST(PipelineSubmapPose, RelativePoseComposesBackToTheTarget) {
+  const backend::Pose4Dof from{1.0, 2.0, 0.5, 3.0};
+  const backend::Pose4Dof to{-4.0, 0.5, 1.5, -2.9};
+  const backend::Pose4Dof relative = relative_pose_4dof(from, to);
+  // to = from * relative, checked through the isometries.
+  const Eigen::Isometry3d composed = to_isometry(from) * to_isometry(relative);
+  EXPECT_TRUE(composed.isApprox(to_isometry(to), 1e-12));
+  EXPECT_LT(std::abs(relative.yaw), 3.14159265358979323846 + 1e-12);  // wrapped
+}
+
+TEST(PipelineSubmapPose, InvalidPosesAreRecognised) {
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  EXPECT_TRUE(is_valid_rigid_pose(pose));
+  pose.translation().x() = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_FALSE(is_valid_rigid_pose(pose));
+  pose = Eigen::Isometry3d::Identity();
+  pose.linear() *= 2.0;  // a scale is not a rotation
+  EXPECT_FALSE(is_valid_rigid_pose(pose));
+}
+
+TEST(PipelineSubmap, IntegratedScansAreCountedAndFinishingGivesMeshEsdfAndBox) {
+  testing_support::AnalyticScene scene;
+  scene.shape = testing_support::Shape::kSphere;
+  scene.radius = 3.0;
+  TsdfMapConfig map_config;
+  map_config.voxel_size_m = 0.2f;
+  map_config.voxels_per_side = 8;
+  TsdfIntegratorConfig tsdf_config;
+  tsdf_config.max_ray_length_m = 8.0f;
+  TsdfIntegrator integrator(tsdf_config);
+  EsdfIntegratorConfig esdf_config;
+  esdf_config.esdf_max_distance_m = 1.0f;
+  EsdfIntegrator esdf(esdf_config);
+  MeshIntegrator mesher;
+  const Stream stream(Device::kCpu);
+
+  Eigen::Isometry3d first = Eigen::Isometry3d::Identity();
+  first.translation() = Eigen::Vector3d(0.5, 0.0, 0.0);
+  first.linear() = Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  Submap submap(7, Device::kCpu, map_config, gravity_aligned(first));
+  for (int k = 0; k < 3; ++k) {
+    Eigen::Isometry3d pose = first;
+    pose.translation().x() += 0.2 * k;
+    const std::vector<Vec3f> points = testing_support::simulate_lidar(scene, pose, 64, 16, 60.0, 10.0);
+    Buffer<Vec3f> device_points = Buffer<Vec3f>::from_host(Device::kCpu, points, stream);
+    PointCloudView view;
+    view.points = device_points.data();
+    view.count = static_cast<int64_t>(points.size());
+    submap.integrate(integrator, view, pose, 10.0 + k, stream);
+  }
+  EXPECT_EQ(submap.id(), 7);
+  EXPECT_EQ(submap.statistics().scans, 3);
+  EXPECT_DOUBLE_EQ(submap.statistics().start_stamp_s, 10.0);
+  EXPECT_DOUBLE_EQ(submap.statistics().end_stamp_s, 12.0);
+  EXPECT_NEAR(submap.statistics().distance_travelled_m, 0.4, 1e-9);
+  EXPECT_GT(submap.statistics().blocks, 0);
+  EXPECT_FALSE(submap.finished());
+  EXPECT_TRUE(submap.bounding_box_submap().isEmpty());
+
+  submap.finish(esdf, mesher, stream);
+  EXPECT_TRUE(submap.finished());
+  EXPECT_GT(submap.mesh().triangle_count(), 100u);
+  // The sphere (radius 3 around the world origin) lies inside the world box, and the box is
+  // not much larger than the sphere plus a block of margin.
+  const Eigen::AlignedBox3d box = submap.bounding_box_world();
+  EXPECT_TRUE(box.contains(Eigen::Vector3d(2.9, 0.0, 0.0)));
+  EXPECT_TRUE(box.contains(Eigen::Vector3d(-2.9, 0.0, 0.0)));
+  EXPECT_LT(box.sizes().maxCoeff(), 2 * 3.0 + 4 * map_config.voxel_size_m * map_config.voxels_per_side);
+  // Some ESDF voxel got a finite, non-clamped distance.
+  bool esdf_written = false;
+  for (const HostBlock& block : submap.map().snapshot()) {
+    for (const EsdfVoxel& voxel : block.esdf) {
+      if (voxel.observed && std::abs(voxel.distance_m) > 0.1f && std::abs(voxel.distance_m) < 0.9f) esdf_written = true;
+    }
+  }
+  EXPECT_TRUE(esdf_written);
+  // A finished submap is frozen.
+  Buffer<Vec3f> one(Device::kCpu, 1);
+  PointCloudView view;
+  view.points = one.data();
+  view.count = 0;
+  EXPECT_THROW(submap.integrate(integrator, view, first, 20.0, stream), Error);
+}
+
+}  // namespace
+}  // namespace pipeline
+}  // namespace covox
