@@ -87,6 +87,7 @@ void run_case(const std::string& name, const Stream& stream, TsdfMap& map, size_
   size_t triangles = 0;
   const double full_mesh_ms = milliseconds(stream, [&] { triangles = mesh.extract_all(map, stream).triangle_count(); });
 
+  tools::print_stage_profile(name);
   reports.esdf->add(name, "incremental update (median)", tools::median_of(esdf_ms), "ms/frame");
   reports.esdf->add(name, "changed blocks per frame (median)", tools::median_of(changed_blocks), "blocks");
   reports.esdf->add(name, "full update", full_esdf_ms, "ms");

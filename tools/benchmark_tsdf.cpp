@@ -87,6 +87,7 @@ Timing time_integrations(const Stream& stream, size_t frame_count, int integrati
 }
 
 void add_rows(tools::BenchmarkReport* report, const std::string& name, const Timing& t) {
+  tools::print_stage_profile(name);
   report->add(name, "median integration time", t.median_ms, "ms/frame");
   report->add(name, "voxel updates per second", t.updates_per_s / 1e6, "M/s");
   report->add(name, "allocated blocks", static_cast<double>(t.blocks), "blocks");

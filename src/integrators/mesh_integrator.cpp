@@ -5,6 +5,8 @@
 #include <unordered_map>
 #include <vector>
 
+#include "covoxslam/core/stage_profiler.h"
+
 namespace covox {
 
 struct MeshIntegrator::Scratch {
@@ -92,10 +94,12 @@ Mesh MeshIntegrator::extract_all(TsdfMap& map, const Stream& stream) {
 MeshUpdateStats MeshIntegrator::update(TsdfMap& map, const Stream& stream) {
   if (!scratch_ || scratch_->buffers.blocks.device() != map.device()) scratch_ = std::make_unique<Scratch>(map.device());
   MeshScratchBuffers& scratch = scratch_->buffers;
+  StageProfiler::Scope profile("mesh update", stream);
   map.blocks().export_entries(&scratch.blocks, &scratch.slots);
   const auto blocks = scratch.blocks.to_host(stream);
   const auto slots = scratch.slots.to_host(stream);
   auto changed = map.block_changed().to_host(stream);
+  profile.mark("export + download block list");
 
   // A cube reads the block of its first corner and the +x/+y/+z neighbours, so a changed block
   // also changes the meshes of the seven blocks just below it.
@@ -114,11 +118,14 @@ MeshUpdateStats MeshIntegrator::update(TsdfMap& map, const Stream& stream) {
   stats.blocks_meshed = static_cast<int64_t>(last_updated_.size());
   if (last_updated_.empty()) return stats;
   map.block_changed().copy_from_host(changed, stream);
+  profile.mark("affected blocks (host)");
 
   scratch.blocks.copy_from_host(last_updated_, stream);
   const Extraction extraction = run_extraction(map, config_.min_weight, scratch, stream);
   stats.triangles = static_cast<int64_t>(extraction.mesh.triangle_count());
+  profile.mark("extract + download");
   split_into_block_meshes(extraction, last_updated_, &block_meshes_);
+  profile.mark("split into block meshes (host)");
   return stats;
 }
 

@@ -6,6 +6,7 @@
 #include "covoxslam/core/error.h"
 #include "covoxslam/core/log.h"
 #include "covoxslam/core/radix_sort.h"
+#include "covoxslam/core/stage_profiler.h"
 #include "covoxslam/integrators/tsdf_integrator_ops.h"
 
 namespace covox {
@@ -144,7 +145,9 @@ IntegrationStats TsdfIntegrator::integrate_depth(TsdfMap& map, const DepthImageV
   if (!scratch_ || scratch_->buffers.rays.device() != map.device()) {
     scratch_ = std::make_unique<Scratch>(map.device());
   }
+  StageProfiler::Scope profile("tsdf depth", stream);
   dispatch(map.device(), [&](auto backend) { tsdf_unproject_depth(backend, image, scratch_->buffers, stream); });
+  profile.mark("unproject");
   const PointCloudView view{scratch_->buffers.points.data(), image.colors,
                             static_cast<int64_t>(k.width) * k.height};
   return integrate(map, view, T_map_camera, stream);

@@ -1,8 +1,10 @@
 #include "benchmark_datasets.h"
 
 #include <algorithm>
+#include <iostream>
 
 #include "covoxslam/core/error.h"
+#include "covoxslam/core/stage_profiler.h"
 #include "covoxslam/io/lidar_bin_reader.h"
 #include "covoxslam/io/rgbd_folder.h"
 
@@ -82,6 +84,12 @@ double median_of(std::vector<double> values) {
   if (values.empty()) return 0.0;
   std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
   return values[values.size() / 2];
+}
+
+void print_stage_profile(const std::string& case_name) {
+  if (!StageProfiler::enabled()) return;
+  std::cout << "stage profile: " << case_name << "\n" << StageProfiler::report() << std::endl;
+  StageProfiler::reset();
 }
 
 }  // namespace tools

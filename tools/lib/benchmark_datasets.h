@@ -39,6 +39,10 @@ DeviceScans load_kitti_scans(const std::string& data_directory, Device device);
 DeviceRgbdFrames load_7scenes_frames(const std::string& data_directory, size_t count, Device device,
                                      bool with_color = true);
 
+// With COVOX_PROFILE_STAGES=1: prints the stage breakdown gathered since the last call under the
+// case's name (see core/stage_profiler.h) and starts a new one. Otherwise does nothing.
+void print_stage_profile(const std::string& case_name);
+
 // The median of `values` (the upper one of the middle two for an even count); 0 when empty.
 double median_of(std::vector<double> values);
 

@@ -10,6 +10,7 @@
 #include "covoxslam/core/eigen_conversions.h"
 #include "covoxslam/core/parallel.h"
 #include "covoxslam/core/radix_sort.h"
+#include "covoxslam/core/stage_profiler.h"
 #include "covoxslam/integrators/tsdf_integrator_ops.h"
 
 namespace covox {
@@ -87,6 +88,7 @@ template <class Backend>
 int64_t tsdf_merge_rays(Backend backend, const tsdf::RayParameters& ray_parameters, const tsdf::FrameKeyCodec& codec,
                         const PointCloudView& cloud, const Rgb8* colors, const float* intensities,
                         float grey_per_intensity, TsdfScratchBuffers& scratch, const Stream& stream) {
+  StageProfiler::Scope profile("tsdf merge", stream);
   const int64_t n = cloud.count;
   const float inverse_voxel_size = 1.0f / ray_parameters.voxel_size_m;
   scratch.keys.resize_discard(n);
@@ -117,13 +119,16 @@ int64_t tsdf_merge_rays(Backend backend, const tsdf::RayParameters& ray_paramete
   });
   scratch.keys_alt.resize_discard(n);
   scratch.order_alt.resize_discard(n);
+  profile.mark("keys + bundles");
   radix_sort_pairs(backend, stream, keys, order, n, codec.key_bits, scratch.keys_alt.data(), scratch.order_alt.data());
+  profile.mark("sort");
   scratch.merged_keys.resize_discard(n);
   scratch.merged_bundles.resize_discard(n);
   const auto ordered_bundles = thrust::make_permutation_iterator(bundles, order);
   const int64_t ray_count = reduce_runs(backend, stream, keys, ordered_bundles, n, scratch.merged_keys.data(),
                                         scratch.merged_bundles.data(), tsdf::MergeKeysEqual{codec.zero_weight_key},
                                         tsdf::AddBundles());
+  profile.mark("reduce runs");
 
   scratch.rays.resize_discard(ray_count);
   scratch.ray_weights.resize_discard(ray_count);
@@ -159,6 +164,7 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
   const int64_t n = cloud.count;
   stats.points_in = n;
   if (n == 0) return stats;
+  StageProfiler::Scope profile("tsdf", stream);
 
   const float voxel_size = map.voxel_size_m();
   const float inverse_voxel_size = 1.0f / voxel_size;
@@ -192,6 +198,7 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
   stats.dropped_zero = tally.kinds[tsdf::kDroppedZero];
   stats.dropped_too_close = tally.kinds[tsdf::kDroppedTooClose];
   stats.dropped_too_far = tally.kinds[tsdf::kDroppedTooFar];
+  profile.mark("1 rays + tally");
 
   // What each ray carries into the update: per-point colour or intensity, or per-bundle colour
   // and weight after merging.
@@ -211,6 +218,7 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
     intensities = nullptr;
     tally = transform_reduce(backend, stream, scratch.rays.data(), ray_count, tsdf_detail::TallyRay{inverse_voxel_size},
                              tsdf_detail::RayTally{}, tsdf_detail::AddTallies{});
+    profile.mark("1b merge rays");
   }
   stats.rays_cast = tally.kinds[tsdf::kSurfaceRay] + tally.kinds[tsdf::kClearingRay];
 
@@ -226,6 +234,7 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
   stats.voxel_updates = total_updates;
   if (total_updates == 0) return stats;
   const tsdf::FrameKeyCodec codec = tsdf::make_frame_key_codec(tally.low_voxel(), tally.high_voxel(), voxels_per_side);
+  profile.mark("2a ray voxel counts + scan");
 
   // 2. one update per traversed voxel
   scratch.keys.resize_discard(total_updates);
@@ -272,6 +281,7 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
                                                         tsdf_detail::TallyKey{codec.zero_weight_key, codec.out_of_range_key},
                                                         tsdf_detail::DropTally{}, tsdf_detail::AddDropTallies{});
   stats.voxels_out_of_range = drops.out_of_range;
+  profile.mark("2b traverse + drop tally");
 
   // 3. group by voxel and merge (stable sort keeps each voxel's updates in ray order, so the
   //    float sums are the same every run)
@@ -279,6 +289,7 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
   scratch.order_alt.resize_discard(total_updates);
   radix_sort_pairs(backend, stream, keys, order, total_updates, codec.key_bits, scratch.keys_alt.data(),
                    scratch.order_alt.data());
+  profile.mark("3a sort updates");
   scratch.merged_keys.resize_discard(total_updates);
   scratch.merged.resize_discard(total_updates);
   const auto ordered_updates = thrust::make_permutation_iterator(updates, order);
@@ -287,6 +298,7 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
   // Updates to drop (zero weight, outside the key range) sort last, one run per kind present.
   voxel_count -= (drops.zero_weight > 0 ? 1 : 0) + (drops.out_of_range > 0 ? 1 : 0);
   stats.voxels_updated = voxel_count;
+  profile.mark("3b reduce runs");
   if (voxel_count == 0) return stats;
 
   // 4. allocate the distinct blocks of the touched voxels in one batch. Merged keys are sorted
@@ -312,10 +324,13 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
   parallel_for(backend, stream, voxel_count, [=] COVOX_HD(int64_t v) {
     if (block_flags[v]) block_indices[block_ranks[v]] = codec.block(merged_keys[v]);
   });
+  profile.mark("4a distinct blocks");
   const ActivateResult activation =
       map.blocks().activate(block_indices, block_count, scratch.slots.data(), scratch.is_new.data(), stream);
   stats.blocks_allocated = activation.num_new;
+  profile.mark("4b hash activate");
   map.ensure_pool_capacity(stream);
+  profile.mark("4c pool capacity");
   const uint32_t* slots = scratch.slots.data();
   if (activation.num_out_of_range + activation.num_failed_full > 0) {
     // Rare: count the voxels whose block the hash table rejected (outside its key range, or full).
@@ -349,6 +364,8 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
     });
   }
 
+  profile.mark("4d mark + clear new blocks");
+
   // 5. one weighted-average write per distinct voxel
   const tsdf::VoxelUpdate* merged = scratch.merged.data();
   const float max_weight = config.max_weight;
@@ -377,6 +394,7 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
     }
   });
   stream.synchronize();
+  profile.mark("5 voxel writes");
   return stats;
 }
 
