@@ -38,7 +38,7 @@ CMAKE_FLAGS := -DCMAKE_BUILD_TYPE=Release -DCOVOX_WITH_CUDA=$(WITH_CUDA) \
 
 DEMO_DIR ?= demo_output
 
-DEMO_TARGETS := simulate_flight map_flight evaluate_trajectory
+DEMO_TARGETS := simulate_flight run_slam evaluate_trajectory
 
 .PHONY: all deps configure build test demo release clean
 

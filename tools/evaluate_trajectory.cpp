@@ -1,16 +1,18 @@
 // evaluate_trajectory: ATE / RPE of one or more estimated trajectories against a reference (TUM
-// files), with the ARCHE protocol by default (estimate interpolated at the reference stamps,
-// x-y-z-yaw alignment), a PNG plot, and optionally the accuracy and completeness of a
-// reconstructed mesh against a ground-truth mesh.
+// files, or a topic of a ROS bag: PointStamped fixes or Odometry), with the ARCHE protocol by
+// default (estimate interpolated at the reference stamps, x-y-z-yaw alignment), a PNG plot, and
+// optionally the accuracy and completeness of a reconstructed mesh against a ground-truth mesh.
 #include <cstdio>
 #include <iostream>
 #include <sstream>
 #include <string>
 #include <vector>
 
+#include "bag_scan_source.h"
 #include "command_line.h"
 #include "covoxslam/core/error.h"
 #include "covoxslam/io/ply_reader.h"
+#include "covoxslam/io/rosbag_reader.h"
 #include "covoxslam/io/trajectory_io.h"
 #include "png_plot.h"
 #include "sim_reconstruction_evaluation.h"
@@ -24,6 +26,7 @@ const char kUsage[] =
     "usage: evaluate_trajectory --reference GT.tum --estimate A.tum[,B.tum...] [options]\n"
     "       evaluate_trajectory --mesh RECONSTRUCTION.ply --gt-mesh WORLD.ply [options]\n"
     "  --labels NAME[,NAME...]   names of the estimates in the table and plot (default: file names)\n"
+    "  --topic T                 trajectory topic of .bag files (default /penguin/piksi_node/enu_pose_fix)\n"
     "  --align MODE              none | translation | 4dof | se3 | sim3 (default 4dof, as ARCHE)\n"
     "  --max-time-gap-s S        largest gap to an estimate pose to interpolate across (default 0.1)\n"
     "  --rpe-delta D             RPE pair spacing (default 10)\n"
@@ -58,7 +61,16 @@ void evaluate_trajectories(tools::CommandLine& args, const std::string& referenc
   const std::vector<std::string> estimate_paths = split_commas(estimates_text);
   std::vector<std::string> labels = split_commas(args.text("--labels", ""));
   const std::string plot_path = args.text("--plot", "");
+  const std::string topic = args.text("--topic", "/penguin/piksi_node/enu_pose_fix");
   args.finish();
+  // A .bag is read through its trajectory topic, anything else as a TUM file.
+  auto read_trajectory = [&](const std::string& path) {
+    if (path.size() > 4 && path.compare(path.size() - 4, 4, ".bag") == 0) {
+      io::rosbag::BagReader bag(path);
+      return tools::read_bag_trajectory(bag, topic);
+    }
+    return io::read_tum_trajectory(path);
+  };
   if (estimate_paths.empty()) args.fail("--estimate needs at least one file");
   if (labels.empty()) {
     for (const std::string& path : estimate_paths) labels.push_back(file_stem(path));
@@ -68,7 +80,7 @@ void evaluate_trajectories(tools::CommandLine& args, const std::string& referenc
               std::to_string(estimate_paths.size()));
   }
 
-  const io::Trajectory reference = io::read_tum_trajectory(reference_path);
+  const io::Trajectory reference = read_trajectory(reference_path);
   tools::TrajectoryFigure figure;
   figure.top_view_m.push_back({"REFERENCE", tools::Rgb{60, 60, 60}, {}});
   for (const io::StampedPose& pose : reference.poses) {
@@ -82,7 +94,7 @@ void evaluate_trajectories(tools::CommandLine& args, const std::string& referenc
               "ATE mean", "ATE median", "ATE max", "RPE rmse m", "RPE rmse deg");
   const double start_s = reference.empty() ? 0.0 : reference.poses.front().timestamp_s;
   for (size_t k = 0; k < estimate_paths.size(); ++k) {
-    const io::Trajectory estimate = io::read_tum_trajectory(estimate_paths[k]);
+    const io::Trajectory estimate = read_trajectory(estimate_paths[k]);
     const tools::TrajectoryEvaluation evaluation = tools::evaluate_trajectory(reference, estimate, options);
     const tools::ErrorStatistics& ate = evaluation.absolute_position_m;
     const tools::RelativePoseError& rpe = evaluation.relative;

@@ -1,8 +1,8 @@
-// map_flight: maps a simulated flight (simulate_flight's flight.covoxsim) the way the SLAM front
-// end does, without any drift correction: every scan is fused into a TSDF at its odometry pose
-// (or its true pose, for the reference map), the ESDF and the mesh follow incrementally. Prints
-// per-module timings, the map size and the odometry's ATE against the truth, and writes the mesh.
-// This is the mapping half of the demo; the backend that removes the drift comes on top of it.
+// map_flight: maps a flight bag (simulate_flight's flight.bag, or any bag run_slam reads) the way
+// the SLAM front end does, without any drift correction: every scan is fused into one TSDF at its
+// odometry pose (or its true pose from a TUM file, for the reference map), the ESDF and the mesh
+// follow incrementally. Prints per-module timings, the map size and the odometry's ATE against the
+// bag's reference, and writes the mesh. run_slam is the same with submaps and drift correction.
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -19,7 +19,8 @@
 #include "covoxslam/integrators/tsdf_integrator.h"
 #include "covoxslam/io/mesh_ply.h"
 #include "covoxslam/map/tsdf_map.h"
-#include "sim_flight_file.h"
+#include "bag_scan_source.h"
+#include "covoxslam/io/trajectory_io.h"
 #include "trajectory_evaluation.h"
 
 namespace {
@@ -28,9 +29,10 @@ using namespace covox;
 using Clock = std::chrono::steady_clock;
 
 const char kUsage[] =
-    "usage: map_flight [--flight FILE] [options]\n"
-    "  --flight FILE          simulated flight (default sim_flight/flight.covoxsim)\n"
+    "usage: map_flight [--bag FILE] [options]\n"
+    "  --bag FILE             flight bag with the ARCHE layout (default sim_flight/flight.bag)\n"
     "  --poses odometry|truth which poses to fuse the scans at (default odometry)\n"
+    "  --truth FILE.tum       cloud-frame poses for --poses truth (default truth.tum next to the bag)\n"
     "  --device auto|cpu|cuda (default auto)\n"
     "  --voxel-size-m S       (default 0.2, voxgraph's ARCHE setting)\n"
     "  --truncation-m T       (default 0.6)\n"
@@ -69,8 +71,11 @@ void draw_progress(size_t done, size_t total, double elapsed_s) {
 
 int main(int argc, char** argv) {
   tools::CommandLine args(argc, argv, kUsage);
-  const std::string flight_path = args.text("--flight", "sim_flight/flight.covoxsim");
+  const std::string flight_path = args.text("--bag", "sim_flight/flight.bag");
   const std::string pose_source = args.text("--poses", "odometry");
+  const size_t slash = flight_path.find_last_of('/');
+  const std::string truth_path =
+      args.text("--truth", (slash == std::string::npos ? std::string() : flight_path.substr(0, slash + 1)) + "truth.tum");
   const std::string device_text = args.text("--device", "auto");
   const double voxel_size_m = args.number("--voxel-size-m", 0.2);
   const double truncation_m = args.number("--truncation-m", 0.6);
@@ -85,9 +90,10 @@ int main(int argc, char** argv) {
 
   try {
     const Device device = select_device(parse_device_request(device_text));
-    sim::FlightFileReader reader(flight_path);
-    const size_t total = max_scans > 0 ? std::min<size_t>(max_scans, reader.header().scan_count)
-                                       : reader.header().scan_count;
+    tools::BagScanSource reader(flight_path, tools::BagScanOptions());
+    const size_t total = max_scans > 0 ? std::min<size_t>(max_scans, reader.size()) : reader.size();
+    io::Trajectory truth_poses;
+    if (pose_source == "truth") truth_poses = io::read_tum_trajectory(truth_path);
     TsdfMapConfig map_config;
     map_config.voxel_size_m = static_cast<float>(voxel_size_m);
     map_config.voxels_per_side = 16;
@@ -107,18 +113,30 @@ int main(int argc, char** argv) {
 
     ModuleTimer read_timer{"read scan"}, tsdf_timer{"tsdf integrate"}, esdf_timer{"esdf update"},
         mesh_timer{"mesh update"}, final_timer{"final mesh"};
-    std::vector<sim::StampedIsometry> truth, odometry;
+    io::Trajectory odometry;
     int64_t points = 0;
-    sim::FlightScan scan;
+    int64_t scans_without_truth = 0;
+    tools::SourceScan scan;
     const auto start = Clock::now();
     for (size_t k = 0; k < total; ++k) {
       bool have = false;
       timed(&read_timer, stream, [&] { have = reader.next(&scan); });
       if (!have) break;
-      truth.push_back({scan.stamp_s, scan.truth});
-      odometry.push_back({scan.stamp_s, scan.odometry});
+      io::StampedPose stamped;
+      stamped.timestamp_s = scan.stamp_s;
+      stamped.position_m = scan.T_odom_sensor.translation();
+      stamped.orientation = Eigen::Quaterniond(scan.T_odom_sensor.linear());
+      odometry.poses.push_back(stamped);
       points += static_cast<int64_t>(scan.points_sensor_m.size());
-      const Eigen::Isometry3d& pose = pose_source == "truth" ? scan.truth : scan.odometry;
+      Eigen::Isometry3d pose = scan.T_odom_sensor;
+      if (pose_source == "truth") {
+        if (!tools::interpolate_pose(truth_poses, scan.stamp_s, &stamped)) {
+          ++scans_without_truth;
+          continue;
+        }
+        pose.linear() = stamped.orientation.normalized().toRotationMatrix();
+        pose.translation() = stamped.position_m;
+      }
       timed(&tsdf_timer, stream, [&] { tsdf.integrate(map, scan.points_sensor_m, {}, pose); });
       if ((k + 1) % esdf_every == 0) timed(&esdf_timer, stream, [&] { esdf.update(map, stream); });
       if ((k + 1) % mesh_every == 0) timed(&mesh_timer, stream, [&] { mesher.update(map, stream); });
@@ -134,12 +152,15 @@ int main(int argc, char** argv) {
     const double wall_s = std::chrono::duration<double>(Clock::now() - start).count();
     io::write_mesh_ply(mesh_path, mesh);
 
-    const size_t scans = truth.size();
-    const double flight_s =
-        scans > 1 ? truth.back().stamp_s - truth.front().stamp_s + (truth[1].stamp_s - truth[0].stamp_s) : 0.0;
+    const size_t scans = odometry.size();
+    const double flight_s = reader.duration_s() * scans / std::max<size_t>(1, reader.size());
     std::printf("device: %s\n", describe_device(device).c_str());
-    std::printf("flight: %s, %zu scans (%.1f s simulated), %.0f points/scan, fused at %s poses\n",
-                flight_path.c_str(), scans, flight_s, scans ? double(points) / scans : 0.0, pose_source.c_str());
+    std::printf("flight: %s, %zu scans (%.1f s), %.0f points/scan, fused at %s poses\n", flight_path.c_str(), scans,
+                flight_s, scans ? double(points) / scans : 0.0, pose_source.c_str());
+    if (scans_without_truth + reader.dropped() > 0) {
+      std::printf("scans skipped: %lld without a truth pose, %lld unreadable or without odometry\n",
+                  static_cast<long long>(scans_without_truth), static_cast<long long>(reader.dropped()));
+    }
     std::printf("\n%-16s %8s %10s %12s\n", "module", "calls", "total s", "ms/call");
     for (const ModuleTimer* t : {&read_timer, &tsdf_timer, &esdf_timer, &mesh_timer, &final_timer}) {
       std::printf("%-16s %8lld %10.2f %12.2f\n", t->name.c_str(), static_cast<long long>(t->calls), t->seconds,
@@ -152,10 +173,10 @@ int main(int argc, char** argv) {
                 static_cast<long long>(map.block_count()), map.voxels_per_side(), voxel_size_m,
                 map.block_count() * map.voxels_per_block() * voxel_bytes / (1024.0 * 1024.0), mesh.triangle_count(),
                 mesh_path.c_str());
-    if (scans >= 3) {
+    if (scans >= 3 && reader.reference().size() >= 3) {
       tools::TrajectoryEvaluationOptions options;
-      const io::Trajectory reference = sim::to_trajectory(truth);
-      const io::Trajectory estimate = sim::to_trajectory(odometry);
+      const io::Trajectory& reference = reader.reference();
+      const io::Trajectory& estimate = odometry;
       for (tools::AlignmentMode mode : {tools::AlignmentMode::kNone, tools::AlignmentMode::kTranslationYaw}) {
         options.alignment = mode;
         const tools::TrajectoryEvaluation evaluation = tools::evaluate_trajectory(reference, estimate, options);

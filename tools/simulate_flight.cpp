@@ -1,9 +1,10 @@
 // simulate_flight: simulates an ARCHE-like flight (figure 8 through a search-and-rescue site,
 // Ouster OS1-64, drifting odometry) and writes, into one folder:
-//   flight.covoxsim   scans with truth and odometry poses (format: tools/lib/sim_flight_file.h)
+//   flight.bag        ROS bag with the ARCHE topic layout (tools/lib/sim_flight_bag.h): clouds,
+//                     tf odom -> imu from the odometry, static LiDAR extrinsics, truth positions
 //   world.ply         the ground-truth world mesh
-//   truth.tum         ground-truth sensor poses (TUM)
-//   odometry.tum      odometry sensor poses (TUM)
+//   truth.tum         ground-truth poses of the cloud frame os1_lidar (TUM)
+//   odometry.tum      odometry poses of os1_lidar (TUM)
 // Deterministic: the same options and seed give byte-identical files.
 #include <chrono>
 #include <cstdio>
@@ -16,7 +17,7 @@
 #include "covoxslam/io/mesh_ply.h"
 #include "covoxslam/io/trajectory_io.h"
 #include "sim_flight.h"
-#include "sim_flight_file.h"
+#include "sim_flight_bag.h"
 #include "sim_lidar.h"
 #include "sim_random.h"
 #include "sim_site.h"
@@ -72,19 +73,22 @@ int main(int argc, char** argv) {
       odometry.resize(max_scans);
     }
     io::write_mesh_ply(output_dir + "/world.ply", site.world.to_mesh());
-    io::write_tum_trajectory(output_dir + "/truth.tum", sim::to_trajectory(truth));
-    io::write_tum_trajectory(output_dir + "/odometry.tum", sim::to_trajectory(odometry));
+    // The trajectories of the cloud frame, which is what run_slam estimates.
+    std::vector<sim::StampedIsometry> truth_lidar = truth, odometry_lidar = odometry;
+    for (size_t k = 0; k < truth.size(); ++k) {
+      truth_lidar[k].pose = truth[k].pose * sim::T_os1_sensor_os1_lidar();
+      odometry_lidar[k].pose = odometry[k].pose * sim::T_os1_sensor_os1_lidar();
+    }
+    io::write_tum_trajectory(output_dir + "/truth.tum", sim::to_trajectory(truth_lidar));
+    io::write_tum_trajectory(output_dir + "/odometry.tum", sim::to_trajectory(odometry_lidar));
 
-    sim::FlightFileWriter writer(output_dir + "/flight.covoxsim", seed, lidar);
+    sim::FlightBagWriter writer(output_dir + "/flight.bag");
     size_t total_points = 0;
     for (size_t k = 0; k < truth.size(); ++k) {
-      sim::FlightScan scan;
-      scan.stamp_s = truth[k].stamp_s;
-      scan.truth = truth[k].pose;
-      scan.odometry = odometry[k].pose;
-      scan.points_sensor_m = sim::simulate_scan(site.world, lidar, truth[k].pose, sim::stream_seed(seed, 0x5CA7, k));
-      total_points += scan.points_sensor_m.size();
-      writer.write(scan);
+      const std::vector<Vec3f> points =
+          sim::simulate_scan(site.world, lidar, truth[k].pose, sim::stream_seed(seed, 0x5CA7, k));
+      total_points += points.size();
+      writer.write_scan(truth[k].stamp_s, truth[k].pose, odometry[k].pose, points, {});
       if (k % 20 == 0 || k + 1 == truth.size()) {
         std::fprintf(stderr, "\rsimulating scan %zu / %zu", k + 1, truth.size());
       }
@@ -102,7 +106,8 @@ int main(int argc, char** argv) {
                 path.length_m(), 2.0 * path.lobe_half_length_m(), path.lobe_width_m(), flight.speed_m_per_s,
                 truth.size(), lidar.columns, lidar.rows, truth.empty() ? 0.0 : double(total_points) / truth.size());
     std::printf("odometry drift: final %.2f m, max %.2f m\n", sim::final_drift_m(truth, odometry), max_drift);
-    std::printf("wrote %s/{flight.covoxsim,world.ply,truth.tum,odometry.tum} in %.1f s\n", output_dir.c_str(), seconds);
+    std::printf("wrote %s/{flight.bag,world.ply,truth.tum,odometry.tum} (%llu bag messages) in %.1f s\n",
+                output_dir.c_str(), static_cast<unsigned long long>(writer.message_count()), seconds);
   } catch (const Error& error) {
     std::cerr << "simulate_flight: " << error.what() << std::endl;
     return 1;

@@ -183,5 +183,20 @@ double final_drift_m(const std::vector<StampedIsometry>& truth, const std::vecto
   return (truth.back().pose.translation() - odometry.back().pose.translation()).norm();
 }
 
+io::Trajectory to_trajectory(const std::vector<StampedIsometry>& poses) {
+  io::Trajectory trajectory;
+  trajectory.poses.reserve(poses.size());
+  for (const StampedIsometry& stamped : poses) {
+    io::StampedPose pose;
+    pose.timestamp_s = stamped.stamp_s;
+    pose.position_m = stamped.pose.translation();
+    // Normalised so that a rotation block a little off orthonormal (poses composed over many
+    // steps) still gives the unit quaternion TUM files expect.
+    pose.orientation = Eigen::Quaterniond(stamped.pose.linear()).normalized();
+    trajectory.poses.push_back(pose);
+  }
+  return trajectory;
+}
+
 }  // namespace sim
 }  // namespace covox

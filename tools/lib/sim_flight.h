@@ -14,6 +14,8 @@
 
 #include <Eigen/Geometry>
 
+#include "covoxslam/io/trajectory_io.h"
+
 namespace covox {
 namespace sim {
 
@@ -82,6 +84,10 @@ std::vector<StampedIsometry> simulate_odometry(const std::vector<StampedIsometry
 
 // Distance between the last odometry and truth positions.
 double final_drift_m(const std::vector<StampedIsometry>& truth, const std::vector<StampedIsometry>& odometry);
+
+// A flight's poses as an io::Trajectory with orientations, for TUM files and trajectory
+// evaluation.
+io::Trajectory to_trajectory(const std::vector<StampedIsometry>& poses);
 
 }  // namespace sim
 }  // namespace covox

@@ -1,0 +1,146 @@
+// benchmark_accuracy: the trajectory accuracy of covoxslam against odometry alone on the inputs
+// the project evaluates (issue 7), one offline SLAM run each (tools/lib/slam_run.h), recorded in
+// one report (default docs/benchmarks/accuracy.json):
+//   simulated flight   simulate_flight's bag (if --bag is given): ATE RMSE against the truth
+//   7-Scenes           redkitchen RGB-D, the dataset's poses perturbed by a deterministic drift of
+//                      >= 0.3 m as odometry: ATE RMSE against the dataset's poses
+//   MulRan             Riverside02 keyframes, LiDAR-inertial odometry: distance to
+//                      optimized_poses.txt, another SLAM system's estimate ("distance to
+//                      reference", never accuracy)
+// All with translation + yaw alignment (the ARCHE protocol). The real data is read through
+// COVOX_DATA_DIR (default ../shared/data); a missing dataset is skipped with a message.
+// The real data is non-commercial (7-Scenes: Microsoft's terms; MulRan: its own terms).
+#include <cctype>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <string>
+
+#include "bag_scan_source.h"
+#include "benchmark_report.h"
+#include "command_line.h"
+#include "covoxslam/core/device.h"
+#include "covoxslam/core/error.h"
+#include "covoxslam/io/data_directory.h"
+#include "covoxslam/io/trajectory_io.h"
+#include "dataset_scan_sources.h"
+#include "slam_run.h"
+
+namespace {
+
+using namespace covox;
+
+const char kUsage[] =
+    "usage: benchmark_accuracy [options]\n"
+    "  --device auto|cpu|cuda   (default auto)\n"
+    "  --cases LIST             comma-separated: sim,7scenes,mulran (default all that are available)\n"
+    "  --bag FILE               simulated flight bag for the sim case (default demo_output/flight_seed1_256col/flight.bag)\n"
+    "  --data-dir DIR           shared data (default: COVOX_DATA_DIR or ../shared/data)\n"
+    "  --trajectories-dir DIR   also write each case's trajectories as TUM files there\n"
+    "  --output FILE            report (default docs/benchmarks/accuracy.json)\n";
+
+struct CaseRun {
+  std::string name;
+  std::unique_ptr<tools::ScanSource> source;
+  pipeline::SlamConfig config;
+};
+
+bool wanted(const std::string& cases, const std::string& name) {
+  return cases.empty() || ("," + cases + ",").find("," + name + ",") != std::string::npos;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  tools::CommandLine args(argc, argv, kUsage);
+  const std::string device_text = args.text("--device", "auto");
+  const std::string cases = args.text("--cases", "");
+  const std::string bag_path = args.text("--bag", "demo_output/flight_seed1_256col/flight.bag");
+  const std::string data_dir = args.text("--data-dir", io::data_directory());
+  const std::string trajectories_dir = args.text("--trajectories-dir", "");
+  const std::string output = args.text("--output", "docs/benchmarks/accuracy.json");
+  args.finish();
+
+  try {
+    const Device device = select_device(parse_device_request(device_text));
+    tools::BenchmarkReport report("accuracy", describe_device(device), argc, argv);
+    std::vector<CaseRun> runs;
+    if (wanted(cases, "sim")) {
+      if (std::filesystem::exists(bag_path)) {
+        CaseRun run{"simulated flight", std::make_unique<tools::BagScanSource>(bag_path, tools::BagScanOptions()),
+                    tools::arche_slam_config(device)};
+        runs.push_back(std::move(run));
+      } else {
+        std::printf("skipping the simulated flight: no bag '%s' (make demo writes it)\n", bag_path.c_str());
+      }
+    }
+    const std::string kitchen = data_dir + "/7scenes-redkitchen";
+    if (wanted(cases, "7scenes")) {
+      if (std::filesystem::exists(kitchen)) {
+        tools::RgbdScanOptions options;
+        options.pixel_stride = 4;
+        runs.push_back({"7-Scenes redkitchen", std::make_unique<tools::RgbdScanSource>(kitchen, options), tools::rgbd_slam_config(device)});
+      } else {
+        std::printf("skipping 7-Scenes: no folder '%s'\n", kitchen.c_str());
+      }
+    }
+    const std::string riverside = data_dir + "/mulran-riverside02";
+    if (wanted(cases, "mulran")) {
+      if (std::filesystem::exists(riverside)) {
+        runs.push_back({"MulRan Riverside02",
+                        std::make_unique<tools::LidarKeyframeScanSource>(riverside, tools::LidarKeyframeScanOptions()),
+                        tools::lidar_keyframe_slam_config(device)});
+      } else {
+        std::printf("skipping MulRan: no folder '%s'\n", riverside.c_str());
+      }
+    }
+    if (runs.empty()) throw Error("no case to run (see the messages above)");
+
+    for (CaseRun& run : runs) {
+      std::printf("\n== %s: %s\n", run.name.c_str(), run.source->describe().c_str());
+      std::fflush(stdout);
+      const tools::SlamRunResult result = tools::run_slam_system(*run.source, run.config, tools::SlamRunOptions());
+      tools::print_slam_run(result, stdout);
+      // Keyframes 0.76 s apart: the association tolerance must span one keyframe gap.
+      const tools::SlamRunEvaluation evaluation =
+          tools::evaluate_slam_run(*run.source, result, tools::AlignmentMode::kTranslationYaw, 1.0);
+      const bool truth = run.source->reference_kind() == tools::ReferenceKind::kGroundTruth;
+      const std::string metric = truth ? "ATE RMSE" : "distance to reference RMSE";
+      report.add(run.name, "scans", static_cast<double>(result.scans_given), "");
+      report.add(run.name, "voxel size", run.config.map.voxel_size_m, "m");
+      report.add(run.name, "submaps", static_cast<double>(result.submaps.size()), "");
+      report.add(run.name, "registration constraints", static_cast<double>(result.counters.registration.accepted), "");
+      report.add(run.name, "real-time factor", result.real_time_factor(), "x");
+      if (auto* rgbd = dynamic_cast<tools::RgbdScanSource*>(run.source.get())) {
+        report.add(run.name, "odometry final drift", rgbd->final_drift_m(), "m");
+      }
+      if (evaluation.available) {
+        std::printf("%s (translation + yaw alignment, %zu poses): odometry %.3f m, covoxslam %.3f m\n", metric.c_str(),
+                    evaluation.corrected.aligned.size(), evaluation.odometry.absolute_position_m.rmse,
+                    evaluation.corrected.absolute_position_m.rmse);
+        report.add(run.name, metric + " odometry", evaluation.odometry.absolute_position_m.rmse, "m");
+        report.add(run.name, metric + " covoxslam", evaluation.corrected.absolute_position_m.rmse, "m");
+        report.add(run.name, "max error covoxslam", evaluation.corrected.absolute_position_m.max, "m");
+      } else {
+        std::printf("no evaluation: %s\n", evaluation.problem.c_str());
+      }
+      if (!trajectories_dir.empty()) {
+        std::filesystem::create_directories(trajectories_dir);
+        std::string stem = run.name;
+        for (char& c : stem) c = std::isalnum(static_cast<unsigned char>(c)) ? c : '_';
+        io::write_tum_trajectory(trajectories_dir + "/" + stem + "_covoxslam.tum", result.corrected);
+        io::write_tum_trajectory(trajectories_dir + "/" + stem + "_odometry.tum", result.odometry);
+        io::write_tum_trajectory(trajectories_dir + "/" + stem + "_reference.tum", run.source->reference());
+      }
+    }
+    std::printf("\n");
+    report.print_table(std::cout);
+    report.write_json(output);
+    std::printf("report -> %s\n", output.c_str());
+  } catch (const Error& error) {
+    std::cerr << "benchmark_accuracy: " << error.what() << std::endl;
+    return 1;
+  }
+  return 0;
+}

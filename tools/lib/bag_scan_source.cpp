@@ -1,0 +1,168 @@
+#include "bag_scan_source.h"
+
+#include <algorithm>
+#include <sstream>
+
+#include "covoxslam/core/error.h"
+#include "covoxslam/io/rosbag_messages.h"
+
+namespace covox {
+namespace tools {
+
+namespace rb = io::rosbag;
+
+namespace {
+
+// tf2_msgs/TFMessage and the older tf/tfMessage have the same layout and MD5 sum.
+bool is_tf_type(const std::string& type) { return type == "tf2_msgs/TFMessage" || type == "tf/tfMessage"; }
+
+std::string topic_list(const rb::BagReader& bag) {
+  std::ostringstream list;
+  for (const rb::BagConnection& connection : bag.connections()) {
+    list << "\n  " << connection.topic << " (" << connection.type << ")";
+  }
+  return list.str();
+}
+
+// The type of `topic` in the bag; empty when the bag has no such topic.
+std::string topic_type(const rb::BagReader& bag, const std::string& topic) {
+  for (const rb::BagConnection& connection : bag.connections()) {
+    if (connection.topic == topic) return connection.type;
+  }
+  return std::string();
+}
+
+}  // namespace
+
+io::Trajectory read_bag_trajectory(rb::BagReader& bag, const std::string& topic) {
+  const std::string type = topic_type(bag, topic);
+  const bool positions_only = type == rb::point_stamped_type().name;
+  if (!positions_only && type != rb::odometry_type().name) {
+    throw Error("bag '" + bag.path() + "': trajectory topic '" + topic + "' is " +
+                (type.empty() ? std::string("missing") : "a " + type) +
+                "; geometry_msgs/PointStamped or nav_msgs/Odometry expected. Its topics:" + topic_list(bag));
+  }
+  io::Trajectory trajectory;
+  trajectory.has_orientations = !positions_only;
+  const std::string what = "bag '" + bag.path() + "' " + topic;
+  for (const rb::IndexEntry& entry : bag.index({topic})) {
+    const rb::BagMessage message = bag.read(entry);
+    io::StampedPose pose;
+    if (positions_only) {
+      const rb::PointStampedMessage fix = rb::parse_point_stamped(message.data.data(), message.data.size(), what);
+      pose.timestamp_s = fix.header.stamp.to_seconds();
+      pose.position_m = fix.point;
+    } else {
+      const rb::OdometryMessage odometry = rb::parse_odometry(message.data.data(), message.data.size(), what);
+      pose.timestamp_s = odometry.header.stamp.to_seconds();
+      pose.position_m = odometry.T_parent_child.translation();
+      pose.orientation = Eigen::Quaterniond(odometry.T_parent_child.linear());
+    }
+    // Evaluation needs strictly increasing stamps: a repeated or out-of-order pose is left out.
+    if (!trajectory.poses.empty() && pose.timestamp_s <= trajectory.poses.back().timestamp_s) continue;
+    if (!pose.position_m.allFinite()) continue;
+    trajectory.poses.push_back(pose);
+  }
+  return trajectory;
+}
+
+BagScanSource::BagScanSource(const std::string& path, const BagScanOptions& options)
+    : path_(path), options_(options), bag_(path) {
+  const std::string cloud_type = topic_type(bag_, options_.cloud_topic);
+  if (cloud_type.empty()) {
+    throw Error("bag '" + path + "' has no topic '" + options_.cloud_topic + "' (--cloud-topic); its topics:" +
+                topic_list(bag_));
+  }
+  if (cloud_type != rb::point_cloud2_type().name) {
+    throw Error("bag '" + path + "': topic '" + options_.cloud_topic + "' is a " + cloud_type +
+                ", not a sensor_msgs/PointCloud2");
+  }
+
+  for (const rb::IndexEntry& entry : bag_.index({"/tf", "/tf_static"})) {
+    const rb::BagMessage message = bag_.read(entry);
+    if (!is_tf_type(message.connection->type)) continue;
+    const bool is_static = message.connection->topic == "/tf_static";
+    const rb::TfMessage tf = rb::parse_tf_message(message.data.data(), message.data.size(),
+                                                  "bag '" + path + "' " + message.connection->topic);
+    for (const rb::TransformStamped& transform : tf.transforms) tf_.add(transform, is_static);
+  }
+
+  if (!options_.odometry_topic.empty()) {
+    const std::string type = topic_type(bag_, options_.odometry_topic);
+    if (type != rb::odometry_type().name) {
+      throw Error("bag '" + path + "': odometry topic '" + options_.odometry_topic + "' is " +
+                  (type.empty() ? std::string("missing") : "a " + type) + ", expected nav_msgs/Odometry; its topics:" +
+                  topic_list(bag_));
+    }
+    for (const rb::IndexEntry& entry : bag_.index({options_.odometry_topic})) {
+      const rb::BagMessage message = bag_.read(entry);
+      const rb::OdometryMessage odometry = rb::parse_odometry(message.data.data(), message.data.size(),
+                                                              "bag '" + path + "' " + options_.odometry_topic);
+      tf_.add(odometry.header.frame_id, odometry.child_frame_id, odometry.header.stamp.to_seconds(),
+              odometry.T_parent_child, /*is_static=*/false);
+    }
+  }
+
+  if (!options_.reference_topic.empty() && !topic_type(bag_, options_.reference_topic).empty()) {
+    reference_ = read_bag_trajectory(bag_, options_.reference_topic);
+    if (!reference_.poses.empty()) reference_kind_ = ReferenceKind::kGroundTruth;
+  }
+
+  clouds_ = bag_.index({options_.cloud_topic});
+}
+
+bool BagScanSource::next(SourceScan* scan) {
+  while (next_cloud_ < clouds_.size()) {
+    const rb::IndexEntry entry = clouds_[next_cloud_++];
+    const std::string what = "bag '" + path_ + "' " + options_.cloud_topic + " at " + std::to_string(entry.time.to_seconds()) + " s";
+    try {
+      const rb::BagMessage message = bag_.read(entry);
+      const rb::PointCloud2Message cloud = rb::parse_point_cloud2(message.data.data(), message.data.size(), what);
+      const std::string frame = options_.sensor_frame.empty() ? cloud.header.frame_id : options_.sensor_frame;
+      const double stamp_s = cloud.header.stamp.to_seconds();
+      std::string reason;
+      Eigen::Isometry3d T_odom_sensor;
+      if (!tf_.lookup(options_.odom_frame, frame, stamp_s, &T_odom_sensor, &reason)) {
+        log_dropped_scan(++dropped_, what + ": " + reason);
+        continue;
+      }
+      io::ReadStats stats;
+      const io::PointCloud points = rb::extract_points(cloud, what, &stats);
+      dropped_non_finite_points_ += static_cast<int64_t>(stats.dropped_non_finite_points);
+      scan->stamp_s = stamp_s;
+      scan->T_odom_sensor = T_odom_sensor;
+      scan->colors.clear();
+      scan->points_sensor_m.clear();
+      scan->points_sensor_m.reserve(points.size());
+      const float min_range_squared = static_cast<float>(options_.min_range_m * options_.min_range_m);
+      for (const Eigen::Vector3f& p : points.points_m) {
+        if (p.squaredNorm() < min_range_squared) continue;
+        scan->points_sensor_m.emplace_back(p.x(), p.y(), p.z());
+      }
+      return true;
+    } catch (const Error& error) {
+      log_dropped_scan(++dropped_, error.what());
+    }
+  }
+  return false;
+}
+
+std::string BagScanSource::describe() const {
+  std::ostringstream text;
+  text << "bag " << path_ << ", " << clouds_.size() << " clouds on " << options_.cloud_topic << ", odometry "
+       << (options_.odometry_topic.empty() ? "tf from '" + options_.odom_frame + "'" : "topic " + options_.odometry_topic)
+       << ", " << tf_.dynamic_sample_count() << " dynamic tf samples";
+  if (reference_kind_ != ReferenceKind::kNone) {
+    text << ", reference " << options_.reference_topic << " (" << reference_.size() << " poses)";
+  }
+  return text.str();
+}
+
+double BagScanSource::duration_s() const {
+  if (clouds_.size() < 2) return 0.0;
+  const double span_s = clouds_.back().time.to_seconds() - clouds_.front().time.to_seconds();
+  return span_s * clouds_.size() / (clouds_.size() - 1);  // plus one scan period
+}
+
+}  // namespace tools
+}  // namespace covox

@@ -1,0 +1,60 @@
+#pragma once
+// Scans from a ROS bag: sensor_msgs/PointCloud2 on one topic, each with the odometry pose of the
+// cloud's frame at the cloud's stamp, looked up in the bag's tf tree (/tf and /tf_static) from
+// `odom_frame`, or from nav_msgs/Odometry messages on `odometry_topic` (then the odometry's child
+// frame is connected to the cloud frame through /tf_static). The reference trajectory is read
+// from geometry_msgs/PointStamped (position-only, like ARCHE's RTK fixes) or nav_msgs/Odometry
+// messages on `reference_topic`, whichever type the topic has.
+//
+// The tf and the reference are read first (they are small); then the clouds are read one by one
+// in time order. A cloud whose pose cannot be looked up (tf does not reach its stamp or frame) or
+// whose fields cannot be read is skipped and counted.
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "covoxslam/io/rosbag_reader.h"
+#include "covoxslam/io/rosbag_tf_buffer.h"
+#include "scan_source.h"
+
+namespace covox {
+namespace tools {
+
+struct BagScanOptions {
+  std::string cloud_topic = "/penguin/os1_cloud_node/points";
+  std::string odom_frame = "odom";
+  std::string odometry_topic;  // empty: odometry from tf
+  std::string reference_topic = "/penguin/piksi_node/enu_pose_fix";  // empty or absent: none
+  // The cloud's frame; empty: the frame_id each cloud carries.
+  std::string sensor_frame;
+  // Points nearer than this are the drone's own frame and propellers (ARCHE's launch crops them).
+  double min_range_m = 0.0;
+};
+
+// The poses on `topic`: geometry_msgs/PointStamped (position-only) or nav_msgs/Odometry, stamped
+// with their headers; repeated or out-of-order stamps and non-finite positions are left out.
+// Throws covox::Error for a missing topic or another type, listing the bag's topics.
+io::Trajectory read_bag_trajectory(io::rosbag::BagReader& bag, const std::string& topic);
+
+class BagScanSource : public ScanSource {
+ public:
+  // Throws covox::Error for an unreadable bag, a cloud topic that is missing or not a
+  // PointCloud2, or an odometry/reference topic of an unsupported type.
+  BagScanSource(const std::string& path, const BagScanOptions& options);
+  size_t size() const override { return clouds_.size(); }
+  bool next(SourceScan* scan) override;
+  std::string describe() const override;
+  double duration_s() const override;
+
+ private:
+  std::string path_;
+  BagScanOptions options_;
+  io::rosbag::BagReader bag_;
+  io::rosbag::TfBuffer tf_;
+  std::vector<io::rosbag::IndexEntry> clouds_;
+  size_t next_cloud_ = 0;
+  int64_t dropped_non_finite_points_ = 0;
+};
+
+}  // namespace tools
+}  // namespace covox

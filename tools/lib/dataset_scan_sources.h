@@ -1,0 +1,82 @@
+#pragma once
+// Scans from the dataset folders of the shared data (../shared/data/README.md):
+//
+//  * RGB-D folders (7-Scenes, 3DMatch, Replica; io/rgbd_folder.h): each depth image back-projected
+//    into a point cloud in the camera frame (every `pixel_stride`-th pixel in both directions,
+//    with its colour). The dataset's poses are the reference (ground truth); the odometry is those
+//    poses perturbed by a deterministic drift (random walk with bias in x, y, z and yaw about the
+//    world z axis, the simulator's odometry model) of at least `min_final_drift_m` at the end.
+//    Frame numbers / `frame_rate_hz` are the stamps.
+//
+//  * LiDAR keyframe folders in the MulRan layout: `Scans/NNNNNN.pcd` (point clouds in the sensor
+//    frame), `odom_poses.txt` (KITTI format, sensor-to-world odometry: the odometry),
+//    `optimized_poses.txt` (another SLAM system's estimate: the reference, NOT ground truth) and
+//    `times.txt` (one stamp per scan, seconds).
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "covoxslam/io/rgbd_folder.h"
+#include "scan_source.h"
+
+namespace covox {
+namespace tools {
+
+struct RgbdScanOptions {
+  int pixel_stride = 2;
+  double frame_rate_hz = 30.0;  // Kinect v1
+  double min_final_drift_m = 0.3;
+  uint64_t drift_seed = 1;
+  double max_depth_m = 0.0;  // 0: every valid depth
+  size_t max_frames = 0;     // 0: all
+};
+
+class RgbdScanSource : public ScanSource {
+ public:
+  // Throws covox::Error when the folder is not an RGB-D dataset (io::RgbdFolder::open's message).
+  RgbdScanSource(const std::string& path, const RgbdScanOptions& options);
+  size_t size() const override { return odometry_.size(); }
+  bool next(SourceScan* scan) override;
+  std::string describe() const override;
+  double duration_s() const override { return size() / options_.frame_rate_hz; }
+  // The drift the odometry ends with (m).
+  double final_drift_m() const { return final_drift_m_; }
+
+ private:
+  RgbdScanOptions options_;
+  io::RgbdFolder folder_;
+  std::vector<double> stamps_s_;
+  std::vector<Eigen::Isometry3d> odometry_;
+  double final_drift_m_ = 0.0;
+  size_t next_frame_ = 0;
+};
+
+struct LidarKeyframeScanOptions {
+  double min_range_m = 2.0;  // the car's own body and the sensor mount
+  size_t max_scans = 0;      // 0: all
+};
+
+class LidarKeyframeScanSource : public ScanSource {
+ public:
+  // Throws covox::Error naming the missing or inconsistent file.
+  LidarKeyframeScanSource(const std::string& path, const LidarKeyframeScanOptions& options);
+  size_t size() const override { return odometry_.size(); }
+  bool next(SourceScan* scan) override;
+  std::string describe() const override;
+  double duration_s() const override;
+
+ private:
+  std::string path_;
+  LidarKeyframeScanOptions options_;
+  std::vector<double> stamps_s_;
+  std::vector<Eigen::Isometry3d> odometry_;
+  size_t next_scan_ = 0;
+};
+
+// Opens `path` as whichever dataset layout it holds (RGB-D folder or LiDAR keyframes); throws
+// covox::Error naming the folder and the layouts looked for otherwise.
+std::unique_ptr<ScanSource> open_dataset_scan_source(const std::string& path, const RgbdScanOptions& rgbd_options,
+                                                     const LidarKeyframeScanOptions& lidar_options);
+
+}  // namespace tools
+}  // namespace covox

@@ -1,0 +1,65 @@
+#pragma once
+// A simulated flight as a ROS bag with the ARCHE topic layout (../shared/reference/peers.md), so
+// that the offline runner, `rosbag play` + the nodelet (launch/arche.launch) and any tool made
+// for the real flights take it unchanged:
+//
+//   /penguin/os1_cloud_node/points   sensor_msgs/PointCloud2, frame os1_lidar, float32 x y z
+//   /tf                              odom -> imu from the drifting odometry, at every scan stamp
+//   /tf_static (latched)             imu -> os1_sensor (a small lever arm) and
+//                                    os1_sensor -> os1_lidar (180 degree yaw, as the real OS1-64)
+//   /penguin/piksi_node/enu_pose_fix geometry_msgs/PointStamped, ground-truth position of the
+//                                    LiDAR origin in frame "enu" (the simulated RTK fix has no
+//                                    lever arm and no noise: it is the truth)
+//
+// The simulator's sensor frame is os1_sensor (x forward, z up); its poses are T_world_os1_sensor.
+// The tf for a scan is written before the scan, at the same stamp, so a lookup at the cloud stamp
+// never needs to extrapolate.
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+#include "covoxslam/core/vec3.h"
+#include "covoxslam/io/rosbag_writer.h"
+#include "sim_flight.h"
+
+namespace covox {
+namespace sim {
+
+struct ArcheBagLayout {
+  std::string cloud_topic = "/penguin/os1_cloud_node/points";
+  std::string ground_truth_topic = "/penguin/piksi_node/enu_pose_fix";
+  std::string odom_frame = "odom";
+  std::string imu_frame = "imu";
+  std::string sensor_frame = "os1_sensor";
+  std::string lidar_frame = "os1_lidar";
+  std::string ground_truth_frame = "enu";
+};
+
+// The static extrinsics the bag carries.
+Eigen::Isometry3d T_imu_os1_sensor();
+Eigen::Isometry3d T_os1_sensor_os1_lidar();
+
+class FlightBagWriter {
+ public:
+  // Writes the static transforms; throws covox::Error when the bag cannot be created.
+  FlightBagWriter(const std::string& path, const ArcheBagLayout& layout = ArcheBagLayout());
+  // One scan: tf odom -> imu from `odometry` (T_odom_os1_sensor), the cloud (points in the
+  // os1_sensor frame, rotated into os1_lidar here), intensities (one per point, or empty), and the
+  // ground-truth fix from `truth` (T_world_os1_sensor).
+  void write_scan(double stamp_s, const Eigen::Isometry3d& truth, const Eigen::Isometry3d& odometry,
+                  const std::vector<Vec3f>& points_sensor_m, const std::vector<float>& intensities);
+  void close() { bag_.close(); }
+  uint64_t message_count() const { return bag_.message_count(); }
+
+ private:
+  ArcheBagLayout layout_;
+  io::rosbag::BagWriter bag_;
+  uint32_t cloud_connection_ = 0, tf_connection_ = 0, tf_static_connection_ = 0, truth_connection_ = 0;
+  bool static_written_ = false;
+  uint32_t sequence_ = 0;
+};
+
+}  // namespace sim
+}  // namespace covox

@@ -1,0 +1,223 @@
+#include "slam_run.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <thread>
+
+#include "covoxslam/core/error.h"
+#include "covoxslam/io/map_file.h"
+#include "covoxslam/map/voxels.h"
+
+namespace covox {
+namespace tools {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
+
+void draw_progress(size_t done, size_t total, double elapsed_s, const pipeline::SlamSystem& slam) {
+  const int width = 40;
+  const double fraction = total > 0 ? std::min(1.0, static_cast<double>(done) / total) : 1.0;
+  const int filled = static_cast<int>(fraction * width);
+  const double eta_s = done > 0 ? elapsed_s * (total - std::min(done, total)) / done : 0.0;
+  std::fprintf(stderr, "\r[%s%s] %3.0f%% scan %zu/%zu, %.0f s, ETA %.0f s, queues %zu/%zu ",
+               std::string(filled, '#').c_str(), std::string(width - filled, '.').c_str(), 100.0 * fraction, done,
+               total, elapsed_s, eta_s, slam.sensor_queue_length(), slam.submap_queue_length());
+}
+
+io::StampedPose to_stamped(double stamp_s, const Eigen::Isometry3d& pose) {
+  io::StampedPose stamped;
+  stamped.timestamp_s = stamp_s;
+  stamped.position_m = pose.translation();
+  stamped.orientation = Eigen::Quaterniond(pose.linear()).normalized();
+  return stamped;
+}
+
+void print_timing(FILE* out, const char* name, const pipeline::ModuleTiming& timing) {
+  std::fprintf(out, "%-20s %8lld %10.2f %10.2f %10.2f\n", name, static_cast<long long>(timing.calls), timing.total_s,
+               timing.mean_ms(), 1000.0 * timing.max_s);
+}
+
+}  // namespace
+
+pipeline::SlamConfig arche_slam_config(Device device) {
+  pipeline::SlamConfig config;
+  config.device = device;
+  config.map.voxel_size_m = 0.2f;
+  config.map.voxels_per_side = 16;
+  config.tsdf.truncation_distance_m = 0.6f;
+  config.tsdf.max_ray_length_m = 16.0f;
+  // Constant weight with drop-off and sparsity compensation, so sparse LiDAR surface hits survive
+  // the free-space updates of the many rays that pass them.
+  config.tsdf.use_const_weight = true;
+  config.tsdf.use_weight_dropoff = true;
+  config.tsdf.use_sparsity_compensation_factor = true;
+  config.tsdf.sparsity_compensation_factor = 20.0f;
+  config.submaps.policy = pipeline::SubmapCreationPolicy::kTimeInterval;
+  config.submaps.interval_s = 10.0;
+  return config;
+}
+
+pipeline::SlamConfig rgbd_slam_config(Device device) {
+  pipeline::SlamConfig config = arche_slam_config(device);
+  config.map.voxel_size_m = 0.04f;
+  config.tsdf.truncation_distance_m = 0.12f;
+  config.tsdf.max_ray_length_m = 4.0f;
+  config.tsdf.use_const_weight = false;
+  config.tsdf.use_sparsity_compensation_factor = false;
+  config.tsdf.sparsity_compensation_factor = 1.0f;
+  config.submaps.interval_s = 2.0;
+  return config;
+}
+
+pipeline::SlamConfig lidar_keyframe_slam_config(Device device) {
+  pipeline::SlamConfig config = arche_slam_config(device);
+  config.map.voxel_size_m = 0.5f;
+  config.tsdf.truncation_distance_m = 1.5f;
+  config.tsdf.max_ray_length_m = 40.0f;
+  config.submaps.interval_s = 8.0;
+  return config;
+}
+
+pipeline::SlamConfig preset_slam_config(const std::string& preset, Device device) {
+  if (preset == "arche") return arche_slam_config(device);
+  if (preset == "rgbd") return rgbd_slam_config(device);
+  if (preset == "lidar-keyframes") return lidar_keyframe_slam_config(device);
+  throw Error("unknown preset '" + preset + "' (arche, rgbd or lidar-keyframes)");
+}
+
+SlamRunResult run_slam_system(ScanSource& source, const pipeline::SlamConfig& config, const SlamRunOptions& options) {
+  SlamRunResult result;
+  const size_t total = options.max_scans > 0 ? std::min(options.max_scans, source.size()) : source.size();
+  pipeline::SlamSystem slam(config);
+  const auto start = Clock::now();
+  SourceScan scan;
+  double first_stamp_s = 0.0, last_stamp_s = 0.0;
+  while (result.scans_given < total) {
+    const auto read_start = Clock::now();
+    const bool more = source.next(&scan);
+    result.read_s += seconds_since(read_start);
+    if (!more) break;
+    if (result.scans_given == 0) first_stamp_s = scan.stamp_s;
+    last_stamp_s = scan.stamp_s;
+    result.odometry.poses.push_back(to_stamped(scan.stamp_s, scan.T_odom_sensor));
+    // Back-pressure instead of drops. The submap queue keeps one place free for the submap the
+    // frontend may be closing right now.
+    const auto throttle_start = Clock::now();
+    const size_t submap_limit = std::max<size_t>(1, config.submap_queue_size - 1);
+    while (slam.sensor_queue_length() >= config.sensor_queue_size || slam.submap_queue_length() >= submap_limit) {
+      std::this_thread::sleep_for(std::chrono::microseconds(200));
+    }
+    result.throttle_s += seconds_since(throttle_start);
+    pipeline::Scan input;
+    input.stamp_s = scan.stamp_s;
+    input.T_odom_sensor = scan.T_odom_sensor;
+    input.points_sensor_m = std::move(scan.points_sensor_m);
+    input.colors = std::move(scan.colors);
+    slam.add_scan(std::move(input));
+    ++result.scans_given;
+    if (options.progress_bar && (result.scans_given % 10 == 0 || result.scans_given == total)) {
+      draw_progress(result.scans_given, total, seconds_since(start), slam);
+    }
+  }
+  const auto finish_start = Clock::now();
+  slam.finish();
+  result.finish_s = seconds_since(finish_start);
+  result.wall_s = seconds_since(start);
+  if (options.progress_bar) std::fprintf(stderr, "\n");
+
+  result.scans_dropped_by_source = source.dropped();
+  // The input's time span plus one scan period (what a sensor at that rate takes to deliver it).
+  result.input_duration_s = source.duration_s();
+  if (options.max_scans > 0 || result.input_duration_s <= 0.0) {
+    const size_t n = result.scans_given;
+    result.input_duration_s = n > 1 ? (last_stamp_s - first_stamp_s) * n / (n - 1) : 0.0;
+  }
+  for (const pipeline::StampedPose& pose : slam.corrected_trajectory()) {
+    result.corrected.poses.push_back(to_stamped(pose.stamp_s, pose.T_world_sensor));
+  }
+  result.mesh = slam.combined_mesh();
+  result.counters = slam.counters();
+  result.timings = slam.timings();
+  result.submaps = slam.submaps();
+  const size_t voxels_per_block = static_cast<size_t>(config.map.voxels_per_side) * config.map.voxels_per_side *
+                                  config.map.voxels_per_side;
+  for (const pipeline::SubmapInfo& submap : result.submaps) result.map_blocks += submap.statistics.blocks;
+  result.map_memory_mb = double(result.map_blocks) * voxels_per_block *
+                         (sizeof(TsdfVoxel) + sizeof(ColorVoxel) + sizeof(EsdfVoxel)) / (1024.0 * 1024.0);
+
+  if (!options.map_path.empty()) {
+    io::MapFileContents contents;
+    contents.voxel_size_m = config.map.voxel_size_m;
+    contents.voxels_per_side = config.map.voxels_per_side;
+    contents.has_esdf = true;  // finishing a submap computes its ESDF
+    for (pipeline::SubmapSnapshot& snapshot : slam.submap_snapshots()) {
+      io::SubmapRecord record;
+      record.id = snapshot.id;
+      record.T_world_submap = snapshot.T_world_submap;
+      record.blocks = std::move(snapshot.blocks);
+      contents.submaps.push_back(std::move(record));
+    }
+    io::save_map_file(options.map_path, contents);
+  }
+  return result;
+}
+
+SlamRunEvaluation evaluate_slam_run(const ScanSource& source, const SlamRunResult& result, AlignmentMode alignment,
+                                    double max_time_gap_s) {
+  SlamRunEvaluation evaluation;
+  if (source.reference_kind() == ReferenceKind::kNone || source.reference().size() < 3) {
+    evaluation.problem = "the input has no reference trajectory";
+    return evaluation;
+  }
+  TrajectoryEvaluationOptions options;
+  options.alignment = alignment;
+  options.association.max_time_gap_s = max_time_gap_s;
+  try {
+    evaluation.odometry = evaluate_trajectory(source.reference(), result.odometry, options);
+    evaluation.corrected = evaluate_trajectory(source.reference(), result.corrected, options);
+    evaluation.available = true;
+  } catch (const Error& error) {
+    evaluation.problem = error.what();
+  }
+  return evaluation;
+}
+
+void print_slam_run(const SlamRunResult& result, FILE* out) {
+  const pipeline::SlamCounters& c = result.counters;
+  std::fprintf(out, "submaps: %lld created, %zu in the pose graph, %lld odometry constraints, registration %lld "
+               "accepted of %lld attempted, %lld optimisations\n",
+               static_cast<long long>(c.submaps_created), result.submaps.size(),
+               static_cast<long long>(c.odometry_constraints), static_cast<long long>(c.registration.accepted),
+               static_cast<long long>(c.registration.attempted), static_cast<long long>(c.optimizations));
+  std::fprintf(out, "scans: %zu given, %lld integrated, %lld dropped by the pipeline (queue full %lld, invalid pose "
+               "%lld, empty %lld, bad stamp %lld, failed %lld), %lld dropped while reading; submaps dropped %lld\n",
+               result.scans_given, static_cast<long long>(c.scans_integrated),
+               static_cast<long long>(c.scans_dropped_total()), static_cast<long long>(c.scans_dropped_queue_full),
+               static_cast<long long>(c.scans_dropped_invalid_pose), static_cast<long long>(c.scans_dropped_empty_cloud),
+               static_cast<long long>(c.scans_dropped_bad_stamp), static_cast<long long>(c.scans_failed),
+               static_cast<long long>(result.scans_dropped_by_source),
+               static_cast<long long>(c.submaps_dropped_queue_full));
+  const pipeline::SlamTimings& t = result.timings;
+  std::fprintf(out, "\n%-20s %8s %10s %10s %10s\n", "module", "calls", "total s", "mean ms", "max ms");
+  print_timing(out, "tsdf integrate", t.tsdf);
+  print_timing(out, "esdf (submap)", t.esdf);
+  print_timing(out, "mesh (submap)", t.mesh);
+  print_timing(out, "registration", t.registration);
+  print_timing(out, "backend optimise", t.backend);
+  print_timing(out, "sensor queue wait", t.sensor_queue_wait);
+  print_timing(out, "submap queue wait", t.submap_queue_wait);
+  std::fprintf(out, "%-20s %8s %10.2f   (reading and decoding the input)\n", "read input", "", result.read_s);
+  std::fprintf(out, "%-20s %8s %10.2f   (input held back while a queue was full)\n", "throttle", "", result.throttle_s);
+  std::fprintf(out, "%-20s %8s %10.2f   (flush and final optimisation)\n", "finish", "", result.finish_s);
+  std::fprintf(out, "%-20s %8s %10.2f   (%.1f s of input: %.2f x real time)\n", "total wall", "", result.wall_s,
+               result.input_duration_s, result.real_time_factor());
+  std::fprintf(out, "\nmap: %zu submaps, %zu TSDF blocks (%.1f MB of voxels), mesh %zu triangles\n",
+               result.submaps.size(), result.map_blocks, result.map_memory_mb, result.mesh.triangle_count());
+}
+
+}  // namespace tools
+}  // namespace covox
