@@ -1,12 +1,31 @@
 # The catkin side of the package. Included before any target is defined, because catkin_package()
-# decides where libraries and programs land (the devel space).
+# decides where libraries and programs land (the devel space) and message generation must run
+# before it. The ROS targets themselves (nodelet, node, rostest) come after the library, in
+# CovoxRosTargets.cmake.
 set(COVOX_ROS_ENABLED OFF)
 find_package(catkin QUIET)
 if(NOT catkin_FOUND)
   message(STATUS "covoxslam: catkin not found; building the non-ROS library, tools and tests only")
   return()
 endif()
+
+set(COVOX_ROS_COMPONENTS roscpp nodelet pluginlib tf2 tf2_ros tf2_eigen sensor_msgs nav_msgs geometry_msgs
+    std_msgs std_srvs visualization_msgs diagnostic_msgs message_filters rosbag message_generation)
+find_package(catkin QUIET COMPONENTS ${COVOX_ROS_COMPONENTS})
+if(NOT catkin_FOUND)
+  # catkin is there but a ROS package is not: say which ones the Makefile installs, keep building the rest.
+  message(WARNING "covoxslam: catkin found but not all of [${COVOX_ROS_COMPONENTS}]; the ROS layer is not built "
+                  "(make deps installs them)")
+  return()
+endif()
 set(COVOX_ROS_ENABLED ON)
+
+add_message_files(DIRECTORY msg FILES LoopClosure.msg SubmapPose.msg SubmapPoses.msg)
+add_service_files(DIRECTORY srv FILES FilePath.srv)
+generate_messages(DEPENDENCIES std_msgs geometry_msgs)
+
 catkin_package(
   INCLUDE_DIRS include
-  LIBRARIES covoxslam)
+  LIBRARIES covoxslam covoxslam_ros
+  CATKIN_DEPENDS roscpp nodelet sensor_msgs nav_msgs geometry_msgs std_msgs std_srvs visualization_msgs
+                 diagnostic_msgs message_runtime)

@@ -1,0 +1,49 @@
+#pragma once
+// Conversions between ROS messages and the library's plain types. No logic beyond copying:
+// decoding and checking a cloud's bytes is io::decode_point_cloud's job.
+#include <string>
+#include <vector>
+
+#include <Eigen/Geometry>
+#include <geometry_msgs/Pose.h>
+#include <geometry_msgs/Transform.h>
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
+#include <sensor_msgs/PointCloud2.h>
+#include <visualization_msgs/Marker.h>
+#include <visualization_msgs/MarkerArray.h>
+
+#include "covoxslam/integrators/esdf_queries.h"
+#include "covoxslam/io/depth_image_points.h"
+#include "covoxslam/io/pointcloud_fields.h"
+#include "covoxslam/map/mesh.h"
+#include "covoxslam/pipeline/slam_system.h"
+
+namespace covox {
+namespace ros_layer {
+
+io::PointCloudLayout point_cloud_layout(const sensor_msgs::PointCloud2& cloud);
+io::ImageLayout image_layout(const sensor_msgs::Image& image);
+io::CameraIntrinsics camera_intrinsics(const sensor_msgs::CameraInfo& info);
+
+Eigen::Isometry3d to_isometry(const geometry_msgs::Transform& transform);
+geometry_msgs::Transform to_transform_msg(const Eigen::Isometry3d& pose);
+geometry_msgs::Pose to_pose_msg(const Eigen::Isometry3d& pose);
+
+// A triangle list (three points per triangle, per-vertex colours) in the frame of `pose`.
+visualization_msgs::Marker mesh_marker(const Mesh& mesh, const Eigen::Isometry3d& pose, const std::string& frame,
+                                       const ros::Time& stamp, const std::string& ns, int id);
+// One LINE_LIST marker holding the 12 edges of every box.
+visualization_msgs::Marker bounding_box_marker(const std::vector<pipeline::SubmapInfo>& submaps,
+                                               const std::string& frame, const ros::Time& stamp);
+// Submap origins (SPHERE_LIST) and one LINE_LIST per constraint kind between submap origins,
+// coloured by kind, in the namespace named after the kind.
+visualization_msgs::MarkerArray pose_graph_markers(const std::vector<pipeline::SubmapInfo>& submaps,
+                                                   const std::vector<pipeline::SubmapConstraint>& constraints,
+                                                   const std::string& frame, const ros::Time& stamp);
+// x, y, z and intensity (the signed distance in metres), all FLOAT32, unorganised.
+sensor_msgs::PointCloud2 slice_cloud(const std::vector<SlicePoint>& slice, const std::string& frame,
+                                     const ros::Time& stamp);
+
+}  // namespace ros_layer
+}  // namespace covox

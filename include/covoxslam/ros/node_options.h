@@ -1,0 +1,58 @@
+#pragma once
+// The nodelet's own parameters (frames, topics, waiting, publishing); the SLAM parameters are
+// read by pipeline::read_slam_config(). Every one is documented in config/covoxslam.yaml and
+// docs/ros.md, and checked at start-up with an error naming it.
+#include <string>
+
+#include <Eigen/Geometry>
+#include <ros/node_handle.h>
+
+namespace covox {
+namespace ros_layer {
+
+struct NodeOptions {
+  // Frames (voxgraph's convention: mission -> odom -> base_link -> sensor).
+  std::string mission_frame = "mission";
+  std::string odom_frame = "odom";
+  std::string base_frame = "base_link";
+  // Odometry: tf odom_frame -> base_frame, or a nav_msgs/Odometry topic ("odometry").
+  bool use_tf_for_odometry = true;
+  // Extrinsic: tf base_frame -> the cloud's frame, or the T_base_sensor parameter.
+  bool use_tf_for_extrinsic = true;
+  Eigen::Isometry3d T_base_sensor = Eigen::Isometry3d::Identity();
+  // A cloud waits this long (wall time) for its odometry / tf, then is dropped (counted).
+  double tf_wait_timeout_s = 0.5;
+  // Clouds waiting for tf at most; beyond, the oldest is dropped (counted).
+  int max_pending_clouds = 20;
+  // Odometry topic buffer (use_tf_for_odometry false).
+  double odometry_buffer_s = 30.0;
+  double odometry_max_gap_s = 1.0;
+  // Input decoding.
+  bool use_color = true;
+  bool use_intensity = true;
+  double intensity_max_value = 255.0;
+  bool use_depth_images = false;
+  bool use_color_images = true;
+  int depth_pixel_stride = 1;
+  double depth_max_m = 10.0;
+  // Publishing.
+  bool publish_tf = true;
+  double tf_publish_period_s = 0.05;
+  double visualization_period_s = 1.0;
+  double diagnostics_period_s = 1.0;
+  bool publish_esdf_slices = true;
+  double esdf_slice_height_m = 0.5;
+  bool publish_combined_mesh = true;
+  bool publish_separated_mesh = true;
+  double drop_log_interval_s = 5.0;
+};
+
+// Reads every option the private node handle sets (defaults for the others) and checks them;
+// throws covox::Error naming the first bad parameter.
+NodeOptions read_node_options(const ros::NodeHandle& private_node);
+
+// The option names, so that unknown (misspelt) private parameters can be reported.
+const std::vector<std::string>& node_option_names();
+
+}  // namespace ros_layer
+}  // namespace covox

@@ -1,0 +1,182 @@
+#pragma once
+// SlamNode: the ROS face of pipeline::SlamSystem, shared by the nodelet (covoxslam/
+// CovoxSlamNodelet) and the node wrapper (covoxslam_node). It turns messages into scans, looks up
+// their poses, publishes what the SLAM system knows and serves the map services. Everything that
+// computes lives in the library; this class only converts, waits and publishes.
+//
+// Threads: sensor and odometry callbacks run on the node handle's own queue (the nodelet's
+// single-threaded queue); publishing timers and services run on a second queue with its own
+// spinner thread, because slices and service calls may wait for the SLAM backend and the
+// sensor input must never wait for them. `input_mutex_` guards what both sides touch.
+//
+// A cloud whose pose is not known yet waits (in arrival order) for up to tf_wait_timeout_s of
+// wall time; then it is dropped and counted, with a rate-limited warning that names the frames
+// and tf's reason (unknown frame, extrapolation).
+#include <deque>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include <diagnostic_msgs/DiagnosticArray.h>
+#include <message_filters/subscriber.h>
+#include <message_filters/sync_policies/approximate_time.h>
+#include <message_filters/synchronizer.h>
+#include <nav_msgs/Odometry.h>
+#include <ros/callback_queue.h>
+#include <ros/ros.h>
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
+#include <sensor_msgs/PointCloud2.h>
+#include <std_srvs/Trigger.h>
+#include <tf2_ros/buffer.h>
+#include <tf2_ros/transform_broadcaster.h>
+#include <tf2_ros/transform_listener.h>
+
+#include "covoxslam/FilePath.h"
+#include "covoxslam/LoopClosure.h"
+#include "covoxslam/pipeline/drop_counter.h"
+#include "covoxslam/pipeline/slam_system.h"
+#include "covoxslam/pipeline/stamped_pose_buffer.h"
+#include "covoxslam/ros/node_options.h"
+
+namespace covox {
+namespace ros_layer {
+
+// Drops the node counts itself (the SLAM system counts its own, see SlamCounters).
+struct InputDropCounters {
+  pipeline::DropCounter bad_layout;        // PointCloud2 without x/y/z, wrong point step, short data
+  pipeline::DropCounter empty_cloud;       // no finite point left
+  pipeline::DropCounter bad_image;         // depth/colour image or camera info not usable
+  pipeline::DropCounter tf_timeout;        // the pose did not arrive within tf_wait_timeout_s
+  pipeline::DropCounter unknown_frame;     // the cloud's frame (or odom/base) is not in tf at all
+  pipeline::DropCounter pose_unavailable;  // older than the tf / odometry buffer, or in a gap
+  pipeline::DropCounter pending_overflow;  // more than max_pending_clouds waiting
+  pipeline::DropCounter rejected_by_slam;  // SlamSystem::add_scan refused it (see its counters)
+  pipeline::DropCounter bad_odometry;      // odometry messages not usable (time backwards, NaN)
+  pipeline::DropCounter loop_closures_rejected;
+  explicit InputDropCounters(double interval_s)
+      : bad_layout(interval_s), empty_cloud(interval_s), bad_image(interval_s), tf_timeout(interval_s),
+        unknown_frame(interval_s), pose_unavailable(interval_s), pending_overflow(interval_s),
+        rejected_by_slam(interval_s), bad_odometry(interval_s), loop_closures_rejected(interval_s) {}
+};
+
+class SlamNode {
+ public:
+  // Reads and checks every parameter of `private_node` (throws covox::Error naming a bad one),
+  // starts the SLAM system, subscribes, advertises and starts the timers.
+  SlamNode(ros::NodeHandle node, ros::NodeHandle private_node);
+  ~SlamNode();
+  SlamNode(const SlamNode&) = delete;
+  SlamNode& operator=(const SlamNode&) = delete;
+
+ private:
+  // A cloud (or unprojected depth image) waiting for its pose.
+  struct PendingScan {
+    ros::Time stamp;
+    std::string frame;
+    std::vector<Vec3f> points_m;
+    std::vector<Rgb8> colors;
+    ros::WallTime received;
+  };
+  enum class PoseResult { kReady, kWait, kDrop };
+
+  // ---- Input (slam_node_input.cpp) ----
+  void cloud_callback(const sensor_msgs::PointCloud2::ConstPtr& cloud);
+  void depth_callback(const sensor_msgs::Image::ConstPtr& depth, const sensor_msgs::CameraInfo::ConstPtr& info);
+  void depth_color_callback(const sensor_msgs::Image::ConstPtr& depth, const sensor_msgs::CameraInfo::ConstPtr& info,
+                            const sensor_msgs::Image::ConstPtr& color);
+  void odometry_callback(const nav_msgs::Odometry::ConstPtr& odometry);
+  void loop_closure_callback(const covoxslam::LoopClosure::ConstPtr& closure);
+  void enqueue_locked(PendingScan scan);
+  // Hands every pending scan whose pose is known to the SLAM system, in order; drops the ones
+  // that timed out or can never be answered. Needs input_mutex_.
+  void process_pending_locked();
+  // T_odom_sensor of `scan`, or why not (the drop is counted and logged here).
+  PoseResult sensor_pose_locked(const PendingScan& scan, Eigen::Isometry3d* T_odom_sensor);
+  void count_drop(pipeline::DropCounter& counter, const std::string& what);
+
+  // ---- Output (slam_node_output.cpp) ----
+  void publish_tf(const ros::WallTimerEvent&);
+  void publish_visualization(const ros::WallTimerEvent&);
+  void publish_diagnostics(const ros::WallTimerEvent&);
+  // Publishes path, submap poses, meshes (changed submaps only unless `force`), boxes, graph and
+  // slices. Visualisation thread only.
+  void publish_map(bool force);
+  void clear_published_markers();
+
+  // ---- Services (slam_node_services.cpp) ----
+  bool save_map(covoxslam::FilePath::Request& request, covoxslam::FilePath::Response& response);
+  bool load_map(covoxslam::FilePath::Request& request, covoxslam::FilePath::Response& response);
+  bool save_trajectory(covoxslam::FilePath::Request& request, covoxslam::FilePath::Response& response);
+  bool save_mesh(covoxslam::FilePath::Request& request, covoxslam::FilePath::Response& response);
+  bool generate_mesh(std_srvs::Trigger::Request& request, std_srvs::Trigger::Response& response);
+  bool finish_map(std_srvs::Trigger::Request& request, std_srvs::Trigger::Response& response);
+  bool optimize_pose_graph(std_srvs::Trigger::Request& request, std_srvs::Trigger::Response& response);
+  bool reset(std_srvs::Trigger::Request& request, std_srvs::Trigger::Response& response);
+
+  ros::NodeHandle node_;
+  ros::NodeHandle private_node_;
+  // The second queue: timers and services (see the class comment).
+  ros::CallbackQueue output_queue_;
+  ros::NodeHandle output_node_;
+  std::unique_ptr<ros::AsyncSpinner> output_spinner_;
+
+  NodeOptions options_;
+  std::unique_ptr<pipeline::SlamSystem> slam_;
+
+  tf2_ros::Buffer tf_buffer_;
+  std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
+  tf2_ros::TransformBroadcaster tf_broadcaster_;
+
+  // Input side, guarded by input_mutex_.
+  std::mutex input_mutex_;
+  std::deque<PendingScan> pending_;
+  pipeline::StampedPoseBuffer odometry_buffer_;
+  InputDropCounters drops_;
+  int64_t clouds_received_ = 0;
+  int64_t scans_added_ = 0;
+  ros::Time last_added_stamp_;
+
+  ros::Subscriber cloud_subscriber_;
+  ros::Subscriber odometry_subscriber_;
+  ros::Subscriber loop_closure_subscriber_;
+  using DepthPolicy = message_filters::sync_policies::ApproximateTime<sensor_msgs::Image, sensor_msgs::CameraInfo>;
+  using DepthColorPolicy = message_filters::sync_policies::ApproximateTime<sensor_msgs::Image, sensor_msgs::CameraInfo,
+                                                                           sensor_msgs::Image>;
+  std::unique_ptr<message_filters::Subscriber<sensor_msgs::Image>> depth_subscriber_;
+  std::unique_ptr<message_filters::Subscriber<sensor_msgs::CameraInfo>> info_subscriber_;
+  std::unique_ptr<message_filters::Subscriber<sensor_msgs::Image>> color_subscriber_;
+  std::unique_ptr<message_filters::Synchronizer<DepthPolicy>> depth_sync_;
+  std::unique_ptr<message_filters::Synchronizer<DepthColorPolicy>> depth_color_sync_;
+  ros::WallTimer pending_timer_;
+
+  // Output side (visualisation thread only).
+  ros::Publisher path_publisher_;
+  ros::Publisher submap_poses_publisher_;
+  ros::Publisher combined_mesh_publisher_;
+  ros::Publisher separated_mesh_publisher_;
+  ros::Publisher bounding_boxes_publisher_;
+  ros::Publisher pose_graph_publisher_;
+  ros::Publisher esdf_slice_publisher_;
+  ros::Publisher submap_esdf_slice_publisher_;
+  ros::Publisher diagnostics_publisher_;
+  ros::WallTimer tf_timer_;
+  ros::WallTimer visualization_timer_;
+  ros::WallTimer diagnostics_timer_;
+  std::vector<ros::ServiceServer> services_;
+  // What each published per-submap marker showed, to re-publish only changed ones.
+  struct PublishedSubmap {
+    Eigen::Isometry3d T_world_submap;
+    int64_t mesh_triangles;
+  };
+  std::map<int64_t, PublishedSubmap> published_submaps_;
+  size_t published_trajectory_size_ = 0;
+  bool map_changed_ = true;
+  int64_t last_dropped_total_ = 0;
+  ros::Time last_tf_stamp_;
+};
+
+}  // namespace ros_layer
+}  // namespace covox

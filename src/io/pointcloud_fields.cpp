@@ -1,0 +1,169 @@
+#include "covoxslam/io/pointcloud_fields.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+namespace covox {
+namespace io {
+
+namespace {
+
+const PointFieldDescription* find_field(const PointCloudLayout& layout, const char* name) {
+  for (const PointFieldDescription& field : layout.fields) {
+    if (field.name == name) return &field;
+  }
+  return nullptr;
+}
+
+CloudDecodeResult failure(CloudDecodeStatus status, std::string message) {
+  return CloudDecodeResult{status, std::move(message)};
+}
+
+// One element of a numeric field as a double (little-endian data; memcpy because fields of
+// foreign clouds need not be aligned).
+double read_number(const uint8_t* at, uint8_t datatype) {
+  switch (static_cast<PointFieldType>(datatype)) {
+    case PointFieldType::kInt8: { int8_t v; std::memcpy(&v, at, 1); return v; }
+    case PointFieldType::kUint8: return *at;
+    case PointFieldType::kInt16: { int16_t v; std::memcpy(&v, at, 2); return v; }
+    case PointFieldType::kUint16: { uint16_t v; std::memcpy(&v, at, 2); return v; }
+    case PointFieldType::kInt32: { int32_t v; std::memcpy(&v, at, 4); return v; }
+    case PointFieldType::kUint32: { uint32_t v; std::memcpy(&v, at, 4); return v; }
+    case PointFieldType::kFloat32: { float v; std::memcpy(&v, at, 4); return v; }
+    case PointFieldType::kFloat64: { double v; std::memcpy(&v, at, 8); return v; }
+  }
+  return 0.0;
+}
+
+}  // namespace
+
+size_t point_field_type_size(uint8_t datatype) {
+  switch (datatype) {
+    case 1: case 2: return 1;
+    case 3: case 4: return 2;
+    case 5: case 6: case 7: return 4;
+    case 8: return 8;
+    default: return 0;
+  }
+}
+
+const char* to_string(CloudDecodeStatus status) {
+  switch (status) {
+    case CloudDecodeStatus::kOk: return "ok";
+    case CloudDecodeStatus::kMissingXyz: return "missing x/y/z field";
+    case CloudDecodeStatus::kXyzNotFloat32: return "x/y/z not FLOAT32";
+    case CloudDecodeStatus::kUnknownFieldType: return "unknown field datatype";
+    case CloudDecodeStatus::kPointStepTooSmall: return "point step too small for its fields";
+    case CloudDecodeStatus::kRowStepTooSmall: return "row step too small for its points";
+    case CloudDecodeStatus::kDataTooShort: return "data shorter than the cloud's size";
+    case CloudDecodeStatus::kBigEndian: return "big-endian data";
+  }
+  return "unknown";
+}
+
+CloudDecodeResult check_point_cloud_layout(const PointCloudLayout& layout, size_t data_size) {
+  if (layout.is_bigendian) {
+    return failure(CloudDecodeStatus::kBigEndian, "the cloud is big-endian; only little-endian clouds are read");
+  }
+  for (const char* axis : {"x", "y", "z"}) {
+    const PointFieldDescription* field = find_field(layout, axis);
+    if (!field) {
+      return failure(CloudDecodeStatus::kMissingXyz,
+                     std::string("the cloud has no '") + axis + "' field (x, y and z FLOAT32 are required)");
+    }
+    if (field->datatype != static_cast<uint8_t>(PointFieldType::kFloat32) || field->count != 1) {
+      return failure(CloudDecodeStatus::kXyzNotFloat32,
+                     std::string("field '") + axis + "' has datatype " + std::to_string(field->datatype) +
+                         " and count " + std::to_string(field->count) + "; x, y and z must be one FLOAT32 (7) each");
+    }
+  }
+  // Every field must lie inside one point: a driver that got its point step wrong would
+  // otherwise make us read the next point's bytes (or past the buffer) as this point's.
+  for (const PointFieldDescription& field : layout.fields) {
+    const size_t element_size = point_field_type_size(field.datatype);
+    if (element_size == 0) {
+      return failure(CloudDecodeStatus::kUnknownFieldType, "field '" + field.name + "' has unknown datatype " +
+                                                               std::to_string(field.datatype));
+    }
+    const uint64_t end = static_cast<uint64_t>(field.offset) + element_size * static_cast<uint64_t>(field.count);
+    if (end > layout.point_step) {
+      return failure(CloudDecodeStatus::kPointStepTooSmall,
+                     "field '" + field.name + "' ends at byte " + std::to_string(end) + " but the point step is " +
+                         std::to_string(layout.point_step) + " bytes");
+    }
+  }
+  const uint64_t row_bytes = static_cast<uint64_t>(layout.width) * layout.point_step;
+  if (layout.height > 0 && layout.row_step < row_bytes) {
+    return failure(CloudDecodeStatus::kRowStepTooSmall,
+                   "row step " + std::to_string(layout.row_step) + " bytes < width " + std::to_string(layout.width) +
+                       " x point step " + std::to_string(layout.point_step));
+  }
+  // The last row needs only its points, not a full row_step (some drivers trim the padding).
+  const uint64_t needed = layout.height == 0 || layout.width == 0
+                              ? 0
+                              : static_cast<uint64_t>(layout.height - 1) * layout.row_step + row_bytes;
+  if (data_size < needed) {
+    return failure(CloudDecodeStatus::kDataTooShort, "the cloud has " + std::to_string(data_size) +
+                                                         " data bytes but its size needs " + std::to_string(needed));
+  }
+  return CloudDecodeResult{};
+}
+
+CloudDecodeResult decode_point_cloud(const PointCloudLayout& layout, const uint8_t* data, size_t data_size,
+                                     const CloudDecodeOptions& options, DecodedCloud* cloud) {
+  *cloud = DecodedCloud{};
+  CloudDecodeResult check = check_point_cloud_layout(layout, data_size);
+  if (!check.ok()) return check;
+
+  const uint32_t x_offset = find_field(layout, "x")->offset;
+  const uint32_t y_offset = find_field(layout, "y")->offset;
+  const uint32_t z_offset = find_field(layout, "z")->offset;
+  const PointFieldDescription* rgb = nullptr;
+  if (options.use_color) {
+    rgb = find_field(layout, "rgb");
+    if (!rgb) rgb = find_field(layout, "rgba");
+    // A packed colour is 4 bytes; anything else is not PCL's convention and is ignored.
+    if (rgb && point_field_type_size(rgb->datatype) * rgb->count != 4) rgb = nullptr;
+  }
+  const PointFieldDescription* intensity =
+      (!rgb && options.use_intensity) ? find_field(layout, "intensity") : nullptr;
+  const double grey_scale = options.intensity_max_value > 0.0f ? 255.0 / options.intensity_max_value : 0.0;
+
+  cloud->has_color = rgb != nullptr;
+  cloud->has_intensity = intensity != nullptr;
+  cloud->points_in = static_cast<int64_t>(layout.width) * layout.height;
+  cloud->points_m.reserve(static_cast<size_t>(cloud->points_in));
+  if (rgb || intensity) cloud->colors.reserve(static_cast<size_t>(cloud->points_in));
+
+  for (uint32_t row = 0; row < layout.height; ++row) {
+    const uint8_t* row_start = data + static_cast<size_t>(row) * layout.row_step;
+    for (uint32_t column = 0; column < layout.width; ++column) {
+      const uint8_t* point = row_start + static_cast<size_t>(column) * layout.point_step;
+      float x, y, z;
+      std::memcpy(&x, point + x_offset, 4);
+      std::memcpy(&y, point + y_offset, 4);
+      std::memcpy(&z, point + z_offset, 4);
+      if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) {
+        ++cloud->dropped_non_finite;
+        continue;
+      }
+      cloud->points_m.emplace_back(x, y, z);
+      if (rgb) {
+        uint32_t packed;
+        std::memcpy(&packed, point + rgb->offset, 4);
+        cloud->colors.push_back(Rgb8{static_cast<uint8_t>((packed >> 16) & 0xff),
+                                     static_cast<uint8_t>((packed >> 8) & 0xff), static_cast<uint8_t>(packed & 0xff)});
+      } else if (intensity) {
+        const double value = read_number(point + intensity->offset, intensity->datatype) * grey_scale;
+        const double clamped = std::isfinite(value) ? std::min(255.0, std::max(0.0, value)) : 0.0;
+        const uint8_t grey = static_cast<uint8_t>(std::lround(clamped));
+        cloud->colors.push_back(Rgb8{grey, grey, grey});
+      }
+    }
+  }
+  return CloudDecodeResult{};
+}
+
+}  // namespace io
+}  // namespace covox

@@ -1,0 +1,103 @@
+// The ROS-facing queries of SlamSystem (the marked block in slam_system.h): per-submap meshes and
+// ESDF slices at a world height. Finished submaps are frozen, so their voxels can be read while
+// backend_mutex_ keeps the graph's structure (and with it the submaps' lifetime) unchanged;
+// state_mutex_ is held only to copy poses and pointers, so the frontend never waits for a slice.
+#include <cmath>
+#include <unordered_map>
+#include <utility>
+
+#include "covoxslam/pipeline/slam_system.h"
+
+namespace covox {
+namespace pipeline {
+
+namespace {
+
+// The ESDF slice of one submap at world height `height_m`, moved into the world frame. Submap
+// frames are gravity aligned (x, y, z, yaw), so a horizontal world plane is a horizontal plane of
+// the submap at height_m - t_z.
+std::vector<SlicePoint> world_slice_of(const Submap& submap, const Eigen::Isometry3d& T_world_submap,
+                                       double height_m, const Stream& stream) {
+  const float z_submap_m = static_cast<float>(height_m - T_world_submap.translation().z());
+  std::vector<SlicePoint> slice = esdf_slice(submap.map(), z_submap_m, stream);
+  const Eigen::Isometry3f T = T_world_submap.cast<float>();
+  for (SlicePoint& point : slice) {
+    const Eigen::Vector3f world = T * Eigen::Vector3f(point.position_m.x, point.position_m.y, point.position_m.z);
+    point.position_m = Vec3f(world.x(), world.y(), static_cast<float>(height_m));
+  }
+  return slice;
+}
+
+}  // namespace
+
+bool SlamSystem::submap_mesh(int64_t id, Mesh* mesh_submap, Eigen::Isometry3d* T_world_submap) const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  for (const GraphSubmap& entry : graph_submaps_) {
+    if (entry.submap && entry.submap->id() == id) {
+      *mesh_submap = entry.submap->mesh();
+      *T_world_submap = entry.submap->T_world_submap();
+      return true;
+    }
+  }
+  return false;
+}
+
+std::vector<SlicePoint> SlamSystem::esdf_slice_world(double height_m) {
+  std::lock_guard<std::mutex> structure_lock(backend_mutex_);
+  std::vector<std::pair<const Submap*, Eigen::Isometry3d>> submaps;
+  {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    for (const GraphSubmap& entry : graph_submaps_) {
+      if (entry.submap) submaps.emplace_back(entry.submap.get(), entry.submap->T_world_submap());
+    }
+  }
+  const double cell_m = config_.map.voxel_size_m;
+  // Cell key: the two grid indices packed into one 64-bit integer.
+  auto key_of = [cell_m](const Vec3f& p) {
+    const int64_t i = static_cast<int64_t>(std::floor(p.x / cell_m));
+    const int64_t j = static_cast<int64_t>(std::floor(p.y / cell_m));
+    return (static_cast<uint64_t>(static_cast<uint32_t>(i)) << 32) | static_cast<uint32_t>(j);
+  };
+  std::unordered_map<uint64_t, SlicePoint> cells;
+  const Stream stream = Stream::create(config_.device);
+  for (const auto& [submap, T_world_submap] : submaps) {
+    for (const SlicePoint& point : world_slice_of(*submap, T_world_submap, height_m, stream)) {
+      const uint64_t key = key_of(point.position_m);
+      auto it = cells.find(key);
+      if (it == cells.end()) {
+        // Reported at the cell centre, so overlapping submaps give one point per cell.
+        SlicePoint centred = point;
+        const double i = std::floor(point.position_m.x / cell_m), j = std::floor(point.position_m.y / cell_m);
+        centred.position_m.x = static_cast<float>((i + 0.5) * cell_m);
+        centred.position_m.y = static_cast<float>((j + 0.5) * cell_m);
+        cells.emplace(key, centred);
+      } else if (point.distance_m < it->second.distance_m) {
+        it->second.distance_m = point.distance_m;
+      }
+    }
+  }
+  std::vector<SlicePoint> merged;
+  merged.reserve(cells.size());
+  for (const auto& cell : cells) merged.push_back(cell.second);
+  return merged;
+}
+
+std::vector<SlicePoint> SlamSystem::esdf_slice_newest_submap(double height_m, int64_t* submap_id) {
+  std::lock_guard<std::mutex> structure_lock(backend_mutex_);
+  const Submap* newest = nullptr;
+  Eigen::Isometry3d T_world_submap = Eigen::Isometry3d::Identity();
+  {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    for (const GraphSubmap& entry : graph_submaps_) {
+      if (entry.submap && (!newest || entry.submap->id() > newest->id())) newest = entry.submap.get();
+    }
+    if (newest) T_world_submap = newest->T_world_submap();
+  }
+  *submap_id = newest ? newest->id() : -1;
+  if (!newest) return {};
+  const Stream stream = Stream::create(config_.device);
+  return world_slice_of(*newest, T_world_submap, height_m, stream);
+}
+
+}  // namespace pipeline
+}  // namespace covox

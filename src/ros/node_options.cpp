@@ -1,0 +1,138 @@
+#include "covoxslam/ros/node_options.h"
+
+#include <cmath>
+#include <vector>
+
+#include "covoxslam/core/error.h"
+#include "covoxslam/ros/ros_parameter_source.h"
+
+namespace covox {
+namespace ros_layer {
+
+namespace {
+
+[[noreturn]] void bad(const std::string& name, const std::string& problem) {
+  throw Error("parameter '" + name + "': " + problem);
+}
+
+void read_frame(const RosParameterSource& source, const std::string& name, std::string* frame) {
+  std::string value;
+  if (!source.get_text(name, &value)) return;
+  if (value.empty()) bad(name, "must not be empty");
+  if (value.front() == '/') value.erase(0, 1);  // tf2 frame ids have no leading slash
+  *frame = value;
+}
+
+void read_flag(const RosParameterSource& source, const std::string& name, bool* flag) {
+  bool value = false;
+  if (source.get_bool(name, &value)) *flag = value;
+}
+
+// A number that must be positive (or >= 0 with allow_zero).
+void read_amount(const RosParameterSource& source, const std::string& name, double* amount, bool allow_zero = false) {
+  double value = 0.0;
+  if (!source.get_number(name, &value)) return;
+  if (!std::isfinite(value) || value < 0.0 || (!allow_zero && value == 0.0)) {
+    bad(name, std::string(allow_zero ? "must be >= 0" : "must be positive") + ", got " + std::to_string(value));
+  }
+  *amount = value;
+}
+
+void read_count(const RosParameterSource& source, const std::string& name, int* count, int minimum) {
+  int64_t value = 0;
+  if (!source.get_integer(name, &value)) return;
+  if (value < minimum || value > 1000000) {
+    bad(name, "must be in [" + std::to_string(minimum) + ", 1000000], got " + std::to_string(value));
+  }
+  *count = static_cast<int>(value);
+}
+
+// [x, y, z, qx, qy, qz, qw] or a row-major 4x4 matrix (voxgraph's T_base_link_sensor).
+Eigen::Isometry3d read_transform(const ros::NodeHandle& node, const std::string& name, const Eigen::Isometry3d& fallback) {
+  if (!node.hasParam(name)) return fallback;
+  std::vector<double> values;
+  if (!node.getParam(name, values)) bad(name, "expected a list of 7 or 16 numbers");
+  for (double v : values) {
+    if (!std::isfinite(v)) bad(name, "contains a non-finite number");
+  }
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  if (values.size() == 7) {
+    const Eigen::Quaterniond q(values[6], values[3], values[4], values[5]);
+    if (std::abs(q.norm() - 1.0) > 1e-3) bad(name, "the quaternion (qx, qy, qz, qw) is not of unit length");
+    T.linear() = q.normalized().toRotationMatrix();
+    T.translation() = Eigen::Vector3d(values[0], values[1], values[2]);
+    return T;
+  }
+  if (values.size() == 16) {
+    Eigen::Matrix4d M;
+    for (int r = 0; r < 4; ++r) {
+      for (int c = 0; c < 4; ++c) M(r, c) = values[4 * r + c];
+    }
+    const Eigen::Matrix3d R = M.topLeftCorner<3, 3>();
+    if ((R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-3 || R.determinant() < 0.0 ||
+        M.row(3).cwiseAbs().sum() - std::abs(M(3, 3)) > 1e-9 || std::abs(M(3, 3) - 1.0) > 1e-9) {
+      bad(name, "the 4x4 matrix is not a rigid transform");
+    }
+    T.matrix() = M;
+    return T;
+  }
+  bad(name, "expected 7 numbers [x, y, z, qx, qy, qz, qw] or 16 (a row-major 4x4 matrix), got " +
+                std::to_string(values.size()));
+}
+
+}  // namespace
+
+const std::vector<std::string>& node_option_names() {
+  static const std::vector<std::string> names = {
+      "mission_frame", "odom_frame", "base_frame", "use_tf_for_odometry", "use_tf_for_extrinsic", "T_base_sensor",
+      "tf_wait_timeout_s", "max_pending_clouds", "odometry_buffer_s", "odometry_max_gap_s", "use_color",
+      "use_intensity", "intensity_max_value", "use_depth_images", "use_color_images", "depth_pixel_stride",
+      "depth_max_m", "publish_tf", "tf_publish_period_s", "visualization_period_s", "diagnostics_period_s",
+      "publish_esdf_slices", "esdf_slice_height_m", "publish_combined_mesh", "publish_separated_mesh",
+      "drop_log_interval_s"};
+  return names;
+}
+
+NodeOptions read_node_options(const ros::NodeHandle& node) {
+  const RosParameterSource source(node);
+  NodeOptions options;
+  read_frame(source, "mission_frame", &options.mission_frame);
+  read_frame(source, "odom_frame", &options.odom_frame);
+  read_frame(source, "base_frame", &options.base_frame);
+  if (options.mission_frame == options.odom_frame) {
+    bad("mission_frame", "must differ from odom_frame ('" + options.odom_frame +
+                             "'): the node publishes the correction between them");
+  }
+  if (options.odom_frame == options.base_frame) bad("base_frame", "must differ from odom_frame");
+  read_flag(source, "use_tf_for_odometry", &options.use_tf_for_odometry);
+  read_flag(source, "use_tf_for_extrinsic", &options.use_tf_for_extrinsic);
+  options.T_base_sensor = read_transform(node, "T_base_sensor", options.T_base_sensor);
+  read_amount(source, "tf_wait_timeout_s", &options.tf_wait_timeout_s, true);
+  read_count(source, "max_pending_clouds", &options.max_pending_clouds, 1);
+  read_amount(source, "odometry_buffer_s", &options.odometry_buffer_s);
+  read_amount(source, "odometry_max_gap_s", &options.odometry_max_gap_s);
+  read_flag(source, "use_color", &options.use_color);
+  read_flag(source, "use_intensity", &options.use_intensity);
+  read_amount(source, "intensity_max_value", &options.intensity_max_value);
+  read_flag(source, "use_depth_images", &options.use_depth_images);
+  read_flag(source, "use_color_images", &options.use_color_images);
+  read_count(source, "depth_pixel_stride", &options.depth_pixel_stride, 1);
+  read_amount(source, "depth_max_m", &options.depth_max_m);
+  read_flag(source, "publish_tf", &options.publish_tf);
+  read_amount(source, "tf_publish_period_s", &options.tf_publish_period_s);
+  read_amount(source, "visualization_period_s", &options.visualization_period_s);
+  read_amount(source, "diagnostics_period_s", &options.diagnostics_period_s);
+  read_flag(source, "publish_esdf_slices", &options.publish_esdf_slices);
+  double height = options.esdf_slice_height_m;
+  if (source.get_number("esdf_slice_height_m", &height)) {
+    if (!std::isfinite(height)) bad("esdf_slice_height_m", "must be a finite height in metres");
+    options.esdf_slice_height_m = height;
+  }
+  read_flag(source, "publish_combined_mesh", &options.publish_combined_mesh);
+  read_flag(source, "publish_separated_mesh", &options.publish_separated_mesh);
+  read_amount(source, "drop_log_interval_s", &options.drop_log_interval_s, true);
+  return options;
+}
+
+}  // namespace ros_layer
+}  // namespace covox

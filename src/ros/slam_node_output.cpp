@@ -1,0 +1,252 @@
+// SlamNode output: the mission -> odom correction on tf, the corrected path, submap poses,
+// meshes (per submap only when changed), bounding boxes, the pose graph, ESDF slices and
+// diagnostics. Runs on the output thread.
+#include <covoxslam/SubmapPoses.h>
+#include <geometry_msgs/TransformStamped.h>
+#include <nav_msgs/Path.h>
+
+#include "covoxslam/ros/message_conversions.h"
+#include "covoxslam/ros/slam_node.h"
+
+namespace covox {
+namespace ros_layer {
+
+namespace {
+
+bool same_pose(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
+  // 1 mm / about 0.06 degrees: below what rviz shows, above solver noise.
+  return (a.translation() - b.translation()).norm() < 1e-3 && (a.linear() - b.linear()).cwiseAbs().maxCoeff() < 1e-3;
+}
+
+diagnostic_msgs::KeyValue entry(const std::string& key, const std::string& value) {
+  diagnostic_msgs::KeyValue pair;
+  pair.key = key;
+  pair.value = value;
+  return pair;
+}
+
+void add_timing(diagnostic_msgs::DiagnosticStatus* status, const std::string& name, const pipeline::ModuleTiming& t) {
+  status->values.push_back(entry(name + "_calls", std::to_string(t.calls)));
+  status->values.push_back(entry(name + "_mean_ms", std::to_string(t.mean_ms())));
+  status->values.push_back(entry(name + "_max_ms", std::to_string(1000.0 * t.max_s)));
+}
+
+}  // namespace
+
+void SlamNode::publish_tf(const ros::WallTimerEvent&) {
+  // tf listeners reject (and warn about) a repeated stamp: with simulated time the clock stands
+  // still before and after a bag, so publish only when it moved.
+  const ros::Time now = ros::Time::now();
+  if (now.isZero() || now <= last_tf_stamp_) return;
+  last_tf_stamp_ = now;
+  geometry_msgs::TransformStamped transform;
+  transform.header.stamp = now;
+  transform.header.frame_id = options_.mission_frame;
+  transform.child_frame_id = options_.odom_frame;
+  transform.transform = to_transform_msg(slam_->T_world_odom());
+  tf_broadcaster_.sendTransform(transform);
+}
+
+void SlamNode::publish_visualization(const ros::WallTimerEvent&) { publish_map(false); }
+
+void SlamNode::clear_published_markers() {
+  visualization_msgs::Marker clear;
+  clear.header.frame_id = options_.mission_frame;
+  clear.header.stamp = ros::Time::now();
+  clear.action = visualization_msgs::Marker::DELETEALL;
+  visualization_msgs::MarkerArray clear_array;
+  clear_array.markers.push_back(clear);
+  separated_mesh_publisher_.publish(clear_array);
+  pose_graph_publisher_.publish(clear_array);
+  combined_mesh_publisher_.publish(clear);
+  bounding_boxes_publisher_.publish(clear);
+  published_submaps_.clear();
+  published_trajectory_size_ = static_cast<size_t>(-1);  // publish the (empty) path again
+  map_changed_ = true;
+}
+
+void SlamNode::publish_map(bool force) {
+  const ros::Time stamp = ros::Time::now();
+  const std::string& frame = options_.mission_frame;
+
+  // Path of corrected sensor poses: whenever a scan was added or poses may have moved.
+  const std::vector<pipeline::StampedPose> trajectory = slam_->corrected_trajectory();
+  const std::vector<pipeline::SubmapInfo> submaps = slam_->submaps();
+
+  // Which submaps changed since they were last published (new, moved, re-meshed).
+  std::vector<const pipeline::SubmapInfo*> changed;
+  for (const pipeline::SubmapInfo& submap : submaps) {
+    auto it = published_submaps_.find(submap.id);
+    if (force || it == published_submaps_.end() || !same_pose(it->second.T_world_submap, submap.T_world_submap) ||
+        it->second.mesh_triangles != submap.mesh_triangles) {
+      changed.push_back(&submap);
+    }
+  }
+  // Submaps that disappeared (reset, load_map) are deleted from rviz.
+  std::vector<int64_t> removed;
+  for (const auto& published : published_submaps_) {
+    bool present = false;
+    for (const pipeline::SubmapInfo& submap : submaps) present = present || submap.id == published.first;
+    if (!present) removed.push_back(published.first);
+  }
+  const bool graph_changed = force || map_changed_ || !changed.empty() || !removed.empty();
+  const bool path_changed = graph_changed || trajectory.size() != published_trajectory_size_;
+
+  if (path_changed) {
+    nav_msgs::Path path;
+    path.header.frame_id = frame;
+    path.header.stamp = stamp;
+    path.poses.reserve(trajectory.size());
+    for (const pipeline::StampedPose& pose : trajectory) {
+      geometry_msgs::PoseStamped stamped;
+      stamped.header.frame_id = frame;
+      stamped.header.stamp.fromSec(pose.stamp_s);
+      stamped.pose = to_pose_msg(pose.T_world_sensor);
+      path.poses.push_back(stamped);
+    }
+    path_publisher_.publish(path);
+    published_trajectory_size_ = trajectory.size();
+  }
+  if (!graph_changed) return;
+  map_changed_ = false;
+
+  covoxslam::SubmapPoses poses;
+  poses.header.frame_id = frame;
+  poses.header.stamp = stamp;
+  for (const pipeline::SubmapInfo& submap : submaps) {
+    covoxslam::SubmapPose pose;
+    pose.id = submap.id;
+    pose.pose = to_pose_msg(submap.T_world_submap);
+    pose.odometry_pose = to_pose_msg(submap.T_odom_submap);
+    pose.start_stamp.fromSec(submap.statistics.start_stamp_s);
+    pose.end_stamp.fromSec(submap.statistics.end_stamp_s);
+    pose.scans = submap.statistics.scans;
+    pose.blocks = submap.statistics.blocks;
+    pose.mesh_triangles = submap.mesh_triangles;
+    poses.submaps.push_back(pose);
+  }
+  submap_poses_publisher_.publish(poses);
+
+  if (options_.publish_separated_mesh) {
+    visualization_msgs::MarkerArray markers;
+    for (int64_t id : removed) {
+      visualization_msgs::Marker deletion;
+      deletion.header.frame_id = frame;
+      deletion.header.stamp = stamp;
+      deletion.ns = "submap_mesh";
+      deletion.id = static_cast<int>(id);
+      deletion.action = visualization_msgs::Marker::DELETE;
+      markers.markers.push_back(deletion);
+    }
+    for (const pipeline::SubmapInfo* submap : changed) {
+      Mesh mesh;
+      Eigen::Isometry3d T_world_submap;
+      if (!slam_->submap_mesh(submap->id, &mesh, &T_world_submap)) continue;
+      // The vertices stay in the submap frame; a moved submap only changes the marker's pose.
+      markers.markers.push_back(mesh_marker(mesh, T_world_submap, frame, stamp, "submap_mesh", static_cast<int>(submap->id)));
+    }
+    if (!markers.markers.empty()) separated_mesh_publisher_.publish(markers);
+  }
+  for (int64_t id : removed) published_submaps_.erase(id);
+  for (const pipeline::SubmapInfo* submap : changed) {
+    published_submaps_[submap->id] = PublishedSubmap{submap->T_world_submap, submap->mesh_triangles};
+  }
+
+  if (options_.publish_combined_mesh && combined_mesh_publisher_.getNumSubscribers() + (force ? 1 : 0) > 0) {
+    combined_mesh_publisher_.publish(
+        mesh_marker(slam_->combined_mesh(), Eigen::Isometry3d::Identity(), frame, stamp, "combined_mesh", 0));
+  }
+  bounding_boxes_publisher_.publish(bounding_box_marker(submaps, frame, stamp));
+  pose_graph_publisher_.publish(pose_graph_markers(submaps, slam_->constraints(), frame, stamp));
+
+  if (options_.publish_esdf_slices) {
+    esdf_slice_publisher_.publish(slice_cloud(slam_->esdf_slice_world(options_.esdf_slice_height_m), frame, stamp));
+    int64_t newest_id = -1;
+    submap_esdf_slice_publisher_.publish(
+        slice_cloud(slam_->esdf_slice_newest_submap(options_.esdf_slice_height_m, &newest_id), frame, stamp));
+  }
+}
+
+void SlamNode::publish_diagnostics(const ros::WallTimerEvent&) {
+  const pipeline::SlamCounters counters = slam_->counters();
+  const pipeline::SlamTimings timings = slam_->timings();
+  diagnostic_msgs::DiagnosticStatus status;
+  status.name = "covoxslam";
+  status.hardware_id = describe_device(slam_->config().device);
+  int64_t node_drops = 0;
+  {
+    std::lock_guard<std::mutex> lock(input_mutex_);
+    const struct {
+      const char* key;
+      const pipeline::DropCounter& counter;
+    } drops[] = {{"clouds_dropped_bad_layout", drops_.bad_layout},
+                 {"clouds_dropped_empty", drops_.empty_cloud},
+                 {"images_dropped_bad", drops_.bad_image},
+                 {"clouds_dropped_tf_timeout", drops_.tf_timeout},
+                 {"clouds_dropped_unknown_frame", drops_.unknown_frame},
+                 {"clouds_dropped_pose_unavailable", drops_.pose_unavailable},
+                 {"clouds_dropped_pending_overflow", drops_.pending_overflow},
+                 {"clouds_refused_by_slam", drops_.rejected_by_slam},
+                 {"odometry_messages_ignored", drops_.bad_odometry},
+                 {"loop_closures_refused", drops_.loop_closures_rejected}};
+    status.values.push_back(entry("clouds_received", std::to_string(clouds_received_)));
+    status.values.push_back(entry("scans_added", std::to_string(scans_added_)));
+    status.values.push_back(entry("clouds_waiting_for_tf", std::to_string(pending_.size())));
+    for (const auto& drop : drops) {
+      status.values.push_back(entry(drop.key, std::to_string(drop.counter.total())));
+      node_drops += drop.counter.total();
+    }
+  }
+  const struct {
+    const char* key;
+    int64_t value;
+  } values[] = {{"sensor_queue_length", static_cast<int64_t>(slam_->sensor_queue_length())},
+                {"submap_queue_length", static_cast<int64_t>(slam_->submap_queue_length())},
+                {"scans_integrated", counters.scans_integrated},
+                {"scans_dropped_total", counters.scans_dropped_total()},
+                {"scans_dropped_queue_full", counters.scans_dropped_queue_full},
+                {"scans_dropped_invalid_pose", counters.scans_dropped_invalid_pose},
+                {"scans_dropped_bad_stamp", counters.scans_dropped_bad_stamp},
+                {"scans_failed", counters.scans_failed},
+                {"points_integrated", counters.points_integrated},
+                {"points_dropped_by_integrator", counters.points_dropped_by_integrator},
+                {"submaps_created", counters.submaps_created},
+                {"submaps_finished", counters.submaps_finished},
+                {"submaps_dropped_queue_full", counters.submaps_dropped_queue_full},
+                {"submaps_failed", counters.submaps_failed},
+                {"submaps_loaded", counters.submaps_loaded},
+                {"odometry_constraints", counters.odometry_constraints},
+                {"registration_attempted", counters.registration.attempted},
+                {"registration_accepted", counters.registration.accepted},
+                {"loop_closures_received", counters.loop_closures.received},
+                {"loop_closures_added", counters.loop_closures.added},
+                {"optimizations", counters.optimizations},
+                {"optimizations_failed", counters.optimizations_failed},
+                {"resets", counters.resets}};
+  for (const auto& value : values) status.values.push_back(entry(value.key, std::to_string(value.value)));
+  add_timing(&status, "tsdf", timings.tsdf);
+  add_timing(&status, "esdf", timings.esdf);
+  add_timing(&status, "mesh", timings.mesh);
+  add_timing(&status, "registration", timings.registration);
+  add_timing(&status, "backend", timings.backend);
+  add_timing(&status, "sensor_queue_wait", timings.sensor_queue_wait);
+  add_timing(&status, "submap_queue_wait", timings.submap_queue_wait);
+
+  // WARN while inputs are being dropped (since the previous report), OK otherwise.
+  const int64_t dropped_total = node_drops + counters.scans_dropped_total() + counters.submaps_dropped_queue_full;
+  if (dropped_total > last_dropped_total_) {
+    status.level = diagnostic_msgs::DiagnosticStatus::WARN;
+    status.message = std::to_string(dropped_total - last_dropped_total_) + " inputs dropped since the last report";
+  } else {
+    status.level = diagnostic_msgs::DiagnosticStatus::OK;
+    status.message = "mapping";
+  }
+  last_dropped_total_ = dropped_total;
+  diagnostic_msgs::DiagnosticArray array;
+  array.header.stamp = ros::Time::now();
+  array.status.push_back(status);
+  diagnostics_publisher_.publish(array);
+}
+
+}  // namespace ros_layer
+}  // namespace covox

@@ -1,0 +1,161 @@
+// SlamNode services: save / load the map, save the trajectory (TUM) and the mesh (PLY), publish
+// the meshes now, finish the map, optimise, reset. They run on the output thread; every failure
+// is answered with success = false and a message saying why (never an exception into roscpp).
+#include <exception>
+#include <functional>
+
+#include "covoxslam/core/error.h"
+#include "covoxslam/io/map_file.h"
+#include "covoxslam/io/mesh_ply.h"
+#include "covoxslam/io/trajectory_io.h"
+#include "covoxslam/ros/slam_node.h"
+
+namespace covox {
+namespace ros_layer {
+
+namespace {
+
+// Runs `action`, turning an exception into a failed response; logs the outcome.
+template <class Response>
+bool answer(const char* service, Response& response, const std::function<std::string()>& action) {
+  try {
+    response.message = action();
+    response.success = true;
+    ROS_INFO_STREAM("covoxslam: " << service << ": " << response.message);
+  } catch (const std::exception& error) {
+    response.success = false;
+    response.message = error.what();
+    ROS_ERROR_STREAM("covoxslam: " << service << " failed: " << response.message);
+  }
+  return true;
+}
+
+std::string require_path(const std::string& path) {
+  if (path.empty()) throw Error("file_path is empty");
+  return path;
+}
+
+}  // namespace
+
+bool SlamNode::save_map(covoxslam::FilePath::Request& request, covoxslam::FilePath::Response& response) {
+  return answer("save_map", response, [&] {
+    const std::string path = require_path(request.file_path);
+    io::MapFileContents contents;
+    contents.voxel_size_m = slam_->config().map.voxel_size_m;
+    contents.voxels_per_side = slam_->config().map.voxels_per_side;
+    contents.has_esdf = true;  // finished submaps carry their ESDF
+    int64_t blocks = 0;
+    for (pipeline::SubmapSnapshot& snapshot : slam_->submap_snapshots()) {
+      io::SubmapRecord record;
+      record.id = snapshot.id;
+      record.T_world_submap = snapshot.T_world_submap;
+      record.blocks = std::move(snapshot.blocks);
+      blocks += static_cast<int64_t>(record.blocks.size());
+      contents.submaps.push_back(std::move(record));
+    }
+    io::save_map_file(path, contents);
+    return "saved " + std::to_string(contents.submaps.size()) + " submaps (" + std::to_string(blocks) +
+           " blocks) to " + path;
+  });
+}
+
+bool SlamNode::load_map(covoxslam::FilePath::Request& request, covoxslam::FilePath::Response& response) {
+  return answer("load_map", response, [&] {
+    const std::string path = require_path(request.file_path);
+    io::MapFileContents contents = io::load_map_file(path);
+    if (contents.voxel_size_m != slam_->config().map.voxel_size_m ||
+        contents.voxels_per_side != slam_->config().map.voxels_per_side) {
+      throw Error("the map in " + path + " has voxel size " + std::to_string(contents.voxel_size_m) + " m and " +
+                  std::to_string(contents.voxels_per_side) + " voxels per side, the running system " +
+                  std::to_string(slam_->config().map.voxel_size_m) + " m and " +
+                  std::to_string(slam_->config().map.voxels_per_side) + " (set voxel_size_m / voxels_per_side)");
+    }
+    std::vector<pipeline::SubmapSnapshot> submaps;
+    for (io::SubmapRecord& record : contents.submaps) {
+      submaps.push_back(pipeline::SubmapSnapshot{record.id, record.T_world_submap, std::move(record.blocks)});
+    }
+    const size_t count = submaps.size();
+    {
+      // Scans waiting for tf belong to the replaced map.
+      std::lock_guard<std::mutex> lock(input_mutex_);
+      pending_.clear();
+    }
+    slam_->load_submaps(std::move(submaps));
+    clear_published_markers();
+    publish_map(true);
+    return "loaded " + std::to_string(count) + " submaps from " + path;
+  });
+}
+
+bool SlamNode::save_trajectory(covoxslam::FilePath::Request& request, covoxslam::FilePath::Response& response) {
+  return answer("save_trajectory", response, [&] {
+    const std::string path = require_path(request.file_path);
+    io::Trajectory trajectory;
+    for (const pipeline::StampedPose& pose : slam_->corrected_trajectory()) {
+      io::StampedPose stamped;
+      stamped.timestamp_s = pose.stamp_s;
+      stamped.position_m = pose.T_world_sensor.translation();
+      stamped.orientation = Eigen::Quaterniond(pose.T_world_sensor.linear()).normalized();
+      trajectory.poses.push_back(stamped);
+    }
+    io::write_tum_trajectory(path, trajectory);
+    return "saved " + std::to_string(trajectory.size()) + " corrected poses (TUM) to " + path;
+  });
+}
+
+bool SlamNode::save_mesh(covoxslam::FilePath::Request& request, covoxslam::FilePath::Response& response) {
+  return answer("save_mesh", response, [&] {
+    const std::string path = require_path(request.file_path);
+    const Mesh mesh = slam_->combined_mesh();
+    io::write_mesh_ply(path, mesh);
+    return "saved " + std::to_string(mesh.triangle_count()) + " triangles (PLY) to " + path;
+  });
+}
+
+bool SlamNode::generate_mesh(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& response) {
+  return answer("generate_mesh", response, [&] {
+    publish_map(true);
+    return "published the meshes of " + std::to_string(slam_->submaps().size()) + " submaps (" +
+           std::to_string(slam_->combined_mesh().triangle_count()) + " triangles)";
+  });
+}
+
+bool SlamNode::finish_map(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& response) {
+  return answer("finish_map", response, [&] {
+    {
+      // What still waits for tf gets one last chance, then the SLAM system is flushed.
+      std::lock_guard<std::mutex> lock(input_mutex_);
+      process_pending_locked();
+    }
+    slam_->finish();
+    publish_map(true);
+    const pipeline::SlamCounters counters = slam_->counters();
+    return "finished: " + std::to_string(counters.scans_integrated) + " scans in " +
+           std::to_string(slam_->submaps().size()) + " submaps, " + std::to_string(counters.optimizations) +
+           " optimisations; later clouds are refused until reset";
+  });
+}
+
+bool SlamNode::optimize_pose_graph(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& response) {
+  return answer("optimize_pose_graph", response, [&] {
+    slam_->request_optimization();
+    return std::string("optimisation requested");
+  });
+}
+
+bool SlamNode::reset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& response) {
+  return answer("reset", response, [&] {
+    {
+      std::lock_guard<std::mutex> lock(input_mutex_);
+      pending_.clear();
+      odometry_buffer_.clear();
+    }
+    slam_->reset();
+    clear_published_markers();
+    publish_map(true);
+    return std::string("the map is empty; mapping continues with the next cloud");
+  });
+}
+
+}  // namespace ros_layer
+}  // namespace covox
