@@ -47,6 +47,9 @@ void validate(const SlamConfig& config) {
           "odometry_yaw_sigma_rad must be positive, got " + std::to_string(config.odometry_yaw_sigma_rad));
   require(config.optimize_every_n_submaps >= 0,
           "optimize_every_n_submaps must be >= 0, got " + std::to_string(config.optimize_every_n_submaps));
+  require(std::isfinite(config.external_stamp_tolerance_s) && config.external_stamp_tolerance_s >= 0.0,
+          "external_stamp_tolerance_s must be >= 0, got " + std::to_string(config.external_stamp_tolerance_s));
+  validate(config.registration);
   if (config.device == Device::kCuda && !cuda_device_available()) {
     throw NotAvailableError("SLAM configuration: device cuda was asked for but no usable GPU is available "
                             "(use device auto or cpu)");
@@ -132,8 +135,8 @@ bool SlamSystem::add_scan(Scan scan) {
     return false;
   }
 
-  std::optional<Scan> dropped;
-  const PushResult result = sensor_queue_.push(std::move(scan), &dropped);
+  std::optional<QueuedScan> dropped;
+  const PushResult result = sensor_queue_.push(QueuedScan{std::move(scan), generation_.load()}, &dropped);
   if (result == PushResult::kRejectedClosed) {
     std::lock_guard<std::mutex> lock(state_mutex_);
     ++counters_.scans_rejected_not_running;
@@ -147,7 +150,7 @@ bool SlamSystem::add_scan(Scan scan) {
     }
     if (should_log_drop(count_after)) {
       log_warning("SLAM: the sensor queue (", config_.sensor_queue_size,
-                  " scans) is full: dropped the oldest scan, at ", dropped ? dropped->stamp_s : 0.0, " s (",
+                  " scans) is full: dropped the oldest scan, at ", dropped ? dropped->scan.stamp_s : 0.0, " s (",
                   count_after, " so far); the frontend is slower than the sensor");
     }
   }
@@ -169,8 +172,12 @@ void SlamSystem::finish() {
   sensor_queue_.close();
   join_threads();
   // The final optimisation runs even when every submap already triggered one: it is what
-  // finish() promises, and later constraint types (registration) will be added just before it.
-  optimize();
+  // finish() promises, and external constraints that were still waiting enter the graph here.
+  {
+    std::lock_guard<std::mutex> backend_lock(backend_mutex_);
+    integrate_pending_constraints_locked(/*final=*/true);
+    optimize_locked();
+  }
   stopped_ = true;
   running_ = false;
 }
@@ -199,15 +206,20 @@ void SlamSystem::join_threads() {
 // ---- Frontend ------------------------------------------------------------------------------------
 
 void SlamSystem::frontend_loop() {
-  Scan scan;
+  QueuedScan queued;
   double waited_s = 0.0;
-  while (sensor_queue_.pop(&scan, &waited_s)) {
+  while (sensor_queue_.pop(&queued, &waited_s)) {
     {
       std::lock_guard<std::mutex> lock(state_mutex_);
       timings_.sensor_queue_wait.add(waited_s);
     }
+    if (queued.generation != generation_.load()) {
+      std::lock_guard<std::mutex> lock(state_mutex_);
+      ++counters_.scans_discarded_at_reset;
+      continue;
+    }
     try {
-      process_scan(scan);
+      process_scan(queued);
     } catch (const std::exception& error) {
       int64_t count_after = 0;
       {
@@ -215,7 +227,7 @@ void SlamSystem::frontend_loop() {
         count_after = ++counters_.scans_failed;
       }
       if (should_log_drop(count_after)) {
-        log_error("SLAM frontend: integrating the scan at ", scan.stamp_s, " s failed: ", error.what());
+        log_error("SLAM frontend: integrating the scan at ", queued.scan.stamp_s, " s failed: ", error.what());
       }
     }
     if (aborted_.load()) break;
@@ -231,7 +243,14 @@ void SlamSystem::frontend_loop() {
   submap_queue_.close();
 }
 
-void SlamSystem::process_scan(const Scan& scan) {
+void SlamSystem::process_scan(const QueuedScan& queued) {
+  const Scan& scan = queued.scan;
+  if (active_submap_ && active_generation_ != queued.generation) {
+    // The map was reset since this submap began: it belongs to the discarded map.
+    active_submap_.reset();
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    ++counters_.submaps_discarded_at_reset;
+  }
   const Eigen::Vector3d position_m = scan.T_odom_sensor.translation();
   if (active_submap_) {
     const double step_m = (position_m - last_position_odom_m_).norm();
@@ -241,10 +260,10 @@ void SlamSystem::process_scan(const Scan& scan) {
   }
   if (!active_submap_) {
     const Eigen::Isometry3d T_odom_submap = gravity_aligned(scan.T_odom_sensor);
-    active_submap_ = std::make_unique<Submap>(next_submap_id_++, config_.device, config_.map, T_odom_submap);
+    active_submap_ = std::make_unique<Submap>(next_submap_id_.fetch_add(1), config_.device, config_.map, T_odom_submap);
+    active_generation_ = queued.generation;
     std::lock_guard<std::mutex> lock(state_mutex_);
     ++counters_.submaps_created;
-    created_submap_poses_.push_back(T_odom_submap);
   }
 
   const auto start = Clock::now();
@@ -262,18 +281,24 @@ void SlamSystem::process_scan(const Scan& scan) {
   last_position_odom_m_ = position_m;
 
   std::lock_guard<std::mutex> lock(state_mutex_);
+  if (queued.generation != generation_.load()) {
+    // reset() ran while this scan was integrated: it went into the discarded map.
+    ++counters_.scans_discarded_at_reset;
+    return;
+  }
   timings_.tsdf.add(integrate_s);
   ++counters_.scans_integrated;
   counters_.points_integrated += stats.points_in;
   counters_.points_dropped_by_integrator += stats.dropped_total();
-  trajectory_.push_back(TrajectoryEntry{scan.stamp_s, active_submap_->id(), scan.T_odom_sensor});
+  trajectory_.push_back(
+      TrajectoryEntry{scan.stamp_s, active_submap_->id(), scan.T_odom_sensor, active_submap_->T_odom_submap()});
 }
 
 void SlamSystem::hand_over_active_submap() {
   if (!active_submap_) return;
-  std::optional<std::unique_ptr<Submap>> dropped;
+  std::optional<QueuedSubmap> dropped;
   const int64_t id = active_submap_->id();
-  const PushResult result = submap_queue_.push(std::move(active_submap_), &dropped);
+  const PushResult result = submap_queue_.push(QueuedSubmap{std::move(active_submap_), active_generation_}, &dropped);
   active_submap_.reset();
   if (result == PushResult::kQueued) return;
   if (result == PushResult::kRejectedClosed) {
@@ -286,108 +311,225 @@ void SlamSystem::hand_over_active_submap() {
     count_after = ++counters_.submaps_dropped_queue_full;
   }
   log_warning("SLAM: the submap queue (", config_.submap_queue_size, " submaps) is full: dropped submap ",
-              (dropped && *dropped) ? (*dropped)->id() : -1, " to queue submap ", id, " (", count_after,
+              (dropped && dropped->submap) ? dropped->submap->id() : -1, " to queue submap ", id, " (", count_after,
               " so far); the backend is slower than the frontend");
 }
 
 // ---- Backend -------------------------------------------------------------------------------------
 
 void SlamSystem::backend_loop() {
-  std::unique_ptr<Submap> submap;
+  QueuedSubmap item;
   double waited_s = 0.0;
-  while (submap_queue_.pop(&submap, &waited_s)) {
-    {
-      std::lock_guard<std::mutex> lock(state_mutex_);
-      timings_.submap_queue_wait.add(waited_s);
-    }
-    try {
-      const SubmapFinishTimes times = submap->finish(esdf_integrator_, mesh_integrator_, backend_stream_);
+  for (;;) {
+    const PopResult popped = submap_queue_.pop_or_wake(&item, &waited_s);
+    if (popped == PopResult::kFinished) break;
+    bool optimize_now = false;
+    if (popped == PopResult::kItem) {
       {
         std::lock_guard<std::mutex> lock(state_mutex_);
-        timings_.esdf.add(times.esdf_s);
-        timings_.mesh.add(times.mesh_s);
-        ++counters_.submaps_finished;
+        timings_.submap_queue_wait.add(waited_s);
       }
-      add_to_pose_graph(std::move(submap));
-    } catch (const std::exception& error) {
-      {
-        std::lock_guard<std::mutex> lock(state_mutex_);
-        ++counters_.submaps_failed;
-      }
-      log_error("SLAM backend: finishing a submap failed: ", error.what());
-      continue;
+      optimize_now = process_submap(std::move(item));
     }
-    const int every = config_.optimize_every_n_submaps;
-    if (every > 0 && !aborted_.load()) {
-      size_t vertices = 0;
-      {
-        std::lock_guard<std::mutex> lock(state_mutex_);
-        vertices = graph_.poses.size();
-      }
-      if (vertices % static_cast<size_t>(every) == 0) optimize();
-    }
+    if (aborted_.load()) break;
+    std::lock_guard<std::mutex> backend_lock(backend_mutex_);
+    const int added = integrate_pending_constraints_locked(/*final=*/false);
+    if (added > 0 && config_.optimize_every_n_submaps > 0) optimize_now = true;
+    if (optimization_requested_.exchange(false)) optimize_now = true;
+    if (optimize_now) optimize_locked();
     if (aborted_.load()) break;
   }
 }
 
-void SlamSystem::add_to_pose_graph(std::unique_ptr<Submap> submap) {
-  std::lock_guard<std::mutex> lock(state_mutex_);
-  const int32_t vertex = static_cast<int32_t>(graph_.poses.size());
-  if (vertex == 0) {
-    // The first submap fixes the gauge at its odometry pose (voxgraph's convention), so the world
-    // frame starts as the odometry frame.
-    graph_.fixed_vertex = 0;
-    graph_.poses.push_back(submap->odometry_pose());
-  } else {
-    const Submap& previous = *graph_submaps_.back();
-    const backend::Pose4Dof measurement = relative_pose_4dof(previous.odometry_pose(), submap->odometry_pose());
-    Eigen::Matrix4d information = Eigen::Matrix4d::Zero();
-    const double translation_information = 1.0 / (config_.odometry_translation_sigma_m * config_.odometry_translation_sigma_m);
-    information(0, 0) = information(1, 1) = information(2, 2) = translation_information;
-    information(3, 3) = 1.0 / (config_.odometry_yaw_sigma_rad * config_.odometry_yaw_sigma_rad);
-    graph_.constraints.push_back(backend::make_relative_constraint_4dof(vertex - 1, vertex, measurement, information));
-    ++counters_.odometry_constraints;
-    // Initial guess: the previous corrected pose composed with the odometry step, so a new
-    // submap starts consistent with the correction found so far rather than at raw odometry.
-    const backend::Pose4Dof& base = graph_.poses.back();
-    const double cs = std::cos(base.yaw), sn = std::sin(base.yaw);
-    backend::Pose4Dof guess;
-    guess.x = base.x + cs * measurement.x - sn * measurement.y;
-    guess.y = base.y + sn * measurement.x + cs * measurement.y;
-    guess.z = base.z + measurement.z;
-    guess.yaw = std::atan2(std::sin(base.yaw + measurement.yaw), std::cos(base.yaw + measurement.yaw));
-    graph_.poses.push_back(guess);
-    submap->set_pose(guess);
-  }
-  graph_submaps_.push_back(std::move(submap));
-}
-
-void SlamSystem::optimize() {
-  backend::PoseGraph4Dof graph;
-  {
+bool SlamSystem::process_submap(QueuedSubmap item) {
+  std::unique_ptr<Submap> submap = std::move(item.submap);
+  std::unique_ptr<SubmapRegistrationPoints> points;
+  SubmapFinishTimes times;
+  double points_s = 0.0;
+  if (item.generation != generation_.load()) {
     std::lock_guard<std::mutex> lock(state_mutex_);
-    if (graph_.poses.size() < 2) return;  // one fixed vertex: nothing to solve
-    graph = graph_;
+    ++counters_.submaps_discarded_at_reset;
+    return false;
   }
-  // Solved on a copy, outside the lock, so the accessors never wait for the solver. Only the
-  // backend thread (or finish() after it joined) changes the graph, so the copy stays current.
-  const auto start = Clock::now();
-  backend::PoseGraphSolverSummary summary;
+  // Finishing and point extraction touch only this submap: no lock, so reset() need not wait.
   try {
-    summary = backend::solve_pose_graph(&graph, config_.device, config_.solver);
+    times = submap->finish(esdf_integrator_, mesh_integrator_, backend_stream_);
+    const auto start = Clock::now();
+    if (config_.registration.enabled) points = prepare_registration_points(submap->map(), config_.registration, backend_stream_);
+    points_s = seconds_since(start);
   } catch (const std::exception& error) {
     std::lock_guard<std::mutex> lock(state_mutex_);
-    ++counters_.optimizations_failed;
-    log_error("SLAM backend: pose-graph optimisation failed: ", error.what());
-    return;
+    ++counters_.submaps_failed;
+    log_error("SLAM backend: finishing submap ", submap->id(), " failed: ", error.what());
+    return false;
   }
-  const double solve_s = seconds_since(start);
+  std::lock_guard<std::mutex> backend_lock(backend_mutex_);
+  {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    if (item.generation != generation_.load()) {
+      ++counters_.submaps_discarded_at_reset;
+      return false;
+    }
+    timings_.esdf.add(times.esdf_s);
+    timings_.mesh.add(times.mesh_s);
+    ++counters_.submaps_finished;
+  }
+  const auto start = Clock::now();
+  try {
+    add_to_pose_graph_locked(std::move(submap), std::move(points));
+  } catch (const std::exception& error) {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    ++counters_.submaps_failed;
+    log_error("SLAM backend: adding a submap to the pose graph failed: ", error.what());
+    return false;
+  }
+  size_t vertices = 0;
+  {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    timings_.registration.add(points_s + seconds_since(start));
+    vertices = pose_graph_.size();
+  }
+  const int every = config_.optimize_every_n_submaps;
+  return every > 0 && vertices % static_cast<size_t>(every) == 0;
+}
+
+void SlamSystem::add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
+                                          std::unique_ptr<SubmapRegistrationPoints> points) {
+  // The link to the graph so far, and the initial guess.
+  SubmapConstraint link;
+  bool have_link = false;
+  backend::Pose4Dof guess = submap->odometry_pose();
+  std::vector<RegistrationPartner> partners;
+  {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    if (!graph_submaps_.empty()) {
+      const GraphSubmap& previous = graph_submaps_.back();
+      have_link = true;
+      link.from_submap = previous.submap->id();
+      link.to_submap = submap->id();
+      if (previous.loaded) {
+        // The first submap after load_submaps(): nothing measured links it to the loaded map
+        // yet. Its odometry frame is taken as the world frame, held by a near-zero-information
+        // anchor so that the new chain has a gauge (registration or a loop closure then moves it).
+        link.kind = SubmapConstraintKind::kGaugeAnchor;
+        link.measurement = relative_pose_4dof(previous.submap->pose(), guess);
+        link.information = Eigen::Matrix4d::Identity() * 1e-6;
+      } else {
+        link.kind = SubmapConstraintKind::kOdometry;
+        link.measurement = relative_pose_4dof(previous.submap->odometry_pose(), submap->odometry_pose());
+        const double translation_information =
+            1.0 / (config_.odometry_translation_sigma_m * config_.odometry_translation_sigma_m);
+        link.information = Eigen::Matrix4d::Zero();
+        link.information(0, 0) = link.information(1, 1) = link.information(2, 2) = translation_information;
+        link.information(3, 3) = 1.0 / (config_.odometry_yaw_sigma_rad * config_.odometry_yaw_sigma_rad);
+        // The previous corrected pose composed with the odometry step, so a new submap starts
+        // consistent with the correction found so far rather than at raw odometry.
+        guess = compose(previous.submap->pose(), link.measurement);
+      }
+    }
+    for (const GraphSubmap& earlier : graph_submaps_) {
+      partners.push_back(RegistrationPartner{earlier.submap->id(), &earlier.submap->map(), earlier.submap->pose()});
+    }
+  }
+  submap->set_pose(guess);
+
+  // Registration reads the earlier submaps without state_mutex_: only holders of backend_mutex_
+  // (this thread now) change or replace them.
+  RegistrationCounts counts;
+  std::vector<SubmapConstraint> registrations;
+  if (points) {
+    registrations = registration_constraints(submap->id(), submap->map(), *points, guess, partners,
+                                             config_.registration, backend_stream_, &counts);
+  }
+
   std::lock_guard<std::mutex> lock(state_mutex_);
-  timings_.backend.add(solve_s);
-  ++counters_.optimizations;
-  last_summary_ = summary;
-  graph_.poses = graph.poses;
-  for (size_t i = 0; i < graph_submaps_.size(); ++i) graph_submaps_[i]->set_pose(graph_.poses[i]);
+  pose_graph_.add_submap(submap->id(), guess, /*loaded=*/false);
+  if (have_link) {
+    pose_graph_.add_constraint(link);
+    if (link.kind == SubmapConstraintKind::kOdometry) ++counters_.odometry_constraints;
+  }
+  for (const SubmapConstraint& c : registrations) pose_graph_.add_constraint(c);
+  counters_.registration.add(counts);
+  graph_submaps_.push_back(GraphSubmap{std::move(submap), std::move(points), false});
+}
+
+int SlamSystem::integrate_pending_constraints_locked(bool final) {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  int added = 0;
+  std::vector<SubmapConstraint> still_waiting;
+  const int64_t last_id = pose_graph_.last_id();
+  for (const SubmapConstraint& c : pending_constraints_) {
+    const bool from_in = pose_graph_.contains(c.from_submap);
+    const bool to_in = c.is_absolute() || pose_graph_.contains(c.to_submap);
+    ExternalConstraintCounters& counts = external_counters_locked(c.kind);
+    if (from_in && to_in) {
+      pose_graph_.add_constraint(c);
+      ++counts.added;
+      ++added;
+      continue;
+    }
+    // Submaps enter in id order: one at or below the last id that is missing never will.
+    const bool lost = final || (!from_in && c.from_submap <= last_id) ||
+                      (!c.is_absolute() && !to_in && c.to_submap <= last_id);
+    if (lost) {
+      ++counts.dropped_submap_lost;
+      log_warning("SLAM backend: dropped a ", to_string(c.kind), " constraint: its submap never reached the graph");
+    } else {
+      still_waiting.push_back(c);
+    }
+  }
+  pending_constraints_.swap(still_waiting);
+  return added;
+}
+
+void SlamSystem::optimize_locked() {
+  // Absolute constraints are linearised at the current yaw (their lever arm, see
+  // submap_pose_graph.h): re-solve a few times while the yaw still moves.
+  const int passes = 5;
+  for (int pass = 0; pass < passes; ++pass) {
+    SubmapPoseGraph::BackendGraph graph;
+    bool has_absolute = false;
+    {
+      std::lock_guard<std::mutex> lock(state_mutex_);
+      try {
+        graph = pose_graph_.to_backend_graph();
+      } catch (const std::exception& error) {
+        ++counters_.optimizations_failed;
+        log_error("SLAM backend: building the pose graph failed: ", error.what());
+        return;
+      }
+      for (const SubmapConstraint& c : pose_graph_.constraints()) has_absolute = has_absolute || c.is_absolute();
+    }
+    if (graph.graph.poses.size() < 2) return;  // one (fixed) vertex: nothing to solve
+    const std::vector<backend::Pose4Dof> before = graph.graph.poses;
+    // Solved outside state_mutex_, so the accessors never wait for the solver; backend_mutex_
+    // keeps the graph from changing meanwhile.
+    const auto start = Clock::now();
+    backend::PoseGraphSolverSummary summary;
+    try {
+      summary = backend::solve_pose_graph(&graph.graph, config_.device, config_.solver);
+    } catch (const std::exception& error) {
+      std::lock_guard<std::mutex> lock(state_mutex_);
+      ++counters_.optimizations_failed;
+      log_error("SLAM backend: pose-graph optimisation failed: ", error.what());
+      return;
+    }
+    const double solve_s = seconds_since(start);
+    double max_yaw_change = 0.0;
+    for (size_t k = 0; k < before.size(); ++k) {
+      const double change = std::remainder(graph.graph.poses[k].yaw - before[k].yaw, 2.0 * 3.14159265358979323846);
+      max_yaw_change = std::max(max_yaw_change, std::abs(change));
+    }
+    {
+      std::lock_guard<std::mutex> lock(state_mutex_);
+      timings_.backend.add(solve_s);
+      ++counters_.optimizations;
+      last_summary_ = summary;
+      pose_graph_.apply_solution(graph);
+      for (size_t k = 0; k < graph_submaps_.size(); ++k) graph_submaps_[k].submap->set_pose(pose_graph_.nodes()[k].pose);
+    }
+    if (!has_absolute || max_yaw_change < 1e-6) break;
+  }
 }
 
 // ---- Accessors -----------------------------------------------------------------------------------
@@ -396,9 +538,9 @@ Eigen::Isometry3d SlamSystem::correction_for_locked(int64_t submap_id) const {
   // graph_submaps_ is in id order (the queues preserve order); the latest submap at or before
   // `submap_id` carries the correction that applies to its scans.
   auto after = std::upper_bound(graph_submaps_.begin(), graph_submaps_.end(), submap_id,
-                                [](int64_t id, const std::unique_ptr<Submap>& s) { return id < s->id(); });
+                                [](int64_t id, const GraphSubmap& s) { return id < s.submap->id(); });
   if (after == graph_submaps_.begin()) return Eigen::Isometry3d::Identity();
-  const Submap& reference = **(after - 1);
+  const Submap& reference = *(after - 1)->submap;
   return reference.T_world_submap() * reference.T_odom_submap().inverse();
 }
 
@@ -406,14 +548,16 @@ std::vector<SubmapInfo> SlamSystem::submaps() const {
   std::lock_guard<std::mutex> lock(state_mutex_);
   std::vector<SubmapInfo> infos;
   infos.reserve(graph_submaps_.size());
-  for (const auto& submap : graph_submaps_) {
+  for (const GraphSubmap& entry : graph_submaps_) {
+    const Submap& submap = *entry.submap;
     SubmapInfo info;
-    info.id = submap->id();
-    info.T_world_submap = submap->T_world_submap();
-    info.T_odom_submap = submap->T_odom_submap();
-    info.statistics = submap->statistics();
-    info.bounding_box_world = submap->bounding_box_world();
-    info.mesh_triangles = static_cast<int64_t>(submap->mesh().triangle_count());
+    info.id = submap.id();
+    info.T_world_submap = submap.T_world_submap();
+    info.T_odom_submap = submap.T_odom_submap();
+    info.statistics = submap.statistics();
+    info.bounding_box_world = submap.bounding_box_world();
+    info.mesh_triangles = static_cast<int64_t>(submap.mesh().triangle_count());
+    info.loaded = entry.loaded;
     infos.push_back(info);
   }
   return infos;
@@ -432,9 +576,10 @@ std::vector<StampedPose> SlamSystem::corrected_trajectory() const {
 Mesh SlamSystem::combined_mesh() const {
   std::lock_guard<std::mutex> lock(state_mutex_);
   Mesh combined;
-  for (const auto& submap : graph_submaps_) {
-    const Mesh& mesh = submap->mesh();
-    const Eigen::Isometry3f T_world_submap = submap->T_world_submap().cast<float>();
+  for (const GraphSubmap& entry : graph_submaps_) {
+    const Submap& submap = *entry.submap;
+    const Mesh& mesh = submap.mesh();
+    const Eigen::Isometry3f T_world_submap = submap.T_world_submap().cast<float>();
     const uint32_t offset = static_cast<uint32_t>(combined.vertices_m.size());
     for (const Vec3f& v : mesh.vertices_m) {
       const Eigen::Vector3f p = T_world_submap * Eigen::Vector3f(v.x, v.y, v.z);
@@ -455,8 +600,9 @@ std::vector<SubmapSnapshot> SlamSystem::submap_snapshots() const {
   std::lock_guard<std::mutex> lock(state_mutex_);
   std::vector<SubmapSnapshot> snapshots;
   snapshots.reserve(graph_submaps_.size());
-  for (const auto& submap : graph_submaps_) {
-    snapshots.push_back(SubmapSnapshot{submap->id(), submap->T_world_submap(), submap->map().snapshot()});
+  for (const GraphSubmap& entry : graph_submaps_) {
+    const Submap& submap = *entry.submap;
+    snapshots.push_back(SubmapSnapshot{submap.id(), submap.T_world_submap(), submap.map().snapshot()});
   }
   return snapshots;
 }
@@ -474,6 +620,11 @@ SlamTimings SlamSystem::timings() const {
 backend::PoseGraphSolverSummary SlamSystem::last_solver_summary() const {
   std::lock_guard<std::mutex> lock(state_mutex_);
   return last_summary_;
+}
+
+std::vector<SubmapConstraint> SlamSystem::constraints() const {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  return pose_graph_.constraints();
 }
 
 }  // namespace pipeline

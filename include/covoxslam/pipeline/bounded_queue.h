@@ -26,6 +26,12 @@ enum class PushResult {
   kRejectedClosed,       // the queue no longer accepts entries (finish() or shutdown)
 };
 
+enum class PopResult {
+  kItem,      // an entry was taken
+  kWoken,     // wake() was called: the consumer has other work (no entry taken)
+  kFinished,  // closed and drained, or aborted
+};
+
 template <class T>
 class BoundedQueue {
  public:
@@ -73,6 +79,48 @@ class BoundedQueue {
     if (waited_s) *waited_s = std::chrono::duration<double>(Clock::now() - entry.queued_at).count();
     *item = std::move(entry.item);
     return true;
+  }
+
+  // Like pop(), but also returns kWoken (once per wake() call, or per burst of them) so that a
+  // consumer that waits for entries can also be told about other work (the SLAM backend: loop
+  // closures or an optimisation request arriving while no submap is queued). Queued entries come
+  // first: a wake-up is reported when none is waiting.
+  PopResult pop_or_wake(T* item, double* waited_s = nullptr) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    ready_.wait(lock, [this] { return aborted_ || closed_ || woken_ || !entries_.empty(); });
+    if (aborted_) return PopResult::kFinished;
+    if (entries_.empty()) {
+      if (woken_) {
+        woken_ = false;
+        return PopResult::kWoken;
+      }
+      return PopResult::kFinished;  // closed and drained
+    }
+    Entry entry = std::move(entries_.front());
+    entries_.pop_front();
+    lock.unlock();
+    if (waited_s) *waited_s = std::chrono::duration<double>(Clock::now() - entry.queued_at).count();
+    *item = std::move(entry.item);
+    return PopResult::kItem;
+  }
+
+  // Makes a waiting (or the next) pop_or_wake() return kWoken if no entry is queued.
+  void wake() {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      woken_ = true;
+    }
+    ready_.notify_all();
+  }
+
+  // Discards every queued entry but keeps accepting (SlamSystem::reset). Returns how many.
+  size_t clear() {
+    std::deque<Entry> discarded;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      discarded.swap(entries_);
+    }
+    return discarded.size();  // destroyed here, outside the lock
   }
 
   // No more pushes; pop() still hands out what is queued, then returns false (a flush).
@@ -124,6 +172,7 @@ class BoundedQueue {
   std::deque<Entry> entries_;
   bool closed_ = false;
   bool aborted_ = false;
+  bool woken_ = false;
   int64_t dropped_count_ = 0;
   int64_t pushed_count_ = 0;
 };

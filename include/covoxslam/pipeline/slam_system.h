@@ -7,8 +7,11 @@
 //                  submap queue ◄──┘
 //                       │
 //                       ▼
-//                  backend thread: finish the submap (ESDF, mesh, bounding box), add an odometry
-//                                  constraint to the previous submap, optimise the 4-DoF graph
+//                  backend thread: finish the submap (ESDF, mesh, bounding box, registration
+//                                  points), add an odometry constraint to the previous submap and
+//                                  registration constraints to the earlier submaps it overlaps,
+//                                  add the loop closures / GNSS / heights that were waiting for
+//                                  it, optimise the 4-DoF graph
 //
 // Both queues are bounded (sizes are parameters). The frontend never waits for the backend and
 // the caller never waits for the frontend: a full queue drops its OLDEST entry and counts it.
@@ -18,10 +21,14 @@
 // Lifecycle: the threads start in the constructor (or in start() when config.start_threads is
 // false). finish() flushes both queues - every queued scan is integrated, the active submap is
 // handed over and finished - and runs a final optimisation. shutdown() (and the destructor) stop
-// at once and discard queued work. After either, add_scan() is refused (counted).
+// at once and discard queued work. After either, add_scan() is refused (counted). reset() and
+// load_submaps() replace the map while the threads keep running.
 //
-// Until registration and loop-closure constraints exist, the graph holds only odometry
-// constraints, so the corrected poses equal the odometry poses.
+// Drift correction: the odometry constraints carry the odometry's relative poses; registration
+// constraints (registration_constraints.h) measure the true relative pose of overlapping
+// submaps from their geometry, so the optimised poses follow the geometry where submaps overlap
+// and the odometry elsewhere. External constraints (loop closures, GNSS, heights) name scans by
+// stamp; they wait until the submaps holding those scans are in the graph.
 #include <atomic>
 #include <cstddef>
 #include <cstdint>
@@ -40,12 +47,16 @@
 #include "covoxslam/core/stream.h"
 #include "covoxslam/core/vec3.h"
 #include "covoxslam/integrators/esdf_integrator.h"
+#include "covoxslam/integrators/esdf_queries.h"
 #include "covoxslam/integrators/mesh_integrator.h"
 #include "covoxslam/integrators/tsdf_integrator.h"
 #include "covoxslam/map/mesh.h"
 #include "covoxslam/map/tsdf_map.h"
 #include "covoxslam/pipeline/bounded_queue.h"
+#include "covoxslam/pipeline/external_constraints.h"
+#include "covoxslam/pipeline/registration_constraints.h"
 #include "covoxslam/pipeline/submap.h"
+#include "covoxslam/pipeline/submap_pose_graph.h"
 
 namespace covox {
 namespace pipeline {
@@ -64,8 +75,14 @@ struct SlamConfig {
   // Standard deviations of the odometry between consecutive submaps (information = 1 / sigma^2).
   double odometry_translation_sigma_m = 0.1;
   double odometry_yaw_sigma_rad = 0.01;
-  // Optimise after every n-th submap enters the graph; 0: only in finish().
+  // Optimise after every n-th submap enters the graph, and when external constraints or
+  // request_optimization() arrive; 0: only in finish() and on request_optimization().
   int optimize_every_n_submaps = 1;
+  // Registration constraints between overlapping submaps (the drift correction).
+  SubmapRegistrationConfig registration;
+  // Loop closures, GNSS positions and heights name a scan by stamp: the nearest integrated scan
+  // within this tolerance (a 10 Hz LiDAR: half the scan period covers every stamp in between).
+  double external_stamp_tolerance_s = 0.05;
   backend::PoseGraphSolverOptions solver;
   // False: the threads start in start(), so that tests can fill the queues first.
   bool start_threads = true;
@@ -82,6 +99,17 @@ struct Scan {
   std::vector<Rgb8> colors;  // empty, or one per point
 };
 
+// One kind of external constraint (loop closures, absolute positions or heights).
+struct ExternalConstraintCounters {
+  int64_t received = 0;
+  int64_t rejected_bad_input = 0;      // non-finite numbers, a non-rigid transform, bad information
+  int64_t rejected_unknown_stamp = 0;  // no integrated scan within external_stamp_tolerance_s
+  int64_t rejected_same_submap = 0;    // loop closures: both scans in one submap
+  int64_t dropped_submap_lost = 0;     // accepted, but its submap never reached the graph
+  int64_t added = 0;                   // entered the pose graph
+  int64_t rejected_total() const { return rejected_bad_input + rejected_unknown_stamp + rejected_same_submap; }
+};
+
 struct SlamCounters {
   // Input side (add_scan and the sensor queue).
   int64_t scans_received = 0;                // every add_scan call
@@ -92,6 +120,7 @@ struct SlamCounters {
   int64_t scans_rejected_not_running = 0;    // after finish() or shutdown()
   int64_t scans_dropped_queue_full = 0;      // oldest scans dropped by the sensor queue
   int64_t scans_discarded_at_shutdown = 0;   // still queued when shutdown() ran
+  int64_t scans_discarded_at_reset = 0;      // queued (or being integrated) when reset() ran
   // Frontend.
   int64_t scans_integrated = 0;
   int64_t scans_failed = 0;                  // the integrator threw (logged)
@@ -105,12 +134,19 @@ struct SlamCounters {
   int64_t odometry_constraints = 0;
   int64_t optimizations = 0;
   int64_t optimizations_failed = 0;
+  RegistrationCounts registration;  // attempted, accepted and each reason for a rejection
+  ExternalConstraintCounters loop_closures;
+  ExternalConstraintCounters absolute_positions;
+  ExternalConstraintCounters heights;
+  int64_t resets = 0;                       // reset() and load_submaps() calls
+  int64_t submaps_discarded_at_reset = 0;   // active, queued or being finished at a reset
+  int64_t submaps_loaded = 0;               // by load_submaps()
 
   // Every scan that was given but will never be integrated, for any counted reason.
   int64_t scans_dropped_total() const {
     return scans_dropped_invalid_pose + scans_dropped_empty_cloud + scans_dropped_bad_stamp +
            scans_dropped_bad_colors + scans_rejected_not_running + scans_dropped_queue_full +
-           scans_discarded_at_shutdown + scans_failed;
+           scans_discarded_at_shutdown + scans_discarded_at_reset + scans_failed;
   }
 };
 
@@ -131,6 +167,7 @@ struct SlamTimings {
   ModuleTiming tsdf;               // per scan: upload and integration
   ModuleTiming esdf;               // per submap: the whole ESDF when it is finished
   ModuleTiming mesh;               // per submap: marching cubes when it is finished
+  ModuleTiming registration;       // per submap: registration points and alignments
   ModuleTiming backend;            // per optimisation: the pose-graph solve
   ModuleTiming sensor_queue_wait;  // per scan: time from add_scan to the frontend taking it
   ModuleTiming submap_queue_wait;  // per submap: time from hand-over to the backend taking it
@@ -158,6 +195,7 @@ struct SubmapInfo {
   SubmapStatistics statistics;
   Eigen::AlignedBox3d bounding_box_world;
   int64_t mesh_triangles = 0;
+  bool loaded = false;  // from load_submaps(): its pose is fixed
 };
 
 class SlamSystem {
@@ -200,27 +238,111 @@ class SlamSystem {
   SlamTimings timings() const;
   // The latest optimisation's summary (default-constructed before the first).
   backend::PoseGraphSolverSummary last_solver_summary() const;
+  // Every constraint in the pose graph (submap ids), for diagnostics and drawing the graph.
+  std::vector<SubmapConstraint> constraints() const;
+
+  // ---- External constraints and map management (thread-safe) ---------------------------------
+  // A loop closure between the scans nearest to its stamps. Returns false (counted, logged) when
+  // a stamp is not covered by any integrated scan, both scans lie in one submap, or the numbers
+  // are bad (non-finite, non-rigid transform, information not symmetric PSD). Accepted ones
+  // enter the graph, as a 4-DoF constraint between the two submaps (project_loop_closure()),
+  // once both submaps are in it, and trigger an optimisation.
+  bool add_loop_closure(const LoopClosure& closure);
+  // GNSS: the sensor's position in the world at `stamp_s`, information over (x, y, z). Two or
+  // more of them on different submaps (with horizontal information) pin the graph in the world
+  // instead of the first submap.
+  bool add_absolute_position(double stamp_s, const Eigen::Vector3d& position_world_m,
+                             const Eigen::Matrix3d& information);
+  // The sensor's height (world z) at `stamp_s`, information 1 / sigma^2.
+  bool add_height(double stamp_s, double height_m, double information_z);
+  // Optimise at the next backend iteration; after finish() or shutdown(), at once on the caller's
+  // thread (constraints added since then are included).
+  void request_optimization();
+  // Discards every submap, scan and constraint; the threads keep running and the next scan starts
+  // a new map (its stamps need not follow the old ones). Waits for the backend's current step.
+  void reset();
+  // Replaces the whole map by finished submaps (e.g. loaded from a map file): they enter the
+  // graph as fixed-pose submaps with their stored poses; mapping continues in a new submap, whose
+  // odometry frame is taken as the world frame until registration or a loop closure links it to
+  // the loaded map. Throws covox::Error naming the submap when a pose is not a finite, gravity-
+  // aligned rigid transform, ids repeat, or its blocks do not fit the map configuration; the map
+  // is unchanged then.
+  void load_submaps(std::vector<SubmapSnapshot> submaps);
+  // The current correction T_W_odom (voxgraph's mission -> odom) of the latest mapped submap in
+  // the graph; identity before the first.
+  Eigen::Isometry3d T_world_odom() const;
+
+  // ---- ROS-facing queries (src/pipeline/slam_system_queries.cpp) ----
+  // What the ROS layer publishes, computed here so the nodelet stays thin. The two slices wait
+  // for the backend's current step (they read finished submaps' voxels), so call them from a
+  // thread that may wait (the nodelet's visualisation thread), never from the sensor callback.
+  //
+  // A finished submap's mesh in its own frame and its corrected pose T_W_S; false when no
+  // submap in the graph has this id.
+  bool submap_mesh(int64_t id, Mesh* mesh_submap, Eigen::Isometry3d* T_world_submap) const;
+  // The ESDF of every finished submap at world height `height_m`, on a world-aligned grid of the
+  // voxel size; where submaps overlap, a cell keeps the smallest distance (conservative for
+  // planners). Points are reported at `height_m`.
+  std::vector<SlicePoint> esdf_slice_world(double height_m);
+  // The ESDF slice at world height `height_m` of the newest finished submap (the active submap
+  // gets its ESDF only when it is finished), in world coordinates; `submap_id` receives its id,
+  // -1 when there is none.
+  std::vector<SlicePoint> esdf_slice_newest_submap(double height_m, int64_t* submap_id);
 
  private:
   struct TrajectoryEntry {
     double stamp_s;
     int64_t submap_id;
     Eigen::Isometry3d T_odom_sensor;
+    Eigen::Isometry3d T_odom_submap;
+  };
+  // Queue entries carry the map generation they belong to: reset() bumps it, and whatever was
+  // queued or in flight before is discarded when a thread meets it.
+  struct QueuedScan {
+    Scan scan;
+    uint64_t generation = 0;
+  };
+  struct QueuedSubmap {
+    std::unique_ptr<Submap> submap;
+    uint64_t generation = 0;
+  };
+  // A submap in the graph (vertex order of pose_graph_).
+  struct GraphSubmap {
+    std::unique_ptr<Submap> submap;
+    std::unique_ptr<SubmapRegistrationPoints> registration_points;  // null when disabled
+    bool loaded = false;
   };
 
   void frontend_loop();
   void backend_loop();
-  void process_scan(const Scan& scan);
+  void process_scan(const QueuedScan& queued);
   void hand_over_active_submap();
-  void add_to_pose_graph(std::unique_ptr<Submap> submap);
-  void optimize();
+  // Finishes a submap and adds it to the graph; returns whether the every-n rule asks for an
+  // optimisation.
+  bool process_submap(QueuedSubmap item);
+  // The remaining helpers need backend_mutex_.
+  void add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
+                                std::unique_ptr<SubmapRegistrationPoints> points);
+  // Moves waiting external constraints whose submaps are in the graph into it; `final`: no more
+  // submaps will come, so those still waiting are dropped (counted). Returns how many entered.
+  int integrate_pending_constraints_locked(bool final);
+  void optimize_locked();
+  void reset_locked();
   void join_threads();
   // The correction T_W_odom for scans of submap `submap_id`; needs state_mutex_.
   Eigen::Isometry3d correction_for_locked(int64_t submap_id) const;
+  // The integrated scan nearest to `stamp_s` within the tolerance, or null; needs state_mutex_.
+  const TrajectoryEntry* scan_near_locked(double stamp_s) const;
+  ExternalConstraintCounters& external_counters_locked(SubmapConstraintKind kind);
+  // Counts and logs (rate-limited) a refused external constraint; needs state_mutex_.
+  void refuse_locked(int64_t* counter, const char* what, const std::string& why);
 
   const SlamConfig config_;
-  BoundedQueue<Scan> sensor_queue_;
-  BoundedQueue<std::unique_ptr<Submap>> submap_queue_;
+  BoundedQueue<QueuedScan> sensor_queue_;
+  BoundedQueue<QueuedSubmap> submap_queue_;
+  std::atomic<uint64_t> generation_{0};
+  // Ids continue across resets, and after load_submaps() beyond the loaded ones.
+  std::atomic<int64_t> next_submap_id_{0};
 
   // Frontend thread only.
   TsdfIntegrator tsdf_integrator_;
@@ -228,8 +350,8 @@ class SlamSystem {
   Buffer<Vec3f> points_buffer_;
   Buffer<Rgb8> colors_buffer_;
   std::unique_ptr<Submap> active_submap_;
+  uint64_t active_generation_ = 0;
   Eigen::Vector3d last_position_odom_m_ = Eigen::Vector3d::Zero();
-  int64_t next_submap_id_ = 0;
 
   // Backend thread only (and finish() after the threads have joined).
   EsdfIntegrator esdf_integrator_;
@@ -248,19 +370,24 @@ class SlamSystem {
   std::atomic<bool> running_{false};
   std::atomic<bool> accepting_{true};
   std::atomic<bool> aborted_{false};
+  std::atomic<bool> optimization_requested_{false};
   bool started_ = false;
   bool stopped_ = false;
+
+  // Held for every change of the graph's structure (the backend's steps, optimisations, reset,
+  // load_submaps, finish's final solve), so the backend can read submaps' voxels without
+  // state_mutex_ while nobody replaces them. Lock order: backend_mutex_, then state_mutex_.
+  std::mutex backend_mutex_;
 
   // Shared state read by the accessors.
   mutable std::mutex state_mutex_;
   SlamCounters counters_;
   SlamTimings timings_;
-  std::vector<std::unique_ptr<Submap>> graph_submaps_;  // vertex i is graph_submaps_[i]
-  backend::PoseGraph4Dof graph_;
+  std::vector<GraphSubmap> graph_submaps_;  // node k of pose_graph_ is graph_submaps_[k]
+  SubmapPoseGraph pose_graph_;
+  std::vector<SubmapConstraint> pending_constraints_;  // external, waiting for their submaps
   backend::PoseGraphSolverSummary last_summary_;
   std::vector<TrajectoryEntry> trajectory_;
-  // T_odom_S of every submap created (also those dropped later), for the trajectory.
-  std::vector<Eigen::Isometry3d> created_submap_poses_;
 };
 
 }  // namespace pipeline

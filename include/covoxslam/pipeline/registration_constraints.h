@@ -1,0 +1,97 @@
+#pragma once
+// Registration constraints for a finished submap (paper III-F, voxgraph's explicit_to_implicit):
+// the submap's registration points are aligned to every earlier submap it overlaps, starting from
+// the relative pose of their current corrected poses, and each plausible alignment becomes a
+// relative 4-DoF constraint from the earlier submap to the new one.
+//
+// Weights. The aligner's residuals are metres times sqrt(TSDF weight), and TSDF weights depend on
+// the weighting scheme (constant, inverse square, sparsity compensation), so a sigma in those
+// units would change meaning with the integrator settings. Here the weights are normalised to a
+// mean of 1 over the submap's registration points: point_sigma_m is the noise of one point's
+// distance in metres, the information is sum_k w_k/mean(w) J_k^T J_k / point_sigma_m^2, and the
+// robust loss scale is in metres as well.
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "covoxslam/backend/registration.h"
+#include "covoxslam/core/stream.h"
+#include "covoxslam/map/tsdf_map.h"
+#include "covoxslam/pipeline/submap_pose_graph.h"
+
+namespace covox {
+namespace pipeline {
+
+struct SubmapRegistrationConfig {
+  bool enabled = true;
+  // Fraction of a submap's surface voxels used as registration points (voxgraph's 0.05).
+  float sampling_ratio = 0.05f;
+  // kTsdfNearSurface: sub-voxel TSDF distances near surfaces, ESDF beyond (see registration.h);
+  // kEsdf: voxgraph's plain ESDF.
+  backend::RegistrationDistance distance = backend::RegistrationDistance::kTsdfNearSurface;
+  backend::RobustLoss robust_loss = backend::RobustLoss::kNone;  // voxgraph uses none
+  double robust_loss_scale_m = 0.1;
+  // Noise of one registration point's distance (see above). The points of a 0.2 m map are not
+  // independent (interpolation, one TSDF), so this is larger than the TSDF noise itself.
+  double point_sigma_m = 0.1;
+  // Overlap: block bounding boxes intersect at the current poses and at least this many block
+  // centres of the new submap fall into blocks of the earlier one.
+  int64_t min_shared_blocks = 4;
+  // Fewer registration points inside the earlier submap's field: no constraint (counted).
+  int64_t min_points = 100;
+  // An alignment that moves the relative pose further than this from its starting guess is not
+  // believed (counted): odometry does not drift that much between two looks at one place.
+  double max_correction_m = 2.0;
+  double max_correction_rad = 0.349065850398866;  // 20 degrees
+  // Align to at most this many earlier submaps (those sharing most blocks); 0: all.
+  int max_partners = 10;
+  int max_iterations = 60;
+};
+
+// Throws covox::Error naming the first invalid parameter (prefix "registration.").
+void validate(const SubmapRegistrationConfig& config);
+
+// "none", "huber" or "cauchy"; throws covox::Error naming the bad value otherwise.
+backend::RobustLoss parse_robust_loss(const std::string& name);
+const char* to_string(backend::RobustLoss loss);
+// "tsdf" (kTsdfNearSurface) or "esdf"; throws covox::Error otherwise.
+backend::RegistrationDistance parse_registration_distance(const std::string& name);
+const char* to_string(backend::RegistrationDistance distance);
+
+// A finished submap's registration points and the mean TSDF weight over them.
+struct SubmapRegistrationPoints {
+  explicit SubmapRegistrationPoints(Device device) : points(device) {}
+  backend::RegistrationPoints points;
+  double mean_weight = 1.0;
+};
+std::unique_ptr<SubmapRegistrationPoints> prepare_registration_points(const TsdfMap& map,
+                                                                     const SubmapRegistrationConfig& config,
+                                                                     const Stream& stream);
+
+struct RegistrationCounts {
+  int64_t attempted = 0;                // overlapping pairs aligned
+  int64_t accepted = 0;                 // constraints added
+  int64_t rejected_failed = 0;          // the aligner threw or did not converge
+  int64_t rejected_too_far = 0;         // moved more than max_correction_m / _rad
+  int64_t rejected_too_few_points = 0;  // fewer than min_points inside the partner's field
+  void add(const RegistrationCounts& other);
+};
+
+// An earlier submap to align to, at its current corrected pose.
+struct RegistrationPartner {
+  int64_t id = 0;
+  const TsdfMap* map = nullptr;
+  backend::Pose4Dof pose;
+};
+
+// The constraints (kind kRegistration, from each partner to `id`) for the new submap at `pose`.
+std::vector<SubmapConstraint> registration_constraints(int64_t id, const TsdfMap& map,
+                                                       const SubmapRegistrationPoints& points,
+                                                       const backend::Pose4Dof& pose,
+                                                       const std::vector<RegistrationPartner>& earlier,
+                                                       const SubmapRegistrationConfig& config, const Stream& stream,
+                                                       RegistrationCounts* counts);
+
+}  // namespace pipeline
+}  // namespace covox

@@ -1,0 +1,107 @@
+#pragma once
+// SubmapPoseGraph: the SLAM system's pose graph in terms of submaps (ids, corrected poses and the
+// constraints between them), turned into the backend's 4-DoF graph for each solve.
+//
+// Why a layer above backend::PoseGraph4Dof:
+//  * Submaps loaded from a map file keep their stored poses. They all share one fixed vertex (the
+//    first loaded submap's), each at its stored offset from it, so the solver cannot move them
+//    and no stiff "rigid" constraints are needed. A relative constraint from a loaded submap a
+//    (offset O_a from its vertex V) to a submap b with its own vertex becomes exact in V:
+//      measurement O_a * Z_ab, and since r_a = blockdiag(Rz(yaw(O_a))^T, 1) r_V, information
+//      R Lambda R^T with R = blockdiag(Rz(yaw(O_a)), 1).
+//  * Absolute positions (GNSS) and heights are measured at the sensor, which sits at a lever arm
+//    l (its position in the submap frame) from the submap origin; the backend's absolute
+//    constraint has no lever arm. At every solve the measured position is moved to the origin
+//    with the submap's current yaw: p_origin = p_sensor - Rz(yaw) l (height: z - l_z, exact).
+//    Repeated solves converge to the lever-arm solution as yaw settles (the yaw comes from the
+//    far stronger odometry and registration constraints).
+//  * The gauge: vertex 0 is fixed (voxgraph: the first submap) unless horizontal absolute
+//    positions on at least two vertices pin the graph, and never when submaps were loaded.
+#include <Eigen/Core>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "covoxslam/backend/pose_graph.h"
+#include "covoxslam/backend/pose_graph_solver.h"
+#include "covoxslam/backend/pose_graph_types.h"
+
+namespace covox {
+namespace pipeline {
+
+enum class SubmapConstraintKind {
+  kOdometry,          // consecutive submaps, from odometry
+  kRegistration,      // from aligning a submap's surface to an earlier submap's distance field
+  kLoopClosure,       // given from outside (two stamps and a relative transform)
+  kAbsolutePosition,  // GNSS position of the sensor
+  kHeight,            // height of the sensor
+  kGaugeAnchor,       // a near-zero-information link from the loaded map to the first new
+                      // submap, so that the new chain has a gauge before anything connects it
+};
+const char* to_string(SubmapConstraintKind kind);
+
+struct SubmapConstraint {
+  SubmapConstraintKind kind = SubmapConstraintKind::kOdometry;
+  int64_t from_submap = -1;  // submap ids
+  int64_t to_submap = -1;    // -1 for absolute constraints
+  // Relative: the pose of `to` in the frame of `from` (dx, dy, dz in `from`, dyaw).
+  // Absolute: the sensor position in the world (x, y, z; height: only z is used), yaw unused.
+  backend::Pose4Dof measurement;
+  // Relative: over (x, y, z, yaw). Absolute position: the upper-left 3x3. Height: (2, 2) only.
+  Eigen::Matrix4d information = Eigen::Matrix4d::Zero();
+  // Absolute constraints: the sensor's position in the submap frame.
+  Eigen::Vector3d lever_arm_m = Eigen::Vector3d::Zero();
+
+  bool is_absolute() const {
+    return kind == SubmapConstraintKind::kAbsolutePosition || kind == SubmapConstraintKind::kHeight;
+  }
+};
+
+struct SubmapPoseGraphNode {
+  int64_t id = 0;
+  backend::Pose4Dof pose;           // corrected T_W_S
+  bool loaded = false;              // from a map file: pose fixed
+};
+
+class SubmapPoseGraph {
+ public:
+  // Appends a submap (ids must increase; loaded submaps only before any other). Throws
+  // covox::Error otherwise.
+  void add_submap(int64_t id, const backend::Pose4Dof& pose, bool loaded);
+  // Throws covox::Error naming the problem when a submap id is unknown or the information is not
+  // finite; relative constraints must not end in a loaded submap (they come from new data).
+  void add_constraint(const SubmapConstraint& constraint);
+  void clear();
+
+  size_t size() const { return nodes_.size(); }
+  bool empty() const { return nodes_.empty(); }
+  const std::vector<SubmapPoseGraphNode>& nodes() const { return nodes_; }
+  const std::vector<SubmapConstraint>& constraints() const { return constraints_; }
+  // Index into nodes(), or -1.
+  int64_t index_of(int64_t id) const;
+  bool contains(int64_t id) const { return index_of(id) >= 0; }
+  bool has_loaded_submaps() const { return !nodes_.empty() && nodes_.front().loaded; }
+  int64_t last_id() const { return nodes_.empty() ? -1 : nodes_.back().id; }
+  int64_t count(SubmapConstraintKind kind) const;
+
+  // The backend graph at the current poses, and the mapping back (see apply_solution).
+  struct BackendGraph {
+    backend::PoseGraph4Dof graph;
+    std::vector<int32_t> vertex_of_node;
+    std::vector<backend::Pose4Dof> offset_of_node;  // T_vertex_submap
+  };
+  BackendGraph to_backend_graph() const;
+  // Moves every submap to its vertex's solved pose composed with its offset.
+  void apply_solution(const BackendGraph& solved);
+
+ private:
+  std::vector<SubmapPoseGraphNode> nodes_;
+  std::vector<SubmapConstraint> constraints_;
+};
+
+// 4-DoF pose algebra (x_a = Rz(yaw) x_b + t): a * b and a^-1.
+backend::Pose4Dof compose(const backend::Pose4Dof& a, const backend::Pose4Dof& b);
+backend::Pose4Dof inverse(const backend::Pose4Dof& a);
+
+}  // namespace pipeline
+}  // namespace covox

@@ -1,0 +1,232 @@
+// The pieces between external input and the backend's 4-DoF graph: the loop closure's 6-DoF to
+// 4-DoF projection (against the marginal covariance from numeric differences), the information
+// checks, and the submap graph's loaded-map vertex, lever arms and gauge choice.
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <cmath>
+#include <limits>
+#include <random>
+
+#include "covoxslam/backend/pose_graph_solver.h"
+#include "covoxslam/core/error.h"
+#include "covoxslam/pipeline/external_constraints.h"
+#include "covoxslam/pipeline/submap.h"
+#include "covoxslam/pipeline/submap_pose_graph.h"
+
+namespace covox {
+namespace pipeline {
+namespace {
+
+using Matrix6d = Eigen::Matrix<double, 6, 6>;
+constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
+
+Eigen::Isometry3d make_pose(double x, double y, double z, double roll, double pitch, double yaw) {
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.linear() = (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
+                   Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()))
+                      .toRotationMatrix();
+  pose.translation() = Eigen::Vector3d(x, y, z);
+  return pose;
+}
+
+// (t, yaw) of T_Sa_Sb as a function of the perturbation d = (dt, dtheta) of T_from_to, in the
+// convention of LoopClosure: (t + dt, Exp(dtheta) R).
+Eigen::Vector4d relative_4dof(const Eigen::Isometry3d& A, const Eigen::Isometry3d& T, const Eigen::Isometry3d& B,
+                              const Eigen::Matrix<double, 6, 1>& d) {
+  Eigen::Isometry3d perturbed = T;
+  perturbed.translation() += d.head<3>();
+  const Eigen::Vector3d angle_axis = d.tail<3>();
+  const double angle = angle_axis.norm();
+  const Eigen::Matrix3d exp =
+      angle > 0.0 ? Eigen::AngleAxisd(angle, angle_axis / angle).toRotationMatrix() : Eigen::Matrix3d::Identity();
+  perturbed.linear() = exp * T.linear();
+  const Eigen::Isometry3d relative = A * perturbed * B.inverse();
+  const backend::Pose4Dof p = pose_4dof_from_isometry(relative);
+  return Eigen::Vector4d(p.x, p.y, p.z, p.yaw);
+}
+
+TEST(PipelineSubmapPoseGraph, LoopClosureProjectionMatchesTheNumericMarginalCovariance) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> uniform(-1.0, 1.0);
+  for (int trial = 0; trial < 5; ++trial) {
+    // Gravity-aligned submap frames, tilted sensors: consistent with gravity, as real closures are.
+    const Eigen::Isometry3d W_Sa = make_pose(3 * uniform(rng), 3 * uniform(rng), uniform(rng), 0, 0, 3 * uniform(rng));
+    const Eigen::Isometry3d W_Sb = make_pose(3 * uniform(rng), 3 * uniform(rng), uniform(rng), 0, 0, 3 * uniform(rng));
+    const Eigen::Isometry3d A = make_pose(4 * uniform(rng), 4 * uniform(rng), uniform(rng), 0.1 * uniform(rng),
+                                          0.1 * uniform(rng), 3 * uniform(rng));  // T_Sa_from
+    const Eigen::Isometry3d B = make_pose(4 * uniform(rng), 4 * uniform(rng), uniform(rng), 0.1 * uniform(rng),
+                                          0.1 * uniform(rng), 3 * uniform(rng));  // T_Sb_to
+    const Eigen::Isometry3d T = A.inverse() * W_Sa.inverse() * W_Sb * B;     // T_from_to
+    Matrix6d M = Matrix6d::Random();
+    const Matrix6d information = M * M.transpose() + 0.5 * Matrix6d::Identity();
+
+    const RelativeConstraint4Dof projected = project_loop_closure(A, T, B, information);
+    const backend::Pose4Dof expected = pose_4dof_from_isometry(W_Sa.inverse() * W_Sb);
+    EXPECT_NEAR(projected.measurement.x, expected.x, 1e-9);
+    EXPECT_NEAR(projected.measurement.y, expected.y, 1e-9);
+    EXPECT_NEAR(projected.measurement.z, expected.z, 1e-9);
+    EXPECT_NEAR(std::remainder(projected.measurement.yaw - expected.yaw, 2 * M_PI), 0.0, 1e-9);
+
+    // Independent route: J by central differences, Sigma_4 = J Sigma_6 J^T, information = inverse.
+    Eigen::Matrix<double, 4, 6> J;
+    const double h = 1e-6;
+    for (int k = 0; k < 6; ++k) {
+      Eigen::Matrix<double, 6, 1> d = Eigen::Matrix<double, 6, 1>::Zero();
+      d(k) = h;
+      Eigen::Vector4d difference = relative_4dof(A, T, B, d) - relative_4dof(A, T, B, -d);
+      difference(3) = std::remainder(difference(3), 2 * M_PI);
+      J.col(k) = difference / (2 * h);
+    }
+    const Eigen::Matrix4d covariance = J * information.inverse() * J.transpose();
+    const Eigen::Matrix4d numeric_information = covariance.inverse();
+    const double scale = numeric_information.cwiseAbs().maxCoeff();
+    EXPECT_LT((projected.information - numeric_information).cwiseAbs().maxCoeff(), 1e-5 * scale)
+        << "trial " << trial << "\nprojected\n"
+        << projected.information << "\nnumeric\n"
+        << numeric_information;
+  }
+}
+
+TEST(PipelineSubmapPoseGraph, LoopClosureWithoutRollPitchInformationKeepsTheOtherEntries) {
+  // Sensors at the submap origins, level: the projection is just the (x, y, z, yaw) entries.
+  Matrix6d information = Matrix6d::Zero();
+  information.diagonal() << 1.0, 2.0, 3.0, 0.0, 0.0, 4.0;
+  const Eigen::Isometry3d T = make_pose(1.0, 2.0, 0.5, 0.0, 0.0, 0.3);
+  const RelativeConstraint4Dof projected =
+      project_loop_closure(Eigen::Isometry3d::Identity(), T, Eigen::Isometry3d::Identity(), information);
+  Eigen::Matrix4d expected = Eigen::Matrix4d::Zero();
+  expected.diagonal() << 1.0, 2.0, 3.0, 4.0;
+  EXPECT_LT((projected.information - expected).cwiseAbs().maxCoeff(), 1e-12) << projected.information;
+  EXPECT_NEAR(projected.measurement.yaw, 0.3, 1e-12);
+}
+
+TEST(PipelineSubmapPoseGraph, InformationChecksNameTheProblem) {
+  EXPECT_TRUE(information_problem(Eigen::Matrix3d::Identity()).empty());
+  Eigen::Matrix3d semi_definite = Eigen::Matrix3d::Zero();
+  semi_definite(2, 2) = 5.0;
+  EXPECT_TRUE(information_problem(semi_definite).empty());
+  EXPECT_NE(information_problem(Eigen::Matrix3d::Zero()).find("zero"), std::string::npos);
+  Eigen::Matrix3d asymmetric = Eigen::Matrix3d::Identity();
+  asymmetric(0, 1) = 0.5;
+  EXPECT_NE(information_problem(asymmetric).find("symmetric"), std::string::npos);
+  Eigen::Matrix3d indefinite = Eigen::Matrix3d::Identity();
+  indefinite(1, 1) = -1.0;
+  EXPECT_NE(information_problem(indefinite).find("positive semi-definite"), std::string::npos);
+  Eigen::Matrix3d not_finite = Eigen::Matrix3d::Identity();
+  not_finite(0, 0) = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_NE(information_problem(not_finite).find("finite"), std::string::npos);
+
+  LoopClosure closure;
+  closure.from_stamp_s = 1.0;
+  closure.to_stamp_s = 2.0;
+  EXPECT_TRUE(loop_closure_problem(closure).empty());
+  LoopClosure scaled = closure;
+  scaled.T_from_to.linear() *= 1.1;
+  EXPECT_NE(loop_closure_problem(scaled).find("rigid"), std::string::npos);
+  LoopClosure nan_stamp = closure;
+  nan_stamp.to_stamp_s = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_NE(loop_closure_problem(nan_stamp).find("stamp"), std::string::npos);
+}
+
+backend::Pose4Dof pose(double x, double y, double z, double yaw) {
+  backend::Pose4Dof p;
+  p.x = x;
+  p.y = y;
+  p.z = z;
+  p.yaw = yaw;
+  return p;
+}
+
+void expect_pose_near(const backend::Pose4Dof& actual, const backend::Pose4Dof& expected, double tolerance) {
+  EXPECT_NEAR(actual.x, expected.x, tolerance);
+  EXPECT_NEAR(actual.y, expected.y, tolerance);
+  EXPECT_NEAR(actual.z, expected.z, tolerance);
+  EXPECT_NEAR(std::remainder(actual.yaw - expected.yaw, 2 * M_PI), 0.0, tolerance);
+}
+
+TEST(PipelineSubmapPoseGraph, ComposeAndInverseAreConsistentWithRelativePose) {
+  const backend::Pose4Dof a = pose(1.0, -2.0, 0.5, 0.7), b = pose(-0.3, 4.0, 1.0, -2.9);
+  expect_pose_near(compose(a, inverse(a)), backend::Pose4Dof(), 1e-12);
+  expect_pose_near(compose(a, relative_pose_4dof(a, b)), b, 1e-12);
+  const Eigen::Isometry3d product = to_isometry(a) * to_isometry(b);
+  expect_pose_near(compose(a, b), pose_4dof_from_isometry(product), 1e-12);
+}
+
+TEST(PipelineSubmapPoseGraph, LoadedSubmapsShareOneFixedVertexAndConstraintsCarryOverExactly) {
+  SubmapPoseGraph graph;
+  const backend::Pose4Dof loaded0 = pose(0.0, 0.0, 0.0, 0.0), loaded1 = pose(5.0, 1.0, 0.2, 0.8);
+  graph.add_submap(3, loaded0, true);
+  graph.add_submap(7, loaded1, true);
+  graph.add_submap(8, pose(9.0, 3.0, 0.0, 1.0), false);  // a rough guess
+  graph.add_submap(9, pose(12.0, 5.0, 0.0, 1.2), false);
+  // A registration from loaded submap 7 to the new submap 8, and odometry 8 -> 9.
+  SubmapConstraint registration;
+  registration.kind = SubmapConstraintKind::kRegistration;
+  registration.from_submap = 7;
+  registration.to_submap = 8;
+  registration.measurement = pose(2.0, 1.5, -0.1, 0.3);
+  registration.information = Eigen::Matrix4d::Identity() * 1e4;
+  registration.information(0, 1) = registration.information(1, 0) = 3e3;  // correlated: rotated with the offset
+  graph.add_constraint(registration);
+  SubmapConstraint odometry;
+  odometry.kind = SubmapConstraintKind::kOdometry;
+  odometry.from_submap = 8;
+  odometry.to_submap = 9;
+  odometry.measurement = pose(3.0, 0.0, 0.0, 0.1);
+  odometry.information = Eigen::Matrix4d::Identity() * 100.0;
+  graph.add_constraint(odometry);
+  // A constraint may not end in the loaded map.
+  SubmapConstraint backwards = registration;
+  backwards.from_submap = 8;
+  backwards.to_submap = 7;
+  EXPECT_THROW(graph.add_constraint(backwards), Error);
+  EXPECT_THROW(graph.add_submap(5, pose(0, 0, 0, 0), false), Error);  // ids must increase
+
+  SubmapPoseGraph::BackendGraph backend_graph = graph.to_backend_graph();
+  ASSERT_EQ(backend_graph.graph.poses.size(), 3u);  // both loaded submaps on one vertex
+  EXPECT_EQ(backend_graph.graph.fixed_vertex, 0);
+  EXPECT_EQ(backend_graph.vertex_of_node[0], backend_graph.vertex_of_node[1]);
+  backend::solve_pose_graph(&backend_graph.graph, Device::kCpu);
+  graph.apply_solution(backend_graph);
+  // Consistent constraints: the solution satisfies both exactly; the loaded poses did not move.
+  expect_pose_near(graph.nodes()[0].pose, loaded0, 1e-12);
+  expect_pose_near(graph.nodes()[1].pose, loaded1, 1e-12);
+  const backend::Pose4Dof expected8 = compose(loaded1, registration.measurement);
+  expect_pose_near(graph.nodes()[2].pose, expected8, 1e-6);
+  expect_pose_near(graph.nodes()[3].pose, compose(expected8, odometry.measurement), 1e-6);
+}
+
+TEST(PipelineSubmapPoseGraph, TwoHorizontalAbsolutePositionsReplaceTheFixedFirstSubmap) {
+  SubmapPoseGraph graph;
+  graph.add_submap(0, pose(0, 0, 0, 0), false);
+  graph.add_submap(1, pose(4, 0, 0, 0), false);
+  SubmapConstraint gnss;
+  gnss.kind = SubmapConstraintKind::kAbsolutePosition;
+  gnss.from_submap = 0;
+  gnss.information.topLeftCorner<3, 3>() = Eigen::Matrix3d::Identity();
+  graph.add_constraint(gnss);
+  EXPECT_EQ(graph.to_backend_graph().graph.fixed_vertex, 0);
+  SubmapConstraint height;
+  height.kind = SubmapConstraintKind::kHeight;
+  height.from_submap = 1;
+  height.information(2, 2) = 1.0;
+  graph.add_constraint(height);
+  EXPECT_EQ(graph.to_backend_graph().graph.fixed_vertex, 0);  // a height does not pin x, y
+  gnss.from_submap = 1;
+  gnss.lever_arm_m = Eigen::Vector3d(1.0, 0.0, 0.5);
+  graph.add_constraint(gnss);
+  const SubmapPoseGraph::BackendGraph backend_graph = graph.to_backend_graph();
+  EXPECT_EQ(backend_graph.graph.fixed_vertex, backend::kNoVertex);
+  // The lever arm moved to the origin with the current yaw (0): position - (1, 0, 0.5).
+  const backend::Constraint4Dof& last = backend_graph.graph.constraints.back();
+  EXPECT_NEAR(last.measurement.x, -1.0, 1e-12);
+  EXPECT_NEAR(last.measurement.z, -0.5, 1e-12);
+  SubmapConstraint unknown = gnss;
+  unknown.from_submap = 42;
+  EXPECT_THROW(graph.add_constraint(unknown), Error);
+}
+
+}  // namespace
+}  // namespace pipeline
+}  // namespace covox
