@@ -82,6 +82,43 @@ TEST(PipelineQueue, BlockedConsumerWakesOnPushAndOnClose) {
   EXPECT_EQ(consumer.get(), (std::vector<int>{42}));
 }
 
+TEST(PipelineQueue, WakeReachesAWaitingConsumerButEntriesComeFirst) {
+  BoundedQueue<int> queue(4, "test queue");
+  // A consumer blocked in pop_or_wake() returns kWoken without an entry.
+  auto woken = std::async(std::launch::async, [&queue] {
+    int value = 0;
+    return queue.pop_or_wake(&value);
+  });
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  queue.wake();
+  ASSERT_EQ(woken.wait_for(std::chrono::seconds(5)), std::future_status::ready) << "consumer did not wake up";
+  EXPECT_EQ(woken.get(), PopResult::kWoken);
+  // Queued entries are handed out before a pending wake-up, which is reported once.
+  queue.push(1);
+  queue.wake();
+  queue.wake();
+  int value = 0;
+  EXPECT_EQ(queue.pop_or_wake(&value), PopResult::kItem);
+  EXPECT_EQ(value, 1);
+  EXPECT_EQ(queue.pop_or_wake(&value), PopResult::kWoken);
+  queue.close();
+  EXPECT_EQ(queue.pop_or_wake(&value), PopResult::kFinished);
+}
+
+TEST(PipelineQueue, ClearDiscardsEntriesButKeepsAccepting) {
+  BoundedQueue<int> queue(4, "test queue");
+  queue.push(1);
+  queue.push(2);
+  EXPECT_EQ(queue.clear(), 2u);
+  EXPECT_EQ(queue.size(), 0u);
+  EXPECT_EQ(queue.push(3), PushResult::kQueued);
+  queue.close();
+  int value = 0;
+  ASSERT_TRUE(queue.pop(&value));
+  EXPECT_EQ(value, 3);
+  EXPECT_FALSE(queue.pop(&value));
+}
+
 TEST(PipelineQueue, ZeroCapacityIsAClearError) {
   try {
     BoundedQueue<int> queue(0, "sensor queue");
