@@ -1,8 +1,6 @@
 #include "covoxslam/integrators/mesh_integrator.h"
 
 #include <map>
-#include <set>
-#include <unordered_map>
 #include <vector>
 
 #include "covoxslam/core/stage_profiler.h"
@@ -61,7 +59,16 @@ void split_into_block_meshes(const Extraction& extraction, const std::vector<Ind
   std::vector<uint32_t> local_index(extraction.mesh.vertices_m.size());
   const bool has_colors = !extraction.mesh.colors.empty();
   for (size_t b = 0; b < block_count; ++b) {
-    Mesh mesh;
+    if (first_triangle[b + 1] == first_triangle[b]) {
+      block_meshes->erase(blocks[b]);
+      continue;
+    }
+    // Refill the block's previous mesh in place: its vectors keep their capacity, so a block that
+    // is re-meshed every frame costs no allocation.
+    Mesh& mesh = (*block_meshes)[blocks[b]];
+    mesh.vertices_m.clear();
+    mesh.colors.clear();
+    mesh.triangles.clear();
     mesh.triangles.reserve(3 * (first_triangle[b + 1] - first_triangle[b]));
     for (uint32_t i = first_triangle[b]; i < first_triangle[b + 1]; ++i) {
       for (int k = 0; k < 3; ++k) {
@@ -74,11 +81,6 @@ void split_into_block_meshes(const Extraction& extraction, const std::vector<Ind
         }
         mesh.triangles.push_back(local_index[v]);
       }
-    }
-    if (mesh.empty()) {
-      block_meshes->erase(blocks[b]);
-    } else {
-      (*block_meshes)[blocks[b]] = std::move(mesh);
     }
   }
 }
@@ -95,32 +97,14 @@ MeshUpdateStats MeshIntegrator::update(TsdfMap& map, const Stream& stream) {
   if (!scratch_ || scratch_->buffers.blocks.device() != map.device()) scratch_ = std::make_unique<Scratch>(map.device());
   MeshScratchBuffers& scratch = scratch_->buffers;
   StageProfiler::Scope profile("mesh update", stream);
-  map.blocks().export_entries(&scratch.blocks, &scratch.slots);
-  const auto blocks = scratch.blocks.to_host(stream);
-  const auto slots = scratch.slots.to_host(stream);
-  auto changed = map.block_changed().to_host(stream);
-  profile.mark("export + download block list");
-
-  // A cube reads the block of its first corner and the +x/+y/+z neighbours, so a changed block
-  // also changes the meshes of the seven blocks just below it.
-  const std::set<Index3D> allocated(blocks.begin(), blocks.end());
-  std::set<Index3D> affected;
-  for (size_t i = 0; i < blocks.size(); ++i) {
-    if (!(changed[slots[i]] & kMeshPending)) continue;
-    changed[slots[i]] &= static_cast<uint8_t>(~kMeshPending);
-    for (int c = 0; c < 8; ++c) {
-      const Index3D below = blocks[i] - Index3D(c & 1, (c >> 1) & 1, (c >> 2) & 1);
-      if (allocated.count(below)) affected.insert(below);
-    }
-  }
-  last_updated_.assign(affected.begin(), affected.end());
+  const int64_t selected = dispatch(map.device(), [&](auto backend) {
+    return mesh_select_blocks(backend, map, scratch, stream);
+  });
   MeshUpdateStats stats;
-  stats.blocks_meshed = static_cast<int64_t>(last_updated_.size());
-  if (last_updated_.empty()) return stats;
-  map.block_changed().copy_from_host(changed, stream);
-  profile.mark("affected blocks (host)");
-
-  scratch.blocks.copy_from_host(last_updated_, stream);
+  stats.blocks_meshed = selected;
+  last_updated_ = scratch.blocks.to_host(stream);
+  profile.mark("select blocks");
+  if (selected == 0) return stats;
   const Extraction extraction = run_extraction(map, config_.min_weight, scratch, stream);
   stats.triangles = static_cast<int64_t>(extraction.mesh.triangle_count());
   profile.mark("extract + download");

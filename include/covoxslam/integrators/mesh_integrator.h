@@ -57,7 +57,8 @@ struct MeshScratchBuffers {
   explicit MeshScratchBuffers(Device device)
       : blocks(device), slots(device), counts(device), offsets(device), keys(device), order(device),
         positions(device), colors(device), triangle_blocks(device), flags(device), vertex_ids(device),
-        vertices(device), vertex_colors(device), triangles(device) {}
+        vertices(device), vertex_colors(device), triangles(device), all_blocks(device), all_slots(device),
+        affected(device) {}
   Buffer<Index3D> blocks;
   Buffer<uint32_t> slots;
   Buffer<uint32_t> counts;
@@ -72,6 +73,10 @@ struct MeshScratchBuffers {
   Buffer<Vec3f> vertices;
   Buffer<Rgb8> vertex_colors;
   Buffer<uint32_t> triangles;
+  // choosing the blocks to re-mesh
+  Buffer<Index3D> all_blocks;
+  Buffer<uint32_t> all_slots;
+  Buffer<uint32_t> affected;
 };
 
 // Meshes the cubes whose first corner lies in scratch.blocks (with slots). Returns the number of
@@ -79,5 +84,11 @@ struct MeshScratchBuffers {
 template <class Backend>
 int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshScratchBuffers& scratch,
                      int64_t* vertex_count, const Stream& stream);
+
+// Writes to scratch.blocks, sorted by packed key, the blocks whose meshes are out of date: those
+// with kMeshPending set and the allocated blocks just below them; clears their kMeshPending bits
+// on the device. Returns how many.
+template <class Backend>
+int64_t mesh_select_blocks(Backend backend, TsdfMap& map, MeshScratchBuffers& scratch, const Stream& stream);
 
 }  // namespace covox

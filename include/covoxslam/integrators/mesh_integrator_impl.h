@@ -1,5 +1,6 @@
 #pragma once
 // Marching-cubes extraction and vertex welding, written once for both backends.
+#include "covoxslam/core/atomics.h"
 #include "covoxslam/core/parallel.h"
 #include "covoxslam/integrators/marching_cubes.h"
 #include "covoxslam/integrators/mesh_integrator.h"
@@ -158,8 +159,55 @@ int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshScratc
   return triangle_count;
 }
 
+template <class Backend>
+int64_t mesh_select_blocks(Backend backend, TsdfMap& map, MeshScratchBuffers& scratch, const Stream& stream) {
+  map.blocks().export_entries(&scratch.all_blocks, &scratch.all_slots);
+  const int64_t entries = static_cast<int64_t>(scratch.all_blocks.size());
+  if (entries == 0) return 0;
+  // Per slot: > 0 when the block's mesh must be redone.
+  scratch.affected.resize_discard(map.blocks().slot_count());
+  scratch.affected.fill_bytes(0, stream);
+  uint32_t* affected = scratch.affected.data();
+  uint8_t* changed = map.block_changed().data();
+  const Index3D* all_blocks = scratch.all_blocks.data();
+  const uint32_t* all_slots = scratch.all_slots.data();
+  const BlockHashTableView table = map.blocks().device_view();
+  parallel_for(backend, stream, entries, [=] COVOX_HD(int64_t i) {
+    const uint32_t slot = all_slots[i];
+    if (!(changed[slot] & kMeshPending)) return;
+    changed[slot] = static_cast<uint8_t>(changed[slot] & ~kMeshPending);
+    // A cube reads the block of its first corner and its +x/+y/+z neighbours, so a changed
+    // block also changes the meshes of the seven blocks just below it.
+    for (int c = 0; c < 8; ++c) {
+      const Index3D below = all_blocks[i] - Index3D(c & 1, (c >> 1) & 1, (c >> 2) & 1);
+      const uint64_t bucket = table.find(pack_block_key(below));
+      if (bucket != kNoBucket) atomic_add(&affected[table.slots[bucket]], 1u);
+    }
+  });
+  // Compact to the affected blocks' keys, sorted: the same order on both backends.
+  scratch.flags.resize_discard(entries + 1);
+  scratch.vertex_ids.resize_discard(entries + 1);
+  uint32_t* flags = scratch.flags.data();
+  parallel_for(backend, stream, entries + 1,
+               [=] COVOX_HD(int64_t i) { flags[i] = i < entries && affected[all_slots[i]] > 0 ? 1u : 0u; });
+  exclusive_scan(backend, stream, flags, entries + 1, scratch.vertex_ids.data());
+  const int64_t selected = scratch.vertex_ids.element(entries, stream);
+  scratch.keys.resize_discard(selected);
+  scratch.blocks.resize_discard(selected);
+  uint64_t* keys = scratch.keys.data();
+  const uint32_t* positions = scratch.vertex_ids.data();
+  parallel_for(backend, stream, entries, [=] COVOX_HD(int64_t i) {
+    if (flags[i]) keys[positions[i]] = pack_block_key(all_blocks[i]);
+  });
+  sort(backend, stream, keys, selected);
+  Index3D* blocks = scratch.blocks.data();
+  parallel_for(backend, stream, selected, [=] COVOX_HD(int64_t i) { blocks[i] = unpack_block_key(keys[i]); });
+  return selected;
+}
+
 #define COVOX_INSTANTIATE_MESH_INTEGRATOR(Backend)                                                    \
   template int64_t mesh_extract<Backend>(Backend, TsdfMap&, float, MeshScratchBuffers&, int64_t*, \
-                                         const Stream&);
+                                         const Stream&);                                                \
+  template int64_t mesh_select_blocks<Backend>(Backend, TsdfMap&, MeshScratchBuffers&, const Stream&);
 
 }  // namespace covox

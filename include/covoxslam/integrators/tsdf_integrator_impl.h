@@ -222,37 +222,63 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
   }
   stats.rays_cast = tally.kinds[tsdf::kSurfaceRay] + tally.kinds[tsdf::kClearingRay];
 
-  // voxel counts of the rays -> each ray's range in the update array
-  scratch.counts.resize_discard(ray_count);
-  scratch.offsets.resize_discard(ray_count);
-  tsdf::RaySegment* rays = scratch.rays.data();
-  uint32_t* counts = scratch.counts.data();
-  parallel_for(backend, stream, ray_count,
-               [=] COVOX_HD(int64_t i) { counts[i] = tsdf::ray_voxel_count(rays[i], inverse_voxel_size); });
-  exclusive_scan(backend, stream, counts, ray_count, scratch.offsets.data());
+  // 2. one update per traversed voxel, walked in ray pieces (tsdf_kernels.h: one thread per
+  //    piece of ~8 voxels rather than per ray). Pieces per ray -> each ray's first piece; the
+  //    piece table; voxels per piece -> each piece's range in the update array.
   const int64_t total_updates = tally.voxels;
   stats.voxel_updates = total_updates;
   if (total_updates == 0) return stats;
   const tsdf::FrameKeyCodec codec = tsdf::make_frame_key_codec(tally.low_voxel(), tally.high_voxel(), voxels_per_side);
-  profile.mark("2a ray voxel counts + scan");
+  // Every ray has at most voxels / kVoxelsPerPiece + 1 pieces: a bound known without a read-back.
+  const int64_t piece_bound = total_updates / tsdf::kVoxelsPerPiece + ray_count;
+  scratch.counts.resize_discard(ray_count + 1);
+  scratch.offsets.resize_discard(ray_count + 1);
+  tsdf::RaySegment* rays = scratch.rays.data();
+  uint32_t* ray_pieces = scratch.counts.data();
+  parallel_for(backend, stream, ray_count + 1, [=] COVOX_HD(int64_t i) {
+    ray_pieces[i] = i < ray_count ? tsdf::ray_piece_count(tsdf::ray_voxel_count(rays[i], inverse_voxel_size)) : 0u;
+  });
+  exclusive_scan(backend, stream, ray_pieces, ray_count + 1, scratch.offsets.data());
+  const uint32_t* first_piece = scratch.offsets.data();
+  const uint32_t* piece_total = first_piece + ray_count;  // on the device
+  scratch.pieces.resize_discard(piece_bound);
+  scratch.piece_voxels.resize_discard(piece_bound);
+  scratch.piece_offsets.resize_discard(piece_bound);
+  tsdf::RayPiece* pieces = scratch.pieces.data();
+  uint32_t* piece_voxels = scratch.piece_voxels.data();
+  parallel_for(backend, stream, ray_count, [=] COVOX_HD(int64_t i) {
+    const uint32_t count = ray_pieces[i];
+    for (uint32_t k = 0; k < count; ++k) pieces[first_piece[i] + k] = tsdf::RayPiece{static_cast<uint32_t>(i), k, count};
+  });
+  parallel_for(backend, stream, piece_bound, [=] COVOX_HD(int64_t p) {
+    if (p >= *piece_total) {
+      piece_voxels[p] = 0;
+      return;
+    }
+    const tsdf::RayPiece piece = pieces[p];
+    piece_voxels[p] = tsdf::ray_piece_voxel_count(rays[piece.ray], piece.index, piece.pieces, inverse_voxel_size);
+  });
+  exclusive_scan(backend, stream, piece_voxels, piece_bound, scratch.piece_offsets.data());
+  profile.mark("2a ray pieces");
 
-  // 2. one update per traversed voxel
   scratch.keys.resize_discard(total_updates);
   scratch.order.resize_discard(total_updates);
   scratch.updates.resize_discard(total_updates);
   uint64_t* keys = scratch.keys.data();
   uint32_t* order = scratch.order.data();
   tsdf::VoxelUpdate* updates = scratch.updates.data();
-  const uint32_t* offsets = scratch.offsets.data();
+  const uint32_t* piece_offsets = scratch.piece_offsets.data();
   const float truncation = config.truncation_distance_m;
-  parallel_for(backend, stream, ray_count, [=] COVOX_HD(int64_t i) {
+  parallel_for(backend, stream, piece_bound, [=] COVOX_HD(int64_t p) {
+    if (p >= *piece_total) return;
+    const tsdf::RayPiece piece = pieces[p];
+    const int64_t i = piece.ray;
     const tsdf::RaySegment ray = rays[i];
-    if (ray.kind > tsdf::kClearingRay) return;
-    uint32_t out = offsets[i];
+    uint32_t out = piece_offsets[p];
     const bool clearing = ray.kind == tsdf::kClearingRay;
     const Rgb8 color = colors ? colors[i] : (intensities ? tsdf::intensity_to_grey(intensities[i], grey_per_intensity) : Rgb8{});
     const float ray_weight = ray_weights ? ray_weights[i] : 1.0f;
-    tsdf::traverse_ray(ray, inverse_voxel_size, [&](const Index3D& voxel) {
+    tsdf::traverse_ray_piece(ray, piece.index, piece.pieces, inverse_voxel_size, [&](const Index3D& voxel) {
       const Vec3f center((voxel.x + 0.5f) * voxel_size, (voxel.y + 0.5f) * voxel_size,
                          (voxel.z + 0.5f) * voxel_size);
       float distance = clearing ? truncation : (ray.surface - center).dot(ray.direction);

@@ -166,16 +166,18 @@ COVOX_HD_INLINE uint32_t ray_voxel_count(const RaySegment& ray, float inverse_vo
                                     abs_i32(last.z - first.z));
 }
 
-// Amanatides-Woo traversal from ray.start to ray.end, calling visit(voxel) for each of the
-// ray_voxel_count() voxels in order. An axis is only stepped while it has grid lines left to
-// cross, so rounding can never step past the last voxel or change the count.
+// Amanatides-Woo traversal of the segment from world point `a_world` (in voxel `first`) to
+// `b_world` (in voxel `last`), calling visit(voxel) for the 1 + |last - first|_1 voxels from
+// `first` to `last` in order, or for all but `last` when `include_last` is false. An axis is only
+// stepped while it has grid lines left to cross, so rounding can never step past `last` or change
+// the count, even when `first`/`last` were clamped a voxel away from the points' own voxels.
 template <class Visitor>
-COVOX_HD_INLINE void traverse_ray(const RaySegment& ray, float inverse_voxel_size, Visitor&& visit) {
-  const Vec3f a = ray.start * inverse_voxel_size;
-  const Vec3f b = ray.end * inverse_voxel_size;
-  Index3D current = voxel_of(ray.start, inverse_voxel_size);
-  const Index3D last = voxel_of(ray.end, inverse_voxel_size);
-  const int32_t cur[3] = {current.x, current.y, current.z};
+COVOX_HD_INLINE void traverse_voxels(const Vec3f& a_world, const Vec3f& b_world, const Index3D& first,
+                                     const Index3D& last, float inverse_voxel_size, bool include_last,
+                                     Visitor&& visit) {
+  const Vec3f a = a_world * inverse_voxel_size;
+  const Vec3f b = b_world * inverse_voxel_size;
+  const int32_t cur[3] = {first.x, first.y, first.z};
   const int32_t end[3] = {last.x, last.y, last.z};
   int32_t position[3] = {cur[0], cur[1], cur[2]};
   int32_t remaining[3];
@@ -195,9 +197,10 @@ COVOX_HD_INLINE void traverse_ray(const RaySegment& ray, float inverse_voxel_siz
       t_delta[axis] = static_cast<float>(step[axis]) / delta;
     }
   }
-  const int32_t total = remaining[0] + remaining[1] + remaining[2];
+  const int32_t steps = remaining[0] + remaining[1] + remaining[2] - (include_last ? 0 : 1);
+  if (steps < 0) return;  // an empty piece: first == last and the last voxel is excluded
   visit(Index3D(position[0], position[1], position[2]));
-  for (int32_t k = 0; k < total; ++k) {
+  for (int32_t k = 0; k < steps; ++k) {
     int axis = -1;
     float best = 3.4e38f;
     for (int candidate = 0; candidate < 3; ++candidate) {
@@ -215,6 +218,74 @@ COVOX_HD_INLINE void traverse_ray(const RaySegment& ray, float inverse_voxel_siz
     visit(Index3D(position[0], position[1], position[2]));
   }
 }
+
+// The whole ray: ray_voxel_count() voxels from ray.start to ray.end.
+template <class Visitor>
+COVOX_HD_INLINE void traverse_ray(const RaySegment& ray, float inverse_voxel_size, Visitor&& visit) {
+  traverse_voxels(ray.start, ray.end, voxel_of(ray.start, inverse_voxel_size), voxel_of(ray.end, inverse_voxel_size),
+                  inverse_voxel_size, true, visit);
+}
+
+// ---- Ray pieces --------------------------------------------------------------------------------
+// One GPU thread walking a whole ray is latency bound: an RGB-D frame merges into a few thousand
+// rays of up to a hundred voxels each, far too few threads to hide memory latency. So each ray is
+// cut at K - 1 evenly spaced points into K pieces of about kVoxelsPerPiece voxels, one thread
+// each. The cut voxels are clamped between the ray's first and last voxel, which keeps them
+// monotone along every axis; a piece covers the voxels from its start cut up to, but not
+// including, its end cut (the last piece includes the ray's last voxel). Monotone cuts make the
+// pieces' Manhattan lengths add up to the ray's, so the pieces visit exactly ray_voxel_count()
+// distinct voxels, in ray order. Both backends cut the same way.
+constexpr int32_t kVoxelsPerPiece = 8;
+
+COVOX_HD_INLINE uint32_t ray_piece_count(uint32_t voxel_count) {
+  return (voxel_count + kVoxelsPerPiece - 1) / kVoxelsPerPiece;
+}
+
+// Cut point k of K (0: the ray's start, K: its end).
+COVOX_HD_INLINE Vec3f ray_cut_point(const RaySegment& ray, uint32_t k, uint32_t pieces) {
+  if (k == 0) return ray.start;
+  if (k >= pieces) return ray.end;
+  return ray.start + (ray.end - ray.start) * (static_cast<float>(k) / static_cast<float>(pieces));
+}
+
+COVOX_HD_INLINE int32_t clamp_between(int32_t v, int32_t a, int32_t b) {
+  const int32_t low = a < b ? a : b, high = a < b ? b : a;
+  return v < low ? low : (v > high ? high : v);
+}
+
+COVOX_HD_INLINE Index3D ray_cut_voxel(const RaySegment& ray, uint32_t k, uint32_t pieces, float inverse_voxel_size) {
+  const Index3D first = voxel_of(ray.start, inverse_voxel_size);
+  const Index3D last = voxel_of(ray.end, inverse_voxel_size);
+  if (k == 0) return first;
+  if (k >= pieces) return last;
+  const Index3D v = voxel_of(ray_cut_point(ray, k, pieces), inverse_voxel_size);
+  return Index3D(clamp_between(v.x, first.x, last.x), clamp_between(v.y, first.y, last.y),
+                 clamp_between(v.z, first.z, last.z));
+}
+
+// Voxels piece k of `pieces` visits.
+COVOX_HD_INLINE uint32_t ray_piece_voxel_count(const RaySegment& ray, uint32_t k, uint32_t pieces,
+                                               float inverse_voxel_size) {
+  const Index3D a = ray_cut_voxel(ray, k, pieces, inverse_voxel_size);
+  const Index3D b = ray_cut_voxel(ray, k + 1, pieces, inverse_voxel_size);
+  return static_cast<uint32_t>(abs_i32(b.x - a.x) + abs_i32(b.y - a.y) + abs_i32(b.z - a.z)) +
+         (k + 1 == pieces ? 1u : 0u);
+}
+
+template <class Visitor>
+COVOX_HD_INLINE void traverse_ray_piece(const RaySegment& ray, uint32_t k, uint32_t pieces, float inverse_voxel_size,
+                                        Visitor&& visit) {
+  traverse_voxels(ray_cut_point(ray, k, pieces), ray_cut_point(ray, k + 1, pieces),
+                  ray_cut_voxel(ray, k, pieces, inverse_voxel_size),
+                  ray_cut_voxel(ray, k + 1, pieces, inverse_voxel_size), inverse_voxel_size, k + 1 == pieces, visit);
+}
+
+// Which ray a piece belongs to, and which of its pieces it is.
+struct RayPiece {
+  uint32_t ray;
+  uint32_t index;
+  uint32_t pieces;
+};
 
 struct WeightParameters {
   float voxel_size_m;
