@@ -1,32 +1,48 @@
 // Pose-graph solve time: covoxslam's LM + PCG on the GPU and on the CPU twin, and Ceres
-// (SPARSE_SCHUR, 4 threads: voxgraph's setting) on the same residuals. Prints a table and writes
+// (SPARSE_SCHUR, 4 threads: voxgraph's setting) on the same problems. Prints a table and writes
 // docs/benchmarks/backend.json.
 //
 //   benchmark_backend [--device all|cuda|cpu] [--submaps 50,200,1000] [--repeats 3]
-//                     [--data DIR] [--skip-ceres] [--skip-garage] [--output PATH]
-//                     [--preconditioner block-jacobi|chain]
+//                     [--ceres-repeats 1] [--ceres-time-limit-s 300] [--data DIR]
+//                     [--skip-ceres] [--skip-garage] [--skip-registration] [--relative-graphs]
+//                     [--preconditioner block-jacobi|chain|both] [--distinct-submaps 12]
+//                     [--lidar-columns 1024] [--points-per-submap 2000]
+//                     [--registration-distance tsdf|esdf] [--pcg-tolerance T]
+//                     [--pcg-max-iterations N] [--output PATH]
 //
-// Cases: synthetic 4-DoF submap graphs (odometry plus up to 4 registration-like relative
-// constraints per submap to nearby submaps, absolute height constraints), and
-// pose-graphs/parking-garage.g2o in SE(3) mode. Every solver starts from the same initial guess
-// and runs with its default stopping rules (relative function tolerance 1e-6); the final cost is
-// reported next to the time so the comparison can be judged.
+// Cases:
+//  * registration graphs (the benchmark): n submaps of a street with odometry between
+//    consecutive ones and dense registration terms k -> k+1, k -> k+2, k+1 -> k (Huber), about
+//    points-per-submap points per term, each an ESDF/TSDF lookup with trilinear interpolation and
+//    Jacobians w.r.t. both poses (tools/lib/registration_benchmark_world.h: distinct-submaps real
+//    submaps whose fields are reused along a periodic street, because building a thousand real
+//    submaps is too slow on a small CPU);
+//  * pose-graphs/parking-garage.g2o in SE(3) mode;
+//  * with --relative-graphs, the synthetic relative-pose-only graphs (odometry, loop closures,
+//    height constraints) of synthetic_pose_graph.h.
+// Every solver starts from the same initial guess and runs with its default stopping rules
+// (relative function tolerance 1e-6); the final cost (and, for the registration graphs, the
+// position RMSE against the truth) is reported next to the time so the comparison can be judged.
+// Ceres is bounded by --ceres-time-limit-s per solve (its report then says NO_CONVERGENCE).
 #include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <iostream>
+#include <map>
 #include <sstream>
 #include <string>
 #include <vector>
 
 #include "benchmark_report.h"
 #include "covoxslam/backend/ceres_pose_graph_oracle.h"
+#include "covoxslam/backend/ceres_registration_oracle.h"
 #include "covoxslam/backend/g2o_reader.h"
 #include "covoxslam/backend/pose_graph_solver.h"
 #include "covoxslam/backend/synthetic_pose_graph.h"
 #include "covoxslam/core/device.h"
 #include "covoxslam/core/error.h"
 #include "covoxslam/io/data_directory.h"
+#include "registration_benchmark_world.h"
 
 namespace covox {
 namespace {
@@ -35,19 +51,40 @@ struct Options {
   std::string device = "all";
   std::vector<int> submaps = {50, 200, 1000};
   int repeats = 3;
+  int ceres_repeats = 1;
+  double ceres_time_limit_s = 300.0;
   std::string data;
   bool skip_ceres = false;
   bool skip_garage = false;
+  bool skip_registration = false;
+  bool relative_graphs = false;
+  std::vector<backend::PcgPreconditioner> preconditioners = {backend::PcgPreconditioner::kBlockJacobi,
+                                                             backend::PcgPreconditioner::kOdometryChain};
+  tools::RegistrationWorldConfig world;
+  backend::RegistrationDistance distance = backend::RegistrationDistance::kTsdfNearSurface;
+  backend::PoseGraphSolverOptions solver;  // our solver's settings (defaults unless overridden)
   std::string output;
-  backend::PcgPreconditioner preconditioner = backend::PcgPreconditioner::kBlockJacobi;
 };
 
 [[noreturn]] void usage_error(const std::string& message) {
   std::cerr << "benchmark_backend: " << message << "\n"
             << "usage: benchmark_backend [--device all|cuda|cpu] [--submaps 50,200,1000] [--repeats 3]\n"
-            << "                         [--data DIR] [--skip-ceres] [--skip-garage] [--output PATH]\n"
-            << "                         [--preconditioner block-jacobi|chain]\n";
+            << "                         [--ceres-repeats 1] [--ceres-time-limit-s 300] [--data DIR]\n"
+            << "                         [--skip-ceres] [--skip-garage] [--skip-registration] [--relative-graphs]\n"
+            << "                         [--preconditioner block-jacobi|chain|both] [--distinct-submaps 12]\n"
+            << "                         [--lidar-columns 1024] [--points-per-submap 2000]\n"
+            << "                         [--registration-distance tsdf|esdf] [--pcg-tolerance T]\n"
+            << "                         [--pcg-max-iterations N] [--output PATH]\n";
   std::exit(2);
+}
+
+int positive_int(const std::string& flag, const std::string& text, int minimum) {
+  char* end = nullptr;
+  const long value = std::strtol(text.c_str(), &end, 10);
+  if (end == text.c_str() || *end != '\0' || value < minimum) {
+    usage_error(flag + " must be an integer >= " + std::to_string(minimum) + ", got '" + text + "'");
+  }
+  return static_cast<int>(value);
 }
 
 Options parse(int argc, char** argv) {
@@ -64,28 +101,54 @@ Options parse(int argc, char** argv) {
     } else if (arg == "--submaps") {
       o.submaps.clear();
       std::stringstream list(value());
-      for (std::string item; std::getline(list, item, ',');) {
-        const int n = std::atoi(item.c_str());
-        if (n < 2) usage_error("--submaps entries must be at least 2, got '" + item + "'");
-        o.submaps.push_back(n);
-      }
+      for (std::string item; std::getline(list, item, ',');) o.submaps.push_back(positive_int(arg, item, 3));
     } else if (arg == "--repeats") {
-      o.repeats = std::atoi(value().c_str());
-      if (o.repeats < 1) usage_error("--repeats must be at least 1");
+      o.repeats = positive_int(arg, value(), 1);
+    } else if (arg == "--ceres-repeats") {
+      o.ceres_repeats = positive_int(arg, value(), 1);
+    } else if (arg == "--ceres-time-limit-s") {
+      o.ceres_time_limit_s = std::atof(value().c_str());
+      if (!(o.ceres_time_limit_s > 0.0)) usage_error("--ceres-time-limit-s must be positive");
     } else if (arg == "--data") {
       o.data = value();
     } else if (arg == "--skip-ceres") {
       o.skip_ceres = true;
     } else if (arg == "--skip-garage") {
       o.skip_garage = true;
+    } else if (arg == "--skip-registration") {
+      o.skip_registration = true;
+    } else if (arg == "--relative-graphs") {
+      o.relative_graphs = true;
     } else if (arg == "--preconditioner") {
       const std::string name = value();
       if (name == "block-jacobi") {
-        o.preconditioner = backend::PcgPreconditioner::kBlockJacobi;
+        o.preconditioners = {backend::PcgPreconditioner::kBlockJacobi};
       } else if (name == "chain") {
-        o.preconditioner = backend::PcgPreconditioner::kOdometryChain;
+        o.preconditioners = {backend::PcgPreconditioner::kOdometryChain};
+      } else if (name == "both") {
+        o.preconditioners = {backend::PcgPreconditioner::kBlockJacobi, backend::PcgPreconditioner::kOdometryChain};
       } else {
-        usage_error("--preconditioner must be block-jacobi or chain, got '" + name + "'");
+        usage_error("--preconditioner must be block-jacobi, chain or both, got '" + name + "'");
+      }
+    } else if (arg == "--distinct-submaps") {
+      o.world.distinct_submaps = positive_int(arg, value(), 3);
+    } else if (arg == "--lidar-columns") {
+      o.world.lidar_columns = positive_int(arg, value(), 16);
+    } else if (arg == "--points-per-submap") {
+      o.world.points_per_submap = positive_int(arg, value(), 10);
+    } else if (arg == "--pcg-tolerance") {
+      o.solver.pcg_relative_tolerance = std::atof(value().c_str());
+      if (!(o.solver.pcg_relative_tolerance > 0.0)) usage_error("--pcg-tolerance must be positive");
+    } else if (arg == "--pcg-max-iterations") {
+      o.solver.pcg_max_iterations = positive_int(arg, value(), 1);
+    } else if (arg == "--registration-distance") {
+      const std::string name = value();
+      if (name == "tsdf") {
+        o.distance = backend::RegistrationDistance::kTsdfNearSurface;
+      } else if (name == "esdf") {
+        o.distance = backend::RegistrationDistance::kEsdf;
+      } else {
+        usage_error("--registration-distance must be tsdf or esdf, got '" + name + "'");
       }
     } else if (arg == "--output") {
       o.output = value();
@@ -101,54 +164,148 @@ std::vector<Device> devices_of(const std::string& name) {
   return {select_device(parse_device_request(name))};
 }
 
+double median(std::vector<double> values) {
+  std::sort(values.begin(), values.end());
+  return values[values.size() / 2];
+}
+
+// Our solver on one device and preconditioner: `solve(graph, options)` solves a fresh copy.
+template <class Graph, class Solve>
+Graph run_ours(const std::string& label, const Graph& initial, backend::PcgPreconditioner preconditioner,
+               const Options& o, Solve solve, tools::BenchmarkReport* report) {
+  std::vector<double> times;
+  backend::PoseGraphSolverSummary summary;
+  Graph graph;
+  for (int r = 0; r < o.repeats; ++r) {
+    graph = initial;
+    backend::PoseGraphSolverOptions options = o.solver;
+    options.preconditioner = preconditioner;
+    summary = solve(&graph, options);
+    times.push_back(summary.solve_time_s * 1e3);
+  }
+  std::cerr << label << ": " << summary.report() << "\n";
+  report->add(label, "solve time (median)", median(times), "ms");
+  report->add(label, "final cost", summary.final_cost, "");
+  report->add(label, "LM iterations", summary.iterations, "");
+  report->add(label, "PCG iterations", static_cast<double>(summary.pcg_iterations), "");
+  return graph;
+}
+
+#if COVOX_HAVE_CERES
+backend::ceres_oracle::OracleOptions voxgraph_ceres_options(const Options& o) {
+  backend::ceres_oracle::OracleOptions ceres;
+  ceres.linear_solver = ceres::SPARSE_SCHUR;
+  ceres.threads = 4;
+  // Ceres' defaults, as voxgraph uses them.
+  ceres.max_iterations = 50;
+  ceres.function_tolerance = 1e-6;
+  ceres.gradient_tolerance = 1e-10;
+  ceres.parameter_tolerance = 1e-8;
+  ceres.max_solver_time_s = o.ceres_time_limit_s;
+  return ceres;
+}
+
+template <class Graph, class Solve>
+Graph run_ceres(const std::string& label, const Graph& initial, const Options& o, Solve solve,
+                tools::BenchmarkReport* report) {
+  std::vector<double> times;
+  backend::ceres_oracle::OracleResult result;
+  Graph graph;
+  for (int r = 0; r < o.ceres_repeats; ++r) {
+    graph = initial;
+    result = solve(&graph, voxgraph_ceres_options(o));
+    times.push_back(result.solve_time_s * 1e3);
+  }
+  std::cerr << label << ": " << result.brief_report << " (time limit " << o.ceres_time_limit_s << " s)\n";
+  report->add(label, "solve time (median)", median(times), "ms");
+  report->add(label, "final cost", result.final_cost, "");
+  report->add(label, "LM iterations", result.iterations, "");  // Ceres counts iteration 0 too
+  return graph;
+}
+#endif
+
 template <class Graph>
-void run_case(const std::string& name, const Graph& initial, const std::vector<Device>& devices, const Options& o,
-              tools::BenchmarkReport* report) {
+void run_pose_graph_case(const std::string& name, const Graph& initial, const std::vector<Device>& devices,
+                         const Options& o, tools::BenchmarkReport* report) {
   for (const Device device : devices) {
-    std::vector<double> times;
-    backend::PoseGraphSolverSummary summary;
-    for (int r = 0; r < o.repeats; ++r) {
-      Graph graph = initial;
-      backend::PoseGraphSolverOptions options;
-      options.preconditioner = o.preconditioner;
-      summary = backend::solve_pose_graph(&graph, device, options);
-      times.push_back(summary.solve_time_s * 1e3);
+    for (const backend::PcgPreconditioner preconditioner : o.preconditioners) {
+      run_ours(name + " " + to_string(device) + " " + backend::to_string(preconditioner), initial, preconditioner, o,
+               [&](Graph* g, const backend::PoseGraphSolverOptions& options) {
+                 return backend::solve_pose_graph(g, device, options);
+               },
+               report);
     }
-    std::sort(times.begin(), times.end());
-    const std::string label = name + " " + to_string(device) + " " + backend::to_string(o.preconditioner);
-    std::cerr << label << ": " << summary.report() << "\n";
-    report->add(label, "solve time (median)", times[times.size() / 2], "ms");
-    report->add(label, "final cost", summary.final_cost, "");
-    report->add(label, "LM iterations", summary.iterations, "");
-    report->add(label, "PCG iterations", static_cast<double>(summary.pcg_iterations), "");
   }
 #if COVOX_HAVE_CERES
   if (!o.skip_ceres) {
-    backend::ceres_oracle::OracleOptions ceres;
-    ceres.linear_solver = ceres::SPARSE_SCHUR;
-    ceres.threads = 4;
-    // Ceres' defaults, as voxgraph uses them.
-    ceres.max_iterations = 50;
-    ceres.function_tolerance = 1e-6;
-    ceres.gradient_tolerance = 1e-10;
-    ceres.parameter_tolerance = 1e-8;
-    std::vector<double> times;
-    backend::ceres_oracle::OracleResult result;
-    for (int r = 0; r < o.repeats; ++r) {
-      Graph graph = initial;
-      result = backend::ceres_oracle::solve(&graph, ceres);
-      times.push_back(result.solve_time_s * 1e3);
-    }
-    std::sort(times.begin(), times.end());
-    const std::string label = name + " ceres SPARSE_SCHUR x4";
-    std::cerr << label << ": " << result.brief_report << "\n";
-    report->add(label, "solve time (median)", times[times.size() / 2], "ms");
-    report->add(label, "final cost", result.final_cost, "");
-    report->add(label, "LM iterations", result.iterations, "");  // Ceres counts iteration 0 too
+    run_ceres(name + " ceres SPARSE_SCHUR x4", initial, o,
+              [](Graph* g, const backend::ceres_oracle::OracleOptions& options) {
+                return backend::ceres_oracle::solve(g, options);
+              },
+              report);
   }
-#else
-  (void)o;
 #endif
+}
+
+void run_registration_cases(const std::vector<Device>& devices, const Options& o, tools::BenchmarkReport* report) {
+  std::map<Device, tools::RegistrationWorld> worlds;
+  for (const Device device : devices) {
+    worlds.emplace(device, tools::build_registration_world(o.world, device));
+    const tools::RegistrationWorld& w = worlds.at(device);
+    int64_t points = 0;
+    for (const auto& p : w.points) points += static_cast<int64_t>(p->points.size());
+    std::cerr << "registration world on " << to_string(device) << ": " << w.maps.size()
+              << " distinct submaps (period " << w.period_m << " m), " << points / static_cast<int64_t>(w.points.size())
+              << " registration points per submap on average, built in " << w.build_time_s << " s\n";
+  }
+  for (const int n : o.submaps) {
+    tools::RegistrationGraphOptions graph_options;
+    graph_options.submaps = n;
+    graph_options.distance = o.distance;
+    std::string name;
+    for (const Device device : devices) {
+      const tools::RegistrationGraph problem = tools::make_registration_graph(worlds.at(device), graph_options);
+      int64_t points = 0;
+      for (const auto& t : problem.terms) points += static_cast<int64_t>(t.points_i->points.size());
+      name = "reg n=" + std::to_string(n) + " (" + std::to_string(problem.terms.size()) + " pairs, " +
+             std::to_string(points / 1000) + "k points)";
+      if (device == devices.front()) {
+        report->add(name + " initial", "position RMSE", tools::position_rmse_m(problem.graph.poses, problem.truth),
+                    "m");
+        // Where the truth sits on the objective: a final cost below it means the registration
+        // terms' optimum is biased away from the truth (single-scan submaps), not a failed solve.
+        backend::PoseGraph4Dof at_truth = problem.graph;
+        at_truth.poses = problem.truth;
+        report->add(name + " truth", "final cost",
+                    backend::pose_graph_cost(at_truth) + backend::registration_terms_cost(at_truth, problem.terms), "");
+      }
+      for (const backend::PcgPreconditioner preconditioner : o.preconditioners) {
+        const std::string label = name + " " + to_string(device) + " " + backend::to_string(preconditioner);
+        const backend::PoseGraph4Dof solved = run_ours(
+            label, problem.graph, preconditioner, o,
+            [&](backend::PoseGraph4Dof* g, const backend::PoseGraphSolverOptions& options) {
+              return backend::solve_pose_graph(g, problem.terms, device, options);
+            },
+            report);
+        report->add(label, "position RMSE", tools::position_rmse_m(solved.poses, problem.truth), "m");
+      }
+    }
+#if COVOX_HAVE_CERES
+    if (!o.skip_ceres) {
+      // Ceres runs on the host: it reads the first device's world (host copies of device maps).
+      const tools::RegistrationGraph problem = tools::make_registration_graph(worlds.at(devices.front()), graph_options);
+      backend::ceres_oracle::HostRegistrationFields fields;
+      const std::string label = name + " ceres SPARSE_SCHUR x4";
+      const backend::PoseGraph4Dof solved = run_ceres(
+          label, problem.graph, o,
+          [&](backend::PoseGraph4Dof* g, const backend::ceres_oracle::OracleOptions& options) {
+            return backend::ceres_oracle::solve(g, problem.terms, options, &fields);
+          },
+          report);
+      report->add(label, "position RMSE", tools::position_rmse_m(solved.poses, problem.truth), "m");
+    }
+#endif
+  }
 }
 
 int run(int argc, char** argv) {
@@ -156,19 +313,28 @@ int run(int argc, char** argv) {
   const std::vector<Device> devices = devices_of(o.device);
   std::string description;
   for (const Device d : devices) description += (description.empty() ? "" : "; ") + describe_device(d);
+#if COVOX_HAVE_CERES
+  if (!o.skip_ceres) description += "; Ceres " + std::string(CERES_VERSION_STRING) + " SPARSE_SCHUR, 4 threads";
+#else
+  std::cerr << "benchmark_backend: built without Ceres: no Ceres rows (run the Ceres part on a machine with it)\n";
+#endif
   tools::BenchmarkReport report("backend", description, argc, argv);
-  for (const int n : o.submaps) {
-    backend::SyntheticGraphOptions synthetic;
-    synthetic.submaps = n;
-    synthetic.height_constraints = true;
-    const auto problem = backend::make_synthetic_graph_4dof(synthetic);
-    run_case("4dof n=" + std::to_string(n) + " (" + std::to_string(problem.graph.constraints.size()) + " constraints)",
-             problem.graph, devices, o, &report);
+  if (!o.skip_registration) run_registration_cases(devices, o, &report);
+  if (o.relative_graphs) {
+    for (const int n : o.submaps) {
+      backend::SyntheticGraphOptions synthetic;
+      synthetic.submaps = n;
+      synthetic.height_constraints = true;
+      const auto problem = backend::make_synthetic_graph_4dof(synthetic);
+      run_pose_graph_case("4dof n=" + std::to_string(n) + " (" + std::to_string(problem.graph.constraints.size()) +
+                              " constraints)",
+                          problem.graph, devices, o, &report);
+    }
   }
   if (!o.skip_garage) {
     const std::string path = o.data + "/pose-graphs/parking-garage.g2o";
     if (std::filesystem::exists(path)) {
-      run_case("parking-garage se3", backend::read_g2o(path).graph, devices, o, &report);
+      run_pose_graph_case("parking-garage se3", backend::read_g2o(path).graph, devices, o, &report);
     } else {
       std::cerr << "benchmark_backend: skipping parking-garage: " << path << " is missing\n";
     }

@@ -5,5 +5,6 @@ namespace covox {
 namespace backend {
 COVOX_INSTANTIATE_POSE_GRAPH_SOLVER(CudaBackend, Se3Model)
 COVOX_INSTANTIATE_POSE_GRAPH_SOLVER(CudaBackend, FourDofModel)
+COVOX_INSTANTIATE_POSE_GRAPH_REGISTRATION(CudaBackend)
 }  // namespace backend
 }  // namespace covox

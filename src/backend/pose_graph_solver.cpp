@@ -28,6 +28,9 @@ std::string PoseGraphSolverSummary::report() const {
   out << "pose graph: cost " << initial_cost << " -> " << final_cost << " in " << iterations << " iterations ("
       << accepted_steps << " accepted, " << pcg_iterations << " PCG iterations), " << solve_time_s * 1e3
       << " ms, stopped by " << to_string(termination);
+  if (registration_points > 0) {
+    out << "; registration points " << registration_points_used << " of " << registration_points << " used";
+  }
   return out.str();
 }
 
@@ -52,6 +55,18 @@ PoseGraphSolverSummary solve_pose_graph(Se3PoseGraph* graph, Device device, cons
 }
 PoseGraphSolverSummary solve_pose_graph(PoseGraph4Dof* graph, Device device, const PoseGraphSolverOptions& options) {
   return solve_any(graph, device, options);
+}
+PoseGraphSolverSummary solve_pose_graph(PoseGraph4Dof* graph, const std::vector<RegistrationTerm>& registration,
+                                        Device device, const PoseGraphSolverOptions& options) {
+  validate_pose_graph(*graph);
+  validate_registration_terms(registration, static_cast<int32_t>(graph->poses.size()), device);
+  return dispatch(device, [&](auto backend) { return solve_pose_graph_on(backend, graph, registration, options); });
+}
+PoseGraphEvaluation evaluate_pose_graph(const PoseGraph4Dof& graph, const std::vector<RegistrationTerm>& registration,
+                                        Device device) {
+  validate_pose_graph(graph);
+  validate_registration_terms(registration, static_cast<int32_t>(graph.poses.size()), device);
+  return dispatch(device, [&](auto backend) { return evaluate_pose_graph_on(backend, graph, registration); });
 }
 PoseGraphEvaluation evaluate_pose_graph(const Se3PoseGraph& graph, Device device) {
   return evaluate_any(graph, device);

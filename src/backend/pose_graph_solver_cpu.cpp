@@ -5,5 +5,6 @@ namespace covox {
 namespace backend {
 COVOX_INSTANTIATE_POSE_GRAPH_SOLVER(CpuBackend, Se3Model)
 COVOX_INSTANTIATE_POSE_GRAPH_SOLVER(CpuBackend, FourDofModel)
+COVOX_INSTANTIATE_POSE_GRAPH_REGISTRATION(CpuBackend)
 }  // namespace backend
 }  // namespace covox

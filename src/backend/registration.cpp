@@ -22,7 +22,16 @@ void check_finite_pose(const Pose4Dof& pose, const char* what) {
   }
 }
 
-void validate(const RegistrationResidualConfig& config) {
+void check_same_device(const RegistrationPoints& points_i, const TsdfMap& map_j) {
+  if (points_i.points.device() != map_j.device()) {
+    throw Error(std::string("registration: the points of submap i live on ") + to_string(points_i.points.device()) +
+                " but submap j on " + to_string(map_j.device()) + "; extract them from a map on the same device");
+  }
+}
+
+}  // namespace
+
+void validate_registration_residual_config(const RegistrationResidualConfig& config) {
   if (!(config.tsdf_band_m >= 0.0f) || !std::isfinite(config.tsdf_band_m)) {
     throw Error("registration: tsdf_band_m must be finite and >= 0, got " + std::to_string(config.tsdf_band_m));
   }
@@ -33,7 +42,7 @@ void validate(const RegistrationResidualConfig& config) {
 }
 
 // The kernels read the map; their views are non-const because kernels share one view type.
-RegistrationDistanceLookup make_lookup(const TsdfMap& map, const RegistrationResidualConfig& config) {
+RegistrationDistanceLookup make_registration_lookup(const TsdfMap& map, const RegistrationResidualConfig& config) {
   auto& mutable_map = const_cast<TsdfMap&>(map);
   RegistrationDistanceLookup lookup;
   lookup.esdf = EsdfLookup{BlockVoxelIndexer{map.blocks().device_view(), map.voxels_per_side()},
@@ -43,28 +52,6 @@ RegistrationDistanceLookup make_lookup(const TsdfMap& map, const RegistrationRes
   lookup.min_tsdf_weight = config.min_tsdf_weight;
   return lookup;
 }
-
-RegistrationPairGeometry make_pair(const Pose4Dof& T_W_Si, const Pose4Dof& T_W_Sj) {
-  RegistrationPairGeometry pair;
-  pair.cos_ji = std::cos(T_W_Si.yaw - T_W_Sj.yaw);
-  pair.sin_ji = std::sin(T_W_Si.yaw - T_W_Sj.yaw);
-  pair.cos_j = std::cos(T_W_Sj.yaw);
-  pair.sin_j = std::sin(T_W_Sj.yaw);
-  const double dx = T_W_Si.x - T_W_Sj.x, dy = T_W_Si.y - T_W_Sj.y;
-  pair.t_ji[0] = pair.cos_j * dx + pair.sin_j * dy;
-  pair.t_ji[1] = -pair.sin_j * dx + pair.cos_j * dy;
-  pair.t_ji[2] = T_W_Si.z - T_W_Sj.z;
-  return pair;
-}
-
-void check_same_device(const RegistrationPoints& points_i, const TsdfMap& map_j) {
-  if (points_i.points.device() != map_j.device()) {
-    throw Error(std::string("registration: the points of submap i live on ") + to_string(points_i.points.device()) +
-                " but submap j on " + to_string(map_j.device()) + "; extract them from a map on the same device");
-  }
-}
-
-}  // namespace
 
 RegistrationPoints extract_registration_points(const TsdfMap& map, const RegistrationPointsConfig& config,
                                                const Stream& stream) {
@@ -108,7 +95,7 @@ void evaluate_registration_residuals(const RegistrationPoints& points_i, const T
                                      const Pose4Dof& T_W_Si, const Pose4Dof& T_W_Sj,
                                      const RegistrationResidualConfig& config,
                                      Buffer<RegistrationResidual>* residuals, const Stream& stream) {
-  validate(config);
+  validate_registration_residual_config(config);
   check_finite_pose(T_W_Si, "T_W_Si");
   check_finite_pose(T_W_Sj, "T_W_Sj");
   check_same_device(points_i, map_j);
@@ -117,8 +104,8 @@ void evaluate_registration_residuals(const RegistrationPoints& points_i, const T
   }
   const int64_t count = static_cast<int64_t>(points_i.points.size());
   residuals->resize_discard(static_cast<size_t>(count));
-  const RegistrationDistanceLookup lookup = make_lookup(map_j, config);
-  const RegistrationPairGeometry pair = make_pair(T_W_Si, T_W_Sj);
+  const RegistrationDistanceLookup lookup = make_registration_lookup(map_j, config);
+  const RegistrationPairGeometry pair = registration_pair_geometry(T_W_Si, T_W_Sj);
   const RobustLossParams robust{config.loss, config.loss_scale};
   const bool tsdf_target = config.distance == RegistrationDistance::kTsdfNearSurface;
   dispatch(map_j.device(), [&](auto backend) {

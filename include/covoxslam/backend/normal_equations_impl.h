@@ -4,6 +4,7 @@
 // backend's device; matrices are D x D row-major, one after the other.
 #include <thrust/functional.h>
 
+#include "covoxslam/backend/registration_terms_ops.h"
 #include "covoxslam/core/parallel.h"
 
 namespace covox {
@@ -43,7 +44,17 @@ struct StructureView {
   const int32_t* row_offsets;
   const int32_t* row_entries;
   const int32_t* row_columns;
+  // Terms k >= constraint_count are registration terms (registration_terms.h): their blocks are
+  // read from term_sums (kRegistrationSumStride doubles per term, side 0 = vertex i, side 1 =
+  // vertex j) instead of being formed from per-constraint Jacobians.
+  int64_t constraint_count;
+  const double* term_sums;
 };
+
+// The registration term's share of a diagonal block entry / gradient entry / off-diagonal entry.
+COVOX_HD_INLINE const double* registration_term_sums(const StructureView& s, int64_t k) {
+  return s.term_sums + (k - s.constraint_count) * kRegistrationSumStride;
+}
 
 // Diagonal blocks and gradient g = J^T f. One thread per matrix entry: a sum over that vertex's
 // terms in list order, so both backends add in the same order.
@@ -61,6 +72,11 @@ void assemble_diagonal_and_gradient(Backend backend, const Stream& stream, Struc
     } else {
       for (int32_t e = s.diag_offsets[v]; e < s.diag_offsets[v + 1]; ++e) {
         const int32_t term = s.diag_terms[e];
+        if ((term >> 1) >= s.constraint_count) {
+          const double* h = registration_term_sums(s, term >> 1);
+          sum += h[((term & 1) ? kRegistrationHjjOffset : kRegistrationHiiOffset) + r * D + c];
+          continue;
+        }
         const double* j = ((term & 1) ? jac_to : jac_from) + static_cast<int64_t>(term >> 1) * DD;
         for (int k = 0; k < D; ++k) sum += j[k * D + r] * j[k * D + c];
       }
@@ -75,6 +91,11 @@ void assemble_diagonal_and_gradient(Backend backend, const Stream& stream, Struc
       for (int32_t e = s.diag_offsets[v]; e < s.diag_offsets[v + 1]; ++e) {
         const int32_t term = s.diag_terms[e];
         const int64_t k_constraint = term >> 1;
+        if (k_constraint >= s.constraint_count) {
+          const double* h = registration_term_sums(s, k_constraint);
+          sum += h[((term & 1) ? kRegistrationGjOffset : kRegistrationGiOffset) + r];
+          continue;
+        }
         const double* j = ((term & 1) ? jac_to : jac_from) + k_constraint * DD;
         const double* f = residuals + k_constraint * D;
         for (int k = 0; k < D; ++k) sum += j[k * D + r] * f[k];
@@ -95,6 +116,12 @@ void assemble_off_diagonal(Backend backend, const Stream& stream, StructureView 
     double sum = 0.0;
     for (int32_t e = s.off_offsets[b]; e < s.off_offsets[b + 1]; ++e) {
       const int32_t term = s.off_terms[e];
+      if ((term >> 1) >= s.constraint_count) {
+        // H(row, col) is H_ij when i = row, else H_ij^T (H_ji).
+        const double* h = registration_term_sums(s, term >> 1) + kRegistrationHijOffset;
+        sum += (term & 1) ? h[c * D + r] : h[r * D + c];
+        continue;
+      }
       const int64_t offset = static_cast<int64_t>(term >> 1) * DD;
       const double* j_row = ((term & 1) ? jac_to : jac_from) + offset;
       const double* j_col = ((term & 1) ? jac_from : jac_to) + offset;

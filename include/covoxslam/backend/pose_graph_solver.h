@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "covoxslam/backend/pose_graph.h"
+#include "covoxslam/backend/registration_terms.h"
 #include "covoxslam/core/device.h"
 
 namespace covox {
@@ -56,6 +57,8 @@ struct PoseGraphSolverSummary {
   int64_t pcg_iterations = 0;  // summed over all LM iterations
   PoseGraphTermination termination = PoseGraphTermination::kMaxIterations;
   double solve_time_s = 0.0;  // upload, solve and download
+  int64_t registration_points = 0;       // points of all registration terms
+  int64_t registration_points_used = 0;  // of those, inside their field at the solution
   bool converged() const {
     return termination != PoseGraphTermination::kMaxIterations &&
            termination != PoseGraphTermination::kTrustRegionCollapsed;
@@ -68,6 +71,13 @@ struct PoseGraphSolverSummary {
 PoseGraphSolverSummary solve_pose_graph(Se3PoseGraph* graph, Device device,
                                         const PoseGraphSolverOptions& options = PoseGraphSolverOptions());
 PoseGraphSolverSummary solve_pose_graph(PoseGraph4Dof* graph, Device device,
+                                        const PoseGraphSolverOptions& options = PoseGraphSolverOptions());
+
+// The 4-DoF graph with dense registration terms (registration_terms.h) next to its constraints.
+// The terms' points and maps must live on `device`. Throws covox::Error when the graph or a term
+// is invalid (validate_pose_graph, validate_registration_terms).
+PoseGraphSolverSummary solve_pose_graph(PoseGraph4Dof* graph, const std::vector<RegistrationTerm>& registration,
+                                        Device device,
                                         const PoseGraphSolverOptions& options = PoseGraphSolverOptions());
 
 // One evaluation at the current poses, read back to the host: for tests (CPU/GPU parity,
@@ -83,6 +93,10 @@ struct PoseGraphEvaluation {
 };
 PoseGraphEvaluation evaluate_pose_graph(const Se3PoseGraph& graph, Device device);
 PoseGraphEvaluation evaluate_pose_graph(const PoseGraph4Dof& graph, Device device);
+// With registration terms: the cost, gradient and diagonal blocks include them (residuals and
+// Jacobians are those of the constraints only).
+PoseGraphEvaluation evaluate_pose_graph(const PoseGraph4Dof& graph, const std::vector<RegistrationTerm>& registration,
+                                        Device device);
 
 }  // namespace backend
 }  // namespace covox

@@ -6,33 +6,49 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <memory>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
 #include "covoxslam/backend/block_sparse_structure.h"
 #include "covoxslam/backend/normal_equations_impl.h"
 #include "covoxslam/backend/pose_graph_solver_ops.h"
+#include "covoxslam/backend/registration_terms_workspace.h"
 #include "covoxslam/core/buffer.h"
+#include "covoxslam/core/error.h"
 
 namespace covox {
 namespace backend {
 
-// Everything one solve needs on the device, allocated once up front.
+// Everything one solve needs on the device, allocated once up front. Registration terms
+// (4-DoF only) enter the block structure after the constraints: term t is edge
+// constraints.size() + t, from vertex_i to vertex_j.
 template <class Backend, class Model>
 class PoseGraphWorkspace {
  public:
   static constexpr int D = Model::kDim;
   static constexpr int DD = D * D;
+  static constexpr bool kHasRegistration = std::is_same<Model, FourDofModel>::value;
   using Pose = typename Model::Pose;
 
-  PoseGraphWorkspace(const PoseGraph<Model>& graph, const Stream& stream)
+  PoseGraphWorkspace(const PoseGraph<Model>& graph, const Stream& stream,
+                     const std::vector<RegistrationTerm>& registration = {})
       : stream_(stream),
         vertex_count_(static_cast<int32_t>(graph.poses.size())),
         constraint_count_(static_cast<int64_t>(graph.constraints.size())) {
     const Device device = Backend::kDevice;
     std::vector<std::pair<int32_t, int32_t>> edges;
-    edges.reserve(graph.constraints.size());
+    edges.reserve(graph.constraints.size() + registration.size());
     for (const auto& c : graph.constraints) edges.emplace_back(c.from, constraint_to(c));
+    if (!registration.empty()) {
+      if constexpr (kHasRegistration) {
+        for (const RegistrationTerm& t : registration) edges.emplace_back(t.vertex_i, t.vertex_j);
+        registration_ = std::make_unique<RegistrationTermsWorkspace<Backend>>(registration, stream);
+      } else {
+        throw Error("pose graph: registration terms need the 4-DoF model");
+      }
+    }
     const BlockSparseStructure s = build_block_sparse_structure(edges, vertex_count_, graph.fixed_vertex);
     off_block_count_ = s.off_block_count();
 
@@ -63,23 +79,35 @@ class PoseGraphWorkspace {
     chain_blocks = Buffer<int32_t>::from_host(device, s.chain_blocks, stream);
     view_ = StructureView{vertex_count_,       s.fixed_vertex,     off_block_count_,   diag_offsets.data(),
                           diag_terms.data(),   off_offsets.data(), off_terms.data(),   row_offsets.data(),
-                          row_entries.data(),  row_columns.data()};
+                          row_entries.data(),  row_columns.data(), constraint_count_,
+                          registration_ ? registration_->term_sums() : nullptr};
   }
 
   const StructureView& view() const { return view_; }
   int64_t unknowns() const { return static_cast<int64_t>(vertex_count_) * D; }
 
-  // Residuals, Jacobians and the cost at `poses`.
+  // Residuals, Jacobians (and the registration terms' sums) and the cost at `poses`.
   double evaluate() {
     evaluate_constraints<Model>(Backend{}, stream_, constraints.data(), constraint_count_, poses.data(),
                                 residuals.data(), jac_from.data(), jac_to.data(), costs.data());
-    return sum_costs();
+    double cost = sum_costs();
+    if constexpr (kHasRegistration) {
+      if (registration_) cost += registration_->evaluate(poses.data());
+    }
+    return cost;
   }
   double cost_at_candidate() {
     constraint_costs<Model>(Backend{}, stream_, constraints.data(), constraint_count_, candidate.data(),
                             costs.data());
-    return sum_costs();
+    double cost = sum_costs();
+    if constexpr (kHasRegistration) {
+      if (registration_) cost += registration_->cost(candidate.data());
+    }
+    return cost;
   }
+  bool has_terms() const { return constraint_count_ > 0 || (registration_ && registration_->term_count() > 0); }
+  int64_t registration_points() const { return registration_ ? registration_->point_count() : 0; }
+  int64_t registration_points_used() const { return registration_ ? registration_->used_points() : 0; }
   void assemble() {
     assemble_diagonal_and_gradient<D>(Backend{}, stream_, view_, jac_from.data(), jac_to.data(), residuals.data(),
                                       hessian_diag.data(), gradient.data());
@@ -177,18 +205,22 @@ class PoseGraphWorkspace {
   int32_t vertex_count_;
   int64_t constraint_count_;
   int64_t off_block_count_ = 0;
+  std::unique_ptr<RegistrationTermsWorkspace<Backend>> registration_;
   StructureView view_{};
 };
 
 template <class Backend, class Model>
-PoseGraphSolverSummary solve_pose_graph_on(Backend, PoseGraph<Model>* graph, const PoseGraphSolverOptions& options) {
+PoseGraphSolverSummary solve_pose_graph_with_terms(PoseGraph<Model>* graph,
+                                                   const std::vector<RegistrationTerm>& registration,
+                                                   const PoseGraphSolverOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   PoseGraphSolverSummary summary;
   const Stream stream(Backend::kDevice);
-  PoseGraphWorkspace<Backend, Model> w(*graph, stream);
+  PoseGraphWorkspace<Backend, Model> w(*graph, stream, registration);
   double cost = w.evaluate();
   summary.initial_cost = summary.final_cost = cost;
-  if (graph->constraints.empty()) {
+  summary.registration_points = w.registration_points();
+  if (!w.has_terms()) {
     summary.termination = PoseGraphTermination::kNoConstraints;
     return summary;
   }
@@ -243,13 +275,27 @@ PoseGraphSolverSummary solve_pose_graph_on(Backend, PoseGraph<Model>* graph, con
   summary.final_cost = cost;
   graph->poses = w.poses.to_host(stream);
   summary.solve_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  // After the clock: a diagnostic read-back, not part of the solve.
+  summary.registration_points_used = w.registration_points_used();
   return summary;
 }
 
 template <class Backend, class Model>
-PoseGraphEvaluation evaluate_pose_graph_on(Backend, const PoseGraph<Model>& graph) {
+PoseGraphSolverSummary solve_pose_graph_on(Backend, PoseGraph<Model>* graph, const PoseGraphSolverOptions& options) {
+  return solve_pose_graph_with_terms<Backend, Model>(graph, {}, options);
+}
+
+template <class Backend>
+PoseGraphSolverSummary solve_pose_graph_on(Backend, PoseGraph4Dof* graph, const std::vector<RegistrationTerm>& terms,
+                                           const PoseGraphSolverOptions& options) {
+  return solve_pose_graph_with_terms<Backend, FourDofModel>(graph, terms, options);
+}
+
+template <class Backend, class Model>
+PoseGraphEvaluation evaluate_pose_graph_with_terms(const PoseGraph<Model>& graph,
+                                                   const std::vector<RegistrationTerm>& registration) {
   const Stream stream(Backend::kDevice);
-  PoseGraphWorkspace<Backend, Model> w(graph, stream);
+  PoseGraphWorkspace<Backend, Model> w(graph, stream, registration);
   PoseGraphEvaluation out;
   out.dimension = Model::kDim;
   out.cost = w.evaluate();
@@ -262,10 +308,29 @@ PoseGraphEvaluation evaluate_pose_graph_on(Backend, const PoseGraph<Model>& grap
   return out;
 }
 
+template <class Backend, class Model>
+PoseGraphEvaluation evaluate_pose_graph_on(Backend, const PoseGraph<Model>& graph) {
+  return evaluate_pose_graph_with_terms<Backend, Model>(graph, {});
+}
+
+template <class Backend>
+PoseGraphEvaluation evaluate_pose_graph_on(Backend, const PoseGraph4Dof& graph,
+                                           const std::vector<RegistrationTerm>& terms) {
+  return evaluate_pose_graph_with_terms<Backend, FourDofModel>(graph, terms);
+}
+
 #define COVOX_INSTANTIATE_POSE_GRAPH_SOLVER(Backend, Model)                                                  \
   template PoseGraphSolverSummary solve_pose_graph_on<Backend, Model>(Backend, PoseGraph<Model>*,            \
                                                                       const PoseGraphSolverOptions&);        \
   template PoseGraphEvaluation evaluate_pose_graph_on<Backend, Model>(Backend, const PoseGraph<Model>&);
+
+// The 4-DoF entry points with registration terms, once per backend.
+#define COVOX_INSTANTIATE_POSE_GRAPH_REGISTRATION(Backend)                                                   \
+  template PoseGraphSolverSummary solve_pose_graph_on<Backend>(Backend, PoseGraph4Dof*,                      \
+                                                               const std::vector<RegistrationTerm>&,         \
+                                                               const PoseGraphSolverOptions&);               \
+  template PoseGraphEvaluation evaluate_pose_graph_on<Backend>(Backend, const PoseGraph4Dof&,                \
+                                                               const std::vector<RegistrationTerm>&);
 
 }  // namespace backend
 }  // namespace covox

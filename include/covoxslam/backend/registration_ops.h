@@ -70,6 +70,21 @@ struct RegistrationPairGeometry {
   double cos_j = 1.0, sin_j = 0.0;
 };
 
+// Composes the pair's geometry from the two world poses (in double; device code too, so that the
+// pose graph can recompute it for every pair at every LM iterate).
+COVOX_HD_INLINE RegistrationPairGeometry registration_pair_geometry(const Pose4Dof& T_W_Si, const Pose4Dof& T_W_Sj) {
+  RegistrationPairGeometry pair;
+  pair.cos_ji = cos(T_W_Si.yaw - T_W_Sj.yaw);
+  pair.sin_ji = sin(T_W_Si.yaw - T_W_Sj.yaw);
+  pair.cos_j = cos(T_W_Sj.yaw);
+  pair.sin_j = sin(T_W_Sj.yaw);
+  const double dx = T_W_Si.x - T_W_Sj.x, dy = T_W_Si.y - T_W_Sj.y;
+  pair.t_ji[0] = pair.cos_j * dx + pair.sin_j * dy;
+  pair.t_ji[1] = -pair.sin_j * dx + pair.cos_j * dy;
+  pair.t_ji[2] = T_W_Si.z - T_W_Sj.z;
+  return pair;
+}
+
 struct RobustLossParams {
   RobustLoss loss = RobustLoss::kNone;
   double scale = 1.0;
@@ -173,6 +188,12 @@ struct AddRegistrationSums {
     return s;
   }
 };
+
+// Host helpers shared by the pairwise aligner and the pose graph's registration terms
+// (registration.cpp). Throws covox::Error on a bad configuration.
+void validate_registration_residual_config(const RegistrationResidualConfig& config);
+// The lookup of map_j's field for kernels on map_j's device (tsdf_band_m from `config`).
+RegistrationDistanceLookup make_registration_lookup(const TsdfMap& map_j, const RegistrationResidualConfig& config);
 
 // A deterministic uniform number in [0, 1) per voxel (and seed): the sampling decision.
 COVOX_HD_INLINE double registration_sample_uniform(int32_t x, int32_t y, int32_t z, uint32_t seed) {

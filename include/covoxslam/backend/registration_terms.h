@@ -1,0 +1,39 @@
+#pragma once
+// Dense registration terms inside the 4-DoF pose graph (voxgraph's formulation: the registration
+// residuals of every overlapping submap pair are part of the optimisation, not summarised into
+// one relative-pose constraint first).
+//
+// A term joins vertex i (whose registration points are used) and vertex j (whose distance field
+// is looked up): per point p of submap i the residual r = sqrt(w) (D_j(T_Sj^-1 T_Si p) - target)
+// of registration.h, with its robust loss. The solver evaluates the residuals and Jacobians of all
+// terms in one launch, reduces them per pair into the 4x4 blocks H_ii, H_ij, H_jj, g_i, g_j
+// (robust losses by IRLS weights: H = sum rho' J^T J, g = sum rho' J^T r) and adds those blocks
+// to the block-sparse normal equations next to the ordinary constraints. Its cost is
+// sum 0.5 rho(r^2) over the points that fall inside submap j's observed field.
+#include <cstdint>
+#include <vector>
+
+#include "covoxslam/backend/pose_graph.h"
+#include "covoxslam/backend/registration.h"
+
+namespace covox {
+namespace backend {
+
+struct RegistrationTerm {
+  int32_t vertex_i = 0;                        // the points' submap
+  int32_t vertex_j = 0;                        // the field's submap
+  const RegistrationPoints* points_i = nullptr;  // not owned; on the solver's device
+  const TsdfMap* map_j = nullptr;                // not owned; on the solver's device; ESDF computed
+  RegistrationResidualConfig residual;
+};
+
+// Throws covox::Error naming the term when a vertex is out of range, i == j, a pointer is null,
+// the points or the map live on another device than `device`, or the residual config is invalid.
+void validate_registration_terms(const std::vector<RegistrationTerm>& terms, int32_t vertex_count, Device device);
+
+// Host reference of the terms' cost at `graph.poses` (one evaluate_registration_residuals call per
+// term, summed on the host): for tests and tools.
+double registration_terms_cost(const PoseGraph4Dof& graph, const std::vector<RegistrationTerm>& terms);
+
+}  // namespace backend
+}  // namespace covox
