@@ -29,6 +29,7 @@
 #include <covoxslam/FilePath.h>
 #include <covoxslam/SubmapPoses.h>
 #include <diagnostic_msgs/DiagnosticArray.h>
+#include <nav_msgs/Odometry.h>
 #include <nav_msgs/Path.h>
 #include <ros/ros.h>
 #include <rosbag/bag.h>
@@ -165,6 +166,14 @@ geometry_msgs::TransformStamped stamped(const Eigen::Isometry3d& pose, const std
 
 // The bag: /tf at 50 Hz, /tf_static (latched), the valid clouds, a cloud without z and one in
 // an unknown frame (both between valid clouds).
+// covoxslam_nodelet_odometry.test sets ~odometry_as_topic: the odometry then comes as
+// nav_msgs/Odometry on /synthetic/odometry instead of tf odom -> base_link.
+bool odometry_as_topic() {
+  bool value = false;
+  ros::NodeHandle("~").getParam("odometry_as_topic", value);
+  return value;
+}
+
 void write_bag(const std::string& path) {
   rosbag::Bag bag(path, rosbag::bagmode::Write);
   auto latched = boost::make_shared<ros::M_string>();
@@ -180,9 +189,22 @@ void write_bag(const std::string& path) {
   const double end_s = kStart_s + kClouds * kCloudPeriod_s + 0.5;
   for (int k = 0; kStart_s + 0.02 * k <= end_s; ++k) {
     const double t = kStart_s + 0.02 * k;
-    tf2_msgs::TFMessage message;
-    message.transforms.push_back(stamped(base_pose_at(t), "odom", "base_link", t));
-    bag.write("/tf", ros::Time(t), message);
+    if (odometry_as_topic()) {
+      nav_msgs::Odometry odometry;
+      odometry.header.stamp.fromSec(t);
+      odometry.header.frame_id = "odom";
+      odometry.child_frame_id = "base_link";
+      const geometry_msgs::TransformStamped pose = stamped(base_pose_at(t), "odom", "base_link", t);
+      odometry.pose.pose.position.x = pose.transform.translation.x;
+      odometry.pose.pose.position.y = pose.transform.translation.y;
+      odometry.pose.pose.position.z = pose.transform.translation.z;
+      odometry.pose.pose.orientation = pose.transform.rotation;
+      bag.write("/synthetic/odometry", ros::Time(t), odometry);
+    } else {
+      tf2_msgs::TFMessage message;
+      message.transforms.push_back(stamped(base_pose_at(t), "odom", "base_link", t));
+      bag.write("/tf", ros::Time(t), message);
+    }
   }
   for (int k = 0; k < kClouds; ++k) {
     const double t = kStart_s + 0.1 + kCloudPeriod_s * k;
@@ -458,6 +480,43 @@ TEST_F(CovoxSlamNodeletTest, MapsABagAndServesTheMap) {
   ASSERT_TRUE(call_trigger("generate_mesh", &message)) << message;
   EXPECT_TRUE(wait_for([] { return latest.combined_mesh.points.size() > 300; }, 10.0));
   EXPECT_TRUE(call_trigger("optimize_pose_graph", &message)) << message;
+}
+
+// Start-up checks: a bad parameter stops covoxslam_node with a message naming it.
+std::string run_and_capture(const std::string& command, int* status) {
+  std::string output;
+  FILE* pipe = ::popen((command + " 2>&1").c_str(), "r");
+  if (!pipe) {
+    *status = -1;
+    return output;
+  }
+  char buffer[512];
+  while (std::fgets(buffer, sizeof(buffer), pipe)) output += buffer;
+  *status = ::pclose(pipe);
+  return output;
+}
+
+TEST(CovoxSlamNodeStartup, BadParametersStopTheNodeWithTheirName) {
+  if (odometry_as_topic()) GTEST_SKIP() << "checked once, in covoxslam_nodelet.test";
+  const struct {
+    const char* argument;
+    const char* name;
+  } cases[] = {{"_voxel_size_m:=-0.2", "voxel_size_m"},
+               {"_submap_creation_policy:=sometimes", "submap_creation_policy"},
+               {"_tf_wait_timeout_s:=-1.0", "tf_wait_timeout_s"},
+               {"_T_base_sensor:=[1.0,2.0,3.0]", "T_base_sensor"},
+               {"_truncation_distance_m:=0.05", "truncation_distance_m"}};
+  int index = 0;
+  for (const auto& bad : cases) {
+    int status = 0;
+    // A fresh node name each time, so the parameters do not mix.
+    const std::string output = run_and_capture("rosrun covoxslam covoxslam_node __name:=bad_parameters_" +
+                                                   std::to_string(index++) + " " + bad.argument,
+                                               &status);
+    EXPECT_NE(status, 0) << bad.argument << ": the node did not fail:\n" << output;
+    EXPECT_NE(output.find(std::string("parameter")), std::string::npos) << output;
+    EXPECT_NE(output.find(bad.name), std::string::npos) << bad.argument << ":\n" << output;
+  }
 }
 
 }  // namespace
