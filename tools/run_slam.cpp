@@ -6,9 +6,11 @@
 // corrected and the odometry trajectories (TUM), the combined mesh (PLY), optionally the map,
 // prints a per-module timing table with the real-time factor, and evaluates both trajectories
 // against the input's reference (ATE RMSE).
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <map>
 #include <iostream>
 #include <memory>
 #include <string>
@@ -21,6 +23,8 @@
 #include "covoxslam/io/mesh_ply.h"
 #include "covoxslam/io/trajectory_io.h"
 #include "dataset_scan_sources.h"
+#include "flat_yaml.h"
+#include "covoxslam/pipeline/slam_parameters.h"
 #include "slam_run.h"
 #include "trajectory_evaluation.h"
 
@@ -49,6 +53,8 @@ const char kUsage[] =
     "  --preset NAME               arche (bags: 0.2 m voxels, 0.6 m truncation, 16 m rays, LiDAR weighting,\n"
     "                              10 s submaps), rgbd (RGB-D folders: 4 cm, 12 cm, 4 m, inverse-square\n"
     "                              weighting, 2 s), lidar-keyframes (keyframe folders: 0.5 m, 1.5 m, 40 m, 8 s)\n"
+    "  --config FILE.yaml          SLAM parameters as the nodelet reads them (e.g. config/arche.yaml),\n"
+    "                              applied over the preset; ROS-only parameters in it are ignored\n"
     "  --voxel-size-m S            voxel size\n"
     "  --truncation-m T            truncation distance\n"
     "  --max-ray-m R               points farther only clear space\n"
@@ -99,6 +105,7 @@ int main(int argc, char** argv) {
   const int64_t max_scans = args.integer("--max-scans", 0);
   const std::string device_text = args.text("--device", "auto");
   std::string preset = args.text("--preset", "");
+  const std::string config_path = args.text("--config", "");
   // NaN: not given, the preset decides.
   const double unset = std::numeric_limits<double>::quiet_NaN();
   const double voxel_size_m = args.number("--voxel-size-m", unset);
@@ -142,6 +149,24 @@ int main(int argc, char** argv) {
                                                                              : "arche";
     }
     pipeline::SlamConfig config = tools::preset_slam_config(preset, device);
+    if (!config_path.empty()) {
+      // Only the SLAM parameters: frames, topics and visualisation settings are the nodelet's.
+      std::map<std::string, std::string> values = tools::read_flat_yaml(config_path);
+      const std::vector<std::string>& known = pipeline::slam_parameter_names();
+      std::string ignored;
+      for (auto entry = values.begin(); entry != values.end();) {
+        if (std::find(known.begin(), known.end(), entry->first) != known.end()) {
+          ++entry;
+        } else {
+          ignored += (ignored.empty() ? "" : ", ") + entry->first;
+          entry = values.erase(entry);
+        }
+      }
+      pipeline::read_slam_config(pipeline::TextParameterSource(values), &config);
+      config.device = device;
+      std::printf("config: %s (%zu SLAM parameters; not for the runner: %s)\n", config_path.c_str(), values.size(),
+                  ignored.empty() ? "none" : ignored.c_str());
+    }
     if (!std::isnan(voxel_size_m)) config.map.voxel_size_m = static_cast<float>(voxel_size_m);
     if (!std::isnan(truncation_m)) config.tsdf.truncation_distance_m = static_cast<float>(truncation_m);
     if (!std::isnan(max_ray_m)) config.tsdf.max_ray_length_m = static_cast<float>(max_ray_m);

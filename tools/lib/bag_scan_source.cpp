@@ -155,6 +155,7 @@ std::string BagScanSource::describe() const {
   if (reference_kind_ != ReferenceKind::kNone) {
     text << ", reference " << options_.reference_topic << " (" << reference_.size() << " poses)";
   }
+  if (dropped_non_finite_points_ > 0) text << ", " << dropped_non_finite_points_ << " non-finite points dropped so far";
   return text.str();
 }
 

@@ -115,8 +115,9 @@ bool RgbdScanSource::next(SourceScan* scan) {
 std::string RgbdScanSource::describe() const {
   std::ostringstream text;
   text << "RGB-D folder " << folder_.path() << ", " << odometry_.size() << " frames at " << options_.frame_rate_hz
-       << " Hz, every " << options_.pixel_stride << ". pixel; odometry = reference poses with a drift of "
-       << final_drift_m_ << " m at the end (seed " << options_.drift_seed << ")";
+       << " Hz, every " << options_.pixel_stride << (options_.pixel_stride == 1 ? "" : "th")
+       << " pixel in both directions; odometry = reference poses with a drift of " << final_drift_m_
+       << " m at the end (seed " << options_.drift_seed << ")";
   return text.str();
 }
 

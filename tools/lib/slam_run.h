@@ -61,11 +61,12 @@ SlamRunEvaluation evaluate_slam_run(const ScanSource& source, const SlamRunResul
 void print_slam_run(const SlamRunResult& result, FILE* out);
 
 // voxgraph's ARCHE configuration (peers.md) on `device`: 0.2 m voxels, 0.6 m truncation, 16 m
-// rays, constant weight with drop-off and sparsity compensation 20, a submap every 10 s.
+// rays, constant weight with drop-off and sparsity compensation 20, a submap every 10 s; the
+// library's odometry sigmas (see slam_run.cpp).
 pipeline::SlamConfig arche_slam_config(Device device);
 // RGB-D (7-Scenes-sized rooms): inverse-square weighting (depth noise grows with range), no
 // sparsity compensation (every pixel hits a surface), 4 cm voxels, 12 cm truncation, 4 m rays,
-// a submap every 2 s.
+// a submap every 2 s, odometry sigmas 0.1 m and 0.01 rad.
 pipeline::SlamConfig rgbd_slam_config(Device device);
 // City-scale LiDAR keyframes (MulRan, ~9 m apart): 0.5 m voxels, 1.5 m truncation, 40 m rays,
 // a submap every 8 s (about 10 keyframes).
