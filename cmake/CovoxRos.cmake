@@ -12,10 +12,17 @@ endif()
 set(COVOX_ROS_COMPONENTS roscpp nodelet pluginlib tf2 tf2_ros tf2_eigen sensor_msgs nav_msgs geometry_msgs
     std_msgs std_srvs visualization_msgs diagnostic_msgs message_filters rosbag message_generation)
 find_package(catkin QUIET COMPONENTS ${COVOX_ROS_COMPONENTS})
-if(NOT catkin_FOUND)
-  # catkin is there but a ROS package is not: say which ones the Makefile installs, keep building the rest.
-  message(WARNING "covoxslam: catkin found but not all of [${COVOX_ROS_COMPONENTS}]; the ROS layer is not built "
-                  "(make deps installs them)")
+# catkin skips a missing component silently when QUIET: check each one, and without all of them
+# build the non-ROS part only, naming what is missing (make deps installs it).
+set(COVOX_ROS_MISSING)
+foreach(component ${COVOX_ROS_COMPONENTS})
+  if(NOT ${component}_FOUND)
+    list(APPEND COVOX_ROS_MISSING ${component})
+  endif()
+endforeach()
+if(COVOX_ROS_MISSING)
+  message(WARNING "covoxslam: catkin was found but not the ROS packages [${COVOX_ROS_MISSING}]; the ROS layer "
+                  "is not built (make deps installs them)")
   return()
 endif()
 set(COVOX_ROS_ENABLED ON)
