@@ -11,6 +11,7 @@
 // COVOX_DATA_DIR (default ../shared/data); a missing dataset is skipped with a message.
 // The real data is non-commercial (7-Scenes: Microsoft's terms; MulRan: its own terms).
 #include <cctype>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -108,7 +109,8 @@ int main(int argc, char** argv) {
       const bool truth = run.source->reference_kind() == tools::ReferenceKind::kGroundTruth;
       const std::string metric = truth ? "ATE RMSE" : "distance to reference RMSE";
       report.add(run.name, "scans", static_cast<double>(result.scans_given), "");
-      report.add(run.name, "voxel size", run.config.map.voxel_size_m, "m");
+      // The float setting, rounded back to the decimal it was given as.
+      report.add(run.name, "voxel size", std::round(run.config.map.voxel_size_m * 1e6) / 1e6, "m");
       report.add(run.name, "submaps", static_cast<double>(result.submaps.size()), "");
       report.add(run.name, "registration constraints", static_cast<double>(result.counters.registration.accepted), "");
       report.add(run.name, "real-time factor", result.real_time_factor(), "x");
