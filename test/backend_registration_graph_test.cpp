@@ -12,6 +12,7 @@
 
 #include "covoxslam/backend/ceres_registration_oracle.h"
 #include "covoxslam/backend/pose_graph_solver.h"
+#include "covoxslam/backend/registration_ops.h"
 #include "covoxslam/backend/registration_terms.h"
 #include "covoxslam/core/error.h"
 #include "covoxslam/integrators/esdf_integrator.h"
@@ -147,6 +148,7 @@ const RoomGraph& room_graph(Device device) {
       term.map_j = g.maps[j].get();
       term.residual.loss = (i + j) % 2 ? RobustLoss::kHuber : RobustLoss::kNone;
       term.residual.loss_scale = 0.05;
+      term.residual_sigma = (i + j) % 2 ? 1.0 : 0.5;
       g.points.push_back(std::make_unique<RegistrationPoints>(
           points_inside_neighbourhood(*g.points[i], *g.maps[j], {g.truth[i], initial[i]}, {g.truth[j], initial[j]},
                                       term.residual, stream)));
@@ -200,17 +202,25 @@ TEST_P(RegistrationGraphTest, AssembledBlocksMatchHostSums) {
   double cost = pose_graph_cost(g.graph);
   int64_t used = 0;
   for (const RegistrationTerm& t : g.terms) {
+    // Plain residuals, then the term's sigma and robust loss (IRLS weight rho' of the scaled one).
+    RegistrationResidualConfig plain = t.residual;
+    plain.loss = RobustLoss::kNone;
+    const RobustLossParams robust{t.residual.loss, t.residual.loss_scale};
     const auto residuals = evaluate_registration_residuals(*t.points_i, *t.map_j, g.graph.poses[t.vertex_i],
-                                                           g.graph.poses[t.vertex_j], t.residual);
+                                                           g.graph.poses[t.vertex_j], plain);
     for (const RegistrationResidual& r : residuals) {
       if (!r.valid) continue;
       ++used;
-      const Eigen::Map<const Eigen::Vector4d> ji(r.jacobian_i), jj(r.jacobian_j);
-      gradient[t.vertex_i] += r.robust_weight * ji * r.residual;
-      gradient[t.vertex_j] += r.robust_weight * jj * r.residual;
-      diagonal[t.vertex_i] += r.robust_weight * ji * ji.transpose();
-      diagonal[t.vertex_j] += r.robust_weight * jj * jj.transpose();
-      cost += r.cost;
+      const double f = r.residual / t.residual_sigma;
+      const Eigen::Vector4d ji = Eigen::Map<const Eigen::Vector4d>(r.jacobian_i) / t.residual_sigma;
+      const Eigen::Vector4d jj = Eigen::Map<const Eigen::Vector4d>(r.jacobian_j) / t.residual_sigma;
+      double rho = 0.0, weight = 0.0;
+      robust.evaluate(f * f, &rho, &weight);
+      gradient[t.vertex_i] += weight * ji * f;
+      gradient[t.vertex_j] += weight * jj * f;
+      diagonal[t.vertex_i] += weight * ji * ji.transpose();
+      diagonal[t.vertex_j] += weight * jj * jj.transpose();
+      cost += 0.5 * rho;
     }
   }
   ASSERT_GT(used, 4000) << "too few registration points overlap: the check would be weak";
@@ -285,6 +295,9 @@ TEST_P(RegistrationGraphTest, BadTermsAreRejectedByName) {
   terms[0].vertex_j = 7;
   EXPECT_THROW(solve_pose_graph(&graph, terms, device()), Error);
   terms[0].vertex_j = terms[0].vertex_i;
+  EXPECT_THROW(solve_pose_graph(&graph, terms, device()), Error);
+  terms = {g.terms.front()};
+  terms[0].residual_sigma = 0.0;
   EXPECT_THROW(solve_pose_graph(&graph, terms, device()), Error);
   terms = {g.terms.front()};
   terms[0].map_j = nullptr;

@@ -8,7 +8,8 @@
 //                     [--preconditioner block-jacobi|chain|both] [--distinct-submaps 12]
 //                     [--lidar-columns 1024] [--points-per-submap 2000]
 //                     [--registration-distance tsdf|esdf] [--pcg-tolerance T]
-//                     [--pcg-max-iterations N] [--output PATH]
+//                     [--pcg-max-iterations N] [--chain-segment 64] [--registration-sigma 0.1]
+//                     [--output PATH]
 //
 // Cases:
 //  * registration graphs (the benchmark): n submaps of a street with odometry between
@@ -63,6 +64,9 @@ struct Options {
   tools::RegistrationWorldConfig world;
   backend::RegistrationDistance distance = backend::RegistrationDistance::kTsdfNearSurface;
   backend::PoseGraphSolverOptions solver;  // our solver's settings (defaults unless overridden)
+  // Registration residual noise: 0.1 lets the registration terms outweigh the odometry (with 1
+  // the solution barely leaves the odometry), as voxgraph's registration weights do.
+  double registration_sigma = 0.1;
   std::string output;
 };
 
@@ -74,7 +78,8 @@ struct Options {
             << "                         [--preconditioner block-jacobi|chain|both] [--distinct-submaps 12]\n"
             << "                         [--lidar-columns 1024] [--points-per-submap 2000]\n"
             << "                         [--registration-distance tsdf|esdf] [--pcg-tolerance T]\n"
-            << "                         [--pcg-max-iterations N] [--output PATH]\n";
+            << "                         [--pcg-max-iterations N] [--chain-segment 64] [--registration-sigma 0.1]\n"
+            << "                         [--output PATH]\n";
   std::exit(2);
 }
 
@@ -139,6 +144,11 @@ Options parse(int argc, char** argv) {
     } else if (arg == "--pcg-tolerance") {
       o.solver.pcg_relative_tolerance = std::atof(value().c_str());
       if (!(o.solver.pcg_relative_tolerance > 0.0)) usage_error("--pcg-tolerance must be positive");
+    } else if (arg == "--registration-sigma") {
+      o.registration_sigma = std::atof(value().c_str());
+      if (!(o.registration_sigma > 0.0)) usage_error("--registration-sigma must be positive");
+    } else if (arg == "--chain-segment") {
+      o.solver.chain_segment_vertices = positive_int(arg, value(), 0);
     } else if (arg == "--pcg-max-iterations") {
       o.solver.pcg_max_iterations = positive_int(arg, value(), 1);
     } else if (arg == "--registration-distance") {
@@ -262,6 +272,7 @@ void run_registration_cases(const std::vector<Device>& devices, const Options& o
     tools::RegistrationGraphOptions graph_options;
     graph_options.submaps = n;
     graph_options.distance = o.distance;
+    graph_options.residual_sigma = o.registration_sigma;
     std::string name;
     for (const Device device : devices) {
       const tools::RegistrationGraph problem = tools::make_registration_graph(worlds.at(device), graph_options);

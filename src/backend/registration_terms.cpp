@@ -1,5 +1,6 @@
 #include "covoxslam/backend/registration_terms.h"
 
+#include <cmath>
 #include <string>
 
 #include "covoxslam/backend/registration_ops.h"
@@ -22,6 +23,9 @@ void validate_registration_terms(const std::vector<RegistrationTerm>& terms, int
       throw Error(what + ": its points live on " + std::string(to_string(t.points_i->points.device())) +
                   " and its map on " + to_string(t.map_j->device()) + ", but the solve runs on " + to_string(device));
     }
+    if (!(t.residual_sigma > 0.0 && std::isfinite(t.residual_sigma))) {
+      throw Error(what + ": residual_sigma must be finite and > 0, got " + std::to_string(t.residual_sigma));
+    }
     try {
       validate_registration_residual_config(t.residual);
     } catch (const Error& error) {
@@ -33,10 +37,18 @@ void validate_registration_terms(const std::vector<RegistrationTerm>& terms, int
 double registration_terms_cost(const PoseGraph4Dof& graph, const std::vector<RegistrationTerm>& terms) {
   double cost = 0.0;
   for (const RegistrationTerm& t : terms) {
+    // Plain residuals, then the term's sigma and robust loss on the host.
+    RegistrationResidualConfig plain = t.residual;
+    plain.loss = RobustLoss::kNone;
+    const RobustLossParams robust{t.residual.loss, t.residual.loss_scale};
     const auto residuals = evaluate_registration_residuals(*t.points_i, *t.map_j, graph.poses.at(t.vertex_i),
-                                                           graph.poses.at(t.vertex_j), t.residual);
+                                                           graph.poses.at(t.vertex_j), plain);
     for (const RegistrationResidual& r : residuals) {
-      if (r.valid) cost += r.cost;
+      if (!r.valid) continue;
+      const double scaled = r.residual / t.residual_sigma;
+      double rho = 0.0, rho_prime = 0.0;
+      robust.evaluate(scaled * scaled, &rho, &rho_prime);
+      cost += 0.5 * rho;
     }
   }
   return cost;

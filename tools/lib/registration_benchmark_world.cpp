@@ -178,6 +178,7 @@ RegistrationGraph make_registration_graph(const RegistrationWorld& world, const 
     term.residual.tsdf_band_m = 2.0f * world.config.voxel_size_m;
     term.residual.loss = options.loss;
     term.residual.loss_scale = options.loss_scale;
+    term.residual_sigma = options.residual_sigma;
     out.terms.push_back(term);
   };
   for (int k = 0; k < options.submaps; ++k) {

@@ -53,7 +53,8 @@ struct RegistrationGraphOptions {
   double odometry_sigma_rad = 0.005;
   backend::RegistrationDistance distance = backend::RegistrationDistance::kTsdfNearSurface;
   backend::RobustLoss loss = backend::RobustLoss::kHuber;
-  double loss_scale = 0.1;
+  double loss_scale = 1.0;        // in units of residual_sigma
+  double residual_sigma = 1.0;    // registration residual noise (RegistrationTerm::residual_sigma)
   uint64_t seed = 11;
 };
 

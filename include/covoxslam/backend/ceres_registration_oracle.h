@@ -26,6 +26,7 @@
 #include "covoxslam/backend/ceres_pose_graph_oracle.h"
 #include "covoxslam/backend/registration_ops.h"
 #include "covoxslam/backend/registration_terms.h"
+#include "covoxslam/backend/registration_terms_ops.h"
 
 namespace covox {
 namespace backend {
@@ -34,11 +35,12 @@ namespace ceres_oracle {
 class RegistrationPairCost : public ceres::CostFunction {
  public:
   RegistrationPairCost(std::vector<RegistrationPoint> points, const RegistrationDistanceLookup& lookup,
-                       const RegistrationResidualConfig& config)
+                       const RegistrationResidualConfig& config, double residual_sigma)
       : points_(std::move(points)),
         lookup_(lookup),
         robust_{config.loss, config.loss_scale},
-        tsdf_target_(config.distance == RegistrationDistance::kTsdfNearSurface) {
+        tsdf_target_(config.distance == RegistrationDistance::kTsdfNearSurface),
+        inverse_sigma_(1.0 / residual_sigma) {
     set_num_residuals(static_cast<int>(points_.size()));
     mutable_parameter_block_sizes()->push_back(4);
     mutable_parameter_block_sizes()->push_back(4);
@@ -49,7 +51,8 @@ class RegistrationPairCost : public ceres::CostFunction {
     const Pose4Dof pj{parameters[1][0], parameters[1][1], parameters[1][2], parameters[1][3]};
     const RegistrationPairGeometry geometry = registration_pair_geometry(pi, pj);
     for (size_t k = 0; k < points_.size(); ++k) {
-      const RegistrationResidual r = registration_residual(points_[k], lookup_, geometry, robust_, tsdf_target_);
+      const RegistrationResidual r =
+          registration_scaled_residual(points_[k], lookup_, geometry, robust_, tsdf_target_, inverse_sigma_);
       double s = 0.0, ds_dr = 0.0;
       if (r.valid) {
         const double rho = 2.0 * r.cost;
@@ -72,6 +75,7 @@ class RegistrationPairCost : public ceres::CostFunction {
   RegistrationDistanceLookup lookup_;
   RobustLossParams robust_;
   bool tsdf_target_;
+  double inverse_sigma_;
 };
 
 // Host copies of the terms' fields: CPU maps are used as they are, device maps are copied once.
@@ -105,7 +109,7 @@ inline OracleResult solve(PoseGraph4Dof* graph, const std::vector<RegistrationTe
     std::vector<RegistrationPoint> points = t.points_i->points.to_host(stream);
     if (points.empty()) continue;
     const RegistrationDistanceLookup lookup = make_registration_lookup(host_fields.host_map(t.map_j), t.residual);
-    problem.AddResidualBlock(new RegistrationPairCost(std::move(points), lookup, t.residual), nullptr,
+    problem.AddResidualBlock(new RegistrationPairCost(std::move(points), lookup, t.residual, t.residual_sigma), nullptr,
                              &graph->poses[t.vertex_i].x, &graph->poses[t.vertex_j].x);
   }
   hold_fixed_vertex_4dof(graph, &problem);

@@ -202,24 +202,31 @@ void damping_and_preconditioner(Backend backend, const Stream& stream, int32_t v
 }
 
 // The odometry-chain preconditioner: M = the block-tridiagonal part of H + damping in vertex
-// order (blocks (v, v) and (v, v + 1)). Each constraint's term of H is positive semi-definite and
-// dropping the off-diagonal part of a term keeps it so, hence M is positive definite. It holds
-// the long, weakly stiff chains of a pose graph that block-Jacobi cannot, which is what makes CG
-// slow on them. Factorised by the block Thomas algorithm (block LDL^T): a sequential sweep over
-// the chain in a single device thread (O(N D^3)), cheap next to the CG iterations it saves.
-// `chain_blocks[v]` is the off-diagonal block (v, v + 1) or -1; `schur_inverse` receives
+// order (blocks (v, v) and (v, v + 1)), cut into segments of `segment_vertices` consecutive
+// vertices (the links between segments are dropped). Each constraint's term of H is positive
+// semi-definite and dropping the off-diagonal part of a term keeps it so, hence M is positive
+// definite. It holds the long, weakly stiff chains of a pose graph that block-Jacobi cannot, which
+// is what makes CG slow on them. Each segment is factorised by the block Thomas algorithm (block
+// LDL^T): a sequential sweep in one device thread per segment (O(L D^3)). One segment spanning
+// the whole graph is the exact chain (fewest CG iterations, no parallelism); on a GPU a single
+// thread sweeping a thousand vertices costs more per CG iteration than the iterations it saves,
+// so segments of a few dozen vertices keep the sweep parallel while still holding most of the
+// chain. `chain_blocks[v]` is the off-diagonal block (v, v + 1) or -1; `schur_inverse` receives
 // S_v^-1 with S_v = M_vv - B_{v-1}^T S_{v-1}^-1 B_{v-1}.
 template <int D, class Backend>
-void factorize_chain(Backend backend, const Stream& stream, int32_t vertex_count, const double* hessian_diag,
-                     const double* hessian_off, const double* damping, const int32_t* chain_blocks,
-                     double* schur_inverse) {
+void factorize_chain(Backend backend, const Stream& stream, int32_t vertex_count, int32_t segment_vertices,
+                     const double* hessian_diag, const double* hessian_off, const double* damping,
+                     const int32_t* chain_blocks, double* schur_inverse) {
   constexpr int DD = D * D;
-  parallel_for(backend, stream, 1, [=] COVOX_HD(int64_t) {
-    for (int32_t v = 0; v < vertex_count; ++v) {
+  const int32_t segments = (vertex_count + segment_vertices - 1) / segment_vertices;
+  parallel_for(backend, stream, segments, [=] COVOX_HD(int64_t segment) {
+    const int32_t begin = static_cast<int32_t>(segment) * segment_vertices;
+    const int32_t end = begin + segment_vertices < vertex_count ? begin + segment_vertices : vertex_count;
+    for (int32_t v = begin; v < end; ++v) {
       double s[DD];
       for (int k = 0; k < DD; ++k) s[k] = hessian_diag[static_cast<int64_t>(v) * DD + k];
       for (int r = 0; r < D; ++r) s[r * D + r] += damping[static_cast<int64_t>(v) * D + r];
-      const int32_t previous = v > 0 ? chain_blocks[v - 1] : -1;
+      const int32_t previous = v > begin ? chain_blocks[v - 1] : -1;
       if (previous >= 0) {
         const double* b = hessian_off + static_cast<int64_t>(previous) * DD;
         const double* p = schur_inverse + static_cast<int64_t>(v - 1) * DD;
@@ -246,18 +253,21 @@ void factorize_chain(Backend backend, const Stream& stream, int32_t vertex_count
   });
 }
 
-// y = M^-1 x for the chain preconditioner (forward and backward block substitution).
+// y = M^-1 x for the chain preconditioner (forward and backward block substitution per segment).
 template <int D, class Backend>
-void apply_chain_preconditioner(Backend backend, const Stream& stream, int32_t vertex_count, const double* hessian_off,
-                                const int32_t* chain_blocks, const double* schur_inverse, const double* x,
-                                double* y) {
+void apply_chain_preconditioner(Backend backend, const Stream& stream, int32_t vertex_count, int32_t segment_vertices,
+                                const double* hessian_off, const int32_t* chain_blocks, const double* schur_inverse,
+                                const double* x, double* y) {
   constexpr int DD = D * D;
-  parallel_for(backend, stream, 1, [=] COVOX_HD(int64_t) {
+  const int32_t segments = (vertex_count + segment_vertices - 1) / segment_vertices;
+  parallel_for(backend, stream, segments, [=] COVOX_HD(int64_t segment) {
+    const int32_t begin = static_cast<int32_t>(segment) * segment_vertices;
+    const int32_t end = begin + segment_vertices < vertex_count ? begin + segment_vertices : vertex_count;
     // Forward: z_v = x_v - B_{v-1}^T w_{v-1}, w_v = S_v^-1 z_v (w stored in y).
-    for (int32_t v = 0; v < vertex_count; ++v) {
+    for (int32_t v = begin; v < end; ++v) {
       double z[D];
       for (int r = 0; r < D; ++r) z[r] = x[static_cast<int64_t>(v) * D + r];
-      const int32_t previous = v > 0 ? chain_blocks[v - 1] : -1;
+      const int32_t previous = v > begin ? chain_blocks[v - 1] : -1;
       if (previous >= 0) {
         const double* b = hessian_off + static_cast<int64_t>(previous) * DD;
         const double* w = y + static_cast<int64_t>(v - 1) * D;
@@ -273,7 +283,7 @@ void apply_chain_preconditioner(Backend backend, const Stream& stream, int32_t v
       }
     }
     // Backward: y_v = w_v - S_v^-1 B_v y_{v+1}.
-    for (int32_t v = vertex_count - 2; v >= 0; --v) {
+    for (int32_t v = end - 2; v >= begin; --v) {
       const int32_t block = chain_blocks[v];
       if (block < 0) continue;
       const double* b = hessian_off + static_cast<int64_t>(block) * DD;

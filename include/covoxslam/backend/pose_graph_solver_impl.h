@@ -122,13 +122,16 @@ class PoseGraphWorkspace {
     damping_and_preconditioner<D>(b, stream_, vertex_count_, hessian_diag.data(), radius, options.min_diagonal,
                                   options.max_diagonal, damping.data(), preconditioner.data());
     const bool chain = options.preconditioner == PcgPreconditioner::kOdometryChain;
+    const int32_t segment = options.chain_segment_vertices > 0
+                                ? std::min<int32_t>(options.chain_segment_vertices, std::max<int32_t>(vertex_count_, 1))
+                                : std::max<int32_t>(vertex_count_, 1);
     if (chain) {
-      factorize_chain<D>(b, stream_, vertex_count_, hessian_diag.data(), hessian_off.data(), damping.data(),
+      factorize_chain<D>(b, stream_, vertex_count_, segment, hessian_diag.data(), hessian_off.data(), damping.data(),
                          chain_blocks.data(), preconditioner.data());
     }
     const auto precondition = [&](const double* in, double* out) {
       if (chain) {
-        apply_chain_preconditioner<D>(b, stream_, vertex_count_, hessian_off.data(), chain_blocks.data(),
+        apply_chain_preconditioner<D>(b, stream_, vertex_count_, segment, hessian_off.data(), chain_blocks.data(),
                                       preconditioner.data(), in, out);
       } else {
         apply_preconditioner<D>(b, stream_, vertex_count_, preconditioner.data(), in, out);

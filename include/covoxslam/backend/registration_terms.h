@@ -25,10 +25,15 @@ struct RegistrationTerm {
   const RegistrationPoints* points_i = nullptr;  // not owned; on the solver's device
   const TsdfMap* map_j = nullptr;                // not owned; on the solver's device; ESDF computed
   RegistrationResidualConfig residual;
+  // The residuals (and Jacobians) are divided by this before the robust loss: the noise of one
+  // point's residual in registration.h's units (metres times sqrt(TSDF weight)), which sets how
+  // strongly registration counts against odometry. 1 keeps registration.h's scale.
+  double residual_sigma = 1.0;
 };
 
 // Throws covox::Error naming the term when a vertex is out of range, i == j, a pointer is null,
-// the points or the map live on another device than `device`, or the residual config is invalid.
+// the points or the map live on another device than `device`, the residual config is invalid, or
+// residual_sigma is not finite and positive.
 void validate_registration_terms(const std::vector<RegistrationTerm>& terms, int32_t vertex_count, Device device);
 
 // Host reference of the terms' cost at `graph.poses` (one evaluate_registration_residuals call per

@@ -25,6 +25,7 @@ struct RegistrationTermView {
   uint8_t tsdf_target = 0;
   float tsdf_band_m = 0.0f;  // 0: ESDF only
   float min_tsdf_weight = 1e-4f;
+  double inverse_sigma = 1.0;  // 1 / RegistrationTerm::residual_sigma
   RobustLossParams robust;
 };
 
@@ -59,6 +60,27 @@ void registration_terms_geometry(Backend backend, const Stream& stream, const Re
   });
 }
 
+// One point's residual scaled by 1 / sigma, then its robust loss (the term's residual; also what
+// the Ceres oracle evaluates).
+COVOX_HD_INLINE RegistrationResidual registration_scaled_residual(const RegistrationPoint& point,
+                                                                  const RegistrationDistanceLookup& lookup,
+                                                                  const RegistrationPairGeometry& geometry,
+                                                                  const RobustLossParams& robust, bool tsdf_target,
+                                                                  double inverse_sigma) {
+  RegistrationResidual r = registration_residual(point, lookup, geometry, RobustLossParams{}, tsdf_target);
+  if (!r.valid) return r;
+  r.residual *= inverse_sigma;
+  for (int k = 0; k < 4; ++k) {
+    r.jacobian_i[k] *= inverse_sigma;
+    r.jacobian_j[k] *= inverse_sigma;
+  }
+  double rho = 0.0, rho_prime = 0.0;
+  robust.evaluate(r.residual * r.residual, &rho, &rho_prime);
+  r.cost = 0.5 * rho;
+  r.robust_weight = rho_prime;
+  return r;
+}
+
 COVOX_HD_INLINE RegistrationResidual registration_term_residual(const RegistrationPoint& point,
                                                                 const RegistrationTermView& term,
                                                                 const RegistrationDistanceLookup* fields,
@@ -66,7 +88,8 @@ COVOX_HD_INLINE RegistrationResidual registration_term_residual(const Registrati
   RegistrationDistanceLookup lookup = fields[term.field];
   lookup.tsdf_band_m = term.tsdf_band_m;
   lookup.min_tsdf_weight = term.min_tsdf_weight;
-  return registration_residual(point, lookup, geometry, term.robust, term.tsdf_target != 0);
+  return registration_scaled_residual(point, lookup, geometry, term.robust, term.tsdf_target != 0,
+                                      term.inverse_sigma);
 }
 
 // Every point of every term in one launch: its residual, Jacobians and cost (0 when invalid).

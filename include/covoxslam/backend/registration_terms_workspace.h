@@ -39,6 +39,7 @@ class RegistrationTermsWorkspace {
       view.tsdf_band_m = view.tsdf_target ? term.residual.tsdf_band_m : 0.0f;
       view.min_tsdf_weight = term.residual.min_tsdf_weight;
       view.robust = RobustLossParams{term.residual.loss, term.residual.loss_scale};
+      view.inverse_sigma = 1.0 / term.residual_sigma;
       views.push_back(view);
       const int64_t n = static_cast<int64_t>(term.points_i->points.size());
       for (int64_t begin = 0; begin < n; begin += kRegistrationChunkPoints) {
