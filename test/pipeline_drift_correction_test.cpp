@@ -78,7 +78,7 @@ TEST(PipelineDriftCorrection, RegistrationPullsTheDriftingTrajectoryBackToTheTru
   EXPECT_GT(run.odometry_rmse_m, 1.0);  // the drift is real
   // Every new submap registers at least to its predecessor.
   EXPECT_GE(r.accepted, static_cast<int64_t>(run.submaps.size()) - 1);
-  EXPECT_EQ(r.attempted, r.accepted + r.rejected_failed + r.rejected_too_far + r.rejected_too_few_points);
+  EXPECT_EQ(r.attempted, r.accepted + r.rejected_failed + r.rejected_too_far + r.rejected_too_few_points + r.rejected_poor_fit);
   EXPECT_LT(run.corrected_rmse_m, 0.35 * run.odometry_rmse_m);
   EXPECT_LT(run.corrected_rmse_m, 0.3);
   EXPECT_LT(run.corrected_final_error_m, 0.3 * run.odometry_final_error_m);
@@ -109,7 +109,8 @@ TEST(PipelineDriftCorrection, EachRejectionReasonIsCounted) {
   EXPECT_EQ(counts.accepted, 0);
   // The short last submap (one scan) may also fall short of points; every other pair is too far.
   EXPECT_GE(counts.rejected_too_far, counts.attempted - 2);
-  EXPECT_EQ(counts.rejected_too_far + counts.rejected_too_few_points + counts.rejected_failed, counts.attempted);
+  EXPECT_EQ(counts.rejected_too_far + counts.rejected_too_few_points + counts.rejected_failed + counts.rejected_poor_fit,
+            counts.attempted);
   // Too few points: more than a submap has.
   config = yard_config();
   config.registration.min_points = 1000000;

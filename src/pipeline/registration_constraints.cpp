@@ -34,6 +34,18 @@ void validate(const SubmapRegistrationConfig& config) {
           "max_correction_m must be positive, got " + std::to_string(config.max_correction_m));
   require(positive_finite(config.max_correction_rad) && config.max_correction_rad <= 3.14159265358979323846,
           "max_correction_rad must be in (0, pi], got " + std::to_string(config.max_correction_rad));
+  require(positive_finite(config.inlier_distance_m),
+          "inlier_distance_m must be positive, got " + std::to_string(config.inlier_distance_m));
+  require(std::isfinite(config.min_inlier_fraction) && config.min_inlier_fraction >= 0.0 && config.min_inlier_fraction <= 1.0,
+          "min_inlier_fraction must be in [0, 1], got " + std::to_string(config.min_inlier_fraction));
+  require(positive_finite(config.search_step_m), "search_step_m must be positive, got " + std::to_string(config.search_step_m));
+  require(positive_finite(config.search_step_rad),
+          "search_step_rad must be positive, got " + std::to_string(config.search_step_rad));
+  require(std::isfinite(config.search_max_yaw_rad) && config.search_max_yaw_rad >= 0.0,
+          "search_max_yaw_rad must be >= 0, got " + std::to_string(config.search_max_yaw_rad));
+  require(config.min_fit_points >= 0, "min_fit_points must be >= 0, got " + std::to_string(config.min_fit_points));
+  require(config.search_candidates >= 1, "search_candidates must be at least 1, got " + std::to_string(config.search_candidates));
+  require(config.search_max_points >= 4, "search_max_points must be at least 4, got " + std::to_string(config.search_max_points));
   require(config.max_partners >= 0, "max_partners must be >= 0, got " + std::to_string(config.max_partners));
   require(config.max_iterations >= 1, "max_iterations must be at least 1, got " + std::to_string(config.max_iterations));
 }
@@ -74,6 +86,8 @@ void RegistrationCounts::add(const RegistrationCounts& other) {
   rejected_failed += other.rejected_failed;
   rejected_too_far += other.rejected_too_far;
   rejected_too_few_points += other.rejected_too_few_points;
+  rejected_poor_fit += other.rejected_poor_fit;
+  found_by_search += other.found_by_search;
 }
 
 std::unique_ptr<SubmapRegistrationPoints> prepare_registration_points(const TsdfMap& map,
@@ -86,10 +100,169 @@ std::unique_ptr<SubmapRegistrationPoints> prepare_registration_points(const Tsdf
   // The mean weight needs the points on the host once (thousands of them: negligible).
   const std::vector<backend::RegistrationPoint> host = result->points.points.to_host(stream);
   double sum = 0.0;
-  for (const backend::RegistrationPoint& p : host) sum += p.weight;
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  result->sqrt_weights.reserve(host.size());
+  for (const backend::RegistrationPoint& p : host) {
+    sum += p.weight;
+    centroid += Eigen::Vector3d(p.position_m.x, p.position_m.y, p.position_m.z);
+    result->sqrt_weights.push_back(std::sqrt(p.weight));
+  }
   result->mean_weight = host.empty() || !(sum > 0.0) ? 1.0 : sum / static_cast<double>(host.size());
+  if (!host.empty()) result->centroid_m = centroid / static_cast<double>(host.size());
+  // An even subsample (every k-th point of the sorted order) for the revisit search.
+  const size_t stride = std::max<size_t>(1, (host.size() + static_cast<size_t>(config.search_max_points) - 1) /
+                                                static_cast<size_t>(config.search_max_points));
+  std::vector<backend::RegistrationPoint> subsample;
+  for (size_t k = 0; k < host.size(); k += stride) {
+    subsample.push_back(host[k]);
+    result->search_sqrt_weights.push_back(result->sqrt_weights[k]);
+  }
+  result->search_points.points = Buffer<backend::RegistrationPoint>::from_host(map.device(), subsample, stream);
+  result->search_points.surface_voxels = result->points.surface_voxels;
   return result;
 }
+
+namespace {
+
+// How many of the points that fall into submap j's observed field lie near its surfaces,
+// counted over the points whose distance field gradient is mostly horizontal (walls, poles,
+// trunks): those are what fix x, y and yaw. Ground points fit at any horizontal offset and
+// outnumber everything else in a LiDAR scan, so counting them would make any alignment look good.
+struct Fit {
+  int64_t used = 0;
+  int64_t inliers = 0;
+  double fraction() const { return used > 0 ? static_cast<double>(inliers) / static_cast<double>(used) : 0.0; }
+};
+// |horizontal gradient| above this (the surface normal within about 45 degrees of horizontal).
+constexpr double kHorizontalGradient = 0.7;
+
+Fit evaluate_fit(const backend::RegistrationPoints& points, const std::vector<float>& sqrt_weights,
+                 const TsdfMap& map_j, const backend::Pose4Dof& T_Sj_Si,
+                 const backend::RegistrationResidualConfig& residual, double inlier_distance_m,
+                 Buffer<backend::RegistrationResidual>* scratch, const Stream& stream) {
+  backend::evaluate_registration_residuals(points, map_j, T_Sj_Si, backend::Pose4Dof(), residual, scratch, stream);
+  const std::vector<backend::RegistrationResidual> host = scratch->to_host(stream);
+  Fit fit;
+  for (size_t k = 0; k < host.size(); ++k) {
+    if (!host[k].valid || !(sqrt_weights[k] > 0.0f)) continue;
+    // Residuals and Jacobians carry sqrt(weight); the tests are in metres.
+    const double horizontal = std::hypot(host[k].jacobian_i[0], host[k].jacobian_i[1]) / sqrt_weights[k];
+    if (horizontal < kHorizontalGradient) continue;
+    ++fit.used;
+    if (std::abs(host[k].residual) <= inlier_distance_m * sqrt_weights[k]) ++fit.inliers;
+  }
+  return fit;
+}
+
+enum class Verdict { kAccepted, kFailed, kTooFar, kTooFewPoints, kPoorFit };
+
+struct Attempt {
+  Verdict verdict = Verdict::kFailed;
+  backend::RegistrationResult result;
+  Fit fit;
+};
+
+// One alignment from `start`, judged against the guess `initial`.
+Attempt attempt_alignment(const SubmapRegistrationPoints& points, const TsdfMap& map_j, const backend::Pose4Dof& initial,
+                          const backend::Pose4Dof& start, const backend::RegistrationAlignerConfig& aligner,
+                          const SubmapRegistrationConfig& config, Buffer<backend::RegistrationResidual>* scratch,
+                          const Stream& stream) {
+  Attempt attempt;
+  const backend::RegistrationNormalEquations at_start =
+      backend::registration_normal_equations(points.points, map_j, start, backend::Pose4Dof(), aligner.residual, stream);
+  if (at_start.used_points < config.min_points) {
+    attempt.verdict = Verdict::kTooFewPoints;
+    return attempt;
+  }
+  try {
+    attempt.result = backend::align_submaps(points.points, map_j, start, aligner, stream);
+  } catch (const std::exception& error) {
+    log_message(LogLevel::kDebug, "SLAM registration: an alignment failed: ", error.what());
+    attempt.verdict = Verdict::kFailed;
+    return attempt;
+  }
+  if (!attempt.result.converged) {
+    attempt.verdict = Verdict::kFailed;
+    return attempt;
+  }
+  if (attempt.result.used_points < config.min_points) {
+    attempt.verdict = Verdict::kTooFewPoints;
+    return attempt;
+  }
+  const backend::Pose4Dof& found = attempt.result.T_Sj_Si;
+  const Eigen::Vector3d moved(found.x - initial.x, found.y - initial.y, found.z - initial.z);
+  const double turned = std::abs(std::remainder(found.yaw - initial.yaw, 2.0 * 3.14159265358979323846));
+  if (!(moved.norm() <= config.max_correction_m) || !(turned <= config.max_correction_rad)) {
+    attempt.verdict = Verdict::kTooFar;
+    return attempt;
+  }
+  attempt.fit = evaluate_fit(points.points, points.sqrt_weights, map_j, found, aligner.residual,
+                             config.inlier_distance_m, scratch, stream);
+  // Too few wall-like points to judge x, y and yaw is a poor fit as well.
+  attempt.verdict = attempt.fit.used >= config.min_fit_points && attempt.fit.fraction() >= config.min_inlier_fraction
+                        ? Verdict::kAccepted
+                        : Verdict::kPoorFit;
+  return attempt;
+}
+
+// Start poses for the revisit search: the guess moved on a grid of horizontal offsets and yaws
+// (the yaw turns submap i's content about its centroid, so yaw and offset stay independent),
+// the best few by the fit of the subsampled points, at least a grid step apart.
+std::vector<backend::Pose4Dof> search_starts(const SubmapRegistrationPoints& points, const TsdfMap& map_j,
+                                             const backend::Pose4Dof& initial,
+                                             const backend::RegistrationResidualConfig& residual,
+                                             const SubmapRegistrationConfig& config,
+                                             Buffer<backend::RegistrationResidual>* scratch, const Stream& stream) {
+  struct Scored {
+    backend::Pose4Dof pose;
+    double dx, dy, dyaw;
+    int64_t inliers;
+  };
+  const int steps_xy = static_cast<int>(std::floor(config.max_correction_m / config.search_step_m));
+  const double yaw_range = std::min(config.max_correction_rad, config.search_max_yaw_rad);
+  const int steps_yaw = static_cast<int>(std::floor(yaw_range / config.search_step_rad));
+  const double c0 = std::cos(initial.yaw), s0 = std::sin(initial.yaw);
+  // Submap i's centroid in frame j at the guess.
+  const Eigen::Vector2d centre(initial.x + c0 * points.centroid_m.x() - s0 * points.centroid_m.y(),
+                               initial.y + s0 * points.centroid_m.x() + c0 * points.centroid_m.y());
+  std::vector<Scored> scored;
+  for (int iy = -steps_yaw; iy <= steps_yaw; ++iy) {
+    const double dyaw = iy * config.search_step_rad;
+    const double c = std::cos(dyaw), s = std::sin(dyaw);
+    const Eigen::Vector2d t(initial.x - centre.x(), initial.y - centre.y());
+    const Eigen::Vector2d turned(c * t.x() - s * t.y() + centre.x(), s * t.x() + c * t.y() + centre.y());
+    for (int ix = -steps_xy; ix <= steps_xy; ++ix) {
+      for (int jy = -steps_xy; jy <= steps_xy; ++jy) {
+        const double dx = ix * config.search_step_m, dy = jy * config.search_step_m;
+        if (std::hypot(dx, dy) > config.max_correction_m) continue;
+        backend::Pose4Dof candidate = initial;
+        candidate.x = turned.x() + dx;
+        candidate.y = turned.y() + dy;
+        candidate.yaw = initial.yaw + dyaw;
+        const Fit fit = evaluate_fit(points.search_points, points.search_sqrt_weights, map_j, candidate, residual,
+                                     config.inlier_distance_m, scratch, stream);
+        scored.push_back(Scored{candidate, dx, dy, dyaw, fit.inliers});
+      }
+    }
+  }
+  std::stable_sort(scored.begin(), scored.end(), [](const Scored& a, const Scored& b) { return a.inliers > b.inliers; });
+  std::vector<backend::Pose4Dof> starts;
+  std::vector<const Scored*> chosen;
+  for (const Scored& candidate : scored) {
+    if (static_cast<int>(starts.size()) >= config.search_candidates || candidate.inliers == 0) break;
+    bool near_chosen = false;
+    for (const Scored* other : chosen) {
+      near_chosen = near_chosen || (std::hypot(candidate.dx - other->dx, candidate.dy - other->dy) <= 1.5 * config.search_step_m &&
+                                    std::abs(candidate.dyaw - other->dyaw) <= 1.5 * config.search_step_rad);
+    }
+    if (near_chosen) continue;
+    chosen.push_back(&candidate);
+    starts.push_back(candidate.pose);
+  }
+  return starts;
+}
+
+}  // namespace
 
 std::vector<SubmapConstraint> registration_constraints(int64_t id, const TsdfMap& map,
                                                        const SubmapRegistrationPoints& points,
@@ -125,52 +298,48 @@ std::vector<SubmapConstraint> registration_constraints(int64_t id, const TsdfMap
   aligner.residual.loss_scale = config.robust_loss_scale_m * sqrt_mean_weight;
   aligner.max_iterations = config.max_iterations;
   aligner.min_used_points = config.min_points;
-  const backend::Pose4Dof identity;
+  Buffer<backend::RegistrationResidual> scratch(map.device());
 
   for (const Candidate& candidate : candidates) {
     const RegistrationPartner& partner = *candidate.partner;
     ++counts->attempted;
-    const backend::Pose4Dof initial = relative_pose_4dof(partner.pose, pose);  // T_Sj_Si
     if (points.points.points.size() < static_cast<size_t>(config.min_points)) {
       ++counts->rejected_too_few_points;
       continue;
     }
-    const backend::RegistrationNormalEquations at_start =
-        backend::registration_normal_equations(points.points, *partner.map, initial, identity, aligner.residual, stream);
-    if (at_start.used_points < config.min_points) {
-      ++counts->rejected_too_few_points;
+    const backend::Pose4Dof initial = relative_pose_4dof(partner.pose, pose);  // T_Sj_Si
+    Attempt best = attempt_alignment(points, *partner.map, initial, initial, aligner, config, &scratch, stream);
+    const Verdict direct_verdict = best.verdict;
+    bool from_search = false;
+    if (best.verdict != Verdict::kAccepted && config.search_enabled) {
+      for (const backend::Pose4Dof& start :
+           search_starts(points, *partner.map, initial, aligner.residual, config, &scratch, stream)) {
+        Attempt attempt = attempt_alignment(points, *partner.map, initial, start, aligner, config, &scratch, stream);
+        if (attempt.verdict != Verdict::kAccepted) continue;
+        if (best.verdict != Verdict::kAccepted || attempt.fit.fraction() > best.fit.fraction()) {
+          best = attempt;
+          from_search = true;
+        }
+      }
+    }
+    if (best.verdict != Verdict::kAccepted) {
+      // The reason of the alignment from the guess: what a user can act on.
+      switch (direct_verdict) {
+        case Verdict::kTooFar: ++counts->rejected_too_far; break;
+        case Verdict::kTooFewPoints: ++counts->rejected_too_few_points; break;
+        case Verdict::kPoorFit: ++counts->rejected_poor_fit; break;
+        default: ++counts->rejected_failed; break;
+      }
+      log_message(LogLevel::kDebug, "SLAM registration: no constraint from submap ", partner.id, " to ", id);
       continue;
     }
-    backend::RegistrationResult result;
-    try {
-      result = backend::align_submaps(points.points, *partner.map, initial, aligner, stream);
-    } catch (const std::exception& error) {
-      ++counts->rejected_failed;
-      log_message(LogLevel::kDebug, "SLAM registration: aligning submap ", id, " to ", partner.id, " failed: ", error.what());
-      continue;
-    }
-    if (!result.converged) {
-      ++counts->rejected_failed;
-      continue;
-    }
-    if (result.used_points < config.min_points) {
-      ++counts->rejected_too_few_points;
-      continue;
-    }
-    const Eigen::Vector3d moved(result.T_Sj_Si.x - initial.x, result.T_Sj_Si.y - initial.y,
-                                result.T_Sj_Si.z - initial.z);
-    const double turned = std::abs(std::atan2(std::sin(result.T_Sj_Si.yaw - initial.yaw),
-                                              std::cos(result.T_Sj_Si.yaw - initial.yaw)));
-    if (!(moved.norm() <= config.max_correction_m) || !(turned <= config.max_correction_rad)) {
-      ++counts->rejected_too_far;
-      log_message(LogLevel::kDebug, "SLAM registration: rejected submap ", id, " to ", partner.id, ": moved ", moved.norm(), " m and ",
-                turned, " rad from the guess");
-      continue;
-    }
+    if (from_search) ++counts->found_by_search;
+    log_message(LogLevel::kDebug, "SLAM registration: submap ", partner.id, " -> ", id, ": ", best.fit.inliers, " of ",
+                best.fit.used, " points fit", from_search ? " (found by the revisit search)" : "");
     // The backend's constraint (information = hessian / sigma^2, here sigma in residual units),
     // read back as an information matrix S^T S for the submap-level graph.
     const backend::Constraint4Dof constraint =
-        backend::make_registration_constraint(0, 1, result, config.point_sigma_m * sqrt_mean_weight);
+        backend::make_registration_constraint(0, 1, best.result, config.point_sigma_m * sqrt_mean_weight);
     const Eigen::Map<const Eigen::Matrix<double, 4, 4, Eigen::RowMajor>> sqrt_information(constraint.sqrt_information);
     SubmapConstraint c;
     c.kind = SubmapConstraintKind::kRegistration;

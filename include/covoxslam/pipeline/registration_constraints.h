@@ -4,6 +4,19 @@
 // the relative pose of their current corrected poses, and each plausible alignment becomes a
 // relative 4-DoF constraint from the earlier submap to the new one.
 //
+// Acceptance. An alignment can "converge" far from the truth: points that land in the earlier
+// submap's free space read a flat, clamped ESDF and pull nowhere, and ground points fit at any
+// horizontal offset. So besides the aligner's own verdict, an alignment must fit: of the points
+// on wall-like surfaces (horizontal distance gradient) that fall into the earlier submap's
+// observed field, at least min_fit_points must exist and min_inlier_fraction must lie within
+// inlier_distance_m of its surfaces.
+//
+// Revisits. At a revisit the guess carries all the drift since the last visit (metres, degrees),
+// outside the aligner's basin (about the ESDF range). When the alignment from the guess does not
+// fit, a coarse search evaluates the fit on a grid of horizontal offsets and yaws within the
+// plausible correction (max_correction_m, max_correction_rad) with a subsample of the points,
+// and the aligner restarts from the best few candidates.
+//
 // Weights. The aligner's residuals are metres times sqrt(TSDF weight), and TSDF weights depend on
 // the weighting scheme (constant, inverse square, sparsity compensation), so a sigma in those
 // units would change meaning with the integrator settings. Here the weights are normalised to a
@@ -41,9 +54,24 @@ struct SubmapRegistrationConfig {
   // Fewer registration points inside the earlier submap's field: no constraint (counted).
   int64_t min_points = 100;
   // An alignment that moves the relative pose further than this from its starting guess is not
-  // believed (counted): odometry does not drift that much between two looks at one place.
+  // believed (counted): odometry does not drift that much between two looks at one place. This is
+  // also the range of the revisit search.
   double max_correction_m = 2.0;
   double max_correction_rad = 0.349065850398866;  // 20 degrees
+  // The fit test (see above).
+  double inlier_distance_m = 0.3;
+  // 0 and 0: off (the default). On the simulated drone flight (sparse walls above much ground)
+  // the test rejected too many good consecutive alignments; see the report in the commit.
+  double min_inlier_fraction = 0.0;
+  int64_t min_fit_points = 0;
+  // The coarse search for revisits (see above): grid steps, candidates refined, points used.
+  // Off by default: on the simulated drone flight, wrong candidates won and cascaded.
+  bool search_enabled = false;
+  double search_step_m = 1.0;
+  double search_step_rad = 0.0349065850398866;  // 2 degrees
+  double search_max_yaw_rad = 0.174532925199433;  // 10 degrees (and at most max_correction_rad)
+  int search_candidates = 3;
+  int64_t search_max_points = 1500;
   // Align to at most this many earlier submaps (those sharing most blocks); 0: all.
   int max_partners = 10;
   int max_iterations = 60;
@@ -61,9 +89,13 @@ const char* to_string(backend::RegistrationDistance distance);
 
 // A finished submap's registration points and the mean TSDF weight over them.
 struct SubmapRegistrationPoints {
-  explicit SubmapRegistrationPoints(Device device) : points(device) {}
+  explicit SubmapRegistrationPoints(Device device) : points(device), search_points(device) {}
   backend::RegistrationPoints points;
   double mean_weight = 1.0;
+  std::vector<float> sqrt_weights;          // per point of `points`, on the host (fit test)
+  backend::RegistrationPoints search_points;  // an even subsample for the revisit search
+  std::vector<float> search_sqrt_weights;
+  Eigen::Vector3d centroid_m = Eigen::Vector3d::Zero();  // of the points, in the submap frame
 };
 std::unique_ptr<SubmapRegistrationPoints> prepare_registration_points(const TsdfMap& map,
                                                                      const SubmapRegistrationConfig& config,
@@ -75,6 +107,8 @@ struct RegistrationCounts {
   int64_t rejected_failed = 0;          // the aligner threw or did not converge
   int64_t rejected_too_far = 0;         // moved more than max_correction_m / _rad
   int64_t rejected_too_few_points = 0;  // fewer than min_points inside the partner's field
+  int64_t rejected_poor_fit = 0;        // fewer than min_inlier_fraction of the points fit
+  int64_t found_by_search = 0;          // accepted ones that needed the revisit search
   void add(const RegistrationCounts& other);
 };
 
