@@ -31,7 +31,8 @@ DEBIAN_ROS_PACKAGES := catkin ros-core-dev libroscpp-dev libnodeletlib-dev libno
   libtf2-ros-dev libtf2-eigen-dev libpcl-dev libpcl-conversions-dev librosbag-dev pluginlib-dev \
   libsensor-msgs-dev libnav-msgs-dev libvisualization-msgs-dev libgeometry-msgs-dev \
   libstd-srvs-dev ros-message-generation librostest-dev python3-rostest libnodeletlib-tools rosbash \
-  python3-rosbag python3-roslaunch libmessage-filters-dev libdiagnostic-msgs-dev libtf2-dev
+  python3-rosbag python3-roslaunch libmessage-filters-dev libdiagnostic-msgs-dev libtf2-dev \
+  python3-std-srvs python3-diagnostic-msgs
 DEBIAN_PACKAGES := $(DEBIAN_BUILD_PACKAGES) $(DEBIAN_ROS_PACKAGES)
 
 CMAKE_FLAGS := -DCMAKE_BUILD_TYPE=Release -DCOVOX_WITH_CUDA=$(WITH_CUDA) \
