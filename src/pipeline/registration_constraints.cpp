@@ -66,6 +66,16 @@ const char* to_string(backend::RobustLoss loss) {
   return "unknown";
 }
 
+RegistrationMode parse_registration_mode(const std::string& name) {
+  if (name == "pairwise") return RegistrationMode::kPairwise;
+  if (name == "joint") return RegistrationMode::kJoint;
+  throw Error("registration: unknown mode '" + name + "' (expected pairwise or joint)");
+}
+
+const char* to_string(RegistrationMode mode) {
+  return mode == RegistrationMode::kJoint ? "joint" : "pairwise";
+}
+
 backend::RegistrationDistance parse_registration_distance(const std::string& name) {
   if (name == "tsdf") return backend::RegistrationDistance::kTsdfNearSurface;
   if (name == "esdf") return backend::RegistrationDistance::kEsdf;
@@ -88,6 +98,7 @@ void RegistrationCounts::add(const RegistrationCounts& other) {
   rejected_too_few_points += other.rejected_too_few_points;
   rejected_poor_fit += other.rejected_poor_fit;
   found_by_search += other.found_by_search;
+  joint_pairs += other.joint_pairs;
 }
 
 std::unique_ptr<SubmapRegistrationPoints> prepare_registration_points(const TsdfMap& map,
@@ -264,16 +275,9 @@ std::vector<backend::Pose4Dof> search_starts(const SubmapRegistrationPoints& poi
 
 }  // namespace
 
-std::vector<SubmapConstraint> registration_constraints(int64_t id, const TsdfMap& map,
-                                                       const SubmapRegistrationPoints& points,
-                                                       const backend::Pose4Dof& pose,
-                                                       const std::vector<RegistrationPartner>& earlier,
-                                                       const SubmapRegistrationConfig& config, const Stream& stream,
-                                                       RegistrationCounts* counts) {
-  std::vector<SubmapConstraint> constraints;
-  if (!config.enabled) return constraints;
-
-  // Overlapping partners, most shared blocks first.
+std::vector<const RegistrationPartner*> overlapping_partners(const TsdfMap& map, const backend::Pose4Dof& pose,
+                                                             const std::vector<RegistrationPartner>& earlier,
+                                                             const SubmapRegistrationConfig& config) {
   struct Candidate {
     const RegistrationPartner* partner;
     int64_t shared_blocks;
@@ -289,6 +293,21 @@ std::vector<SubmapConstraint> registration_constraints(int64_t id, const TsdfMap
   if (config.max_partners > 0 && candidates.size() > static_cast<size_t>(config.max_partners)) {
     candidates.resize(static_cast<size_t>(config.max_partners));
   }
+  std::vector<const RegistrationPartner*> partners;
+  for (const Candidate& candidate : candidates) partners.push_back(candidate.partner);
+  return partners;
+}
+
+std::vector<SubmapConstraint> registration_constraints(int64_t id, const TsdfMap& map,
+                                                       const SubmapRegistrationPoints& points,
+                                                       const backend::Pose4Dof& pose,
+                                                       const std::vector<RegistrationPartner>& earlier,
+                                                       const SubmapRegistrationConfig& config, const Stream& stream,
+                                                       RegistrationCounts* counts) {
+  std::vector<SubmapConstraint> constraints;
+  if (!config.enabled) return constraints;
+
+  const std::vector<const RegistrationPartner*> partners = overlapping_partners(map, pose, earlier, config);
 
   backend::RegistrationAlignerConfig aligner;
   aligner.residual.distance = config.distance;
@@ -300,8 +319,8 @@ std::vector<SubmapConstraint> registration_constraints(int64_t id, const TsdfMap
   aligner.min_used_points = config.min_points;
   Buffer<backend::RegistrationResidual> scratch(map.device());
 
-  for (const Candidate& candidate : candidates) {
-    const RegistrationPartner& partner = *candidate.partner;
+  for (const RegistrationPartner* partner_pointer : partners) {
+    const RegistrationPartner& partner = *partner_pointer;
     ++counts->attempted;
     if (points.points.points.size() < static_cast<size_t>(config.min_points)) {
       ++counts->rejected_too_few_points;

@@ -399,7 +399,8 @@ void SlamSystem::add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
   SubmapConstraint link;
   bool have_link = false;
   backend::Pose4Dof guess = submap->odometry_pose();
-  std::vector<RegistrationPartner> partners;
+  std::vector<RegistrationPartner> partners, joint_partners;
+  const bool joint = config_.registration.mode == RegistrationMode::kJoint;
   {
     std::lock_guard<std::mutex> lock(state_mutex_);
     if (!graph_submaps_.empty()) {
@@ -428,7 +429,13 @@ void SlamSystem::add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
       }
     }
     for (const GraphSubmap& earlier : graph_submaps_) {
-      partners.push_back(RegistrationPartner{earlier.submap->id(), &earlier.submap->map(), earlier.submap->pose()});
+      const RegistrationPartner partner{earlier.submap->id(), &earlier.submap->map(), earlier.submap->pose()};
+      // kJoint: pairs with mapped submaps become dense terms; loaded ones stay pairwise.
+      if (joint && !earlier.loaded) {
+        joint_partners.push_back(partner);
+      } else {
+        partners.push_back(partner);
+      }
     }
   }
   submap->set_pose(guess);
@@ -437,9 +444,16 @@ void SlamSystem::add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
   // (this thread now) change or replace them.
   RegistrationCounts counts;
   std::vector<SubmapConstraint> registrations;
+  std::vector<int64_t> joint_pair_partners;
   if (points) {
     registrations = registration_constraints(submap->id(), submap->map(), *points, guess, partners,
                                              config_.registration, backend_stream_, &counts);
+    if (config_.registration.enabled) {
+      for (const RegistrationPartner* partner :
+           overlapping_partners(submap->map(), guess, joint_partners, config_.registration)) {
+        joint_pair_partners.push_back(partner->id);
+      }
+    }
   }
 
   std::lock_guard<std::mutex> lock(state_mutex_);
@@ -449,6 +463,8 @@ void SlamSystem::add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
     if (link.kind == SubmapConstraintKind::kOdometry) ++counters_.odometry_constraints;
   }
   for (const SubmapConstraint& c : registrations) pose_graph_.add_constraint(c);
+  for (int64_t partner : joint_pair_partners) joint_pairs_.push_back(JointPair{submap->id(), partner});
+  counts.joint_pairs += static_cast<int64_t>(joint_pair_partners.size());
   counters_.registration.add(counts);
   graph_submaps_.push_back(GraphSubmap{std::move(submap), std::move(points), false});
 }
@@ -488,11 +504,13 @@ void SlamSystem::optimize_locked() {
   const int passes = 5;
   for (int pass = 0; pass < passes; ++pass) {
     SubmapPoseGraph::BackendGraph graph;
+    std::vector<backend::RegistrationTerm> terms;
     bool has_absolute = false;
     {
       std::lock_guard<std::mutex> lock(state_mutex_);
       try {
         graph = pose_graph_.to_backend_graph();
+        terms = joint_terms_locked(graph);
       } catch (const std::exception& error) {
         ++counters_.optimizations_failed;
         log_error("SLAM backend: building the pose graph failed: ", error.what());
@@ -507,7 +525,8 @@ void SlamSystem::optimize_locked() {
     const auto start = Clock::now();
     backend::PoseGraphSolverSummary summary;
     try {
-      summary = backend::solve_pose_graph(&graph.graph, config_.device, config_.solver);
+      summary = terms.empty() ? backend::solve_pose_graph(&graph.graph, config_.device, config_.solver)
+                              : backend::solve_pose_graph(&graph.graph, terms, config_.device, config_.solver);
     } catch (const std::exception& error) {
       std::lock_guard<std::mutex> lock(state_mutex_);
       ++counters_.optimizations_failed;
@@ -530,6 +549,33 @@ void SlamSystem::optimize_locked() {
     }
     if (!has_absolute || max_yaw_change < 1e-6) break;
   }
+}
+
+std::vector<backend::RegistrationTerm> SlamSystem::joint_terms_locked(const SubmapPoseGraph::BackendGraph& graph) const {
+  std::vector<backend::RegistrationTerm> terms;
+  for (const JointPair& pair : joint_pairs_) {
+    const int64_t index_i = pose_graph_.index_of(pair.points_submap);
+    const int64_t index_j = pose_graph_.index_of(pair.field_submap);
+    if (index_i < 0 || index_j < 0) continue;
+    const GraphSubmap& points_submap = graph_submaps_[static_cast<size_t>(index_i)];
+    const GraphSubmap& field_submap = graph_submaps_[static_cast<size_t>(index_j)];
+    if (!points_submap.registration_points) continue;
+    backend::RegistrationTerm term;
+    term.vertex_i = graph.vertex_of_node[static_cast<size_t>(index_i)];
+    term.vertex_j = graph.vertex_of_node[static_cast<size_t>(index_j)];
+    if (term.vertex_i == term.vertex_j) continue;
+    term.points_i = &points_submap.registration_points->points;
+    term.map_j = &field_submap.submap->map();
+    // The same scaling as the pairwise constraints (registration_constraints.h): weights
+    // normalised to mean 1, point_sigma_m and the loss scale in metres.
+    const double sqrt_mean_weight = std::sqrt(points_submap.registration_points->mean_weight);
+    term.residual.distance = config_.registration.distance;
+    term.residual.loss = config_.registration.robust_loss;
+    term.residual.loss_scale = config_.registration.robust_loss_scale_m * sqrt_mean_weight;
+    term.residual_sigma = config_.registration.point_sigma_m * sqrt_mean_weight;
+    terms.push_back(term);
+  }
+  return terms;
 }
 
 // ---- Accessors -----------------------------------------------------------------------------------

@@ -197,6 +197,7 @@ void SlamSystem::reset_locked() {
     discarded.swap(graph_submaps_);
     pose_graph_.clear();
     pending_constraints_.clear();
+    joint_pairs_.clear();
     trajectory_.clear();
     last_summary_ = backend::PoseGraphSolverSummary();
   }

@@ -36,8 +36,16 @@
 namespace covox {
 namespace pipeline {
 
+// kPairwise: each overlapping pair is aligned once and summarised into one relative 4-DoF
+// constraint (below). kJoint: voxgraph's joint optimisation - the pairs' point residuals enter the
+// pose-graph solve itself as dense terms (backend/registration_terms.h) and are re-evaluated at
+// every solver iteration. Pairs with a loaded submap stay pairwise in both modes (a loaded
+// submap shares its vertex with the others, which the dense terms cannot express).
+enum class RegistrationMode { kPairwise, kJoint };
+
 struct SubmapRegistrationConfig {
   bool enabled = true;
+  RegistrationMode mode = RegistrationMode::kPairwise;
   // Fraction of a submap's surface voxels used as registration points (voxgraph's 0.05).
   float sampling_ratio = 0.05f;
   // kTsdfNearSurface: sub-voxel TSDF distances near surfaces, ESDF beyond (see registration.h);
@@ -83,6 +91,9 @@ void validate(const SubmapRegistrationConfig& config);
 // "none", "huber" or "cauchy"; throws covox::Error naming the bad value otherwise.
 backend::RobustLoss parse_robust_loss(const std::string& name);
 const char* to_string(backend::RobustLoss loss);
+// "pairwise" or "joint"; throws covox::Error naming the bad value otherwise.
+RegistrationMode parse_registration_mode(const std::string& name);
+const char* to_string(RegistrationMode mode);
 // "tsdf" (kTsdfNearSurface) or "esdf"; throws covox::Error otherwise.
 backend::RegistrationDistance parse_registration_distance(const std::string& name);
 const char* to_string(backend::RegistrationDistance distance);
@@ -109,6 +120,7 @@ struct RegistrationCounts {
   int64_t rejected_too_few_points = 0;  // fewer than min_points inside the partner's field
   int64_t rejected_poor_fit = 0;        // fewer than min_inlier_fraction of the points fit
   int64_t found_by_search = 0;          // accepted ones that needed the revisit search
+  int64_t joint_pairs = 0;              // kJoint: overlapping pairs added as dense terms
   void add(const RegistrationCounts& other);
 };
 
@@ -118,6 +130,12 @@ struct RegistrationPartner {
   const TsdfMap* map = nullptr;
   backend::Pose4Dof pose;
 };
+
+// The earlier submaps that overlap the new one at `pose` (bounding boxes, then shared blocks),
+// most shared blocks first, at most max_partners.
+std::vector<const RegistrationPartner*> overlapping_partners(const TsdfMap& map, const backend::Pose4Dof& pose,
+                                                             const std::vector<RegistrationPartner>& earlier,
+                                                             const SubmapRegistrationConfig& config);
 
 // The constraints (kind kRegistration, from each partner to `id`) for the new submap at `pose`.
 std::vector<SubmapConstraint> registration_constraints(int64_t id, const TsdfMap& map,

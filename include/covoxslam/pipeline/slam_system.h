@@ -42,6 +42,7 @@
 
 #include "covoxslam/backend/pose_graph.h"
 #include "covoxslam/backend/pose_graph_solver.h"
+#include "covoxslam/backend/registration_terms.h"
 #include "covoxslam/core/buffer.h"
 #include "covoxslam/core/device.h"
 #include "covoxslam/core/stream.h"
@@ -327,6 +328,9 @@ class SlamSystem {
   // submaps will come, so those still waiting are dropped (counted). Returns how many entered.
   int integrate_pending_constraints_locked(bool final);
   void optimize_locked();
+  // kJoint: the dense registration terms of joint_pairs_ for `graph`; needs state_mutex_ (and
+  // backend_mutex_ for the lifetime of the submaps they point to).
+  std::vector<backend::RegistrationTerm> joint_terms_locked(const SubmapPoseGraph::BackendGraph& graph) const;
   void reset_locked();
   void join_threads();
   // The correction T_W_odom for scans of submap `submap_id`; needs state_mutex_.
@@ -386,6 +390,12 @@ class SlamSystem {
   std::vector<GraphSubmap> graph_submaps_;  // node k of pose_graph_ is graph_submaps_[k]
   SubmapPoseGraph pose_graph_;
   std::vector<SubmapConstraint> pending_constraints_;  // external, waiting for their submaps
+  // kJoint: overlapping pairs solved as dense terms (ids of the points' and the field's submap).
+  struct JointPair {
+    int64_t points_submap;
+    int64_t field_submap;
+  };
+  std::vector<JointPair> joint_pairs_;
   backend::PoseGraphSolverSummary last_summary_;
   std::vector<TrajectoryEntry> trajectory_;
 };
