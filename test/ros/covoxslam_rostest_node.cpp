@@ -27,6 +27,7 @@
 
 #include <boost/make_shared.hpp>
 #include <covoxslam/FilePath.h>
+#include <covoxslam/LoopClosure.h>
 #include <covoxslam/SubmapPoses.h>
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <nav_msgs/Odometry.h>
@@ -430,8 +431,27 @@ TEST_F(CovoxSlamNodeletTest, MapsABagAndServesTheMap) {
       << ", bad layout " << diagnostic_value("clouds_dropped_bad_layout") << ", unknown frame "
       << diagnostic_value("clouds_dropped_unknown_frame") << ", scans added " << diagnostic_value("scans_added");
 
+  // A loop closure between scans of the first and the last submap, with the true relative
+  // sensor pose: it waits for its submaps and enters the pose graph.
+  {
+    ros::Publisher loop_closures = node.advertise<covoxslam::LoopClosure>("/loop_closure_input", 1, true);
+    const double from_s = kStart_s + 0.1 + kCloudPeriod_s * 1, to_s = kStart_s + 0.1 + kCloudPeriod_s * 10;
+    covoxslam::LoopClosure closure;
+    closure.from_timestamp.fromSec(from_s);
+    closure.to_timestamp.fromSec(to_s);
+    const Eigen::Isometry3d T_from_to =
+        (base_pose_at(from_s) * base_to_sensor()).inverse() * (base_pose_at(to_s) * base_to_sensor());
+    closure.transform = tf2::eigenToTransform(T_from_to).transform;
+    for (int i = 0; i < 6; ++i) closure.information[7 * i] = 100.0;
+    loop_closures.publish(closure);
+    EXPECT_TRUE(wait_for([] { return diagnostic_value("loop_closures_received") == 1; }, 10.0))
+        << "loop closures received: " << diagnostic_value("loop_closures_received");
+  }
+
   std::string message;
   ASSERT_TRUE(call_trigger("finish_map", &message)) << message;
+  EXPECT_TRUE(wait_for([] { return diagnostic_value("loop_closures_added") == 1; }, 10.0))
+      << "loop closures added: " << diagnostic_value("loop_closures_added");
 
   // Path: one corrected pose per valid cloud, close to the simulated sensor poses.
   ASSERT_TRUE(wait_for([] { return latest.path.poses.size() == kClouds; }, 20.0))
