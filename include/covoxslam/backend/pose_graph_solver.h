@@ -41,7 +41,10 @@ struct PoseGraphSolverOptions {
   double min_diagonal = 1e-6;           // clamp of diag(H) used for damping
   double max_diagonal = 1e32;
   int pcg_max_iterations = 500;
-  double pcg_relative_tolerance = 1e-8;  // |b - A x| <= tol * |b|
+  // |b - A x| <= tol * |b|. An inexact LM step (Ceres' inexact-Newton forcing term eta = 0.1):
+  // on the registration graphs of benchmark_backend it needs 6 times fewer CG iterations than 1e-8
+  // and ends at the same or a lower cost; on parking-garage CG hits pcg_max_iterations either way.
+  double pcg_relative_tolerance = 1e-1;
   // The chain is the default: submap graphs are long odometry chains, where it needs 2 to 4 times
   // fewer CG iterations than block-Jacobi (benchmark_backend: registration graphs, parking-garage).
   PcgPreconditioner preconditioner = PcgPreconditioner::kOdometryChain;
