@@ -610,7 +610,7 @@ TEST(CovoxSlamNodeStartup, BadParametersStopTheNodeWithTheirName) {
   for (const auto& bad : cases) {
     int status = 0;
     // A fresh node name each time, so the parameters do not mix.
-    const std::string output = run_and_capture("rosrun covoxslam covoxslam_node __name:=bad_parameters_" +
+    const std::string output = run_and_capture(std::string(COVOXSLAM_NODE_PATH) + " __name:=bad_parameters_" +
                                                    std::to_string(index++) + " " + bad.argument,
                                                &status);
     EXPECT_NE(status, 0) << bad.argument << ": the node did not fail:\n" << output;
