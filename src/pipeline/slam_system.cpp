@@ -208,7 +208,14 @@ void SlamSystem::join_threads() {
 void SlamSystem::frontend_loop() {
   QueuedScan queued;
   double waited_s = 0.0;
-  while (sensor_queue_.pop(&queued, &waited_s)) {
+  for (;;) {
+    const PopResult popped = sensor_queue_.pop_or_wake(&queued, &waited_s);
+    if (popped == PopResult::kFinished) break;
+    if (popped == PopResult::kWoken) {
+      // Idle: esdf_slice_active_submap() asked for a copy of the active submap.
+      copy_active_submap_for_slice();
+      continue;
+    }
     {
       std::lock_guard<std::mutex> lock(state_mutex_);
       timings_.sensor_queue_wait.add(waited_s);
@@ -230,6 +237,7 @@ void SlamSystem::frontend_loop() {
         log_error("SLAM frontend: integrating the scan at ", queued.scan.stamp_s, " s failed: ", error.what());
       }
     }
+    copy_active_submap_for_slice();
     if (aborted_.load()) break;
   }
   if (!aborted_.load()) {
@@ -294,8 +302,29 @@ void SlamSystem::process_scan(const QueuedScan& queued) {
       TrajectoryEntry{scan.stamp_s, active_submap_->id(), scan.T_odom_sensor, active_submap_->T_odom_submap()});
 }
 
+void SlamSystem::copy_active_submap_for_slice() {
+  if (!active_copy_requested_.exchange(false) || !active_submap_) return;
+  auto copy = std::make_shared<ActiveSubmapCopy>();
+  copy->id = active_submap_->id();
+  copy->generation = active_generation_;
+  copy->T_odom_submap = active_submap_->T_odom_submap();
+  try {
+    copy->blocks = active_submap_->map().snapshot();
+  } catch (const std::exception& error) {
+    log_error("SLAM frontend: copying the active submap for its ESDF slice failed: ", error.what());
+    return;
+  }
+  std::lock_guard<std::mutex> lock(active_copy_mutex_);
+  active_copy_ = std::move(copy);
+}
+
 void SlamSystem::hand_over_active_submap() {
   if (!active_submap_) return;
+  {
+    // The submap stops being the active one; its slice is the finished submaps' business now.
+    std::lock_guard<std::mutex> lock(active_copy_mutex_);
+    active_copy_.reset();
+  }
   std::optional<QueuedSubmap> dropped;
   const int64_t id = active_submap_->id();
   const PushResult result = submap_queue_.push(QueuedSubmap{std::move(active_submap_), active_generation_}, &dropped);

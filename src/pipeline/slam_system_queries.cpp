@@ -16,10 +16,10 @@ namespace {
 // The ESDF slice of one submap at world height `height_m`, moved into the world frame. Submap
 // frames are gravity aligned (x, y, z, yaw), so a horizontal world plane is a horizontal plane of
 // the submap at height_m - t_z.
-std::vector<SlicePoint> world_slice_of(const Submap& submap, const Eigen::Isometry3d& T_world_submap,
-                                       double height_m, const Stream& stream) {
+std::vector<SlicePoint> world_slice_of(const TsdfMap& map, const Eigen::Isometry3d& T_world_submap, double height_m,
+                                       const Stream& stream) {
   const float z_submap_m = static_cast<float>(height_m - T_world_submap.translation().z());
-  std::vector<SlicePoint> slice = esdf_slice(submap.map(), z_submap_m, stream);
+  std::vector<SlicePoint> slice = esdf_slice(map, z_submap_m, stream);
   const Eigen::Isometry3f T = T_world_submap.cast<float>();
   for (SlicePoint& point : slice) {
     const Eigen::Vector3f world = T * Eigen::Vector3f(point.position_m.x, point.position_m.y, point.position_m.z);
@@ -61,7 +61,7 @@ std::vector<SlicePoint> SlamSystem::esdf_slice_world(double height_m) {
   std::unordered_map<uint64_t, SlicePoint> cells;
   const Stream stream = Stream::create(config_.device);
   for (const auto& [submap, T_world_submap] : submaps) {
-    for (const SlicePoint& point : world_slice_of(*submap, T_world_submap, height_m, stream)) {
+    for (const SlicePoint& point : world_slice_of(submap->map(), T_world_submap, height_m, stream)) {
       const uint64_t key = key_of(point.position_m);
       auto it = cells.find(key);
       if (it == cells.end()) {
@@ -96,7 +96,49 @@ std::vector<SlicePoint> SlamSystem::esdf_slice_newest_submap(double height_m, in
   *submap_id = newest ? newest->id() : -1;
   if (!newest) return {};
   const Stream stream = Stream::create(config_.device);
-  return world_slice_of(*newest, T_world_submap, height_m, stream);
+  return world_slice_of(newest->map(), T_world_submap, height_m, stream);
+}
+
+std::vector<SlicePoint> SlamSystem::esdf_slice_active_submap(double height_m, int64_t* submap_id) {
+  *submap_id = -1;
+  // The next copy, for the next call; an idle frontend takes it at once.
+  active_copy_requested_.store(true);
+  sensor_queue_.wake();
+  std::shared_ptr<const ActiveSubmapCopy> copy;
+  {
+    std::lock_guard<std::mutex> lock(active_copy_mutex_);
+    copy = active_copy_;
+  }
+  if (!copy || copy->generation != generation_.load()) return {};
+  Eigen::Isometry3d T_world_submap;
+  {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    T_world_submap = correction_for_locked(copy->id) * copy->T_odom_submap;
+  }
+  // Only the blocks whose surfaces can be nearest to a voxel of the slice: sites further than
+  // esdf_max_distance_m from its layer do not change its (clamped) distances. One voxel more
+  // covers the layer's own thickness.
+  const double z_submap_m = height_m - T_world_submap.translation().z();
+  const double reach_m = config_.esdf.esdf_max_distance_m + config_.map.voxel_size_m;
+  const double block_m = static_cast<double>(config_.map.voxel_size_m) * config_.map.voxels_per_side;
+  std::vector<HostBlock> slab;
+  for (const HostBlock& block : copy->blocks) {
+    const double bottom_m = block.index.z * block_m;
+    if (bottom_m <= z_submap_m + reach_m && bottom_m + block_m >= z_submap_m - reach_m) {
+      HostBlock without_esdf;
+      without_esdf.index = block.index;
+      without_esdf.tsdf = block.tsdf;
+      without_esdf.color = block.color;
+      slab.push_back(std::move(without_esdf));
+    }
+  }
+  *submap_id = copy->id;
+  if (slab.empty()) return {};
+  const Stream stream = Stream::create(config_.device);
+  TsdfMap map(config_.device, config_.map);
+  map.load_blocks(slab, stream);
+  EsdfIntegrator(config_.esdf).update_all(map, stream);
+  return world_slice_of(map, T_world_submap, height_m, stream);
 }
 
 }  // namespace pipeline

@@ -289,6 +289,16 @@ class SlamSystem {
   // gets its ESDF only when it is finished), in world coordinates; `submap_id` receives its id,
   // -1 when there is none.
   std::vector<SlicePoint> esdf_slice_newest_submap(double height_m, int64_t* submap_id);
+  // The ESDF slice at world height `height_m` of the ACTIVE submap (still being integrated), at
+  // its current corrected pose; `submap_id` receives its id, -1 when there is none yet. The
+  // active submap has no ESDF while mapping, so this computes one without touching it: each call
+  // asks the frontend for a host copy of the active submap's blocks (taken after its current
+  // scan, or at once when it is idle; integration pauses only for the copy) and computes the
+  // slice on the caller's thread from the latest copy, over the blocks within
+  // esdf_max_distance_m of the slice height only. Never waits for the frontend: the result is
+  // the copy requested by the previous call, so call it periodically; the first call returns
+  // nothing. Exact (the same distances the finished submap will have) for the copied TSDF.
+  std::vector<SlicePoint> esdf_slice_active_submap(double height_m, int64_t* submap_id);
 
  private:
   struct TrajectoryEntry {
@@ -318,6 +328,8 @@ class SlamSystem {
   void backend_loop();
   void process_scan(const QueuedScan& queued);
   void hand_over_active_submap();
+  // Copies the active submap's blocks for esdf_slice_active_submap() (frontend thread only).
+  void copy_active_submap_for_slice();
   // Finishes a submap and adds it to the graph; returns whether the every-n rule asks for an
   // optimisation.
   bool process_submap(QueuedSubmap item);
@@ -356,6 +368,18 @@ class SlamSystem {
   std::unique_ptr<Submap> active_submap_;
   uint64_t active_generation_ = 0;
   Eigen::Vector3d last_position_odom_m_ = Eigen::Vector3d::Zero();
+
+  // The active submap's blocks as last copied for esdf_slice_active_submap(); the copy is
+  // requested by the caller and taken by the frontend between scans.
+  struct ActiveSubmapCopy {
+    int64_t id = -1;
+    uint64_t generation = 0;
+    Eigen::Isometry3d T_odom_submap = Eigen::Isometry3d::Identity();
+    std::vector<HostBlock> blocks;
+  };
+  std::atomic<bool> active_copy_requested_{false};
+  std::mutex active_copy_mutex_;
+  std::shared_ptr<const ActiveSubmapCopy> active_copy_;
 
   // Backend thread only (and finish() after the threads have joined).
   EsdfIntegrator esdf_integrator_;
