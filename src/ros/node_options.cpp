@@ -88,7 +88,7 @@ const std::vector<std::string>& node_option_names() {
       "tf_wait_timeout_s", "max_pending_clouds", "odometry_buffer_s", "odometry_max_gap_s", "use_color",
       "use_intensity", "intensity_max_value", "use_depth_images", "use_color_images", "depth_pixel_stride",
       "depth_max_m", "publish_tf", "tf_publish_period_s", "visualization_period_s", "diagnostics_period_s",
-      "publish_esdf_slices", "esdf_slice_height_m", "publish_combined_mesh", "publish_separated_mesh",
+      "publish_esdf_slices", "esdf_slice_height_m", "active_submap_esdf_slice_period_s", "publish_combined_mesh", "publish_separated_mesh",
       "drop_log_interval_s"};
   return names;
 }
@@ -128,6 +128,7 @@ NodeOptions read_node_options(const ros::NodeHandle& node) {
     if (!std::isfinite(height)) bad("esdf_slice_height_m", "must be a finite height in metres");
     options.esdf_slice_height_m = height;
   }
+  read_amount(source, "active_submap_esdf_slice_period_s", &options.active_submap_esdf_slice_period_s, true);
   read_flag(source, "publish_combined_mesh", &options.publish_combined_mesh);
   read_flag(source, "publish_separated_mesh", &options.publish_separated_mesh);
   read_amount(source, "drop_log_interval_s", &options.drop_log_interval_s, true);

@@ -112,6 +112,8 @@ SlamNode::SlamNode(ros::NodeHandle node, ros::NodeHandle private_node)
   pose_graph_publisher_ = output_node_.advertise<visualization_msgs::MarkerArray>("pose_graph", 1, true);
   esdf_slice_publisher_ = output_node_.advertise<sensor_msgs::PointCloud2>("esdf_slice", 1, true);
   submap_esdf_slice_publisher_ = output_node_.advertise<sensor_msgs::PointCloud2>("submap_esdf_slice", 1, true);
+  active_submap_esdf_slice_publisher_ =
+      output_node_.advertise<sensor_msgs::PointCloud2>("active_submap_esdf_slice", 1, true);
   diagnostics_publisher_ = output_node_.advertise<diagnostic_msgs::DiagnosticArray>("diagnostics", 1, true);
   if (options_.publish_tf) {
     tf_timer_ = output_node_.createWallTimer(ros::WallDuration(options_.tf_publish_period_s), &SlamNode::publish_tf, this);
@@ -120,6 +122,10 @@ SlamNode::SlamNode(ros::NodeHandle node, ros::NodeHandle private_node)
                                                   &SlamNode::publish_visualization, this);
   diagnostics_timer_ = output_node_.createWallTimer(ros::WallDuration(options_.diagnostics_period_s),
                                                 &SlamNode::publish_diagnostics, this);
+  if (options_.publish_esdf_slices && options_.active_submap_esdf_slice_period_s > 0.0) {
+    active_slice_timer_ = output_node_.createWallTimer(ros::WallDuration(options_.active_submap_esdf_slice_period_s),
+                                                   &SlamNode::publish_active_submap_slice, this);
+  }
   services_.push_back(output_node_.advertiseService("save_map", &SlamNode::save_map, this));
   services_.push_back(output_node_.advertiseService("load_map", &SlamNode::load_map, this));
   services_.push_back(output_node_.advertiseService("save_trajectory", &SlamNode::save_trajectory, this));
@@ -139,6 +145,7 @@ SlamNode::~SlamNode() {
   tf_timer_.stop();
   visualization_timer_.stop();
   diagnostics_timer_.stop();
+  active_slice_timer_.stop();
   pending_timer_.stop();
   if (slam_) slam_->shutdown();
 }

@@ -60,6 +60,8 @@ void SlamNode::clear_published_markers() {
   pose_graph_publisher_.publish(clear_array);
   combined_mesh_publisher_.publish(clear);
   bounding_boxes_publisher_.publish(clear);
+  // The latched active-submap slice showed the discarded map.
+  active_submap_esdf_slice_publisher_.publish(slice_cloud({}, options_.mission_frame, clear.header.stamp));
   published_submaps_.clear();
   published_trajectory_size_ = static_cast<size_t>(-1);  // publish the (empty) path again
   map_changed_ = true;
@@ -165,6 +167,23 @@ void SlamNode::publish_map(bool force) {
     submap_esdf_slice_publisher_.publish(
         slice_cloud(slam_->esdf_slice_newest_submap(options_.esdf_slice_height_m, &newest_id), frame, stamp));
   }
+}
+
+void SlamNode::publish_active_submap_slice(const ros::WallTimerEvent&) {
+  // Costs a copy of the active submap and an ESDF of its slab: only for a listener.
+  if (active_submap_esdf_slice_publisher_.getNumSubscribers() == 0) return;
+  int64_t active_id = -1;
+  std::vector<SlicePoint> slice;
+  try {
+    slice = slam_->esdf_slice_active_submap(options_.esdf_slice_height_m, &active_id);
+  } catch (const std::exception& error) {
+    ROS_ERROR_STREAM_THROTTLE(10.0, "covoxslam: the active submap's ESDF slice failed: " << error.what());
+    return;
+  }
+  // Before the first copy (or with no active submap) nothing is published: the latched slice
+  // stays the last real one.
+  if (active_id < 0) return;
+  active_submap_esdf_slice_publisher_.publish(slice_cloud(slice, options_.mission_frame, ros::Time::now()));
 }
 
 void SlamNode::publish_diagnostics(const ros::WallTimerEvent&) {

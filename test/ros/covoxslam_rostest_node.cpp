@@ -301,6 +301,7 @@ struct Latest {
   visualization_msgs::Marker combined_mesh;
   std::map<int, visualization_msgs::Marker> separated_meshes;
   sensor_msgs::PointCloud2 esdf_slice;
+  sensor_msgs::PointCloud2 active_esdf_slice;
   std::map<std::string, std::string> diagnostics;
   int path_messages = 0, submap_messages = 0, mesh_messages = 0, slice_messages = 0, diagnostics_messages = 0;
 };
@@ -347,6 +348,33 @@ bool call_file(const std::string& name, const std::string& path, std::string* me
   }
   *message = file.response.message;
   return file.response.success;
+}
+
+// An ESDF slice at 1.0 m: distances match the room's analytic distance where both are well inside.
+// Returns how many cells were compared; `good` receives how many were within 0.3 m.
+int compare_slice_with_room(const sensor_msgs::PointCloud2& slice, int* good) {
+  *good = 0;
+  if (slice.point_step != 16u || slice.fields.size() != 4u || slice.fields[3].name != "intensity") {
+    ADD_FAILURE() << "slice layout: point step " << slice.point_step << ", " << slice.fields.size() << " fields";
+    return 0;
+  }
+  int checked = 0;
+  for (uint32_t i = 0; i < slice.width; ++i) {
+    float v[4];
+    std::memcpy(v, slice.data.data() + 16 * i, 16);
+    EXPECT_NEAR(v[2], 1.0, 1e-4);
+    const Eigen::Vector3d p(v[0], v[1], v[2]);
+    const bool inside_room = (p.array() > kRoomMin.array()).all() && (p.array() < kRoomMax.array()).all();
+    const bool in_pillar = (p.array() > kPillarMin.array()).all() && (p.array() < kPillarMax.array()).all();
+    if (!inside_room || in_pillar) continue;
+    const double truth = std::min(scene_distance(p), 2.0);  // esdf_max_distance_m
+    // A depth camera sees a wedge: far from a wall, the nearest true surface may be one it
+    // never saw, so there only cells close to a wall are compared.
+    if (truth < 0.3 || truth > (depth_images() ? 0.8 : 1.8)) continue;
+    ++checked;
+    if (std::abs(v[3] - truth) < 0.3) ++*good;
+  }
+  return checked;
 }
 
 class CovoxSlamNodeletTest : public ::testing::Test {
@@ -402,6 +430,11 @@ TEST_F(CovoxSlamNodeletTest, MapsABagAndServesTheMap) {
   ros::Subscriber s4 = node.subscribe<visualization_msgs::MarkerArray>(ns("separated_mesh"), 50, +on_separated);
   ros::Subscriber s5 = node.subscribe<sensor_msgs::PointCloud2>(ns("esdf_slice"), 5, +on_slice);
   ros::Subscriber s6 = node.subscribe<diagnostic_msgs::DiagnosticArray>(ns("diagnostics"), 5, +on_diagnostics);
+  auto on_active_slice = [](const sensor_msgs::PointCloud2::ConstPtr& m) {
+    std::lock_guard<std::mutex> lock(latest.mutex);
+    latest.active_esdf_slice = *m;
+  };
+  ros::Subscriber s7 = node.subscribe<sensor_msgs::PointCloud2>(ns("active_submap_esdf_slice"), 5, +on_active_slice);
   tf2_ros::Buffer tf_buffer;
   tf2_ros::TransformListener tf_listener(tf_buffer);
 
@@ -446,6 +479,18 @@ TEST_F(CovoxSlamNodeletTest, MapsABagAndServesTheMap) {
     loop_closures.publish(closure);
     EXPECT_TRUE(wait_for([] { return diagnostic_value("loop_closures_received") == 1; }, 10.0))
         << "loop closures received: " << diagnostic_value("loop_closures_received");
+  }
+
+  // The active submap's slice (published while mapping, from a copy of its blocks): the room's
+  // distances too, before finish_map turns the active submap into a finished one.
+  ASSERT_TRUE(wait_for([] { return latest.active_esdf_slice.width > 30; }, 15.0))
+      << "active submap slice: " << latest.active_esdf_slice.width << " cells";
+  {
+    std::lock_guard<std::mutex> lock(latest.mutex);
+    int good = 0;
+    const int checked = compare_slice_with_room(latest.active_esdf_slice, &good);
+    EXPECT_GT(checked, depth_images() ? 10 : 30);
+    EXPECT_GT(good, 0.9 * checked) << good << " of " << checked << " active slice distances within 0.3 m";
   }
 
   std::string message;
@@ -508,26 +553,8 @@ TEST_F(CovoxSlamNodeletTest, MapsABagAndServesTheMap) {
   ASSERT_TRUE(wait_for([] { return latest.esdf_slice.width > 100; }, 10.0));
   {
     std::lock_guard<std::mutex> lock(latest.mutex);
-    const sensor_msgs::PointCloud2& slice = latest.esdf_slice;
-    ASSERT_EQ(slice.point_step, 16u);
-    ASSERT_EQ(slice.fields.size(), 4u);
-    EXPECT_EQ(slice.fields[3].name, "intensity");
-    int checked = 0, good = 0;
-    for (uint32_t i = 0; i < slice.width; ++i) {
-      float v[4];
-      std::memcpy(v, slice.data.data() + 16 * i, 16);
-      EXPECT_NEAR(v[2], 1.0, 1e-4);
-      const Eigen::Vector3d p(v[0], v[1], v[2]);
-      const bool inside_room = (p.array() > kRoomMin.array()).all() && (p.array() < kRoomMax.array()).all();
-      const bool in_pillar = (p.array() > kPillarMin.array()).all() && (p.array() < kPillarMax.array()).all();
-      if (!inside_room || in_pillar) continue;
-      const double truth = std::min(scene_distance(p), 2.0);  // esdf_max_distance_m
-      // A depth camera sees a wedge: far from a wall, the nearest true surface may be one it
-      // never saw, so there only cells close to a wall are compared.
-      if (truth < 0.3 || truth > (depth_images() ? 0.8 : 1.8)) continue;
-      ++checked;
-      if (std::abs(v[3] - truth) < 0.3) ++good;
-    }
+    int good = 0;
+    const int checked = compare_slice_with_room(latest.esdf_slice, &good);
     EXPECT_GT(checked, depth_images() ? 30 : 100);
     EXPECT_GT(good, 0.9 * checked) << good << " of " << checked << " slice distances within 0.3 m of the truth";
   }

@@ -42,6 +42,10 @@ struct NodeOptions {
   double diagnostics_period_s = 1.0;
   bool publish_esdf_slices = true;
   double esdf_slice_height_m = 0.5;
+  // ~active_submap_esdf_slice every this many wall seconds (0: off). The active submap's ESDF is
+  // computed for it from a copy of its blocks (SlamSystem::esdf_slice_active_submap), so a low
+  // rate keeps the cost small; computed only while someone subscribes.
+  double active_submap_esdf_slice_period_s = 2.0;
   bool publish_combined_mesh = true;
   bool publish_separated_mesh = true;
   double drop_log_interval_s = 5.0;

@@ -101,6 +101,7 @@ class SlamNode {
   void publish_tf(const ros::WallTimerEvent&);
   void publish_visualization(const ros::WallTimerEvent&);
   void publish_diagnostics(const ros::WallTimerEvent&);
+  void publish_active_submap_slice(const ros::WallTimerEvent&);
   // Publishes path, submap poses, meshes (changed submaps only unless `force`), boxes, graph and
   // slices. Visualisation thread only.
   void publish_map(bool force);
@@ -161,10 +162,12 @@ class SlamNode {
   ros::Publisher pose_graph_publisher_;
   ros::Publisher esdf_slice_publisher_;
   ros::Publisher submap_esdf_slice_publisher_;
+  ros::Publisher active_submap_esdf_slice_publisher_;
   ros::Publisher diagnostics_publisher_;
   ros::WallTimer tf_timer_;
   ros::WallTimer visualization_timer_;
   ros::WallTimer diagnostics_timer_;
+  ros::WallTimer active_slice_timer_;
   std::vector<ros::ServiceServer> services_;
   // What each published per-submap marker showed, to re-publish only changed ones.
   struct PublishedSubmap {
