@@ -105,118 +105,170 @@ bool TextParameterSource::get_text(const std::string& name, std::string* value) 
   return true;
 }
 
+namespace {
+
+// One entry per parameter: its name and how it is read into a SlamConfig. The name list and the
+// reading come from this one table, so a parameter cannot be listed without being read.
+struct SlamParameter {
+  const char* name;
+  std::function<void(const ParameterSource&, SlamConfig*)> read;
+};
+
+// A text parameter parsed by the library's own parser (which names the accepted values).
+template <class Field, class Parse>
+SlamParameter text_parameter(const char* name, Field field, Parse parse) {
+  return {name, [name, field, parse](const ParameterSource& source, SlamConfig* config) {
+            std::string text;
+            if (!source.get_text(name, &text)) return;
+            try {
+              *field(config) = parse(text);
+            } catch (const Error& error) {
+              bad_parameter(name, error.what());
+            }
+          }};
+}
+
+template <class Field>
+SlamParameter number_parameter(const char* name, Field field, std::function<std::string(double)> check) {
+  return {name, [name, field, check](const ParameterSource& source, SlamConfig* config) {
+            read_number(source, name, field(config), check);
+          }};
+}
+
+template <class Field>
+SlamParameter integer_parameter(const char* name, Field field, int64_t minimum,
+                                int64_t maximum = std::numeric_limits<int64_t>::max()) {
+  return {name, [name, field, minimum, maximum](const ParameterSource& source, SlamConfig* config) {
+            read_integer(source, name, field(config), minimum, maximum);
+          }};
+}
+
+template <class Field>
+SlamParameter bool_parameter(const char* name, Field field) {
+  return {name, [name, field](const ParameterSource& source, SlamConfig* config) {
+            read_bool(source, name, field(config));
+          }};
+}
+
+std::string in_unit_interval_open_closed(double v) { return v > 0.0 && v <= 1.0 ? "" : "must be in (0, 1]"; }
+std::string in_unit_interval_closed(double v) { return v >= 0.0 && v <= 1.0 ? "" : "must be in [0, 1]"; }
+std::string in_open_unit_interval(double v) { return v > 0.0 && v < 1.0 ? "" : "must be in (0, 1)"; }
+std::string angle_up_to_pi(double v) { return v > 0.0 && v <= 3.14159265358979323846 ? "" : "must be in (0, pi]"; }
+
+backend::PcgPreconditioner parse_preconditioner(const std::string& text) {
+  if (text == "odometry_chain") return backend::PcgPreconditioner::kOdometryChain;
+  if (text == "block_jacobi") return backend::PcgPreconditioner::kBlockJacobi;
+  throw Error("unknown preconditioner '" + text + "' (expected odometry_chain or block_jacobi)");
+}
+
+Device parse_device(const std::string& text) { return select_device(parse_device_request(text)); }
+
+// Field accessors: SlamConfig* -> pointer to the member.
+#define COVOX_FIELD(member) [](SlamConfig* c) { return &c->member; }
+
+const std::vector<SlamParameter>& slam_parameters() {
+  static const std::vector<SlamParameter> table = {
+      text_parameter("device", COVOX_FIELD(device), parse_device),
+      // Map.
+      number_parameter("voxel_size_m", COVOX_FIELD(map.voxel_size_m), positive),
+      {"voxels_per_side",
+       [](const ParameterSource& source, SlamConfig* config) {
+         read_integer(source, "voxels_per_side", &config->map.voxels_per_side, 8, 16);
+         if (config->map.voxels_per_side != 8 && config->map.voxels_per_side != 16) {
+           bad_parameter("voxels_per_side", "must be 8 or 16, got " + std::to_string(config->map.voxels_per_side));
+         }
+       }},
+      integer_parameter("block_table_initial_bucket_count", COVOX_FIELD(map.block_table.initial_bucket_count), 1),
+      number_parameter("block_table_max_load_factor", COVOX_FIELD(map.block_table.max_load_factor),
+                       in_open_unit_interval),
+      bool_parameter("block_table_allow_growth", COVOX_FIELD(map.block_table.allow_growth)),
+      // TSDF integration (voxblox's names).
+      text_parameter("integration_method", COVOX_FIELD(tsdf.method), parse_tsdf_integration_method),
+      number_parameter("truncation_distance_m", COVOX_FIELD(tsdf.truncation_distance_m), positive),
+      number_parameter("max_weight", COVOX_FIELD(tsdf.max_weight), positive),
+      number_parameter("min_ray_length_m", COVOX_FIELD(tsdf.min_ray_length_m), non_negative),
+      number_parameter("max_ray_length_m", COVOX_FIELD(tsdf.max_ray_length_m), positive),
+      bool_parameter("voxel_carving_enabled", COVOX_FIELD(tsdf.voxel_carving_enabled)),
+      bool_parameter("allow_clear", COVOX_FIELD(tsdf.allow_clear)),
+      bool_parameter("use_const_weight", COVOX_FIELD(tsdf.use_const_weight)),
+      bool_parameter("use_weight_dropoff", COVOX_FIELD(tsdf.use_weight_dropoff)),
+      bool_parameter("use_sparsity_compensation_factor", COVOX_FIELD(tsdf.use_sparsity_compensation_factor)),
+      number_parameter("sparsity_compensation_factor", COVOX_FIELD(tsdf.sparsity_compensation_factor), positive),
+      bool_parameter("integrate_color", COVOX_FIELD(tsdf.integrate_color)),
+      // ESDF and mesh.
+      number_parameter("esdf_max_distance_m", COVOX_FIELD(esdf.esdf_max_distance_m), positive),
+      number_parameter("esdf_site_distance_threshold_vox", COVOX_FIELD(esdf.site_distance_threshold_vox), positive),
+      number_parameter("esdf_min_weight", COVOX_FIELD(esdf.min_weight), non_negative),
+      integer_parameter("esdf_max_window_voxels", COVOX_FIELD(esdf.max_window_voxels), 1),
+      number_parameter("mesh_min_weight", COVOX_FIELD(mesh.min_weight), non_negative),
+      // Submaps.
+      text_parameter("submap_creation_policy", COVOX_FIELD(submaps.policy), parse_submap_creation_policy),
+      number_parameter("submap_creation_interval_s", COVOX_FIELD(submaps.interval_s), positive),
+      number_parameter("submap_creation_distance_m", COVOX_FIELD(submaps.distance_m), positive),
+      integer_parameter("submap_max_blocks", COVOX_FIELD(submaps.max_blocks), 1),
+      // Queues.
+      integer_parameter("sensor_queue_size", COVOX_FIELD(sensor_queue_size), 1, 100000),
+      integer_parameter("submap_queue_size", COVOX_FIELD(submap_queue_size), 1, 1000),
+      // Pose graph and its solver.
+      number_parameter("odometry_translation_sigma_m", COVOX_FIELD(odometry_translation_sigma_m), positive),
+      number_parameter("odometry_yaw_sigma_rad", COVOX_FIELD(odometry_yaw_sigma_rad), positive),
+      integer_parameter("optimize_every_n_submaps", COVOX_FIELD(optimize_every_n_submaps), 0, 1000000),
+      number_parameter("external_stamp_tolerance_s", COVOX_FIELD(external_stamp_tolerance_s), positive),
+      integer_parameter("solver_max_iterations", COVOX_FIELD(solver.max_iterations), 1, 1000000),
+      number_parameter("solver_function_tolerance", COVOX_FIELD(solver.function_tolerance), positive),
+      number_parameter("solver_gradient_tolerance", COVOX_FIELD(solver.gradient_tolerance), positive),
+      number_parameter("solver_parameter_tolerance", COVOX_FIELD(solver.parameter_tolerance), positive),
+      integer_parameter("solver_pcg_max_iterations", COVOX_FIELD(solver.pcg_max_iterations), 1, 1000000),
+      number_parameter("solver_pcg_relative_tolerance", COVOX_FIELD(solver.pcg_relative_tolerance),
+                       in_open_unit_interval),
+      text_parameter("solver_preconditioner", COVOX_FIELD(solver.preconditioner), parse_preconditioner),
+      integer_parameter("solver_chain_segment_vertices", COVOX_FIELD(solver.chain_segment_vertices), 0, 1000000000),
+      // Registration between overlapping submaps (voxgraph's names where it has them).
+      bool_parameter("registration_enabled", COVOX_FIELD(registration.enabled)),
+      text_parameter("registration_mode", COVOX_FIELD(registration.mode), parse_registration_mode),
+      number_parameter("registration_sampling_ratio", COVOX_FIELD(registration.sampling_ratio),
+                       in_unit_interval_open_closed),
+      text_parameter("registration_distance", COVOX_FIELD(registration.distance), parse_registration_distance),
+      text_parameter("registration_robust_loss", COVOX_FIELD(registration.robust_loss), parse_robust_loss),
+      number_parameter("registration_robust_loss_scale_m", COVOX_FIELD(registration.robust_loss_scale_m), positive),
+      number_parameter("registration_point_sigma_m", COVOX_FIELD(registration.point_sigma_m), positive),
+      integer_parameter("registration_min_shared_blocks", COVOX_FIELD(registration.min_shared_blocks), 1),
+      integer_parameter("registration_min_points", COVOX_FIELD(registration.min_points), 4),
+      number_parameter("registration_max_correction_m", COVOX_FIELD(registration.max_correction_m), positive),
+      number_parameter("registration_max_correction_rad", COVOX_FIELD(registration.max_correction_rad),
+                       angle_up_to_pi),
+      number_parameter("registration_inlier_distance_m", COVOX_FIELD(registration.inlier_distance_m), positive),
+      number_parameter("registration_min_inlier_fraction", COVOX_FIELD(registration.min_inlier_fraction),
+                       in_unit_interval_closed),
+      integer_parameter("registration_min_fit_points", COVOX_FIELD(registration.min_fit_points), 0),
+      bool_parameter("registration_search_enabled", COVOX_FIELD(registration.search_enabled)),
+      number_parameter("registration_search_step_m", COVOX_FIELD(registration.search_step_m), positive),
+      number_parameter("registration_search_step_rad", COVOX_FIELD(registration.search_step_rad), positive),
+      number_parameter("registration_search_max_yaw_rad", COVOX_FIELD(registration.search_max_yaw_rad),
+                       non_negative),
+      integer_parameter("registration_search_candidates", COVOX_FIELD(registration.search_candidates), 1, 1000),
+      integer_parameter("registration_search_max_points", COVOX_FIELD(registration.search_max_points), 4),
+      integer_parameter("registration_max_partners", COVOX_FIELD(registration.max_partners), 0, 1000000),
+      integer_parameter("registration_max_iterations", COVOX_FIELD(registration.max_iterations), 1, 1000000),
+  };
+  return table;
+}
+
+#undef COVOX_FIELD
+
+}  // namespace
+
 const std::vector<std::string>& slam_parameter_names() {
-  static const std::vector<std::string> names = {
-      "device", "voxel_size_m", "voxels_per_side", "block_table_initial_bucket_count",
-      "block_table_max_load_factor", "block_table_allow_growth", "integration_method", "truncation_distance_m",
-      "max_weight", "min_ray_length_m", "max_ray_length_m", "voxel_carving_enabled", "allow_clear",
-      "use_const_weight", "use_weight_dropoff", "use_sparsity_compensation_factor", "sparsity_compensation_factor",
-      "integrate_color", "esdf_max_distance_m", "esdf_site_distance_threshold_vox", "esdf_min_weight",
-      "mesh_min_weight", "submap_creation_policy", "submap_creation_interval_s", "submap_creation_distance_m",
-      "submap_max_blocks", "sensor_queue_size", "submap_queue_size", "odometry_translation_sigma_m",
-      "odometry_yaw_sigma_rad", "optimize_every_n_submaps", "solver_max_iterations", "solver_function_tolerance",
-      "solver_pcg_max_iterations", "solver_pcg_relative_tolerance", "registration_enabled",
-      "registration_sampling_ratio", "registration_distance", "registration_robust_loss",
-      "registration_robust_loss_scale_m", "registration_point_sigma_m", "registration_min_shared_blocks",
-      "registration_min_points", "registration_max_correction_m", "registration_max_correction_rad",
-      "registration_max_partners", "registration_max_iterations", "external_stamp_tolerance_s"};
+  static const std::vector<std::string> names = [] {
+    std::vector<std::string> list;
+    for (const SlamParameter& parameter : slam_parameters()) list.push_back(parameter.name);
+    return list;
+  }();
   return names;
 }
 
 void read_slam_config(const ParameterSource& source, SlamConfig* config) {
-  std::string text;
-  if (source.get_text("device", &text)) {
-    try {
-      config->device = select_device(parse_device_request(text));
-    } catch (const Error& error) {
-      bad_parameter("device", error.what());
-    }
-  }
-  // Map.
-  read_number(source, "voxel_size_m", &config->map.voxel_size_m, positive);
-  read_integer(source, "voxels_per_side", &config->map.voxels_per_side, 8, 16);
-  if (config->map.voxels_per_side != 8 && config->map.voxels_per_side != 16) {
-    bad_parameter("voxels_per_side", "must be 8 or 16, got " + std::to_string(config->map.voxels_per_side));
-  }
-  read_integer(source, "block_table_initial_bucket_count", &config->map.block_table.initial_bucket_count, 1);
-  read_number(source, "block_table_max_load_factor", &config->map.block_table.max_load_factor,
-              [](double v) { return v > 0.0 && v < 1.0 ? "" : "must be in (0, 1)"; });
-  read_bool(source, "block_table_allow_growth", &config->map.block_table.allow_growth);
-  // TSDF integration (voxblox's names).
-  if (source.get_text("integration_method", &text)) {
-    try {
-      config->tsdf.method = parse_tsdf_integration_method(text);
-    } catch (const Error& error) {
-      bad_parameter("integration_method", error.what());
-    }
-  }
-  read_number(source, "truncation_distance_m", &config->tsdf.truncation_distance_m, positive);
-  read_number(source, "max_weight", &config->tsdf.max_weight, positive);
-  read_number(source, "min_ray_length_m", &config->tsdf.min_ray_length_m, non_negative);
-  read_number(source, "max_ray_length_m", &config->tsdf.max_ray_length_m, positive);
-  read_bool(source, "voxel_carving_enabled", &config->tsdf.voxel_carving_enabled);
-  read_bool(source, "allow_clear", &config->tsdf.allow_clear);
-  read_bool(source, "use_const_weight", &config->tsdf.use_const_weight);
-  read_bool(source, "use_weight_dropoff", &config->tsdf.use_weight_dropoff);
-  read_bool(source, "use_sparsity_compensation_factor", &config->tsdf.use_sparsity_compensation_factor);
-  read_number(source, "sparsity_compensation_factor", &config->tsdf.sparsity_compensation_factor, positive);
-  read_bool(source, "integrate_color", &config->tsdf.integrate_color);
-  // ESDF and mesh.
-  read_number(source, "esdf_max_distance_m", &config->esdf.esdf_max_distance_m, positive);
-  read_number(source, "esdf_site_distance_threshold_vox", &config->esdf.site_distance_threshold_vox, positive);
-  read_number(source, "esdf_min_weight", &config->esdf.min_weight, non_negative);
-  read_number(source, "mesh_min_weight", &config->mesh.min_weight, non_negative);
-  // Submaps.
-  if (source.get_text("submap_creation_policy", &text)) {
-    try {
-      config->submaps.policy = parse_submap_creation_policy(text);
-    } catch (const Error& error) {
-      bad_parameter("submap_creation_policy", error.what());
-    }
-  }
-  read_number(source, "submap_creation_interval_s", &config->submaps.interval_s, positive);
-  read_number(source, "submap_creation_distance_m", &config->submaps.distance_m, positive);
-  read_integer(source, "submap_max_blocks", &config->submaps.max_blocks, 1);
-  // Queues and backend.
-  read_integer(source, "sensor_queue_size", &config->sensor_queue_size, 1, 100000);
-  read_integer(source, "submap_queue_size", &config->submap_queue_size, 1, 1000);
-  read_number(source, "odometry_translation_sigma_m", &config->odometry_translation_sigma_m, positive);
-  read_number(source, "odometry_yaw_sigma_rad", &config->odometry_yaw_sigma_rad, positive);
-  read_integer(source, "optimize_every_n_submaps", &config->optimize_every_n_submaps, 0, 1000000);
-  read_integer(source, "solver_max_iterations", &config->solver.max_iterations, 1, 1000000);
-  read_number(source, "solver_function_tolerance", &config->solver.function_tolerance, positive);
-  read_integer(source, "solver_pcg_max_iterations", &config->solver.pcg_max_iterations, 1, 1000000);
-  read_number(source, "solver_pcg_relative_tolerance", &config->solver.pcg_relative_tolerance, positive);
-
-  // Registration between overlapping submaps (voxgraph's names where it has them).
-  SubmapRegistrationConfig& registration = config->registration;
-  read_bool(source, "registration_enabled", &registration.enabled);
-  read_number(source, "registration_sampling_ratio", &registration.sampling_ratio,
-              [](double v) { return v > 0.0 && v <= 1.0 ? "" : "must be in (0, 1]"; });
-  if (source.get_text("registration_distance", &text)) {
-    try {
-      registration.distance = parse_registration_distance(text);
-    } catch (const Error& error) {
-      bad_parameter("registration_distance", error.what());
-    }
-  }
-  if (source.get_text("registration_robust_loss", &text)) {
-    try {
-      registration.robust_loss = parse_robust_loss(text);
-    } catch (const Error& error) {
-      bad_parameter("registration_robust_loss", error.what());
-    }
-  }
-  read_number(source, "registration_robust_loss_scale_m", &registration.robust_loss_scale_m, positive);
-  read_number(source, "registration_point_sigma_m", &registration.point_sigma_m, positive);
-  read_integer(source, "registration_min_shared_blocks", &registration.min_shared_blocks, 1);
-  read_integer(source, "registration_min_points", &registration.min_points, 1);
-  read_number(source, "registration_max_correction_m", &registration.max_correction_m, positive);
-  read_number(source, "registration_max_correction_rad", &registration.max_correction_rad, positive);
-  read_integer(source, "registration_max_partners", &registration.max_partners, 0, 1000000);
-  read_integer(source, "registration_max_iterations", &registration.max_iterations, 1, 1000000);
-  read_number(source, "external_stamp_tolerance_s", &config->external_stamp_tolerance_s, positive);
-
+  for (const SlamParameter& parameter : slam_parameters()) parameter.read(source, config);
   // Relations between parameters, in the library's own words.
   try {
     validate(*config);
