@@ -1,0 +1,285 @@
+// The offline runner (tools/run_slam, tools/lib/slam_run.*) on a tiny simulated flight: the
+// library run integrates every scan with the odometry read back exactly as the simulator wrote
+// it; the run_slam program writes the trajectory, the mesh, the map and the timing table; a
+// missing bag or a wrong topic ends it with an error that names the problem. Parameter files
+// parse like the nodelet's; RGB-D folders become clouds on their pixels with the asked drift.
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "bag_scan_source.h"
+#include "covoxslam/core/error.h"
+#include "covoxslam/io/data_directory.h"
+#include "covoxslam/io/map_file.h"
+#include "dataset_scan_sources.h"
+#include "flat_yaml.h"
+#include "sim_flight.h"
+#include "sim_flight_bag.h"
+#include "sim_lidar.h"
+#include "sim_random.h"
+#include "sim_site.h"
+#include "slam_run.h"
+
+namespace covox {
+namespace tools {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr size_t kScans = 20;  // 2 s of flight at 10 Hz
+constexpr uint64_t kSeed = 3;
+
+// A short figure 8 (small site, fast to build) and its first kScans scans, 128 x 64 beams.
+struct TinyFlight {
+  sim::FlightConfig flight;
+  std::vector<sim::StampedIsometry> truth, odometry;
+
+  explicit TinyFlight(const std::string& bag_path) {
+    flight.lobe_half_length_m = 20.0;
+    flight.path_length_m = 120.0;
+    const sim::Figure8Path figure8(flight);
+    const sim::Site site = sim::build_site(sim::SiteConfig(), figure8, kSeed);
+    truth = sim::simulate_truth(figure8, flight);
+    odometry = sim::simulate_odometry(truth, sim::DriftConfig(), kSeed);
+    sim::LidarConfig lidar;
+    lidar.columns = 128;
+    sim::FlightBagWriter writer(bag_path);
+    for (size_t k = 0; k < kScans; ++k) {
+      writer.write_scan(truth[k].stamp_s, truth[k].pose, odometry[k].pose,
+                        sim::simulate_scan(site.world, lidar, truth[k].pose, sim::stream_seed(kSeed, 0x5CA7, k)), {});
+    }
+    writer.close();
+  }
+};
+
+class OfflineRunner : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    folder_ = new fs::path(fs::temp_directory_path() / ("covoxslam_offline_runner_" + std::to_string(::getpid())));
+    fs::create_directories(*folder_);
+    flight_ = new TinyFlight((*folder_ / "flight.bag").string());
+  }
+  static void TearDownTestSuite() {
+    fs::remove_all(*folder_);
+    delete flight_;
+    delete folder_;
+  }
+  static std::string bag() { return (*folder_ / "flight.bag").string(); }
+  static fs::path folder() { return *folder_; }
+  static fs::path* folder_;
+  static TinyFlight* flight_;
+};
+fs::path* OfflineRunner::folder_ = nullptr;
+TinyFlight* OfflineRunner::flight_ = nullptr;
+
+TEST_F(OfflineRunner, LibraryRunIntegratesEveryScanWithTheBagsOdometry) {
+  BagScanSource source(bag(), BagScanOptions());
+  pipeline::SlamConfig config = arche_slam_config(Device::kCpu);
+  config.submaps.interval_s = 0.5;  // four submaps, so that the backend has a graph to optimise
+  SlamRunOptions options;
+  options.progress_bar = false;
+  const SlamRunResult result = run_slam_system(source, config, options);
+  EXPECT_EQ(result.scans_given, kScans);
+  EXPECT_EQ(result.counters.scans_integrated, static_cast<int64_t>(kScans));
+  EXPECT_EQ(result.counters.scans_dropped_total(), 0);
+  EXPECT_GE(result.submaps.size(), 3u);
+  EXPECT_GT(result.mesh.triangle_count(), 1000u);
+  ASSERT_EQ(result.corrected.size(), kScans);
+  ASSERT_EQ(result.odometry.size(), kScans);
+  // The runner counts one scan period per scan (the last scan covers its period too).
+  EXPECT_NEAR(result.input_duration_s, kScans / flight_->flight.scan_rate_hz, 1e-6);
+  for (size_t k = 0; k < kScans; ++k) {
+    // The runner's odometry of the cloud frame is the simulator's, through the bag's tf tree.
+    const Eigen::Vector3d expected = (flight_->odometry[k].pose * sim::T_os1_sensor_os1_lidar()).translation();
+    ASSERT_LT((result.odometry.poses[k].position_m - expected).norm(), 1e-6) << "scan " << k;
+  }
+  const SlamRunEvaluation evaluation = evaluate_slam_run(source, result, AlignmentMode::kTranslationYaw, 0.1);
+  ASSERT_TRUE(evaluation.available) << evaluation.problem;
+  EXPECT_EQ(evaluation.corrected.aligned.size(), kScans);
+}
+
+// run_slam next to this test binary (plain CMake and catkin both put programs in one folder).
+fs::path run_slam_program() {
+  return fs::read_symlink("/proc/self/exe").parent_path() / "run_slam";
+}
+
+struct ProgramRun {
+  int status = -1;
+  std::string output;  // stdout and stderr
+};
+
+ProgramRun run_program(const std::string& arguments, const fs::path& log) {
+  const std::string command = run_slam_program().string() + " " + arguments + " > " + log.string() + " 2>&1";
+  ProgramRun run;
+  const int raw = std::system(command.c_str());
+  run.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+  std::ifstream file(log);
+  std::stringstream text;
+  text << file.rdbuf();
+  run.output = text.str();
+  return run;
+}
+
+std::vector<std::vector<double>> tum_rows(const fs::path& path) {
+  std::ifstream file(path);
+  std::vector<std::vector<double>> rows;
+  for (std::string line; std::getline(file, line);) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream fields(line);
+    std::vector<double> row;
+    for (double value; fields >> value;) row.push_back(value);
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+TEST_F(OfflineRunner, ProgramWritesTrajectoryMeshMapAndTimingTable) {
+  if (!fs::exists(run_slam_program())) GTEST_SKIP() << "run_slam is not built next to the tests";
+  const fs::path out = folder() / "out";
+  fs::create_directories(out);
+  const ProgramRun run = run_program(
+      "--bag " + bag() + " --device cpu --quiet --submap-interval-s 0.5 --trajectory " + (out / "slam.tum").string() +
+          " --odometry-trajectory " + (out / "odometry.tum").string() + " --mesh " + (out / "mesh.ply").string() +
+          " --map " + (out / "map.covoxmap").string() + " --json " + (out / "pipeline.json").string(),
+      out / "log.txt");
+  ASSERT_EQ(run.status, 0) << run.output;
+
+  // Trajectories: one TUM row (stamp, x y z, qx qy qz qw) per scan, at the bag's stamps.
+  const auto slam = tum_rows(out / "slam.tum");
+  const auto odometry = tum_rows(out / "odometry.tum");
+  ASSERT_EQ(slam.size(), kScans);
+  ASSERT_EQ(odometry.size(), kScans);
+  for (size_t k = 0; k < kScans; ++k) {
+    ASSERT_EQ(slam[k].size(), 8u);
+    EXPECT_NEAR(slam[k][0], flight_->truth[k].stamp_s, 1e-6);
+    EXPECT_NEAR(odometry[k][0], flight_->truth[k].stamp_s, 1e-6);
+    const double quaternion_norm = std::sqrt(slam[k][4] * slam[k][4] + slam[k][5] * slam[k][5] +
+                                             slam[k][6] * slam[k][6] + slam[k][7] * slam[k][7]);
+    EXPECT_NEAR(quaternion_norm, 1.0, 1e-6);
+  }
+
+  // Mesh: a PLY with vertices and faces.
+  std::ifstream mesh(out / "mesh.ply");
+  std::string magic, line;
+  std::getline(mesh, magic);
+  EXPECT_EQ(magic, "ply");
+  long vertices = 0, faces = 0;
+  while (std::getline(mesh, line) && line != "end_header") {
+    std::sscanf(line.c_str(), "element vertex %ld", &vertices);
+    std::sscanf(line.c_str(), "element face %ld", &faces);
+  }
+  EXPECT_GT(vertices, 1000);
+  EXPECT_GT(faces, 1000);
+
+  // Map: loads back with the runner's voxel size and its submaps.
+  const io::MapFileContents map = io::load_map_file((out / "map.covoxmap").string());
+  EXPECT_FLOAT_EQ(map.voxel_size_m, 0.2f);
+  EXPECT_GE(map.submaps.size(), 3u);
+  size_t blocks = 0;
+  for (const io::SubmapRecord& submap : map.submaps) blocks += submap.blocks.size();
+  EXPECT_GT(blocks, 0u);
+
+  // Timing table: every module's row, the total and the map line.
+  for (const char* row : {"module ", "tsdf integrate", "esdf (submap)", "mesh (submap)", "registration",
+                          "backend optimise", "sensor queue wait", "submap queue wait", "total wall", "map: "}) {
+    EXPECT_NE(run.output.find(row), std::string::npos) << "no '" << row << "' in:\n" << run.output;
+  }
+  EXPECT_NE(run.output.find("covoxslam "), std::string::npos) << "no ATE line in:\n" << run.output;
+  std::ifstream json(out / "pipeline.json");
+  std::stringstream report;
+  report << json.rdbuf();
+  EXPECT_NE(report.str().find("real-time factor"), std::string::npos);
+}
+
+TEST_F(OfflineRunner, ProgramNamesAMissingBagOrAWrongTopic) {
+  if (!fs::exists(run_slam_program())) GTEST_SKIP() << "run_slam is not built next to the tests";
+  const fs::path out = folder() / "bad";
+  fs::create_directories(out);
+  const std::string outputs = " --device cpu --quiet --trajectory " + (out / "t.tum").string() + " --mesh " +
+                              (out / "m.ply").string();
+
+  const std::string missing = (folder() / "no_such.bag").string();
+  ProgramRun run = run_program("--bag " + missing + outputs, out / "missing.txt");
+  EXPECT_EQ(run.status, 1) << run.output;
+  EXPECT_NE(run.output.find(missing), std::string::npos) << "the error does not name the bag:\n" << run.output;
+
+  run = run_program("--bag " + bag() + " --cloud-topic /no/such/points" + outputs, out / "topic.txt");
+  EXPECT_EQ(run.status, 1) << run.output;
+  EXPECT_NE(run.output.find("/no/such/points"), std::string::npos) << run.output;
+  // ... and lists the topics the bag does have.
+  EXPECT_NE(run.output.find("/penguin/os1_cloud_node/points"), std::string::npos) << run.output;
+
+  // Nothing half-written is left behind.
+  EXPECT_FALSE(fs::exists(out / "t.tum"));
+  EXPECT_FALSE(fs::exists(out / "m.ply"));
+}
+
+TEST(OfflineRunnerInputs, FlatYamlReadsTheNodeletParameterFilesAndRejectsNesting) {
+  const std::string path = ::testing::TempDir() + "/offline_runner_test_" + std::to_string(::getpid()) + ".yaml";
+  {
+    std::ofstream file(path);
+    file << "# covoxslam\nvoxel_size_m: 0.1   # metres\n\nodom_frame: \"odom\"\nlabel: 'a # b'\n";
+  }
+  const std::map<std::string, std::string> values = read_flat_yaml(path);
+  ASSERT_EQ(values.size(), 3u);
+  EXPECT_EQ(values.at("voxel_size_m"), "0.1");
+  EXPECT_EQ(values.at("odom_frame"), "odom");
+  EXPECT_EQ(values.at("label"), "a # b");
+  {
+    std::ofstream file(path);
+    file << "registration:\n  enabled: true\n";
+  }
+  EXPECT_THROW(read_flat_yaml(path), Error);
+  {
+    std::ofstream file(path);
+    file << "a: 1\na: 2\n";
+  }
+  EXPECT_THROW(read_flat_yaml(path), Error);
+  std::remove(path.c_str());
+}
+
+TEST(OfflineRunnerInputs, RgbdFolderCloudsProjectOntoTheirPixelsAndOdometryDriftsAsAsked) {
+  const std::string folder = io::data_directory() + "/7scenes-redkitchen";
+  if (!fs::exists(folder)) GTEST_SKIP() << "shared data not found at '" << folder << "'";
+  RgbdScanOptions options;
+  options.pixel_stride = 8;
+  options.max_frames = 40;
+  options.min_final_drift_m = 0.2;
+  RgbdScanSource source(folder, options);
+  ASSERT_EQ(source.size(), 40u);
+  ASSERT_EQ(source.reference().size(), 40u);
+  EXPECT_EQ(source.reference_kind(), ReferenceKind::kGroundTruth);
+  EXPECT_GE(source.final_drift_m(), 0.2);
+  const double fx = 585.0, fy = 585.0, cx = 320.0, cy = 240.0;  // the folder's camera-intrinsics.txt
+  SourceScan scan;
+  ASSERT_TRUE(source.next(&scan));
+  // The odometry starts exactly at the reference.
+  EXPECT_LT((scan.T_odom_sensor.translation() - source.reference().poses[0].position_m).norm(), 1e-9);
+  ASSERT_GT(scan.points_sensor_m.size(), 1000u);
+  EXPECT_EQ(scan.colors.size(), scan.points_sensor_m.size());
+  for (const Vec3f& p : scan.points_sensor_m) {
+    ASSERT_GT(p.z, 0.0f);
+    const double u = fx * p.x / p.z + cx, v = fy * p.y / p.z + cy;
+    // Every point is the centre of a pixel on the stride grid.
+    ASSERT_NEAR(u / 8.0, std::round(u / 8.0), 1e-3);
+    ASSERT_NEAR(v / 8.0, std::round(v / 8.0), 1e-3);
+  }
+  size_t frames = 1;
+  while (source.next(&scan)) ++frames;
+  EXPECT_EQ(frames, 40u);
+  const double drift_m = (scan.T_odom_sensor.translation() - source.reference().poses.back().position_m).norm();
+  EXPECT_NEAR(drift_m, source.final_drift_m(), 1e-9);
+}
+
+}  // namespace
+}  // namespace tools
+}  // namespace covox
