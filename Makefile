@@ -1,7 +1,9 @@
 # covoxslam: the two commands of the README, and the steps they are made of.
 #
-#   make demo   installs what is missing, builds, simulates the default drone flight (cached after
-#               the first run) and maps it, GPU if present, CPU otherwise
+#   make demo   installs what is missing (the build packages only: no ROS, no test libraries),
+#               builds the three programs it runs in its own folder (build_demo: no ROS layer, no
+#               tests; CUDA only when a GPU is usable), simulates the default drone flight (cached
+#               after the first run) and maps it, GPU if present, CPU otherwise
 #   make test   installs what is missing, builds everything (library, tools, tests, ROS layer)
 #               and runs the whole test suite
 #
@@ -9,7 +11,10 @@
 #   CUDA_ARCH   CUDA architectures to compile for. Default: 90 (one architecture, because nvcc on
 #               a 2-core machine is slow); `make release` keeps the full Jetson + desktop list.
 #   WITH_CUDA   ON (default when nvcc exists) or OFF: the CPU backend is always built.
-#   BUILD_DIR   build folder (default build)
+#   BUILD_DIR   build folder of make build / make test (default build)
+#   DEMO_BUILD_DIR  build folder of make demo (default build_demo)
+#   DEMO_WITH_CUDA  ON or OFF for the demo (default ON only when `nvidia-smi -L` lists a GPU and
+#               nvcc exists: without a GPU the CUDA backend would only cost nvcc time)
 #   JOBS        parallel compile jobs (default: number of cores)
 #   COVOX_DATA_DIR  the shared real sensor data (default ../shared/data)
 SHELL := /bin/bash
@@ -24,8 +29,12 @@ WITH_CUDA ?= $(if $(wildcard /usr/local/cuda/bin/nvcc),ON,OFF)
 COVOX_DATA_DIR ?= $(abspath $(CURDIR)/../shared/data)
 export COVOX_DATA_DIR
 
-# Debian 12 packages: the library and tests, then the ROS 1 layer (Debian's own ROS packages).
-DEBIAN_BUILD_PACKAGES := cmake make g++ pkg-config libeigen3-dev libgtest-dev libpng-dev \
+# Thrust's headers come with the CUDA toolkit (CCCL); without it, Debian's libthrust-dev.
+THRUST_PACKAGE := $(if $(wildcard /usr/local/cuda/include/cccl/thrust/version.h /usr/local/cuda/include/thrust/version.h),,libthrust-dev)
+# Debian 12 packages: what the demo's programs need, then the library's optional readers and the
+# tests, then the ROS 1 layer (Debian's own ROS packages).
+DEBIAN_DEMO_PACKAGES := cmake make g++ libeigen3-dev $(THRUST_PACKAGE)
+DEBIAN_BUILD_PACKAGES := $(DEBIAN_DEMO_PACKAGES) pkg-config libgtest-dev libpng-dev \
   libjpeg-dev zlib1g-dev libceres-dev
 DEBIAN_ROS_PACKAGES := catkin ros-core-dev libroscpp-dev libnodeletlib-dev libnodelet-dev \
   libtf2-ros-dev libtf2-eigen-dev libpcl-dev libpcl-conversions-dev librosbag-dev pluginlib-dev \
@@ -39,16 +48,23 @@ CMAKE_FLAGS := -DCMAKE_BUILD_TYPE=Release -DCOVOX_WITH_CUDA=$(WITH_CUDA) \
   -DCOVOX_CUDA_ARCHITECTURES="$(CUDA_ARCH)" -DCOVOX_DATA_DIR="$(COVOX_DATA_DIR)"
 
 DEMO_DIR ?= demo_output
+DEMO_BUILD_DIR ?= build_demo
+GPU_USABLE := $(shell nvidia-smi -L 2>/dev/null | grep -q '^GPU' && echo yes)
+DEMO_WITH_CUDA ?= $(if $(and $(GPU_USABLE),$(wildcard /usr/local/cuda/bin/nvcc)),ON,OFF)
+DEMO_CMAKE_FLAGS := -DCMAKE_BUILD_TYPE=Release -DCOVOX_WITH_CUDA=$(DEMO_WITH_CUDA) \
+  -DCOVOX_CUDA_ARCHITECTURES="$(CUDA_ARCH)" -DCOVOX_BUILD_ROS=OFF -DCOVOX_BUILD_TESTS=OFF \
+  -DCOVOX_DATA_DIR="$(COVOX_DATA_DIR)"
 
 DEMO_TARGETS := simulate_flight run_slam evaluate_trajectory
 
-.PHONY: all deps configure build test demo release clean
+.PHONY: all deps demo-deps configure build test demo release clean
 
 all: build
 
 # Installs only what is missing, so a second run costs a second, not an apt-get update.
-deps:
-	@missing=$$(for p in $(DEBIAN_PACKAGES); do \
+# $(1): the package list.
+define install_missing
+	@missing=$$(for p in $(1); do \
 	    dpkg-query -W -f='$${Status}\n' $$p 2>/dev/null | grep -q 'install ok installed' || echo $$p; \
 	  done); \
 	if [ -n "$$missing" ]; then \
@@ -57,6 +73,13 @@ deps:
 	  $$SUDO apt-get update -qq && \
 	  DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq --no-install-recommends $$missing; \
 	else echo "covoxslam: all Debian packages present"; fi
+endef
+
+deps:
+	$(call install_missing,$(DEBIAN_PACKAGES))
+
+demo-deps:
+	$(call install_missing,$(DEBIAN_DEMO_PACKAGES))
 
 # Configuring again is cheap and picks up changed settings (CUDA_ARCH, WITH_CUDA).
 configure: deps
@@ -68,14 +91,16 @@ build: configure
 test: build
 	cd $(BUILD_DIR) && ctest --output-on-failure -j $(JOBS) --timeout 600
 
-# Builds only the programs the demo runs (the test suite is `make test`'s business).
-demo: configure
-	cmake --build $(BUILD_DIR) -j $(JOBS) --target $(DEMO_TARGETS)
-	tools/run_demo.sh $(BUILD_DIR) $(DEMO_DIR)
+# Builds only the programs the demo runs, in the demo's own folder, without the ROS layer and the
+# tests (those are `make test`'s business; sharing its folder would flip its settings).
+demo: demo-deps
+	cmake -S . -B $(DEMO_BUILD_DIR) $(DEMO_CMAKE_FLAGS)
+	cmake --build $(DEMO_BUILD_DIR) -j $(JOBS) --target $(DEMO_TARGETS)
+	tools/run_demo.sh $(DEMO_BUILD_DIR) $(DEMO_DIR)
 
 # What a release builds: every supported CUDA architecture.
 release:
 	$(MAKE) build BUILD_DIR=build_release CUDA_ARCH="72;75;86;87;89;90"
 
 clean:
-	rm -rf $(BUILD_DIR)
+	rm -rf $(BUILD_DIR) $(DEMO_BUILD_DIR)
