@@ -52,8 +52,7 @@ DEMO_BUILD_DIR ?= build_demo
 GPU_USABLE := $(shell nvidia-smi -L 2>/dev/null | grep -q '^GPU' && echo yes)
 DEMO_WITH_CUDA ?= $(if $(and $(GPU_USABLE),$(wildcard /usr/local/cuda/bin/nvcc)),ON,OFF)
 DEMO_CMAKE_FLAGS := -DCMAKE_BUILD_TYPE=Release -DCOVOX_WITH_CUDA=$(DEMO_WITH_CUDA) \
-  -DCOVOX_CUDA_ARCHITECTURES="$(CUDA_ARCH)" -DCOVOX_BUILD_ROS=OFF -DCOVOX_BUILD_TESTS=OFF \
-  -DCOVOX_DATA_DIR="$(COVOX_DATA_DIR)"
+  -DCOVOX_CUDA_ARCHITECTURES="$(CUDA_ARCH)" -DCOVOX_BUILD_ROS=OFF -DCOVOX_BUILD_TESTS=OFF
 
 DEMO_TARGETS := simulate_flight run_slam evaluate_trajectory
 

@@ -142,12 +142,21 @@ visualization_msgs::Marker line_list(const std::string& frame, const ros::Time& 
 
 }  // namespace
 
-visualization_msgs::Marker bounding_box_marker(const std::vector<pipeline::SubmapInfo>& submaps,
-                                               const std::string& frame, const ros::Time& stamp) {
-  visualization_msgs::Marker marker = line_list(frame, stamp, "submap_bounding_boxes", 0, 0.05, rgba(0.2f, 0.6f, 1.0f));
+visualization_msgs::MarkerArray bounding_box_markers(const std::vector<pipeline::SubmapInfo>& submaps,
+                                                    const std::string& frame, const ros::Time& stamp) {
+  visualization_msgs::MarkerArray array;
+  // The whole set is replaced each time: boxes of removed submaps go with the DELETEALL.
+  visualization_msgs::Marker clear;
+  clear.header.frame_id = frame;
+  clear.header.stamp = stamp;
+  clear.ns = "submap_bounding_boxes";
+  clear.action = visualization_msgs::Marker::DELETEALL;
+  array.markers.push_back(clear);
   for (const pipeline::SubmapInfo& submap : submaps) {
     const Eigen::AlignedBox3d& box = submap.bounding_box_world;
     if (box.isEmpty()) continue;
+    visualization_msgs::Marker marker =
+        line_list(frame, stamp, "submap_bounding_boxes", static_cast<int>(submap.id), 0.05, rgba(0.2f, 0.6f, 1.0f));
     const Eigen::Vector3d lo = box.min(), hi = box.max();
     auto corner = [&](int i) {
       return Eigen::Vector3d((i & 1) ? hi.x() : lo.x(), (i & 2) ? hi.y() : lo.y(), (i & 4) ? hi.z() : lo.z());
@@ -161,8 +170,9 @@ visualization_msgs::Marker bounding_box_marker(const std::vector<pipeline::Subma
         marker.points.push_back(point_of(corner(b)));
       }
     }
+    array.markers.push_back(marker);
   }
-  return marker;
+  return array;
 }
 
 visualization_msgs::MarkerArray pose_graph_markers(const std::vector<pipeline::SubmapInfo>& submaps,

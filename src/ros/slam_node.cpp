@@ -108,7 +108,7 @@ SlamNode::SlamNode(ros::NodeHandle node, ros::NodeHandle private_node)
   submap_poses_publisher_ = output_node_.advertise<covoxslam::SubmapPoses>("submap_poses", 1, true);
   combined_mesh_publisher_ = output_node_.advertise<visualization_msgs::Marker>("combined_mesh", 1, true);
   separated_mesh_publisher_ = output_node_.advertise<visualization_msgs::MarkerArray>("separated_mesh", 10, true);
-  bounding_boxes_publisher_ = output_node_.advertise<visualization_msgs::Marker>("submap_bounding_boxes", 1, true);
+  bounding_boxes_publisher_ = output_node_.advertise<visualization_msgs::MarkerArray>("submap_bounding_boxes", 1, true);
   pose_graph_publisher_ = output_node_.advertise<visualization_msgs::MarkerArray>("pose_graph", 1, true);
   esdf_slice_publisher_ = output_node_.advertise<sensor_msgs::PointCloud2>("esdf_slice", 1, true);
   submap_esdf_slice_publisher_ = output_node_.advertise<sensor_msgs::PointCloud2>("submap_esdf_slice", 1, true);

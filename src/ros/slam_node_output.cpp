@@ -59,7 +59,7 @@ void SlamNode::clear_published_markers() {
   separated_mesh_publisher_.publish(clear_array);
   pose_graph_publisher_.publish(clear_array);
   combined_mesh_publisher_.publish(clear);
-  bounding_boxes_publisher_.publish(clear);
+  bounding_boxes_publisher_.publish(clear_array);
   // The latched active-submap slice showed the discarded map.
   active_submap_esdf_slice_publisher_.publish(slice_cloud({}, options_.mission_frame, clear.header.stamp));
   published_submaps_.clear();
@@ -158,7 +158,7 @@ void SlamNode::publish_map(bool force) {
     combined_mesh_publisher_.publish(
         mesh_marker(slam_->combined_mesh(), Eigen::Isometry3d::Identity(), frame, stamp, "combined_mesh", 0));
   }
-  bounding_boxes_publisher_.publish(bounding_box_marker(submaps, frame, stamp));
+  bounding_boxes_publisher_.publish(bounding_box_markers(submaps, frame, stamp));
   pose_graph_publisher_.publish(pose_graph_markers(submaps, slam_->constraints(), frame, stamp));
 
   if (options_.publish_esdf_slices) {

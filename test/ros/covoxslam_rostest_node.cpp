@@ -302,6 +302,7 @@ struct Latest {
   std::map<int, visualization_msgs::Marker> separated_meshes;
   sensor_msgs::PointCloud2 esdf_slice;
   sensor_msgs::PointCloud2 active_esdf_slice;
+  std::map<int, visualization_msgs::Marker> boxes;
   std::map<std::string, std::string> diagnostics;
   int path_messages = 0, submap_messages = 0, mesh_messages = 0, slice_messages = 0, diagnostics_messages = 0;
 };
@@ -435,6 +436,14 @@ TEST_F(CovoxSlamNodeletTest, MapsABagAndServesTheMap) {
     latest.active_esdf_slice = *m;
   };
   ros::Subscriber s7 = node.subscribe<sensor_msgs::PointCloud2>(ns("active_submap_esdf_slice"), 5, +on_active_slice);
+  auto on_boxes = [](const visualization_msgs::MarkerArray::ConstPtr& m) {
+    std::lock_guard<std::mutex> lock(latest.mutex);
+    for (const auto& marker : m->markers) {
+      if (marker.action == visualization_msgs::Marker::DELETEALL) latest.boxes.clear();
+      if (marker.action == visualization_msgs::Marker::ADD) latest.boxes[marker.id] = marker;
+    }
+  };
+  ros::Subscriber s8 = node.subscribe<visualization_msgs::MarkerArray>(ns("submap_bounding_boxes"), 5, +on_boxes);
   tf2_ros::Buffer tf_buffer;
   tf2_ros::TransformListener tf_listener(tf_buffer);
 
@@ -528,6 +537,28 @@ TEST_F(CovoxSlamNodeletTest, MapsABagAndServesTheMap) {
       EXPECT_GT(submap.mesh_triangles, 0) << "submap " << submap.id;
     }
     EXPECT_EQ(scans, kClouds);
+  }
+
+  // Bounding boxes: one LINE_LIST of 12 edges per submap, around that submap's origin.
+  ASSERT_TRUE(wait_for([&] { return latest.boxes.size() == submap_count; }, 10.0))
+      << latest.boxes.size() << " boxes for " << submap_count << " submaps";
+  {
+    std::lock_guard<std::mutex> lock(latest.mutex);
+    for (const auto& submap : latest.submaps.submaps) {
+      ASSERT_TRUE(latest.boxes.count(static_cast<int>(submap.id))) << "no box for submap " << submap.id;
+      const visualization_msgs::Marker& box = latest.boxes[static_cast<int>(submap.id)];
+      EXPECT_EQ(box.type, visualization_msgs::Marker::LINE_LIST);
+      ASSERT_EQ(box.points.size(), 24u);
+      Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e9), hi = Eigen::Vector3d::Constant(-1e9);
+      for (const auto& p : box.points) {
+        lo = lo.cwiseMin(Eigen::Vector3d(p.x, p.y, p.z));
+        hi = hi.cwiseMax(Eigen::Vector3d(p.x, p.y, p.z));
+      }
+      // The submap's first sensor pose sees its own surroundings: its origin lies in its box.
+      const Eigen::Vector3d origin(submap.pose.position.x, submap.pose.position.y, submap.pose.position.z);
+      EXPECT_TRUE((origin.array() >= lo.array() - 1e-6).all() && (origin.array() <= hi.array() + 1e-6).all())
+          << "submap " << submap.id << " origin outside its box";
+    }
   }
 
   // Meshes: the combined one and one marker per submap, whole triangles.
