@@ -20,33 +20,7 @@ CloudDecodeResult failure(CloudDecodeStatus status, std::string message) {
   return CloudDecodeResult{status, std::move(message)};
 }
 
-// One element of a numeric field as a double (little-endian data; memcpy because fields of
-// foreign clouds need not be aligned).
-double read_number(const uint8_t* at, uint8_t datatype) {
-  switch (static_cast<PointFieldType>(datatype)) {
-    case PointFieldType::kInt8: { int8_t v; std::memcpy(&v, at, 1); return v; }
-    case PointFieldType::kUint8: return *at;
-    case PointFieldType::kInt16: { int16_t v; std::memcpy(&v, at, 2); return v; }
-    case PointFieldType::kUint16: { uint16_t v; std::memcpy(&v, at, 2); return v; }
-    case PointFieldType::kInt32: { int32_t v; std::memcpy(&v, at, 4); return v; }
-    case PointFieldType::kUint32: { uint32_t v; std::memcpy(&v, at, 4); return v; }
-    case PointFieldType::kFloat32: { float v; std::memcpy(&v, at, 4); return v; }
-    case PointFieldType::kFloat64: { double v; std::memcpy(&v, at, 8); return v; }
-  }
-  return 0.0;
-}
-
 }  // namespace
-
-size_t point_field_type_size(uint8_t datatype) {
-  switch (datatype) {
-    case 1: case 2: return 1;
-    case 3: case 4: return 2;
-    case 5: case 6: case 7: return 4;
-    case 8: return 8;
-    default: return 0;
-  }
-}
 
 const char* to_string(CloudDecodeStatus status) {
   switch (status) {
@@ -72,7 +46,7 @@ CloudDecodeResult check_point_cloud_layout(const PointCloudLayout& layout, size_
       return failure(CloudDecodeStatus::kMissingXyz,
                      std::string("the cloud has no '") + axis + "' field (x, y and z FLOAT32 are required)");
     }
-    if (field->datatype != static_cast<uint8_t>(PointFieldType::kFloat32) || field->count != 1) {
+    if (field->datatype != kFloat32 || field->count != 1) {
       return failure(CloudDecodeStatus::kXyzNotFloat32,
                      std::string("field '") + axis + "' has datatype " + std::to_string(field->datatype) +
                          " and count " + std::to_string(field->count) + "; x, y and z must be one FLOAT32 (7) each");
@@ -155,7 +129,7 @@ CloudDecodeResult decode_point_cloud(const PointCloudLayout& layout, const uint8
         cloud->colors.push_back(Rgb8{static_cast<uint8_t>((packed >> 16) & 0xff),
                                      static_cast<uint8_t>((packed >> 8) & 0xff), static_cast<uint8_t>(packed & 0xff)});
       } else if (intensity) {
-        const double value = read_number(point + intensity->offset, intensity->datatype) * grey_scale;
+        const double value = read_point_field_element(point + intensity->offset, intensity->datatype) * grey_scale;
         const double clamped = std::isfinite(value) ? std::min(255.0, std::max(0.0, value)) : 0.0;
         const uint8_t grey = static_cast<uint8_t>(std::lround(clamped));
         cloud->colors.push_back(Rgb8{grey, grey, grey});

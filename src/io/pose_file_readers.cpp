@@ -76,18 +76,9 @@ std::vector<KeyframePose> read_keyframe_graph_file(const std::string& path, Read
                                                    const PoseTolerances& tolerances) {
   const std::string text = read_text_file(path);
   std::vector<KeyframePose> keyframes;
-  const std::string_view all(text);
-  size_t line_begin = 0;
-  int line_number = 0;
-  while (line_begin < all.size()) {
-    size_t line_end = all.find('\n', line_begin);
-    if (line_end == std::string_view::npos) line_end = all.size();
-    ++line_number;
-    const std::vector<std::string_view> tokens = split_whitespace(all.substr(line_begin, line_end - line_begin));
-    line_begin = line_end + 1;
-    if (tokens.empty() || tokens.front().front() == '#') continue;
-
-    const std::string where = location(path, line_number);
+  for (const TokenLine& line : split_token_lines(text)) {
+    const std::vector<std::string_view>& tokens = line.tokens;
+    const std::string where = location(path, line.line_number);
     if (tokens.size() != 8) {
       throw Error(where + ": expected 'vN x y z qx qy qz qw' (8 fields), found " + std::to_string(tokens.size()));
     }

@@ -13,6 +13,18 @@ namespace rosbag {
 // values are copied byte for byte. A big-endian host would need swaps here and nowhere else.
 static_assert(sizeof(float) == 4 && sizeof(double) == 8, "IEEE 754 float and double expected");
 
+namespace {
+
+// The value whose bytes start at `at` (memcpy: a field inside a message need not be aligned).
+template <class T>
+T copy_value(const uint8_t* at) {
+  T value;
+  std::memcpy(&value, at, sizeof(T));
+  return value;
+}
+
+}  // namespace
+
 RosTime RosTime::from_seconds(double seconds) {
   if (!std::isfinite(seconds) || seconds < 0.0 || seconds >= 4294967296.0) {
     throw Error("ROS time " + std::to_string(seconds) + " s is outside [0, 2^32) s");
@@ -51,29 +63,10 @@ uint8_t ByteReader::u8(const char* field) {
   return data_[position_++];
 }
 
-uint32_t ByteReader::u32(const char* field) {
-  uint32_t value;
-  std::memcpy(&value, bytes(4, field), 4);
-  return value;
-}
-
-uint64_t ByteReader::u64(const char* field) {
-  uint64_t value;
-  std::memcpy(&value, bytes(8, field), 8);
-  return value;
-}
-
-float ByteReader::f32(const char* field) {
-  float value;
-  std::memcpy(&value, bytes(4, field), 4);
-  return value;
-}
-
-double ByteReader::f64(const char* field) {
-  double value;
-  std::memcpy(&value, bytes(8, field), 8);
-  return value;
-}
+uint32_t ByteReader::u32(const char* field) { return copy_value<uint32_t>(bytes(4, field)); }
+uint64_t ByteReader::u64(const char* field) { return copy_value<uint64_t>(bytes(8, field)); }
+float ByteReader::f32(const char* field) { return copy_value<float>(bytes(4, field)); }
+double ByteReader::f64(const char* field) { return copy_value<double>(bytes(8, field)); }
 
 RosTime ByteReader::time(const char* field) {
   RosTime value;

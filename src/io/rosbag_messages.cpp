@@ -167,21 +167,6 @@ void expect_consumed(const ByteReader& in, const char* type) {
   }
 }
 
-// One element of a numeric field as a double.
-double read_element(const uint8_t* at, uint8_t datatype) {
-  switch (datatype) {
-    case kInt8: return static_cast<int8_t>(*at);
-    case kUint8: return *at;
-    case kInt16: { int16_t v; std::memcpy(&v, at, 2); return v; }
-    case kUint16: { uint16_t v; std::memcpy(&v, at, 2); return v; }
-    case kInt32: { int32_t v; std::memcpy(&v, at, 4); return v; }
-    case kUint32: { uint32_t v; std::memcpy(&v, at, 4); return v; }
-    case kFloat32: { float v; std::memcpy(&v, at, 4); return v; }
-    case kFloat64: { double v; std::memcpy(&v, at, 8); return v; }
-    default: return 0.0;
-  }
-}
-
 }  // namespace
 
 const MessageType& point_cloud2_type() {
@@ -206,16 +191,6 @@ const MessageType& odometry_type() {
   static const MessageType type{"nav_msgs/Odometry", "cd5e73d190d741a2f92e81eda573aca7",
                                 kOdometryDefinition.c_str()};
   return type;
-}
-
-size_t point_field_size_bytes(uint8_t datatype) {
-  switch (datatype) {
-    case kInt8: case kUint8: return 1;
-    case kInt16: case kUint16: return 2;
-    case kInt32: case kUint32: case kFloat32: return 4;
-    case kFloat64: return 8;
-    default: return 0;
-  }
 }
 
 std::vector<uint8_t> serialize(const PointCloud2Message& message) {
@@ -382,10 +357,10 @@ PointCloud extract_points(const PointCloud2Message& cloud, const std::string& wh
                   std::to_string(xyz[axis]->datatype) + ")");
     }
   }
-  if (intensity != nullptr && point_field_size_bytes(intensity->datatype) == 0) intensity = nullptr;
+  if (intensity != nullptr && point_field_type_size(intensity->datatype) == 0) intensity = nullptr;
   for (const PointField* field : {xyz[0], xyz[1], xyz[2], intensity}) {
     if (field == nullptr) continue;
-    const uint64_t end = uint64_t(field->offset) + point_field_size_bytes(field->datatype);
+    const uint64_t end = uint64_t(field->offset) + point_field_type_size(field->datatype);
     if (end > cloud.point_step) {
       throw Error(what + ": PointCloud2 field '" + field->name + "' ends at byte " + std::to_string(end) +
                   " but point_step is " + std::to_string(cloud.point_step));
@@ -409,7 +384,7 @@ PointCloud extract_points(const PointCloud2Message& cloud, const std::string& wh
     for (uint32_t column = 0; column < cloud.width; ++column, point += cloud.point_step) {
       Eigen::Vector3f p;
       for (int axis = 0; axis < 3; ++axis) {
-        p[axis] = static_cast<float>(read_element(point + xyz[axis]->offset, xyz[axis]->datatype));
+        p[axis] = static_cast<float>(read_point_field_element(point + xyz[axis]->offset, xyz[axis]->datatype));
       }
       if (!p.allFinite()) {
         ++dropped;
@@ -417,7 +392,7 @@ PointCloud extract_points(const PointCloud2Message& cloud, const std::string& wh
       }
       points.points_m.push_back(p);
       if (intensity != nullptr) {
-        points.intensities.push_back(static_cast<float>(read_element(point + intensity->offset, intensity->datatype)));
+        points.intensities.push_back(static_cast<float>(read_point_field_element(point + intensity->offset, intensity->datatype)));
       }
     }
   }

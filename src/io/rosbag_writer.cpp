@@ -28,6 +28,17 @@ std::vector<uint8_t> bag_header_record(uint64_t index_position, uint32_t connect
   return record;
 }
 
+// Appends a record whose data is `entries` one after another, each written by `write_entry`
+// (the index-data and chunk-info records are such lists).
+template <class Entries, class WriteEntry>
+void append_record_of_entries(std::vector<uint8_t>* out, const RecordHeader& header, const Entries& entries,
+                              WriteEntry&& write_entry) {
+  std::vector<uint8_t> data;
+  ByteWriter writer(&data);
+  for (const auto& entry : entries) write_entry(writer, entry);
+  append_record(out, header, data.data(), data.size());
+}
+
 }  // namespace
 
 BagWriter::BagWriter(const std::string& path, size_t chunk_threshold_bytes)
@@ -129,13 +140,10 @@ void BagWriter::flush_chunk() {
     index_header.set_u32("ver", 1);
     index_header.set_u32("conn", entry.first);
     index_header.set_u32("count", static_cast<uint32_t>(entry.second.size()));
-    std::vector<uint8_t> data;
-    ByteWriter writer(&data);
-    for (const IndexEntry& message : entry.second) {
+    append_record_of_entries(&bytes, index_header, entry.second, [](ByteWriter& writer, const IndexEntry& message) {
       writer.time(message.time);
       writer.u32(message.offset);
-    }
-    append_record(&bytes, index_header, data.data(), data.size());
+    });
     info.counts[entry.first] = static_cast<uint32_t>(entry.second.size());
   }
   append_to_file(bytes);
@@ -166,13 +174,10 @@ void BagWriter::close() {
     header.set_time("start_time", chunk.start);
     header.set_time("end_time", chunk.end);
     header.set_u32("count", static_cast<uint32_t>(chunk.counts.size()));
-    std::vector<uint8_t> data;
-    ByteWriter writer(&data);
-    for (const auto& count : chunk.counts) {
-      writer.u32(count.first);
-      writer.u32(count.second);
-    }
-    append_record(&bytes, header, data.data(), data.size());
+    append_record_of_entries(&bytes, header, chunk.counts, [](ByteWriter& writer, const auto& connection_count) {
+      writer.u32(connection_count.first);   // connection id
+      writer.u32(connection_count.second);  // its messages in the chunk
+    });
   }
   append_to_file(bytes);
   const std::vector<uint8_t> header =

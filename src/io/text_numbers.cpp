@@ -32,25 +32,31 @@ std::vector<std::string_view> split_whitespace(std::string_view line) {
   return tokens;
 }
 
-std::vector<NumberLine> parse_number_lines(const std::string& text, const std::string& path) {
-  std::vector<NumberLine> lines;
-  const std::string_view all(text);
+std::vector<TokenLine> split_token_lines(std::string_view text) {
+  std::vector<TokenLine> lines;
   size_t line_begin = 0;
   int line_number = 0;
-  while (line_begin < all.size()) {
-    size_t line_end = all.find('\n', line_begin);
-    if (line_end == std::string_view::npos) line_end = all.size();
+  while (line_begin < text.size()) {
+    size_t line_end = text.find('\n', line_begin);
+    if (line_end == std::string_view::npos) line_end = text.size();
     ++line_number;
-    const std::vector<std::string_view> tokens = split_whitespace(all.substr(line_begin, line_end - line_begin));
+    std::vector<std::string_view> tokens = split_whitespace(text.substr(line_begin, line_end - line_begin));
     line_begin = line_end + 1;
     if (tokens.empty() || tokens.front().front() == '#') continue;
+    lines.push_back(TokenLine{line_number, std::move(tokens)});
+  }
+  return lines;
+}
 
+std::vector<NumberLine> parse_number_lines(const std::string& text, const std::string& path) {
+  std::vector<NumberLine> lines;
+  for (const TokenLine& line : split_token_lines(text)) {
     NumberLine parsed;
-    parsed.line_number = line_number;
-    parsed.values.resize(tokens.size());
-    for (size_t i = 0; i < tokens.size(); ++i) {
-      if (!parse_double(tokens[i], &parsed.values[i])) {
-        throw Error(path + ":" + std::to_string(line_number) + ": '" + std::string(tokens[i]) +
+    parsed.line_number = line.line_number;
+    parsed.values.resize(line.tokens.size());
+    for (size_t i = 0; i < line.tokens.size(); ++i) {
+      if (!parse_double(line.tokens[i], &parsed.values[i])) {
+        throw Error(path + ":" + std::to_string(line.line_number) + ": '" + std::string(line.tokens[i]) +
                     "' is not a number");
       }
     }

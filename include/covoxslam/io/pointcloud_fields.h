@@ -17,23 +17,10 @@
 #include <vector>
 
 #include "covoxslam/core/vec3.h"
+#include "covoxslam/io/point_field_types.h"
 
 namespace covox {
 namespace io {
-
-// sensor_msgs/PointField datatype codes.
-enum class PointFieldType : uint8_t {
-  kInt8 = 1,
-  kUint8 = 2,
-  kInt16 = 3,
-  kUint16 = 4,
-  kInt32 = 5,
-  kUint32 = 6,
-  kFloat32 = 7,
-  kFloat64 = 8,
-};
-// Bytes of one element of `datatype` (a PointField code); 0 for an unknown code.
-size_t point_field_type_size(uint8_t datatype);
 
 struct PointFieldDescription {
   std::string name;

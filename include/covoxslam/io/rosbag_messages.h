@@ -16,6 +16,7 @@
 
 #include <Eigen/Geometry>
 
+#include "covoxslam/io/point_field_types.h"
 #include "covoxslam/io/rosbag_bytes.h"
 #include "covoxslam/io/sensor_data.h"
 
@@ -41,24 +42,10 @@ struct Header {
   std::string frame_id;
 };
 
-// sensor_msgs/PointField datatypes.
-enum PointFieldType : uint8_t {
-  kInt8 = 1,
-  kUint8 = 2,
-  kInt16 = 3,
-  kUint16 = 4,
-  kInt32 = 5,
-  kUint32 = 6,
-  kFloat32 = 7,
-  kFloat64 = 8,
-};
-// Bytes of one element of `datatype`; 0 for an unknown datatype.
-size_t point_field_size_bytes(uint8_t datatype);
-
 struct PointField {
   std::string name;
   uint32_t offset = 0;
-  uint8_t datatype = kFloat32;
+  uint8_t datatype = kFloat32;  // a PointFieldType code
   uint32_t count = 1;
 };
 

@@ -16,6 +16,17 @@ bool parse_double(std::string_view token, double* value);
 // Splits on spaces, tabs and carriage returns.
 std::vector<std::string_view> split_whitespace(std::string_view line);
 
+// One line of a text file that is neither empty nor a '#' comment, split on white space (views
+// into the text), with its 1-based line number for error messages.
+struct TokenLine {
+  int line_number = 0;
+  std::vector<std::string_view> tokens;
+};
+
+// Every line of `text` that has a token and does not start with '#' (the comment convention of
+// every text format read here).
+std::vector<TokenLine> split_token_lines(std::string_view text);
+
 // One non-empty line of a numeric text file, with its 1-based line number for error messages.
 struct NumberLine {
   int line_number = 0;
