@@ -7,13 +7,13 @@
 // of the touched blocks are timed; at the end one full ESDF recomputation and one full mesh
 // extraction of the whole map. Cases (issue 4): the Ouster OS1-64 scans at 0.2 m (truncation 3
 // voxels, 16 m rays) and 7-Scenes frames 0-69 at 5 cm, as the TSDF benchmark integrates them.
-#include <chrono>
 #include <iostream>
 #include <string>
 #include <vector>
 
 #include "benchmark_datasets.h"
 #include "benchmark_report.h"
+#include "benchmark_run.h"
 #include "command_line.h"
 #include "covoxslam/core/device.h"
 #include "covoxslam/integrators/esdf_integrator.h"
@@ -39,20 +39,10 @@ Options parse(int argc, char** argv) {
   Options options;
   options.data = args.text("--data", io::data_directory());
   options.device = args.text("--device", options.device);
-  options.updates = static_cast<int>(args.integer("--updates", options.updates));
+  options.updates = static_cast<int>(args.positive_integer("--updates", options.updates));
   options.skip_rgbd = args.flag("--skip-rgbd");
   args.finish();
-  if (options.updates <= 0) args.fail("--updates must be positive");
   return options;
-}
-
-template <class Function>
-double milliseconds(const Stream& stream, Function&& function) {
-  stream.synchronize();
-  const auto start = std::chrono::steady_clock::now();
-  function();
-  stream.synchronize();
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
 
 struct Reports {
@@ -75,17 +65,17 @@ void run_case(const std::string& name, const Stream& stream, TsdfMap& map, size_
     integrate_frame(static_cast<size_t>(i) % frame_count);
     EsdfUpdateStats esdf_stats;
     MeshUpdateStats mesh_stats;
-    const double e = milliseconds(stream, [&] { esdf_stats = esdf.update(map, stream); });
-    const double m = milliseconds(stream, [&] { mesh_stats = mesh.update(map, stream); });
+    const double e = tools::stream_milliseconds(stream, [&] { esdf_stats = esdf.update(map, stream); });
+    const double m = tools::stream_milliseconds(stream, [&] { mesh_stats = mesh.update(map, stream); });
     if (i < warm_up) continue;
     esdf_ms.push_back(e);
     mesh_ms.push_back(m);
     changed_blocks.push_back(static_cast<double>(esdf_stats.changed_blocks));
     meshed_blocks.push_back(static_cast<double>(mesh_stats.blocks_meshed));
   }
-  const double full_esdf_ms = milliseconds(stream, [&] { esdf.update_all(map, stream); });
+  const double full_esdf_ms = tools::stream_milliseconds(stream, [&] { esdf.update_all(map, stream); });
   size_t triangles = 0;
-  const double full_mesh_ms = milliseconds(stream, [&] { triangles = mesh.extract_all(map, stream).triangle_count(); });
+  const double full_mesh_ms = tools::stream_milliseconds(stream, [&] { triangles = mesh.extract_all(map, stream).triangle_count(); });
 
   tools::print_stage_profile(name);
   reports.esdf->add(name, "incremental update (median)", tools::median_of(esdf_ms), "ms/frame");
@@ -138,7 +128,7 @@ void benchmark_rgbd(Device device, const Options& options, const Reports& report
 int main(int argc, char** argv) {
   using namespace covox;
   const Options options = parse(argc, argv);
-  try {
+  return tools::run_benchmark("benchmark_esdf_mesh", [&] {
     const std::vector<Device> devices = tools::benchmark_devices(options.device);
     const std::string names = tools::describe_devices(devices);
     tools::BenchmarkReport esdf_report("esdf", names, argc, argv);
@@ -149,14 +139,6 @@ int main(int argc, char** argv) {
       benchmark_lidar(device, options, reports);
       if (!options.skip_rgbd) benchmark_rgbd(device, options, reports);
     }
-    esdf_report.print_table(std::cout);
-    mesh_report.print_table(std::cout);
-    esdf_report.write_json();
-    mesh_report.write_json();
-    std::cout << "wrote " << esdf_report.default_json_path() << " and " << mesh_report.default_json_path() << std::endl;
-  } catch (const std::exception& error) {
-    std::cerr << "benchmark_esdf_mesh: " << error.what() << std::endl;
-    return 1;
-  }
-  return 0;
+    tools::publish_reports({&esdf_report, &mesh_report});
+  });
 }

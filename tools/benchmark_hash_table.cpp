@@ -13,7 +13,9 @@
 #include <string>
 #include <vector>
 
+#include "benchmark_datasets.h"
 #include "benchmark_report.h"
+#include "benchmark_run.h"
 #include "command_line.h"
 #include "covoxslam/core/buffer.h"
 #include "covoxslam/core/device.h"
@@ -42,15 +44,14 @@ Options parse(int argc, char** argv) {
                           "       [--load-factors 0.5,0.7,0.85] [--lookup-blocks N] [--lookups N]\n"
                           "       [--output docs/benchmarks/hash_table.json]");
   Options options;
-  options.keys = args.integer("--keys", options.keys);
+  options.keys = args.positive_integer("--keys", options.keys);
   options.device = args.text("--device", options.device);
-  options.repeats = static_cast<int>(args.integer("--repeats", options.repeats));
+  options.repeats = static_cast<int>(args.positive_integer("--repeats", options.repeats));
   options.load_factors = args.numbers("--load-factors", options.load_factors);
   options.lookup_blocks = args.integer("--lookup-blocks", options.lookup_blocks);
   options.lookups = args.integer("--lookups", options.lookups);
   options.output = args.text("--output", "");
   args.finish();
-  if (options.keys <= 0 || options.repeats <= 0) args.fail("--keys and --repeats must be positive");
   for (double lf : options.load_factors) {
     if (!(lf > 0.0 && lf < 1.0)) args.fail("load factors must be in (0, 1)");
   }
@@ -74,18 +75,12 @@ std::vector<Index3D> distinct_keys(int64_t count) {
   return keys;
 }
 
+// The median over `repeats` runs of function(repeat).
 template <class Function>
 double median_milliseconds(int repeats, const Stream& stream, Function&& function) {
   std::vector<double> times;
-  for (int r = 0; r < repeats; ++r) {
-    stream.synchronize();
-    const auto start = std::chrono::steady_clock::now();
-    function(r);
-    stream.synchronize();
-    times.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
-  }
-  std::sort(times.begin(), times.end());
-  return times[times.size() / 2];
+  for (int r = 0; r < repeats; ++r) times.push_back(tools::stream_milliseconds(stream, [&] { function(r); }));
+  return tools::median_of(times);
 }
 
 void benchmark_table(Device device, const Options& options, const std::vector<Index3D>& host_keys,
@@ -115,10 +110,9 @@ void benchmark_table(Device device, const Options& options, const std::vector<In
     for (int r = 0; r < options.repeats; ++r) {
       table.clear();
       table.activate(keys.data(), n, slots.data(), nullptr, stream);
-      erase_times.push_back(median_milliseconds(1, stream, [&](int) { table.erase(keys.data(), n, stream); }));
+      erase_times.push_back(tools::stream_milliseconds(stream, [&] { table.erase(keys.data(), n, stream); }));
     }
-    std::sort(erase_times.begin(), erase_times.end());
-    const double erase_ms = erase_times[erase_times.size() / 2];
+    const double erase_ms = tools::median_of(erase_times);
     report->add(name.str(), "insert (activate)", n / (insert_ms * 1e3), "Mkeys/s");
     report->add(name.str(), "find", n / (find_ms * 1e3), "Mkeys/s");
     report->add(name.str(), "erase", n / (erase_ms * 1e3), "Mkeys/s");
@@ -181,10 +175,9 @@ void benchmark_layout(Device device, const Options& options, const std::string& 
 int main(int argc, char** argv) {
   using namespace covox;
   const Options options = parse(argc, argv);
-  try {
+  return tools::run_benchmark("benchmark_hash_table", [&] {
     const std::vector<Device> devices = tools::benchmark_devices(options.device);
-    const std::string device_names = tools::describe_devices(devices);
-    tools::BenchmarkReport report("hash_table", device_names, argc, argv);
+    tools::BenchmarkReport report("hash_table", tools::describe_devices(devices), argc, argv);
     std::cout << "generating " << options.keys << " distinct keys..." << std::endl;
     const auto keys = distinct_keys(options.keys);
     for (Device device : devices) {
@@ -194,12 +187,6 @@ int main(int argc, char** argv) {
       benchmark_layout<TsdfVoxel>(device, options, "TsdfVoxel(8B)", &report);
       benchmark_layout<ColoredTsdfVoxel>(device, options, "ColoredTsdfVoxel(16B)", &report);
     }
-    report.print_table(std::cout);
-    report.write_json(options.output);
-    std::cout << "wrote " << (options.output.empty() ? report.default_json_path() : options.output) << std::endl;
-  } catch (const std::exception& error) {
-    std::cerr << "benchmark_hash_table: " << error.what() << std::endl;
-    return 1;
-  }
-  return 0;
+    tools::publish_reports({&report}, options.output);
+  });
 }

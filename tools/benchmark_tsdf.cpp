@@ -17,6 +17,7 @@
 
 #include "benchmark_datasets.h"
 #include "benchmark_report.h"
+#include "benchmark_run.h"
 #include "command_line.h"
 #include "covoxslam/core/buffer.h"
 #include "covoxslam/core/device.h"
@@ -44,12 +45,11 @@ Options parse(int argc, char** argv) {
   Options options;
   options.data = args.text("--data", io::data_directory());
   options.device = args.text("--device", options.device);
-  options.integrations = static_cast<int>(args.integer("--integrations", options.integrations));
+  options.integrations = static_cast<int>(args.positive_integer("--integrations", options.integrations));
   options.output = args.text("--output", "");
   options.skip_rgbd = args.flag("--skip-rgbd");
   options.skip_lidar = args.flag("--skip-lidar");
   args.finish();
-  if (options.integrations <= 0) args.fail("--integrations must be positive");
   return options;
 }
 
@@ -73,10 +73,9 @@ Timing time_integrations(const Stream& stream, size_t frame_count, int integrati
   int64_t rays = 0;
   double total_ms = 0.0;
   for (int i = 0; i < integrations; ++i) {
-    const auto start = std::chrono::steady_clock::now();
-    const IntegrationStats stats = integrate_frame(static_cast<size_t>(i) % frame_count);
-    stream.synchronize();
-    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    IntegrationStats stats;
+    const double ms =
+        tools::stream_milliseconds(stream, [&] { stats = integrate_frame(static_cast<size_t>(i) % frame_count); });
     times.push_back(ms);
     total_ms += ms;
     updates += stats.voxel_updates;
@@ -145,10 +144,9 @@ void benchmark_rgbd(Device device, const Options& options, const tools::DeviceRg
 int main(int argc, char** argv) {
   using namespace covox;
   const Options options = parse(argc, argv);
-  try {
+  return tools::run_benchmark("benchmark_tsdf", [&] {
     const std::vector<Device> devices = tools::benchmark_devices(options.device);
-    const std::string names = tools::describe_devices(devices);
-    tools::BenchmarkReport report("tsdf", names, argc, argv);
+    tools::BenchmarkReport report("tsdf", tools::describe_devices(devices), argc, argv);
     for (Device device : devices) {
       std::cout << "TSDF on " << describe_device(device) << "..." << std::endl;
       if (!options.skip_lidar) {
@@ -167,12 +165,6 @@ int main(int argc, char** argv) {
         }
       }
     }
-    report.print_table(std::cout);
-    report.write_json(options.output);
-    std::cout << "wrote " << (options.output.empty() ? report.default_json_path() : options.output) << std::endl;
-  } catch (const std::exception& error) {
-    std::cerr << "benchmark_tsdf: " << error.what() << std::endl;
-    return 1;
-  }
-  return 0;
+    tools::publish_reports({&report}, options.output);
+  });
 }

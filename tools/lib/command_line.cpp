@@ -44,6 +44,12 @@ int64_t CommandLine::integer(const std::string& name, int64_t fallback) {
   return parsed;
 }
 
+int64_t CommandLine::positive_integer(const std::string& name, int64_t fallback) {
+  const int64_t value = integer(name, fallback);
+  if (value <= 0) fail(name + " must be positive");
+  return value;
+}
+
 double CommandLine::number(const std::string& name, double fallback) {
   const std::string* value = find_value(name);
   if (!value) return fallback;

@@ -23,6 +23,8 @@ class CommandLine {
 
   std::string text(const std::string& name, const std::string& fallback);
   int64_t integer(const std::string& name, int64_t fallback);
+  // integer(), and fails with "<name> must be positive" unless the value is > 0.
+  int64_t positive_integer(const std::string& name, int64_t fallback);
   double number(const std::string& name, double fallback);
   // Comma-separated numbers, e.g. "--load-factors 0.5,0.7,0.85".
   std::vector<double> numbers(const std::string& name, const std::vector<double>& fallback);
