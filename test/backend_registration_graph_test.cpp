@@ -18,6 +18,9 @@
 #include "covoxslam/integrators/esdf_integrator.h"
 #include "covoxslam/integrators/tsdf_integrator.h"
 #include "support/analytic_scene.h"
+#include "support/per_device_cache.h"
+#include "support/registration_room.h"
+#include "support/solver_test_options.h"
 #include "support/test_devices.h"
 
 namespace covox {
@@ -26,32 +29,8 @@ namespace {
 
 using testing_support::AnalyticScene;
 using testing_support::DeviceTest;
-
-constexpr double kPi = 3.14159265358979323846;
-constexpr double kDegToRad = kPi / 180.0;
-
-Eigen::Isometry3d isometry_of(const Pose4Dof& pose) {
-  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
-  t.linear() = Eigen::AngleAxisd(pose.yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-  t.translation() = Eigen::Vector3d(pose.x, pose.y, pose.z);
-  return t;
-}
-
-// One submap: a single LiDAR scan of the room from the submap's origin (voxgraph puts a submap's
-// frame at the robot), integrated in the submap's frame, with its ESDF.
-std::unique_ptr<TsdfMap> scan_submap(Device device, const AnalyticScene& room, const Pose4Dof& T_W_S) {
-  auto map = std::make_unique<TsdfMap>(device, TsdfMapConfig{0.1f, 8, {}});
-  TsdfIntegratorConfig tsdf_config;
-  tsdf_config.truncation_distance_m = 0.3f;
-  tsdf_config.max_ray_length_m = 10.0f;
-  TsdfIntegrator(tsdf_config)
-      .integrate(*map, testing_support::simulate_lidar(room, isometry_of(T_W_S), 720, 64, 90.0, 9.5), {},
-                 Eigen::Isometry3d::Identity());
-  EsdfIntegratorConfig esdf_config;
-  esdf_config.esdf_max_distance_m = 1.0f;
-  EsdfIntegrator(esdf_config).update_all(*map, Stream(device));
-  return map;
-}
+using testing_support::kDegToRad;
+using testing_support::relative_difference;
 
 // Four submaps of a closed room (every face constrains x, y, z and yaw), registration terms
 // between every ordered pair, odometry between consecutive submaps, vertex 0 fixed.
@@ -118,14 +97,8 @@ RegistrationPoints points_inside_neighbourhood(const RegistrationPoints& all, co
   return out;
 }
 
-const RoomGraph& room_graph(Device device) {
-  static std::map<Device, RoomGraph> cache;
-  auto it = cache.find(device);
-  if (it != cache.end()) return it->second;
-  AnalyticScene room;
-  room.shape = testing_support::Shape::kBox;
-  room.center = Eigen::Vector3d(0.03, -0.02, 0.1);
-  room.half_extent = Eigen::Vector3d(3.0, 2.5, 1.5);
+RoomGraph build_room_graph(Device device) {
+  const AnalyticScene room = testing_support::registration_room();
   RoomGraph g;
   g.truth = {Pose4Dof{0.0, 0.0, 0.0, 0.0}, Pose4Dof{0.45, -0.3, 0.05, 8.0 * kDegToRad},
              Pose4Dof{0.95, 0.15, -0.04, 15.0 * kDegToRad}, Pose4Dof{0.4, 0.55, 0.08, -6.0 * kDegToRad}};
@@ -133,7 +106,7 @@ const RoomGraph& room_graph(Device device) {
   RegistrationPointsConfig points_config;
   points_config.sampling_ratio = 0.05f;
   for (const Pose4Dof& pose : g.truth) {
-    g.maps.push_back(scan_submap(device, room, pose));
+    g.maps.push_back(testing_support::scan_room_submap(device, room, pose, 0.1f));
     g.points.push_back(
         std::make_unique<RegistrationPoints>(extract_registration_points(*g.maps.back(), points_config, stream)));
   }
@@ -172,21 +145,15 @@ const RoomGraph& room_graph(Device device) {
   }
   g.graph.poses = initial;
   g.graph.fixed_vertex = 0;
-  return cache.emplace(device, std::move(g)).first->second;
+  return g;
 }
 
-PoseGraphSolverOptions tight_options() {
-  PoseGraphSolverOptions options;
-  options.max_iterations = 200;
-  options.function_tolerance = 1e-12;
-  options.gradient_tolerance = 1e-12;
-  options.parameter_tolerance = 1e-12;
-  options.pcg_relative_tolerance = 1e-12;
-  options.pcg_max_iterations = 200;
-  return options;
+// Built once per device: integration dominates the test time.
+const RoomGraph& room_graph(Device device) {
+  return testing_support::once_per_device<RoomGraph>(device, [](Device d) { return build_room_graph(d); });
 }
 
-double relative_difference(double a, double b) { return std::abs(a - b) / std::max(std::abs(b), 1e-300); }
+PoseGraphSolverOptions tight_options() { return testing_support::tight_solver_options(1e-12, 200); }
 
 class RegistrationGraphTest : public DeviceTest {};
 

@@ -15,6 +15,8 @@
 #include "covoxslam/integrators/esdf_integrator.h"
 #include "covoxslam/integrators/tsdf_integrator.h"
 #include "support/analytic_scene.h"
+#include "support/per_device_cache.h"
+#include "support/registration_room.h"
 #include "support/test_devices.h"
 
 namespace covox {
@@ -24,16 +26,9 @@ namespace {
 using testing_support::AnalyticScene;
 using testing_support::DeviceTest;
 
-constexpr double kPi = 3.14159265358979323846;
-constexpr double kDegToRad = kPi / 180.0;
-constexpr float kVoxelM = 0.1f;
+using testing_support::kDegToRad;
 
-Eigen::Isometry3d to_isometry4(const Pose4Dof& pose) {
-  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
-  t.linear() = Eigen::AngleAxisd(pose.yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-  t.translation() = Eigen::Vector3d(pose.x, pose.y, pose.z);
-  return t;
-}
+constexpr float kVoxelM = 0.1f;
 
 // A closed room (all six faces constrain x, y, z and yaw) seen from two nearby sensor poses:
 // submap j's frame is the world, submap i's frame is its sensor pose (voxgraph puts a submap's
@@ -43,37 +38,19 @@ struct SubmapPair {
   Pose4Dof true_T_Sj_Si;
 };
 
-std::unique_ptr<TsdfMap> build_submap(Device device, const AnalyticScene& scene, const Pose4Dof& T_W_S) {
-  auto map = std::make_unique<TsdfMap>(device, TsdfMapConfig{kVoxelM, 8, {}});
-  TsdfIntegratorConfig tsdf_config;
-  tsdf_config.truncation_distance_m = 0.3f;
-  tsdf_config.max_ray_length_m = 10.0f;
-  TsdfIntegrator tsdf(tsdf_config);
-  // The sensor sits at the submap origin; the scene is seen through the submap's world pose.
-  const Eigen::Isometry3d T_W_sensor = to_isometry4(T_W_S);
-  tsdf.integrate(*map, testing_support::simulate_lidar(scene, T_W_sensor, 720, 64, 90.0, 9.5), {},
-                 Eigen::Isometry3d::Identity());
-  EsdfIntegratorConfig esdf_config;
-  esdf_config.esdf_max_distance_m = 1.0f;
-  EsdfIntegrator(esdf_config).update_all(*map, Stream(device));
-  return map;
+SubmapPair build_submap_pair(Device device) {
+  const AnalyticScene room = testing_support::registration_room();
+  SubmapPair pair;
+  const Pose4Dof T_W_Sj{0.0, 0.0, 0.0, 0.0};
+  pair.true_T_Sj_Si = Pose4Dof{0.43, -0.27, 0.08, 7.0 * kDegToRad};
+  pair.map_j = testing_support::scan_room_submap(device, room, T_W_Sj, kVoxelM);
+  pair.map_i = testing_support::scan_room_submap(device, room, pair.true_T_Sj_Si, kVoxelM);
+  return pair;
 }
 
 // Built once per device: integration dominates the test time.
 const SubmapPair& submap_pair(Device device) {
-  static std::map<Device, SubmapPair> cache;
-  auto it = cache.find(device);
-  if (it != cache.end()) return it->second;
-  AnalyticScene room;
-  room.shape = testing_support::Shape::kBox;
-  room.center = Eigen::Vector3d(0.03, -0.02, 0.1);
-  room.half_extent = Eigen::Vector3d(3.0, 2.5, 1.5);
-  SubmapPair pair;
-  const Pose4Dof T_W_Sj{0.0, 0.0, 0.0, 0.0};
-  pair.true_T_Sj_Si = Pose4Dof{0.43, -0.27, 0.08, 7.0 * kDegToRad};
-  pair.map_j = build_submap(device, room, T_W_Sj);
-  pair.map_i = build_submap(device, room, pair.true_T_Sj_Si);
-  return cache.emplace(device, std::move(pair)).first->second;
+  return testing_support::once_per_device<SubmapPair>(device, [](Device d) { return build_submap_pair(d); });
 }
 
 RegistrationPointsConfig points_config() {

@@ -14,6 +14,7 @@
 #include "covoxslam/backend/synthetic_pose_graph.h"
 #include "covoxslam/core/error.h"
 #include "covoxslam/io/data_directory.h"
+#include "support/solver_test_options.h"
 #include "support/test_devices.h"
 
 namespace covox {
@@ -22,19 +23,10 @@ namespace {
 
 using testing_support::DeviceTest;
 
-// Tight tolerances: the comparisons with Ceres are about the optimum, not about stopping early.
-PoseGraphSolverOptions tight_options() {
-  PoseGraphSolverOptions options;
-  options.max_iterations = 200;
-  options.function_tolerance = 1e-12;
-  options.gradient_tolerance = 1e-12;
-  options.parameter_tolerance = 1e-12;
-  options.pcg_relative_tolerance = 1e-10;
-  options.pcg_max_iterations = 1000;
-  return options;
-}
+using testing_support::relative_difference;
 
-double relative_difference(double a, double b) { return std::abs(a - b) / std::max(std::abs(b), 1e-300); }
+// The comparisons with Ceres are about the optimum, not about stopping early.
+PoseGraphSolverOptions tight_options() { return testing_support::tight_solver_options(1e-10, 1000); }
 
 #if COVOX_HAVE_CERES
 // Solves `copy` (the same graph as the one `summary` reports on, still at its initial poses) with

@@ -14,6 +14,7 @@
 #include "covoxslam/core/error.h"
 #include "pipeline_test_scene.h"
 #include "support/analytic_scene.h"
+#include "support/small_slam_config.h"
 
 namespace covox {
 namespace pipeline {
@@ -23,17 +24,7 @@ using namespace test_scene;
 
 // Scans of a hollow sphere (cheap): for tests that need integrated scans but no registration.
 SlamConfig sphere_config() {
-  SlamConfig config;
-  config.device = Device::kCpu;
-  config.map.voxel_size_m = 0.2f;
-  config.map.voxels_per_side = 8;
-  config.tsdf.truncation_distance_m = 0.6f;
-  config.tsdf.max_ray_length_m = 8.0f;
-  config.esdf.esdf_max_distance_m = 1.0f;
-  config.submaps.policy = SubmapCreationPolicy::kTimeInterval;
-  config.submaps.interval_s = 1.0;
-  config.sensor_queue_size = 1000;
-  config.submap_queue_size = 100;
+  SlamConfig config = testing_support::small_slam_config();
   config.registration.enabled = false;
   return config;
 }

@@ -14,26 +14,14 @@
 #include "covoxslam/core/error.h"
 #include "covoxslam/pipeline/slam_system.h"
 #include "support/analytic_scene.h"
+#include "support/small_slam_config.h"
 
 namespace covox {
 namespace pipeline {
 namespace {
 
 // Small and fast on 2 cores: 8-voxel blocks, a short ESDF range, 64 x 8 rays per scan.
-SlamConfig small_config() {
-  SlamConfig config;
-  config.device = Device::kCpu;
-  config.map.voxel_size_m = 0.2f;
-  config.map.voxels_per_side = 8;
-  config.tsdf.truncation_distance_m = 0.6f;
-  config.tsdf.max_ray_length_m = 8.0f;
-  config.esdf.esdf_max_distance_m = 1.0f;
-  config.submaps.policy = SubmapCreationPolicy::kTimeInterval;
-  config.submaps.interval_s = 1.0;
-  config.sensor_queue_size = 1000;
-  config.submap_queue_size = 100;
-  return config;
-}
+SlamConfig small_config() { return testing_support::small_slam_config(); }
 
 // A scan at `stamp_s` from a sensor at (x, 0, 0) with heading `yaw`, inside a sphere of radius 4.
 Scan sphere_scan(double stamp_s, double x_m, double yaw = 0.0) {

@@ -1,0 +1,42 @@
+#include "support/registration_room.h"
+
+#include "covoxslam/core/stream.h"
+#include "covoxslam/integrators/esdf_integrator.h"
+#include "covoxslam/integrators/tsdf_integrator.h"
+
+namespace covox {
+namespace testing_support {
+
+Eigen::Isometry3d isometry_of(const backend::Pose4Dof& pose) {
+  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+  t.linear() = Eigen::AngleAxisd(pose.yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  t.translation() = Eigen::Vector3d(pose.x, pose.y, pose.z);
+  return t;
+}
+
+AnalyticScene registration_room() {
+  AnalyticScene room;
+  room.shape = Shape::kBox;
+  room.center = Eigen::Vector3d(0.03, -0.02, 0.1);
+  room.half_extent = Eigen::Vector3d(3.0, 2.5, 1.5);
+  return room;
+}
+
+std::unique_ptr<TsdfMap> scan_room_submap(Device device, const AnalyticScene& room, const backend::Pose4Dof& T_W_S,
+                                          float voxel_size_m) {
+  auto map = std::make_unique<TsdfMap>(device, TsdfMapConfig{voxel_size_m, 8, {}});
+  TsdfIntegratorConfig tsdf_config;
+  tsdf_config.truncation_distance_m = 0.3f;
+  tsdf_config.max_ray_length_m = 10.0f;
+  // The scene is seen from the sensor's world pose; the points go into the submap's own frame.
+  TsdfIntegrator(tsdf_config)
+      .integrate(*map, simulate_lidar(room, isometry_of(T_W_S), 720, 64, 90.0, 9.5), {},
+                 Eigen::Isometry3d::Identity());
+  EsdfIntegratorConfig esdf_config;
+  esdf_config.esdf_max_distance_m = 1.0f;
+  EsdfIntegrator(esdf_config).update_all(*map, Stream(device));
+  return map;
+}
+
+}  // namespace testing_support
+}  // namespace covox
