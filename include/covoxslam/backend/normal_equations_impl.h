@@ -201,6 +201,30 @@ void damping_and_preconditioner(Backend backend, const Stream& stream, int32_t v
   });
 }
 
+// The chain preconditioner's segments: runs of `segment_vertices` consecutive vertices, the last
+// one shorter. Segment `segment` holds the vertices [begin, end).
+struct ChainSegment {
+  int32_t begin;
+  int32_t end;
+};
+COVOX_HD_INLINE int32_t chain_segment_count(int32_t vertex_count, int32_t segment_vertices) {
+  return (vertex_count + segment_vertices - 1) / segment_vertices;
+}
+COVOX_HD_INLINE ChainSegment chain_segment(int64_t segment, int32_t vertex_count, int32_t segment_vertices) {
+  const int32_t begin = static_cast<int32_t>(segment) * segment_vertices;
+  const int32_t end = begin + segment_vertices < vertex_count ? begin + segment_vertices : vertex_count;
+  return ChainSegment{begin, end};
+}
+
+// The off-diagonal block (v - 1, v) of H that the chain keeps inside `segment`, or null where v
+// starts the segment (links between segments are dropped) or no constraint joins v - 1 and v.
+template <int D>
+COVOX_HD_INLINE const double* chain_block_before(int32_t v, const ChainSegment& segment, const int32_t* chain_blocks,
+                                                 const double* hessian_off) {
+  const int32_t previous = v > segment.begin ? chain_blocks[v - 1] : -1;
+  return previous >= 0 ? hessian_off + static_cast<int64_t>(previous) * D * D : nullptr;
+}
+
 // The odometry-chain preconditioner: M = the block-tridiagonal part of H + damping in vertex
 // order (blocks (v, v) and (v, v + 1)), cut into segments of `segment_vertices` consecutive
 // vertices (the links between segments are dropped). Each constraint's term of H is positive
@@ -218,17 +242,15 @@ void factorize_chain(Backend backend, const Stream& stream, int32_t vertex_count
                      const double* hessian_diag, const double* hessian_off, const double* damping,
                      const int32_t* chain_blocks, double* schur_inverse) {
   constexpr int DD = D * D;
-  const int32_t segments = (vertex_count + segment_vertices - 1) / segment_vertices;
+  const int32_t segments = chain_segment_count(vertex_count, segment_vertices);
   parallel_for(backend, stream, segments, [=] COVOX_HD(int64_t segment) {
-    const int32_t begin = static_cast<int32_t>(segment) * segment_vertices;
-    const int32_t end = begin + segment_vertices < vertex_count ? begin + segment_vertices : vertex_count;
-    for (int32_t v = begin; v < end; ++v) {
+    const ChainSegment range = chain_segment(segment, vertex_count, segment_vertices);
+    for (int32_t v = range.begin; v < range.end; ++v) {
       double s[DD];
       for (int k = 0; k < DD; ++k) s[k] = hessian_diag[static_cast<int64_t>(v) * DD + k];
       for (int r = 0; r < D; ++r) s[r * D + r] += damping[static_cast<int64_t>(v) * D + r];
-      const int32_t previous = v > begin ? chain_blocks[v - 1] : -1;
-      if (previous >= 0) {
-        const double* b = hessian_off + static_cast<int64_t>(previous) * DD;
+      const double* b = chain_block_before<D>(v, range, chain_blocks, hessian_off);
+      if (b != nullptr) {
         const double* p = schur_inverse + static_cast<int64_t>(v - 1) * DD;
         // s -= B^T P B, with t = P B first.
         double t[DD];
@@ -259,17 +281,15 @@ void apply_chain_preconditioner(Backend backend, const Stream& stream, int32_t v
                                 const double* hessian_off, const int32_t* chain_blocks, const double* schur_inverse,
                                 const double* x, double* y) {
   constexpr int DD = D * D;
-  const int32_t segments = (vertex_count + segment_vertices - 1) / segment_vertices;
+  const int32_t segments = chain_segment_count(vertex_count, segment_vertices);
   parallel_for(backend, stream, segments, [=] COVOX_HD(int64_t segment) {
-    const int32_t begin = static_cast<int32_t>(segment) * segment_vertices;
-    const int32_t end = begin + segment_vertices < vertex_count ? begin + segment_vertices : vertex_count;
+    const ChainSegment range = chain_segment(segment, vertex_count, segment_vertices);
     // Forward: z_v = x_v - B_{v-1}^T w_{v-1}, w_v = S_v^-1 z_v (w stored in y).
-    for (int32_t v = begin; v < end; ++v) {
+    for (int32_t v = range.begin; v < range.end; ++v) {
       double z[D];
       for (int r = 0; r < D; ++r) z[r] = x[static_cast<int64_t>(v) * D + r];
-      const int32_t previous = v > begin ? chain_blocks[v - 1] : -1;
-      if (previous >= 0) {
-        const double* b = hessian_off + static_cast<int64_t>(previous) * DD;
+      const double* b = chain_block_before<D>(v, range, chain_blocks, hessian_off);
+      if (b != nullptr) {
         const double* w = y + static_cast<int64_t>(v - 1) * D;
         for (int r = 0; r < D; ++r) {
           for (int k = 0; k < D; ++k) z[r] -= b[k * D + r] * w[k];
@@ -283,7 +303,7 @@ void apply_chain_preconditioner(Backend backend, const Stream& stream, int32_t v
       }
     }
     // Backward: y_v = w_v - S_v^-1 B_v y_{v+1}.
-    for (int32_t v = end - 2; v >= begin; --v) {
+    for (int32_t v = range.end - 2; v >= range.begin; --v) {
       const int32_t block = chain_blocks[v];
       if (block < 0) continue;
       const double* b = hessian_off + static_cast<int64_t>(block) * DD;

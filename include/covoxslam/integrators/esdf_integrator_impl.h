@@ -55,12 +55,23 @@ struct BoundsOfBlock {
 struct VoxelBox {
   int32_t lo[3];
   int32_t hi[3];
-  COVOX_HD_INLINE bool contains(int32_t x, int32_t y, int32_t z) const {
-    return x >= lo[0] && x <= hi[0] && y >= lo[1] && y <= hi[1] && z >= lo[2] && z <= hi[2];
+  COVOX_HD_INLINE bool contains(const Index3D& v) const {
+    return v.x >= lo[0] && v.x <= hi[0] && v.y >= lo[1] && v.y <= hi[1] && v.z >= lo[2] && v.z <= hi[2];
+  }
+  // Index of voxel v in a dense array over the box, x fastest.
+  COVOX_HD_INLINE int64_t offset_of(const Index3D& v) const {
+    const int64_t size_x = static_cast<int64_t>(hi[0]) - lo[0] + 1, size_y = static_cast<int64_t>(hi[1]) - lo[1] + 1;
+    return (v.x - lo[0]) + size_x * ((v.y - lo[1]) + size_y * (v.z - lo[2]));
   }
   int64_t size(int axis) const { return static_cast<int64_t>(hi[axis]) - lo[axis] + 1; }
   int64_t volume() const { return size(0) * size(1) * size(2); }
 };
+
+// Global coordinates of voxel k (x fastest) of the block with index `block`.
+COVOX_HD_INLINE Index3D global_voxel(const Index3D& block, int64_t k, int32_t side) {
+  return Index3D(block.x * side + static_cast<int32_t>(k % side), block.y * side + static_cast<int32_t>((k / side) % side),
+                 block.z * side + static_cast<int32_t>(k / (side * side)));
+}
 
 // Exact 1-D squared distance transform of f along one line (Felzenszwalb & Huttenlocher):
 // out[q] = min_p (q - p)^2 + f[p]. Entries equal to kFar take no part. `sites` and `bounds` are
@@ -168,15 +179,10 @@ EsdfUpdateStats esdf_update(Backend backend, const EsdfIntegratorConfig& config,
   const float min_weight = config.min_weight;
   parallel_for(backend, stream, block_count * voxels_per_block, [=] COVOX_HD(int64_t i) {
     const int64_t b = i / voxels_per_block, k = i % voxels_per_block;
-    const Index3D block = block_indices[b];
-    const int32_t x = block.x * side + static_cast<int32_t>(k % side);
-    const int32_t y = block.y * side + static_cast<int32_t>((k / side) % side);
-    const int32_t z = block.z * side + static_cast<int32_t>(k / (side * side));
-    if (!window.contains(x, y, z)) return;
+    const Index3D v = global_voxel(block_indices[b], k, side);
+    if (!window.contains(v)) return;
     const TsdfVoxel voxel = tsdf.load(static_cast<int64_t>(block_slots[b]) * voxels_per_block + k);
-    if (voxel.weight >= min_weight && fabsf(voxel.distance_m) <= site_threshold) {
-      squared[(x - window.lo[0]) + static_cast<int64_t>(wx) * ((y - window.lo[1]) + static_cast<int64_t>(wy) * (z - window.lo[2]))] = 0;
-    }
+    if (voxel.weight >= min_weight && fabsf(voxel.distance_m) <= site_threshold) squared[window.offset_of(v)] = 0;
   });
 
   // x: distance to the nearest site in the row (two sweeps), squared.
@@ -215,17 +221,14 @@ EsdfUpdateStats esdf_update(Backend backend, const EsdfIntegratorConfig& config,
   const float max_distance = config.esdf_max_distance_m;
   parallel_for(backend, stream, block_count * voxels_per_block, [=] COVOX_HD(int64_t i) {
     const int64_t b = i / voxels_per_block, k = i % voxels_per_block;
-    const Index3D block = block_indices[b];
-    const int32_t x = block.x * side + static_cast<int32_t>(k % side);
-    const int32_t y = block.y * side + static_cast<int32_t>((k / side) % side);
-    const int32_t z = block.z * side + static_cast<int32_t>(k / (side * side));
-    if (!write_region.contains(x, y, z)) return;
+    const Index3D v = global_voxel(block_indices[b], k, side);
+    if (!write_region.contains(v)) return;
     const int64_t index = static_cast<int64_t>(block_slots[b]) * voxels_per_block + k;
     const TsdfVoxel voxel = tsdf.load(index);
     EsdfVoxel out;
     out.observed = voxel.weight >= min_weight ? 1 : 0;
     if (out.observed) {
-      const int32_t d2 = squared[(x - window.lo[0]) + static_cast<int64_t>(wx) * ((y - window.lo[1]) + static_cast<int64_t>(wy) * (z - window.lo[2]))];
+      const int32_t d2 = squared[window.offset_of(v)];
       float distance = d2 == kFar ? max_distance : sqrtf(static_cast<float>(d2)) * voxel_size;
       distance = distance < max_distance ? distance : max_distance;
       out.is_site = d2 == 0 ? 1 : 0;
