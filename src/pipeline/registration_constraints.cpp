@@ -1,5 +1,6 @@
 #include "covoxslam/pipeline/registration_constraints.h"
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <exception>
@@ -28,6 +29,10 @@ void validate(const SubmapRegistrationConfig& config) {
   require(positive_finite(config.robust_loss_scale_m),
           "robust_loss_scale_m must be positive, got " + std::to_string(config.robust_loss_scale_m));
   require(positive_finite(config.point_sigma_m), "point_sigma_m must be positive, got " + std::to_string(config.point_sigma_m));
+  require(std::isfinite(config.min_sigma_m) && config.min_sigma_m >= 0.0,
+          "min_sigma_m must be >= 0, got " + std::to_string(config.min_sigma_m));
+  require(std::isfinite(config.min_sigma_yaw_rad) && config.min_sigma_yaw_rad >= 0.0,
+          "min_sigma_yaw_rad must be >= 0, got " + std::to_string(config.min_sigma_yaw_rad));
   require(config.min_shared_blocks >= 1, "min_shared_blocks must be at least 1, got " + std::to_string(config.min_shared_blocks));
   require(config.min_points >= 4, "min_points must be at least 4 (four unknowns), got " + std::to_string(config.min_points));
   require(positive_finite(config.max_correction_m),
@@ -48,6 +53,27 @@ void validate(const SubmapRegistrationConfig& config) {
   require(config.search_max_points >= 4, "search_max_points must be at least 4, got " + std::to_string(config.search_max_points));
   require(config.max_partners >= 0, "max_partners must be >= 0, got " + std::to_string(config.max_partners));
   require(config.max_iterations >= 1, "max_iterations must be at least 1, got " + std::to_string(config.max_iterations));
+}
+
+Eigen::Matrix4d floored_information(const Eigen::Matrix4d& points_information, double min_sigma_m,
+                                    double min_sigma_yaw_rad) {
+  if (!(min_sigma_m > 0.0) && !(min_sigma_yaw_rad > 0.0)) return points_information;
+  const Eigen::Vector4d floor_variance(min_sigma_m * min_sigma_m, min_sigma_m * min_sigma_m, min_sigma_m * min_sigma_m,
+                                       min_sigma_yaw_rad * min_sigma_yaw_rad);
+  // With information = R R^T, R = V Lambda^(1/2) (its eigenvectors and eigenvalues),
+  //   (information^-1 + F)^-1 = R (I + R^T F R)^-1 R^T,
+  // which needs no inverse of the information: a free direction (eigenvalue 0) keeps zero
+  // information instead of breaking the computation.
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> eigen(0.5 * (points_information + points_information.transpose()));
+  const Eigen::Vector4d values = eigen.eigenvalues();
+  const Eigen::Matrix4d& vectors = eigen.eigenvectors();
+  Eigen::Vector4d root = Eigen::Vector4d::Zero();
+  for (int k = 0; k < 4; ++k) root(k) = values(k) > 0.0 ? std::sqrt(values(k)) : 0.0;
+  const Eigen::Matrix4d floor_in_basis = vectors.transpose() * floor_variance.asDiagonal() * vectors;
+  const Eigen::Matrix4d m = root.asDiagonal() * floor_in_basis * root.asDiagonal();
+  const Eigen::Matrix4d inner = (Eigen::Matrix4d::Identity() + m).inverse();
+  const Eigen::Matrix4d result = vectors * root.asDiagonal() * inner * root.asDiagonal() * vectors.transpose();
+  return 0.5 * (result + result.transpose());
 }
 
 backend::RobustLoss parse_robust_loss(const std::string& name) {
@@ -365,7 +391,8 @@ std::vector<SubmapConstraint> registration_constraints(int64_t id, const TsdfMap
     c.from_submap = partner.id;
     c.to_submap = id;
     c.measurement = constraint.measurement;
-    c.information = sqrt_information.transpose() * sqrt_information;
+    c.information = floored_information(sqrt_information.transpose() * sqrt_information, config.min_sigma_m,
+                                        config.min_sigma_yaw_rad);
     constraints.push_back(c);
     ++counts->accepted;
   }

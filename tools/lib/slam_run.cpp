@@ -58,6 +58,11 @@ pipeline::SlamConfig arche_slam_config(Device device) {
   config.tsdf.sparsity_compensation_factor = 20.0f;
   config.submaps.policy = pipeline::SubmapCreationPolicy::kTimeInterval;
   config.submaps.interval_s = 10.0;
+  // Registration constraints no surer than registration is at 0.2 m voxels: measured on the
+  // simulated flight, 0.24 m and 0.64 degrees from the true relative pose on average
+  // (registration_constraints.h; docs/benchmarks.md, "Drift correction on the simulated flight").
+  config.registration.min_sigma_m = 0.2;
+  config.registration.min_sigma_yaw_rad = 1.0 * 3.14159265358979323846 / 180.0;
   // Odometry sigmas: the library's (0.1 m, 0.01 rad). voxgraph's ARCHE information (x, y 1; z,
   // yaw 2500), which config/arche.yaml gives as 1 m / 0.02 rad, lets the registration pull the
   // graph further than max_correction_m allows on the simulated flight (ATE 2.5 m instead of
@@ -74,6 +79,9 @@ pipeline::SlamConfig rgbd_slam_config(Device device) {
   config.tsdf.use_sparsity_compensation_factor = false;
   config.tsdf.sparsity_compensation_factor = 1.0f;
   config.submaps.interval_s = 2.0;
+  // The accuracy floor was measured for 0.2 m LiDAR submaps only.
+  config.registration.min_sigma_m = 0.0;
+  config.registration.min_sigma_yaw_rad = 0.0;
   // A hand-held camera drifts a few centimetres between 2 s submaps.
   config.odometry_translation_sigma_m = 0.1;
   config.odometry_yaw_sigma_rad = 0.01;
@@ -86,6 +94,8 @@ pipeline::SlamConfig lidar_keyframe_slam_config(Device device) {
   config.tsdf.truncation_distance_m = 1.5f;
   config.tsdf.max_ray_length_m = 40.0f;
   config.submaps.interval_s = 8.0;
+  config.registration.min_sigma_m = 0.0;  // the floor was measured at 0.2 m voxels only
+  config.registration.min_sigma_yaw_rad = 0.0;
   return config;
 }
 

@@ -62,7 +62,8 @@ void print_slam_run(const SlamRunResult& result, FILE* out);
 
 // voxgraph's ARCHE configuration (peers.md) on `device`: 0.2 m voxels, 0.6 m truncation, 16 m
 // rays, constant weight with drop-off and sparsity compensation 20, a submap every 10 s; the
-// library's odometry sigmas (see slam_run.cpp).
+// library's odometry sigmas and a registration accuracy floor of 0.2 m and 1 degree (see
+// slam_run.cpp).
 pipeline::SlamConfig arche_slam_config(Device device);
 // RGB-D (7-Scenes-sized rooms): inverse-square weighting (depth noise grows with range), no
 // sparsity compensation (every pixel hits a surface), 4 cm voxels, 12 cm truncation, 4 m rays,

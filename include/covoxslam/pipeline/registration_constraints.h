@@ -23,6 +23,18 @@
 // mean of 1 over the submap's registration points: point_sigma_m is the noise of one point's
 // distance in metres, the information is sum_k w_k/mean(w) J_k^T J_k / point_sigma_m^2, and the
 // robust loss scale is in metres as well.
+//
+// Accuracy floor. That information treats thousands of points as independent, so it claims
+// millimetres and hundredths of a degree. Measured on the simulated drone flight (2026-11-23,
+// 256-column LiDAR, 0.2 m voxels; docs/benchmarks.md, "Drift correction on the simulated
+// flight"): aligned from the true relative pose, 56 overlapping submap pairs end 0.24 m and 0.64
+// degrees from it on average (the submaps' own drift, TSDF quantisation, sparse walls), about
+// what the odometry drifts between two submaps. A constraint that claims 100 times more than it knows overrides the odometry and,
+// at a revisit, pulls the whole graph. So the constraint's covariance is the points' covariance
+// plus a floor: min_sigma_m on x, y and z and min_sigma_yaw_rad on yaw,
+//   information = ((J^T J / sigma^2)^-1 + diag(min_sigma_m^2 x3, min_sigma_yaw_rad^2))^-1,
+// which keeps the points' shape (a direction the overlap does not constrain - ground only: x, y
+// and yaw - stays weak) but caps every direction at what the registration really achieves.
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -56,6 +68,11 @@ struct SubmapRegistrationConfig {
   // Noise of one registration point's distance (see above). The points of a 0.2 m map are not
   // independent (interpolation, one TSDF), so this is larger than the TSDF noise itself.
   double point_sigma_m = 0.1;
+  // The accuracy floor (see above). 0 and 0 (the default): the points' information alone. The
+  // ARCHE preset (tools/lib/slam_run.cpp) and config/arche.yaml use 0.2 m and 1 degree, the
+  // accuracy measured at 0.2 m voxels; other voxel sizes and sensors need their own measurement.
+  double min_sigma_m = 0.0;
+  double min_sigma_yaw_rad = 0.0;
   // Overlap: block bounding boxes intersect at the current poses and at least this many block
   // centres of the new submap fall into blocks of the earlier one.
   int64_t min_shared_blocks = 4;
@@ -84,6 +101,12 @@ struct SubmapRegistrationConfig {
   int max_partners = 10;
   int max_iterations = 60;
 };
+
+// The information of a registration constraint: `points_information` (over x, y, z, yaw; may be
+// singular where the overlap leaves a direction free) with the accuracy floor added to its
+// covariance (see above). Zero floors return it unchanged.
+Eigen::Matrix4d floored_information(const Eigen::Matrix4d& points_information, double min_sigma_m,
+                                    double min_sigma_yaw_rad);
 
 // Throws covox::Error naming the first invalid parameter (prefix "registration.").
 void validate(const SubmapRegistrationConfig& config);
