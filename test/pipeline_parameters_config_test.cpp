@@ -88,6 +88,8 @@ std::map<std::string, Expectation> expectations() {
        {"cauchy", [](const SlamConfig& c) { return c.registration.robust_loss == RobustLoss::kCauchy; }}},
       {"registration_robust_loss_scale_m", {"0.4", [](const SlamConfig& c) { return c.registration.robust_loss_scale_m == 0.4; }}},
       {"registration_point_sigma_m", {"0.05", [](const SlamConfig& c) { return c.registration.point_sigma_m == 0.05; }}},
+      {"registration_min_sigma_m", {"0.5", [](const SlamConfig& c) { return c.registration.min_sigma_m == 0.5; }}},
+      {"registration_min_sigma_yaw_rad", {"0.03", [](const SlamConfig& c) { return c.registration.min_sigma_yaw_rad == 0.03; }}},
       {"registration_min_shared_blocks", {"6", [](const SlamConfig& c) { return c.registration.min_shared_blocks == 6; }}},
       {"registration_min_points", {"250", [](const SlamConfig& c) { return c.registration.min_points == 250; }}},
       {"registration_max_correction_m", {"3.5", [](const SlamConfig& c) { return c.registration.max_correction_m == 3.5; }}},
@@ -145,6 +147,7 @@ void expect_error_names(const std::map<std::string, std::string>& values, const 
 
 TEST(SlamParameterFiles, BadRegistrationAndSolverValuesAreReportedByName) {
   expect_error_names({{"registration_mode", "both"}}, "registration_mode");
+  expect_error_names({{"registration_min_sigma_m", "-0.1"}}, "registration_min_sigma_m");
   expect_error_names({{"registration_min_inlier_fraction", "1.5"}}, "registration_min_inlier_fraction");
   expect_error_names({{"registration_inlier_distance_m", "0"}}, "registration_inlier_distance_m");
   expect_error_names({{"registration_min_fit_points", "-1"}}, "registration_min_fit_points");

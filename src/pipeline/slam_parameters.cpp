@@ -232,6 +232,8 @@ const std::vector<SlamParameter>& slam_parameters() {
       text_parameter("registration_robust_loss", COVOX_FIELD(registration.robust_loss), parse_robust_loss),
       number_parameter("registration_robust_loss_scale_m", COVOX_FIELD(registration.robust_loss_scale_m), positive),
       number_parameter("registration_point_sigma_m", COVOX_FIELD(registration.point_sigma_m), positive),
+      number_parameter("registration_min_sigma_m", COVOX_FIELD(registration.min_sigma_m), non_negative),
+      number_parameter("registration_min_sigma_yaw_rad", COVOX_FIELD(registration.min_sigma_yaw_rad), non_negative),
       integer_parameter("registration_min_shared_blocks", COVOX_FIELD(registration.min_shared_blocks), 1),
       integer_parameter("registration_min_points", COVOX_FIELD(registration.min_points), 4),
       number_parameter("registration_max_correction_m", COVOX_FIELD(registration.max_correction_m), positive),
