@@ -14,6 +14,7 @@
 
 #include "covoxslam/core/error.h"
 #include "covoxslam/pipeline/slam_parameters.h"
+#include "support/parameter_errors.h"
 #include "flat_yaml.h"
 
 namespace covox {
@@ -135,15 +136,7 @@ TEST(SlamParameterFiles, EveryNameSetsItsOwnField) {
   for (const auto& [name, expectation] : reference) EXPECT_TRUE(expectation.holds(config)) << name;
 }
 
-void expect_error_names(const std::map<std::string, std::string>& values, const std::string& name) {
-  SlamConfig config;
-  try {
-    read_slam_config(TextParameterSource(values), &config);
-    ADD_FAILURE() << "no error for " << name;
-  } catch (const Error& error) {
-    EXPECT_NE(std::string(error.what()).find(name), std::string::npos) << error.what();
-  }
-}
+using testing_support::expect_error_names;  // the error must name the wrong parameter
 
 TEST(SlamParameterFiles, BadRegistrationAndSolverValuesAreReportedByName) {
   expect_error_names({{"registration_mode", "both"}}, "registration_mode");

@@ -10,6 +10,7 @@
 #include "covoxslam/core/error.h"
 #include "covoxslam/pipeline/drop_counter.h"
 #include "covoxslam/pipeline/slam_parameters.h"
+#include "support/parameter_errors.h"
 #include "covoxslam/pipeline/stamped_pose_buffer.h"
 
 namespace covox {
@@ -123,16 +124,7 @@ TEST(SlamParameters, ReadsEveryNamedParameter) {
   }
 }
 
-// The error must name the parameter that is wrong.
-void expect_error_names(const std::map<std::string, std::string>& values, const std::string& name) {
-  SlamConfig config;
-  try {
-    read_slam_config(TextParameterSource(values), &config);
-    ADD_FAILURE() << "no error for " << name;
-  } catch (const Error& error) {
-    EXPECT_NE(std::string(error.what()).find(name), std::string::npos) << error.what();
-  }
-}
+using testing_support::expect_error_names;  // the error must name the wrong parameter
 
 TEST(SlamParameters, BadValuesAreReportedByName) {
   expect_error_names({{"voxel_size_m", "-0.2"}}, "voxel_size_m");
