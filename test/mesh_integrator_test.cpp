@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <map>
 #include <utility>
@@ -26,6 +27,7 @@ constexpr float kVoxel = 0.05f;
 const Eigen::Vector3d kCentre(0.013, -0.021, 0.007);
 
 double sphere_sdf(const Eigen::Vector3d& p) { return (p - kCentre).norm() - 0.4; }
+double small_sphere_sdf(const Eigen::Vector3d& p) { return (p - kCentre).norm() - 0.17; }
 const Eigen::Vector3d kBoxHalfExtent(0.33, 0.27, 0.21);
 double box_sdf(const Eigen::Vector3d& p) {
   const Eigen::Vector3d q = (p - kCentre).cwiseAbs() - kBoxHalfExtent;
@@ -102,6 +104,65 @@ TEST_P(MeshIntegratorTest, SphereAndBoxVerticesLieOnTheSurfaceAndMeshesAreClosed
   }
 }
 
+// The block of the cube a triangle came from: its centroid lies inside the cube, whose first
+// corner is the voxel centre just below the centroid.
+Index3D block_of_triangle(const Mesh& mesh, size_t t, int side) {
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  for (int k = 0; k < 3; ++k) {
+    const Vec3f& v = mesh.vertices_m[mesh.triangles[3 * t + k]];
+    centroid += Eigen::Vector3d(v.x, v.y, v.z) / 3.0;
+  }
+  const Eigen::Vector3d cube = (centroid / kVoxel - Eigen::Vector3d::Constant(0.5)).array().floor();
+  return Index3D(floor_divide(static_cast<int32_t>(cube.x()), side), floor_divide(static_cast<int32_t>(cube.y()), side),
+                 floor_divide(static_cast<int32_t>(cube.z()), side));
+}
+
+using TriangleCorners = std::array<float, 9>;
+// The triangles of `mesh` as corner positions (so meshes with different vertex numbering compare).
+std::vector<TriangleCorners> corner_triangles(const Mesh& mesh, const std::vector<size_t>& which) {
+  std::vector<TriangleCorners> out;
+  for (size_t t : which) {
+    TriangleCorners c;
+    for (int k = 0; k < 3; ++k) {
+      const Vec3f& v = mesh.vertices_m[mesh.triangles[3 * t + k]];
+      c[3 * k] = v.x, c[3 * k + 1] = v.y, c[3 * k + 2] = v.z;
+    }
+    out.push_back(c);
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+std::vector<size_t> all_triangles(const Mesh& mesh) {
+  std::vector<size_t> all(mesh.triangle_count());
+  for (size_t t = 0; t < all.size(); ++t) all[t] = t;
+  return all;
+}
+
+// Each block mesh of the incremental path holds exactly the triangles of the full (globally
+// welded) extraction whose cubes lie in that block, its vertices are each used, and none repeats.
+void expect_block_meshes_match(const std::map<Index3D, Mesh>& block_meshes, const Mesh& full, int side) {
+  std::map<Index3D, std::vector<size_t>> by_block;
+  for (size_t t = 0; t < full.triangle_count(); ++t) by_block[block_of_triangle(full, t, side)].push_back(t);
+  ASSERT_EQ(block_meshes.size(), by_block.size());
+  for (const auto& [block, triangles] : by_block) {
+    const auto it = block_meshes.find(block);
+    ASSERT_NE(it, block_meshes.end()) << "block " << block.x << " " << block.y << " " << block.z;
+    const Mesh& mesh = it->second;
+    EXPECT_EQ(corner_triangles(mesh, all_triangles(mesh)), corner_triangles(full, triangles));
+    ASSERT_EQ(mesh.colors.size(), mesh.vertices_m.size());
+    std::vector<int> uses(mesh.vertices_m.size(), 0);
+    for (uint32_t v : mesh.triangles) {
+      ASSERT_LT(v, mesh.vertices_m.size());
+      ++uses[v];
+    }
+    EXPECT_EQ(std::count(uses.begin(), uses.end(), 0), 0);
+    std::vector<std::array<float, 3>> positions;
+    for (const Vec3f& v : mesh.vertices_m) positions.push_back({v.x, v.y, v.z});
+    std::sort(positions.begin(), positions.end());
+    EXPECT_EQ(std::adjacent_find(positions.begin(), positions.end()), positions.end()) << "a vertex is not welded";
+  }
+}
+
 TEST_P(MeshIntegratorTest, IncrementalBlockMeshesMatchTheFullExtraction) {
   TsdfMap map(device(), TsdfMapConfig{kVoxel, 8, {}});
   testing_support::fill_tsdf(map, Eigen::Vector3d(-0.7, -0.7, -0.7), Eigen::Vector3d(0.7, 0.7, 0.7), 4 * kVoxel,
@@ -110,14 +171,28 @@ TEST_P(MeshIntegratorTest, IncrementalBlockMeshesMatchTheFullExtraction) {
   const Stream stream(device());
   const MeshUpdateStats first = integrator.update(map, stream);
   EXPECT_EQ(first.blocks_meshed, map.block_count());
-  EXPECT_EQ(integrator.combined_block_meshes().triangle_count(), integrator.extract_all(map, stream).triangle_count());
+  EXPECT_EQ(static_cast<int64_t>(integrator.last_updated_blocks(stream).size()), map.block_count());
+  const Mesh sphere = integrator.extract_all(map, stream);
+  EXPECT_EQ(integrator.combined_block_meshes(stream).triangle_count(), sphere.triangle_count());
+  EXPECT_EQ(first.triangles, static_cast<int64_t>(sphere.triangle_count()));
+  expect_block_meshes_match(integrator.block_meshes(stream), sphere, 8);
   EXPECT_EQ(integrator.update(map, stream).blocks_meshed, 0);  // nothing changed
-  // Replace the sphere by the box: every block is rewritten, meshes follow.
+  EXPECT_TRUE(integrator.last_updated_blocks(stream).empty());
+  // Replace the sphere by the box, then by a smaller sphere, without reading the block meshes in
+  // between: the pending updates are replayed in order, and blocks left empty lose their mesh.
   testing_support::fill_tsdf(map, Eigen::Vector3d(-0.7, -0.7, -0.7), Eigen::Vector3d(0.7, 0.7, 0.7), 4 * kVoxel,
                              box_sdf);
   integrator.update(map, stream);
-  const Mesh full = integrator.extract_all(map, stream);
-  EXPECT_EQ(integrator.combined_block_meshes().triangle_count(), full.triangle_count());
+  const Mesh box = integrator.extract_all(map, stream);
+  EXPECT_EQ(integrator.combined_block_meshes(stream).triangle_count(), box.triangle_count());
+  expect_block_meshes_match(integrator.block_meshes(stream), box, 8);
+  testing_support::fill_tsdf(map, Eigen::Vector3d(-0.7, -0.7, -0.7), Eigen::Vector3d(0.7, 0.7, 0.7), 4 * kVoxel,
+                             sphere_sdf);
+  integrator.update(map, stream);
+  testing_support::fill_tsdf(map, Eigen::Vector3d(-0.7, -0.7, -0.7), Eigen::Vector3d(0.7, 0.7, 0.7), 4 * kVoxel,
+                             small_sphere_sdf);
+  integrator.update(map, stream);
+  expect_block_meshes_match(integrator.block_meshes(stream), integrator.extract_all(map, stream), 8);
 }
 
 TEST_P(MeshIntegratorTest, BinaryPlyHoldsEveryVertexAndFace) {
@@ -152,6 +227,33 @@ TEST(MeshIntegratorParity, CpuAndCudaGiveTheSameMesh) {
     ASSERT_NEAR(cpu.vertices_m[i].x, gpu.vertices_m[i].x, 1e-6f);
     ASSERT_NEAR(cpu.vertices_m[i].y, gpu.vertices_m[i].y, 1e-6f);
     ASSERT_NEAR(cpu.vertices_m[i].z, gpu.vertices_m[i].z, 1e-6f);
+  }
+}
+
+TEST(MeshIntegratorParity, CpuAndCudaGiveTheSameBlockMeshes) {
+  COVOX_SKIP_WITHOUT_GPU();
+  std::map<Index3D, Mesh> meshes[2];
+  const Device devices[2] = {Device::kCpu, Device::kCuda};
+  for (int d = 0; d < 2; ++d) {
+    TsdfMap map(devices[d], TsdfMapConfig{kVoxel, 8, {}});
+    testing_support::fill_tsdf(map, Eigen::Vector3d(-0.7, -0.7, -0.7), Eigen::Vector3d(0.7, 0.7, 0.7), 4 * kVoxel,
+                               box_sdf);
+    MeshIntegrator integrator;
+    const Stream stream = Stream::create(devices[d]);
+    integrator.update(map, stream);
+    meshes[d] = integrator.block_meshes(stream);
+  }
+  ASSERT_EQ(meshes[0].size(), meshes[1].size());
+  for (const auto& [block, cpu] : meshes[0]) {
+    const Mesh& gpu = meshes[1].at(block);
+    ASSERT_EQ(cpu.triangles, gpu.triangles);
+    ASSERT_EQ(cpu.colors.size(), gpu.colors.size());
+    ASSERT_EQ(cpu.vertices_m.size(), gpu.vertices_m.size());
+    for (size_t i = 0; i < cpu.vertices_m.size(); ++i) {
+      ASSERT_NEAR(cpu.vertices_m[i].x, gpu.vertices_m[i].x, 1e-6f);
+      ASSERT_NEAR(cpu.vertices_m[i].y, gpu.vertices_m[i].y, 1e-6f);
+      ASSERT_NEAR(cpu.vertices_m[i].z, gpu.vertices_m[i].z, 1e-6f);
+    }
   }
 }
 

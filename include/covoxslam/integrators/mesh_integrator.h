@@ -25,6 +25,19 @@ struct MeshUpdateStats {
   int64_t triangles = 0;
 };
 
+// The slots of a block and of its neighbours at +x, +y, +z (index bit 0: +x, bit 1: +y, bit 2: +z),
+// kInvalidSlot where a neighbour is not allocated: a cube's eight corners lie in these blocks.
+struct BlockNeighbourSlots {
+  uint32_t slots[8];
+};
+
+// How an extraction shares vertices between triangles: one vertex per cube edge over the whole
+// input (kGlobal, what extract_all returns), or per block (kPerBlock: vertices and triangles
+// grouped by block, triangle indices local to their block, for the block meshes of update()).
+enum class MeshWeld { kGlobal, kPerBlock };
+
+class PendingBlockMeshes;
+
 class MeshIntegrator {
  public:
   explicit MeshIntegrator(const MeshIntegratorConfig& config = {});
@@ -35,30 +48,39 @@ class MeshIntegrator {
   // The mesh of the whole map, welded everywhere.
   Mesh extract_all(TsdfMap& map, const Stream& stream);
   // Re-meshes the blocks whose TSDF changed since the last update (and the blocks whose cubes
-  // reach into them) and keeps one mesh per block, for incremental publishing.
+  // reach into them), one mesh per block for incremental publishing. The new block meshes stay
+  // in device memory until block_meshes() or last_updated_blocks() asks for them (or about
+  // kMaxPendingVertices have piled up), so a per-frame update makes no host copies.
   MeshUpdateStats update(TsdfMap& map, const Stream& stream);
-  const std::map<Index3D, Mesh>& block_meshes() const { return block_meshes_; }
+  // One mesh per block, vertices welded inside the block. Brings pending updates to the host
+  // first; `stream` is the one update() ran on (its copies are waited for).
+  const std::map<Index3D, Mesh>& block_meshes(const Stream& stream);
   // Blocks re-meshed by the last update().
-  const std::vector<Index3D>& last_updated_blocks() const { return last_updated_; }
+  const std::vector<Index3D>& last_updated_blocks(const Stream& stream);
   // All block meshes as one mesh (vertices are not shared across block borders).
-  Mesh combined_block_meshes() const;
+  Mesh combined_block_meshes(const Stream& stream);
+
+  // Pending device vertices above which update() brings the block meshes to the host itself.
+  static constexpr int64_t kMaxPendingVertices = int64_t(1) << 24;
 
  private:
+  void download_pending(const Stream& stream);
   struct Scratch;
   MeshIntegratorConfig config_;
   std::unique_ptr<Scratch> scratch_;
+  std::unique_ptr<PendingBlockMeshes> pending_;
   std::map<Index3D, Mesh> block_meshes_;
   std::vector<Index3D> last_updated_;
 };
 
-// Device result of one extraction: welded vertices, triangles, and for each triangle the
-// position in the input block list of the block its cube belongs to.
+// Device result of one extraction: welded vertices and triangles; with MeshWeld::kPerBlock also
+// each input block's first vertex and first triangle (block count + 1 entries).
 struct MeshScratchBuffers {
   explicit MeshScratchBuffers(Device device)
       : blocks(device), slots(device), counts(device), offsets(device), keys(device), order(device),
-        positions(device), colors(device), triangle_blocks(device), flags(device), vertex_ids(device),
-        vertices(device), vertex_colors(device), triangles(device), all_blocks(device), all_slots(device),
-        affected(device) {}
+        positions(device), colors(device), flags(device), vertex_ids(device), vertices(device),
+        vertex_colors(device), triangles(device), keys_alt(device), order_alt(device), neighbours(device),
+        block_first_vertex(device), block_first_triangle(device), affected(device) {}
   Buffer<Index3D> blocks;
   Buffer<uint32_t> slots;
   Buffer<uint32_t> counts;
@@ -67,27 +89,29 @@ struct MeshScratchBuffers {
   Buffer<uint32_t> order;
   Buffer<Vec3f> positions;
   Buffer<Rgb8> colors;
-  Buffer<uint32_t> triangle_blocks;
   Buffer<uint32_t> flags;
   Buffer<uint32_t> vertex_ids;
   Buffer<Vec3f> vertices;
   Buffer<Rgb8> vertex_colors;
   Buffer<uint32_t> triangles;
+  Buffer<uint64_t> keys_alt;
+  Buffer<uint32_t> order_alt;
+  Buffer<BlockNeighbourSlots> neighbours;
+  Buffer<uint32_t> block_first_vertex;
+  Buffer<uint32_t> block_first_triangle;
   // choosing the blocks to re-mesh
-  Buffer<Index3D> all_blocks;
-  Buffer<uint32_t> all_slots;
   Buffer<uint32_t> affected;
 };
 
-// Meshes the cubes whose first corner lies in scratch.blocks (with slots). Returns the number of
-// triangles; fills scratch.vertices / vertex_colors / triangles / triangle_blocks.
+// Meshes the cubes whose first corner lies in scratch.blocks. Returns the number of triangles;
+// fills scratch.vertices / vertex_colors / triangles (and the per-block ranges for kPerBlock).
 template <class Backend>
-int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshScratchBuffers& scratch,
+int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshWeld weld, MeshScratchBuffers& scratch,
                      int64_t* vertex_count, const Stream& stream);
 
-// Writes to scratch.blocks, sorted by packed key, the blocks whose meshes are out of date: those
-// with kMeshPending set and the allocated blocks just below them; clears their kMeshPending bits
-// on the device. Returns how many.
+// Writes to scratch.blocks, in hash-table bucket order, the blocks whose meshes are out of date:
+// those with kMeshPending set and the allocated blocks just below them; clears their
+// kMeshPending bits on the device. Returns how many.
 template <class Backend>
 int64_t mesh_select_blocks(Backend backend, TsdfMap& map, MeshScratchBuffers& scratch, const Stream& stream);
 

@@ -1,10 +1,11 @@
 #pragma once
-// Marching-cubes extraction and vertex welding, written once for both backends.
+// Marching-cubes extraction, vertex welding and the choice of blocks to re-mesh, written once
+// for both backends.
 #include "covoxslam/core/atomics.h"
 #include "covoxslam/core/parallel.h"
+#include "covoxslam/core/radix_sort.h"
 #include "covoxslam/integrators/marching_cubes.h"
 #include "covoxslam/integrators/mesh_integrator.h"
-#include "covoxslam/map/block_voxel_indexer.h"
 
 namespace covox {
 namespace mesh_detail {
@@ -19,18 +20,41 @@ COVOX_HD_INLINE uint64_t edge_key(const Index3D& start, int axis) {
          ((static_cast<uint64_t>(start.z + kBias) & kMask) << 2) | static_cast<uint64_t>(axis);
 }
 
+// A cube edge named inside one block, for the per-block weld: its start voxel relative to the
+// block's first voxel (0..side on each axis, since the cubes of the block's last layer end in
+// the next block) and its axis. Fits in bits_for(3 (side + 1)^3 - 1) bits: 12 for side 8.
+COVOX_HD_INLINE uint32_t local_edge_key(int32_t x, int32_t y, int32_t z, int axis, int32_t side) {
+  const uint32_t n = static_cast<uint32_t>(side) + 1u;
+  return ((static_cast<uint32_t>(z) * n + static_cast<uint32_t>(y)) * n + static_cast<uint32_t>(x)) * 3u +
+         static_cast<uint32_t>(axis);
+}
+inline int local_edge_bits(int32_t side) {
+  return bits_for(3ull * (side + 1) * (side + 1) * (side + 1) - 1);
+}
+
+// Reads a cube's eight corners from the slots of its block and of the block's +x/+y/+z
+// neighbours (found once per block), not with eight hash probes per cube.
 struct CubeReader {
-  BlockVoxelIndexer indexer;
+  const BlockNeighbourSlots* neighbours;
+  int32_t side;
   VoxelView<TsdfVoxel, Layout::kSoA> tsdf;
   VoxelView<ColorVoxel, Layout::kSoA> color;
   float min_weight;
 
-  // Corner values and colours of the cube whose first corner is voxel `origin`; false when a
-  // corner is unallocated or unobserved.
-  COVOX_HD_INLINE bool read(const Index3D& origin, float* values, Rgb8* colors) const {
+  // Corner values and colours of the cube whose first corner is voxel `local` of the input's
+  // block `block`; false when a corner is unallocated or unobserved.
+  COVOX_HD_INLINE bool read(int64_t block, const Index3D& local, float* values, Rgb8* colors) const {
+    const BlockNeighbourSlots& around = neighbours[block];
+    const int64_t per_block = static_cast<int64_t>(side) * side * side;
     for (int c = 0; c < 8; ++c) {
-      const int64_t index = indexer.pool_index(origin + Index3D(c & 1, (c >> 1) & 1, (c >> 2) & 1));
-      if (index < 0) return false;
+      int32_t x = local.x + (c & 1), y = local.y + ((c >> 1) & 1), z = local.z + ((c >> 2) & 1);
+      int which = 0;  // bit 0: the corner lies in the +x block, bit 1: +y, bit 2: +z
+      if (x == side) x = 0, which |= 1;
+      if (y == side) y = 0, which |= 2;
+      if (z == side) z = 0, which |= 4;
+      const uint32_t slot = around.slots[which];
+      if (slot == kInvalidSlot) return false;
+      const int64_t index = static_cast<int64_t>(slot) * per_block + x + side * (y + static_cast<int64_t>(side) * z);
       const TsdfVoxel voxel = tsdf.load(index);
       if (voxel.weight < min_weight) return false;
       values[c] = voxel.distance_m;
@@ -41,17 +65,47 @@ struct CubeReader {
   }
 };
 
-COVOX_HD_INLINE Index3D cube_origin(const Index3D* blocks, int64_t cube, int32_t side, int64_t per_block) {
-  const Index3D block = blocks[cube / per_block];
+// Cube `cube` of the input is voxel `local` of input block cube / per_block.
+COVOX_HD_INLINE Index3D cube_local(int64_t cube, int32_t side, int64_t per_block) {
   const int64_t k = cube % per_block;
-  return Index3D(block.x * side + static_cast<int32_t>(k % side), block.y * side + static_cast<int32_t>((k / side) % side),
-                 block.z * side + static_cast<int32_t>(k / (side * side)));
+  return Index3D(static_cast<int32_t>(k % side), static_cast<int32_t>((k / side) % side),
+                 static_cast<int32_t>(k / (static_cast<int64_t>(side) * side)));
+}
+
+// First index in the sorted keys[0, count) whose key is >= `key` (count if none).
+COVOX_HD_INLINE int64_t lower_bound(const uint64_t* keys, int64_t count, uint64_t key) {
+  int64_t low = 0, high = count;
+  while (low < high) {
+    const int64_t middle = low + (high - low) / 2;
+    if (keys[middle] < key) low = middle + 1;
+    else high = middle;
+  }
+  return low;
 }
 
 }  // namespace mesh_detail
 
 template <class Backend>
-int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshScratchBuffers& scratch,
+void mesh_find_neighbour_slots(Backend backend, TsdfMap& map, MeshScratchBuffers& scratch, const Stream& stream) {
+  const int64_t block_count = static_cast<int64_t>(scratch.blocks.size());
+  scratch.neighbours.resize_discard(block_count);
+  const Index3D* blocks = scratch.blocks.data();
+  BlockNeighbourSlots* neighbours = scratch.neighbours.data();
+  const BlockHashTableView table = map.blocks().device_view();
+  parallel_for(backend, stream, 8 * block_count, [=] COVOX_HD(int64_t i) {
+    const int c = static_cast<int>(i % 8);
+    const uint64_t key = pack_block_key(blocks[i / 8] + Index3D(c & 1, (c >> 1) & 1, (c >> 2) & 1));
+    uint32_t slot = kInvalidSlot;
+    if (key != kInvalidBlockKey) {
+      const uint64_t bucket = table.find(key);
+      if (bucket != kNoBucket) slot = table.slots[bucket];
+    }
+    neighbours[i / 8].slots[c] = slot;
+  });
+}
+
+template <class Backend>
+int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshWeld weld, MeshScratchBuffers& scratch,
                      int64_t* vertex_count, const Stream& stream) {
   using namespace mesh_detail;
   *vertex_count = 0;
@@ -59,9 +113,16 @@ int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshScratc
   const int32_t side = map.voxels_per_side();
   const int64_t per_block = map.voxels_per_block();
   const int64_t cubes = block_count * per_block;
+  const bool per_block_weld = weld == MeshWeld::kPerBlock;
+  if (per_block_weld) {  // empty ranges until the triangles are known
+    scratch.block_first_vertex.resize_discard(block_count + 1);
+    scratch.block_first_triangle.resize_discard(block_count + 1);
+    scratch.block_first_vertex.fill_bytes(0, stream);
+    scratch.block_first_triangle.fill_bytes(0, stream);
+  }
   if (cubes == 0) return 0;
-  const CubeReader reader{BlockVoxelIndexer{map.blocks().device_view(), side}, map.tsdf().view(), map.color().view(),
-                          min_weight};
+  mesh_find_neighbour_slots(backend, map, scratch, stream);
+  const CubeReader reader{scratch.neighbours.data(), side, map.tsdf().view(), map.color().view(), min_weight};
   const Index3D* blocks = scratch.blocks.data();
 
   // 1. triangles per cube
@@ -73,33 +134,35 @@ int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshScratc
     if (i == cubes) return;
     float values[8];
     Rgb8 colors[8];
-    if (!reader.read(cube_origin(blocks, i, side, per_block), values, colors)) return;
+    if (!reader.read(i / per_block, cube_local(i, side, per_block), values, colors)) return;
     counts[i] = static_cast<uint32_t>(marching_cubes::polygonize(values, [](int, int, int) {}));
   });
   exclusive_scan(backend, stream, counts, cubes + 1, scratch.offsets.data());
   const int64_t triangle_count = scratch.offsets.element(cubes, stream);
   if (triangle_count == 0) return 0;
 
-  // 2. emit triangle corners, named by global edge
+  // 2. emit triangle corners, named by their edge (globally, or inside their block)
   const int64_t corners = 3 * triangle_count;
   scratch.keys.resize_discard(corners);
   scratch.order.resize_discard(corners);
   scratch.positions.resize_discard(corners);
   scratch.colors.resize_discard(corners);
-  scratch.triangle_blocks.resize_discard(triangle_count);
   uint64_t* keys = scratch.keys.data();
   uint32_t* order = scratch.order.data();
   Vec3f* positions = scratch.positions.data();
   Rgb8* corner_colors = scratch.colors.data();
-  uint32_t* triangle_blocks = scratch.triangle_blocks.data();
   const uint32_t* offsets = scratch.offsets.data();
   const float voxel_size = map.voxel_size_m();
+  const int edge_bits = local_edge_bits(side);
   parallel_for(backend, stream, cubes, [=] COVOX_HD(int64_t i) {
     if (counts[i] == 0) return;
-    const Index3D origin = cube_origin(blocks, i, side, per_block);
+    const int64_t block = i / per_block;
+    const Index3D local = cube_local(i, side, per_block);
+    const Index3D origin(blocks[block].x * side + local.x, blocks[block].y * side + local.y,
+                         blocks[block].z * side + local.z);
     float values[8];
     Rgb8 colors[8];
-    reader.read(origin, values, colors);
+    reader.read(block, local, values, colors);
     int64_t t = offsets[i];
     marching_cubes::polygonize(values, [&](int a, int b, int c) {
       if (marching_cubes::needs_flip(values, a, b, c)) {
@@ -111,8 +174,12 @@ int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshScratc
       for (int k = 0; k < 3; ++k) {
         const int e = edges[k], start = marching_cubes::edge_start(e), end = marching_cubes::edge_end(e);
         const int64_t slot = 3 * t + k;
-        const Index3D start_voxel = origin + Index3D(start & 1, (start >> 1) & 1, (start >> 2) & 1);
-        keys[slot] = edge_key(start_voxel, marching_cubes::edge_axis(e));
+        const Index3D offset(start & 1, (start >> 1) & 1, (start >> 2) & 1);
+        const int axis = marching_cubes::edge_axis(e);
+        keys[slot] = per_block_weld
+                         ? (static_cast<uint64_t>(block) << edge_bits) |
+                               local_edge_key(local.x + offset.x, local.y + offset.y, local.z + offset.z, axis, side)
+                         : edge_key(origin + offset, axis);
         order[slot] = static_cast<uint32_t>(slot);
         const Vec3f p = marching_cubes::crossing_point(values, e);
         positions[slot] = Vec3f((origin.x + 0.5f + p.x) * voxel_size, (origin.y + 0.5f + p.y) * voxel_size,
@@ -123,13 +190,20 @@ int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshScratc
                                    static_cast<uint8_t>(ca.g + f * (cb.g - ca.g) + 0.5f),
                                    static_cast<uint8_t>(ca.b + f * (cb.b - ca.b) + 0.5f)};
       }
-      triangle_blocks[t] = static_cast<uint32_t>(i / per_block);
       ++t;
     });
   });
 
-  // 3. weld: sort corners by edge, one vertex per distinct edge
-  sort_by_key(backend, stream, keys, order, corners);
+  // 3. weld: sort corners by edge, one vertex per distinct edge. Per-block keys need only
+  //    bits_for(blocks) + 12 bits: a 3-4 pass radix sort instead of a full 64-bit one.
+  if (per_block_weld) {
+    scratch.keys_alt.resize_discard(corners);
+    scratch.order_alt.resize_discard(corners);
+    radix_sort_pairs(backend, stream, keys, order, corners, bits_for(static_cast<uint64_t>(block_count)) + edge_bits,
+                     scratch.keys_alt.data(), scratch.order_alt.data());
+  } else {
+    sort_by_key(backend, stream, keys, order, corners);
+  }
   scratch.flags.resize_discard(corners + 1);
   scratch.vertex_ids.resize_discard(corners + 1);
   uint32_t* flags = scratch.flags.data();
@@ -138,13 +212,24 @@ int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshScratc
   });
   exclusive_scan(backend, stream, flags, corners + 1, scratch.vertex_ids.data());
   const int64_t vertices = scratch.vertex_ids.element(corners, stream);
+  const uint32_t* first_ids = scratch.vertex_ids.data();
+  uint32_t* block_first_vertex = nullptr;
+  if (per_block_weld) {
+    // Block b's vertices are those of the keys from b << edge_bits on (keys are block-major),
+    // its triangles those of its cubes.
+    block_first_vertex = scratch.block_first_vertex.data();
+    uint32_t* block_first_triangle = scratch.block_first_triangle.data();
+    parallel_for(backend, stream, block_count + 1, [=] COVOX_HD(int64_t b) {
+      block_first_vertex[b] = first_ids[lower_bound(keys, corners, static_cast<uint64_t>(b) << edge_bits)];
+      block_first_triangle[b] = offsets[b * per_block];
+    });
+  }
   scratch.vertices.resize_discard(vertices);
   scratch.vertex_colors.resize_discard(vertices);
   scratch.triangles.resize_discard(corners);
   Vec3f* out_vertices = scratch.vertices.data();
   Rgb8* out_colors = scratch.vertex_colors.data();
   uint32_t* out_triangles = scratch.triangles.data();
-  const uint32_t* first_ids = scratch.vertex_ids.data();
   parallel_for(backend, stream, corners, [=] COVOX_HD(int64_t j) {
     // The run of equal keys that j belongs to starts where the flag was set.
     const uint32_t id = first_ids[j] + flags[j] - 1;
@@ -152,62 +237,64 @@ int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshScratc
       out_vertices[id] = positions[order[j]];
       out_colors[id] = corner_colors[order[j]];
     }
-    out_triangles[order[j]] = id;
+    out_triangles[order[j]] = block_first_vertex ? id - block_first_vertex[keys[j] >> edge_bits] : id;
   });
-  stream.synchronize();
   *vertex_count = vertices;
   return triangle_count;
 }
 
 template <class Backend>
 int64_t mesh_select_blocks(Backend backend, TsdfMap& map, MeshScratchBuffers& scratch, const Stream& stream) {
-  map.blocks().export_entries(&scratch.all_blocks, &scratch.all_slots);
-  const int64_t entries = static_cast<int64_t>(scratch.all_blocks.size());
-  if (entries == 0) return 0;
-  // Per slot: > 0 when the block's mesh must be redone.
-  scratch.affected.resize_discard(map.blocks().slot_count());
+  const BlockHashTableView table = map.blocks().device_view();
+  const int64_t buckets = static_cast<int64_t>(table.bucket_count);
+  const int64_t slot_count = map.blocks().slot_count();
+  if (map.block_count() == 0 || slot_count == 0) {
+    scratch.blocks.resize_discard(0);
+    return 0;
+  }
+  // Per slot: > 0 when the block's mesh must be redone. The table is walked bucket by bucket
+  // (no export of its entries first).
+  scratch.affected.resize_discard(slot_count);
   scratch.affected.fill_bytes(0, stream);
   uint32_t* affected = scratch.affected.data();
   uint8_t* changed = map.block_changed().data();
-  const Index3D* all_blocks = scratch.all_blocks.data();
-  const uint32_t* all_slots = scratch.all_slots.data();
-  const BlockHashTableView table = map.blocks().device_view();
-  parallel_for(backend, stream, entries, [=] COVOX_HD(int64_t i) {
-    const uint32_t slot = all_slots[i];
+  parallel_for(backend, stream, buckets, [=] COVOX_HD(int64_t b) {
+    const uint64_t key = table.keys[b];
+    if (!is_live_block_key(key)) return;
+    const uint32_t slot = table.slots[b];
     if (!(changed[slot] & kMeshPending)) return;
     changed[slot] = static_cast<uint8_t>(changed[slot] & ~kMeshPending);
     // A cube reads the block of its first corner and its +x/+y/+z neighbours, so a changed
     // block also changes the meshes of the seven blocks just below it.
+    const Index3D block = unpack_block_key(key);
     for (int c = 0; c < 8; ++c) {
-      const Index3D below = all_blocks[i] - Index3D(c & 1, (c >> 1) & 1, (c >> 2) & 1);
-      const uint64_t bucket = table.find(pack_block_key(below));
+      const uint64_t below = pack_block_key(block - Index3D(c & 1, (c >> 1) & 1, (c >> 2) & 1));
+      const uint64_t bucket = below == kInvalidBlockKey ? kNoBucket : table.find(below);
       if (bucket != kNoBucket) atomic_add(&affected[table.slots[bucket]], 1u);
     }
   });
-  // Compact to the affected blocks' keys, sorted: the same order on both backends.
-  scratch.flags.resize_discard(entries + 1);
-  scratch.vertex_ids.resize_discard(entries + 1);
+  // Compact to the affected blocks, in bucket order (each block's mesh depends only on the
+  // block, not on this order).
+  scratch.flags.resize_discard(buckets + 1);
+  scratch.vertex_ids.resize_discard(buckets + 1);
   uint32_t* flags = scratch.flags.data();
-  parallel_for(backend, stream, entries + 1,
-               [=] COVOX_HD(int64_t i) { flags[i] = i < entries && affected[all_slots[i]] > 0 ? 1u : 0u; });
-  exclusive_scan(backend, stream, flags, entries + 1, scratch.vertex_ids.data());
-  const int64_t selected = scratch.vertex_ids.element(entries, stream);
-  scratch.keys.resize_discard(selected);
-  scratch.blocks.resize_discard(selected);
-  uint64_t* keys = scratch.keys.data();
-  const uint32_t* positions = scratch.vertex_ids.data();
-  parallel_for(backend, stream, entries, [=] COVOX_HD(int64_t i) {
-    if (flags[i]) keys[positions[i]] = pack_block_key(all_blocks[i]);
+  parallel_for(backend, stream, buckets + 1, [=] COVOX_HD(int64_t b) {
+    flags[b] = b < buckets && is_live_block_key(table.keys[b]) && affected[table.slots[b]] > 0 ? 1u : 0u;
   });
-  sort(backend, stream, keys, selected);
+  exclusive_scan(backend, stream, flags, buckets + 1, scratch.vertex_ids.data());
+  const int64_t selected = scratch.vertex_ids.element(buckets, stream);
+  scratch.blocks.resize_discard(selected);
   Index3D* blocks = scratch.blocks.data();
-  parallel_for(backend, stream, selected, [=] COVOX_HD(int64_t i) { blocks[i] = unpack_block_key(keys[i]); });
+  const uint32_t* ranks = scratch.vertex_ids.data();
+  parallel_for(backend, stream, buckets, [=] COVOX_HD(int64_t b) {
+    if (flags[b]) blocks[ranks[b]] = unpack_block_key(table.keys[b]);
+  });
   return selected;
 }
 
-#define COVOX_INSTANTIATE_MESH_INTEGRATOR(Backend)                                                    \
-  template int64_t mesh_extract<Backend>(Backend, TsdfMap&, float, MeshScratchBuffers&, int64_t*, \
-                                         const Stream&);                                                \
+#define COVOX_INSTANTIATE_MESH_INTEGRATOR(Backend)                                                             \
+  template int64_t mesh_extract<Backend>(Backend, TsdfMap&, float, MeshWeld, MeshScratchBuffers&, int64_t*, \
+                                         const Stream&);                                                       \
   template int64_t mesh_select_blocks<Backend>(Backend, TsdfMap&, MeshScratchBuffers&, const Stream&);
 
 }  // namespace covox
