@@ -195,6 +195,35 @@ TEST_P(MeshIntegratorTest, IncrementalBlockMeshesMatchTheFullExtraction) {
   expect_block_meshes_match(integrator.block_meshes(stream), integrator.extract_all(map, stream), 8);
 }
 
+// The two per-block welds (edge table, sorted keys) number vertices the same way.
+TEST_P(MeshIntegratorTest, WeldTableAndSortedWeldGiveTheSameBlockMeshes) {
+  TsdfMap map(device(), TsdfMapConfig{kVoxel, 8, {}});
+  testing_support::fill_tsdf(map, Eigen::Vector3d(-0.7, -0.7, -0.7), Eigen::Vector3d(0.7, 0.7, 0.7), 4 * kVoxel,
+                             box_sdf);
+  const Stream stream(device());
+  MeshIntegratorConfig sorted_config;
+  sorted_config.max_weld_table_entries = 0;
+  MeshIntegrator with_table, with_sort(sorted_config);
+  with_table.update(map, stream);
+  testing_support::fill_tsdf(map, Eigen::Vector3d(-0.7, -0.7, -0.7), Eigen::Vector3d(0.7, 0.7, 0.7), 4 * kVoxel,
+                             box_sdf);  // pending again for the second integrator
+  with_sort.update(map, stream);
+  const auto& a = with_table.block_meshes(stream);
+  const auto& b = with_sort.block_meshes(stream);
+  ASSERT_EQ(a.size(), b.size());
+  ASSERT_FALSE(a.empty());
+  for (const auto& [block, mesh] : a) {
+    const Mesh& other = b.at(block);
+    EXPECT_EQ(mesh.triangles, other.triangles);
+    ASSERT_EQ(mesh.vertices_m.size(), other.vertices_m.size());
+    for (size_t i = 0; i < mesh.vertices_m.size(); ++i) {
+      EXPECT_EQ(mesh.vertices_m[i].x, other.vertices_m[i].x);
+      EXPECT_EQ(mesh.vertices_m[i].y, other.vertices_m[i].y);
+      EXPECT_EQ(mesh.vertices_m[i].z, other.vertices_m[i].z);
+    }
+  }
+}
+
 TEST_P(MeshIntegratorTest, BinaryPlyHoldsEveryVertexAndFace) {
   const Mesh mesh = mesh_of(device(), &sphere_sdf);
   const std::string path = ::testing::TempDir() + "/covox_sphere.ply";

@@ -24,7 +24,8 @@ Mesh MeshIntegrator::extract_all(TsdfMap& map, const Stream& stream) {
   map.blocks().export_entries(&scratch.blocks, &scratch.counts);
   int64_t vertex_count = 0;
   const int64_t triangles = dispatch(map.device(), [&](auto backend) {
-    return mesh_extract(backend, map, config_.min_weight, MeshWeld::kGlobal, scratch, &vertex_count, stream);
+    return mesh_extract(backend, map, config_.min_weight, MeshWeld::kGlobal, scratch, &vertex_count, stream,
+                        config_.max_weld_table_entries);
   });
   Mesh mesh;
   if (triangles == 0) return mesh;
@@ -44,7 +45,8 @@ MeshUpdateStats MeshIntegrator::update(TsdfMap& map, const Stream& stream) {
   dispatch(map.device(), [&](auto backend) {
     stats.blocks_meshed = mesh_select_blocks(backend, map, scratch, stream);
     profile.mark("select blocks");
-    stats.triangles = mesh_extract(backend, map, config_.min_weight, MeshWeld::kPerBlock, scratch, &vertex_count, stream);
+    stats.triangles = mesh_extract(backend, map, config_.min_weight, MeshWeld::kPerBlock, scratch, &vertex_count,
+                                   stream, config_.max_weld_table_entries);
     profile.mark("extract (per-block weld)");
   });
   pending_->append(scratch, vertex_count, stats.triangles, stream);

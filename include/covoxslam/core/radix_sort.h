@@ -7,6 +7,10 @@
 //
 // `keys_alt` and `values_alt` are scratch arrays of at least `count` elements on the same device.
 // Keys must be < 2^key_bits (bits above are ignored, so larger keys would sort wrongly).
+//
+// radix_sort_pairs_swapping() leaves the result in whichever pair of arrays the last pass wrote
+// and swaps the pointers so that `keys` / `values` name it: an odd number of passes then costs
+// no copy back (up to 12 bytes per pair, and two more device operations).
 #include <algorithm>
 #include <cstdint>
 #include <cstring>
@@ -27,8 +31,8 @@
 
 namespace covox {
 
-inline void radix_sort_pairs(CpuBackend, const Stream&, uint64_t* keys, uint32_t* values, int64_t count,
-                             int key_bits, uint64_t* keys_alt, uint32_t* values_alt) {
+inline void radix_sort_pairs_swapping(CpuBackend, const Stream&, uint64_t*& keys, uint32_t*& values, int64_t count,
+                                      int key_bits, uint64_t*& keys_alt, uint32_t*& values_alt) {
   if (count <= 1 || key_bits <= 0) return;
   constexpr int kDigitBits = 8;
   constexpr int kDigits = 1 << kDigitBits;
@@ -74,14 +78,25 @@ inline void radix_sort_pairs(CpuBackend, const Stream&, uint64_t* keys, uint32_t
     std::swap(source_values, target_values);
   }
   if (source_keys != keys) {  // an odd number of passes left the result in the scratch arrays
-    std::memcpy(keys, source_keys, static_cast<size_t>(count) * sizeof(uint64_t));
-    std::memcpy(values, source_values, static_cast<size_t>(count) * sizeof(uint32_t));
+    std::swap(keys, keys_alt);
+    std::swap(values, values_alt);
+  }
+}
+
+inline void radix_sort_pairs(CpuBackend backend, const Stream& stream, uint64_t* keys, uint32_t* values, int64_t count,
+                             int key_bits, uint64_t* keys_alt, uint32_t* values_alt) {
+  uint64_t* sorted_keys = keys;
+  uint32_t* sorted_values = values;
+  radix_sort_pairs_swapping(backend, stream, sorted_keys, sorted_values, count, key_bits, keys_alt, values_alt);
+  if (sorted_keys != keys) {
+    std::memcpy(keys, sorted_keys, static_cast<size_t>(count) * sizeof(uint64_t));
+    std::memcpy(values, sorted_values, static_cast<size_t>(count) * sizeof(uint32_t));
   }
 }
 
 #if defined(__CUDACC__)
-inline void radix_sort_pairs(CudaBackend, const Stream& stream, uint64_t* keys, uint32_t* values, int64_t count,
-                             int key_bits, uint64_t* keys_alt, uint32_t* values_alt) {
+inline void radix_sort_pairs_swapping(CudaBackend, const Stream& stream, uint64_t*& keys, uint32_t*& values,
+                                      int64_t count, int key_bits, uint64_t*& keys_alt, uint32_t*& values_alt) {
   if (count <= 1 || key_bits <= 0) return;
   const auto cuda_stream = static_cast<cudaStream_t>(stream.native_handle());
   cub::DoubleBuffer<uint64_t> key_buffers(keys, keys_alt);
@@ -98,11 +113,21 @@ inline void radix_sort_pairs(CudaBackend, const Stream& stream, uint64_t* keys, 
              "radix sort");
   allocator.deallocate(temporary, temporary_bytes);
   if (key_buffers.Current() != keys) {
-    cuda_check(cudaMemcpyAsync(keys, key_buffers.Current(), count * sizeof(uint64_t), cudaMemcpyDeviceToDevice,
-                               cuda_stream),
+    std::swap(keys, keys_alt);
+    std::swap(values, values_alt);
+  }
+}
+
+inline void radix_sort_pairs(CudaBackend backend, const Stream& stream, uint64_t* keys, uint32_t* values, int64_t count,
+                             int key_bits, uint64_t* keys_alt, uint32_t* values_alt) {
+  uint64_t* sorted_keys = keys;
+  uint32_t* sorted_values = values;
+  radix_sort_pairs_swapping(backend, stream, sorted_keys, sorted_values, count, key_bits, keys_alt, values_alt);
+  if (sorted_keys != keys) {
+    const auto cuda_stream = static_cast<cudaStream_t>(stream.native_handle());
+    cuda_check(cudaMemcpyAsync(keys, sorted_keys, count * sizeof(uint64_t), cudaMemcpyDeviceToDevice, cuda_stream),
                "radix sort (copy back)");
-    cuda_check(cudaMemcpyAsync(values, value_buffers.Current(), count * sizeof(uint32_t), cudaMemcpyDeviceToDevice,
-                               cuda_stream),
+    cuda_check(cudaMemcpyAsync(values, sorted_values, count * sizeof(uint32_t), cudaMemcpyDeviceToDevice, cuda_stream),
                "radix sort (copy back)");
   }
 }

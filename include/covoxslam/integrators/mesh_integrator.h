@@ -18,6 +18,9 @@ namespace covox {
 struct MeshIntegratorConfig {
   // Cubes with a corner of less TSDF weight are not meshed (unobserved space has no surface).
   float min_weight = 1e-4f;
+  // Incremental updates weld vertices through a table of 3 (side + 1)^3 entries per re-meshed
+  // block (12 bytes each with its scans) up to this many entries (about 200 MB), by a sort beyond.
+  int64_t max_weld_table_entries = int64_t(1) << 24;
 };
 
 struct MeshUpdateStats {
@@ -80,7 +83,7 @@ struct MeshScratchBuffers {
       : blocks(device), slots(device), counts(device), offsets(device), keys(device), order(device),
         positions(device), colors(device), flags(device), vertex_ids(device), vertices(device),
         vertex_colors(device), triangles(device), keys_alt(device), order_alt(device), neighbours(device),
-        block_first_vertex(device), block_first_triangle(device), affected(device) {}
+        block_first_vertex(device), block_first_triangle(device), weld_table(device), affected(device) {}
   Buffer<Index3D> blocks;
   Buffer<uint32_t> slots;
   Buffer<uint32_t> counts;
@@ -99,15 +102,20 @@ struct MeshScratchBuffers {
   Buffer<BlockNeighbourSlots> neighbours;
   Buffer<uint32_t> block_first_vertex;
   Buffer<uint32_t> block_first_triangle;
+  Buffer<uint32_t> weld_table;
   // choosing the blocks to re-mesh
   Buffer<uint32_t> affected;
 };
 
 // Meshes the cubes whose first corner lies in scratch.blocks. Returns the number of triangles;
 // fills scratch.vertices / vertex_colors / triangles (and the per-block ranges for kPerBlock).
+// kPerBlock welds through a table of every input block's cube edges while it has at most
+// `max_weld_table_entries` entries (3 (side + 1)^3 per block, 4 bytes each, plus two scan
+// arrays), and by sorting the corners' block-local edge keys beyond: same result, the table
+// needs no sort.
 template <class Backend>
 int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshWeld weld, MeshScratchBuffers& scratch,
-                     int64_t* vertex_count, const Stream& stream);
+                     int64_t* vertex_count, const Stream& stream, int64_t max_weld_table_entries);
 
 // Writes to scratch.blocks, in hash-table bucket order, the blocks whose meshes are out of date:
 // those with kMeshPending set and the allocated blocks just below them; clears their

@@ -4,6 +4,7 @@
 #include "covoxslam/core/atomics.h"
 #include "covoxslam/core/parallel.h"
 #include "covoxslam/core/radix_sort.h"
+#include "covoxslam/core/sorted_search.h"
 #include "covoxslam/integrators/marching_cubes.h"
 #include "covoxslam/integrators/mesh_integrator.h"
 
@@ -72,17 +73,6 @@ COVOX_HD_INLINE Index3D cube_local(int64_t cube, int32_t side, int64_t per_block
                  static_cast<int32_t>(k / (static_cast<int64_t>(side) * side)));
 }
 
-// First index in the sorted keys[0, count) whose key is >= `key` (count if none).
-COVOX_HD_INLINE int64_t lower_bound(const uint64_t* keys, int64_t count, uint64_t key) {
-  int64_t low = 0, high = count;
-  while (low < high) {
-    const int64_t middle = low + (high - low) / 2;
-    if (keys[middle] < key) low = middle + 1;
-    else high = middle;
-  }
-  return low;
-}
-
 }  // namespace mesh_detail
 
 template <class Backend>
@@ -106,7 +96,7 @@ void mesh_find_neighbour_slots(Backend backend, TsdfMap& map, MeshScratchBuffers
 
 template <class Backend>
 int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshWeld weld, MeshScratchBuffers& scratch,
-                     int64_t* vertex_count, const Stream& stream) {
+                     int64_t* vertex_count, const Stream& stream, int64_t max_weld_table_entries) {
   using namespace mesh_detail;
   *vertex_count = 0;
   const int64_t block_count = static_cast<int64_t>(scratch.blocks.size());
@@ -154,6 +144,17 @@ int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshWeld w
   const uint32_t* offsets = scratch.offsets.data();
   const float voxel_size = map.voxel_size_m();
   const int edge_bits = local_edge_bits(side);
+  // Per-block weld through a dense table of every block's edges (one entry per block and local
+  // edge, claimed by the first corner on it) when the table is small enough; else by sorting.
+  const uint32_t edges_per_block = 3u * static_cast<uint32_t>((side + 1) * (side + 1) * (side + 1));
+  const int64_t table_entries = block_count * edges_per_block;
+  const bool weld_table = per_block_weld && table_entries <= max_weld_table_entries;
+  uint32_t* table = nullptr;
+  if (weld_table) {
+    scratch.weld_table.resize_discard(table_entries);
+    scratch.weld_table.fill_bytes(0xff, stream);
+    table = scratch.weld_table.data();
+  }
   parallel_for(backend, stream, cubes, [=] COVOX_HD(int64_t i) {
     if (counts[i] == 0) return;
     const int64_t block = i / per_block;
@@ -176,10 +177,18 @@ int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshWeld w
         const int64_t slot = 3 * t + k;
         const Index3D offset(start & 1, (start >> 1) & 1, (start >> 2) & 1);
         const int axis = marching_cubes::edge_axis(e);
-        keys[slot] = per_block_weld
-                         ? (static_cast<uint64_t>(block) << edge_bits) |
-                               local_edge_key(local.x + offset.x, local.y + offset.y, local.z + offset.z, axis, side)
-                         : edge_key(origin + offset, axis);
+        if (!per_block_weld) {
+          keys[slot] = edge_key(origin + offset, axis);
+        } else {
+          const uint32_t local_edge =
+              local_edge_key(local.x + offset.x, local.y + offset.y, local.z + offset.z, axis, side);
+          if (table) {  // the table entry, claimed by the smallest corner (what a stable sort keeps first)
+            keys[slot] = static_cast<uint64_t>(block) * edges_per_block + local_edge;
+            atomic_min(&table[keys[slot]], static_cast<uint32_t>(slot));
+          } else {
+            keys[slot] = (static_cast<uint64_t>(block) << edge_bits) | local_edge;
+          }
+        }
         order[slot] = static_cast<uint32_t>(slot);
         const Vec3f p = marching_cubes::crossing_point(values, e);
         positions[slot] = Vec3f((origin.x + 0.5f + p.x) * voxel_size, (origin.y + 0.5f + p.y) * voxel_size,
@@ -194,13 +203,51 @@ int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshWeld w
     });
   });
 
+  if (weld_table) {
+    // 3. weld through the table: claimed entries, in (block, local edge) order, are the
+    //    vertices; the same numbering as the sorted keys below.
+    scratch.flags.resize_discard(table_entries + 1);
+    scratch.vertex_ids.resize_discard(table_entries + 1);
+    uint32_t* claimed = scratch.flags.data();
+    parallel_for(backend, stream, table_entries + 1, [=] COVOX_HD(int64_t e) {
+      claimed[e] = e < table_entries && table[e] != kInvalidSlot ? 1u : 0u;
+    });
+    exclusive_scan(backend, stream, claimed, table_entries + 1, scratch.vertex_ids.data());
+    const int64_t vertices = scratch.vertex_ids.element(table_entries, stream);
+    const uint32_t* ids = scratch.vertex_ids.data();
+    uint32_t* block_first_vertex = scratch.block_first_vertex.data();
+    uint32_t* block_first_triangle = scratch.block_first_triangle.data();
+    parallel_for(backend, stream, block_count + 1, [=] COVOX_HD(int64_t b) {
+      block_first_vertex[b] = ids[b * edges_per_block];
+      block_first_triangle[b] = offsets[b * per_block];
+    });
+    scratch.vertices.resize_discard(vertices);
+    scratch.vertex_colors.resize_discard(vertices);
+    scratch.triangles.resize_discard(corners);
+    Vec3f* out_vertices = scratch.vertices.data();
+    Rgb8* out_colors = scratch.vertex_colors.data();
+    uint32_t* out_triangles = scratch.triangles.data();
+    parallel_for(backend, stream, table_entries, [=] COVOX_HD(int64_t e) {
+      if (!claimed[e]) return;
+      out_vertices[ids[e]] = positions[table[e]];
+      out_colors[ids[e]] = corner_colors[table[e]];
+    });
+    parallel_for(backend, stream, corners, [=] COVOX_HD(int64_t j) {
+      out_triangles[j] = ids[keys[j]] - block_first_vertex[keys[j] / edges_per_block];
+    });
+    *vertex_count = vertices;
+    return triangle_count;
+  }
+
   // 3. weld: sort corners by edge, one vertex per distinct edge. Per-block keys need only
   //    bits_for(blocks) + 12 bits: a 3-4 pass radix sort instead of a full 64-bit one.
   if (per_block_weld) {
     scratch.keys_alt.resize_discard(corners);
     scratch.order_alt.resize_discard(corners);
-    radix_sort_pairs(backend, stream, keys, order, corners, bits_for(static_cast<uint64_t>(block_count)) + edge_bits,
-                     scratch.keys_alt.data(), scratch.order_alt.data());
+    uint64_t* keys_alt = scratch.keys_alt.data();
+    uint32_t* order_alt = scratch.order_alt.data();
+    radix_sort_pairs_swapping(backend, stream, keys, order, corners,
+                              bits_for(static_cast<uint64_t>(block_count)) + edge_bits, keys_alt, order_alt);
   } else {
     sort_by_key(backend, stream, keys, order, corners);
   }
@@ -220,7 +267,7 @@ int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshWeld w
     block_first_vertex = scratch.block_first_vertex.data();
     uint32_t* block_first_triangle = scratch.block_first_triangle.data();
     parallel_for(backend, stream, block_count + 1, [=] COVOX_HD(int64_t b) {
-      block_first_vertex[b] = first_ids[lower_bound(keys, corners, static_cast<uint64_t>(b) << edge_bits)];
+      block_first_vertex[b] = first_ids[lower_bound_index(keys, corners, static_cast<uint64_t>(b) << edge_bits)];
       block_first_triangle[b] = offsets[b * per_block];
     });
   }
@@ -294,7 +341,7 @@ int64_t mesh_select_blocks(Backend backend, TsdfMap& map, MeshScratchBuffers& sc
 
 #define COVOX_INSTANTIATE_MESH_INTEGRATOR(Backend)                                                             \
   template int64_t mesh_extract<Backend>(Backend, TsdfMap&, float, MeshWeld, MeshScratchBuffers&, int64_t*, \
-                                         const Stream&);                                                       \
+                                         const Stream&, int64_t);                                              \
   template int64_t mesh_select_blocks<Backend>(Backend, TsdfMap&, MeshScratchBuffers&, const Stream&);
 
 }  // namespace covox

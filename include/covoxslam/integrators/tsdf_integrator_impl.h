@@ -3,13 +3,19 @@
 // once for both backends.
 #include <climits>
 
+#include <array>
+
 #include <thrust/functional.h>
+#include <thrust/iterator/counting_iterator.h>
 #include <thrust/iterator/permutation_iterator.h>
+#include <thrust/iterator/transform_iterator.h>
 #include <thrust/reduce.h>
 
 #include "covoxslam/core/eigen_conversions.h"
 #include "covoxslam/core/parallel.h"
+#include "covoxslam/core/memory.h"
 #include "covoxslam/core/radix_sort.h"
+#include "covoxslam/core/sorted_search.h"
 #include "covoxslam/core/stage_profiler.h"
 #include "covoxslam/integrators/tsdf_integrator_ops.h"
 
@@ -58,26 +64,24 @@ struct AddTallies {
   }
 };
 
-// How many updates carry each of the two "drop me" keys.
-struct DropTally {
-  int64_t zero_weight = 0;
-  int64_t out_of_range = 0;
-};
-struct TallyKey {
-  uint64_t zero_weight_key;
-  uint64_t out_of_range_key;
-  COVOX_HD_INLINE DropTally operator()(uint64_t key) const {
-    DropTally tally;
-    tally.zero_weight = key == zero_weight_key ? 1 : 0;
-    tally.out_of_range = key == out_of_range_key ? 1 : 0;
-    return tally;
+// Keys of rays that must not merge with anything (tsdf::MergeKeysEqual's "alone" key) made
+// distinct, so that a reduction comparing keys with == leaves each of them a run of its own.
+// Real keys stay below 2^62 (FrameKeyCodec), these lie above.
+struct AloneKeysApart {
+  const uint64_t* keys;
+  uint64_t alone_key;
+  COVOX_HD_INLINE uint64_t operator()(int64_t i) const {
+    return keys[i] == alone_key ? ~uint64_t(0) - static_cast<uint64_t>(i) : keys[i];
   }
 };
-struct AddDropTallies {
-  COVOX_HD_INLINE DropTally operator()(const DropTally& a, const DropTally& b) const {
-    return DropTally{a.zero_weight + b.zero_weight, a.out_of_range + b.out_of_range};
-  }
-};
+
+// Copies `count` figures left on the device to the host (one small copy, one wait).
+template <size_t N>
+std::array<uint32_t, N> read_back(const Buffer<uint32_t>& readback, const Stream& stream) {
+  std::array<uint32_t, N> host{};
+  copy_bytes(host.data(), Device::kCpu, readback.data(), readback.device(), N * sizeof(uint32_t), stream);
+  return host;
+}
 
 }  // namespace tsdf_detail
 
@@ -120,14 +124,19 @@ int64_t tsdf_merge_rays(Backend backend, const tsdf::RayParameters& ray_paramete
   scratch.keys_alt.resize_discard(n);
   scratch.order_alt.resize_discard(n);
   profile.mark("keys + bundles");
-  radix_sort_pairs(backend, stream, keys, order, n, codec.key_bits, scratch.keys_alt.data(), scratch.order_alt.data());
+  uint64_t* keys_alt = scratch.keys_alt.data();
+  uint32_t* order_alt = scratch.order_alt.data();
+  radix_sort_pairs_swapping(backend, stream, keys, order, n, codec.key_bits, keys_alt, order_alt);
   profile.mark("sort");
   scratch.merged_keys.resize_discard(n);
   scratch.merged_bundles.resize_discard(n);
+  scratch.readback.resize_discard(4);
   const auto ordered_bundles = thrust::make_permutation_iterator(bundles, order);
-  const int64_t ray_count = reduce_runs(backend, stream, keys, ordered_bundles, n, scratch.merged_keys.data(),
-                                        scratch.merged_bundles.data(), tsdf::MergeKeysEqual{codec.zero_weight_key},
-                                        tsdf::AddBundles());
+  const auto merge_keys = thrust::make_transform_iterator(thrust::make_counting_iterator<int64_t>(0),
+                                                          tsdf_detail::AloneKeysApart{keys, codec.zero_weight_key});
+  reduce_runs_counted_on_device(backend, stream, merge_keys, ordered_bundles, n, scratch.merged_keys.data(),
+                                scratch.merged_bundles.data(), tsdf::AddBundles(), scratch.readback.data());
+  const int64_t ray_count = tsdf_detail::read_back<1>(scratch.readback, stream)[0];
   profile.mark("reduce runs");
 
   scratch.rays.resize_discard(ray_count);
@@ -303,26 +312,39 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
     });
   });
 
-  const tsdf_detail::DropTally drops = transform_reduce(backend, stream, keys, total_updates,
-                                                        tsdf_detail::TallyKey{codec.zero_weight_key, codec.out_of_range_key},
-                                                        tsdf_detail::DropTally{}, tsdf_detail::AddDropTallies{});
-  stats.voxels_out_of_range = drops.out_of_range;
-  profile.mark("2b traverse + drop tally");
+  profile.mark("2b traverse");
 
   // 3. group by voxel and merge (stable sort keeps each voxel's updates in ray order, so the
   //    float sums are the same every run)
   scratch.keys_alt.resize_discard(total_updates);
   scratch.order_alt.resize_discard(total_updates);
-  radix_sort_pairs(backend, stream, keys, order, total_updates, codec.key_bits, scratch.keys_alt.data(),
-                   scratch.order_alt.data());
+  uint64_t* keys_alt = scratch.keys_alt.data();
+  uint32_t* order_alt = scratch.order_alt.data();
+  radix_sort_pairs_swapping(backend, stream, keys, order, total_updates, codec.key_bits, keys_alt, order_alt);
   profile.mark("3a sort updates");
   scratch.merged_keys.resize_discard(total_updates);
   scratch.merged.resize_discard(total_updates);
+  scratch.readback.resize_discard(4);
+  uint32_t* counts_on_device = scratch.readback.data();
   const auto ordered_updates = thrust::make_permutation_iterator(updates, order);
-  int64_t voxel_count = reduce_runs(backend, stream, keys, ordered_updates, total_updates, scratch.merged_keys.data(),
-                                    scratch.merged.data(), thrust::equal_to<uint64_t>(), tsdf::MergeUpdates());
-  // Updates to drop (zero weight, outside the key range) sort last, one run per kind present.
-  voxel_count -= (drops.zero_weight > 0 ? 1 : 0) + (drops.out_of_range > 0 ? 1 : 0);
+  reduce_runs_counted_on_device(backend, stream, static_cast<const uint64_t*>(keys), ordered_updates, total_updates,
+                                scratch.merged_keys.data(), scratch.merged.data(), tsdf::MergeUpdates(),
+                                counts_on_device);
+  // Updates to drop (zero weight, outside the key range) sort last: their counts are where
+  // their keys begin in the sorted keys. One read-back for the three figures.
+  const uint64_t* sorted_keys = keys;
+  parallel_for(backend, stream, 1, [=] COVOX_HD(int64_t) {
+    const int64_t zero_begin = lower_bound_index(sorted_keys, total_updates, codec.zero_weight_key);
+    const int64_t out_begin = lower_bound_index(sorted_keys, total_updates, codec.out_of_range_key);
+    counts_on_device[1] = static_cast<uint32_t>(total_updates - zero_begin);
+    counts_on_device[2] = static_cast<uint32_t>(zero_begin - out_begin);
+  });
+  const std::array<uint32_t, 3> counts = tsdf_detail::read_back<3>(scratch.readback, stream);
+  const int64_t zero_weight_updates = counts[1];
+  stats.voxels_out_of_range = counts[2];
+  int64_t voxel_count = counts[0];
+  // Updates to drop sort last, one run per kind present.
+  voxel_count -= (zero_weight_updates > 0 ? 1 : 0) + (stats.voxels_out_of_range > 0 ? 1 : 0);
   stats.voxels_updated = voxel_count;
   profile.mark("3b reduce runs");
   if (voxel_count == 0) return stats;

@@ -18,7 +18,7 @@ struct TsdfScratchBuffers {
         keys(device), order(device), updates(device), merged_keys(device), merged(device),
         block_indices(device), slots(device), is_new(device), bundles(device), merged_bundles(device),
         ray_colors(device), ray_weights(device), block_flags(device), block_ranks(device), keys_alt(device),
-        order_alt(device), pieces(device), piece_voxels(device), piece_offsets(device) {}
+        order_alt(device), pieces(device), piece_voxels(device), piece_offsets(device), readback(device) {}
   Buffer<Vec3f> points;  // depth images unprojected, or host clouds uploaded
   Buffer<Rgb8> colors;
   Buffer<tsdf::RaySegment> rays;
@@ -47,6 +47,8 @@ struct TsdfScratchBuffers {
   Buffer<tsdf::RayPiece> pieces;
   Buffer<uint32_t> piece_voxels;
   Buffer<uint32_t> piece_offsets;
+  // counts computed on the device and read back together in one copy
+  Buffer<uint32_t> readback;
 };
 
 template <class Backend>

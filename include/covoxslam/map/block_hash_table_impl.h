@@ -121,22 +121,31 @@ ActivateResult hash_table_activate(Backend backend, BlockHashTableState& state,
   if (state.config.allow_growth) hash_table_grow_for_batch(backend, state, keys, count, stream);
 
   state.scratch_buckets.resize_discard(static_cast<size_t>(count));
-  state.scratch_flags.resize_discard(static_cast<size_t>(count) + 1);
+  state.scratch_flags.resize_discard(static_cast<size_t>(count) + 2);
   uint64_t* buckets = state.scratch_buckets.data();
   uint32_t* new_flags = state.scratch_flags.data();
   const BlockHashTableView table = state.view();
 
-  // 1. insert
+  // 1. insert. Keys that could not be placed (outside the key range, table full) are counted in
+  //    new_flags[count], which the scan below then carries into ranks[count + 1]: the number of
+  //    new keys and of failures come back in one copy.
+  set_bytes(new_flags + count, state.scratch_flags.device(), 0, 2 * sizeof(uint32_t), stream);
   parallel_for(backend, stream, count, [=] COVOX_HD(int64_t i) {
     const uint64_t key = pack_block_key(keys[i]);
     bool inserted = false;
     buckets[i] = key == kInvalidBlockKey ? kNoBucket : table.insert(key, &inserted);
     new_flags[i] = inserted ? 1u : 0u;
+    if (buckets[i] >= kTableFullBucket) atomic_add(&new_flags[count], 1u);
   });
 
   // 2. rank the new keys
-  const int64_t num_new = hash_table_detail::rank_flags(backend, stream, state.scratch_flags,
-                                                        &state.scratch_ranks, count);
+  state.scratch_ranks.resize_discard(static_cast<size_t>(count) + 2);
+  exclusive_scan(backend, stream, new_flags, count + 2, state.scratch_ranks.data());
+  uint32_t totals[2];
+  copy_bytes(totals, Device::kCpu, state.scratch_ranks.data() + count, state.scratch_ranks.device(), sizeof(totals),
+             stream);
+  const int64_t num_new = totals[0];
+  const int64_t failed = static_cast<int64_t>(totals[1]) - totals[0];
   // 3. assign slots: reuse freed ones first (top of the stack), then never-used ones
   const uint32_t* ranks = state.scratch_ranks.data();
   const uint32_t* free_stack = state.free_slots.data();
@@ -164,9 +173,7 @@ ActivateResult hash_table_activate(Backend backend, BlockHashTableState& state,
   state.occupied_count += num_new;
   result.num_new = num_new;
 
-  // Failures are rare: one cheap count tells whether the detailed counts are needed.
-  const int64_t failed = count_if(backend, stream, buckets, count,
-                                  [] COVOX_HD(uint64_t bucket) { return bucket >= kTableFullBucket; });
+  // Failures are rare: the detailed counts only when there were any.
   if (failed > 0) {
     result.num_failed_full = count_if(backend, stream, buckets, count, [] COVOX_HD(uint64_t bucket) {
       return bucket == kTableFullBucket;
