@@ -51,6 +51,15 @@ struct TallyRay {
     return tally;
   }
 };
+// The tally of a point's ray, computed from the point (no ray array written): the merged method
+// builds its own rays after merging, so it never needs one ray per point.
+struct TallyPoint {
+  tsdf::RayParameters ray_parameters;
+  float inverse_voxel_size;
+  COVOX_HD_INLINE RayTally operator()(const Vec3f& point) const {
+    return TallyRay{inverse_voxel_size}(tsdf::make_ray(ray_parameters, point));
+  }
+};
 struct AddTallies {
   COVOX_HD_INLINE RayTally operator()(const RayTally& a, const RayTally& b) const {
     RayTally sum;
@@ -85,7 +94,8 @@ std::array<uint32_t, N> read_back(const Buffer<uint32_t>& readback, const Stream
 
 }  // namespace tsdf_detail
 
-// Bundles surface rays by the voxel their point falls into and rewrites scratch.rays with one
+// Bundles surface rays by the voxel their point falls into (rays made from the points here) and
+// writes scratch.rays with one
 // ray per bundle (see tsdf_ray_merging.h), with its weight (point count) in scratch.ray_weights
 // and, when `has_color`, its mean colour in scratch.ray_colors. Returns the number of rays.
 template <class Backend>
@@ -101,10 +111,9 @@ int64_t tsdf_merge_rays(Backend backend, const tsdf::RayParameters& ray_paramete
   uint64_t* keys = scratch.keys.data();
   uint32_t* order = scratch.order.data();
   tsdf::PointBundle* bundles = scratch.bundles.data();
-  const tsdf::RaySegment* rays = scratch.rays.data();
   const Vec3f* points = cloud.points;
   parallel_for(backend, stream, n, [=] COVOX_HD(int64_t i) {
-    const tsdf::RaySegment ray = rays[i];
+    const tsdf::RaySegment ray = tsdf::make_ray(ray_parameters, points[i]);
     keys[i] = tsdf::merge_key(ray, inverse_voxel_size, codec);
     order[i] = static_cast<uint32_t>(i);
     tsdf::PointBundle bundle;
@@ -192,14 +201,10 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
                                                  config.use_sparsity_compensation_factor,
                                                  config.sparsity_compensation_factor};
 
-  // 1. rays, and why points did or did not become rays
-  scratch.rays.resize_discard(n);
-  tsdf::RaySegment* point_rays = scratch.rays.data();
+  // 1. why points did or did not become rays, and the box of voxels their rays traverse
   const Vec3f* points = cloud.points;
-  parallel_for(backend, stream, n,
-               [=] COVOX_HD(int64_t i) { point_rays[i] = tsdf::make_ray(ray_parameters, points[i]); });
   tsdf_detail::RayTally tally =
-      transform_reduce(backend, stream, scratch.rays.data(), n, tsdf_detail::TallyRay{inverse_voxel_size},
+      transform_reduce(backend, stream, points, n, tsdf_detail::TallyPoint{ray_parameters, inverse_voxel_size},
                        tsdf_detail::RayTally{}, tsdf_detail::AddTallies{});
   stats.surface_rays = tally.kinds[tsdf::kSurfaceRay];
   stats.clearing_rays = tally.kinds[tsdf::kClearingRay];
@@ -217,7 +222,12 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
   const bool has_color = colors || intensities;
   const float* ray_weights = nullptr;
   int64_t ray_count = n;
-  if (config.method == TsdfIntegrationMethod::kMerged && stats.surface_rays > 0) {
+  if (config.method != TsdfIntegrationMethod::kMerged || stats.surface_rays == 0) {  // one ray per point
+    scratch.rays.resize_discard(n);
+    tsdf::RaySegment* point_rays = scratch.rays.data();
+    parallel_for(backend, stream, n,
+                 [=] COVOX_HD(int64_t i) { point_rays[i] = tsdf::make_ray(ray_parameters, points[i]); });
+  } else {
     const tsdf::FrameKeyCodec point_codec =
         tsdf::make_frame_key_codec(tally.low_voxel(), tally.high_voxel(), voxels_per_side);
     ray_count = tsdf_merge_rays(backend, ray_parameters, point_codec, cloud, colors, intensities,
