@@ -59,6 +59,14 @@ TEST(BenchmarkReport, TableAlignsTheValueColumn) {
   EXPECT_EQ(unit_columns[0], unit_columns[1]) << report.table();
 }
 
+TEST(BenchmarkReport, CpuOnlyReportsDefaultToTheirOwnFile) {
+  EXPECT_EQ(BenchmarkReport("tsdf", "cuda:0 NVIDIA H100; cpu (16 OpenMP threads)", "c").default_json_path(),
+            "docs/benchmarks/tsdf.json");
+  const std::string cpu = BenchmarkReport("tsdf", "cpu (2 OpenMP threads)", "c").default_json_path();
+  EXPECT_EQ(cpu.rfind("docs/benchmarks/tsdf_cpu_", 0), 0u) << cpu;
+  EXPECT_EQ(cpu.substr(cpu.size() - 9), "core.json") << cpu;
+}
+
 TEST(BenchmarkReport, WriteJsonCreatesFoldersAndReplacesTheFile) {
   const std::filesystem::path folder = std::filesystem::temp_directory_path() / "covox_report_test" / "nested";
   std::filesystem::remove_all(folder.parent_path());

@@ -13,6 +13,7 @@
 #include <iostream>
 #include <sstream>
 #include <system_error>
+#include <thread>
 #include <utility>
 
 #include "covoxslam/core/error.h"
@@ -162,6 +163,9 @@ void BenchmarkReport::add(const std::string& case_name, const std::string& metri
 }
 
 std::string BenchmarkReport::default_json_path() const {
+  if (device_.rfind("cpu", 0) == 0) {
+    return "docs/benchmarks/" + benchmark_ + "_cpu_" + std::to_string(std::thread::hardware_concurrency()) + "core.json";
+  }
   return "docs/benchmarks/" + benchmark_ + ".json";
 }
 

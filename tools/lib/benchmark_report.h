@@ -54,7 +54,8 @@ class BenchmarkReport {
   const std::vector<BenchmarkRow>& rows() const { return rows_; }
 
   // docs/benchmarks/<benchmark>.json, relative to the working directory (the repository root
-  // when run as `build/benchmark_<name>` from there).
+  // when run as `build/benchmark_<name>` from there); docs/benchmarks/<benchmark>_cpu_<N>core.json
+  // for a CPU-only report on an N-core machine, so that a CPU run never overwrites the GPU table.
   std::string default_json_path() const;
 
   // The aligned table: header, a rule, one line per row; the value column is right-aligned.
