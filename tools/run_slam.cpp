@@ -20,6 +20,7 @@
 #include "command_line.h"
 #include "covoxslam/core/device.h"
 #include "covoxslam/core/error.h"
+#include "covoxslam/core/stage_profiler.h"
 #include "covoxslam/io/mesh_ply.h"
 #include "covoxslam/io/trajectory_io.h"
 #include "dataset_scan_sources.h"
@@ -199,6 +200,8 @@ int main(int argc, char** argv) {
     io::write_mesh_ply(mesh_path, result.mesh);
 
     tools::print_slam_run(result, stdout);
+    // With COVOX_PROFILE_STAGES=1: where each module's time went, stage by stage.
+    if (StageProfiler::enabled()) std::printf("\n%s\n", StageProfiler::report().c_str());
     std::printf("mesh -> %s\ntrajectory: %zu poses -> %s\n", mesh_path.c_str(), result.corrected.size(),
                 trajectory_path.c_str());
     if (!map_path.empty()) std::printf("map -> %s\n", map_path.c_str());
