@@ -20,6 +20,7 @@
 #include <omp.h>
 
 #include "covoxslam/core/device.h"
+#include "covoxslam/core/memory.h"
 #include "covoxslam/core/stream.h"
 
 #if defined(__CUDACC__)
@@ -83,17 +84,6 @@ inline void radix_sort_pairs_swapping(CpuBackend, const Stream&, uint64_t*& keys
   }
 }
 
-inline void radix_sort_pairs(CpuBackend backend, const Stream& stream, uint64_t* keys, uint32_t* values, int64_t count,
-                             int key_bits, uint64_t* keys_alt, uint32_t* values_alt) {
-  uint64_t* sorted_keys = keys;
-  uint32_t* sorted_values = values;
-  radix_sort_pairs_swapping(backend, stream, sorted_keys, sorted_values, count, key_bits, keys_alt, values_alt);
-  if (sorted_keys != keys) {
-    std::memcpy(keys, sorted_keys, static_cast<size_t>(count) * sizeof(uint64_t));
-    std::memcpy(values, sorted_values, static_cast<size_t>(count) * sizeof(uint32_t));
-  }
-}
-
 #if defined(__CUDACC__)
 inline void radix_sort_pairs_swapping(CudaBackend, const Stream& stream, uint64_t*& keys, uint32_t*& values,
                                       int64_t count, int key_bits, uint64_t*& keys_alt, uint32_t*& values_alt) {
@@ -117,21 +107,22 @@ inline void radix_sort_pairs_swapping(CudaBackend, const Stream& stream, uint64_
     std::swap(values, values_alt);
   }
 }
+#endif
 
-inline void radix_sort_pairs(CudaBackend backend, const Stream& stream, uint64_t* keys, uint32_t* values, int64_t count,
-                             int key_bits, uint64_t* keys_alt, uint32_t* values_alt) {
+// The sorted pairs back in `keys` / `values` (a copy after an odd number of passes).
+template <class Backend>
+void radix_sort_pairs(Backend backend, const Stream& stream, uint64_t* keys, uint32_t* values, int64_t count,
+                      int key_bits, uint64_t* keys_alt, uint32_t* values_alt) {
   uint64_t* sorted_keys = keys;
   uint32_t* sorted_values = values;
   radix_sort_pairs_swapping(backend, stream, sorted_keys, sorted_values, count, key_bits, keys_alt, values_alt);
   if (sorted_keys != keys) {
-    const auto cuda_stream = static_cast<cudaStream_t>(stream.native_handle());
-    cuda_check(cudaMemcpyAsync(keys, sorted_keys, count * sizeof(uint64_t), cudaMemcpyDeviceToDevice, cuda_stream),
-               "radix sort (copy back)");
-    cuda_check(cudaMemcpyAsync(values, sorted_values, count * sizeof(uint32_t), cudaMemcpyDeviceToDevice, cuda_stream),
-               "radix sort (copy back)");
+    copy_bytes(keys, Backend::kDevice, sorted_keys, Backend::kDevice, static_cast<size_t>(count) * sizeof(uint64_t),
+               stream);
+    copy_bytes(values, Backend::kDevice, sorted_values, Backend::kDevice,
+               static_cast<size_t>(count) * sizeof(uint32_t), stream);
   }
 }
-#endif
 
 // How many bits a key needs to hold values up to `max_key` (at least 1).
 inline int bits_for(uint64_t max_key) {

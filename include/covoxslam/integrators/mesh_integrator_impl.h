@@ -73,6 +73,49 @@ COVOX_HD_INLINE Index3D cube_local(int64_t cube, int32_t side, int64_t per_block
                  static_cast<int32_t>(k / (static_cast<int64_t>(side) * side)));
 }
 
+struct MeshOutputs {
+  Vec3f* vertices;
+  Rgb8* colors;
+  uint32_t* triangles;
+};
+inline MeshOutputs size_outputs(MeshScratchBuffers& scratch, int64_t vertices, int64_t corners) {
+  scratch.vertices.resize_discard(vertices);
+  scratch.vertex_colors.resize_discard(vertices);
+  scratch.triangles.resize_discard(corners);
+  return MeshOutputs{scratch.vertices.data(), scratch.vertex_colors.data(), scratch.triangles.data()};
+}
+
+// Each input block's first vertex (first_vertex(b), b in [0, blocks]) and first triangle (that of
+// its first cube) for the per-block weld.
+template <class Backend, class FirstVertex>
+void write_block_ranges(Backend backend, const Stream& stream, MeshScratchBuffers& scratch, int64_t block_count,
+                        int64_t per_block, const uint32_t* triangle_offsets, FirstVertex first_vertex) {
+  uint32_t* block_first_vertex = scratch.block_first_vertex.data();
+  uint32_t* block_first_triangle = scratch.block_first_triangle.data();
+  parallel_for(backend, stream, block_count + 1, [=] COVOX_HD(int64_t b) {
+    block_first_vertex[b] = first_vertex(b);
+    block_first_triangle[b] = triangle_offsets[b * per_block];
+  });
+}
+
+// The first vertex of input block b under the table weld: the number of claimed entries before
+// the block's part of the table.
+struct TableFirstVertex {
+  const uint32_t* ids;
+  uint32_t edges_per_block;
+  COVOX_HD_INLINE uint32_t operator()(int64_t b) const { return ids[b * edges_per_block]; }
+};
+// ... and under the sorted weld: the vertex of the first key of block b (keys are block-major).
+struct SortedFirstVertex {
+  const uint32_t* first_ids;
+  const uint64_t* keys;
+  int64_t corners;
+  int edge_bits;
+  COVOX_HD_INLINE uint32_t operator()(int64_t b) const {
+    return first_ids[lower_bound_index(keys, corners, static_cast<uint64_t>(b) << edge_bits)];
+  }
+};
+
 }  // namespace mesh_detail
 
 template <class Backend>
@@ -215,25 +258,16 @@ int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshWeld w
     exclusive_scan(backend, stream, claimed, table_entries + 1, scratch.vertex_ids.data());
     const int64_t vertices = scratch.vertex_ids.element(table_entries, stream);
     const uint32_t* ids = scratch.vertex_ids.data();
-    uint32_t* block_first_vertex = scratch.block_first_vertex.data();
-    uint32_t* block_first_triangle = scratch.block_first_triangle.data();
-    parallel_for(backend, stream, block_count + 1, [=] COVOX_HD(int64_t b) {
-      block_first_vertex[b] = ids[b * edges_per_block];
-      block_first_triangle[b] = offsets[b * per_block];
-    });
-    scratch.vertices.resize_discard(vertices);
-    scratch.vertex_colors.resize_discard(vertices);
-    scratch.triangles.resize_discard(corners);
-    Vec3f* out_vertices = scratch.vertices.data();
-    Rgb8* out_colors = scratch.vertex_colors.data();
-    uint32_t* out_triangles = scratch.triangles.data();
+    write_block_ranges(backend, stream, scratch, block_count, per_block, offsets, TableFirstVertex{ids, edges_per_block});
+    const uint32_t* block_first_vertex = scratch.block_first_vertex.data();
+    const MeshOutputs out = size_outputs(scratch, vertices, corners);
     parallel_for(backend, stream, table_entries, [=] COVOX_HD(int64_t e) {
       if (!claimed[e]) return;
-      out_vertices[ids[e]] = positions[table[e]];
-      out_colors[ids[e]] = corner_colors[table[e]];
+      out.vertices[ids[e]] = positions[table[e]];
+      out.colors[ids[e]] = corner_colors[table[e]];
     });
     parallel_for(backend, stream, corners, [=] COVOX_HD(int64_t j) {
-      out_triangles[j] = ids[keys[j]] - block_first_vertex[keys[j] / edges_per_block];
+      out.triangles[j] = ids[keys[j]] - block_first_vertex[keys[j] / edges_per_block];
     });
     *vertex_count = vertices;
     return triangle_count;
@@ -260,31 +294,21 @@ int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshWeld w
   exclusive_scan(backend, stream, flags, corners + 1, scratch.vertex_ids.data());
   const int64_t vertices = scratch.vertex_ids.element(corners, stream);
   const uint32_t* first_ids = scratch.vertex_ids.data();
-  uint32_t* block_first_vertex = nullptr;
+  const uint32_t* block_first_vertex = nullptr;
   if (per_block_weld) {
-    // Block b's vertices are those of the keys from b << edge_bits on (keys are block-major),
-    // its triangles those of its cubes.
+    write_block_ranges(backend, stream, scratch, block_count, per_block, offsets,
+                       SortedFirstVertex{first_ids, keys, corners, edge_bits});
     block_first_vertex = scratch.block_first_vertex.data();
-    uint32_t* block_first_triangle = scratch.block_first_triangle.data();
-    parallel_for(backend, stream, block_count + 1, [=] COVOX_HD(int64_t b) {
-      block_first_vertex[b] = first_ids[lower_bound_index(keys, corners, static_cast<uint64_t>(b) << edge_bits)];
-      block_first_triangle[b] = offsets[b * per_block];
-    });
   }
-  scratch.vertices.resize_discard(vertices);
-  scratch.vertex_colors.resize_discard(vertices);
-  scratch.triangles.resize_discard(corners);
-  Vec3f* out_vertices = scratch.vertices.data();
-  Rgb8* out_colors = scratch.vertex_colors.data();
-  uint32_t* out_triangles = scratch.triangles.data();
+  const MeshOutputs out = size_outputs(scratch, vertices, corners);
   parallel_for(backend, stream, corners, [=] COVOX_HD(int64_t j) {
     // The run of equal keys that j belongs to starts where the flag was set.
     const uint32_t id = first_ids[j] + flags[j] - 1;
     if (flags[j]) {
-      out_vertices[id] = positions[order[j]];
-      out_colors[id] = corner_colors[order[j]];
+      out.vertices[id] = positions[order[j]];
+      out.colors[id] = corner_colors[order[j]];
     }
-    out_triangles[order[j]] = block_first_vertex ? id - block_first_vertex[keys[j] >> edge_bits] : id;
+    out.triangles[order[j]] = block_first_vertex ? id - block_first_vertex[keys[j] >> edge_bits] : id;
   });
   *vertex_count = vertices;
   return triangle_count;
