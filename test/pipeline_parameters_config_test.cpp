@@ -85,6 +85,7 @@ std::map<std::string, Expectation> expectations() {
       {"registration_sampling_ratio", {"0.25", [](const SlamConfig& c) { return c.registration.sampling_ratio == 0.25f; }}},
       {"registration_distance",
        {"esdf", [](const SlamConfig& c) { return c.registration.distance == RegistrationDistance::kEsdf; }}},
+      {"registration_symmetric", {"true", [](const SlamConfig& c) { return c.registration.symmetric; }}},
       {"registration_robust_loss",
        {"cauchy", [](const SlamConfig& c) { return c.registration.robust_loss == RobustLoss::kCauchy; }}},
       {"registration_robust_loss_scale_m", {"0.4", [](const SlamConfig& c) { return c.registration.robust_loss_scale_m == 0.4; }}},

@@ -161,27 +161,24 @@ RegistrationNormalEquations registration_normal_equations(const RegistrationPoin
   return normal_equations_into(points_i, map_j, T_W_Si, T_W_Sj, config, &scratch, stream);
 }
 
-RegistrationResult align_submaps(const RegistrationPoints& points_i, const TsdfMap& map_j,
-                                 const Pose4Dof& initial_T_Sj_Si, const RegistrationAlignerConfig& config,
-                                 const Stream& stream) {
+namespace {
+
+// The LM over the relative pose T_Sj_Si shared by the one-way and the symmetric aligner;
+// `normal_equations(pose)` returns the sums at a candidate pose.
+template <class NormalEquations>
+RegistrationResult run_aligner(const Pose4Dof& initial_T_Sj_Si, const RegistrationAlignerConfig& config,
+                               NormalEquations&& normal_equations) {
   if (config.max_iterations < 1) {
     throw Error("align_submaps: max_iterations must be >= 1, got " + std::to_string(config.max_iterations));
   }
-  // Submap j is the reference frame: T_W_Sj = identity, so T_W_Si is the relative pose itself.
-  const Pose4Dof identity;
-  Buffer<RegistrationResidual> scratch(map_j.device());
   Pose4Dof pose = initial_T_Sj_Si;
-  RegistrationNormalEquations current =
-      normal_equations_into(points_i, map_j, pose, identity, config.residual, &scratch, stream);
-  auto require_overlap = [&](const RegistrationNormalEquations& eq) {
-    if (eq.used_points < config.min_used_points) {
-      throw Error("align_submaps: only " + std::to_string(eq.used_points) + " of " +
-                  std::to_string(eq.used_points + eq.skipped_points) +
-                  " registration points fall inside submap j's observed field (need " +
-                  std::to_string(config.min_used_points) + "); the submaps do not overlap at this guess");
-    }
-  };
-  require_overlap(current);
+  RegistrationNormalEquations current = normal_equations(pose);
+  if (current.used_points < config.min_used_points) {
+    throw Error("align_submaps: only " + std::to_string(current.used_points) + " of " +
+                std::to_string(current.used_points + current.skipped_points) +
+                " registration points fall inside submap j's observed field (need " +
+                std::to_string(config.min_used_points) + "); the submaps do not overlap at this guess");
+  }
   RegistrationResult result;
   result.initial_cost = current.cost;
   double lambda = config.initial_lambda;
@@ -200,10 +197,9 @@ RegistrationResult align_submaps(const RegistrationPoints& points_i, const TsdfM
     candidate.y += step(1);
     candidate.z += step(2);
     candidate.yaw += step(3);
-    const RegistrationNormalEquations trial =
-        normal_equations_into(points_i, map_j, candidate, identity, config.residual, &scratch, stream);
-    // Points leaving j's field drop out of the sum; compare mean costs so that losing points is
-    // not mistaken for progress.
+    const RegistrationNormalEquations trial = normal_equations(candidate);
+    // Points leaving the other field drop out of the sum; compare mean costs so that losing points
+    // is not mistaken for progress.
     const double current_mean = current.cost / std::max<int64_t>(current.used_points, 1);
     const double trial_mean = trial.cost / std::max<int64_t>(trial.used_points, 1);
     const bool small_step = std::abs(step(0)) < config.translation_tolerance_m &&
@@ -232,6 +228,106 @@ RegistrationResult align_submaps(const RegistrationPoints& points_i, const TsdfM
   result.skipped_points = current.skipped_points;
   result.hessian = current.hessian_i;
   return result;
+}
+
+RegistrationNormalEquations sum_of(const RegistrationNormalEquations& a, const RegistrationNormalEquations& b) {
+  RegistrationNormalEquations sum;
+  sum.hessian_i = a.hessian_i + b.hessian_i;
+  sum.gradient_i = a.gradient_i + b.gradient_i;
+  sum.cost = a.cost + b.cost;
+  sum.used_points = a.used_points + b.used_points;
+  sum.skipped_points = a.skipped_points + b.skipped_points;
+  return sum;
+}
+
+void check_symmetric_pair(const SymmetricRegistrationPair& pair) {
+  if (!pair.points_i || !pair.map_j || !pair.points_j || !pair.map_i) {
+    throw Error("symmetric registration: points_i, map_j, points_j and map_i must all be given");
+  }
+  if (!(pair.reverse_weight_scale > 0.0 && std::isfinite(pair.reverse_weight_scale))) {
+    throw Error("symmetric registration: reverse_weight_scale must be finite and > 0, got " +
+                std::to_string(pair.reverse_weight_scale));
+  }
+}
+
+// Submap j's points in submap i's field as sums over T_Sj_Si: the points' own pose is then
+// T_Si_Sj = T_Sj_Si^-1 (submap i the reference), and the chain rule through the inverse turns
+// their Jacobian into one with respect to T_Sj_Si.
+RegistrationNormalEquations reverse_normal_equations(const SymmetricRegistrationPair& pair, const Pose4Dof& T_Sj_Si,
+                                                     const RegistrationResidualConfig& config,
+                                                     Buffer<RegistrationResidual>* scratch, const Stream& stream) {
+  const double k = pair.reverse_weight_scale;
+  RegistrationResidualConfig reverse_config = config;
+  // The loss at scale a of residuals times sqrt(k) is k times the loss at scale a / sqrt(k).
+  reverse_config.loss_scale = config.loss_scale / std::sqrt(k);
+  const RegistrationNormalEquations of_inverse = normal_equations_into(
+      *pair.points_j, *pair.map_i, inverse_pose_4dof(T_Sj_Si), Pose4Dof(), reverse_config, scratch, stream);
+  const Eigen::Matrix4d A = inverse_pose_4dof_jacobian(T_Sj_Si);
+  RegistrationNormalEquations out = of_inverse;
+  out.hessian_i = k * A.transpose() * of_inverse.hessian_i * A;
+  out.gradient_i = k * A.transpose() * of_inverse.gradient_i;
+  out.cost = k * of_inverse.cost;
+  return out;
+}
+
+}  // namespace
+
+RegistrationResult align_submaps(const RegistrationPoints& points_i, const TsdfMap& map_j,
+                                 const Pose4Dof& initial_T_Sj_Si, const RegistrationAlignerConfig& config,
+                                 const Stream& stream) {
+  // Submap j is the reference frame: T_W_Sj = identity, so T_W_Si is the relative pose itself.
+  Buffer<RegistrationResidual> scratch(map_j.device());
+  return run_aligner(initial_T_Sj_Si, config, [&](const Pose4Dof& T_Sj_Si) {
+    return normal_equations_into(points_i, map_j, T_Sj_Si, Pose4Dof(), config.residual, &scratch, stream);
+  });
+}
+
+Pose4Dof inverse_pose_4dof(const Pose4Dof& T) {
+  // x_Si = Rz(-yaw) (x_Sj - t).
+  const double c = std::cos(T.yaw), s = std::sin(T.yaw);
+  Pose4Dof inverse;
+  inverse.x = -(c * T.x + s * T.y);
+  inverse.y = -(-s * T.x + c * T.y);
+  inverse.z = -T.z;
+  inverse.yaw = -T.yaw;
+  return inverse;
+}
+
+Eigen::Matrix4d inverse_pose_4dof_jacobian(const Pose4Dof& T) {
+  // The derivatives of inverse_pose_4dof's four lines.
+  const double c = std::cos(T.yaw), s = std::sin(T.yaw);
+  const Pose4Dof P = inverse_pose_4dof(T);
+  Eigen::Matrix4d A = Eigen::Matrix4d::Zero();
+  A(0, 0) = -c;
+  A(0, 1) = -s;
+  A(0, 3) = P.y;
+  A(1, 0) = s;
+  A(1, 1) = -c;
+  A(1, 3) = -P.x;
+  A(2, 2) = -1.0;
+  A(3, 3) = -1.0;
+  return A;
+}
+
+RegistrationNormalEquations symmetric_registration_normal_equations(const SymmetricRegistrationPair& pair,
+                                                                    const Pose4Dof& T_Sj_Si,
+                                                                    const RegistrationResidualConfig& config,
+                                                                    const Stream& stream) {
+  check_symmetric_pair(pair);
+  Buffer<RegistrationResidual> scratch(pair.map_j->device()), reverse_scratch(pair.map_i->device());
+  return sum_of(normal_equations_into(*pair.points_i, *pair.map_j, T_Sj_Si, Pose4Dof(), config, &scratch, stream),
+                reverse_normal_equations(pair, T_Sj_Si, config, &reverse_scratch, stream));
+}
+
+RegistrationResult align_submaps_symmetric(const SymmetricRegistrationPair& pair, const Pose4Dof& initial_T_Sj_Si,
+                                           const RegistrationAlignerConfig& config, const Stream& stream) {
+  check_symmetric_pair(pair);
+  Buffer<RegistrationResidual> scratch(pair.map_j->device()), reverse_scratch(pair.map_i->device());
+  return run_aligner(initial_T_Sj_Si, config, [&](const Pose4Dof& T_Sj_Si) {
+    return sum_of(
+        normal_equations_into(*pair.points_i, *pair.map_j, T_Sj_Si, Pose4Dof(), config.residual, &scratch, stream),
+        reverse_normal_equations(pair, T_Sj_Si, config.residual, &reverse_scratch, stream));
+  });
 }
 
 Constraint4Dof make_registration_constraint(int32_t vertex_j, int32_t vertex_i, const RegistrationResult& result,

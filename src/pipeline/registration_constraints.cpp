@@ -200,10 +200,11 @@ struct Attempt {
 };
 
 // One alignment from `start`, judged against the guess `initial`.
+// `reverse`: the symmetric pair (registration.h) when the partner's points are used too, else null.
 Attempt attempt_alignment(const SubmapRegistrationPoints& points, const TsdfMap& map_j, const backend::Pose4Dof& initial,
                           const backend::Pose4Dof& start, const backend::RegistrationAlignerConfig& aligner,
-                          const SubmapRegistrationConfig& config, Buffer<backend::RegistrationResidual>* scratch,
-                          const Stream& stream) {
+                          const SubmapRegistrationConfig& config, const backend::SymmetricRegistrationPair* reverse,
+                          Buffer<backend::RegistrationResidual>* scratch, const Stream& stream) {
   Attempt attempt;
   const backend::RegistrationNormalEquations at_start =
       backend::registration_normal_equations(points.points, map_j, start, backend::Pose4Dof(), aligner.residual, stream);
@@ -212,7 +213,8 @@ Attempt attempt_alignment(const SubmapRegistrationPoints& points, const TsdfMap&
     return attempt;
   }
   try {
-    attempt.result = backend::align_submaps(points.points, map_j, start, aligner, stream);
+    attempt.result = reverse ? backend::align_submaps_symmetric(*reverse, start, aligner, stream)
+                             : backend::align_submaps(points.points, map_j, start, aligner, stream);
   } catch (const std::exception& error) {
     log_message(LogLevel::kDebug, "SLAM registration: an alignment failed: ", error.what());
     attempt.verdict = Verdict::kFailed;
@@ -353,13 +355,27 @@ std::vector<SubmapConstraint> registration_constraints(int64_t id, const TsdfMap
       continue;
     }
     const backend::Pose4Dof initial = relative_pose_4dof(partner.pose, pose);  // T_Sj_Si
-    Attempt best = attempt_alignment(points, *partner.map, initial, initial, aligner, config, &scratch, stream);
+    // Symmetric: the partner's own registration points in the new submap's field as well, their
+    // weights brought to the new submap's units (the ratio of the mean weights, see the header).
+    std::unique_ptr<SubmapRegistrationPoints> partner_points;
+    backend::SymmetricRegistrationPair pair;
+    if (config.symmetric) {
+      partner_points = prepare_registration_points(*partner.map, config, stream);
+      pair.points_i = &points.points;
+      pair.map_j = partner.map;
+      pair.points_j = &partner_points->points;
+      pair.map_i = &map;
+      pair.reverse_weight_scale = points.mean_weight / partner_points->mean_weight;
+    }
+    const backend::SymmetricRegistrationPair* reverse = config.symmetric ? &pair : nullptr;
+    Attempt best = attempt_alignment(points, *partner.map, initial, initial, aligner, config, reverse, &scratch, stream);
     const Verdict direct_verdict = best.verdict;
     bool from_search = false;
     if (best.verdict != Verdict::kAccepted && config.search_enabled) {
       for (const backend::Pose4Dof& start :
            search_starts(points, *partner.map, initial, aligner.residual, config, &scratch, stream)) {
-        Attempt attempt = attempt_alignment(points, *partner.map, initial, start, aligner, config, &scratch, stream);
+        Attempt attempt =
+            attempt_alignment(points, *partner.map, initial, start, aligner, config, reverse, &scratch, stream);
         if (attempt.verdict != Verdict::kAccepted) continue;
         if (best.verdict != Verdict::kAccepted || attempt.fit.fraction() > best.fit.fraction()) {
           best = attempt;

@@ -229,6 +229,7 @@ const std::vector<SlamParameter>& slam_parameters() {
       number_parameter("registration_sampling_ratio", COVOX_FIELD(registration.sampling_ratio),
                        in_unit_interval_open_closed),
       text_parameter("registration_distance", COVOX_FIELD(registration.distance), parse_registration_distance),
+      bool_parameter("registration_symmetric", COVOX_FIELD(registration.symmetric)),
       text_parameter("registration_robust_loss", COVOX_FIELD(registration.robust_loss), parse_robust_loss),
       number_parameter("registration_robust_loss_scale_m", COVOX_FIELD(registration.robust_loss_scale_m), positive),
       number_parameter("registration_point_sigma_m", COVOX_FIELD(registration.point_sigma_m), positive),

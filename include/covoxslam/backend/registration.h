@@ -137,6 +137,35 @@ RegistrationResult align_submaps(const RegistrationPoints& points_i, const TsdfM
                                  const Pose4Dof& initial_T_Sj_Si, const RegistrationAlignerConfig& config,
                                  const Stream& stream);
 
+// Symmetric registration: besides submap i's points in submap j's field (above), submap j's
+// points in submap i's field, both in one Levenberg-Marquardt over T_Sj_Si. Each direction has
+// its own biases (the points of one submap, the unobserved corners and view-dependent TSDF of the
+// other); on the simulated drone flight the two-way solve ended nearer the true relative pose
+// than the one-way solve (docs/benchmarks.md, "Registration accuracy on the simulated flight").
+struct SymmetricRegistrationPair {
+  const RegistrationPoints* points_i = nullptr;
+  const TsdfMap* map_j = nullptr;
+  const RegistrationPoints* points_j = nullptr;  // on map_i's device
+  const TsdfMap* map_i = nullptr;
+  // The j-in-i terms (cost, gradient, Hessian) are multiplied by this, as if each of their
+  // residuals were multiplied by its square root (the robust loss sees them so scaled too): it
+  // brings the two submaps' TSDF weights to common units (the ratio of their mean weights).
+  double reverse_weight_scale = 1.0;
+};
+// Sums over the relative pose T_Sj_Si of both directions (used_points counts both).
+RegistrationNormalEquations symmetric_registration_normal_equations(const SymmetricRegistrationPair& pair,
+                                                                    const Pose4Dof& T_Sj_Si,
+                                                                    const RegistrationResidualConfig& config,
+                                                                    const Stream& stream);
+// As align_submaps, with both directions (min_used_points counts both). Throws covox::Error on a
+// missing member or a bad reverse_weight_scale.
+RegistrationResult align_submaps_symmetric(const SymmetricRegistrationPair& pair, const Pose4Dof& initial_T_Sj_Si,
+                                           const RegistrationAlignerConfig& config, const Stream& stream);
+
+// T^-1 of a 4-DoF pose (x_Si = Rz(-yaw) (x_Sj - t)) and its 4x4 Jacobian d T^-1 / d T.
+Pose4Dof inverse_pose_4dof(const Pose4Dof& T);
+Eigen::Matrix4d inverse_pose_4dof_jacobian(const Pose4Dof& T);
+
 // A relative 4-DoF constraint from j to i (measurement T_Sj_Si) for the pose-graph solver;
 // information = hessian / residual_sigma^2 (the residual's noise in residual units).
 Constraint4Dof make_registration_constraint(int32_t vertex_j, int32_t vertex_i, const RegistrationResult& result,

@@ -63,6 +63,11 @@ struct SubmapRegistrationConfig {
   // kTsdfNearSurface: sub-voxel TSDF distances near surfaces, ESDF beyond (see registration.h);
   // kEsdf: voxgraph's plain ESDF.
   backend::RegistrationDistance distance = backend::RegistrationDistance::kTsdfNearSurface;
+  // Symmetric alignment (backend::align_submaps_symmetric): the earlier submap's registration
+  // points are aligned into the new submap's field as well, in the same solve. Off by default
+  // (voxgraph's one-way alignment); on in the ARCHE preset and config/arche.yaml (measured on the
+  // simulated flight: docs/benchmarks.md, "Registration accuracy on the simulated flight").
+  bool symmetric = false;
   backend::RobustLoss robust_loss = backend::RobustLoss::kNone;  // voxgraph uses none
   double robust_loss_scale_m = 0.1;
   // Noise of one registration point's distance (see above). The points of a 0.2 m map are not
