@@ -4,6 +4,7 @@
 #include <climits>
 
 #include <array>
+#include <type_traits>
 
 #include <thrust/functional.h>
 #include <thrust/iterator/counting_iterator.h>
@@ -83,6 +84,25 @@ struct AloneKeysApart {
     return keys[i] == alone_key ? ~uint64_t(0) - static_cast<uint64_t>(i) : keys[i];
   }
 };
+
+// Step 5's colour blend: a frame without colour (DistanceUpdate) has none to blend. (Overloads,
+// not `if constexpr`: nvcc's extended lambdas may not first-capture inside a constexpr if.)
+template <class ColorView>
+COVOX_HD_INLINE void blend_color(const ColorView&, int64_t, const tsdf::DistanceUpdate&, float) {}
+template <class ColorView>
+COVOX_HD_INLINE void blend_color(const ColorView& color_view, int64_t index, const tsdf::VoxelUpdate& update,
+                                 float max_weight) {
+  if (update.color_weight <= 0.0f) return;
+  ColorVoxel color = color_view.load(index);
+  const float color_combined = color.weight + update.color_weight;
+  const float old_part = color.weight / color_combined;
+  const float inverse_new = 1.0f / color_combined;
+  color.r = static_cast<uint8_t>(fminf(255.0f, color.r * old_part + update.weighted_r * inverse_new + 0.5f));
+  color.g = static_cast<uint8_t>(fminf(255.0f, color.g * old_part + update.weighted_g * inverse_new + 0.5f));
+  color.b = static_cast<uint8_t>(fminf(255.0f, color.b * old_part + update.weighted_b * inverse_new + 0.5f));
+  color.weight = color_combined < max_weight ? color_combined : max_weight;
+  color_view.store(index, color);
+}
 
 // Copies `count` figures left on the device to the host (one small copy, one wait).
 template <size_t N>
@@ -171,6 +191,193 @@ int64_t tsdf_merge_rays(Backend backend, const tsdf::RayParameters& ray_paramete
                          static_cast<uint8_t>((bundle.b + half) / bundle.count)};
   });
   return ray_count;
+}
+
+// Steps 2b to 5 of a frame (see tsdf_integrate_points): traverse the ray pieces into one update
+// per voxel visit, group the updates by voxel and merge them, allocate the blocks, write each
+// voxel once. UpdateT is tsdf::VoxelUpdate (with colour) or tsdf::DistanceUpdate (without): a
+// LiDAR without intensity then moves 8 bytes per update instead of 24 through the traverse, the
+// sort's permutation and the reduction.
+template <class UpdateT, class Backend>
+void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, const tsdf::FrameUpdates& frame,
+                       TsdfMap& map, TsdfScratchBuffers& scratch, IntegrationStats& stats, StageProfiler::Scope& profile,
+                       const Stream& stream) {
+  const tsdf::FrameKeyCodec codec = frame.codec;
+  const int64_t total_updates = frame.total_updates;
+  const int64_t piece_bound = frame.piece_bound;
+  const uint32_t* piece_total = frame.piece_total;
+  const tsdf::RayPiece* pieces = frame.pieces;
+  const tsdf::RaySegment* rays = frame.rays;
+  const Rgb8* colors = frame.colors;
+  const float* intensities = frame.intensities;
+  const float grey_per_intensity = frame.grey_per_intensity;
+  const float* ray_weights = frame.ray_weights;
+  const float inverse_voxel_size = frame.inverse_voxel_size;
+  const float voxel_size = frame.voxel_size;
+  const float truncation = config.truncation_distance_m;
+  const tsdf::WeightParameters weight_parameters = frame.weight_parameters;
+  scratch.keys.resize_discard(total_updates);
+  scratch.order.resize_discard(total_updates);
+  // The update arrays hold VoxelUpdate elements; an 8-byte DistanceUpdate frame uses them as
+  // raw storage (a third of the size).
+  const int64_t storage = (total_updates * static_cast<int64_t>(sizeof(UpdateT)) + sizeof(tsdf::VoxelUpdate) - 1) /
+                          static_cast<int64_t>(sizeof(tsdf::VoxelUpdate));
+  scratch.updates.resize_discard(storage);
+  uint64_t* keys = scratch.keys.data();
+  uint32_t* order = scratch.order.data();
+  UpdateT* updates = reinterpret_cast<UpdateT*>(scratch.updates.data());
+  const uint32_t* piece_offsets = scratch.piece_offsets.data();
+  parallel_for(backend, stream, piece_bound, [=] COVOX_HD(int64_t p) {
+    if (p >= *piece_total) return;
+    const tsdf::RayPiece piece = pieces[p];
+    const int64_t i = piece.ray;
+    const tsdf::RaySegment ray = rays[i];
+    uint32_t out = piece_offsets[p];
+    const bool clearing = ray.kind == tsdf::kClearingRay;
+    const Rgb8 color = colors ? colors[i] : (intensities ? tsdf::intensity_to_grey(intensities[i], grey_per_intensity) : Rgb8{});
+    const float ray_weight = ray_weights ? ray_weights[i] : 1.0f;
+    tsdf::traverse_ray_piece(ray, piece.index, piece.pieces, inverse_voxel_size, [&](const Index3D& voxel) {
+      const Vec3f center((voxel.x + 0.5f) * voxel_size, (voxel.y + 0.5f) * voxel_size,
+                         (voxel.z + 0.5f) * voxel_size);
+      float distance = clearing ? truncation : (ray.surface - center).dot(ray.direction);
+      float weight = 0.0f;
+      if (distance >= -truncation) {
+        if (distance > truncation) distance = truncation;
+        weight = ray_weight * tsdf::update_weight(weight_parameters, ray.range_m, distance);
+      }
+      UpdateT update;
+      update.weighted_distance = weight * distance;
+      update.weight = weight;
+      if (!clearing && fabsf(distance) < truncation && weight > 0.0f) tsdf::set_update_color(update, weight, color);
+      keys[out] = weight > 0.0f ? codec.key(voxel) : codec.zero_weight_key;
+      order[out] = out;
+      updates[out] = update;
+      ++out;
+    });
+  });
+
+  profile.mark("2b traverse");
+
+  // 3. group by voxel and merge (stable sort keeps each voxel's updates in ray order, so the
+  //    float sums are the same every run)
+  scratch.keys_alt.resize_discard(total_updates);
+  scratch.order_alt.resize_discard(total_updates);
+  uint64_t* keys_alt = scratch.keys_alt.data();
+  uint32_t* order_alt = scratch.order_alt.data();
+  radix_sort_pairs_swapping(backend, stream, keys, order, total_updates, codec.key_bits, keys_alt, order_alt);
+  profile.mark("3a sort updates");
+  scratch.merged_keys.resize_discard(total_updates);
+  scratch.merged.resize_discard(storage);
+  UpdateT* merged_updates = reinterpret_cast<UpdateT*>(scratch.merged.data());
+  scratch.readback.resize_discard(4);
+  uint32_t* counts_on_device = scratch.readback.data();
+  const auto ordered_updates = thrust::make_permutation_iterator(updates, order);
+  reduce_runs_counted_on_device(backend, stream, static_cast<const uint64_t*>(keys), ordered_updates, total_updates,
+                                scratch.merged_keys.data(), merged_updates, tsdf::MergeUpdates(),
+                                counts_on_device);
+  // Updates to drop (zero weight, outside the key range) sort last: their counts are where
+  // their keys begin in the sorted keys. One read-back for the three figures.
+  const uint64_t* sorted_keys = keys;
+  parallel_for(backend, stream, 1, [=] COVOX_HD(int64_t) {
+    const int64_t zero_begin = lower_bound_index(sorted_keys, total_updates, codec.zero_weight_key);
+    const int64_t out_begin = lower_bound_index(sorted_keys, total_updates, codec.out_of_range_key);
+    counts_on_device[1] = static_cast<uint32_t>(total_updates - zero_begin);
+    counts_on_device[2] = static_cast<uint32_t>(zero_begin - out_begin);
+  });
+  const std::array<uint32_t, 3> counts = tsdf_detail::read_back<3>(scratch.readback, stream);
+  const int64_t zero_weight_updates = counts[1];
+  stats.voxels_out_of_range = counts[2];
+  int64_t voxel_count = counts[0];
+  // Updates to drop sort last, one run per kind present.
+  voxel_count -= (zero_weight_updates > 0 ? 1 : 0) + (stats.voxels_out_of_range > 0 ? 1 : 0);
+  stats.voxels_updated = voxel_count;
+  profile.mark("3b reduce runs");
+  if (voxel_count == 0) return;
+
+  // 4. allocate the distinct blocks of the touched voxels in one batch. Merged keys are sorted
+  //    block-major, so each block's voxels form one run: the run's first voxel names the block and
+  //    a scan ranks the runs. The hash table sees a few hundred blocks, not one key per voxel.
+  scratch.block_flags.resize_discard(voxel_count + 1);
+  scratch.block_ranks.resize_discard(voxel_count + 1);
+  uint32_t* block_flags = scratch.block_flags.data();
+  const uint64_t* merged_keys = scratch.merged_keys.data();
+  parallel_for(backend, stream, voxel_count + 1, [=] COVOX_HD(int64_t v) {
+    block_flags[v] = v < voxel_count && (v == 0 || codec.block_part(merged_keys[v]) !=
+                                                       codec.block_part(merged_keys[v - 1]))
+                         ? 1u
+                         : 0u;
+  });
+  exclusive_scan(backend, stream, block_flags, voxel_count + 1, scratch.block_ranks.data());
+  const int64_t block_count = static_cast<int64_t>(scratch.block_ranks.element(voxel_count, stream));
+  scratch.block_indices.resize_discard(block_count);
+  scratch.slots.resize_discard(block_count);
+  scratch.is_new.resize_discard(block_count);
+  Index3D* block_indices = scratch.block_indices.data();
+  const uint32_t* block_ranks = scratch.block_ranks.data();
+  parallel_for(backend, stream, voxel_count, [=] COVOX_HD(int64_t v) {
+    if (block_flags[v]) block_indices[block_ranks[v]] = codec.block(merged_keys[v]);
+  });
+  profile.mark("4a distinct blocks");
+  const ActivateResult activation =
+      map.blocks().activate(block_indices, block_count, scratch.slots.data(), scratch.is_new.data(), stream);
+  stats.blocks_allocated = activation.num_new;
+  profile.mark("4b hash activate");
+  map.ensure_pool_capacity(stream);
+  profile.mark("4c pool capacity");
+  const uint32_t* slots = scratch.slots.data();
+  if (activation.num_out_of_range + activation.num_failed_full > 0) {
+    // Rare: count the voxels whose block the hash table rejected (outside its key range, or full).
+    scratch.counts.resize_discard(voxel_count);
+    uint32_t* rejected = scratch.counts.data();
+    parallel_for(backend, stream, voxel_count, [=] COVOX_HD(int64_t v) {
+      rejected[v] = slots[block_ranks[v] + block_flags[v] - 1] == kInvalidSlot ? 1u : 0u;
+    });
+    stats.voxels_out_of_range += count_if(backend, stream, rejected, voxel_count, [] COVOX_HD(uint32_t r) { return r != 0; });
+  }
+
+  // Mark the blocks changed (for the ESDF and the mesh) and clear new ones: a new block may
+  // reuse the slot of an erased one.
+  auto tsdf_view = map.tsdf().view();
+  auto color_view = map.color().view();
+  uint8_t* block_changed = map.block_changed().data();
+  auto esdf_view = map.esdf().view();
+  const uint8_t* is_new = scratch.is_new.data();
+  const int64_t voxels_per_block = map.voxels_per_block();
+  parallel_for(backend, stream, block_count, [=] COVOX_HD(int64_t b) {
+    if (slots[b] != kInvalidSlot) block_changed[slots[b]] = kAllPending;
+  });
+  if (activation.num_new > 0) {
+    parallel_for(backend, stream, block_count * voxels_per_block, [=] COVOX_HD(int64_t i) {
+      const int64_t b = i / voxels_per_block;
+      if (!is_new[b] || slots[b] == kInvalidSlot) return;
+      const int64_t index = static_cast<int64_t>(slots[b]) * voxels_per_block + i % voxels_per_block;
+      tsdf_view.store(index, TsdfVoxel{});
+      color_view.store(index, ColorVoxel{});
+      esdf_view.store(index, EsdfVoxel{});
+    });
+  }
+
+  profile.mark("4d mark + clear new blocks");
+
+  // 5. one weighted-average write per distinct voxel
+  const UpdateT* merged = merged_updates;
+  const float max_weight = config.max_weight;
+  parallel_for(backend, stream, voxel_count, [=] COVOX_HD(int64_t v) {
+    const uint32_t slot = slots[block_ranks[v] + block_flags[v] - 1];  // the rank of v's run
+    const UpdateT update = merged[v];
+    if (slot == kInvalidSlot || update.weight <= 0.0f) return;
+    const int64_t index = static_cast<int64_t>(slot) * voxels_per_block + codec.voxel_in_block(merged_keys[v]);
+    TsdfVoxel voxel = tsdf_view.load(index);
+    const float combined = voxel.weight + update.weight;
+    float distance = (voxel.distance_m * voxel.weight + update.weighted_distance) / combined;
+    distance = distance > truncation ? truncation : (distance < -truncation ? -truncation : distance);
+    voxel.distance_m = distance;
+    voxel.weight = combined < max_weight ? combined : max_weight;
+    tsdf_view.store(index, voxel);
+    tsdf_detail::blend_color(color_view, index, update, max_weight);
+  });
+  stream.synchronize();
+  profile.mark("5 voxel writes");
 }
 
 template <class Backend>
@@ -280,179 +487,14 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
   exclusive_scan(backend, stream, piece_voxels, piece_bound, scratch.piece_offsets.data());
   profile.mark("2a ray pieces");
 
-  scratch.keys.resize_discard(total_updates);
-  scratch.order.resize_discard(total_updates);
-  scratch.updates.resize_discard(total_updates);
-  uint64_t* keys = scratch.keys.data();
-  uint32_t* order = scratch.order.data();
-  tsdf::VoxelUpdate* updates = scratch.updates.data();
-  const uint32_t* piece_offsets = scratch.piece_offsets.data();
-  const float truncation = config.truncation_distance_m;
-  parallel_for(backend, stream, piece_bound, [=] COVOX_HD(int64_t p) {
-    if (p >= *piece_total) return;
-    const tsdf::RayPiece piece = pieces[p];
-    const int64_t i = piece.ray;
-    const tsdf::RaySegment ray = rays[i];
-    uint32_t out = piece_offsets[p];
-    const bool clearing = ray.kind == tsdf::kClearingRay;
-    const Rgb8 color = colors ? colors[i] : (intensities ? tsdf::intensity_to_grey(intensities[i], grey_per_intensity) : Rgb8{});
-    const float ray_weight = ray_weights ? ray_weights[i] : 1.0f;
-    tsdf::traverse_ray_piece(ray, piece.index, piece.pieces, inverse_voxel_size, [&](const Index3D& voxel) {
-      const Vec3f center((voxel.x + 0.5f) * voxel_size, (voxel.y + 0.5f) * voxel_size,
-                         (voxel.z + 0.5f) * voxel_size);
-      float distance = clearing ? truncation : (ray.surface - center).dot(ray.direction);
-      float weight = 0.0f;
-      if (distance >= -truncation) {
-        if (distance > truncation) distance = truncation;
-        weight = ray_weight * tsdf::update_weight(weight_parameters, ray.range_m, distance);
-      }
-      tsdf::VoxelUpdate update;
-      update.weighted_distance = weight * distance;
-      update.weight = weight;
-      if (has_color && !clearing && fabsf(distance) < truncation && weight > 0.0f) {
-        update.weighted_r = weight * color.r;
-        update.weighted_g = weight * color.g;
-        update.weighted_b = weight * color.b;
-        update.color_weight = weight;
-      }
-      keys[out] = weight > 0.0f ? codec.key(voxel) : codec.zero_weight_key;
-      order[out] = out;
-      updates[out] = update;
-      ++out;
-    });
-  });
-
-  profile.mark("2b traverse");
-
-  // 3. group by voxel and merge (stable sort keeps each voxel's updates in ray order, so the
-  //    float sums are the same every run)
-  scratch.keys_alt.resize_discard(total_updates);
-  scratch.order_alt.resize_discard(total_updates);
-  uint64_t* keys_alt = scratch.keys_alt.data();
-  uint32_t* order_alt = scratch.order_alt.data();
-  radix_sort_pairs_swapping(backend, stream, keys, order, total_updates, codec.key_bits, keys_alt, order_alt);
-  profile.mark("3a sort updates");
-  scratch.merged_keys.resize_discard(total_updates);
-  scratch.merged.resize_discard(total_updates);
-  scratch.readback.resize_discard(4);
-  uint32_t* counts_on_device = scratch.readback.data();
-  const auto ordered_updates = thrust::make_permutation_iterator(updates, order);
-  reduce_runs_counted_on_device(backend, stream, static_cast<const uint64_t*>(keys), ordered_updates, total_updates,
-                                scratch.merged_keys.data(), scratch.merged.data(), tsdf::MergeUpdates(),
-                                counts_on_device);
-  // Updates to drop (zero weight, outside the key range) sort last: their counts are where
-  // their keys begin in the sorted keys. One read-back for the three figures.
-  const uint64_t* sorted_keys = keys;
-  parallel_for(backend, stream, 1, [=] COVOX_HD(int64_t) {
-    const int64_t zero_begin = lower_bound_index(sorted_keys, total_updates, codec.zero_weight_key);
-    const int64_t out_begin = lower_bound_index(sorted_keys, total_updates, codec.out_of_range_key);
-    counts_on_device[1] = static_cast<uint32_t>(total_updates - zero_begin);
-    counts_on_device[2] = static_cast<uint32_t>(zero_begin - out_begin);
-  });
-  const std::array<uint32_t, 3> counts = tsdf_detail::read_back<3>(scratch.readback, stream);
-  const int64_t zero_weight_updates = counts[1];
-  stats.voxels_out_of_range = counts[2];
-  int64_t voxel_count = counts[0];
-  // Updates to drop sort last, one run per kind present.
-  voxel_count -= (zero_weight_updates > 0 ? 1 : 0) + (stats.voxels_out_of_range > 0 ? 1 : 0);
-  stats.voxels_updated = voxel_count;
-  profile.mark("3b reduce runs");
-  if (voxel_count == 0) return stats;
-
-  // 4. allocate the distinct blocks of the touched voxels in one batch. Merged keys are sorted
-  //    block-major, so each block's voxels form one run: the run's first voxel names the block and
-  //    a scan ranks the runs. The hash table sees a few hundred blocks, not one key per voxel.
-  scratch.block_flags.resize_discard(voxel_count + 1);
-  scratch.block_ranks.resize_discard(voxel_count + 1);
-  uint32_t* block_flags = scratch.block_flags.data();
-  const uint64_t* merged_keys = scratch.merged_keys.data();
-  parallel_for(backend, stream, voxel_count + 1, [=] COVOX_HD(int64_t v) {
-    block_flags[v] = v < voxel_count && (v == 0 || codec.block_part(merged_keys[v]) !=
-                                                       codec.block_part(merged_keys[v - 1]))
-                         ? 1u
-                         : 0u;
-  });
-  exclusive_scan(backend, stream, block_flags, voxel_count + 1, scratch.block_ranks.data());
-  const int64_t block_count = static_cast<int64_t>(scratch.block_ranks.element(voxel_count, stream));
-  scratch.block_indices.resize_discard(block_count);
-  scratch.slots.resize_discard(block_count);
-  scratch.is_new.resize_discard(block_count);
-  Index3D* block_indices = scratch.block_indices.data();
-  const uint32_t* block_ranks = scratch.block_ranks.data();
-  parallel_for(backend, stream, voxel_count, [=] COVOX_HD(int64_t v) {
-    if (block_flags[v]) block_indices[block_ranks[v]] = codec.block(merged_keys[v]);
-  });
-  profile.mark("4a distinct blocks");
-  const ActivateResult activation =
-      map.blocks().activate(block_indices, block_count, scratch.slots.data(), scratch.is_new.data(), stream);
-  stats.blocks_allocated = activation.num_new;
-  profile.mark("4b hash activate");
-  map.ensure_pool_capacity(stream);
-  profile.mark("4c pool capacity");
-  const uint32_t* slots = scratch.slots.data();
-  if (activation.num_out_of_range + activation.num_failed_full > 0) {
-    // Rare: count the voxels whose block the hash table rejected (outside its key range, or full).
-    scratch.counts.resize_discard(voxel_count);
-    uint32_t* rejected = scratch.counts.data();
-    parallel_for(backend, stream, voxel_count, [=] COVOX_HD(int64_t v) {
-      rejected[v] = slots[block_ranks[v] + block_flags[v] - 1] == kInvalidSlot ? 1u : 0u;
-    });
-    stats.voxels_out_of_range += count_if(backend, stream, rejected, voxel_count, [] COVOX_HD(uint32_t r) { return r != 0; });
+  const tsdf::FrameUpdates frame{codec,       total_updates, piece_bound,        piece_total,        pieces,
+                                  rays,        colors,        intensities,        grey_per_intensity, ray_weights,
+                                  inverse_voxel_size, voxel_size, weight_parameters};
+  if (has_color) {
+    tsdf_fuse_updates<tsdf::VoxelUpdate>(backend, config, frame, map, scratch, stats, profile, stream);
+  } else {
+    tsdf_fuse_updates<tsdf::DistanceUpdate>(backend, config, frame, map, scratch, stats, profile, stream);
   }
-
-  // Mark the blocks changed (for the ESDF and the mesh) and clear new ones: a new block may
-  // reuse the slot of an erased one.
-  auto tsdf_view = map.tsdf().view();
-  auto color_view = map.color().view();
-  uint8_t* block_changed = map.block_changed().data();
-  auto esdf_view = map.esdf().view();
-  const uint8_t* is_new = scratch.is_new.data();
-  const int64_t voxels_per_block = map.voxels_per_block();
-  parallel_for(backend, stream, block_count, [=] COVOX_HD(int64_t b) {
-    if (slots[b] != kInvalidSlot) block_changed[slots[b]] = kAllPending;
-  });
-  if (activation.num_new > 0) {
-    parallel_for(backend, stream, block_count * voxels_per_block, [=] COVOX_HD(int64_t i) {
-      const int64_t b = i / voxels_per_block;
-      if (!is_new[b] || slots[b] == kInvalidSlot) return;
-      const int64_t index = static_cast<int64_t>(slots[b]) * voxels_per_block + i % voxels_per_block;
-      tsdf_view.store(index, TsdfVoxel{});
-      color_view.store(index, ColorVoxel{});
-      esdf_view.store(index, EsdfVoxel{});
-    });
-  }
-
-  profile.mark("4d mark + clear new blocks");
-
-  // 5. one weighted-average write per distinct voxel
-  const tsdf::VoxelUpdate* merged = scratch.merged.data();
-  const float max_weight = config.max_weight;
-  parallel_for(backend, stream, voxel_count, [=] COVOX_HD(int64_t v) {
-    const uint32_t slot = slots[block_ranks[v] + block_flags[v] - 1];  // the rank of v's run
-    const tsdf::VoxelUpdate update = merged[v];
-    if (slot == kInvalidSlot || update.weight <= 0.0f) return;
-    const int64_t index = static_cast<int64_t>(slot) * voxels_per_block + codec.voxel_in_block(merged_keys[v]);
-    TsdfVoxel voxel = tsdf_view.load(index);
-    const float combined = voxel.weight + update.weight;
-    float distance = (voxel.distance_m * voxel.weight + update.weighted_distance) / combined;
-    distance = distance > truncation ? truncation : (distance < -truncation ? -truncation : distance);
-    voxel.distance_m = distance;
-    voxel.weight = combined < max_weight ? combined : max_weight;
-    tsdf_view.store(index, voxel);
-    if (update.color_weight > 0.0f) {
-      ColorVoxel color = color_view.load(index);
-      const float color_combined = color.weight + update.color_weight;
-      const float old_part = color.weight / color_combined;
-      const float inverse_new = 1.0f / color_combined;
-      color.r = static_cast<uint8_t>(fminf(255.0f, color.r * old_part + update.weighted_r * inverse_new + 0.5f));
-      color.g = static_cast<uint8_t>(fminf(255.0f, color.g * old_part + update.weighted_g * inverse_new + 0.5f));
-      color.b = static_cast<uint8_t>(fminf(255.0f, color.b * old_part + update.weighted_b * inverse_new + 0.5f));
-      color.weight = color_combined < max_weight ? color_combined : max_weight;
-      color_view.store(index, color);
-    }
-  });
-  stream.synchronize();
-  profile.mark("5 voxel writes");
   return stats;
 }
 

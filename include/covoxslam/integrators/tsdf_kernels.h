@@ -74,7 +74,28 @@ struct VoxelUpdate {
   float color_weight = 0.0f;
 };
 
+// The same without colour (8 bytes instead of 24), for frames that carry none.
+struct DistanceUpdate {
+  float weighted_distance = 0.0f;
+  float weight = 0.0f;
+};
+
+// The colour part of an update (none for a DistanceUpdate).
+COVOX_HD_INLINE void set_update_color(DistanceUpdate&, float, const Rgb8&) {}
+COVOX_HD_INLINE void set_update_color(VoxelUpdate& update, float weight, const Rgb8& color) {
+  update.weighted_r = weight * color.r;
+  update.weighted_g = weight * color.g;
+  update.weighted_b = weight * color.b;
+  update.color_weight = weight;
+}
+
 struct MergeUpdates {
+  COVOX_HD_INLINE DistanceUpdate operator()(const DistanceUpdate& a, const DistanceUpdate& b) const {
+    DistanceUpdate sum;
+    sum.weighted_distance = a.weighted_distance + b.weighted_distance;
+    sum.weight = a.weight + b.weight;
+    return sum;
+  }
   COVOX_HD_INLINE VoxelUpdate operator()(const VoxelUpdate& a, const VoxelUpdate& b) const {
     VoxelUpdate sum;
     sum.weighted_distance = a.weighted_distance + b.weighted_distance;
@@ -294,6 +315,23 @@ struct WeightParameters {
   bool use_weight_dropoff;
   bool use_sparsity_compensation_factor;
   float sparsity_compensation_factor;
+};
+
+// What the per-voxel stages of a frame need from the ray stages (device pointers).
+struct FrameUpdates {
+  FrameKeyCodec codec;
+  int64_t total_updates;
+  int64_t piece_bound;
+  const uint32_t* piece_total;  // on the device
+  const RayPiece* pieces;
+  const RaySegment* rays;
+  const Rgb8* colors;
+  const float* intensities;
+  float grey_per_intensity;
+  const float* ray_weights;
+  float inverse_voxel_size;
+  float voxel_size;
+  WeightParameters weight_parameters;
 };
 
 // voxblox's weighting. The inverse-square term uses the measured range rather than the
