@@ -465,6 +465,37 @@ TEST_P(TsdfIntegratorTest, SameInputTwiceGivesBitIdenticalMaps) {
   }
 }
 
+// Colour rides along: the same cloud with colours, or with colour fusion off (which moves the
+// slimmer distance-only updates), gives bit-identical distances and weights.
+TEST_P(TsdfIntegratorTest, ColourDoesNotChangeDistancesOrWeights) {
+  const AnalyticScene scene = make_scene(Shape::kBox);
+  std::vector<std::vector<HostBlock>> snapshots;
+  for (const bool with_colour : {true, false}) {
+    TsdfIntegratorConfig config = analytic_config(0.1f);
+    config.integrate_color = with_colour;
+    TsdfMap map(device(), TsdfMapConfig{0.1f, 16, {}});
+    TsdfIntegrator integrator(config);
+    for (const auto& pose : viewpoints()) {
+      const std::vector<Vec3f> points = testing_support::simulate_lidar(scene, pose, 512, 32, 60.0, 9.5);
+      std::vector<Rgb8> colours(points.size());
+      for (size_t i = 0; i < points.size(); ++i) colours[i] = Rgb8{uint8_t(i % 251), uint8_t(i % 13), 200};
+      integrator.integrate(map, points, colours, pose);
+    }
+    snapshots.push_back(map.snapshot());
+  }
+  ASSERT_EQ(snapshots[0].size(), snapshots[1].size());
+  ASSERT_FALSE(snapshots[0].empty());
+  int coloured = 0;
+  for (size_t b = 0; b < snapshots[0].size(); ++b) {
+    ASSERT_EQ(snapshots[0][b].index, snapshots[1][b].index);
+    ASSERT_EQ(0, std::memcmp(snapshots[0][b].tsdf.data(), snapshots[1][b].tsdf.data(),
+                             snapshots[0][b].tsdf.size() * sizeof(TsdfVoxel)));
+    for (const ColorVoxel& c : snapshots[0][b].color) coloured += c.weight > 0.0f;
+    for (const ColorVoxel& c : snapshots[1][b].color) EXPECT_EQ(c.weight, 0.0f);
+  }
+  EXPECT_GT(coloured, 100);  // the colour run did fuse colour
+}
+
 TEST_P(TsdfIntegratorTest, BadPointsAreDroppedAndCounted) {
   TsdfIntegratorConfig config;
   config.max_ray_length_m = 5.0f;
