@@ -9,7 +9,6 @@
 // cuda::par_nosync on the stream. Functors must be COVOX_HD (or `[=] COVOX_HD` lambdas).
 #include <algorithm>
 #include <cstdint>
-#include <type_traits>
 #include <vector>
 
 #include <omp.h>
@@ -100,16 +99,16 @@ void sort_by_key(Backend backend, const Stream& stream, Key* keys, Value* values
   thrust::stable_sort_by_key(execution_policy(backend, stream), keys, keys + count, values);
 }
 
-// Merges each run of consecutive keys that are `equal` with `op`, reading values through any
-// random-access iterator (e.g. a permutation of the updates); writes one key and one value per
-// run and returns the number of runs.
+// Merges each run of consecutive keys that are `equal` with `op`, reading keys and values through
+// any random-access iterators (e.g. a permutation of the updates); writes one key and one value
+// per run and returns the number of runs.
 //
 // CPU: Thrust's OpenMP reduce_by_key is a generic, mostly serial algorithm, so the twin splits
 // the keys into one chunk per thread at run boundaries, counts each chunk's runs, and reduces
 // every run left to right in its chunk (deterministic, in input order). CUDA: Thrust's
 // reduce_by_key (a segmented scan).
-template <class Key, class ValueIterator, class Value, class Equal, class ReduceOp>
-int64_t reduce_runs(CpuBackend, const Stream&, const Key* keys, ValueIterator values, int64_t count, Key* keys_out,
+template <class KeyIterator, class ValueIterator, class Key, class Value, class Equal, class ReduceOp>
+int64_t reduce_runs(CpuBackend, const Stream&, KeyIterator keys, ValueIterator values, int64_t count, Key* keys_out,
                     Value* values_out, Equal equal, ReduceOp op) {
   if (count <= 0) return 0;
   const int threads = omp_get_max_threads();
@@ -143,8 +142,8 @@ int64_t reduce_runs(CpuBackend, const Stream&, const Key* keys, ValueIterator va
   return first_run[threads];
 }
 #if defined(__CUDACC__)
-template <class Key, class ValueIterator, class Value, class Equal, class ReduceOp>
-int64_t reduce_runs(CudaBackend backend, const Stream& stream, const Key* keys, ValueIterator values, int64_t count,
+template <class KeyIterator, class ValueIterator, class Key, class Value, class Equal, class ReduceOp>
+int64_t reduce_runs(CudaBackend backend, const Stream& stream, KeyIterator keys, ValueIterator values, int64_t count,
                     Key* keys_out, Value* values_out, Equal equal, ReduceOp op) {
   if (count <= 0) return 0;
   auto ends = thrust::reduce_by_key(execution_policy(backend, stream), keys, keys + count, values, keys_out,
@@ -217,17 +216,8 @@ Result transform_reduce(CudaBackend, const Stream& stream, const T* data, int64_
 template <class KeyIterator, class Key, class ValueIterator, class Value, class ReduceOp>
 void reduce_runs_counted_on_device(CpuBackend backend, const Stream& stream, KeyIterator keys, ValueIterator values,
                                    int64_t count, Key* keys_out, Value* values_out, ReduceOp op, uint32_t* run_count) {
-  std::vector<Key> key_copy;  // reduce_runs reads keys through a pointer
-  const Key* key_pointer = nullptr;
-  if constexpr (std::is_pointer<KeyIterator>::value) {
-    key_pointer = keys;
-  } else {
-    key_copy.resize(static_cast<size_t>(count));
-    parallel_for(backend, stream, count, [&](int64_t i) { key_copy[i] = keys[i]; });
-    key_pointer = key_copy.data();
-  }
   *run_count = static_cast<uint32_t>(
-      reduce_runs(backend, stream, key_pointer, values, count, keys_out, values_out, thrust::equal_to<Key>(), op));
+      reduce_runs(backend, stream, keys, values, count, keys_out, values_out, thrust::equal_to<Key>(), op));
 }
 #if defined(__CUDACC__)
 template <class KeyIterator, class Key, class ValueIterator, class Value, class ReduceOp>

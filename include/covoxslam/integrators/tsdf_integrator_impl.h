@@ -74,17 +74,6 @@ struct AddTallies {
   }
 };
 
-// Keys of rays that must not merge with anything (tsdf::MergeKeysEqual's "alone" key) made
-// distinct, so that a reduction comparing keys with == leaves each of them a run of its own.
-// Real keys stay below 2^62 (FrameKeyCodec), these lie above.
-struct AloneKeysApart {
-  const uint64_t* keys;
-  uint64_t alone_key;
-  COVOX_HD_INLINE uint64_t operator()(int64_t i) const {
-    return keys[i] == alone_key ? ~uint64_t(0) - static_cast<uint64_t>(i) : keys[i];
-  }
-};
-
 // Step 5's colour blend: a frame without colour (DistanceUpdate) has none to blend. (Overloads,
 // not `if constexpr`: nvcc's extended lambdas may not first-capture inside a constexpr if.)
 template <class ColorView>
@@ -115,9 +104,9 @@ std::array<uint32_t, N> read_back(const Buffer<uint32_t>& readback, const Stream
 }  // namespace tsdf_detail
 
 // Bundles surface rays by the voxel their point falls into (rays made from the points here) and
-// writes scratch.rays with one
-// ray per bundle (see tsdf_ray_merging.h), with its weight (point count) in scratch.ray_weights
-// and, when `has_color`, its mean colour in scratch.ray_colors. Returns the number of rays.
+// writes scratch.rays with one ray per bundle (see tsdf_ray_merging.h), with its weight (point
+// count) in scratch.ray_weights and, when `has_color`, its mean colour in scratch.ray_colors.
+// Returns the number of rays.
 template <class Backend>
 int64_t tsdf_merge_rays(Backend backend, const tsdf::RayParameters& ray_parameters, const tsdf::FrameKeyCodec& codec,
                         const PointCloudView& cloud, const Rgb8* colors, const float* intensities,
@@ -162,7 +151,7 @@ int64_t tsdf_merge_rays(Backend backend, const tsdf::RayParameters& ray_paramete
   scratch.readback.resize_discard(4);
   const auto ordered_bundles = thrust::make_permutation_iterator(bundles, order);
   const auto merge_keys = thrust::make_transform_iterator(thrust::make_counting_iterator<int64_t>(0),
-                                                          tsdf_detail::AloneKeysApart{keys, codec.zero_weight_key});
+                                                          tsdf::AloneKeysApart{keys, codec.zero_weight_key});
   reduce_runs_counted_on_device(backend, stream, merge_keys, ordered_bundles, n, scratch.merged_keys.data(),
                                 scratch.merged_bundles.data(), tsdf::AddBundles(), scratch.readback.data());
   const int64_t ray_count = tsdf_detail::read_back<1>(scratch.readback, stream)[0];

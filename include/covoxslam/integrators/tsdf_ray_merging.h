@@ -50,7 +50,7 @@ COVOX_HD_INLINE int64_t to_merge_units(float metres) {
 }
 
 // The merge key of a point's ray: the key of its surface voxel for surface rays; the codec's
-// "alone" key (its zero-weight key) otherwise, which MergeKeysEqual never merges.
+// "alone" key (its zero-weight key) otherwise, which AloneKeysApart keeps from merging.
 COVOX_HD_INLINE uint64_t merge_key(const RaySegment& ray, float inverse_voxel_size, const FrameKeyCodec& codec) {
   if (ray.kind == kSurfaceRay) {
     const uint64_t key = codec.key(voxel_of(ray.surface, inverse_voxel_size));
@@ -59,11 +59,15 @@ COVOX_HD_INLINE uint64_t merge_key(const RaySegment& ray, float inverse_voxel_si
   return codec.zero_weight_key;
 }
 
-// Equality for reduce_by_key over merge keys: rays that must stay alone never merge, so they
-// can share one key (and the stable sort keeps them in input order).
-struct MergeKeysEqual {
+// The merge keys as a reduction compares them (with ==): rays that must stay alone share the
+// "alone" key, so each is given a distinct key of its own above every real key (FrameKeyCodec
+// keys stay below 2^62) and the stable sort keeps them in input order.
+struct AloneKeysApart {
+  const uint64_t* keys;
   uint64_t alone_key;
-  COVOX_HD_INLINE bool operator()(uint64_t a, uint64_t b) const { return a == b && a != alone_key; }
+  COVOX_HD_INLINE uint64_t operator()(int64_t i) const {
+    return keys[i] == alone_key ? ~uint64_t(0) - static_cast<uint64_t>(i) : keys[i];
+  }
 };
 
 }  // namespace tsdf
