@@ -5,6 +5,7 @@
 #include <thrust/functional.h>
 
 #include "covoxslam/core/parallel.h"
+#include "covoxslam/map/block_voxel_indexer.h"
 
 namespace covox {
 namespace backend {
@@ -39,11 +40,8 @@ int64_t registration_collect_points(Backend backend, VoxelView<TsdfVoxel, Layout
       sampled[i] = 0;
       return;
     }
-    const Index3D block = block_indices[b];
-    const int32_t x = block.x * side + static_cast<int32_t>(k % side);
-    const int32_t y = block.y * side + static_cast<int32_t>((k / side) % side);
-    const int32_t z = block.z * side + static_cast<int32_t>(k / (side * side));
-    sampled[i] = registration_sample_uniform(x, y, z, seed) < ratio ? 1 : 0;
+    const Index3D v = global_voxel(block_indices[b], k, side);
+    sampled[i] = registration_sample_uniform(v.x, v.y, v.z, seed) < ratio ? 1 : 0;
   });
   const int64_t surface_count = reduce(backend, stream, surface_flags, total, int64_t(0), thrust::plus<int64_t>());
   const int64_t last_flag = offsets.element(static_cast<size_t>(total - 1), stream);
@@ -57,13 +55,10 @@ int64_t registration_collect_points(Backend backend, VoxelView<TsdfVoxel, Layout
     const int64_t next = i + 1 < total ? sampled[i + 1] : kept;
     if (next == sampled[i]) return;
     const int64_t b = i / per_block, k = i % per_block;
-    const Index3D block = block_indices[b];
-    const int32_t x = block.x * side + static_cast<int32_t>(k % side);
-    const int32_t y = block.y * side + static_cast<int32_t>((k / side) % side);
-    const int32_t z = block.z * side + static_cast<int32_t>(k / (side * side));
+    const Index3D v = global_voxel(block_indices[b], k, side);
     const TsdfVoxel voxel = tsdf.load(static_cast<int64_t>(block_slots[b]) * per_block + k);
     RegistrationPoint p;
-    p.position_m = Vec3f((x + 0.5f) * voxel_size_m, (y + 0.5f) * voxel_size_m, (z + 0.5f) * voxel_size_m);
+    p.position_m = Vec3f((v.x + 0.5f) * voxel_size_m, (v.y + 0.5f) * voxel_size_m, (v.z + 0.5f) * voxel_size_m);
     p.tsdf_distance_m = voxel.distance_m;
     p.weight = voxel.weight;
     out[sampled[i]] = p;

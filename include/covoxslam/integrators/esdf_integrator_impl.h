@@ -10,6 +10,7 @@
 #include "covoxslam/core/error.h"
 #include "covoxslam/core/parallel.h"
 #include "covoxslam/integrators/esdf_integrator.h"
+#include "covoxslam/map/block_voxel_indexer.h"
 
 namespace covox {
 namespace esdf_detail {
@@ -66,12 +67,6 @@ struct VoxelBox {
   int64_t size(int axis) const { return static_cast<int64_t>(hi[axis]) - lo[axis] + 1; }
   int64_t volume() const { return size(0) * size(1) * size(2); }
 };
-
-// Global coordinates of voxel k (x fastest) of the block with index `block`.
-COVOX_HD_INLINE Index3D global_voxel(const Index3D& block, int64_t k, int32_t side) {
-  return Index3D(block.x * side + static_cast<int32_t>(k % side), block.y * side + static_cast<int32_t>((k / side) % side),
-                 block.z * side + static_cast<int32_t>(k / (side * side)));
-}
 
 // Exact 1-D squared distance transform of f along one line (Felzenszwalb & Huttenlocher):
 // out[q] = min_p (q - p)^2 + f[p]. Entries equal to kFar take no part. `sites` and `bounds` are

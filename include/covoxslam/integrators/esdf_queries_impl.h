@@ -4,6 +4,7 @@
 
 #include "covoxslam/core/parallel.h"
 #include "covoxslam/integrators/esdf_queries_ops.h"
+#include "covoxslam/map/block_voxel_indexer.h"
 
 namespace covox {
 
@@ -29,14 +30,11 @@ int64_t esdf_collect_layer(Backend backend, VoxelView<EsdfVoxel, Layout::kSoA> e
   float* values = distances->data();
   parallel_for(backend, stream, total, [=] COVOX_HD(int64_t i) {
     const int64_t b = i / per_block, k = i % per_block;
-    const Index3D block = block_indices[b];
-    const int32_t x = block.x * side + static_cast<int32_t>(k % side);
-    const int32_t y = block.y * side + static_cast<int32_t>((k / side) % side);
-    const int32_t z = block.z * side + static_cast<int32_t>(k / (side * side));
+    const Index3D v = global_voxel(block_indices[b], k, side);
     const int64_t index = static_cast<int64_t>(block_slots[b]) * per_block + k;
     keys[i] = ~uint64_t(0);
-    if (z < layer_min || z > layer_max || !esdf.get<&EsdfVoxel::observed>(index)) return;
-    keys[i] = esdf_column_key(x, y);
+    if (v.z < layer_min || v.z > layer_max || !esdf.get<&EsdfVoxel::observed>(index)) return;
+    keys[i] = esdf_column_key(v.x, v.y);
     values[i] = esdf.get<&EsdfVoxel::distance_m>(index);
   });
   // Group by column, take the minimum distance of each; unused entries sort last.

@@ -7,6 +7,7 @@
 #include "covoxslam/core/sorted_search.h"
 #include "covoxslam/integrators/marching_cubes.h"
 #include "covoxslam/integrators/mesh_integrator.h"
+#include "covoxslam/map/block_voxel_indexer.h"
 
 namespace covox {
 namespace mesh_detail {
@@ -66,13 +67,6 @@ struct CubeReader {
   }
 };
 
-// Cube `cube` of the input is voxel `local` of input block cube / per_block.
-COVOX_HD_INLINE Index3D cube_local(int64_t cube, int32_t side, int64_t per_block) {
-  const int64_t k = cube % per_block;
-  return Index3D(static_cast<int32_t>(k % side), static_cast<int32_t>((k / side) % side),
-                 static_cast<int32_t>(k / (static_cast<int64_t>(side) * side)));
-}
-
 struct MeshOutputs {
   Vec3f* vertices;
   Rgb8* colors;
@@ -127,13 +121,7 @@ void mesh_find_neighbour_slots(Backend backend, TsdfMap& map, MeshScratchBuffers
   const BlockHashTableView table = map.blocks().device_view();
   parallel_for(backend, stream, 8 * block_count, [=] COVOX_HD(int64_t i) {
     const int c = static_cast<int>(i % 8);
-    const uint64_t key = pack_block_key(blocks[i / 8] + Index3D(c & 1, (c >> 1) & 1, (c >> 2) & 1));
-    uint32_t slot = kInvalidSlot;
-    if (key != kInvalidBlockKey) {
-      const uint64_t bucket = table.find(key);
-      if (bucket != kNoBucket) slot = table.slots[bucket];
-    }
-    neighbours[i / 8].slots[c] = slot;
+    neighbours[i / 8].slots[c] = table.slot_of(blocks[i / 8] + Index3D(c & 1, (c >> 1) & 1, (c >> 2) & 1));
   });
 }
 
@@ -167,7 +155,7 @@ int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshWeld w
     if (i == cubes) return;
     float values[8];
     Rgb8 colors[8];
-    if (!reader.read(i / per_block, cube_local(i, side, per_block), values, colors)) return;
+    if (!reader.read(i / per_block, local_voxel(i % per_block, side), values, colors)) return;
     counts[i] = static_cast<uint32_t>(marching_cubes::polygonize(values, [](int, int, int) {}));
   });
   exclusive_scan(backend, stream, counts, cubes + 1, scratch.offsets.data());
@@ -201,7 +189,7 @@ int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshWeld w
   parallel_for(backend, stream, cubes, [=] COVOX_HD(int64_t i) {
     if (counts[i] == 0) return;
     const int64_t block = i / per_block;
-    const Index3D local = cube_local(i, side, per_block);
+    const Index3D local = local_voxel(i % per_block, side);
     const Index3D origin(blocks[block].x * side + local.x, blocks[block].y * side + local.y,
                          blocks[block].z * side + local.z);
     float values[8];
@@ -339,9 +327,8 @@ int64_t mesh_select_blocks(Backend backend, TsdfMap& map, MeshScratchBuffers& sc
     // block also changes the meshes of the seven blocks just below it.
     const Index3D block = unpack_block_key(key);
     for (int c = 0; c < 8; ++c) {
-      const uint64_t below = pack_block_key(block - Index3D(c & 1, (c >> 1) & 1, (c >> 2) & 1));
-      const uint64_t bucket = below == kInvalidBlockKey ? kNoBucket : table.find(below);
-      if (bucket != kNoBucket) atomic_add(&affected[table.slots[bucket]], 1u);
+      const uint32_t below = table.slot_of(block - Index3D(c & 1, (c >> 1) & 1, (c >> 2) & 1));
+      if (below != kInvalidSlot) atomic_add(&affected[below], 1u);
     }
   });
   // Compact to the affected blocks, in bucket order (each block's mesh depends only on the

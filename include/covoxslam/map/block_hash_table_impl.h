@@ -203,9 +203,7 @@ int64_t hash_table_find(Backend backend, BlockHashTableState& state, const Index
   if (count <= 0) return 0;
   const BlockHashTableView table = state.view();
   parallel_for(backend, stream, count, [=] COVOX_HD(int64_t i) {
-    const uint64_t key = pack_block_key(keys[i]);
-    const uint64_t bucket = key == kInvalidBlockKey ? kNoBucket : table.find(key);
-    slots_out[i] = bucket == kNoBucket ? kInvalidSlot : table.slots[bucket];
+    slots_out[i] = table.slot_of(keys[i]);
   });
   return count_if(backend, stream, slots_out, count,
                   [] COVOX_HD(uint32_t slot) { return slot != kInvalidSlot; });

@@ -48,6 +48,15 @@ struct BlockHashTableView {
     return kTableFullBucket;
   }
 
+  // The slot of the block with index `block`, or kInvalidSlot when it is not allocated (or lies
+  // outside the key range).
+  COVOX_HD_INLINE uint32_t slot_of(const Index3D& block) const {
+    const uint64_t key = pack_block_key(block);
+    if (key == kInvalidBlockKey) return kInvalidSlot;
+    const uint64_t bucket = find(key);
+    return bucket == kNoBucket ? kInvalidSlot : slots[bucket];
+  }
+
   // Returns the bucket holding `key`, or kNoBucket.
   COVOX_HD_INLINE uint64_t find(uint64_t key) const {
     uint64_t bucket = home_bucket(mix_block_key(key), bucket_count);
