@@ -6,6 +6,7 @@
 #include <cmath>
 #include <memory>
 
+#include "covoxslam/backend/pose_graph.h"
 #include "covoxslam/backend/registration.h"
 #include "covoxslam/core/error.h"
 #include "support/per_device_cache.h"

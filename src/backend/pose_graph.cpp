@@ -4,6 +4,7 @@
 #include <Eigen/Geometry>
 #include <cmath>
 
+#include "covoxslam/backend/rotation_math.h"
 #include "covoxslam/core/error.h"
 
 namespace covox {
@@ -109,6 +110,33 @@ Se3Constraint make_se3_constraint(int32_t from, int32_t to, const Se3Pose& measu
   c.measurement = measurement;
   store_row_major<6>(sqrt_information(information, constraint_name(from, to)), c.sqrt_information);
   return c;
+}
+
+Pose4Dof inverse_pose_4dof(const Pose4Dof& T) {
+  // x_Si = Rz(-yaw) (x_Sj - t).
+  const double c = std::cos(T.yaw), s = std::sin(T.yaw);
+  Pose4Dof inverse;
+  inverse.x = -(c * T.x + s * T.y);
+  inverse.y = -(-s * T.x + c * T.y);
+  inverse.z = -T.z;
+  inverse.yaw = wrap_angle(-T.yaw);
+  return inverse;
+}
+
+Eigen::Matrix4d inverse_pose_4dof_jacobian(const Pose4Dof& T) {
+  // The derivatives of inverse_pose_4dof's four lines.
+  const double c = std::cos(T.yaw), s = std::sin(T.yaw);
+  const Pose4Dof P = inverse_pose_4dof(T);
+  Eigen::Matrix4d A = Eigen::Matrix4d::Zero();
+  A(0, 0) = -c;
+  A(0, 1) = -s;
+  A(0, 3) = P.y;
+  A(1, 0) = s;
+  A(1, 1) = -c;
+  A(1, 3) = -P.x;
+  A(2, 2) = -1.0;
+  A(3, 3) = -1.0;
+  return A;
 }
 
 Constraint4Dof make_relative_constraint_4dof(int32_t from, int32_t to, const Pose4Dof& measurement,

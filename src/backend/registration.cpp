@@ -282,32 +282,16 @@ RegistrationResult align_submaps(const RegistrationPoints& points_i, const TsdfM
   });
 }
 
-Pose4Dof inverse_pose_4dof(const Pose4Dof& T) {
-  // x_Si = Rz(-yaw) (x_Sj - t).
-  const double c = std::cos(T.yaw), s = std::sin(T.yaw);
-  Pose4Dof inverse;
-  inverse.x = -(c * T.x + s * T.y);
-  inverse.y = -(-s * T.x + c * T.y);
-  inverse.z = -T.z;
-  inverse.yaw = -T.yaw;
-  return inverse;
+namespace {
+// Both directions' sums at T_Sj_Si, in the caller's scratch (reused across LM iterations).
+RegistrationNormalEquations two_way_sums(const SymmetricRegistrationPair& pair, const Pose4Dof& T_Sj_Si,
+                                         const RegistrationResidualConfig& config,
+                                         Buffer<RegistrationResidual>* scratch,
+                                         Buffer<RegistrationResidual>* reverse_scratch, const Stream& stream) {
+  return sum_of(normal_equations_into(*pair.points_i, *pair.map_j, T_Sj_Si, Pose4Dof(), config, scratch, stream),
+                reverse_normal_equations(pair, T_Sj_Si, config, reverse_scratch, stream));
 }
-
-Eigen::Matrix4d inverse_pose_4dof_jacobian(const Pose4Dof& T) {
-  // The derivatives of inverse_pose_4dof's four lines.
-  const double c = std::cos(T.yaw), s = std::sin(T.yaw);
-  const Pose4Dof P = inverse_pose_4dof(T);
-  Eigen::Matrix4d A = Eigen::Matrix4d::Zero();
-  A(0, 0) = -c;
-  A(0, 1) = -s;
-  A(0, 3) = P.y;
-  A(1, 0) = s;
-  A(1, 1) = -c;
-  A(1, 3) = -P.x;
-  A(2, 2) = -1.0;
-  A(3, 3) = -1.0;
-  return A;
-}
+}  // namespace
 
 RegistrationNormalEquations symmetric_registration_normal_equations(const SymmetricRegistrationPair& pair,
                                                                     const Pose4Dof& T_Sj_Si,
@@ -315,8 +299,7 @@ RegistrationNormalEquations symmetric_registration_normal_equations(const Symmet
                                                                     const Stream& stream) {
   check_symmetric_pair(pair);
   Buffer<RegistrationResidual> scratch(pair.map_j->device()), reverse_scratch(pair.map_i->device());
-  return sum_of(normal_equations_into(*pair.points_i, *pair.map_j, T_Sj_Si, Pose4Dof(), config, &scratch, stream),
-                reverse_normal_equations(pair, T_Sj_Si, config, &reverse_scratch, stream));
+  return two_way_sums(pair, T_Sj_Si, config, &scratch, &reverse_scratch, stream);
 }
 
 RegistrationResult align_submaps_symmetric(const SymmetricRegistrationPair& pair, const Pose4Dof& initial_T_Sj_Si,
@@ -324,9 +307,7 @@ RegistrationResult align_submaps_symmetric(const SymmetricRegistrationPair& pair
   check_symmetric_pair(pair);
   Buffer<RegistrationResidual> scratch(pair.map_j->device()), reverse_scratch(pair.map_i->device());
   return run_aligner(initial_T_Sj_Si, config, [&](const Pose4Dof& T_Sj_Si) {
-    return sum_of(
-        normal_equations_into(*pair.points_i, *pair.map_j, T_Sj_Si, Pose4Dof(), config.residual, &scratch, stream),
-        reverse_normal_equations(pair, T_Sj_Si, config.residual, &reverse_scratch, stream));
+    return two_way_sums(pair, T_Sj_Si, config.residual, &scratch, &reverse_scratch, stream);
   });
 }
 

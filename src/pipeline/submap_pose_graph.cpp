@@ -42,16 +42,6 @@ backend::Pose4Dof compose(const backend::Pose4Dof& a, const backend::Pose4Dof& b
   return result;
 }
 
-backend::Pose4Dof inverse(const backend::Pose4Dof& a) {
-  const double c = std::cos(a.yaw), s = std::sin(a.yaw);
-  backend::Pose4Dof result;
-  result.x = -(c * a.x + s * a.y);
-  result.y = -(-s * a.x + c * a.y);
-  result.z = -a.z;
-  result.yaw = wrap_to_pi(-a.yaw);
-  return result;
-}
-
 void SubmapPoseGraph::add_submap(int64_t id, const backend::Pose4Dof& pose, bool loaded) {
   if (!finite_pose(pose)) throw Error("submap pose graph: the pose of submap " + std::to_string(id) + " is not finite");
   if (!nodes_.empty() && id <= nodes_.back().id) {
@@ -111,7 +101,7 @@ SubmapPoseGraph::BackendGraph SubmapPoseGraph::to_backend_graph() const {
     const SubmapPoseGraphNode& node = nodes_[k];
     if (node.loaded && loaded_vertex != backend::kNoVertex) {
       out.vertex_of_node[k] = loaded_vertex;
-      out.offset_of_node[k] = compose(inverse(loaded_origin), node.pose);
+      out.offset_of_node[k] = compose(backend::inverse_pose_4dof(loaded_origin), node.pose);
       continue;
     }
     const int32_t vertex = static_cast<int32_t>(out.graph.poses.size());

@@ -41,6 +41,11 @@ Se3Constraint make_se3_constraint(int32_t from, int32_t to, const Se3Pose& measu
 
 // Odometry or a loop closure: the pose of `to` in the frame of `from` (dx, dy, dz, dyaw) and its
 // information over (x, y, z, yaw).
+// T^-1 of a 4-DoF pose (x_Si = Rz(-yaw) (x_Sj - t), yaw wrapped into [-pi, pi)) and its 4x4
+// Jacobian d T^-1 / d T.
+Pose4Dof inverse_pose_4dof(const Pose4Dof& T);
+Eigen::Matrix4d inverse_pose_4dof_jacobian(const Pose4Dof& T);
+
 Constraint4Dof make_relative_constraint_4dof(int32_t from, int32_t to, const Pose4Dof& measurement,
                                              const Eigen::Matrix4d& information);
 // Absolute position of `vertex` (GNSS), information over (x, y, z).

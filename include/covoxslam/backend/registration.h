@@ -162,9 +162,6 @@ RegistrationNormalEquations symmetric_registration_normal_equations(const Symmet
 RegistrationResult align_submaps_symmetric(const SymmetricRegistrationPair& pair, const Pose4Dof& initial_T_Sj_Si,
                                            const RegistrationAlignerConfig& config, const Stream& stream);
 
-// T^-1 of a 4-DoF pose (x_Si = Rz(-yaw) (x_Sj - t)) and its 4x4 Jacobian d T^-1 / d T.
-Pose4Dof inverse_pose_4dof(const Pose4Dof& T);
-Eigen::Matrix4d inverse_pose_4dof_jacobian(const Pose4Dof& T);
 
 // A relative 4-DoF constraint from j to i (measurement T_Sj_Si) for the pose-graph solver;
 // information = hessian / residual_sigma^2 (the residual's noise in residual units).

@@ -99,9 +99,8 @@ class SubmapPoseGraph {
   std::vector<SubmapConstraint> constraints_;
 };
 
-// 4-DoF pose algebra (x_a = Rz(yaw) x_b + t): a * b and a^-1.
+// 4-DoF pose algebra (x_a = Rz(yaw) x_b + t): a * b (the inverse is backend::inverse_pose_4dof).
 backend::Pose4Dof compose(const backend::Pose4Dof& a, const backend::Pose4Dof& b);
-backend::Pose4Dof inverse(const backend::Pose4Dof& a);
 
 }  // namespace pipeline
 }  // namespace covox
