@@ -540,6 +540,80 @@ TEST_P(TsdfIntegratorTest, BadPointsAreDroppedAndCounted) {
   EXPECT_EQ(map.block_count(), blocks_before);
 }
 
+// The merged method keys its points without a tally of them first: dropped points travel as one
+// bundle per reason and clearing rays stay alone, so its counts must equal the simple method's,
+// point for point, on a cloud with every kind of point and many points per voxel.
+TEST_P(TsdfIntegratorTest, MergedAndSimpleCountEveryPointAlike) {
+  TsdfIntegratorConfig config;
+  config.max_ray_length_m = 5.0f;
+  config.min_ray_length_m = 0.5f;
+  config.allow_clear = true;
+  const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
+  std::vector<Vec3f> points;
+  for (int i = 0; i < 400; ++i) {
+    const float a = 0.01f * i;
+    points.push_back(Vec3f(2.0f + 0.001f * (i % 7), 0.3f * std::sin(a), 0.3f * std::cos(a)));  // many per voxel
+    if (i % 10 == 0) points.push_back(Vec3f(nan, 1.0f, 0.0f));
+    if (i % 11 == 0) points.push_back(Vec3f(inf, 0.0f, 0.0f));
+    if (i % 12 == 0) points.push_back(Vec3f(0.0f, 0.0f, 0.0f));
+    if (i % 13 == 0) points.push_back(Vec3f(0.1f, 0.05f * (i % 3), 0.0f));           // too close
+    if (i % 14 == 0) points.push_back(Vec3f(20.0f, 0.5f * std::sin(a), 1.0f));       // clears
+  }
+  IntegrationStats by_method[2];
+  for (int m = 0; m < 2; ++m) {
+    config.method = m == 0 ? TsdfIntegrationMethod::kSimple : TsdfIntegrationMethod::kMerged;
+    TsdfMap map(device(), TsdfMapConfig{0.1f, 8, {}});
+    by_method[m] = TsdfIntegrator(config).integrate(map, points, {}, Eigen::Isometry3d::Identity());
+  }
+  const IntegrationStats& simple = by_method[0];
+  const IntegrationStats& merged = by_method[1];
+  EXPECT_EQ(simple.dropped_non_finite, 40 + 37);
+  EXPECT_EQ(simple.dropped_zero, 34);
+  EXPECT_EQ(simple.dropped_too_close, 31);
+  EXPECT_EQ(simple.clearing_rays, 29);
+  EXPECT_EQ(simple.surface_rays, 400);
+  for (const IntegrationStats& stats : by_method) {
+    EXPECT_EQ(stats.points_in, static_cast<int64_t>(points.size()));
+    EXPECT_EQ(stats.surface_rays + stats.clearing_rays + stats.dropped_total(), stats.points_in);
+  }
+  EXPECT_EQ(merged.dropped_non_finite, simple.dropped_non_finite);
+  EXPECT_EQ(merged.dropped_zero, simple.dropped_zero);
+  EXPECT_EQ(merged.dropped_too_close, simple.dropped_too_close);
+  EXPECT_EQ(merged.dropped_too_far, simple.dropped_too_far);
+  EXPECT_EQ(merged.clearing_rays, simple.clearing_rays);
+  EXPECT_EQ(merged.surface_rays, simple.surface_rays);
+  EXPECT_EQ(simple.rays_cast, 400 + 29);
+  EXPECT_LT(merged.rays_cast, 29 + 60);  // 400 surface points in a handful of voxels, 29 alone
+}
+
+// Merge keys normally come from a box around the sensor sized by max_ray_length_m; with rays so
+// long that the box would need keys of more than 32 bits they come from the points' own box. Both
+// must bundle the same points: the same cloud integrated both ways gives bit-identical maps.
+TEST_P(TsdfIntegratorTest, MergeKeysFromEitherBoxGiveTheSameMap) {
+  const AnalyticScene scene = make_scene(Shape::kSphere);
+  const Eigen::Isometry3d pose = viewpoints()[0];
+  std::vector<Vec3f> points;  // every return twice, so that bundles form at 2 cm too
+  for (const Vec3f& p : testing_support::simulate_lidar(scene, pose, 256, 16, 60.0, 9.5)) points.insert(points.end(), {p, p});
+  std::vector<std::vector<HostBlock>> snapshots;
+  std::vector<IntegrationStats> stats;
+  for (float max_ray_length_m : {10.0f, 900.0f}) {  // 0.02 m voxels: 900 m needs > 32-bit keys
+    TsdfIntegratorConfig config = analytic_config(0.02f);
+    config.max_ray_length_m = max_ray_length_m;
+    config.allow_clear = false;
+    TsdfMap map(device(), TsdfMapConfig{0.02f, 8, {}});
+    stats.push_back(TsdfIntegrator(config).integrate(map, points, {}, pose));
+    snapshots.push_back(map.snapshot());
+  }
+  EXPECT_EQ(stats[0].rays_cast, stats[1].rays_cast);
+  EXPECT_LE(2 * stats[0].rays_cast, stats[0].surface_rays);  // the twins did merge
+  ASSERT_EQ(snapshots[0].size(), snapshots[1].size());
+  for (size_t b = 0; b < snapshots[0].size(); ++b) {
+    ASSERT_EQ(snapshots[0][b].index, snapshots[1][b].index);
+    ASSERT_EQ(0, std::memcmp(snapshots[0][b].tsdf.data(), snapshots[1][b].tsdf.data(),
+                             snapshots[0][b].tsdf.size() * sizeof(TsdfVoxel)));
+  }
+}
+
 TEST_P(TsdfIntegratorTest, RejectsInvalidParametersByName) {
   TsdfIntegratorConfig config;
   config.truncation_distance_m = -1.0f;

@@ -43,6 +43,26 @@ FrameKeyCodec make_frame_key_codec(const Index3D& min_voxel, const Index3D& max_
   return codec;
 }
 
+MergeKeys make_merge_keys(const Index3D& min_voxel, const Index3D& max_voxel, int32_t voxels_per_side) {
+  MergeKeys keys;
+  keys.codec = make_frame_key_codec(min_voxel, max_voxel, voxels_per_side);
+  keys.alone_key = keys.codec.zero_weight_key;
+  keys.dropped_key = keys.alone_key + 1;
+  keys.key_bits = bits_for(keys.dropped_key + (kDroppedTooFar - kDroppedNonFinite));
+  return keys;
+}
+
+MergeKeys make_merge_keys(const Vec3f& origin, float max_ray_length_m, float voxel_size_m, int32_t voxels_per_side) {
+  // Every surface point lies within max_ray_length_m of the origin (make_ray drops the others);
+  // one voxel more on each side absorbs the rounding of the world transform.
+  const float inverse_voxel_size = 1.0f / voxel_size_m;
+  const Vec3f reach(max_ray_length_m, max_ray_length_m, max_ray_length_m);
+  const Index3D low = voxel_of(origin - reach, inverse_voxel_size);
+  const Index3D high = voxel_of(origin + reach, inverse_voxel_size);
+  return make_merge_keys(Index3D(low.x - 1, low.y - 1, low.z - 1), Index3D(high.x + 1, high.y + 1, high.z + 1),
+                         voxels_per_side);
+}
+
 }  // namespace tsdf
 
 TsdfIntegrationMethod parse_tsdf_integration_method(const std::string& name) {

@@ -173,18 +173,19 @@ T reduce(Backend backend, const Stream& stream, const T* data, int64_t count, T 
   return thrust::reduce(execution_policy(backend, stream), data, data + count, init, op);
 }
 
-// op-reduction of transform(data[i]); Result must be trivially copyable.
-template <class T, class Result, class Transform, class ReduceOp>
-Result transform_reduce(CpuBackend backend, const Stream& stream, const T* data, int64_t count, Transform transform,
-                        Result init, ReduceOp op) {
+// op-reduction of transform(data[i]) (data: a pointer or any random-access iterator, such as a
+// counting iterator for a transform that reads several arrays); Result must be trivially copyable.
+template <class InputIterator, class Result, class Transform, class ReduceOp>
+Result transform_reduce(CpuBackend backend, const Stream& stream, InputIterator data, int64_t count,
+                        Transform transform, Result init, ReduceOp op) {
   if (count <= 0) return init;
   return thrust::transform_reduce(execution_policy(backend, stream), data, data + count, transform, init, op);
 }
 #if defined(__CUDACC__)
 // CUB directly, result through a device temporary and one small copy: Thrust's version adds
 // about 15 us of fixed cost per call on the H100, a lot next to a 0.5 ms frame.
-template <class T, class Result, class Transform, class ReduceOp>
-Result transform_reduce(CudaBackend, const Stream& stream, const T* data, int64_t count, Transform transform,
+template <class InputIterator, class Result, class Transform, class ReduceOp>
+Result transform_reduce(CudaBackend, const Stream& stream, InputIterator data, int64_t count, Transform transform,
                         Result init, ReduceOp op) {
   if (count <= 0) return init;
   const auto cuda_stream = static_cast<cudaStream_t>(stream.native_handle());

@@ -1,6 +1,7 @@
 #pragma once
-// Stable radix sort of (64-bit key, 32-bit value) pairs by the low `key_bits` bits of the keys,
-// on both backends. Integration keys are built relative to the frame's bounding box, so a
+// Stable radix sort of (64-bit key, value) pairs by the low `key_bits` bits of the keys, on both
+// backends. The value is any trivially copyable type: an index to permute large records by, or
+// a small record itself (an 8-byte TSDF update travels with its key, so no gather follows). Integration keys are built relative to the frame's bounding box, so a
 // frame's keys need 20-30 bits, not 64: sorting only those bits takes 3-4 passes of 8 bits
 // instead of the 8 a full 64-bit sort pays for (CUB's begin/end bits on the GPU; an OpenMP LSD
 // radix sort on the CPU twin). Both are stable, so both backends produce the same order.
@@ -32,8 +33,9 @@
 
 namespace covox {
 
-inline void radix_sort_pairs_swapping(CpuBackend, const Stream&, uint64_t*& keys, uint32_t*& values, int64_t count,
-                                      int key_bits, uint64_t*& keys_alt, uint32_t*& values_alt) {
+template <class Value>
+void radix_sort_pairs_swapping(CpuBackend, const Stream&, uint64_t*& keys, Value*& values, int64_t count, int key_bits,
+                               uint64_t*& keys_alt, Value*& values_alt) {
   if (count <= 1 || key_bits <= 0) return;
   constexpr int kDigitBits = 8;
   constexpr int kDigits = 1 << kDigitBits;
@@ -41,9 +43,9 @@ inline void radix_sort_pairs_swapping(CpuBackend, const Stream&, uint64_t*& keys
   const int max_threads = omp_get_max_threads();
   std::vector<int64_t> offsets(static_cast<size_t>(max_threads) * kDigits);
   uint64_t* source_keys = keys;
-  uint32_t* source_values = values;
+  Value* source_values = values;
   uint64_t* target_keys = keys_alt;
-  uint32_t* target_values = values_alt;
+  Value* target_values = values_alt;
   for (int pass = 0; pass < passes; ++pass) {
     const int shift = pass * kDigitBits;
 #pragma omp parallel num_threads(max_threads)
@@ -85,12 +87,13 @@ inline void radix_sort_pairs_swapping(CpuBackend, const Stream&, uint64_t*& keys
 }
 
 #if defined(__CUDACC__)
-inline void radix_sort_pairs_swapping(CudaBackend, const Stream& stream, uint64_t*& keys, uint32_t*& values,
-                                      int64_t count, int key_bits, uint64_t*& keys_alt, uint32_t*& values_alt) {
+template <class Value>
+void radix_sort_pairs_swapping(CudaBackend, const Stream& stream, uint64_t*& keys, Value*& values, int64_t count,
+                               int key_bits, uint64_t*& keys_alt, Value*& values_alt) {
   if (count <= 1 || key_bits <= 0) return;
   const auto cuda_stream = static_cast<cudaStream_t>(stream.native_handle());
   cub::DoubleBuffer<uint64_t> key_buffers(keys, keys_alt);
-  cub::DoubleBuffer<uint32_t> value_buffers(values, values_alt);
+  cub::DoubleBuffer<Value> value_buffers(values, values_alt);
   const int end_bit = std::min(key_bits, 64);
   size_t temporary_bytes = 0;
   cuda_check(cub::DeviceRadixSort::SortPairs(nullptr, temporary_bytes, key_buffers, value_buffers, count, 0, end_bit,

@@ -23,10 +23,11 @@
 namespace covox {
 namespace tsdf_detail {
 
-// Per-kind ray counts, the total voxel count and the box of voxels the rays traverse, in one
-// reduction (one read-back, not nine). The box sizes the frame's update keys.
+// Points per kind, rays cast, the total voxel count and the box of voxels the rays traverse, in
+// one reduction (one read-back, not ten). The box sizes the frame's update keys.
 struct RayTally {
-  int64_t kinds[6] = {0, 0, 0, 0, 0, 0};
+  int64_t kinds[6] = {0, 0, 0, 0, 0, 0};  // input points, by what became of them
+  int64_t cast = 0;                       // surface and clearing rays (after merging)
   int64_t voxels = 0;
   int32_t low[3] = {INT32_MAX, INT32_MAX, INT32_MAX};
   int32_t high[3] = {INT32_MIN, INT32_MIN, INT32_MIN};
@@ -34,37 +35,46 @@ struct RayTally {
   Index3D low_voxel() const { return Index3D(low[0], low[1], low[2]); }
   Index3D high_voxel() const { return Index3D(high[0], high[1], high[2]); }
 };
-struct TallyRay {
-  float inverse_voxel_size;
-  COVOX_HD_INLINE RayTally operator()(const tsdf::RaySegment& ray) const {
-    RayTally tally;
-    tally.kinds[ray.kind] = 1;
-    tally.voxels = tsdf::ray_voxel_count(ray, inverse_voxel_size);
-    if (ray.kind <= tsdf::kClearingRay) {  // a segment's voxels lie in the box of its end voxels
-      const Index3D a = tsdf::voxel_of(ray.start, inverse_voxel_size);
-      const Index3D b = tsdf::voxel_of(ray.end, inverse_voxel_size);
-      const int32_t av[3] = {a.x, a.y, a.z}, bv[3] = {b.x, b.y, b.z};
-      for (int axis = 0; axis < 3; ++axis) {
-        tally.low[axis] = av[axis] < bv[axis] ? av[axis] : bv[axis];
-        tally.high[axis] = av[axis] > bv[axis] ? av[axis] : bv[axis];
-      }
+// The tally of one ray that stands for `points` input points (a merged bundle's count; 1 without
+// merging).
+COVOX_HD_INLINE RayTally tally_ray(const tsdf::RaySegment& ray, int64_t points, float inverse_voxel_size) {
+  RayTally tally;
+  tally.kinds[ray.kind] = points;
+  tally.cast = ray.kind <= tsdf::kClearingRay ? 1 : 0;
+  tally.voxels = tsdf::ray_voxel_count(ray, inverse_voxel_size);
+  if (ray.kind <= tsdf::kClearingRay) {  // a segment's voxels lie in the box of its end voxels
+    const Index3D a = tsdf::voxel_of(ray.start, inverse_voxel_size);
+    const Index3D b = tsdf::voxel_of(ray.end, inverse_voxel_size);
+    const int32_t av[3] = {a.x, a.y, a.z}, bv[3] = {b.x, b.y, b.z};
+    for (int axis = 0; axis < 3; ++axis) {
+      tally.low[axis] = av[axis] < bv[axis] ? av[axis] : bv[axis];
+      tally.high[axis] = av[axis] > bv[axis] ? av[axis] : bv[axis];
     }
-    return tally;
   }
-};
-// The tally of a point's ray, computed from the point (no ray array written): the merged method
-// builds its own rays after merging, so it never needs one ray per point.
+  return tally;
+}
+// The tally of a point's own ray, computed from the point (no ray array written).
 struct TallyPoint {
   tsdf::RayParameters ray_parameters;
   float inverse_voxel_size;
   COVOX_HD_INLINE RayTally operator()(const Vec3f& point) const {
-    return TallyRay{inverse_voxel_size}(tsdf::make_ray(ray_parameters, point));
+    return tally_ray(tsdf::make_ray(ray_parameters, point), 1, inverse_voxel_size);
+  }
+};
+// The tally of merged ray m, which stands for ray_weights[m] points.
+struct TallyMergedRay {
+  const tsdf::RaySegment* rays;
+  const float* ray_weights;
+  float inverse_voxel_size;
+  COVOX_HD_INLINE RayTally operator()(int64_t m) const {
+    return tally_ray(rays[m], static_cast<int64_t>(ray_weights[m]), inverse_voxel_size);
   }
 };
 struct AddTallies {
   COVOX_HD_INLINE RayTally operator()(const RayTally& a, const RayTally& b) const {
     RayTally sum;
     for (int k = 0; k < 6; ++k) sum.kinds[k] = a.kinds[k] + b.kinds[k];
+    sum.cast = a.cast + b.cast;
     sum.voxels = a.voxels + b.voxels;
     for (int axis = 0; axis < 3; ++axis) {
       sum.low[axis] = a.low[axis] < b.low[axis] ? a.low[axis] : b.low[axis];
@@ -103,12 +113,13 @@ std::array<uint32_t, N> read_back(const Buffer<uint32_t>& readback, const Stream
 
 }  // namespace tsdf_detail
 
-// Bundles surface rays by the voxel their point falls into (rays made from the points here) and
-// writes scratch.rays with one ray per bundle (see tsdf_ray_merging.h), with its weight (point
-// count) in scratch.ray_weights and, when `has_color`, its mean colour in scratch.ray_colors.
-// Returns the number of rays.
+// Bundles surface rays by the voxel their point falls into and writes scratch.rays with one ray
+// per bundle (see tsdf_ray_merging.h), with the number of points it stands for in
+// scratch.ray_weights and, when `has_color`, its mean colour in scratch.ray_colors. Dropped
+// points come out as one ray of their drop kind per reason, weighted by their count, so the
+// tally of the merged rays accounts for every point. Returns the number of rays.
 template <class Backend>
-int64_t tsdf_merge_rays(Backend backend, const tsdf::RayParameters& ray_parameters, const tsdf::FrameKeyCodec& codec,
+int64_t tsdf_merge_rays(Backend backend, const tsdf::RayParameters& ray_parameters, const tsdf::MergeKeys& merge_keys,
                         const PointCloudView& cloud, const Rgb8* colors, const float* intensities,
                         float grey_per_intensity, TsdfScratchBuffers& scratch, const Stream& stream) {
   StageProfiler::Scope profile("tsdf merge", stream);
@@ -116,43 +127,31 @@ int64_t tsdf_merge_rays(Backend backend, const tsdf::RayParameters& ray_paramete
   const float inverse_voxel_size = 1.0f / ray_parameters.voxel_size_m;
   scratch.keys.resize_discard(n);
   scratch.order.resize_discard(n);
-  scratch.bundles.resize_discard(n);
   uint64_t* keys = scratch.keys.data();
   uint32_t* order = scratch.order.data();
-  tsdf::PointBundle* bundles = scratch.bundles.data();
   const Vec3f* points = cloud.points;
+  // Keys and point indices only (12 bytes a point): each point's bundle is built where the
+  // reduction reads it, from the point in sorted order.
   parallel_for(backend, stream, n, [=] COVOX_HD(int64_t i) {
-    const tsdf::RaySegment ray = tsdf::make_ray(ray_parameters, points[i]);
-    keys[i] = tsdf::merge_key(ray, inverse_voxel_size, codec);
+    keys[i] = merge_keys.key(tsdf::make_ray(ray_parameters, points[i]), inverse_voxel_size);
     order[i] = static_cast<uint32_t>(i);
-    tsdf::PointBundle bundle;
-    if (ray.kind == tsdf::kSurfaceRay) {  // finite: only these are summed
-      bundle.x = tsdf::to_merge_units(points[i].x);
-      bundle.y = tsdf::to_merge_units(points[i].y);
-      bundle.z = tsdf::to_merge_units(points[i].z);
-    }
-    const Rgb8 color = colors ? colors[i] : (intensities ? tsdf::intensity_to_grey(intensities[i], grey_per_intensity) : Rgb8{});
-    bundle.r = color.r;
-    bundle.g = color.g;
-    bundle.b = color.b;
-    bundle.count = 1;
-    bundle.first = static_cast<uint32_t>(i);
-    bundles[i] = bundle;
   });
   scratch.keys_alt.resize_discard(n);
   scratch.order_alt.resize_discard(n);
-  profile.mark("keys + bundles");
+  profile.mark("keys");
   uint64_t* keys_alt = scratch.keys_alt.data();
   uint32_t* order_alt = scratch.order_alt.data();
-  radix_sort_pairs_swapping(backend, stream, keys, order, n, codec.key_bits, keys_alt, order_alt);
+  radix_sort_pairs_swapping(backend, stream, keys, order, n, merge_keys.key_bits, keys_alt, order_alt);
   profile.mark("sort");
   scratch.merged_keys.resize_discard(n);
   scratch.merged_bundles.resize_discard(n);
   scratch.readback.resize_discard(4);
-  const auto ordered_bundles = thrust::make_permutation_iterator(bundles, order);
-  const auto merge_keys = thrust::make_transform_iterator(thrust::make_counting_iterator<int64_t>(0),
-                                                          tsdf::AloneKeysApart{keys, codec.zero_weight_key});
-  reduce_runs_counted_on_device(backend, stream, merge_keys, ordered_bundles, n, scratch.merged_keys.data(),
+  const auto sorted_bundles = thrust::make_transform_iterator(
+      thrust::make_counting_iterator<int64_t>(0),
+      tsdf::BundleOfSortedPoint{points, order, keys, merge_keys, colors, intensities, grey_per_intensity});
+  const auto apart_keys = thrust::make_transform_iterator(thrust::make_counting_iterator<int64_t>(0),
+                                                          tsdf::AloneKeysApart{keys, merge_keys.alone_key});
+  reduce_runs_counted_on_device(backend, stream, apart_keys, sorted_bundles, n, scratch.merged_keys.data(),
                                 scratch.merged_bundles.data(), tsdf::AddBundles(), scratch.readback.data());
   const int64_t ray_count = tsdf_detail::read_back<1>(scratch.readback, stream)[0];
   profile.mark("reduce runs");
@@ -164,8 +163,18 @@ int64_t tsdf_merge_rays(Backend backend, const tsdf::RayParameters& ray_paramete
   float* weights = scratch.ray_weights.data();
   Rgb8* ray_colors = scratch.ray_colors.data();
   const tsdf::PointBundle* merged = scratch.merged_bundles.data();
+  const uint64_t* merged_keys = scratch.merged_keys.data();
   parallel_for(backend, stream, ray_count, [=] COVOX_HD(int64_t m) {
     const tsdf::PointBundle bundle = merged[m];
+    weights[m] = static_cast<float>(bundle.count);
+    const uint8_t dropped = merge_keys.dropped_kind(merged_keys[m]);
+    if (dropped != tsdf::kSurfaceRay) {  // the points dropped for one reason: counted, not cast
+      tsdf::RaySegment none;
+      none.kind = dropped;
+      merged_rays[m] = none;
+      ray_colors[m] = Rgb8{};
+      return;
+    }
     Vec3f point = points[bundle.first];
     if (bundle.count > 1) {
       const double scale = 1.0 / (static_cast<double>(bundle.count) * tsdf::kMergeUnitsPerMetre);
@@ -173,7 +182,6 @@ int64_t tsdf_merge_rays(Backend backend, const tsdf::RayParameters& ray_paramete
                     static_cast<float>(bundle.z * scale));
     }
     merged_rays[m] = tsdf::make_ray(ray_parameters, point);
-    weights[m] = static_cast<float>(bundle.count);
     const uint32_t half = bundle.count / 2;
     ray_colors[m] = Rgb8{static_cast<uint8_t>((bundle.r + half) / bundle.count),
                          static_cast<uint8_t>((bundle.g + half) / bundle.count),
@@ -205,16 +213,22 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   const float voxel_size = frame.voxel_size;
   const float truncation = config.truncation_distance_m;
   const tsdf::WeightParameters weight_parameters = frame.weight_parameters;
+  // An 8-byte update travels through the sort with its key (no permutation, and a contiguous
+  // read in the reduction); a 24-byte one stays put and is gathered through the sorted order.
+  constexpr bool kUpdatesTravelWithKeys = std::is_same<UpdateT, tsdf::DistanceUpdate>::value;
   scratch.keys.resize_discard(total_updates);
-  scratch.order.resize_discard(total_updates);
-  // The update arrays hold VoxelUpdate elements; an 8-byte DistanceUpdate frame uses them as
-  // raw storage (a third of the size).
-  const int64_t storage = (total_updates * static_cast<int64_t>(sizeof(UpdateT)) + sizeof(tsdf::VoxelUpdate) - 1) /
-                          static_cast<int64_t>(sizeof(tsdf::VoxelUpdate));
-  scratch.updates.resize_discard(storage);
   uint64_t* keys = scratch.keys.data();
-  uint32_t* order = scratch.order.data();
-  UpdateT* updates = reinterpret_cast<UpdateT*>(scratch.updates.data());
+  uint32_t* order = nullptr;
+  UpdateT* updates = nullptr;
+  if constexpr (kUpdatesTravelWithKeys) {
+    scratch.distance_updates.resize_discard(total_updates);
+    updates = scratch.distance_updates.data();
+  } else {
+    scratch.order.resize_discard(total_updates);
+    scratch.updates.resize_discard(total_updates);
+    order = scratch.order.data();
+    updates = scratch.updates.data();
+  }
   const uint32_t* piece_offsets = scratch.piece_offsets.data();
   parallel_for(backend, stream, piece_bound, [=] COVOX_HD(int64_t p) {
     if (p >= *piece_total) return;
@@ -239,7 +253,7 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
       update.weight = weight;
       if (!clearing && fabsf(distance) < truncation && weight > 0.0f) tsdf::set_update_color(update, weight, color);
       keys[out] = weight > 0.0f ? codec.key(voxel) : codec.zero_weight_key;
-      order[out] = out;
+      if (order) order[out] = out;
       updates[out] = update;
       ++out;
     });
@@ -250,20 +264,31 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   // 3. group by voxel and merge (stable sort keeps each voxel's updates in ray order, so the
   //    float sums are the same every run)
   scratch.keys_alt.resize_discard(total_updates);
-  scratch.order_alt.resize_discard(total_updates);
   uint64_t* keys_alt = scratch.keys_alt.data();
-  uint32_t* order_alt = scratch.order_alt.data();
-  radix_sort_pairs_swapping(backend, stream, keys, order, total_updates, codec.key_bits, keys_alt, order_alt);
-  profile.mark("3a sort updates");
   scratch.merged_keys.resize_discard(total_updates);
-  scratch.merged.resize_discard(storage);
-  UpdateT* merged_updates = reinterpret_cast<UpdateT*>(scratch.merged.data());
   scratch.readback.resize_discard(4);
   uint32_t* counts_on_device = scratch.readback.data();
-  const auto ordered_updates = thrust::make_permutation_iterator(updates, order);
-  reduce_runs_counted_on_device(backend, stream, static_cast<const uint64_t*>(keys), ordered_updates, total_updates,
-                                scratch.merged_keys.data(), merged_updates, tsdf::MergeUpdates(),
-                                counts_on_device);
+  UpdateT* merged_updates = nullptr;
+  if constexpr (kUpdatesTravelWithKeys) {
+    scratch.distance_updates_alt.resize_discard(total_updates);
+    UpdateT* updates_alt = scratch.distance_updates_alt.data();
+    radix_sort_pairs_swapping(backend, stream, keys, updates, total_updates, codec.key_bits, keys_alt, updates_alt);
+    profile.mark("3a sort updates");
+    merged_updates = updates_alt;  // free after the sort: the merged updates go there
+    reduce_runs_counted_on_device(backend, stream, static_cast<const uint64_t*>(keys),
+                                  static_cast<const UpdateT*>(updates), total_updates, scratch.merged_keys.data(),
+                                  merged_updates, tsdf::MergeUpdates(), counts_on_device);
+  } else {
+    scratch.order_alt.resize_discard(total_updates);
+    uint32_t* order_alt = scratch.order_alt.data();
+    radix_sort_pairs_swapping(backend, stream, keys, order, total_updates, codec.key_bits, keys_alt, order_alt);
+    profile.mark("3a sort updates");
+    scratch.merged.resize_discard(total_updates);
+    merged_updates = scratch.merged.data();
+    const auto ordered_updates = thrust::make_permutation_iterator(updates, order);
+    reduce_runs_counted_on_device(backend, stream, static_cast<const uint64_t*>(keys), ordered_updates, total_updates,
+                                  scratch.merged_keys.data(), merged_updates, tsdf::MergeUpdates(), counts_on_device);
+  }
   // Updates to drop (zero weight, outside the key range) sort last: their counts are where
   // their keys begin in the sorted keys. One read-back for the three figures.
   const uint64_t* sorted_keys = keys;
@@ -369,6 +394,9 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   profile.mark("5 voxel writes");
 }
 
+// Merge keys longer than this come from the points' own box rather than the sensor's range box.
+constexpr int kMaxRangeBoxMergeKeyBits = 32;
+
 template <class Backend>
 IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConfig& config,
                                        TsdfMap& map, const PointCloudView& cloud,
@@ -397,45 +425,57 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
                                                  config.use_sparsity_compensation_factor,
                                                  config.sparsity_compensation_factor};
 
-  // 1. why points did or did not become rays, and the box of voxels their rays traverse
+  // 1. rays: one per point, or one per bundle of points whose surface falls into one voxel.
+  //    What each ray carries into the update: per-point colour or intensity, or per-bundle colour
+  //    and weight after merging.
   const Vec3f* points = cloud.points;
-  tsdf_detail::RayTally tally =
-      transform_reduce(backend, stream, points, n, tsdf_detail::TallyPoint{ray_parameters, inverse_voxel_size},
-                       tsdf_detail::RayTally{}, tsdf_detail::AddTallies{});
-  stats.surface_rays = tally.kinds[tsdf::kSurfaceRay];
-  stats.clearing_rays = tally.kinds[tsdf::kClearingRay];
-  stats.dropped_non_finite = tally.kinds[tsdf::kDroppedNonFinite];
-  stats.dropped_zero = tally.kinds[tsdf::kDroppedZero];
-  stats.dropped_too_close = tally.kinds[tsdf::kDroppedTooClose];
-  stats.dropped_too_far = tally.kinds[tsdf::kDroppedTooFar];
-  profile.mark("1 rays + tally");
-
-  // What each ray carries into the update: per-point colour or intensity, or per-bundle colour
-  // and weight after merging.
   const Rgb8* colors = config.integrate_color ? cloud.colors : nullptr;
   const float* intensities = config.integrate_color && !colors ? cloud.intensities : nullptr;
   const float grey_per_intensity = 255.0f / cloud.intensity_max_value;
   const bool has_color = colors || intensities;
   const float* ray_weights = nullptr;
   int64_t ray_count = n;
-  if (config.method != TsdfIntegrationMethod::kMerged || stats.surface_rays == 0) {  // one ray per point
+  tsdf_detail::RayTally tally;
+  if (config.method != TsdfIntegrationMethod::kMerged) {
+    // why points did or did not become rays, and the box of voxels their rays traverse
+    tally = transform_reduce(backend, stream, points, n, tsdf_detail::TallyPoint{ray_parameters, inverse_voxel_size},
+                             tsdf_detail::RayTally{}, tsdf_detail::AddTallies{});
+    profile.mark("1 rays + tally");
     scratch.rays.resize_discard(n);
     tsdf::RaySegment* point_rays = scratch.rays.data();
     parallel_for(backend, stream, n,
                  [=] COVOX_HD(int64_t i) { point_rays[i] = tsdf::make_ray(ray_parameters, points[i]); });
   } else {
-    const tsdf::FrameKeyCodec point_codec =
-        tsdf::make_frame_key_codec(tally.low_voxel(), tally.high_voxel(), voxels_per_side);
-    ray_count = tsdf_merge_rays(backend, ray_parameters, point_codec, cloud, colors, intensities,
-                                grey_per_intensity, scratch, stream);
+    // Merge keys from a box around the sensor (no pass over the points first), unless that box
+    // needs keys long enough to add radix passes (rays of hundreds of metres at fine voxels):
+    // then the box of the points' own rays.
+    tsdf::MergeKeys merge_keys = tsdf::make_merge_keys(ray_parameters.T_world_sensor.translation,
+                                                       config.max_ray_length_m, voxel_size, voxels_per_side);
+    if (merge_keys.key_bits > kMaxRangeBoxMergeKeyBits) {
+      const tsdf_detail::RayTally box =
+          transform_reduce(backend, stream, points, n, tsdf_detail::TallyPoint{ray_parameters, inverse_voxel_size},
+                           tsdf_detail::RayTally{}, tsdf_detail::AddTallies{});
+      const Index3D sensor_voxel = tsdf::voxel_of(ray_parameters.T_world_sensor.translation, inverse_voxel_size);
+      merge_keys = box.cast > 0 ? tsdf::make_merge_keys(box.low_voxel(), box.high_voxel(), voxels_per_side)
+                                : tsdf::make_merge_keys(sensor_voxel, sensor_voxel, voxels_per_side);
+    }
+    ray_count = tsdf_merge_rays(backend, ray_parameters, merge_keys, cloud, colors, intensities, grey_per_intensity,
+                                scratch, stream);
     ray_weights = scratch.ray_weights.data();
     colors = has_color ? scratch.ray_colors.data() : nullptr;
     intensities = nullptr;
-    tally = transform_reduce(backend, stream, scratch.rays.data(), ray_count, tsdf_detail::TallyRay{inverse_voxel_size},
+    tally = transform_reduce(backend, stream, thrust::make_counting_iterator<int64_t>(0), ray_count,
+                             tsdf_detail::TallyMergedRay{scratch.rays.data(), ray_weights, inverse_voxel_size},
                              tsdf_detail::RayTally{}, tsdf_detail::AddTallies{});
-    profile.mark("1b merge rays");
+    profile.mark("1 merge rays + tally");
   }
-  stats.rays_cast = tally.kinds[tsdf::kSurfaceRay] + tally.kinds[tsdf::kClearingRay];
+  stats.surface_rays = tally.kinds[tsdf::kSurfaceRay];
+  stats.clearing_rays = tally.kinds[tsdf::kClearingRay];
+  stats.dropped_non_finite = tally.kinds[tsdf::kDroppedNonFinite];
+  stats.dropped_zero = tally.kinds[tsdf::kDroppedZero];
+  stats.dropped_too_close = tally.kinds[tsdf::kDroppedTooClose];
+  stats.dropped_too_far = tally.kinds[tsdf::kDroppedTooFar];
+  stats.rays_cast = tally.cast;
 
   // 2. one update per traversed voxel, walked in ray pieces (tsdf_kernels.h: one thread per
   //    piece of ~8 voxels rather than per ray). Pieces per ray -> each ray's first piece; the

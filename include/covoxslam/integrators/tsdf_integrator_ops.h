@@ -16,9 +16,9 @@ struct TsdfScratchBuffers {
   explicit TsdfScratchBuffers(Device device)
       : points(device), colors(device), rays(device), counts(device), offsets(device),
         keys(device), order(device), updates(device), merged_keys(device), merged(device),
-        block_indices(device), slots(device), is_new(device), bundles(device), merged_bundles(device),
+        block_indices(device), slots(device), is_new(device), merged_bundles(device),
         ray_colors(device), ray_weights(device), block_flags(device), block_ranks(device), keys_alt(device),
-        order_alt(device), pieces(device), piece_voxels(device), piece_offsets(device), readback(device) {}
+        order_alt(device), distance_updates(device), distance_updates_alt(device), pieces(device), piece_voxels(device), piece_offsets(device), readback(device) {}
   Buffer<Vec3f> points;  // depth images unprojected, or host clouds uploaded
   Buffer<Rgb8> colors;
   Buffer<tsdf::RaySegment> rays;
@@ -33,7 +33,6 @@ struct TsdfScratchBuffers {
   Buffer<uint32_t> slots;
   Buffer<uint8_t> is_new;
   // merged integration only
-  Buffer<tsdf::PointBundle> bundles;
   Buffer<tsdf::PointBundle> merged_bundles;
   Buffer<Rgb8> ray_colors;
   Buffer<float> ray_weights;
@@ -43,6 +42,9 @@ struct TsdfScratchBuffers {
   // radix sort scratch
   Buffer<uint64_t> keys_alt;
   Buffer<uint32_t> order_alt;
+  // frames without colour: 8-byte updates sorted with their keys (no permutation to gather by)
+  Buffer<tsdf::DistanceUpdate> distance_updates;
+  Buffer<tsdf::DistanceUpdate> distance_updates_alt;
   // ray pieces (tsdf_kernels.h): the piece table, voxels per piece and their update offsets
   Buffer<tsdf::RayPiece> pieces;
   Buffer<uint32_t> piece_voxels;

@@ -49,15 +49,43 @@ COVOX_HD_INLINE int64_t to_merge_units(float metres) {
   return static_cast<int64_t>(llrintf(metres * kMergeUnitsPerMetre));
 }
 
-// The merge key of a point's ray: the key of its surface voxel for surface rays; the codec's
-// "alone" key (its zero-weight key) otherwise, which AloneKeysApart keeps from merging.
-COVOX_HD_INLINE uint64_t merge_key(const RaySegment& ray, float inverse_voxel_size, const FrameKeyCodec& codec) {
-  if (ray.kind == kSurfaceRay) {
-    const uint64_t key = codec.key(voxel_of(ray.surface, inverse_voxel_size));
-    if (key != codec.out_of_range_key) return key;
+// Merge keys: a surface point's key is the FrameKeyCodec key of the voxel its measured point falls
+// into; points with the same key are bundled into one ray. The codec's box is fixed by the sensor
+// origin and max_ray_length_m (every surface point lies within that range), so no pass over the
+// points is needed before keying them. Above the codec's keys: the "alone" key (its zero-weight
+// key) for rays that must not merge (clearing rays, a surface voxel outside the box), which
+// AloneKeysApart keeps apart, then one key per drop reason: the dropped points of one reason form
+// one bundle whose count is the number of such points, so the tally of the merged rays counts
+// every input point without a tally of the points themselves.
+struct MergeKeys {
+  FrameKeyCodec codec;
+  uint64_t alone_key = 0;    // == codec.zero_weight_key
+  uint64_t dropped_key = 0;  // dropped_key + (kind - kDroppedNonFinite) for the four drop kinds
+  int key_bits = 1;          // every merge key is < 2^key_bits
+
+  COVOX_HD_INLINE uint64_t key(const RaySegment& ray, float inverse_voxel_size) const {
+    if (ray.kind == kSurfaceRay) {
+      const uint64_t surface_key = codec.key(voxel_of(ray.surface, inverse_voxel_size));
+      if (surface_key != codec.out_of_range_key) return surface_key;
+    }
+    if (ray.kind > kClearingRay) return dropped_key + (ray.kind - kDroppedNonFinite);
+    return alone_key;
   }
-  return codec.zero_weight_key;
-}
+  // The keys that sum the coordinates of their points (the others keep their first point).
+  COVOX_HD_INLINE bool is_surface_key(uint64_t key) const { return key < codec.out_of_range_key; }
+  // The drop reason of a merged key, or kSurfaceRay when it is not a drop key.
+  COVOX_HD_INLINE uint8_t dropped_kind(uint64_t key) const {
+    return key >= dropped_key && key <= dropped_key + (kDroppedTooFar - kDroppedNonFinite)
+               ? static_cast<uint8_t>(kDroppedNonFinite + (key - dropped_key))
+               : static_cast<uint8_t>(kSurfaceRay);
+  }
+};
+
+// The merge keys of a frame whose sensor sits at `origin` (world) with rays up to
+// max_ray_length_m. Throws covox::Error like make_frame_key_codec for an absurdly large box.
+MergeKeys make_merge_keys(const Vec3f& origin, float max_ray_length_m, float voxel_size_m, int32_t voxels_per_side);
+// The same for a known box of surface voxels (the fallback when the range box needs long keys).
+MergeKeys make_merge_keys(const Index3D& min_voxel, const Index3D& max_voxel, int32_t voxels_per_side);
 
 // The merge keys as a reduction compares them (with ==): rays that must stay alone share the
 // "alone" key, so each is given a distinct key of its own above every real key (FrameKeyCodec
@@ -67,6 +95,35 @@ struct AloneKeysApart {
   uint64_t alone_key;
   COVOX_HD_INLINE uint64_t operator()(int64_t i) const {
     return keys[i] == alone_key ? ~uint64_t(0) - static_cast<uint64_t>(i) : keys[i];
+  }
+};
+
+// The bundle of the i-th point in key order, built where the reduction reads it (no bundle per
+// point is written): a surface key sums the point's coordinates, any other key only counts it.
+struct BundleOfSortedPoint {
+  const Vec3f* points;
+  const uint32_t* order;        // sorted position -> point index
+  const uint64_t* sorted_keys;  // merge keys in sorted order
+  MergeKeys merge_keys;
+  const Rgb8* colors;
+  const float* intensities;
+  float grey_per_intensity;
+  COVOX_HD_INLINE PointBundle operator()(int64_t i) const {
+    const uint32_t index = order[i];
+    PointBundle bundle;
+    if (merge_keys.is_surface_key(sorted_keys[i])) {
+      const Vec3f point = points[index];
+      bundle.x = to_merge_units(point.x);
+      bundle.y = to_merge_units(point.y);
+      bundle.z = to_merge_units(point.z);
+    }
+    const Rgb8 color = colors ? colors[index] : (intensities ? intensity_to_grey(intensities[index], grey_per_intensity) : Rgb8{});
+    bundle.r = color.r;
+    bundle.g = color.g;
+    bundle.b = color.b;
+    bundle.count = 1;
+    bundle.first = index;
+    return bundle;
   }
 };
 
