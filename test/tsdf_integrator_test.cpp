@@ -614,6 +614,38 @@ TEST_P(TsdfIntegratorTest, MergeKeysFromEitherBoxGiveTheSameMap) {
   }
 }
 
+// Update keys are 32-bit when the frame's box of voxels allows and 64-bit otherwise. Three rays
+// 40 m long at 2 cm span a box of more than 2^32 voxels (64-bit keys); each ray alone fits in
+// 32 bits. The rays share voxels only next to the sensor, so the frame and the three one-ray
+// frames must give the same map: equal voxels, distances and weights up to the rounding of one
+// weighted average against three.
+TEST_P(TsdfIntegratorTest, LongKeysAndShortKeysBuildTheSameMap) {
+  TsdfIntegratorConfig config;
+  config.method = TsdfIntegrationMethod::kSimple;
+  config.truncation_distance_m = 0.06f;
+  config.max_ray_length_m = 50.0f;
+  config.use_const_weight = true;
+  const std::vector<Vec3f> rays = {Vec3f(40.0f, 0.3f, 0.2f), Vec3f(-0.2f, 40.0f, 0.1f), Vec3f(0.1f, -0.3f, -40.0f)};
+  const Eigen::Isometry3d pose = viewpoints()[2];
+  TsdfMap together(device(), TsdfMapConfig{0.02f, 8, {}});
+  TsdfMap apart(device(), TsdfMapConfig{0.02f, 8, {}});
+  const IntegrationStats stats = TsdfIntegrator(config).integrate(together, rays, {}, pose);
+  int64_t updates_apart = 0;
+  for (const Vec3f& ray : rays) updates_apart += TsdfIntegrator(config).integrate(apart, {ray}, {}, pose).voxel_updates;
+  EXPECT_EQ(stats.voxel_updates, updates_apart);
+  EXPECT_GT(stats.voxel_updates, 3 * 1900);
+  const auto voxels_together = observed_voxels(together);
+  const auto voxels_apart = observed_voxels(apart);
+  ASSERT_EQ(voxels_together.size(), voxels_apart.size());
+  EXPECT_EQ(stats.voxels_updated, static_cast<int64_t>(voxels_together.size()));
+  for (const auto& [key, voxel] : voxels_apart) {
+    const auto found = voxels_together.find(key);
+    ASSERT_NE(found, voxels_together.end());
+    EXPECT_NEAR(found->second.distance_m, voxel.distance_m, 1e-5f);
+    EXPECT_NEAR(found->second.weight, voxel.weight, 1e-5f * voxel.weight);
+  }
+}
+
 TEST_P(TsdfIntegratorTest, RejectsInvalidParametersByName) {
   TsdfIntegratorConfig config;
   config.truncation_distance_m = -1.0f;

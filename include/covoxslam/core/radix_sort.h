@@ -1,6 +1,6 @@
 #pragma once
-// Stable radix sort of (64-bit key, value) pairs by the low `key_bits` bits of the keys, on both
-// backends. The value is any trivially copyable type: an index to permute large records by, or
+// Stable radix sort of (unsigned key, value) pairs by the low `key_bits` bits of the keys, on both
+// backends. Keys are 64- or 32-bit (a frame whose keys fit in 32 bits moves half the key bytes). The value is any trivially copyable type: an index to permute large records by, or
 // a small record itself (an 8-byte TSDF update travels with its key, so no gather follows). Integration keys are built relative to the frame's bounding box, so a
 // frame's keys need 20-30 bits, not 64: sorting only those bits takes 3-4 passes of 8 bits
 // instead of the 8 a full 64-bit sort pays for (CUB's begin/end bits on the GPU; an OpenMP LSD
@@ -33,18 +33,18 @@
 
 namespace covox {
 
-template <class Value>
-void radix_sort_pairs_swapping(CpuBackend, const Stream&, uint64_t*& keys, Value*& values, int64_t count, int key_bits,
-                               uint64_t*& keys_alt, Value*& values_alt) {
+template <class Key, class Value>
+void radix_sort_pairs_swapping(CpuBackend, const Stream&, Key*& keys, Value*& values, int64_t count, int key_bits,
+                               Key*& keys_alt, Value*& values_alt) {
   if (count <= 1 || key_bits <= 0) return;
   constexpr int kDigitBits = 8;
   constexpr int kDigits = 1 << kDigitBits;
-  const int passes = (std::min(key_bits, 64) + kDigitBits - 1) / kDigitBits;
+  const int passes = (std::min(key_bits, static_cast<int>(8 * sizeof(Key))) + kDigitBits - 1) / kDigitBits;
   const int max_threads = omp_get_max_threads();
   std::vector<int64_t> offsets(static_cast<size_t>(max_threads) * kDigits);
-  uint64_t* source_keys = keys;
+  Key* source_keys = keys;
   Value* source_values = values;
-  uint64_t* target_keys = keys_alt;
+  Key* target_keys = keys_alt;
   Value* target_values = values_alt;
   for (int pass = 0; pass < passes; ++pass) {
     const int shift = pass * kDigitBits;
@@ -87,14 +87,14 @@ void radix_sort_pairs_swapping(CpuBackend, const Stream&, uint64_t*& keys, Value
 }
 
 #if defined(__CUDACC__)
-template <class Value>
-void radix_sort_pairs_swapping(CudaBackend, const Stream& stream, uint64_t*& keys, Value*& values, int64_t count,
-                               int key_bits, uint64_t*& keys_alt, Value*& values_alt) {
+template <class Key, class Value>
+void radix_sort_pairs_swapping(CudaBackend, const Stream& stream, Key*& keys, Value*& values, int64_t count,
+                               int key_bits, Key*& keys_alt, Value*& values_alt) {
   if (count <= 1 || key_bits <= 0) return;
   const auto cuda_stream = static_cast<cudaStream_t>(stream.native_handle());
-  cub::DoubleBuffer<uint64_t> key_buffers(keys, keys_alt);
+  cub::DoubleBuffer<Key> key_buffers(keys, keys_alt);
   cub::DoubleBuffer<Value> value_buffers(values, values_alt);
-  const int end_bit = std::min(key_bits, 64);
+  const int end_bit = std::min(key_bits, static_cast<int>(8 * sizeof(Key)));
   size_t temporary_bytes = 0;
   cuda_check(cub::DeviceRadixSort::SortPairs(nullptr, temporary_bytes, key_buffers, value_buffers, count, 0, end_bit,
                                              cuda_stream),

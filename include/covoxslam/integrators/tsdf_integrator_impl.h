@@ -195,7 +195,7 @@ int64_t tsdf_merge_rays(Backend backend, const tsdf::RayParameters& ray_paramete
 // voxel once. UpdateT is tsdf::VoxelUpdate (with colour) or tsdf::DistanceUpdate (without): a
 // LiDAR without intensity then moves 8 bytes per update instead of 24 through the traverse, the
 // sort's permutation and the reduction.
-template <class UpdateT, class Backend>
+template <class UpdateT, class KeyT, class Backend>
 void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, const tsdf::FrameUpdates& frame,
                        TsdfMap& map, TsdfScratchBuffers& scratch, IntegrationStats& stats, StageProfiler::Scope& profile,
                        const Stream& stream) {
@@ -216,8 +216,28 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   // An 8-byte update travels through the sort with its key (no permutation, and a contiguous
   // read in the reduction); a 24-byte one stays put and is gathered through the sorted order.
   constexpr bool kUpdatesTravelWithKeys = std::is_same<UpdateT, tsdf::DistanceUpdate>::value;
-  scratch.keys.resize_discard(total_updates);
-  uint64_t* keys = scratch.keys.data();
+  // Keys are 32-bit when the frame's box allows (almost always): half the key bytes through the
+  // traverse's writes, every radix pass and the reduction.
+  KeyT* keys = nullptr;
+  KeyT* keys_alt = nullptr;
+  KeyT* merged_keys_out = nullptr;
+  if constexpr (sizeof(KeyT) == sizeof(uint32_t)) {
+    scratch.keys32.resize_discard(total_updates);
+    scratch.keys32_alt.resize_discard(total_updates);
+    scratch.merged_keys32.resize_discard(total_updates);
+    keys = scratch.keys32.data();
+    keys_alt = scratch.keys32_alt.data();
+    merged_keys_out = scratch.merged_keys32.data();
+  } else {
+    scratch.keys.resize_discard(total_updates);
+    scratch.keys_alt.resize_discard(total_updates);
+    scratch.merged_keys.resize_discard(total_updates);
+    keys = scratch.keys.data();
+    keys_alt = scratch.keys_alt.data();
+    merged_keys_out = scratch.merged_keys.data();
+  }
+  const KeyT zero_weight_key = static_cast<KeyT>(codec.zero_weight_key);
+  const KeyT out_of_range_key = static_cast<KeyT>(codec.out_of_range_key);
   uint32_t* order = nullptr;
   UpdateT* updates = nullptr;
   if constexpr (kUpdatesTravelWithKeys) {
@@ -252,7 +272,7 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
       update.weighted_distance = weight * distance;
       update.weight = weight;
       if (!clearing && fabsf(distance) < truncation && weight > 0.0f) tsdf::set_update_color(update, weight, color);
-      keys[out] = weight > 0.0f ? codec.key(voxel) : codec.zero_weight_key;
+      keys[out] = weight > 0.0f ? static_cast<KeyT>(codec.key(voxel)) : zero_weight_key;
       if (order) order[out] = out;
       updates[out] = update;
       ++out;
@@ -263,9 +283,6 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
 
   // 3. group by voxel and merge (stable sort keeps each voxel's updates in ray order, so the
   //    float sums are the same every run)
-  scratch.keys_alt.resize_discard(total_updates);
-  uint64_t* keys_alt = scratch.keys_alt.data();
-  scratch.merged_keys.resize_discard(total_updates);
   scratch.readback.resize_discard(4);
   uint32_t* counts_on_device = scratch.readback.data();
   UpdateT* merged_updates = nullptr;
@@ -275,8 +292,8 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
     radix_sort_pairs_swapping(backend, stream, keys, updates, total_updates, codec.key_bits, keys_alt, updates_alt);
     profile.mark("3a sort updates");
     merged_updates = updates_alt;  // free after the sort: the merged updates go there
-    reduce_runs_counted_on_device(backend, stream, static_cast<const uint64_t*>(keys),
-                                  static_cast<const UpdateT*>(updates), total_updates, scratch.merged_keys.data(),
+    reduce_runs_counted_on_device(backend, stream, static_cast<const KeyT*>(keys),
+                                  static_cast<const UpdateT*>(updates), total_updates, merged_keys_out,
                                   merged_updates, tsdf::MergeUpdates(), counts_on_device);
   } else {
     scratch.order_alt.resize_discard(total_updates);
@@ -286,15 +303,15 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
     scratch.merged.resize_discard(total_updates);
     merged_updates = scratch.merged.data();
     const auto ordered_updates = thrust::make_permutation_iterator(updates, order);
-    reduce_runs_counted_on_device(backend, stream, static_cast<const uint64_t*>(keys), ordered_updates, total_updates,
-                                  scratch.merged_keys.data(), merged_updates, tsdf::MergeUpdates(), counts_on_device);
+    reduce_runs_counted_on_device(backend, stream, static_cast<const KeyT*>(keys), ordered_updates, total_updates,
+                                  merged_keys_out, merged_updates, tsdf::MergeUpdates(), counts_on_device);
   }
   // Updates to drop (zero weight, outside the key range) sort last: their counts are where
   // their keys begin in the sorted keys. One read-back for the three figures.
-  const uint64_t* sorted_keys = keys;
+  const KeyT* sorted_keys = keys;
   parallel_for(backend, stream, 1, [=] COVOX_HD(int64_t) {
-    const int64_t zero_begin = lower_bound_index(sorted_keys, total_updates, codec.zero_weight_key);
-    const int64_t out_begin = lower_bound_index(sorted_keys, total_updates, codec.out_of_range_key);
+    const int64_t zero_begin = lower_bound_index(sorted_keys, total_updates, zero_weight_key);
+    const int64_t out_begin = lower_bound_index(sorted_keys, total_updates, out_of_range_key);
     counts_on_device[1] = static_cast<uint32_t>(total_updates - zero_begin);
     counts_on_device[2] = static_cast<uint32_t>(zero_begin - out_begin);
   });
@@ -314,7 +331,7 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   scratch.block_flags.resize_discard(voxel_count + 1);
   scratch.block_ranks.resize_discard(voxel_count + 1);
   uint32_t* block_flags = scratch.block_flags.data();
-  const uint64_t* merged_keys = scratch.merged_keys.data();
+  const KeyT* merged_keys = merged_keys_out;
   parallel_for(backend, stream, voxel_count + 1, [=] COVOX_HD(int64_t v) {
     block_flags[v] = v < voxel_count && (v == 0 || codec.block_part(merged_keys[v]) !=
                                                        codec.block_part(merged_keys[v - 1]))
@@ -519,10 +536,15 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
   const tsdf::FrameUpdates frame{codec,       total_updates, piece_bound,        piece_total,        pieces,
                                   rays,        colors,        intensities,        grey_per_intensity, ray_weights,
                                   inverse_voxel_size, voxel_size, weight_parameters};
-  if (has_color) {
-    tsdf_fuse_updates<tsdf::VoxelUpdate>(backend, config, frame, map, scratch, stats, profile, stream);
+  const bool short_keys = codec.key_bits <= 32;
+  if (has_color && short_keys) {
+    tsdf_fuse_updates<tsdf::VoxelUpdate, uint32_t>(backend, config, frame, map, scratch, stats, profile, stream);
+  } else if (has_color) {
+    tsdf_fuse_updates<tsdf::VoxelUpdate, uint64_t>(backend, config, frame, map, scratch, stats, profile, stream);
+  } else if (short_keys) {
+    tsdf_fuse_updates<tsdf::DistanceUpdate, uint32_t>(backend, config, frame, map, scratch, stats, profile, stream);
   } else {
-    tsdf_fuse_updates<tsdf::DistanceUpdate>(backend, config, frame, map, scratch, stats, profile, stream);
+    tsdf_fuse_updates<tsdf::DistanceUpdate, uint64_t>(backend, config, frame, map, scratch, stats, profile, stream);
   }
   return stats;
 }

@@ -18,7 +18,7 @@ struct TsdfScratchBuffers {
         keys(device), order(device), updates(device), merged_keys(device), merged(device),
         block_indices(device), slots(device), is_new(device), merged_bundles(device),
         ray_colors(device), ray_weights(device), block_flags(device), block_ranks(device), keys_alt(device),
-        order_alt(device), distance_updates(device), distance_updates_alt(device), pieces(device), piece_voxels(device), piece_offsets(device), readback(device) {}
+        order_alt(device), keys32(device), keys32_alt(device), merged_keys32(device), distance_updates(device), distance_updates_alt(device), pieces(device), piece_voxels(device), piece_offsets(device), readback(device) {}
   Buffer<Vec3f> points;  // depth images unprojected, or host clouds uploaded
   Buffer<Rgb8> colors;
   Buffer<tsdf::RaySegment> rays;
@@ -42,6 +42,10 @@ struct TsdfScratchBuffers {
   // radix sort scratch
   Buffer<uint64_t> keys_alt;
   Buffer<uint32_t> order_alt;
+  // update keys of frames whose keys fit in 32 bits
+  Buffer<uint32_t> keys32;
+  Buffer<uint32_t> keys32_alt;
+  Buffer<uint32_t> merged_keys32;
   // frames without colour: 8-byte updates sorted with their keys (no permutation to gather by)
   Buffer<tsdf::DistanceUpdate> distance_updates;
   Buffer<tsdf::DistanceUpdate> distance_updates_alt;
