@@ -19,6 +19,7 @@
 #include "covoxslam/core/sorted_search.h"
 #include "covoxslam/core/stage_profiler.h"
 #include "covoxslam/integrators/tsdf_integrator_ops.h"
+#include "covoxslam/integrators/tsdf_traverse.h"
 
 namespace covox {
 namespace tsdf_detail {
@@ -193,7 +194,7 @@ int64_t tsdf_merge_rays(Backend backend, const tsdf::RayParameters& ray_paramete
 // Steps 2b to 5 of a frame (see tsdf_integrate_points): traverse the ray pieces into one update
 // per voxel visit, group the updates by voxel and merge them, allocate the blocks, write each
 // voxel once. UpdateT is tsdf::VoxelUpdate (with colour) or tsdf::DistanceUpdate (without): a
-// LiDAR without intensity then moves 8 bytes per update instead of 24 through the traverse, the
+// LiDAR without intensity then moves 8 bytes per update instead of 32 through the traverse, the
 // sort's permutation and the reduction.
 template <class UpdateT, class KeyT, class Backend>
 void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, const tsdf::FrameUpdates& frame,
@@ -214,7 +215,7 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   const float truncation = config.truncation_distance_m;
   const tsdf::WeightParameters weight_parameters = frame.weight_parameters;
   // An 8-byte update travels through the sort with its key (no permutation, and a contiguous
-  // read in the reduction); a 24-byte one stays put and is gathered through the sorted order.
+  // read in the reduction); a 32-byte one stays put and is gathered through the sorted order.
   constexpr bool kUpdatesTravelWithKeys = std::is_same<UpdateT, tsdf::DistanceUpdate>::value;
   // Keys are 32-bit when the frame's box allows (almost always): half the key bytes through the
   // traverse's writes, every radix pass and the reduction.
@@ -249,35 +250,13 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
     order = scratch.order.data();
     updates = scratch.updates.data();
   }
-  const uint32_t* piece_offsets = scratch.piece_offsets.data();
-  parallel_for(backend, stream, piece_bound, [=] COVOX_HD(int64_t p) {
-    if (p >= *piece_total) return;
-    const tsdf::RayPiece piece = pieces[p];
-    const int64_t i = piece.ray;
-    const tsdf::RaySegment ray = rays[i];
-    uint32_t out = piece_offsets[p];
-    const bool clearing = ray.kind == tsdf::kClearingRay;
-    const Rgb8 color = colors ? colors[i] : (intensities ? tsdf::intensity_to_grey(intensities[i], grey_per_intensity) : Rgb8{});
-    const float ray_weight = ray_weights ? ray_weights[i] : 1.0f;
-    tsdf::traverse_ray_piece(ray, piece.index, piece.pieces, inverse_voxel_size, [&](const Index3D& voxel) {
-      const Vec3f center((voxel.x + 0.5f) * voxel_size, (voxel.y + 0.5f) * voxel_size,
-                         (voxel.z + 0.5f) * voxel_size);
-      float distance = clearing ? truncation : (ray.surface - center).dot(ray.direction);
-      float weight = 0.0f;
-      if (distance >= -truncation) {
-        if (distance > truncation) distance = truncation;
-        weight = ray_weight * tsdf::update_weight(weight_parameters, ray.range_m, distance);
-      }
-      UpdateT update;
-      update.weighted_distance = weight * distance;
-      update.weight = weight;
-      if (!clearing && fabsf(distance) < truncation && weight > 0.0f) tsdf::set_update_color(update, weight, color);
-      keys[out] = weight > 0.0f ? static_cast<KeyT>(codec.key(voxel)) : zero_weight_key;
-      if (order) order[out] = out;
-      updates[out] = update;
-      ++out;
-    });
-  });
+  const tsdf::PieceTraversal<UpdateT, KeyT> traversal{codec,       zero_weight_key,    piece_total,
+                                                       scratch.piece_offsets.data(), pieces, rays,
+                                                       colors,      intensities,        grey_per_intensity,
+                                                       ray_weights, inverse_voxel_size, voxel_size,
+                                                       truncation,  weight_parameters};
+  tsdf::traverse_pieces(backend, stream, piece_bound, total_updates, traversal,
+                        tsdf::UpdateArrays<UpdateT, KeyT>{keys, updates, order});
 
   profile.mark("2b traverse");
 
