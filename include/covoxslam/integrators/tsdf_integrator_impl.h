@@ -29,6 +29,7 @@ namespace tsdf_detail {
 struct RayTally {
   int64_t kinds[6] = {0, 0, 0, 0, 0, 0};  // input points, by what became of them
   int64_t cast = 0;                       // surface and clearing rays (after merging)
+  int64_t rays = 0;                       // merged rays, of every kind
   int64_t voxels = 0;
   int32_t low[3] = {INT32_MAX, INT32_MAX, INT32_MAX};
   int32_t high[3] = {INT32_MIN, INT32_MIN, INT32_MIN};
@@ -62,13 +63,18 @@ struct TallyPoint {
     return tally_ray(tsdf::make_ray(ray_parameters, point), 1, inverse_voxel_size);
   }
 };
-// The tally of merged ray m, which stands for ray_weights[m] points.
+// The tally of merged ray m, which stands for ray_weights[m] points; empty past the ray count
+// (on the device), so that the tally runs over a bound known without a read-back.
 struct TallyMergedRay {
   const tsdf::RaySegment* rays;
   const float* ray_weights;
+  const uint32_t* ray_count;
   float inverse_voxel_size;
   COVOX_HD_INLINE RayTally operator()(int64_t m) const {
-    return tally_ray(rays[m], static_cast<int64_t>(ray_weights[m]), inverse_voxel_size);
+    if (m >= *ray_count) return RayTally{};
+    RayTally tally = tally_ray(rays[m], static_cast<int64_t>(ray_weights[m]), inverse_voxel_size);
+    tally.rays = 1;
+    return tally;
   }
 };
 struct AddTallies {
@@ -76,6 +82,7 @@ struct AddTallies {
     RayTally sum;
     for (int k = 0; k < 6; ++k) sum.kinds[k] = a.kinds[k] + b.kinds[k];
     sum.cast = a.cast + b.cast;
+    sum.rays = a.rays + b.rays;
     sum.voxels = a.voxels + b.voxels;
     for (int axis = 0; axis < 3; ++axis) {
       sum.low[axis] = a.low[axis] < b.low[axis] ? a.low[axis] : b.low[axis];
@@ -118,9 +125,10 @@ std::array<uint32_t, N> read_back(const Buffer<uint32_t>& readback, const Stream
 // per bundle (see tsdf_ray_merging.h), with the number of points it stands for in
 // scratch.ray_weights and, when `has_color`, its mean colour in scratch.ray_colors. Dropped
 // points come out as one ray of their drop kind per reason, weighted by their count, so the
-// tally of the merged rays accounts for every point. Returns the number of rays.
+// tally of the merged rays accounts for every point. The number of rays is left on the device in
+// scratch.readback[0] (TallyMergedRay reads it).
 template <class Backend>
-int64_t tsdf_merge_rays(Backend backend, const tsdf::RayParameters& ray_parameters, const tsdf::MergeKeys& merge_keys,
+void tsdf_merge_rays(Backend backend, const tsdf::RayParameters& ray_parameters, const tsdf::MergeKeys& merge_keys,
                         const PointCloudView& cloud, const Rgb8* colors, const float* intensities,
                         float grey_per_intensity, TsdfScratchBuffers& scratch, const Stream& stream) {
   StageProfiler::Scope profile("tsdf merge", stream);
@@ -154,18 +162,21 @@ int64_t tsdf_merge_rays(Backend backend, const tsdf::RayParameters& ray_paramete
                                                           tsdf::AloneKeysApart{keys, merge_keys.alone_key});
   reduce_runs_counted_on_device(backend, stream, apart_keys, sorted_bundles, n, scratch.merged_keys.data(),
                                 scratch.merged_bundles.data(), tsdf::AddBundles(), scratch.readback.data());
-  const int64_t ray_count = tsdf_detail::read_back<1>(scratch.readback, stream)[0];
   profile.mark("reduce runs");
 
-  scratch.rays.resize_discard(ray_count);
-  scratch.ray_weights.resize_discard(ray_count);
-  scratch.ray_colors.resize_discard(ray_count);
+  // The number of rays stays on the device: the rays are written over the bound n, and the tally
+  // of the merged rays reads it back together with everything else (one wait, not two).
+  const uint32_t* ray_count = scratch.readback.data();
+  scratch.rays.resize_discard(n);
+  scratch.ray_weights.resize_discard(n);
+  scratch.ray_colors.resize_discard(n);
   tsdf::RaySegment* merged_rays = scratch.rays.data();
   float* weights = scratch.ray_weights.data();
   Rgb8* ray_colors = scratch.ray_colors.data();
   const tsdf::PointBundle* merged = scratch.merged_bundles.data();
   const uint64_t* merged_keys = scratch.merged_keys.data();
-  parallel_for(backend, stream, ray_count, [=] COVOX_HD(int64_t m) {
+  parallel_for(backend, stream, n, [=] COVOX_HD(int64_t m) {
+    if (m >= *ray_count) return;
     const tsdf::PointBundle bundle = merged[m];
     weights[m] = static_cast<float>(bundle.count);
     const uint8_t dropped = merge_keys.dropped_kind(merged_keys[m]);
@@ -188,7 +199,6 @@ int64_t tsdf_merge_rays(Backend backend, const tsdf::RayParameters& ray_paramete
                          static_cast<uint8_t>((bundle.g + half) / bundle.count),
                          static_cast<uint8_t>((bundle.b + half) / bundle.count)};
   });
-  return ray_count;
 }
 
 // Steps 2b to 5 of a frame (see tsdf_integrate_points): traverse the ray pieces into one update
@@ -455,14 +465,16 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
       merge_keys = box.cast > 0 ? tsdf::make_merge_keys(box.low_voxel(), box.high_voxel(), voxels_per_side)
                                 : tsdf::make_merge_keys(sensor_voxel, sensor_voxel, voxels_per_side);
     }
-    ray_count = tsdf_merge_rays(backend, ray_parameters, merge_keys, cloud, colors, intensities, grey_per_intensity,
-                                scratch, stream);
+    tsdf_merge_rays(backend, ray_parameters, merge_keys, cloud, colors, intensities, grey_per_intensity, scratch,
+                    stream);
     ray_weights = scratch.ray_weights.data();
     colors = has_color ? scratch.ray_colors.data() : nullptr;
     intensities = nullptr;
-    tally = transform_reduce(backend, stream, thrust::make_counting_iterator<int64_t>(0), ray_count,
-                             tsdf_detail::TallyMergedRay{scratch.rays.data(), ray_weights, inverse_voxel_size},
-                             tsdf_detail::RayTally{}, tsdf_detail::AddTallies{});
+    tally = transform_reduce(
+        backend, stream, thrust::make_counting_iterator<int64_t>(0), n,
+        tsdf_detail::TallyMergedRay{scratch.rays.data(), ray_weights, scratch.readback.data(), inverse_voxel_size},
+        tsdf_detail::RayTally{}, tsdf_detail::AddTallies{});
+    ray_count = tally.rays;
     profile.mark("1 merge rays + tally");
   }
   stats.surface_rays = tally.kinds[tsdf::kSurfaceRay];
