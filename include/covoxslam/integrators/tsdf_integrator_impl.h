@@ -126,7 +126,7 @@ std::array<uint32_t, N> read_back(const Buffer<uint32_t>& readback, const Stream
 // scratch.ray_weights and, when `has_color`, its mean colour in scratch.ray_colors. Dropped
 // points come out as one ray of their drop kind per reason, weighted by their count, so the
 // tally of the merged rays accounts for every point. The number of rays is left on the device in
-// scratch.readback[0] (TallyMergedRay reads it).
+// scratch.readback[0] (TallyMergedRay reads it); each ray's piece count goes to scratch.counts.
 template <class Backend>
 void tsdf_merge_rays(Backend backend, const tsdf::RayParameters& ray_parameters, const tsdf::MergeKeys& merge_keys,
                         const PointCloudView& cloud, const Rgb8* colors, const float* intensities,
@@ -170,13 +170,18 @@ void tsdf_merge_rays(Backend backend, const tsdf::RayParameters& ray_parameters,
   scratch.rays.resize_discard(n);
   scratch.ray_weights.resize_discard(n);
   scratch.ray_colors.resize_discard(n);
+  scratch.counts.resize_discard(n + 1);
+  uint32_t* ray_pieces = scratch.counts.data();  // zero from the ray count on (the scan's end)
   tsdf::RaySegment* merged_rays = scratch.rays.data();
   float* weights = scratch.ray_weights.data();
   Rgb8* ray_colors = scratch.ray_colors.data();
   const tsdf::PointBundle* merged = scratch.merged_bundles.data();
   const uint64_t* merged_keys = scratch.merged_keys.data();
-  parallel_for(backend, stream, n, [=] COVOX_HD(int64_t m) {
-    if (m >= *ray_count) return;
+  parallel_for(backend, stream, n + 1, [=] COVOX_HD(int64_t m) {
+    if (m >= *ray_count) {
+      ray_pieces[m] = 0;
+      return;
+    }
     const tsdf::PointBundle bundle = merged[m];
     weights[m] = static_cast<float>(bundle.count);
     const uint8_t dropped = merge_keys.dropped_kind(merged_keys[m]);
@@ -185,6 +190,7 @@ void tsdf_merge_rays(Backend backend, const tsdf::RayParameters& ray_parameters,
       none.kind = dropped;
       merged_rays[m] = none;
       ray_colors[m] = Rgb8{};
+      ray_pieces[m] = 0;
       return;
     }
     Vec3f point = points[bundle.first];
@@ -193,7 +199,9 @@ void tsdf_merge_rays(Backend backend, const tsdf::RayParameters& ray_parameters,
       point = Vec3f(static_cast<float>(bundle.x * scale), static_cast<float>(bundle.y * scale),
                     static_cast<float>(bundle.z * scale));
     }
-    merged_rays[m] = tsdf::make_ray(ray_parameters, point);
+    const tsdf::RaySegment ray = tsdf::make_ray(ray_parameters, point);
+    merged_rays[m] = ray;
+    ray_pieces[m] = tsdf::ray_piece_count(tsdf::ray_voxel_count(ray, inverse_voxel_size));
     const uint32_t half = bundle.count / 2;
     ray_colors[m] = Rgb8{static_cast<uint8_t>((bundle.r + half) / bundle.count),
                          static_cast<uint8_t>((bundle.g + half) / bundle.count),
@@ -272,7 +280,7 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
 
   // 3. group by voxel and merge (stable sort keeps each voxel's updates in ray order, so the
   //    float sums are the same every run)
-  scratch.readback.resize_discard(4);
+  scratch.readback.resize_discard(8);
   uint32_t* counts_on_device = scratch.readback.data();
   UpdateT* merged_updates = nullptr;
   if constexpr (kUpdatesTravelWithKeys) {
@@ -295,45 +303,49 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
     reduce_runs_counted_on_device(backend, stream, static_cast<const KeyT*>(keys), ordered_updates, total_updates,
                                   merged_keys_out, merged_updates, tsdf::MergeUpdates(), counts_on_device);
   }
-  // Updates to drop (zero weight, outside the key range) sort last: their counts are where
-  // their keys begin in the sorted keys. One read-back for the three figures.
+  // Updates to drop (zero weight, outside the key range) sort last, one run per kind present:
+  // their counts are where their keys begin in the sorted keys.
   const KeyT* sorted_keys = keys;
   parallel_for(backend, stream, 1, [=] COVOX_HD(int64_t) {
     const int64_t zero_begin = lower_bound_index(sorted_keys, total_updates, zero_weight_key);
     const int64_t out_begin = lower_bound_index(sorted_keys, total_updates, out_of_range_key);
     counts_on_device[1] = static_cast<uint32_t>(total_updates - zero_begin);
     counts_on_device[2] = static_cast<uint32_t>(zero_begin - out_begin);
+    counts_on_device[3] = counts_on_device[0] - (zero_begin < total_updates ? 1u : 0u) - (out_begin < zero_begin ? 1u : 0u);
   });
-  const std::array<uint32_t, 3> counts = tsdf_detail::read_back<3>(scratch.readback, stream);
-  const int64_t zero_weight_updates = counts[1];
-  stats.voxels_out_of_range = counts[2];
-  int64_t voxel_count = counts[0];
-  // Updates to drop sort last, one run per kind present.
-  voxel_count -= (zero_weight_updates > 0 ? 1 : 0) + (stats.voxels_out_of_range > 0 ? 1 : 0);
-  stats.voxels_updated = voxel_count;
   profile.mark("3b reduce runs");
-  if (voxel_count == 0) return;
 
   // 4. allocate the distinct blocks of the touched voxels in one batch. Merged keys are sorted
   //    block-major, so each block's voxels form one run: the run's first voxel names the block and
   //    a scan ranks the runs. The hash table sees a few hundred blocks, not one key per voxel.
-  scratch.block_flags.resize_discard(voxel_count + 1);
-  scratch.block_ranks.resize_discard(voxel_count + 1);
+  //    On the GPU each read-back is a wait, so the flags and their scan run over the bound
+  //    total_updates (no flag past the voxel count, which stays on the device) and the counts
+  //    come back in one copy; on the CPU a read-back is free and the exact count scans less.
+  const bool read_back_is_free = Backend::kDevice == Device::kCpu;
+  const int64_t flag_bound = read_back_is_free ? tsdf_detail::read_back<4>(scratch.readback, stream)[3] : total_updates;
+  scratch.block_flags.resize_discard(flag_bound + 1);
+  scratch.block_ranks.resize_discard(flag_bound + 1);
   uint32_t* block_flags = scratch.block_flags.data();
+  uint32_t* block_ranks = scratch.block_ranks.data();
   const KeyT* merged_keys = merged_keys_out;
-  parallel_for(backend, stream, voxel_count + 1, [=] COVOX_HD(int64_t v) {
-    block_flags[v] = v < voxel_count && (v == 0 || codec.block_part(merged_keys[v]) !=
-                                                       codec.block_part(merged_keys[v - 1]))
+  parallel_for(backend, stream, flag_bound + 1, [=] COVOX_HD(int64_t v) {
+    const int64_t voxels = counts_on_device[3];
+    block_flags[v] = v < voxels && (v == 0 || codec.block_part(merged_keys[v]) != codec.block_part(merged_keys[v - 1]))
                          ? 1u
                          : 0u;
   });
-  exclusive_scan(backend, stream, block_flags, voxel_count + 1, scratch.block_ranks.data());
-  const int64_t block_count = static_cast<int64_t>(scratch.block_ranks.element(voxel_count, stream));
+  exclusive_scan(backend, stream, static_cast<const uint32_t*>(block_flags), flag_bound + 1, block_ranks);
+  parallel_for(backend, stream, 1, [=] COVOX_HD(int64_t) { counts_on_device[4] = block_ranks[counts_on_device[3]]; });
+  const std::array<uint32_t, 5> counts = tsdf_detail::read_back<5>(scratch.readback, stream);
+  stats.voxels_out_of_range = counts[2];
+  const int64_t voxel_count = counts[3];
+  const int64_t block_count = counts[4];
+  stats.voxels_updated = voxel_count;
+  if (voxel_count == 0) return;
   scratch.block_indices.resize_discard(block_count);
   scratch.slots.resize_discard(block_count);
   scratch.is_new.resize_discard(block_count);
   Index3D* block_indices = scratch.block_indices.data();
-  const uint32_t* block_ranks = scratch.block_ranks.data();
   parallel_for(backend, stream, voxel_count, [=] COVOX_HD(int64_t v) {
     if (block_flags[v]) block_indices[block_ranks[v]] = codec.block(merged_keys[v]);
   });
@@ -448,9 +460,18 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
                              tsdf_detail::RayTally{}, tsdf_detail::AddTallies{});
     profile.mark("1 rays + tally");
     scratch.rays.resize_discard(n);
+    scratch.counts.resize_discard(n + 1);
     tsdf::RaySegment* point_rays = scratch.rays.data();
-    parallel_for(backend, stream, n,
-                 [=] COVOX_HD(int64_t i) { point_rays[i] = tsdf::make_ray(ray_parameters, points[i]); });
+    uint32_t* ray_pieces = scratch.counts.data();
+    parallel_for(backend, stream, n + 1, [=] COVOX_HD(int64_t i) {
+      if (i == n) {
+        ray_pieces[n] = 0;  // the scan's end
+        return;
+      }
+      const tsdf::RaySegment ray = tsdf::make_ray(ray_parameters, points[i]);
+      point_rays[i] = ray;
+      ray_pieces[i] = tsdf::ray_piece_count(tsdf::ray_voxel_count(ray, inverse_voxel_size));
+    });
   } else {
     // Merge keys from a box around the sensor (no pass over the points first), unless that box
     // needs keys long enough to add radix passes (rays of hundreds of metres at fine voxels):
@@ -494,13 +515,10 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
   const tsdf::FrameKeyCodec codec = tsdf::make_frame_key_codec(tally.low_voxel(), tally.high_voxel(), voxels_per_side);
   // Every ray has at most voxels / kVoxelsPerPiece + 1 pieces: a bound known without a read-back.
   const int64_t piece_bound = total_updates / tsdf::kVoxelsPerPiece + ray_count;
-  scratch.counts.resize_discard(ray_count + 1);
+  // (each ray's piece count was written with the ray, and a 0 after the last ray)
   scratch.offsets.resize_discard(ray_count + 1);
   tsdf::RaySegment* rays = scratch.rays.data();
-  uint32_t* ray_pieces = scratch.counts.data();
-  parallel_for(backend, stream, ray_count + 1, [=] COVOX_HD(int64_t i) {
-    ray_pieces[i] = i < ray_count ? tsdf::ray_piece_count(tsdf::ray_voxel_count(rays[i], inverse_voxel_size)) : 0u;
-  });
+  const uint32_t* ray_pieces = scratch.counts.data();
   exclusive_scan(backend, stream, ray_pieces, ray_count + 1, scratch.offsets.data());
   const uint32_t* first_piece = scratch.offsets.data();
   const uint32_t* piece_total = first_piece + ray_count;  // on the device
