@@ -220,41 +220,17 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
                        const Stream& stream) {
   const tsdf::FrameKeyCodec codec = frame.codec;
   const int64_t total_updates = frame.total_updates;
-  const int64_t piece_bound = frame.piece_bound;
-  const uint32_t* piece_total = frame.piece_total;
-  const tsdf::RayPiece* pieces = frame.pieces;
-  const tsdf::RaySegment* rays = frame.rays;
-  const Rgb8* colors = frame.colors;
-  const float* intensities = frame.intensities;
-  const float grey_per_intensity = frame.grey_per_intensity;
-  const float* ray_weights = frame.ray_weights;
-  const float inverse_voxel_size = frame.inverse_voxel_size;
-  const float voxel_size = frame.voxel_size;
   const float truncation = config.truncation_distance_m;
-  const tsdf::WeightParameters weight_parameters = frame.weight_parameters;
   // An 8-byte update travels through the sort with its key (no permutation, and a contiguous
   // read in the reduction); a 32-byte one stays put and is gathered through the sorted order.
   constexpr bool kUpdatesTravelWithKeys = std::is_same<UpdateT, tsdf::DistanceUpdate>::value;
   // Keys are 32-bit when the frame's box allows (almost always): half the key bytes through the
   // traverse's writes, every radix pass and the reduction.
-  KeyT* keys = nullptr;
-  KeyT* keys_alt = nullptr;
-  KeyT* merged_keys_out = nullptr;
-  if constexpr (sizeof(KeyT) == sizeof(uint32_t)) {
-    scratch.keys32.resize_discard(total_updates);
-    scratch.keys32_alt.resize_discard(total_updates);
-    scratch.merged_keys32.resize_discard(total_updates);
-    keys = scratch.keys32.data();
-    keys_alt = scratch.keys32_alt.data();
-    merged_keys_out = scratch.merged_keys32.data();
-  } else {
-    scratch.keys.resize_discard(total_updates);
-    scratch.keys_alt.resize_discard(total_updates);
-    scratch.merged_keys.resize_discard(total_updates);
-    keys = scratch.keys.data();
-    keys_alt = scratch.keys_alt.data();
-    merged_keys_out = scratch.merged_keys.data();
-  }
+  auto key_buffers = scratch.update_key_buffers<KeyT>();
+  for (Buffer<KeyT>* buffer : key_buffers) buffer->resize_discard(total_updates);
+  KeyT* keys = key_buffers[0]->data();
+  KeyT* keys_alt = key_buffers[1]->data();
+  KeyT* merged_keys_out = key_buffers[2]->data();
   const KeyT zero_weight_key = static_cast<KeyT>(codec.zero_weight_key);
   const KeyT out_of_range_key = static_cast<KeyT>(codec.out_of_range_key);
   uint32_t* order = nullptr;
@@ -268,12 +244,9 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
     order = scratch.order.data();
     updates = scratch.updates.data();
   }
-  const tsdf::PieceTraversal<UpdateT, KeyT> traversal{codec,       zero_weight_key,    piece_total,
-                                                       scratch.piece_offsets.data(), pieces, rays,
-                                                       colors,      intensities,        grey_per_intensity,
-                                                       ray_weights, inverse_voxel_size, voxel_size,
-                                                       truncation,  weight_parameters};
-  tsdf::traverse_pieces(backend, stream, piece_bound, total_updates, traversal,
+  const tsdf::PieceTraversal<UpdateT, KeyT> traversal{frame, zero_weight_key, scratch.piece_offsets.data(),
+                                                       truncation};
+  tsdf::traverse_pieces(backend, stream, frame.piece_bound, total_updates, traversal,
                         tsdf::UpdateArrays<UpdateT, KeyT>{keys, updates, order});
 
   profile.mark("2b traverse");

@@ -1,6 +1,7 @@
 #pragma once
 // Backend-templated steps of TsdfIntegrator (defined in tsdf_integrator_impl.h, instantiated per
 // backend). Scratch buffers are passed in so steady-state frames allocate nothing.
+#include <array>
 #include <cstdint>
 
 #include <Eigen/Geometry>
@@ -46,6 +47,15 @@ struct TsdfScratchBuffers {
   Buffer<uint32_t> keys32;
   Buffer<uint32_t> keys32_alt;
   Buffer<uint32_t> merged_keys32;
+  // The update keys, their radix-sort scratch and the merged keys, for 64- or 32-bit keys.
+  template <class KeyT>
+  std::array<Buffer<KeyT>*, 3> update_key_buffers() {
+    if constexpr (sizeof(KeyT) == sizeof(uint32_t)) {
+      return {&keys32, &keys32_alt, &merged_keys32};
+    } else {
+      return {&keys, &keys_alt, &merged_keys};
+    }
+  }
   // frames without colour: 8-byte updates sorted with their keys (no permutation to gather by)
   Buffer<tsdf::DistanceUpdate> distance_updates;
   Buffer<tsdf::DistanceUpdate> distance_updates_alt;

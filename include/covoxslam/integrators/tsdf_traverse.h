@@ -24,44 +24,37 @@ namespace tsdf {
 // frame's update arrays.
 template <class UpdateT, class KeyT>
 struct PieceTraversal {
-  FrameKeyCodec codec;
+  FrameUpdates frame;
   KeyT zero_weight_key;
-  const uint32_t* piece_total;  // on the device
-  const uint32_t* piece_offsets;
-  const RayPiece* pieces;
-  const RaySegment* rays;
-  const Rgb8* colors;
-  const float* intensities;
-  float grey_per_intensity;
-  const float* ray_weights;
-  float inverse_voxel_size;
-  float voxel_size;
+  const uint32_t* piece_offsets;  // each piece's first record (exclusive scan of its voxel count)
   float truncation;
-  WeightParameters weight_parameters;
 
   template <class Emit>
   COVOX_HD_INLINE void operator()(int64_t p, Emit&& emit) const {
-    if (p >= *piece_total) return;
-    const RayPiece piece = pieces[p];
+    if (p >= *frame.piece_total) return;
+    const RayPiece piece = frame.pieces[p];
     const int64_t i = piece.ray;
-    const RaySegment ray = rays[i];
+    const RaySegment ray = frame.rays[i];
     uint32_t out = piece_offsets[p];
     const bool clearing = ray.kind == kClearingRay;
-    const Rgb8 color = colors ? colors[i] : (intensities ? intensity_to_grey(intensities[i], grey_per_intensity) : Rgb8{});
-    const float ray_weight = ray_weights ? ray_weights[i] : 1.0f;
-    traverse_ray_piece(ray, piece.index, piece.pieces, inverse_voxel_size, [&](const Index3D& voxel) {
+    const Rgb8 color = frame.colors ? frame.colors[i]
+                                    : (frame.intensities ? intensity_to_grey(frame.intensities[i], frame.grey_per_intensity)
+                                                         : Rgb8{});
+    const float ray_weight = frame.ray_weights ? frame.ray_weights[i] : 1.0f;
+    const float voxel_size = frame.voxel_size;
+    traverse_ray_piece(ray, piece.index, piece.pieces, frame.inverse_voxel_size, [&](const Index3D& voxel) {
       const Vec3f center((voxel.x + 0.5f) * voxel_size, (voxel.y + 0.5f) * voxel_size, (voxel.z + 0.5f) * voxel_size);
       float distance = clearing ? truncation : (ray.surface - center).dot(ray.direction);
       float weight = 0.0f;
       if (distance >= -truncation) {
         if (distance > truncation) distance = truncation;
-        weight = ray_weight * update_weight(weight_parameters, ray.range_m, distance);
+        weight = ray_weight * update_weight(frame.weight_parameters, ray.range_m, distance);
       }
       UpdateT update;
       update.weighted_distance = weight * distance;
       update.weight = weight;
       if (!clearing && fabsf(distance) < truncation && weight > 0.0f) set_update_color(update, weight, color);
-      emit(out, weight > 0.0f ? static_cast<KeyT>(codec.key(voxel)) : zero_weight_key, update);
+      emit(out, weight > 0.0f ? static_cast<KeyT>(frame.codec.key(voxel)) : zero_weight_key, update);
       ++out;
     });
   }
