@@ -107,6 +107,7 @@ std::map<std::string, Expectation> expectations() {
       {"registration_search_max_points", {"900", [](const SlamConfig& c) { return c.registration.search_max_points == 900; }}},
       {"registration_max_partners", {"0", [](const SlamConfig& c) { return c.registration.max_partners == 0; }}},
       {"registration_max_iterations", {"25", [](const SlamConfig& c) { return c.registration.max_iterations == 25; }}},
+      {"registration_coarse_levels", {"3", [](const SlamConfig& c) { return c.registration.coarse_levels == 3; }}},
   };
 }
 
@@ -144,6 +145,8 @@ TEST(SlamParameterFiles, BadRegistrationAndSolverValuesAreReportedByName) {
   expect_error_names({{"registration_min_sigma_m", "-0.1"}}, "registration_min_sigma_m");
   expect_error_names({{"registration_min_inlier_fraction", "1.5"}}, "registration_min_inlier_fraction");
   expect_error_names({{"registration_inlier_distance_m", "0"}}, "registration_inlier_distance_m");
+  expect_error_names({{"registration_coarse_levels", "7"}}, "registration_coarse_levels");
+  expect_error_names({{"registration_coarse_levels", "-1"}}, "registration_coarse_levels");
   expect_error_names({{"registration_min_fit_points", "-1"}}, "registration_min_fit_points");
   expect_error_names({{"registration_search_enabled", "maybe"}}, "registration_search_enabled");
   expect_error_names({{"registration_search_step_m", "-1"}}, "registration_search_step_m");

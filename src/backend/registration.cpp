@@ -35,10 +35,18 @@ void validate_registration_residual_config(const RegistrationResidualConfig& con
   if (!(config.tsdf_band_m >= 0.0f) || !std::isfinite(config.tsdf_band_m)) {
     throw Error("registration: tsdf_band_m must be finite and >= 0, got " + std::to_string(config.tsdf_band_m));
   }
+  if (config.coarse_stride_vox < 1 || config.coarse_stride_vox > 1024) {
+    throw Error("registration: coarse_stride_vox must be in [1, 1024], got " +
+                std::to_string(config.coarse_stride_vox));
+  }
   if (config.loss != RobustLoss::kNone && !(config.loss_scale > 0.0 && std::isfinite(config.loss_scale))) {
     throw Error("registration: a robust loss needs a finite loss_scale > 0, got " +
                 std::to_string(config.loss_scale));
   }
+}
+
+bool registration_uses_tsdf_target(const RegistrationResidualConfig& config) {
+  return config.distance == RegistrationDistance::kTsdfNearSurface && config.coarse_stride_vox <= 1;
 }
 
 // The kernels read the map; their views are non-const because kernels share one view type.
@@ -48,8 +56,9 @@ RegistrationDistanceLookup make_registration_lookup(const TsdfMap& map, const Re
   lookup.esdf = EsdfLookup{BlockVoxelIndexer{map.blocks().device_view(), map.voxels_per_side()},
                            mutable_map.esdf().view(), map.voxel_size_m()};
   lookup.tsdf = mutable_map.tsdf().view();
-  lookup.tsdf_band_m = config.distance == RegistrationDistance::kTsdfNearSurface ? config.tsdf_band_m : 0.0f;
+  lookup.tsdf_band_m = registration_uses_tsdf_target(config) ? config.tsdf_band_m : 0.0f;
   lookup.min_tsdf_weight = config.min_tsdf_weight;
+  lookup.stride_vox = std::max<int32_t>(config.coarse_stride_vox, 1);
   return lookup;
 }
 
@@ -107,7 +116,7 @@ void evaluate_registration_residuals(const RegistrationPoints& points_i, const T
   const RegistrationDistanceLookup lookup = make_registration_lookup(map_j, config);
   const RegistrationPairGeometry pair = registration_pair_geometry(T_W_Si, T_W_Sj);
   const RobustLossParams robust{config.loss, config.loss_scale};
-  const bool tsdf_target = config.distance == RegistrationDistance::kTsdfNearSurface;
+  const bool tsdf_target = registration_uses_tsdf_target(config);
   dispatch(map_j.device(), [&](auto backend) {
     registration_evaluate(backend, points_i.points.data(), count, lookup, pair, robust, tsdf_target,
                           residuals->data(), stream);
@@ -270,6 +279,37 @@ RegistrationNormalEquations reverse_normal_equations(const SymmetricRegistration
   return out;
 }
 
+// Coarse-to-fine (RegistrationAlignerConfig::coarse_levels): the LM on the ESDF every 2^L voxels,
+// L = coarse_levels ... 1, each level from where the previous ended, then the LM on the fine
+// residual. `sums(pose, residual_config)` returns the normal equations of one level.
+template <class Sums>
+RegistrationResult run_coarse_to_fine(const Pose4Dof& initial_T_Sj_Si, const RegistrationAlignerConfig& config,
+                                      Sums&& sums) {
+  if (config.coarse_levels < 0 || config.coarse_levels > 10) {
+    throw Error("align_submaps: coarse_levels must be in [0, 10], got " + std::to_string(config.coarse_levels));
+  }
+  Pose4Dof start = initial_T_Sj_Si;
+  int coarse_iterations = 0;
+  for (int level = config.coarse_levels; level >= 1; --level) {
+    RegistrationAlignerConfig coarse = config;
+    coarse.coarse_levels = 0;
+    coarse.residual.coarse_stride_vox = 1 << level;
+    try {
+      const RegistrationResult result =
+          run_aligner(start, coarse, [&](const Pose4Dof& pose) { return sums(pose, coarse.residual); });
+      start = result.T_Sj_Si;
+      coarse_iterations += result.iterations;
+    } catch (const Error&) {
+      // Too few points in the coarse field, or a singular system: the finer levels start where
+      // this one would have (the fine level reports its own failure).
+    }
+  }
+  RegistrationResult result =
+      run_aligner(start, config, [&](const Pose4Dof& pose) { return sums(pose, config.residual); });
+  result.iterations += coarse_iterations;
+  return result;
+}
+
 }  // namespace
 
 RegistrationResult align_submaps(const RegistrationPoints& points_i, const TsdfMap& map_j,
@@ -277,9 +317,11 @@ RegistrationResult align_submaps(const RegistrationPoints& points_i, const TsdfM
                                  const Stream& stream) {
   // Submap j is the reference frame: T_W_Sj = identity, so T_W_Si is the relative pose itself.
   Buffer<RegistrationResidual> scratch(map_j.device());
-  return run_aligner(initial_T_Sj_Si, config, [&](const Pose4Dof& T_Sj_Si) {
-    return normal_equations_into(points_i, map_j, T_Sj_Si, Pose4Dof(), config.residual, &scratch, stream);
-  });
+  return run_coarse_to_fine(initial_T_Sj_Si, config,
+                            [&](const Pose4Dof& T_Sj_Si, const RegistrationResidualConfig& residual) {
+                              return normal_equations_into(points_i, map_j, T_Sj_Si, Pose4Dof(), residual, &scratch,
+                                                           stream);
+                            });
 }
 
 namespace {
@@ -306,9 +348,10 @@ RegistrationResult align_submaps_symmetric(const SymmetricRegistrationPair& pair
                                            const RegistrationAlignerConfig& config, const Stream& stream) {
   check_symmetric_pair(pair);
   Buffer<RegistrationResidual> scratch(pair.map_j->device()), reverse_scratch(pair.map_i->device());
-  return run_aligner(initial_T_Sj_Si, config, [&](const Pose4Dof& T_Sj_Si) {
-    return two_way_sums(pair, T_Sj_Si, config.residual, &scratch, &reverse_scratch, stream);
-  });
+  return run_coarse_to_fine(initial_T_Sj_Si, config,
+                            [&](const Pose4Dof& T_Sj_Si, const RegistrationResidualConfig& residual) {
+                              return two_way_sums(pair, T_Sj_Si, residual, &scratch, &reverse_scratch, stream);
+                            });
 }
 
 Constraint4Dof make_registration_constraint(int32_t vertex_j, int32_t vertex_i, const RegistrationResult& result,

@@ -53,6 +53,8 @@ void validate(const SubmapRegistrationConfig& config) {
   require(config.search_max_points >= 4, "search_max_points must be at least 4, got " + std::to_string(config.search_max_points));
   require(config.max_partners >= 0, "max_partners must be >= 0, got " + std::to_string(config.max_partners));
   require(config.max_iterations >= 1, "max_iterations must be at least 1, got " + std::to_string(config.max_iterations));
+  require(config.coarse_levels >= 0 && config.coarse_levels <= 6,
+          "coarse_levels must be in [0, 6] (coarsest stride 2^6 voxels), got " + std::to_string(config.coarse_levels));
 }
 
 Eigen::Matrix4d floored_information(const Eigen::Matrix4d& points_information, double min_sigma_m,
@@ -345,6 +347,7 @@ std::vector<SubmapConstraint> registration_constraints(int64_t id, const TsdfMap
   aligner.residual.loss_scale = config.robust_loss_scale_m * sqrt_mean_weight;
   aligner.max_iterations = config.max_iterations;
   aligner.min_used_points = config.min_points;
+  aligner.coarse_levels = config.coarse_levels;
   Buffer<backend::RegistrationResidual> scratch(map.device());
 
   for (const RegistrationPartner* partner_pointer : partners) {

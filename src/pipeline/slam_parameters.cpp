@@ -253,6 +253,7 @@ const std::vector<SlamParameter>& slam_parameters() {
       integer_parameter("registration_search_max_points", COVOX_FIELD(registration.search_max_points), 4),
       integer_parameter("registration_max_partners", COVOX_FIELD(registration.max_partners), 0, 1000000),
       integer_parameter("registration_max_iterations", COVOX_FIELD(registration.max_iterations), 1, 1000000),
+      integer_parameter("registration_coarse_levels", COVOX_FIELD(registration.coarse_levels), 0, 6),
   };
   return table;
 }

@@ -23,7 +23,7 @@ AnalyticScene registration_room() {
 }
 
 std::unique_ptr<TsdfMap> scan_room_submap(Device device, const AnalyticScene& room, const backend::Pose4Dof& T_W_S,
-                                          float voxel_size_m) {
+                                          float voxel_size_m, float esdf_max_distance_m) {
   auto map = std::make_unique<TsdfMap>(device, TsdfMapConfig{voxel_size_m, 8, {}});
   TsdfIntegratorConfig tsdf_config;
   tsdf_config.truncation_distance_m = 0.3f;
@@ -33,7 +33,7 @@ std::unique_ptr<TsdfMap> scan_room_submap(Device device, const AnalyticScene& ro
       .integrate(*map, simulate_lidar(room, isometry_of(T_W_S), 720, 64, 90.0, 9.5), {},
                  Eigen::Isometry3d::Identity());
   EsdfIntegratorConfig esdf_config;
-  esdf_config.esdf_max_distance_m = 1.0f;
+  esdf_config.esdf_max_distance_m = esdf_max_distance_m;
   EsdfIntegrator(esdf_config).update_all(*map, Stream(device));
   return map;
 }

@@ -24,9 +24,9 @@ AnalyticScene registration_room();
 
 // One submap with voxels of `voxel_size_m`: a single 720 x 64 beam scan of `room` from the sensor
 // at T_W_S, integrated with the sensor at the submap's origin (truncation 0.3 m, 10 m rays), with
-// its ESDF up to 1 m.
+// its ESDF up to esdf_max_distance_m (1 m unless given).
 std::unique_ptr<TsdfMap> scan_room_submap(Device device, const AnalyticScene& room, const backend::Pose4Dof& T_W_S,
-                                          float voxel_size_m);
+                                          float voxel_size_m, float esdf_max_distance_m = 1.0f);
 
 }  // namespace testing_support
 }  // namespace covox

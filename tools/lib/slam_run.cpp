@@ -73,6 +73,12 @@ pipeline::SlamConfig arche_slam_config(Device device) {
   // library rejected those alignments as too far (ATE 0.979 m instead of 0.693 m; seed 2 and
   // 7-Scenes unchanged).
   config.registration.max_correction_m = 3.5;
+  // Coarse-to-fine alignment (ESDF every 4, then 2 voxels, then the fine cost): revisits start
+  // 2 to 3 m off and the fine cost's basin is a few decimetres. On the simulated flight (256
+  // columns, 2-core CPU, 2026-11-23) the ATE over seeds 1/2/3 went from 0.693/0.332/1.160 m to
+  // 0.740/0.585/0.344 m (mean 0.728 -> 0.556 m; 3 levels: 0.573 m); docs/benchmarks.md,
+  // "Coarse-to-fine registration".
+  config.registration.coarse_levels = 2;
   // Odometry sigmas: the library's (0.1 m, 0.01 rad). voxgraph's ARCHE information (x, y 1; z,
   // yaw 2500), which config/arche.yaml gives as 1 m / 0.02 rad, lets the registration pull the
   // graph further than max_correction_m allows on the simulated flight (ATE 2.5 m instead of
@@ -92,6 +98,9 @@ pipeline::SlamConfig rgbd_slam_config(Device device) {
   // The accuracy floor was measured for 0.2 m LiDAR submaps only.
   config.registration.min_sigma_m = 0.0;
   config.registration.min_sigma_yaw_rad = 0.0;
+  // Coarse-to-fine gained nothing on 7-Scenes (0.023 -> 0.024 m): the camera's 2 s submaps start
+  // centimetres off, well inside the fine basin.
+  config.registration.coarse_levels = 0;
   // A hand-held camera drifts a few centimetres between 2 s submaps.
   config.odometry_translation_sigma_m = 0.1;
   config.odometry_yaw_sigma_rad = 0.01;
@@ -106,6 +115,7 @@ pipeline::SlamConfig lidar_keyframe_slam_config(Device device) {
   config.submaps.interval_s = 8.0;
   config.registration.min_sigma_m = 0.0;  // the floor was measured at 0.2 m voxels only
   config.registration.min_sigma_yaw_rad = 0.0;
+  config.registration.coarse_levels = 0;  // coarse-to-fine was measured on the 0.2 m flight only
   return config;
 }
 

@@ -39,7 +39,7 @@ class RegistrationPairCost : public ceres::CostFunction {
       : points_(std::move(points)),
         lookup_(lookup),
         robust_{config.loss, config.loss_scale},
-        tsdf_target_(config.distance == RegistrationDistance::kTsdfNearSurface),
+        tsdf_target_(registration_uses_tsdf_target(config)),
         inverse_sigma_(1.0 / residual_sigma) {
     set_num_residuals(static_cast<int>(points_.size()));
     mutable_parameter_block_sizes()->push_back(4);

@@ -73,7 +73,18 @@ struct RegistrationResidualConfig {
   // units, that is metres times sqrt(weight).
   RobustLoss loss = RobustLoss::kNone;
   double loss_scale = 0.1;
+  // Corners of the distance field every this many voxels (1: the field's own resolution). Above
+  // 1 the field is the ESDF alone, sampled on a grid that many times coarser and interpolated
+  // trilinearly between those corners, with target 0: the TSDF is flat beyond its band and the
+  // fine ESDF steps at voxel scale, so both trap an alignment that starts metres off; the coarse
+  // ESDF is a smooth true distance whose slope reaches as far as esdf_max_distance_m. Used by the
+  // aligner's coarse-to-fine levels (RegistrationAlignerConfig::coarse_levels).
+  int32_t coarse_stride_vox = 1;
 };
+
+// Whether the residual's target is the point's own TSDF distance (kTsdfNearSurface at the
+// field's own resolution) rather than 0 (the ESDF, or any coarse level).
+bool registration_uses_tsdf_target(const RegistrationResidualConfig& config);
 
 // The residual of one point and its Jacobians (already multiplied by sqrt(weight), not by the
 // robust loss). `robust_weight` is rho'(r^2), the iteratively-reweighted least-squares weight.
@@ -118,6 +129,11 @@ struct RegistrationAlignerConfig {
   double translation_tolerance_m = 1e-5;  // converged when a step moves less than both
   double yaw_tolerance_rad = 1e-6;
   int64_t min_used_points = 50;        // fewer valid points: no overlap, fail
+  // Coarse-to-fine: before the alignment with `residual`, align on the ESDF sampled every
+  // 2^coarse_levels voxels, then every 2^(coarse_levels - 1), ..., 2 voxels (coarse_stride_vox of
+  // registration.h), each level starting where the coarser one ended. 0: the fine level only.
+  // A level that fails (too few points in the coarse field, singular) leaves the pose unchanged.
+  int coarse_levels = 0;
 };
 
 struct RegistrationResult {

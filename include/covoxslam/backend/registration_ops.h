@@ -18,6 +18,7 @@ struct RegistrationDistanceLookup {
   VoxelView<TsdfVoxel, Layout::kSoA> tsdf;
   float tsdf_band_m = 0.0f;  // 0: ESDF only (voxgraph)
   float min_tsdf_weight = 1e-4f;
+  int32_t stride_vox = 1;    // corners every this many voxels (coarse levels: ESDF only, band 0)
 
   COVOX_HD_INLINE bool corner(const Index3D& v, double* distance_m) const {
     if (tsdf_band_m > 0.0f) {
@@ -38,16 +39,21 @@ struct RegistrationDistanceLookup {
   // Trilinear distance and gradient (d distance / d q, frame j). Interpolated in double, unlike
   // EsdfLookup::sample, so that central differences in the Jacobian test are not float noise.
   COVOX_HD_INLINE bool sample(double qx, double qy, double qz, double* distance_m, double* gradient) const {
-    const double voxel = esdf.voxel_size;
-    const double gx = qx / voxel - 0.5, gy = qy / voxel - 0.5, gz = qz / voxel - 0.5;
+    // The corners are voxel centres (k + 0.5) voxel with k a multiple of the stride, so a cell
+    // spans stride voxels and the gradient divides by its size.
+    const double stride = static_cast<double>(stride_vox);
+    const double voxel = esdf.voxel_size * stride;
+    const double gx = (qx / esdf.voxel_size - 0.5) / stride, gy = (qy / esdf.voxel_size - 0.5) / stride,
+                 gz = (qz / esdf.voxel_size - 0.5) / stride;
     const double bx = floor(gx), by = floor(gy), bz = floor(gz);
     // Beyond the voxel index range int32 would wrap onto other voxels: treat as unobserved.
-    if (!(fabs(bx) < 1e9 && fabs(by) < 1e9 && fabs(bz) < 1e9)) return false;
+    if (!(fabs(bx) < 1e9 / stride && fabs(by) < 1e9 / stride && fabs(bz) < 1e9 / stride)) return false;
     const Index3D base(static_cast<int32_t>(bx), static_cast<int32_t>(by), static_cast<int32_t>(bz));
     const double fx = gx - bx, fy = gy - by, fz = gz - bz;
     double d[8];
     for (int c = 0; c < 8; ++c) {
-      if (!corner(base + Index3D(c & 1, (c >> 1) & 1, (c >> 2) & 1), &d[c])) return false;
+      const Index3D cell = base + Index3D(c & 1, (c >> 1) & 1, (c >> 2) & 1);
+      if (!corner(Index3D(cell.x * stride_vox, cell.y * stride_vox, cell.z * stride_vox), &d[c])) return false;
     }
     const double x00 = d[0] + fx * (d[1] - d[0]), x10 = d[2] + fx * (d[3] - d[2]);
     const double x01 = d[4] + fx * (d[5] - d[4]), x11 = d[6] + fx * (d[7] - d[6]);

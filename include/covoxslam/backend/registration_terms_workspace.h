@@ -35,7 +35,7 @@ class RegistrationTermsWorkspace {
       view.vertex_i = term.vertex_i;
       view.vertex_j = term.vertex_j;
       view.field = found->second;
-      view.tsdf_target = term.residual.distance == RegistrationDistance::kTsdfNearSurface ? 1 : 0;
+      view.tsdf_target = registration_uses_tsdf_target(term.residual) ? 1 : 0;
       view.tsdf_band_m = view.tsdf_target ? term.residual.tsdf_band_m : 0.0f;
       view.min_tsdf_weight = term.residual.min_tsdf_weight;
       view.robust = RobustLossParams{term.residual.loss, term.residual.loss_scale};

@@ -105,6 +105,11 @@ struct SubmapRegistrationConfig {
   // Align to at most this many earlier submaps (those sharing most blocks); 0: all.
   int max_partners = 10;
   int max_iterations = 60;
+  // Coarse-to-fine alignment (backend::RegistrationAlignerConfig::coarse_levels): first on the
+  // ESDF sampled every 2^coarse_levels voxels, halving down to 2, then the fine residual. A
+  // revisit starts as far off as the drift since the last visit; the fine cost's basin is a few
+  // decimetres. 0: off (the default).
+  int coarse_levels = 0;
 };
 
 // The information of a registration constraint: `points_information` (over x, y, z, yaw; may be
