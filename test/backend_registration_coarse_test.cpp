@@ -22,31 +22,17 @@ using testing_support::kDegToRad;
 
 // A 12 x 9 x 3 m hall (large enough for a 2.5 m offset to leave most points inside it) scanned
 // from two sensor poses, 0.1 m voxels, ESDF up to 3 m (the coarse levels' reach).
-struct HallPair {
-  std::unique_ptr<TsdfMap> map_i, map_j;
-  std::unique_ptr<RegistrationPoints> points_i, points_j;
-  Pose4Dof true_T_Sj_Si;
-};
-
-HallPair build_hall_pair(Device device) {
-  testing_support::AnalyticScene hall;
-  hall.shape = testing_support::Shape::kBox;
-  hall.center = Eigen::Vector3d(0.7, -0.4, 0.6);
-  hall.half_extent = Eigen::Vector3d(6.0, 4.5, 1.5);
-  HallPair pair;
-  pair.true_T_Sj_Si = Pose4Dof{0.9, -0.6, 0.05, 7.0 * kDegToRad};
-  pair.map_j = testing_support::scan_room_submap(device, hall, Pose4Dof{}, 0.1f, 3.0f);
-  pair.map_i = testing_support::scan_room_submap(device, hall, pair.true_T_Sj_Si, 0.1f, 3.0f);
-  RegistrationPointsConfig config;
-  config.sampling_ratio = 0.25f;
-  const Stream stream(device);
-  pair.points_i = std::make_unique<RegistrationPoints>(extract_registration_points(*pair.map_i, config, stream));
-  pair.points_j = std::make_unique<RegistrationPoints>(extract_registration_points(*pair.map_j, config, stream));
-  return pair;
-}
+// A type of its own: once_per_device caches one value per type.
+struct HallPair : testing_support::ScannedSubmapPair {};
 
 const HallPair& hall_pair(Device device) {
-  return testing_support::once_per_device<HallPair>(device, [](Device d) { return build_hall_pair(d); });
+  return testing_support::once_per_device<HallPair>(device, [](Device d) {
+    testing_support::AnalyticScene hall;
+    hall.shape = testing_support::Shape::kBox;
+    hall.center = Eigen::Vector3d(0.7, -0.4, 0.6);
+    hall.half_extent = Eigen::Vector3d(6.0, 4.5, 1.5);
+    return HallPair{testing_support::scan_submap_pair(d, hall, Pose4Dof{0.9, -0.6, 0.05, 7.0 * kDegToRad}, 0.1f, 3.0f)};
+  });
 }
 
 double translation_error_m(const Pose4Dof& a, const Pose4Dof& b) {
@@ -99,11 +85,7 @@ TEST_P(CoarseRegistrationTest, CoarseToFineRecoversARevisitSizedOffset) {
   const HallPair& pair = hall_pair(device());
   const Stream stream(device());
   const Pose4Dof truth = pair.true_T_Sj_Si;
-  SymmetricRegistrationPair two_way;
-  two_way.points_i = pair.points_i.get();
-  two_way.map_j = pair.map_j.get();
-  two_way.points_j = pair.points_j.get();
-  two_way.map_i = pair.map_i.get();
+  const SymmetricRegistrationPair two_way = pair.symmetric();
   const Pose4Dof offsets[] = {{2.0, 1.5, 0.0, 10.0 * kDegToRad}, {-1.5, -2.0, 0.1, -10.0 * kDegToRad}};
   for (const bool symmetric : {false, true}) {
     for (const Pose4Dof& offset : offsets) {

@@ -22,38 +22,14 @@ using testing_support::isometry_of;
 using testing_support::kDegToRad;
 
 // Two scans of the registration room, 0.1 m voxels, each submap with its own registration points.
-struct TwoWayPair {
-  std::unique_ptr<TsdfMap> map_i, map_j;
-  std::unique_ptr<RegistrationPoints> points_i, points_j;
-  Pose4Dof true_T_Sj_Si;
-};
-
-TwoWayPair build_two_way_pair(Device device) {
-  const testing_support::AnalyticScene room = testing_support::registration_room();
-  TwoWayPair pair;
-  pair.true_T_Sj_Si = Pose4Dof{-0.38, 0.31, -0.06, -6.0 * kDegToRad};
-  pair.map_j = testing_support::scan_room_submap(device, room, Pose4Dof{}, 0.1f);
-  pair.map_i = testing_support::scan_room_submap(device, room, pair.true_T_Sj_Si, 0.1f);
-  RegistrationPointsConfig config;
-  config.sampling_ratio = 0.25f;
-  const Stream stream(device);
-  pair.points_i = std::make_unique<RegistrationPoints>(extract_registration_points(*pair.map_i, config, stream));
-  pair.points_j = std::make_unique<RegistrationPoints>(extract_registration_points(*pair.map_j, config, stream));
-  return pair;
-}
+// A type of its own: once_per_device caches one value per type.
+struct TwoWayPair : testing_support::ScannedSubmapPair {};
 
 const TwoWayPair& two_way_pair(Device device) {
-  return testing_support::once_per_device<TwoWayPair>(device, [](Device d) { return build_two_way_pair(d); });
-}
-
-SymmetricRegistrationPair symmetric_view(const TwoWayPair& pair, double reverse_weight_scale) {
-  SymmetricRegistrationPair view;
-  view.points_i = pair.points_i.get();
-  view.map_j = pair.map_j.get();
-  view.points_j = pair.points_j.get();
-  view.map_i = pair.map_i.get();
-  view.reverse_weight_scale = reverse_weight_scale;
-  return view;
+  return testing_support::once_per_device<TwoWayPair>(device, [](Device d) {
+    return TwoWayPair{testing_support::scan_submap_pair(d, testing_support::registration_room(),
+                                             Pose4Dof{-0.38, 0.31, -0.06, -6.0 * kDegToRad}, 0.1f)};
+  });
 }
 
 TEST(RegistrationInversePose, MatchesTheRigidInverseAndItsDifferences) {
@@ -87,7 +63,7 @@ class SymmetricRegistrationTest : public DeviceTest {};
 TEST_P(SymmetricRegistrationTest, GradientIsTheDerivativeOfTheCost) {
   const TwoWayPair& pair = two_way_pair(device());
   const Stream stream(device());
-  const SymmetricRegistrationPair view = symmetric_view(pair, 2.5);
+  const SymmetricRegistrationPair view = pair.symmetric(2.5);
   RegistrationResidualConfig config;
   config.loss = RobustLoss::kCauchy;
   config.loss_scale = 0.5;
@@ -124,7 +100,7 @@ TEST_P(SymmetricRegistrationTest, AlignerRecoversKnownOffset) {
   const Pose4Dof offsets[] = {{0.3, -0.3, 0.2, 10.0 * kDegToRad}, {-0.35, 0.2, -0.15, -8.0 * kDegToRad}};
   for (const Pose4Dof& offset : offsets) {
     const Pose4Dof initial{truth.x + offset.x, truth.y + offset.y, truth.z + offset.z, truth.yaw + offset.yaw};
-    const RegistrationResult result = align_submaps_symmetric(symmetric_view(pair, 1.0), initial, config, stream);
+    const RegistrationResult result = align_submaps_symmetric(pair.symmetric(1.0), initial, config, stream);
     const double translation_error_m =
         std::sqrt(std::pow(result.T_Sj_Si.x - truth.x, 2) + std::pow(result.T_Sj_Si.y - truth.y, 2) +
                   std::pow(result.T_Sj_Si.z - truth.z, 2));
@@ -144,11 +120,11 @@ TEST_P(SymmetricRegistrationTest, IncompletePairOrBadScaleIsAnError) {
   const TwoWayPair& pair = two_way_pair(device());
   const Stream stream(device());
   const RegistrationAlignerConfig config;
-  SymmetricRegistrationPair missing = symmetric_view(pair, 1.0);
+  SymmetricRegistrationPair missing = pair.symmetric(1.0);
   missing.points_j = nullptr;
   EXPECT_THROW(align_submaps_symmetric(missing, pair.true_T_Sj_Si, config, stream), Error);
   for (const double scale : {0.0, -1.0, std::nan("")}) {
-    EXPECT_THROW(align_submaps_symmetric(symmetric_view(pair, scale), pair.true_T_Sj_Si, config, stream), Error);
+    EXPECT_THROW(align_submaps_symmetric(pair.symmetric(scale), pair.true_T_Sj_Si, config, stream), Error);
   }
 }
 

@@ -318,6 +318,15 @@ std::map<std::pair<Index3D, int>, TsdfVoxel> observed_voxels(const TsdfMap& map)
   return voxels;
 }
 
+// The same blocks with the same TSDF voxels, bit for bit.
+void expect_bit_identical_tsdf(const std::vector<HostBlock>& a, const std::vector<HostBlock>& b) {
+  ASSERT_EQ(a.size(), b.size());
+  for (size_t k = 0; k < a.size(); ++k) {
+    ASSERT_EQ(a[k].index, b[k].index);
+    ASSERT_EQ(0, std::memcmp(a[k].tsdf.data(), b[k].tsdf.data(), a[k].tsdf.size() * sizeof(TsdfVoxel))) << "block " << k;
+  }
+}
+
 // A scan of a sphere dense enough that most 0.1 m surface voxels hold several returns.
 std::vector<Vec3f> dense_sphere_scan(const Eigen::Isometry3d& sensor) {
   const AnalyticScene scene = make_scene(Shape::kSphere);
@@ -457,12 +466,7 @@ TEST_P(TsdfIntegratorTest, SameInputTwiceGivesBitIdenticalMaps) {
     }
     snapshots.push_back(map.snapshot());
   }
-  ASSERT_EQ(snapshots[0].size(), snapshots[1].size());
-  for (size_t b = 0; b < snapshots[0].size(); ++b) {
-    ASSERT_EQ(snapshots[0][b].index, snapshots[1][b].index);
-    ASSERT_EQ(0, std::memcmp(snapshots[0][b].tsdf.data(), snapshots[1][b].tsdf.data(),
-                             snapshots[0][b].tsdf.size() * sizeof(TsdfVoxel)));
-  }
+  expect_bit_identical_tsdf(snapshots[0], snapshots[1]);
 }
 
 // Colour rides along: the same cloud with colours, or with colour fusion off (which moves the
@@ -606,12 +610,7 @@ TEST_P(TsdfIntegratorTest, MergeKeysFromEitherBoxGiveTheSameMap) {
   }
   EXPECT_EQ(stats[0].rays_cast, stats[1].rays_cast);
   EXPECT_LE(2 * stats[0].rays_cast, stats[0].surface_rays);  // the twins did merge
-  ASSERT_EQ(snapshots[0].size(), snapshots[1].size());
-  for (size_t b = 0; b < snapshots[0].size(); ++b) {
-    ASSERT_EQ(snapshots[0][b].index, snapshots[1][b].index);
-    ASSERT_EQ(0, std::memcmp(snapshots[0][b].tsdf.data(), snapshots[1][b].tsdf.data(),
-                             snapshots[0][b].tsdf.size() * sizeof(TsdfVoxel)));
-  }
+  expect_bit_identical_tsdf(snapshots[0], snapshots[1]);
 }
 
 // Update keys are 32-bit when the frame's box of voxels allows and 64-bit otherwise. Three rays

@@ -38,5 +38,29 @@ std::unique_ptr<TsdfMap> scan_room_submap(Device device, const AnalyticScene& ro
   return map;
 }
 
+ScannedSubmapPair scan_submap_pair(Device device, const AnalyticScene& scene, const backend::Pose4Dof& true_T_Sj_Si,
+                                   float voxel_size_m, float esdf_max_distance_m) {
+  ScannedSubmapPair pair;
+  pair.true_T_Sj_Si = true_T_Sj_Si;
+  pair.map_j = scan_room_submap(device, scene, backend::Pose4Dof{}, voxel_size_m, esdf_max_distance_m);
+  pair.map_i = scan_room_submap(device, scene, true_T_Sj_Si, voxel_size_m, esdf_max_distance_m);
+  backend::RegistrationPointsConfig config;
+  config.sampling_ratio = 0.25f;
+  const Stream stream(device);
+  pair.points_i = std::make_unique<backend::RegistrationPoints>(extract_registration_points(*pair.map_i, config, stream));
+  pair.points_j = std::make_unique<backend::RegistrationPoints>(extract_registration_points(*pair.map_j, config, stream));
+  return pair;
+}
+
+backend::SymmetricRegistrationPair ScannedSubmapPair::symmetric(double reverse_weight_scale) const {
+  backend::SymmetricRegistrationPair view;
+  view.points_i = points_i.get();
+  view.map_j = map_j.get();
+  view.points_j = points_j.get();
+  view.map_i = map_i.get();
+  view.reverse_weight_scale = reverse_weight_scale;
+  return view;
+}
+
 }  // namespace testing_support
 }  // namespace covox

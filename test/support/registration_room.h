@@ -7,6 +7,7 @@
 #include <memory>
 
 #include "covoxslam/backend/pose_graph_types.h"
+#include "covoxslam/backend/registration.h"
 #include "covoxslam/core/device.h"
 #include "covoxslam/map/tsdf_map.h"
 #include "support/analytic_scene.h"
@@ -27,6 +28,20 @@ AnalyticScene registration_room();
 // its ESDF up to esdf_max_distance_m (1 m unless given).
 std::unique_ptr<TsdfMap> scan_room_submap(Device device, const AnalyticScene& room, const backend::Pose4Dof& T_W_S,
                                           float voxel_size_m, float esdf_max_distance_m = 1.0f);
+
+// Two scans of one scene as submaps j (sensor at the origin) and i (sensor at true_T_Sj_Si),
+// each with its registration points (sampling ratio 0.25): the set-up of the pairwise and
+// symmetric registration tests.
+struct ScannedSubmapPair {
+  std::unique_ptr<TsdfMap> map_i, map_j;
+  std::unique_ptr<backend::RegistrationPoints> points_i, points_j;
+  backend::Pose4Dof true_T_Sj_Si;
+
+  // Both directions, for align_submaps_symmetric.
+  backend::SymmetricRegistrationPair symmetric(double reverse_weight_scale = 1.0) const;
+};
+ScannedSubmapPair scan_submap_pair(Device device, const AnalyticScene& scene, const backend::Pose4Dof& true_T_Sj_Si,
+                                   float voxel_size_m, float esdf_max_distance_m = 1.0f);
 
 }  // namespace testing_support
 }  // namespace covox

@@ -426,11 +426,14 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
   const bool has_color = colors || intensities;
   const float* ray_weights = nullptr;
   int64_t ray_count = n;
+  // Why points did or did not become rays, and the box of voxels their own rays traverse.
+  const auto tally_points = [&] {
+    return transform_reduce(backend, stream, points, n, tsdf_detail::TallyPoint{ray_parameters, inverse_voxel_size},
+                            tsdf_detail::RayTally{}, tsdf_detail::AddTallies{});
+  };
   tsdf_detail::RayTally tally;
   if (config.method != TsdfIntegrationMethod::kMerged) {
-    // why points did or did not become rays, and the box of voxels their rays traverse
-    tally = transform_reduce(backend, stream, points, n, tsdf_detail::TallyPoint{ray_parameters, inverse_voxel_size},
-                             tsdf_detail::RayTally{}, tsdf_detail::AddTallies{});
+    tally = tally_points();
     profile.mark("1 rays + tally");
     scratch.rays.resize_discard(n);
     scratch.counts.resize_discard(n + 1);
@@ -452,9 +455,7 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
     tsdf::MergeKeys merge_keys = tsdf::make_merge_keys(ray_parameters.T_world_sensor.translation,
                                                        config.max_ray_length_m, voxel_size, voxels_per_side);
     if (merge_keys.key_bits > kMaxRangeBoxMergeKeyBits) {
-      const tsdf_detail::RayTally box =
-          transform_reduce(backend, stream, points, n, tsdf_detail::TallyPoint{ray_parameters, inverse_voxel_size},
-                           tsdf_detail::RayTally{}, tsdf_detail::AddTallies{});
+      const tsdf_detail::RayTally box = tally_points();
       const Index3D sensor_voxel = tsdf::voxel_of(ray_parameters.T_world_sensor.translation, inverse_voxel_size);
       merge_keys = box.cast > 0 ? tsdf::make_merge_keys(box.low_voxel(), box.high_voxel(), voxels_per_side)
                                 : tsdf::make_merge_keys(sensor_voxel, sensor_voxel, voxels_per_side);
