@@ -8,7 +8,6 @@
 
 #include <thrust/functional.h>
 #include <thrust/iterator/counting_iterator.h>
-#include <thrust/iterator/permutation_iterator.h>
 #include <thrust/iterator/transform_iterator.h>
 #include <thrust/reduce.h>
 
@@ -209,21 +208,21 @@ void tsdf_merge_rays(Backend backend, const tsdf::RayParameters& ray_parameters,
   });
 }
 
-// Steps 2b to 5 of a frame (see tsdf_integrate_points): traverse the ray pieces into one update
-// per voxel visit, group the updates by voxel and merge them, allocate the blocks, write each
-// voxel once. UpdateT is tsdf::VoxelUpdate (with colour) or tsdf::DistanceUpdate (without): a
-// LiDAR without intensity then moves 8 bytes per update instead of 32 through the traverse, the
-// sort's permutation and the reduction.
-template <class UpdateT, class KeyT, class Backend>
+// Steps 2b to 5 of a frame (see tsdf_integrate_points): traverse the ray pieces into one visit
+// record per voxel visit, group the records by voxel (radix sort) and merge each group into one
+// update (reduction by key), allocate the blocks, write each voxel once. ValueT is the records'
+// value (tsdf_traverse.h): tsdf::DistanceUpdate without colour, summed as it is; tsdf::ColorVisit
+// with colour, whose update (a tsdf::VoxelUpdate, with the ray's colour) is computed from its ray
+// and voxel as the reduction reads it.
+template <class KeyT, class ValueT, class Backend>
 void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, const tsdf::FrameUpdates& frame,
                        TsdfMap& map, TsdfScratchBuffers& scratch, IntegrationStats& stats, StageProfiler::Scope& profile,
                        const Stream& stream) {
+  constexpr bool kColored = std::is_same<ValueT, tsdf::ColorVisit>::value;
+  using SumT = std::conditional_t<kColored, tsdf::VoxelUpdate, tsdf::DistanceUpdate>;
   const tsdf::FrameKeyCodec codec = frame.codec;
   const int64_t total_updates = frame.total_updates;
   const float truncation = config.truncation_distance_m;
-  // An 8-byte update travels through the sort with its key (no permutation, and a contiguous
-  // read in the reduction); a 32-byte one stays put and is gathered through the sorted order.
-  constexpr bool kUpdatesTravelWithKeys = std::is_same<UpdateT, tsdf::DistanceUpdate>::value;
   // Keys are 32-bit when the frame's box allows (almost always): half the key bytes through the
   // traverse's writes, every radix pass and the reduction.
   auto key_buffers = scratch.update_key_buffers<KeyT>();
@@ -233,48 +232,36 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   KeyT* merged_keys_out = key_buffers[2]->data();
   const KeyT zero_weight_key = static_cast<KeyT>(codec.zero_weight_key);
   const KeyT out_of_range_key = static_cast<KeyT>(codec.out_of_range_key);
-  uint32_t* order = nullptr;
-  UpdateT* updates = nullptr;
-  if constexpr (kUpdatesTravelWithKeys) {
-    scratch.distance_updates.resize_discard(total_updates);
-    updates = scratch.distance_updates.data();
-  } else {
-    scratch.order.resize_discard(total_updates);
-    scratch.updates.resize_discard(total_updates);
-    order = scratch.order.data();
-    updates = scratch.updates.data();
-  }
-  const tsdf::PieceTraversal<UpdateT, KeyT> traversal{frame, zero_weight_key, scratch.piece_offsets.data(),
-                                                       truncation};
+  auto value_buffers = scratch.record_value_buffers<ValueT>();
+  for (Buffer<ValueT>* buffer : value_buffers) buffer->resize_discard(total_updates);
+  ValueT* values = value_buffers[0]->data();
+  ValueT* values_alt = value_buffers[1]->data();
+  const tsdf::PieceTraversal<KeyT, ValueT> traversal{frame, zero_weight_key, scratch.piece_offsets.data(), truncation};
   tsdf::traverse_pieces(backend, stream, frame.piece_bound, total_updates, traversal,
-                        tsdf::UpdateArrays<UpdateT, KeyT>{keys, updates, order});
+                        tsdf::RecordArrays<KeyT, ValueT>{keys, values});
 
   profile.mark("2b traverse");
 
-  // 3. group by voxel and merge (stable sort keeps each voxel's updates in ray order, so the
+  // 3. group by voxel and merge (stable sort keeps each voxel's records in ray order, so the
   //    float sums are the same every run)
   scratch.readback.resize_discard(8);
   uint32_t* counts_on_device = scratch.readback.data();
-  UpdateT* merged_updates = nullptr;
-  if constexpr (kUpdatesTravelWithKeys) {
-    scratch.distance_updates_alt.resize_discard(total_updates);
-    UpdateT* updates_alt = scratch.distance_updates_alt.data();
-    radix_sort_pairs_swapping(backend, stream, keys, updates, total_updates, codec.key_bits, keys_alt, updates_alt);
-    profile.mark("3a sort updates");
-    merged_updates = updates_alt;  // free after the sort: the merged updates go there
-    reduce_runs_counted_on_device(backend, stream, static_cast<const KeyT*>(keys),
-                                  static_cast<const UpdateT*>(updates), total_updates, merged_keys_out,
-                                  merged_updates, tsdf::MergeUpdates(), counts_on_device);
-  } else {
-    scratch.order_alt.resize_discard(total_updates);
-    uint32_t* order_alt = scratch.order_alt.data();
-    radix_sort_pairs_swapping(backend, stream, keys, order, total_updates, codec.key_bits, keys_alt, order_alt);
-    profile.mark("3a sort updates");
-    scratch.merged.resize_discard(total_updates);
-    merged_updates = scratch.merged.data();
-    const auto ordered_updates = thrust::make_permutation_iterator(updates, order);
-    reduce_runs_counted_on_device(backend, stream, static_cast<const KeyT*>(keys), ordered_updates, total_updates,
+  radix_sort_pairs_swapping(backend, stream, keys, values, total_updates, codec.key_bits, keys_alt, values_alt);
+  profile.mark("3a sort updates");
+  SumT* merged_updates = nullptr;
+  if constexpr (kColored) {
+    scratch.merged_updates.resize_discard(total_updates);
+    merged_updates = scratch.merged_updates.data();
+    const auto record_updates = thrust::make_transform_iterator(
+        thrust::make_counting_iterator<int64_t>(0),
+        tsdf::VoxelUpdateOfRecord<KeyT>{frame, keys, values, out_of_range_key, truncation});
+    reduce_runs_counted_on_device(backend, stream, static_cast<const KeyT*>(keys), record_updates, total_updates,
                                   merged_keys_out, merged_updates, tsdf::MergeUpdates(), counts_on_device);
+  } else {
+    merged_updates = values_alt;  // free after the sort: the merged updates go there
+    reduce_runs_counted_on_device(backend, stream, static_cast<const KeyT*>(keys), static_cast<const ValueT*>(values),
+                                  total_updates, merged_keys_out, merged_updates, tsdf::MergeUpdates(),
+                                  counts_on_device);
   }
   // Updates to drop (zero weight, outside the key range) sort last, one run per kind present:
   // their counts are where their keys begin in the sorted keys.
@@ -365,11 +352,11 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   profile.mark("4d mark + clear new blocks");
 
   // 5. one weighted-average write per distinct voxel
-  const UpdateT* merged = merged_updates;
+  const SumT* merged = merged_updates;
   const float max_weight = config.max_weight;
   parallel_for(backend, stream, voxel_count, [=] COVOX_HD(int64_t v) {
     const uint32_t slot = slots[block_ranks[v] + block_flags[v] - 1];  // the rank of v's run
-    const UpdateT update = merged[v];
+    const SumT update = merged[v];
     if (slot == kInvalidSlot || update.weight <= 0.0f) return;
     const int64_t index = static_cast<int64_t>(slot) * voxels_per_block + codec.voxel_in_block(merged_keys[v]);
     TsdfVoxel voxel = tsdf_view.load(index);
@@ -521,13 +508,13 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
                                   inverse_voxel_size, voxel_size, weight_parameters};
   const bool short_keys = codec.key_bits <= 32;
   if (has_color && short_keys) {
-    tsdf_fuse_updates<tsdf::VoxelUpdate, uint32_t>(backend, config, frame, map, scratch, stats, profile, stream);
+    tsdf_fuse_updates<uint32_t, tsdf::ColorVisit>(backend, config, frame, map, scratch, stats, profile, stream);
   } else if (has_color) {
-    tsdf_fuse_updates<tsdf::VoxelUpdate, uint64_t>(backend, config, frame, map, scratch, stats, profile, stream);
+    tsdf_fuse_updates<uint64_t, tsdf::ColorVisit>(backend, config, frame, map, scratch, stats, profile, stream);
   } else if (short_keys) {
-    tsdf_fuse_updates<tsdf::DistanceUpdate, uint32_t>(backend, config, frame, map, scratch, stats, profile, stream);
+    tsdf_fuse_updates<uint32_t, tsdf::DistanceUpdate>(backend, config, frame, map, scratch, stats, profile, stream);
   } else {
-    tsdf_fuse_updates<tsdf::DistanceUpdate, uint64_t>(backend, config, frame, map, scratch, stats, profile, stream);
+    tsdf_fuse_updates<uint64_t, tsdf::DistanceUpdate>(backend, config, frame, map, scratch, stats, profile, stream);
   }
   return stats;
 }

@@ -3,6 +3,7 @@
 // backend). Scratch buffers are passed in so steady-state frames allocate nothing.
 #include <array>
 #include <cstdint>
+#include <type_traits>
 
 #include <Eigen/Geometry>
 
@@ -16,10 +17,10 @@ namespace covox {
 struct TsdfScratchBuffers {
   explicit TsdfScratchBuffers(Device device)
       : points(device), colors(device), rays(device), counts(device), offsets(device),
-        keys(device), order(device), updates(device), merged_keys(device), merged(device),
+        keys(device), order(device), merged_keys(device),
         block_indices(device), slots(device), is_new(device), merged_bundles(device),
         ray_colors(device), ray_weights(device), block_flags(device), block_ranks(device), keys_alt(device),
-        order_alt(device), keys32(device), keys32_alt(device), merged_keys32(device), distance_updates(device), distance_updates_alt(device), pieces(device), piece_voxels(device), piece_offsets(device), readback(device) {}
+        order_alt(device), keys32(device), keys32_alt(device), merged_keys32(device), distance_records(device), distance_records_alt(device), color_visits(device), color_visits_alt(device), merged_updates(device), pieces(device), piece_voxels(device), piece_offsets(device), readback(device) {}
   Buffer<Vec3f> points;  // depth images unprojected, or host clouds uploaded
   Buffer<Rgb8> colors;
   Buffer<tsdf::RaySegment> rays;
@@ -27,9 +28,7 @@ struct TsdfScratchBuffers {
   Buffer<uint32_t> offsets;
   Buffer<uint64_t> keys;
   Buffer<uint32_t> order;
-  Buffer<tsdf::VoxelUpdate> updates;
   Buffer<uint64_t> merged_keys;
-  Buffer<tsdf::VoxelUpdate> merged;
   Buffer<Index3D> block_indices;
   Buffer<uint32_t> slots;
   Buffer<uint8_t> is_new;
@@ -56,9 +55,22 @@ struct TsdfScratchBuffers {
       return {&keys, &keys_alt, &merged_keys};
     }
   }
-  // frames without colour: 8-byte updates sorted with their keys (no permutation to gather by)
-  Buffer<tsdf::DistanceUpdate> distance_updates;
-  Buffer<tsdf::DistanceUpdate> distance_updates_alt;
+  // The visit records' values and their radix-sort scratch (tsdf_traverse.h): distance updates
+  // without colour, flagged ray indices with it.
+  Buffer<tsdf::DistanceUpdate> distance_records;
+  Buffer<tsdf::DistanceUpdate> distance_records_alt;
+  Buffer<tsdf::ColorVisit> color_visits;
+  Buffer<tsdf::ColorVisit> color_visits_alt;
+  template <class ValueT>
+  std::array<Buffer<ValueT>*, 2> record_value_buffers() {
+    if constexpr (std::is_same<ValueT, tsdf::ColorVisit>::value) {
+      return {&color_visits, &color_visits_alt};
+    } else {
+      return {&distance_records, &distance_records_alt};
+    }
+  }
+  // Per-voxel sums of a coloured frame (a frame without colour sums into distance_records_alt).
+  Buffer<tsdf::VoxelUpdate> merged_updates;
   // ray pieces (tsdf_kernels.h): the piece table, voxels per piece and their update offsets
   Buffer<tsdf::RayPiece> pieces;
   Buffer<uint32_t> piece_voxels;

@@ -49,6 +49,25 @@ struct FrameKeyCodec {
   COVOX_HD_INLINE int32_t voxel_in_block(uint64_t key) const {
     return static_cast<int32_t>(key & ((uint64_t(1) << voxel_bits) - 1));
   }
+  // The voxel a valid key names (the inverse of key()). Voxels per side are a power of two (8 or
+  // 16), so the voxel within the block comes out by shifts; keys of up to 32 bits (almost every
+  // frame) divide in 32-bit arithmetic, several times cheaper on the GPU than 64-bit division.
+  COVOX_HD_INLINE Index3D voxel(uint64_t key) const {
+    const int shift = voxel_bits / 3;
+    const int32_t mask = voxels_per_side - 1;
+    const int32_t local = voxel_in_block(key);
+    Index3D b;
+    if (key_bits <= 32) {
+      const uint32_t n = static_cast<uint32_t>(key >> voxel_bits);
+      const uint32_t sx = static_cast<uint32_t>(size_x), plane = sx * static_cast<uint32_t>(size_y);
+      b = Index3D(origin_block.x + static_cast<int32_t>(n % sx), origin_block.y + static_cast<int32_t>((n % plane) / sx),
+                  origin_block.z + static_cast<int32_t>(n / plane));
+    } else {
+      b = block(key);
+    }
+    return Index3D(b.x * voxels_per_side + (local & mask), b.y * voxels_per_side + ((local >> shift) & mask),
+                   b.z * voxels_per_side + (local >> (2 * shift)));
+  }
 };
 
 // The codec for voxels in [min_voxel, max_voxel] (inclusive), padded by one block on every side
@@ -64,9 +83,16 @@ COVOX_HD_INLINE Rgb8 intensity_to_grey(float intensity, float grey_per_intensity
 }
 
 // One voxel's contribution, already multiplied by its weight so that merging updates of the
-// same voxel is a plain sum (sum of w*sdf and of w, then one division). Aligned to 16 bytes
-// (32 bytes with padding): the traverse then writes an update with two 16-byte stores instead
-// of six 4-byte ones, and the reduction gathers it from one 32-byte sector instead of two.
+// same voxel is a plain sum (sum of w*sdf and of w, then one division). The reduction computes
+// these from the visit records (tsdf_traverse.h) and sums them per voxel; 8-byte aligned so that
+// a sum moves as one 64-bit word.
+struct alignas(8) DistanceUpdate {
+  float weighted_distance = 0.0f;
+  float weight = 0.0f;
+};
+
+// The same with colour, the per-voxel sum of a coloured frame; aligned to 16 bytes (32 with
+// padding) so that it moves as two 16-byte words.
 struct alignas(16) VoxelUpdate {
   float weighted_distance = 0.0f;
   float weight = 0.0f;
@@ -76,21 +102,13 @@ struct alignas(16) VoxelUpdate {
   float color_weight = 0.0f;
 };
 
-// The same without colour (8 bytes instead of 32), for frames that carry none; 8-byte aligned so
-// that it moves as one 64-bit word.
-struct alignas(8) DistanceUpdate {
-  float weighted_distance = 0.0f;
-  float weight = 0.0f;
+// A coloured frame's visit record value (tsdf_traverse.h): the index of the ray that visited the
+// voxel, with kColorVisitBit set when the visit takes the ray's colour (ray indices stay below
+// 2^31: TsdfIntegrator checks the point count).
+constexpr uint32_t kColorVisitBit = 0x80000000u;
+struct ColorVisit {
+  uint32_t ray = 0;
 };
-
-// The colour part of an update (none for a DistanceUpdate).
-COVOX_HD_INLINE void set_update_color(DistanceUpdate&, float, const Rgb8&) {}
-COVOX_HD_INLINE void set_update_color(VoxelUpdate& update, float weight, const Rgb8& color) {
-  update.weighted_r = weight * color.r;
-  update.weighted_g = weight * color.g;
-  update.weighted_b = weight * color.b;
-  update.color_weight = weight;
-}
 
 struct MergeUpdates {
   COVOX_HD_INLINE DistanceUpdate operator()(const DistanceUpdate& a, const DistanceUpdate& b) const {
