@@ -3,9 +3,11 @@
 // into a TsdfMap by raycasting, with the "merged" update of the coVoxSLAM paper (III-C/D):
 //   1. one ray per valid point; its voxel count is known in closed form -> exclusive scan gives
 //      every ray its range in one update array;
-//   2. each ray walks its voxels (Amanatides-Woo) and writes one (voxel, weighted sdf, weight,
-//      weighted colour) update per voxel;
-//   3. updates are sorted by voxel key and merged per voxel with a segmented reduce;
+//   2. each ray walks its voxels (Amanatides-Woo, in pieces of ~8 voxels) and writes one visit
+//      record per voxel: the voxel's key with its (weighted sdf, weight) update, or, in a frame
+//      with colour, with the ray's index, from which the reduction recomputes the update and its
+//      weighted colour (tsdf_traverse.h: 4 bytes through the sort instead of 32);
+//   3. records are sorted by voxel key and merged per voxel with a segmented reduce;
 //   4. the blocks of all touched voxels are allocated in one BlockHashTable::activate batch;
 //   5. one weighted-average write per distinct voxel.
 // No atomics touch voxel data and every step is order-preserving, so results are deterministic
