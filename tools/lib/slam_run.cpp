@@ -180,6 +180,7 @@ SlamRunResult run_slam_system(ScanSource& source, const pipeline::SlamConfig& co
   result.counters = slam.counters();
   result.timings = slam.timings();
   result.submaps = slam.submaps();
+  result.constraints = slam.constraints();
   const size_t voxels_per_block = static_cast<size_t>(config.map.voxels_per_side) * config.map.voxels_per_side *
                                   config.map.voxels_per_side;
   for (const pipeline::SubmapInfo& submap : result.submaps) result.map_blocks += submap.statistics.blocks;
@@ -231,10 +232,11 @@ void print_slam_run(const SlamRunResult& result, FILE* out) {
                static_cast<long long>(c.odometry_constraints), static_cast<long long>(c.registration.accepted),
                static_cast<long long>(c.registration.attempted), static_cast<long long>(c.optimizations));
   std::fprintf(out, "registration: %lld attempted, %lld accepted, rejected: %lld failed, %lld too far, %lld too few "
-               "points\n",
+               "points; %lld set aside by the consistency gate at the end\n",
                static_cast<long long>(c.registration.attempted), static_cast<long long>(c.registration.accepted),
                static_cast<long long>(c.registration.rejected_failed), static_cast<long long>(c.registration.rejected_too_far),
-               static_cast<long long>(c.registration.rejected_too_few_points));
+               static_cast<long long>(c.registration.rejected_too_few_points),
+               static_cast<long long>(c.registrations_set_aside));
   std::fprintf(out, "scans: %zu given, %lld integrated, %lld dropped by the pipeline (queue full %lld, invalid pose "
                "%lld, empty %lld, bad stamp %lld, failed %lld), %lld dropped while reading; submaps dropped %lld\n",
                result.scans_given, static_cast<long long>(c.scans_integrated),

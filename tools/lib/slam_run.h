@@ -31,6 +31,7 @@ struct SlamRunResult {
   pipeline::SlamCounters counters;
   pipeline::SlamTimings timings;
   std::vector<pipeline::SubmapInfo> submaps;
+  std::vector<pipeline::SubmapConstraint> constraints;  // the final pose graph's constraints
   size_t scans_given = 0;
   int64_t scans_dropped_by_source = 0;
   size_t map_blocks = 0;       // allocated TSDF blocks over all submaps
