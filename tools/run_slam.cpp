@@ -53,7 +53,7 @@ const char kUsage[] =
     "mapping (defaults from the preset):\n"
     "  --device auto|cpu|cuda      (default auto)\n"
     "  --preset NAME               arche (bags: 0.2 m voxels, 0.6 m truncation, 16 m rays, LiDAR weighting,\n"
-    "                              10 s submaps), rgbd (RGB-D folders: 4 cm, 12 cm, 4 m, inverse-square\n"
+    "                              5 s submaps), rgbd (RGB-D folders: 4 cm, 12 cm, 4 m, inverse-square\n"
     "                              weighting, 2 s), lidar-keyframes (keyframe folders: 0.5 m, 1.5 m, 40 m, 8 s)\n"
     "  --config FILE.yaml          SLAM parameters as the nodelet reads them (e.g. config/arche.yaml),\n"
     "                              applied over the preset; ROS-only parameters in it are ignored\n"
