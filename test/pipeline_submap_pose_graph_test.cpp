@@ -297,7 +297,7 @@ void solve(SubmapPoseGraph* graph) {
 TEST(PipelineSubmapPoseGraph, ConsistencyGateMeasuresResidualsInTheFromFrameAndSkipsOtherKinds) {
   GateLoop loop = gate_loop();
   // At the true poses the right constraints have no residual and the wrong one 2 m, whatever the
-  // submaps' headings (the measurement is in the frame of `from`, which is turned by 120 degrees).
+  // submaps' headings (the measurement is in the frame of `from`; submap 2 faces 150 degrees).
   SubmapPoseGraph at_truth;
   for (size_t k = 0; k < loop.truth.size(); ++k) at_truth.add_submap(static_cast<int64_t>(k), loop.truth[k], false);
   for (const SubmapConstraint& c : loop.graph.constraints()) at_truth.add_constraint(c);
