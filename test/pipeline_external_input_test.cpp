@@ -4,6 +4,7 @@
 // refused and counted.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -185,6 +186,51 @@ TEST(PipelineExternalInput, HeightsRemoveVerticalDrift) {
               corrected_error / truth.size());
   // The drift inside a submap (up to 12 cm) stays; the submaps' offsets are gone.
   EXPECT_LT(corrected_error, 0.3 * odometry_error);
+}
+
+// Linear z drift and exact heights at the first scan of every submap but the first (whose
+// correction is the identity: no drift yet). A step correction per submap leaves the drift inside
+// each submap (4 to 12 cm); the interpolated correction (interpolate_trajectory_correction) is
+// exact for linear drift up to the last submap, which has no successor and keeps its own.
+TEST(PipelineExternalInput, InterpolatedCorrectionRemovesLinearDriftInsideSubmaps) {
+  for (const bool interpolate : {false, true}) {
+    SlamConfig config = sphere_config();
+    config.interpolate_trajectory_correction = interpolate;
+    SlamSystem slam(config);
+    std::vector<Eigen::Isometry3d> truth, odometry;
+    for (int k = 0; k < 16; ++k) {
+      truth.push_back(pose_4dof(0.3 * k, 0.1 * k, 1.5, 0.05 * k));
+      odometry.push_back(pose_4dof(0.0, 0.0, 0.04 * k, 0.0) * truth.back());  // 4 cm of z drift per scan
+      ASSERT_TRUE(slam.add_scan(sphere_scan(0.25 * k, odometry.back())));
+    }
+    for (int spin = 0; spin < 300 && slam.counters().scans_integrated < 16; ++spin) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    // Submaps start every second (4 scans); very sure heights at their first scans.
+    for (int k = 4; k < 16; k += 4) EXPECT_TRUE(slam.add_height(0.25 * k, truth[k].translation().z(), 1e8));
+    slam.finish();
+    ASSERT_EQ(slam.submaps().size(), 4u);
+    const std::vector<StampedPose> trajectory = slam.corrected_trajectory();
+    ASSERT_EQ(trajectory.size(), truth.size());
+    double max_error_before_last = 0.0, max_error_last = 0.0;
+    for (size_t k = 0; k < truth.size(); ++k) {
+      const double error = (trajectory[k].T_world_sensor.translation() - truth[k].translation()).norm();
+      // The heading is never changed by a pure z correction.
+      EXPECT_NEAR(yaw_of(trajectory[k].T_world_sensor.linear()), 0.05 * k, 1e-9) << k;
+      double& worst = k < 12 ? max_error_before_last : max_error_last;
+      worst = std::max(worst, error);
+    }
+    std::printf("[ interp   ] interpolate %d: max error %.4f m in submaps 0-2, %.4f m in the last\n",
+                interpolate ? 1 : 0, max_error_before_last, max_error_last);
+    if (interpolate) {
+      EXPECT_LT(max_error_before_last, 2e-3);
+    } else {
+      EXPECT_GT(max_error_before_last, 0.11);  // scan 3 of a submap: 3 x 4 cm of drift since its start
+    }
+    // The last submap keeps its own (step) correction either way.
+    EXPECT_GT(max_error_last, 0.11);
+    EXPECT_LT(max_error_last, 0.13);
+  }
 }
 
 TEST(PipelineExternalInput, BadExternalInputIsRefusedAndCounted) {

@@ -70,6 +70,8 @@ std::map<std::string, Expectation> expectations() {
       {"odometry_translation_sigma_m", {"0.7", [](const SlamConfig& c) { return c.odometry_translation_sigma_m == 0.7; }}},
       {"odometry_yaw_sigma_rad", {"0.05", [](const SlamConfig& c) { return c.odometry_yaw_sigma_rad == 0.05; }}},
       {"optimize_every_n_submaps", {"0", [](const SlamConfig& c) { return c.optimize_every_n_submaps == 0; }}},
+      {"interpolate_trajectory_correction",
+       {"true", [](const SlamConfig& c) { return c.interpolate_trajectory_correction; }}},
       {"external_stamp_tolerance_s", {"0.2", [](const SlamConfig& c) { return c.external_stamp_tolerance_s == 0.2; }}},
       {"solver_max_iterations", {"17", [](const SlamConfig& c) { return c.solver.max_iterations == 17; }}},
       {"solver_function_tolerance", {"1e-4", [](const SlamConfig& c) { return c.solver.function_tolerance == 1e-4; }}},
@@ -108,6 +110,8 @@ std::map<std::string, Expectation> expectations() {
       {"registration_max_partners", {"0", [](const SlamConfig& c) { return c.registration.max_partners == 0; }}},
       {"registration_max_iterations", {"25", [](const SlamConfig& c) { return c.registration.max_iterations == 25; }}},
       {"registration_coarse_levels", {"3", [](const SlamConfig& c) { return c.registration.coarse_levels == 3; }}},
+      {"registration_max_graph_residual_m",
+       {"0.75", [](const SlamConfig& c) { return c.registration.max_graph_residual_m == 0.75; }}},
   };
 }
 
@@ -147,6 +151,7 @@ TEST(SlamParameterFiles, BadRegistrationAndSolverValuesAreReportedByName) {
   expect_error_names({{"registration_inlier_distance_m", "0"}}, "registration_inlier_distance_m");
   expect_error_names({{"registration_coarse_levels", "7"}}, "registration_coarse_levels");
   expect_error_names({{"registration_coarse_levels", "-1"}}, "registration_coarse_levels");
+  expect_error_names({{"registration_max_graph_residual_m", "-0.5"}}, "registration_max_graph_residual_m");
   expect_error_names({{"registration_min_fit_points", "-1"}}, "registration_min_fit_points");
   expect_error_names({{"registration_search_enabled", "maybe"}}, "registration_search_enabled");
   expect_error_names({{"registration_search_step_m", "-1"}}, "registration_search_step_m");

@@ -4,9 +4,12 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <random>
+#include <vector>
 
 #include "covoxslam/backend/pose_graph_solver.h"
 #include "covoxslam/core/error.h"
@@ -225,6 +228,126 @@ TEST(PipelineSubmapPoseGraph, TwoHorizontalAbsolutePositionsReplaceTheFixedFirst
   SubmapConstraint unknown = gnss;
   unknown.from_submap = 42;
   EXPECT_THROW(graph.add_constraint(unknown), Error);
+}
+
+// A loop of 12 submaps on a 10 m circle: odometry with a steady drift (0.15 m, 0.05 m and 0.6
+// degrees per link), registrations of consecutive submaps and revisits across the loop's closure at
+// their true values, and one revisit 2 m wrong (an aliased minimum).
+struct GateLoop {
+  std::vector<backend::Pose4Dof> truth;
+  SubmapPoseGraph graph;
+  size_t wrong_index = 0;  // in graph.constraints()
+};
+
+GateLoop gate_loop() {
+  GateLoop loop;
+  const int n = 12;
+  for (int k = 0; k < n; ++k) {
+    const double angle = 2.0 * M_PI * k / n;
+    loop.truth.push_back(pose(10.0 * std::cos(angle), 10.0 * std::sin(angle), 0.1 * k, angle + 0.5 * M_PI));
+  }
+  backend::Pose4Dof chain = loop.truth[0];
+  loop.graph.add_submap(0, chain, false);
+  const backend::Pose4Dof drift = pose(0.15, 0.05, 0.0, 0.6 * kDegToRad);
+  for (int k = 1; k < n; ++k) {
+    SubmapConstraint odometry;
+    odometry.kind = SubmapConstraintKind::kOdometry;
+    odometry.from_submap = k - 1;
+    odometry.to_submap = k;
+    odometry.measurement = compose(relative_pose_4dof(loop.truth[k - 1], loop.truth[k]), drift);
+    odometry.information = Eigen::Vector4d(100.0, 100.0, 100.0, 1e4).asDiagonal();
+    chain = compose(chain, odometry.measurement);
+    loop.graph.add_submap(k, chain, false);  // the odometry's guess
+    loop.graph.add_constraint(odometry);
+  }
+  auto registration = [&](int from, int to, const backend::Pose4Dof& error) {
+    SubmapConstraint c;
+    c.kind = SubmapConstraintKind::kRegistration;
+    c.from_submap = from;
+    c.to_submap = to;
+    c.measurement = compose(relative_pose_4dof(loop.truth[from], loop.truth[to]), error);
+    c.information = Eigen::Vector4d(25.0, 25.0, 25.0, 3283.0).asDiagonal();  // 0.2 m, 1 degree
+    loop.graph.add_constraint(c);
+  };
+  for (int k = 1; k < n; ++k) registration(k - 1, k, pose(0, 0, 0, 0));
+  registration(0, 11, pose(0, 0, 0, 0));
+  registration(1, 11, pose(0, 0, 0, 0));
+  registration(0, 10, pose(0, 0, 0, 0));
+  registration(1, 10, pose(0, 0, 0, 0));
+  loop.wrong_index = loop.graph.constraints().size();
+  registration(2, 10, pose(2.0, 0.0, 0.0, 0.0));
+  return loop;
+}
+
+double max_horizontal_error(const SubmapPoseGraph& graph, const std::vector<backend::Pose4Dof>& truth) {
+  double worst = 0.0;
+  for (size_t k = 0; k < truth.size(); ++k) {
+    const backend::Pose4Dof& p = graph.nodes()[k].pose;
+    worst = std::max(worst, std::hypot(p.x - truth[k].x, p.y - truth[k].y));
+  }
+  return worst;
+}
+
+void solve(SubmapPoseGraph* graph) {
+  SubmapPoseGraph::BackendGraph backend_graph = graph->to_backend_graph();
+  backend::solve_pose_graph(&backend_graph.graph, Device::kCpu);
+  graph->apply_solution(backend_graph);
+}
+
+TEST(PipelineSubmapPoseGraph, ConsistencyGateMeasuresResidualsInTheFromFrameAndSkipsOtherKinds) {
+  GateLoop loop = gate_loop();
+  // At the true poses the right constraints have no residual and the wrong one 2 m, whatever the
+  // submaps' headings (the measurement is in the frame of `from`; submap 2 faces 150 degrees).
+  SubmapPoseGraph at_truth;
+  for (size_t k = 0; k < loop.truth.size(); ++k) at_truth.add_submap(static_cast<int64_t>(k), loop.truth[k], false);
+  for (const SubmapConstraint& c : loop.graph.constraints()) at_truth.add_constraint(c);
+  EXPECT_EQ(set_aside_inconsistent_registrations(&at_truth, 1.99), 1);
+  for (size_t k = 0; k < at_truth.constraints().size(); ++k) {
+    EXPECT_EQ(at_truth.constraints()[k].active, k != loop.wrong_index) << k;
+  }
+  // Already set aside: not counted again. Odometry (0.16 m off per link here) is never touched.
+  EXPECT_EQ(set_aside_inconsistent_registrations(&at_truth, 1e-3), 0);
+  for (const SubmapConstraint& c : at_truth.constraints()) {
+    if (c.kind == SubmapConstraintKind::kOdometry) EXPECT_TRUE(c.active);
+  }
+  // An inactive constraint is left out of the backend graph.
+  const size_t active = at_truth.to_backend_graph().graph.constraints.size();
+  at_truth.set_active(loop.wrong_index, true);
+  EXPECT_EQ(at_truth.to_backend_graph().graph.constraints.size(), active + 1);
+  EXPECT_THROW(at_truth.set_active(at_truth.constraints().size(), false), Error);
+}
+
+TEST(PipelineSubmapPoseGraph, ConsistencyGateSetsAsideTheWrongRevisitAndTheLoopCloses) {
+  GateLoop without = gate_loop();
+  solve(&without.graph);
+  // The reference: the same graph built without the wrong revisit.
+  GateLoop oracle = gate_loop();
+  oracle.graph.set_active(oracle.wrong_index, false);
+  solve(&oracle.graph);
+
+  GateLoop with = gate_loop();
+  int rounds = 0, set_aside = 0;
+  for (; rounds < 10; ++rounds) {
+    solve(&with.graph);
+    const int now = set_aside_inconsistent_registrations(&with.graph, 0.5);
+    set_aside += now;
+    if (now == 0) break;
+  }
+  const double error_without = max_horizontal_error(without.graph, without.truth);
+  const double error_oracle = max_horizontal_error(oracle.graph, oracle.truth);
+  const double error_with = max_horizontal_error(with.graph, with.truth);
+  std::printf("[ gate     ] max error: all constraints %.3f m, gate %.3f m (%d set aside, %d solves), "
+              "without the wrong revisit %.3f m\n",
+              error_without, error_with, set_aside, rounds + 1, error_oracle);
+  EXPECT_EQ(set_aside, 1);
+  for (size_t k = 0; k < with.graph.constraints().size(); ++k) {
+    EXPECT_EQ(with.graph.constraints()[k].active, k != with.wrong_index) << k;
+  }
+  // The gate ends at the graph without the wrong revisit, which the wrong revisit pulls further off.
+  for (size_t k = 0; k < with.truth.size(); ++k) {
+    expect_pose_near(with.graph.nodes()[k].pose, oracle.graph.nodes()[k].pose, 1e-4);
+  }
+  EXPECT_GT(error_without, error_oracle + 0.03);
 }
 
 }  // namespace

@@ -102,6 +102,37 @@ TEST(PipelineSubmapPose, RelativePoseComposesBackToTheTarget) {
   EXPECT_LT(std::abs(relative.yaw), 3.14159265358979323846 + 1e-12);  // wrapped
 }
 
+TEST(PipelineSubmapPose, BlendedCorrectionMovesLinearlyAndTurnsAboutTheVertical) {
+  // A tilted sensor pose and two yaw + translation corrections 0.3 rad apart.
+  Eigen::Isometry3d sensor = to_isometry(backend::Pose4Dof{3.0, -1.0, 2.0, 0.4});
+  sensor.linear() = sensor.linear() * (Eigen::AngleAxisd(0.08, Eigen::Vector3d::UnitY()) *
+                                       Eigen::AngleAxisd(-0.05, Eigen::Vector3d::UnitX()))
+                                          .toRotationMatrix();
+  const Eigen::Isometry3d C_from = to_isometry(backend::Pose4Dof{1.0, 2.0, 0.3, 0.2});
+  const Eigen::Isometry3d C_to = to_isometry(backend::Pose4Dof{1.4, 1.0, 0.5, 0.5});
+  const Eigen::Isometry3d A = C_from * sensor, B = C_to * sensor;
+  // The ends are the two corrected poses, and alpha is clamped to them.
+  EXPECT_TRUE(blend_corrected_pose(C_from, C_to, sensor, 0.0).isApprox(A, 1e-12));
+  EXPECT_TRUE(blend_corrected_pose(C_from, C_to, sensor, 1.0).isApprox(B, 1e-12));
+  EXPECT_TRUE(blend_corrected_pose(C_from, C_to, sensor, -0.5).isApprox(A, 1e-12));
+  EXPECT_TRUE(blend_corrected_pose(C_from, C_to, sensor, 2.0).isApprox(B, 1e-12));
+  // A quarter of the way: a quarter of the displacement and of the 0.3 rad turn, tilt unchanged.
+  const Eigen::Isometry3d quarter = blend_corrected_pose(C_from, C_to, sensor, 0.25);
+  EXPECT_LT((quarter.translation() - (A.translation() + 0.25 * (B.translation() - A.translation()))).norm(), 1e-12);
+  EXPECT_NEAR(pose_4dof_from_isometry(quarter).yaw, pose_4dof_from_isometry(A).yaw + 0.25 * 0.3, 1e-12);
+  const double tilt_a = std::acos((A.linear() * Eigen::Vector3d::UnitZ()).z());
+  const double tilt_q = std::acos((quarter.linear() * Eigen::Vector3d::UnitZ()).z());
+  EXPECT_NEAR(tilt_q, tilt_a, 1e-12);
+  EXPECT_NEAR((quarter.linear().transpose() * quarter.linear() - Eigen::Matrix3d::Identity()).norm(), 0.0, 1e-12);
+  // Corrections at +179 and -179 degrees are 2 degrees apart: half way turns by 1 degree, not 179.
+  const double deg = 3.14159265358979323846 / 180.0;
+  const Eigen::Isometry3d C_west = to_isometry(backend::Pose4Dof{0.0, 0.0, 0.0, 179.0 * deg});
+  const Eigen::Isometry3d C_east = to_isometry(backend::Pose4Dof{0.0, 0.0, 0.0, -179.0 * deg});
+  const Eigen::Isometry3d half = blend_corrected_pose(C_west, C_east, sensor, 0.5);
+  const Eigen::Matrix3d turn = half.linear() * (C_west * sensor).linear().transpose();
+  EXPECT_NEAR(std::atan2(turn(1, 0), turn(0, 0)), 1.0 * deg, 1e-9);
+}
+
 TEST(PipelineSubmapPose, InvalidPosesAreRecognised) {
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
   EXPECT_TRUE(is_valid_rigid_pose(pose));

@@ -26,6 +26,7 @@
 #include "dataset_scan_sources.h"
 #include "flat_yaml.h"
 #include "covoxslam/pipeline/slam_parameters.h"
+#include "covoxslam/pipeline/submap.h"
 #include "slam_run.h"
 #include "trajectory_evaluation.h"
 
@@ -52,7 +53,7 @@ const char kUsage[] =
     "mapping (defaults from the preset):\n"
     "  --device auto|cpu|cuda      (default auto)\n"
     "  --preset NAME               arche (bags: 0.2 m voxels, 0.6 m truncation, 16 m rays, LiDAR weighting,\n"
-    "                              10 s submaps), rgbd (RGB-D folders: 4 cm, 12 cm, 4 m, inverse-square\n"
+    "                              5 s submaps), rgbd (RGB-D folders: 4 cm, 12 cm, 4 m, inverse-square\n"
     "                              weighting, 2 s), lidar-keyframes (keyframe folders: 0.5 m, 1.5 m, 40 m, 8 s)\n"
     "  --config FILE.yaml          SLAM parameters as the nodelet reads them (e.g. config/arche.yaml),\n"
     "                              applied over the preset; ROS-only parameters in it are ignored\n"
@@ -70,12 +71,36 @@ const char kUsage[] =
     "  --odometry-trajectory FILE  odometry trajectory of the same scans (default: not written)\n"
     "  --reference-trajectory FILE the input's reference trajectory (default: not written)\n"
     "  --mesh FILE.ply             combined mesh (default run_slam_mesh.ply)\n"
+    "  --graph FILE.txt            submaps and pose-graph constraints as text (default: not written):\n"
+    "                              'submap ID START_S END_S x y z yaw (corrected) x y z yaw (odometry)',\n"
+    "                              'constraint KIND FROM TO dx dy dz dyaw', the information's diagonal\n"
+    "                              and 1 (0: set aside by the consistency gate)\n"
     "  --map FILE                  also save the map (default: not saved)\n"
     "  --align none|translation|4dof|se3|sim3  ATE alignment (default 4dof: translation + yaw, as ARCHE)\n"
     "  --max-time-gap-s G          association tolerance (default 0.1)\n"
     "  --json FILE                 write the results as a benchmark report (e.g. docs/benchmarks/pipeline.json)\n"
     "  --case NAME                 the report's case name (default: the input's file name)\n"
     "  --quiet                     no progress bar\n";
+
+// The final pose graph as text, for inspection: one line per submap and per constraint (m, rad).
+void write_graph(const std::string& path, const tools::SlamRunResult& result) {
+  FILE* file = std::fopen(path.c_str(), "w");
+  if (!file) throw Error("run_slam: cannot write " + path);
+  for (const pipeline::SubmapInfo& submap : result.submaps) {
+    const backend::Pose4Dof world = pipeline::pose_4dof_from_isometry(submap.T_world_submap);
+    const backend::Pose4Dof odom = pipeline::pose_4dof_from_isometry(submap.T_odom_submap);
+    std::fprintf(file, "submap %lld %.6f %.6f %.6f %.6f %.6f %.8f %.6f %.6f %.6f %.8f\n",
+                 static_cast<long long>(submap.id), submap.statistics.start_stamp_s, submap.statistics.end_stamp_s,
+                 world.x, world.y, world.z, world.yaw, odom.x, odom.y, odom.z, odom.yaw);
+  }
+  for (const pipeline::SubmapConstraint& c : result.constraints) {
+    std::fprintf(file, "constraint %s %lld %lld %.6f %.6f %.6f %.8f %.6g %.6g %.6g %.6g %d\n", pipeline::to_string(c.kind),
+                 static_cast<long long>(c.from_submap), static_cast<long long>(c.to_submap), c.measurement.x,
+                 c.measurement.y, c.measurement.z, c.measurement.yaw, c.information(0, 0), c.information(1, 1),
+                 c.information(2, 2), c.information(3, 3), c.active ? 1 : 0);
+  }
+  std::fclose(file);
+}
 
 void add_timing_rows(tools::BenchmarkReport* report, const std::string& name, const std::string& module,
                      const pipeline::ModuleTiming& timing) {
@@ -122,6 +147,7 @@ int main(int argc, char** argv) {
   const std::string odometry_path = args.text("--odometry-trajectory", "");
   const std::string reference_path = args.text("--reference-trajectory", "");
   const std::string mesh_path = args.text("--mesh", "run_slam_mesh.ply");
+  const std::string graph_path = args.text("--graph", "");
   const std::string map_path = args.text("--map", "");
   const std::string align_text = args.text("--align", "4dof");
   const double max_time_gap_s = args.number("--max-time-gap-s", 0.1);
@@ -198,6 +224,7 @@ int main(int argc, char** argv) {
     if (!odometry_path.empty()) io::write_tum_trajectory(odometry_path, result.odometry);
     if (!reference_path.empty() && !source->reference().empty()) io::write_tum_trajectory(reference_path, source->reference());
     io::write_mesh_ply(mesh_path, result.mesh);
+    if (!graph_path.empty()) write_graph(graph_path, result);
 
     tools::print_slam_run(result, stdout);
     // With COVOX_PROFILE_STAGES=1: where each module's time went, stage by stage.

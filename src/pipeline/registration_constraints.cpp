@@ -53,6 +53,8 @@ void validate(const SubmapRegistrationConfig& config) {
   require(config.search_max_points >= 4, "search_max_points must be at least 4, got " + std::to_string(config.search_max_points));
   require(config.max_partners >= 0, "max_partners must be >= 0, got " + std::to_string(config.max_partners));
   require(config.max_iterations >= 1, "max_iterations must be at least 1, got " + std::to_string(config.max_iterations));
+  require(std::isfinite(config.max_graph_residual_m) && config.max_graph_residual_m >= 0.0,
+          "max_graph_residual_m must be >= 0 (metres; 0: off), got " + std::to_string(config.max_graph_residual_m));
   require(config.coarse_levels >= 0 && config.coarse_levels <= 6,
           "coarse_levels must be in [0, 6] (coarsest stride 2^6 voxels), got " + std::to_string(config.coarse_levels));
 }

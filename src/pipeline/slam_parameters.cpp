@@ -213,6 +213,7 @@ const std::vector<SlamParameter>& slam_parameters() {
       number_parameter("odometry_translation_sigma_m", COVOX_FIELD(odometry_translation_sigma_m), positive),
       number_parameter("odometry_yaw_sigma_rad", COVOX_FIELD(odometry_yaw_sigma_rad), positive),
       integer_parameter("optimize_every_n_submaps", COVOX_FIELD(optimize_every_n_submaps), 0, 1000000),
+      bool_parameter("interpolate_trajectory_correction", COVOX_FIELD(interpolate_trajectory_correction)),
       number_parameter("external_stamp_tolerance_s", COVOX_FIELD(external_stamp_tolerance_s), positive),
       integer_parameter("solver_max_iterations", COVOX_FIELD(solver.max_iterations), 1, 1000000),
       number_parameter("solver_function_tolerance", COVOX_FIELD(solver.function_tolerance), positive),
@@ -254,6 +255,8 @@ const std::vector<SlamParameter>& slam_parameters() {
       integer_parameter("registration_max_partners", COVOX_FIELD(registration.max_partners), 0, 1000000),
       integer_parameter("registration_max_iterations", COVOX_FIELD(registration.max_iterations), 1, 1000000),
       integer_parameter("registration_coarse_levels", COVOX_FIELD(registration.coarse_levels), 0, 6),
+      number_parameter("registration_max_graph_residual_m", COVOX_FIELD(registration.max_graph_residual_m),
+                       non_negative),
   };
   return table;
 }

@@ -528,6 +528,39 @@ int SlamSystem::integrate_pending_constraints_locked(bool final) {
 }
 
 void SlamSystem::optimize_locked() {
+  const double max_residual_m = config_.registration.max_graph_residual_m;
+  if (!(max_residual_m > 0.0)) {
+    solve_graph_locked();
+    return;
+  }
+  // The consistency gate: every optimisation starts from all registration constraints, so one set
+  // aside before comes back when the graph has come to agree with it.
+  {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    const std::vector<SubmapConstraint>& constraints = pose_graph_.constraints();
+    for (size_t k = 0; k < constraints.size(); ++k) {
+      if (constraints[k].kind == SubmapConstraintKind::kRegistration) pose_graph_.set_active(k, true);
+    }
+  }
+  // Each round sets aside at least one constraint, so the rounds end; the cap bounds the time.
+  const int max_rounds = 10;
+  int set_aside = 0;
+  for (int round = 0; round < max_rounds; ++round) {
+    if (!solve_graph_locked()) return;
+    int now = 0;
+    {
+      std::lock_guard<std::mutex> lock(state_mutex_);
+      now = set_aside_inconsistent_registrations(&pose_graph_, max_residual_m);
+    }
+    set_aside += now;
+    if (now == 0) break;
+    if (round + 1 == max_rounds) solve_graph_locked();  // the graph without the last ones set aside
+  }
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  counters_.registrations_set_aside = set_aside;
+}
+
+bool SlamSystem::solve_graph_locked() {
   // Absolute constraints are linearised at the current yaw (their lever arm, see
   // submap_pose_graph.h): re-solve a few times while the yaw still moves.
   const int passes = 5;
@@ -543,11 +576,11 @@ void SlamSystem::optimize_locked() {
       } catch (const std::exception& error) {
         ++counters_.optimizations_failed;
         log_error("SLAM backend: building the pose graph failed: ", error.what());
-        return;
+        return false;
       }
       for (const SubmapConstraint& c : pose_graph_.constraints()) has_absolute = has_absolute || c.is_absolute();
     }
-    if (graph.graph.poses.size() < 2) return;  // one (fixed) vertex: nothing to solve
+    if (graph.graph.poses.size() < 2) return true;  // one (fixed) vertex: nothing to solve
     const std::vector<backend::Pose4Dof> before = graph.graph.poses;
     // Solved outside state_mutex_, so the accessors never wait for the solver; backend_mutex_
     // keeps the graph from changing meanwhile.
@@ -560,7 +593,7 @@ void SlamSystem::optimize_locked() {
       std::lock_guard<std::mutex> lock(state_mutex_);
       ++counters_.optimizations_failed;
       log_error("SLAM backend: pose-graph optimisation failed: ", error.what());
-      return;
+      return false;
     }
     const double solve_s = seconds_since(start);
     double max_yaw_change = 0.0;
@@ -578,6 +611,7 @@ void SlamSystem::optimize_locked() {
     }
     if (!has_absolute || max_yaw_change < 1e-6) break;
   }
+  return true;
 }
 
 std::vector<backend::RegistrationTerm> SlamSystem::joint_terms_locked(const SubmapPoseGraph::BackendGraph& graph) const {
@@ -643,7 +677,27 @@ std::vector<StampedPose> SlamSystem::corrected_trajectory() const {
   std::vector<StampedPose> trajectory;
   trajectory.reserve(trajectory_.size());
   for (const TrajectoryEntry& entry : trajectory_) {
-    trajectory.push_back(StampedPose{entry.stamp_s, correction_for_locked(entry.submap_id) * entry.T_odom_sensor});
+    const Eigen::Isometry3d correction = correction_for_locked(entry.submap_id);
+    if (config_.interpolate_trajectory_correction) {
+      // The scan's own submap in the graph and the one after it (graph_submaps_ is in id order).
+      auto after = std::upper_bound(graph_submaps_.begin(), graph_submaps_.end(), entry.submap_id,
+                                    [](int64_t id, const GraphSubmap& s) { return id < s.submap->id(); });
+      if (after != graph_submaps_.begin() && after != graph_submaps_.end()) {
+        const Submap& own = *(after - 1)->submap;
+        const Submap& next = *after->submap;
+        const double start_s = own.statistics().start_stamp_s;
+        const double next_start_s = next.statistics().start_stamp_s;
+        if (own.id() == entry.submap_id && !(after - 1)->loaded && !after->loaded && next.statistics().scans > 0 &&
+            next_start_s > start_s) {
+          const Eigen::Isometry3d next_correction = next.T_world_submap() * next.T_odom_submap().inverse();
+          const double alpha = (entry.stamp_s - start_s) / (next_start_s - start_s);
+          trajectory.push_back(
+              StampedPose{entry.stamp_s, blend_corrected_pose(correction, next_correction, entry.T_odom_sensor, alpha)});
+          continue;
+        }
+      }
+    }
+    trajectory.push_back(StampedPose{entry.stamp_s, correction * entry.T_odom_sensor});
   }
   return trajectory;
 }

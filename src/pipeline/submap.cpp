@@ -66,6 +66,22 @@ bool is_valid_rigid_pose(const Eigen::Isometry3d& pose) {
   return orthonormality_error < 1e-3 && rotation.determinant() > 0.0;
 }
 
+Eigen::Isometry3d blend_corrected_pose(const Eigen::Isometry3d& C_from, const Eigen::Isometry3d& C_to,
+                                       const Eigen::Isometry3d& T_odom_sensor, double alpha) {
+  const double a = std::min(1.0, std::max(0.0, alpha));
+  const Eigen::Isometry3d from = C_from * T_odom_sensor;
+  const Eigen::Isometry3d to = C_to * T_odom_sensor;
+  if (a == 0.0) return from;
+  if (a == 1.0) return to;
+  // The rotation from `from` to `to`, a turn about z for yaw-only corrections.
+  const Eigen::Matrix3d turn = to.linear() * from.linear().transpose();
+  const double yaw = std::atan2(turn(1, 0), turn(0, 0));
+  Eigen::Isometry3d result = Eigen::Isometry3d::Identity();
+  result.linear() = Eigen::AngleAxisd(a * yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix() * from.linear();
+  result.translation() = (1.0 - a) * from.translation() + a * to.translation();
+  return result;
+}
+
 SubmapCreationPolicy parse_submap_creation_policy(const std::string& name) {
   if (name == "blocks") return SubmapCreationPolicy::kBlockCount;
   if (name == "time") return SubmapCreationPolicy::kTimeInterval;

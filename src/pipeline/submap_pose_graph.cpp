@@ -81,6 +81,37 @@ void SubmapPoseGraph::add_constraint(const SubmapConstraint& constraint) {
   constraints_.push_back(constraint);
 }
 
+void SubmapPoseGraph::set_active(size_t index, bool active) {
+  if (index >= constraints_.size()) {
+    throw Error("submap pose graph: constraint " + std::to_string(index) + " does not exist (" +
+                std::to_string(constraints_.size()) + " constraints)");
+  }
+  constraints_[index].active = active;
+}
+
+int set_aside_inconsistent_registrations(SubmapPoseGraph* graph, double max_residual_m) {
+  const std::vector<SubmapConstraint>& constraints = graph->constraints();
+  const std::vector<SubmapPoseGraphNode>& nodes = graph->nodes();
+  int count = 0;
+  for (size_t k = 0; k < constraints.size(); ++k) {
+    const SubmapConstraint& c = constraints[k];
+    if (c.kind != SubmapConstraintKind::kRegistration || !c.active) continue;
+    const int64_t from = graph->index_of(c.from_submap), to = graph->index_of(c.to_submap);
+    if (from < 0 || to < 0) continue;
+    // The relative pose at the current poses, in the measurement's convention (from's frame).
+    const backend::Pose4Dof& a = nodes[static_cast<size_t>(from)].pose;
+    const backend::Pose4Dof& b = nodes[static_cast<size_t>(to)].pose;
+    const double cs = std::cos(a.yaw), sn = std::sin(a.yaw);
+    const double dx = b.x - a.x, dy = b.y - a.y;
+    const double residual_m = std::hypot(cs * dx + sn * dy - c.measurement.x, -sn * dx + cs * dy - c.measurement.y);
+    if (residual_m > max_residual_m) {
+      graph->set_active(k, false);
+      ++count;
+    }
+  }
+  return count;
+}
+
 void SubmapPoseGraph::clear() {
   nodes_.clear();
   constraints_.clear();
@@ -116,6 +147,7 @@ SubmapPoseGraph::BackendGraph SubmapPoseGraph::to_backend_graph() const {
 
   std::set<int32_t> horizontally_pinned;
   for (const SubmapConstraint& c : constraints_) {
+    if (!c.active) continue;
     const size_t a = static_cast<size_t>(index_of(c.from_submap));
     const int32_t vertex_a = out.vertex_of_node[a];
     const backend::Pose4Dof& offset_a = out.offset_of_node[a];

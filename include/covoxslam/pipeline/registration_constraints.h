@@ -110,6 +110,14 @@ struct SubmapRegistrationConfig {
   // revisit starts as far off as the drift since the last visit; the fine cost's basin is a few
   // decimetres. 0: off (the default).
   int coarse_levels = 0;
+  // Consistency gate in the pose graph (SlamSystem's optimisation): after a solve, every
+  // registration constraint whose measurement lies further than this (horizontal distance, m)
+  // from the relative pose of its two submaps in the solution is set aside and the graph solved
+  // again, until every remaining one agrees; each optimisation starts again from all of them, so a
+  // constraint set aside earlier comes back once the graph agrees with it. A revisit that landed
+  // in a wrong minimum of the registration cost (repeated structure) disagrees with the chain of
+  // the other constraints by metres. 0: off (the default).
+  double max_graph_residual_m = 0.0;
 };
 
 // The information of a registration constraint: `points_information` (over x, y, z, yaw; may be

@@ -79,6 +79,13 @@ struct SlamConfig {
   // Optimise after every n-th submap enters the graph, and when external constraints or
   // request_optimization() arrive; 0: only in finish() and on request_optimization().
   int optimize_every_n_submaps = 1;
+  // Corrected trajectory: false (voxgraph's): every scan of a submap gets its submap's correction
+  // T_world_submap * T_odom_submap^-1, a step at each new submap. True: a scan between the first
+  // scans of submap k and of the next submap in the graph gets the correction blended linearly in
+  // time between the two submaps' corrections (blend_corrected_pose), as odometry drift grows
+  // over the submap; the last submap keeps its own. Only the reported trajectory changes (the
+  // maps, constraints and the graph do not).
+  bool interpolate_trajectory_correction = false;
   // Registration constraints between overlapping submaps (the drift correction).
   SubmapRegistrationConfig registration;
   // Loop closures, GNSS positions and heights name a scan by stamp: the nearest integrated scan
@@ -135,6 +142,9 @@ struct SlamCounters {
   int64_t odometry_constraints = 0;
   int64_t optimizations = 0;
   int64_t optimizations_failed = 0;
+  // Registration constraints set aside by the consistency gate (registration.max_graph_residual_m)
+  // in the latest optimisation.
+  int64_t registrations_set_aside = 0;
   RegistrationCounts registration;  // attempted, accepted and each reason for a rejection
   ExternalConstraintCounters loop_closures;
   ExternalConstraintCounters absolute_positions;
@@ -229,7 +239,9 @@ class SlamSystem {
   std::vector<SubmapInfo> submaps() const;
   // Every integrated scan's stamp with its corrected pose: T_W_S * T_odom_S^-1 * T_odom_sensor
   // of its submap, or, for a submap not (yet) in the graph, the correction of the latest earlier
-  // submap that is (voxgraph's mission-to-odom correction).
+  // submap that is (voxgraph's mission-to-odom correction). With
+  // config.interpolate_trajectory_correction, blended towards the next graph submap's correction
+  // (see SlamConfig).
   std::vector<StampedPose> corrected_trajectory() const;
   // The finished submaps' meshes moved to their corrected poses, as one mesh.
   Mesh combined_mesh() const;
@@ -339,7 +351,10 @@ class SlamSystem {
   // Moves waiting external constraints whose submaps are in the graph into it; `final`: no more
   // submaps will come, so those still waiting are dropped (counted). Returns how many entered.
   int integrate_pending_constraints_locked(bool final);
+  // Solves the graph; with registration.max_graph_residual_m, also runs the consistency gate.
   void optimize_locked();
+  // One solve of the graph as it is (false: the solve failed, logged and counted).
+  bool solve_graph_locked();
   // kJoint: the dense registration terms of joint_pairs_ for `graph`; needs state_mutex_ (and
   // backend_mutex_ for the lifetime of the submaps they point to).
   std::vector<backend::RegistrationTerm> joint_terms_locked(const SubmapPoseGraph::BackendGraph& graph) const;

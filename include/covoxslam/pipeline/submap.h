@@ -41,6 +41,14 @@ Eigen::Isometry3d gravity_aligned(const Eigen::Isometry3d& pose);
 backend::Pose4Dof relative_pose_4dof(const backend::Pose4Dof& from, const backend::Pose4Dof& to);
 // True when the translation and rotation are finite and the rotation is orthonormal (1e-3).
 bool is_valid_rigid_pose(const Eigen::Isometry3d& pose);
+// A pose between two corrections of the same odometry pose: A = C_from * T_odom_sensor and
+// B = C_to * T_odom_sensor, where C_from and C_to differ by a yaw about z and a translation (as
+// the corrections T_world_submap * T_odom_submap^-1 of gravity-aligned submaps do). The result
+// lies a fraction `alpha` (clamped to [0, 1]) of the way from A to B: position
+// (1 - alpha) A + alpha B, and A's rotation turned by alpha times the yaw from A to B (the
+// shorter way round). alpha 0 gives A and 1 gives B exactly.
+Eigen::Isometry3d blend_corrected_pose(const Eigen::Isometry3d& C_from, const Eigen::Isometry3d& C_to,
+                                       const Eigen::Isometry3d& T_odom_sensor, double alpha);
 
 // ---- Creation policy ---------------------------------------------------------------------------
 

@@ -51,6 +51,9 @@ struct SubmapConstraint {
   Eigen::Matrix4d information = Eigen::Matrix4d::Zero();
   // Absolute constraints: the sensor's position in the submap frame.
   Eigen::Vector3d lever_arm_m = Eigen::Vector3d::Zero();
+  // False: set aside by the consistency gate (registration.max_graph_residual_m); kept in the
+  // graph's list but not given to the solver.
+  bool active = true;
 
   bool is_absolute() const {
     return kind == SubmapConstraintKind::kAbsolutePosition || kind == SubmapConstraintKind::kHeight;
@@ -83,6 +86,9 @@ class SubmapPoseGraph {
   bool has_loaded_submaps() const { return !nodes_.empty() && nodes_.front().loaded; }
   int64_t last_id() const { return nodes_.empty() ? -1 : nodes_.back().id; }
   int64_t count(SubmapConstraintKind kind) const;
+  // The consistency gate's switch for constraint `index` of constraints(); inactive ones are left
+  // out of to_backend_graph(). Throws covox::Error for an index out of range.
+  void set_active(size_t index, bool active);
 
   // The backend graph at the current poses, and the mapping back (see apply_solution).
   struct BackendGraph {
@@ -98,6 +104,12 @@ class SubmapPoseGraph {
   std::vector<SubmapPoseGraphNode> nodes_;
   std::vector<SubmapConstraint> constraints_;
 };
+
+// The consistency gate's step (SubmapRegistrationConfig::max_graph_residual_m): sets aside the
+// active registration constraints whose measurement lies further than `max_residual_m`
+// (horizontal distance in the frame of the `from` submap) from the relative pose of their two
+// submaps at the graph's current poses; returns how many. Other kinds are never touched.
+int set_aside_inconsistent_registrations(SubmapPoseGraph* graph, double max_residual_m);
 
 // 4-DoF pose algebra (x_a = Rz(yaw) x_b + t): a * b (the inverse is backend::inverse_pose_4dof).
 backend::Pose4Dof compose(const backend::Pose4Dof& a, const backend::Pose4Dof& b);
