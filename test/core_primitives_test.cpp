@@ -76,10 +76,9 @@ TEST_P(CorePrimitivesTest, SortByKeyIsStableAndMatchesStd) {
   }
 }
 
-// The bit-limited radix sort against std::stable_sort, for odd and even numbers of passes (an
-// odd count ends in the scratch arrays and is copied back) and, on the CPU, digits of 7 to 11 bits
-// (22 and 33 bits: full 11-bit digits). Run on both backends, this also shows that they give the
-// same order.
+// The bit-limited radix sort against std::stable_sort, for odd and even numbers of 8-bit passes
+// (an odd count ends in the scratch arrays and is copied back), with partly used last digits.
+// Run on both backends, this also shows that they give the same order.
 TEST_P(CorePrimitivesTest, RadixSortOfLowBitsIsStableAndMatchesStd) {
   for (int key_bits : {7, 16, 17, 22, 27, 33, 64}) {
     const uint64_t limit = key_bits == 64 ? ~uint64_t(0) : (uint64_t(1) << key_bits) - 1;

@@ -37,22 +37,17 @@ template <class Key, class Value>
 void radix_sort_pairs_swapping(CpuBackend, const Stream&, Key*& keys, Value*& values, int64_t count, int key_bits,
                                Key*& keys_alt, Value*& values_alt) {
   if (count <= 1 || key_bits <= 0) return;
-  // Digits of up to 11 bits: a frame's 20-22-bit keys sort in two passes instead of three (each
-  // pass reads and writes every pair once, which is what the CPU pays for); 2048 counters per
-  // thread still fit in the L1 cache, and the scatter's 2048 write streams in L2.
-  constexpr int kMaxDigitBits = 11;
-  const int bits = std::min(key_bits, static_cast<int>(8 * sizeof(Key)));
-  const int passes = (bits + kMaxDigitBits - 1) / kMaxDigitBits;
-  const int digit_bits = (bits + passes - 1) / passes;
-  const int64_t digits = int64_t(1) << digit_bits;
+  constexpr int kDigitBits = 8;
+  constexpr int kDigits = 1 << kDigitBits;
+  const int passes = (std::min(key_bits, static_cast<int>(8 * sizeof(Key))) + kDigitBits - 1) / kDigitBits;
   const int max_threads = omp_get_max_threads();
-  std::vector<int64_t> offsets(static_cast<size_t>(max_threads) * digits);
+  std::vector<int64_t> offsets(static_cast<size_t>(max_threads) * kDigits);
   Key* source_keys = keys;
   Value* source_values = values;
   Key* target_keys = keys_alt;
   Value* target_values = values_alt;
   for (int pass = 0; pass < passes; ++pass) {
-    const int shift = pass * digit_bits;
+    const int shift = pass * kDigitBits;
 #pragma omp parallel num_threads(max_threads)
     {
       // Each thread owns one contiguous chunk; digits are placed thread by thread in chunk
@@ -61,23 +56,23 @@ void radix_sort_pairs_swapping(CpuBackend, const Stream&, Key*& keys, Value*& va
       const int thread = omp_get_thread_num();
       const int64_t begin = count * thread / threads;
       const int64_t end = count * (thread + 1) / threads;
-      int64_t* histogram = offsets.data() + static_cast<size_t>(thread) * digits;
-      std::fill(histogram, histogram + digits, 0);
-      for (int64_t i = begin; i < end; ++i) ++histogram[(source_keys[i] >> shift) & (digits - 1)];
+      int64_t* histogram = offsets.data() + static_cast<size_t>(thread) * kDigits;
+      std::fill(histogram, histogram + kDigits, 0);
+      for (int64_t i = begin; i < end; ++i) ++histogram[(source_keys[i] >> shift) & (kDigits - 1)];
 #pragma omp barrier
 #pragma omp single
       {
         int64_t running = 0;
-        for (int64_t digit = 0; digit < digits; ++digit) {
+        for (int digit = 0; digit < kDigits; ++digit) {
           for (int t = 0; t < threads; ++t) {
-            const int64_t n = offsets[static_cast<size_t>(t) * digits + digit];
-            offsets[static_cast<size_t>(t) * digits + digit] = running;
+            const int64_t n = offsets[static_cast<size_t>(t) * kDigits + digit];
+            offsets[static_cast<size_t>(t) * kDigits + digit] = running;
             running += n;
           }
         }
       }
       for (int64_t i = begin; i < end; ++i) {
-        const int64_t position = histogram[(source_keys[i] >> shift) & (digits - 1)]++;
+        const int64_t position = histogram[(source_keys[i] >> shift) & (kDigits - 1)]++;
         target_keys[position] = source_keys[i];
         target_values[position] = source_values[i];
       }
