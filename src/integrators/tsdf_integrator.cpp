@@ -123,11 +123,6 @@ IntegrationStats TsdfIntegrator::integrate(TsdfMap& map, const PointCloudView& c
   if (!T_map_sensor.matrix().allFinite()) {
     throw Error("TSDF integrator: the sensor pose is not finite; the cloud was not integrated");
   }
-  // Visit records name their ray in 31 bits (the top bit flags a colour visit, tsdf_traverse.h).
-  if (cloud.count > static_cast<int64_t>(tsdf::kColorVisitBit - 1)) {
-    throw Error("TSDF integrator: a cloud of " + std::to_string(cloud.count) +
-                " points; at most 2^31 - 1 per call (split the cloud)");
-  }
   if (!scratch_ || scratch_->buffers.rays.device() != map.device()) {
     scratch_ = std::make_unique<Scratch>(map.device());
   }

@@ -1,8 +1,9 @@
 #pragma once
 // Stable radix sort of (unsigned key, value) pairs by the low `key_bits` bits of the keys, on both
-// backends. Keys are 64- or 32-bit (a frame whose keys fit in 32 bits moves half the key bytes). The value is any trivially copyable type: an index to permute large records by, or
-// a small record itself (an 8-byte TSDF update travels with its key, so no gather follows). Integration keys are built relative to the frame's bounding box, so a
-// frame's keys need 20-30 bits, not 64: sorting only those bits takes 3-4 passes of 8 bits
+// backends. Keys are 64- or 32-bit (a frame whose keys fit in 32 bits moves half the key bytes).
+// The value is any trivially copyable type: an index to permute large records by, or a small
+// record itself (a TSDF visit record travels with its key, so no gather follows). Integration
+// keys are built relative to the frame's bounding box, so a frame's keys need 20-30 bits, not 64: sorting only those bits takes 3-4 passes of 8 bits
 // instead of the 8 a full 64-bit sort pays for (CUB's begin/end bits on the GPU; an OpenMP LSD
 // radix sort on the CPU twin). Both are stable, so both backends produce the same order.
 //

@@ -56,7 +56,7 @@ struct TsdfScratchBuffers {
     }
   }
   // The visit records' values and their radix-sort scratch (tsdf_traverse.h): distance updates
-  // without colour, flagged ray indices with it.
+  // without colour, ray indices with it.
   Buffer<tsdf::DistanceUpdate> distance_records;
   Buffer<tsdf::DistanceUpdate> distance_records_alt;
   Buffer<tsdf::ColorVisit> color_visits;

@@ -103,12 +103,15 @@ struct alignas(16) VoxelUpdate {
 };
 
 // A coloured frame's visit record value (tsdf_traverse.h): the index of the ray that visited the
-// voxel, with kColorVisitBit set when the visit takes the ray's colour (ray indices stay below
-// 2^31: TsdfIntegrator checks the point count).
-constexpr uint32_t kColorVisitBit = 0x80000000u;
+// voxel; the reduction recomputes the update, and whether it takes the ray's colour, from it.
 struct ColorVisit {
   uint32_t ray = 0;
 };
+
+// Point or ray i's colour: its own colour, else its intensity as grey, else none.
+COVOX_HD_INLINE Rgb8 color_of(const Rgb8* colors, const float* intensities, float grey_per_intensity, int64_t i) {
+  return colors ? colors[i] : (intensities ? intensity_to_grey(intensities[i], grey_per_intensity) : Rgb8{});
+}
 
 struct MergeUpdates {
   COVOX_HD_INLINE DistanceUpdate operator()(const DistanceUpdate& a, const DistanceUpdate& b) const {

@@ -117,7 +117,7 @@ struct BundleOfSortedPoint {
       bundle.y = to_merge_units(point.y);
       bundle.z = to_merge_units(point.z);
     }
-    const Rgb8 color = colors ? colors[index] : (intensities ? intensity_to_grey(intensities[index], grey_per_intensity) : Rgb8{});
+    const Rgb8 color = color_of(colors, intensities, grey_per_intensity, index);
     bundle.r = color.r;
     bundle.g = color.g;
     bundle.b = color.b;
