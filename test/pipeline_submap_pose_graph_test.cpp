@@ -308,7 +308,9 @@ TEST(PipelineSubmapPoseGraph, ConsistencyGateMeasuresResidualsInTheFromFrameAndS
   // Already set aside: not counted again. Odometry (0.16 m off per link here) is never touched.
   EXPECT_EQ(set_aside_inconsistent_registrations(&at_truth, 1e-3), 0);
   for (const SubmapConstraint& c : at_truth.constraints()) {
-    if (c.kind == SubmapConstraintKind::kOdometry) EXPECT_TRUE(c.active);
+    if (c.kind == SubmapConstraintKind::kOdometry) {
+      EXPECT_TRUE(c.active);
+    }
   }
   // An inactive constraint is left out of the backend graph.
   const size_t active = at_truth.to_backend_graph().graph.constraints.size();
