@@ -147,8 +147,13 @@ std::vector<StampedIsometry> simulate_truth(const Figure8Path& path, const Fligh
     const Eigen::Vector2d heading = path.direction(s);
     const double yaw = std::atan2(heading.y(), heading.x());
     // Horizontal acceleration by central differences (one step of 0.05 s), in the yawed frame.
+    // At the ends the stencil moves inwards by a step: the path has no point before its start or
+    // after its end, and a stencil clamped there divides the velocity by h (the first and last
+    // poses were tilted by 76 degrees).
     const double h = 0.05;
-    const Eigen::Vector3d acceleration = (position(t + h) - 2.0 * position(t) + position(std::max(0.0, t - h))) / (h * h);
+    const double centre = std::min(std::max(t, h), std::max(h, duration_s - h));
+    const Eigen::Vector3d acceleration =
+        (position(centre + h) - 2.0 * position(centre) + position(centre - h)) / (h * h);
     const Eigen::Vector3d local = yaw_rotation(-yaw) * acceleration;
     // Thrust tilts towards the acceleration: forward needs pitch down (positive about y in a
     // forward-left-up frame), left needs roll to the left (negative about x).
