@@ -3,9 +3,10 @@
 // backends. Keys are 64- or 32-bit (a frame whose keys fit in 32 bits moves half the key bytes).
 // The value is any trivially copyable type: an index to permute large records by, or a small
 // record itself (a TSDF visit record travels with its key, so no gather follows). Integration
-// keys are built relative to the frame's bounding box, so a frame's keys need 20-30 bits, not 64: sorting only those bits takes 3-4 passes of 8 bits
-// instead of the 8 a full 64-bit sort pays for (CUB's begin/end bits on the GPU; an OpenMP LSD
-// radix sort on the CPU twin). Both are stable, so both backends produce the same order.
+// keys are built relative to the frame's bounding box, so a frame's keys need 20-30 bits, not 64:
+// sorting only those bits takes 3-4 passes of 8 bits instead of the 8 a full 64-bit sort pays
+// for (CUB's begin/end bits on the GPU; an OpenMP LSD radix sort on the CPU twin). Both are
+// stable, so both backends produce the same order.
 //
 // `keys_alt` and `values_alt` are scratch arrays of at least `count` elements on the same device.
 // Keys must be < 2^key_bits (bits above are ignored, so larger keys would sort wrongly).

@@ -29,13 +29,19 @@
 namespace covox {
 namespace tsdf {
 
-// What ray i contributes to a voxel it visits: the projective distance clamped to the truncation
-// band (free space in front of it), weighted (zero weight behind the band or dropped off).
-// `takes_color` tells whether the visit also takes the ray's colour: inside the band of a surface
-// ray, with weight (voxblox's rule).
-COVOX_HD_INLINE DistanceUpdate voxel_update(const FrameUpdates& frame, uint32_t i, const Index3D& voxel,
-                                            float truncation, bool* takes_color) {
-  const RaySegment& ray = frame.rays[i];
+// Ray i's weight factor (1 unless the frame gives one per ray, as merged rays do).
+COVOX_HD_INLINE float ray_weight_of(const FrameUpdates& frame, uint32_t i) {
+  return frame.ray_weights ? frame.ray_weights[i] : 1.0f;
+}
+
+// What a ray (with its weight factor) contributes to a voxel it visits: the projective distance
+// clamped to the truncation band (free space in front of it), weighted (zero weight behind the
+// band or dropped off). `takes_color` tells whether the visit also takes the ray's colour: inside
+// the band of a surface ray, with weight (voxblox's rule). The ray comes in by value, loaded once
+// per piece by the traverse (the record stores in between could alias it, so a lookup here would
+// be repeated for every voxel).
+COVOX_HD_INLINE DistanceUpdate voxel_update(const FrameUpdates& frame, const RaySegment& ray, float ray_weight,
+                                            const Index3D& voxel, float truncation, bool* takes_color) {
   const float voxel_size = frame.voxel_size;
   const Vec3f center((voxel.x + 0.5f) * voxel_size, (voxel.y + 0.5f) * voxel_size, (voxel.z + 0.5f) * voxel_size);
   const bool clearing = ray.kind == kClearingRay;
@@ -43,7 +49,6 @@ COVOX_HD_INLINE DistanceUpdate voxel_update(const FrameUpdates& frame, uint32_t 
   float weight = 0.0f;
   if (distance >= -truncation) {
     if (distance > truncation) distance = truncation;
-    const float ray_weight = frame.ray_weights ? frame.ray_weights[i] : 1.0f;
     weight = ray_weight * update_weight(frame.weight_parameters, ray.range_m, distance);
   }
   *takes_color = !clearing && fabsf(distance) < truncation && weight > 0.0f;
@@ -75,9 +80,11 @@ struct PieceTraversal {
     const RayPiece piece = frame.pieces[p];
     const uint32_t i = piece.ray;
     uint32_t out = piece_offsets[p];
-    traverse_ray_piece(frame.rays[i], piece.index, piece.pieces, frame.inverse_voxel_size, [&](const Index3D& voxel) {
+    const RaySegment ray = frame.rays[i];
+    const float ray_weight = ray_weight_of(frame, i);
+    traverse_ray_piece(ray, piece.index, piece.pieces, frame.inverse_voxel_size, [&](const Index3D& voxel) {
       bool takes_color = false;
-      const DistanceUpdate update = voxel_update(frame, i, voxel, truncation, &takes_color);
+      const DistanceUpdate update = voxel_update(frame, ray, ray_weight, voxel, truncation, &takes_color);
       ValueT value;
       make_record_value(update, i, &value);
       emit(out, update.weight > 0.0f ? static_cast<KeyT>(frame.codec.key(voxel)) : zero_weight_key, value);
@@ -113,7 +120,8 @@ struct VoxelUpdateOfRecord {
     if (key >= first_dropped_key) return VoxelUpdate{};
     const uint32_t i = visits[j].ray;
     bool takes_color = false;
-    const DistanceUpdate update = voxel_update(frame, i, frame.codec.voxel(key), truncation, &takes_color);
+    const DistanceUpdate update =
+        voxel_update(frame, frame.rays[i], ray_weight_of(frame, i), frame.codec.voxel(key), truncation, &takes_color);
     VoxelUpdate sum;
     sum.weighted_distance = update.weighted_distance;
     sum.weight = update.weight;
