@@ -10,6 +10,7 @@
 #include <string>
 
 #include "bag_scan_source.h"
+#include "covoxslam/core/error.h"
 #include "covoxslam/io/rosbag_reader.h"
 #include "sim_flight.h"
 #include "sim_flight_bag.h"
@@ -198,6 +199,13 @@ TEST(Simulator, FlightHasTheRequestedShapeAndOdometryDriftsAtLeastAsConfigured) 
     const Eigen::Vector3d odometry_up = odometry.back().pose.linear().col(2);
     EXPECT_NEAR(truth_up.z(), odometry_up.z(), 1e-9);
   }
+  // --drift-scale: 0 gives the truth itself; any factor keeps the least final drift.
+  const std::vector<StampedIsometry> exact = simulate_odometry(truth, DriftConfig().scaled(0.0), 11);
+  ASSERT_EQ(exact.size(), truth.size());
+  for (size_t k = 0; k < truth.size(); k += 100) EXPECT_TRUE(exact[k].pose.isApprox(truth[k].pose, 1e-12)) << k;
+  EXPECT_LT(final_drift_m(truth, exact), 1e-9);
+  EXPECT_GE(final_drift_m(truth, simulate_odometry(truth, DriftConfig().scaled(0.5), 11)), 3.0);
+  EXPECT_THROW(DriftConfig().scaled(-1.0), Error);
 }
 
 // Writes the first `scans` scans of the default flight (seed `seed`, a small LiDAR) as a bag and

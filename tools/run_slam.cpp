@@ -177,22 +177,9 @@ int main(int argc, char** argv) {
     }
     pipeline::SlamConfig config = tools::preset_slam_config(preset, device);
     if (!config_path.empty()) {
-      // Only the SLAM parameters: frames, topics and visualisation settings are the nodelet's.
-      std::map<std::string, std::string> values = tools::read_flat_yaml(config_path);
-      const std::vector<std::string>& known = pipeline::slam_parameter_names();
-      std::string ignored;
-      for (auto entry = values.begin(); entry != values.end();) {
-        if (std::find(known.begin(), known.end(), entry->first) != known.end()) {
-          ++entry;
-        } else {
-          ignored += (ignored.empty() ? "" : ", ") + entry->first;
-          entry = values.erase(entry);
-        }
-      }
-      pipeline::read_slam_config(pipeline::TextParameterSource(values), &config);
-      config.device = device;
-      std::printf("config: %s (%zu SLAM parameters; not for the runner: %s)\n", config_path.c_str(), values.size(),
-                  ignored.empty() ? "none" : ignored.c_str());
+      const tools::ConfigFileUse use = tools::apply_slam_config_file(config_path, &config);
+      std::printf("config: %s (%zu SLAM parameters; not for the runner: %s)\n", config_path.c_str(), use.applied,
+                  use.ignored.empty() ? "none" : use.ignored.c_str());
     }
     if (!std::isnan(voxel_size_m)) config.map.voxel_size_m = static_cast<float>(voxel_size_m);
     if (!std::isnan(truncation_m)) config.tsdf.truncation_distance_m = static_cast<float>(truncation_m);

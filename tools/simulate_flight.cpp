@@ -38,6 +38,8 @@ const char kUsage[] =
     "  --path-length-m L        figure-8 length (default 400)\n"
     "  --speed-m-per-s V        flight speed (default 2)\n"
     "  --min-drift-m D          least final odometry drift (default 3)\n"
+    "  --drift-scale F          multiplies every drift rate (default 1; 0: odometry equals the truth,\n"
+    "                           which isolates the mapping's own error)\n"
     "  --max-scans N            stop after N scans (0: the whole flight)\n";
 
 }  // namespace
@@ -57,6 +59,8 @@ int main(int argc, char** argv) {
   flight.speed_m_per_s = args.number("--speed-m-per-s", flight.speed_m_per_s);
   sim::DriftConfig drift;
   drift.min_final_drift_m = args.number("--min-drift-m", drift.min_final_drift_m);
+  const double drift_scale = args.number("--drift-scale", 1.0);
+  if (!(drift_scale >= 0.0)) args.fail("--drift-scale must be a number >= 0");
   const int64_t max_scans = args.integer("--max-scans", 0);
   args.finish();
 
@@ -67,7 +71,7 @@ int main(int argc, char** argv) {
     const sim::Figure8Path path(flight);
     const sim::Site site = sim::build_site(sim::SiteConfig(), path, seed);
     std::vector<sim::StampedIsometry> truth = sim::simulate_truth(path, flight);
-    std::vector<sim::StampedIsometry> odometry = sim::simulate_odometry(truth, drift, seed);
+    std::vector<sim::StampedIsometry> odometry = sim::simulate_odometry(truth, drift.scaled(drift_scale), seed);
     if (max_scans > 0 && static_cast<size_t>(max_scans) < truth.size()) {
       truth.resize(max_scans);
       odometry.resize(max_scans);

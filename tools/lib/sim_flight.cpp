@@ -169,6 +169,19 @@ std::vector<StampedIsometry> simulate_truth(const Figure8Path& path, const Fligh
   return poses;
 }
 
+DriftConfig DriftConfig::scaled(double factor) const {
+  if (!(factor >= 0.0) || !std::isfinite(factor)) {
+    throw Error("drift: the scale factor must be finite and >= 0, got " + std::to_string(factor));
+  }
+  DriftConfig result = *this;
+  result.bias_velocity_m_per_s *= factor;
+  result.yaw_bias_deg_per_s *= factor;
+  result.translation_random_walk_m_per_sqrt_s *= factor;
+  result.yaw_random_walk_deg_per_sqrt_s *= factor;
+  if (factor == 0.0) result.min_final_drift_m = 0.0;
+  return result;
+}
+
 std::vector<StampedIsometry> simulate_odometry(const std::vector<StampedIsometry>& truth,
                                                const DriftConfig& config, uint64_t seed) {
   double scale = 1.0;

@@ -41,6 +41,11 @@ struct DriftConfig {
   // If the odometry ends closer than this to the truth, the whole drift (biases and random walks
   // alike) is scaled up until it does not: the default flight has at least this much drift.
   double min_final_drift_m = 3.0;
+
+  // Every rate (biases and random walks) multiplied by `factor` >= 0; factor 0 also drops the
+  // least final drift, so the odometry equals the truth (simulate_flight --drift-scale 0: the
+  // mapping's own error without drift to correct).
+  DriftConfig scaled(double factor) const;
 };
 
 struct StampedIsometry {

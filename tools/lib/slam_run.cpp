@@ -8,6 +8,8 @@
 #include "covoxslam/core/error.h"
 #include "covoxslam/io/map_file.h"
 #include "covoxslam/map/voxels.h"
+#include "covoxslam/pipeline/slam_parameters.h"
+#include "flat_yaml.h"
 
 namespace covox {
 namespace tools {
@@ -286,6 +288,25 @@ void print_slam_run(const SlamRunResult& result, FILE* out) {
                result.input_duration_s, result.real_time_factor());
   std::fprintf(out, "\nmap: %zu submaps, %zu TSDF blocks (%.1f MB of voxels), mesh %zu triangles\n",
                result.submaps.size(), result.map_blocks, result.map_memory_mb, result.mesh.triangle_count());
+}
+
+ConfigFileUse apply_slam_config_file(const std::string& path, pipeline::SlamConfig* config) {
+  std::map<std::string, std::string> values = read_flat_yaml(path);
+  const std::vector<std::string>& known = pipeline::slam_parameter_names();
+  ConfigFileUse use;
+  for (auto entry = values.begin(); entry != values.end();) {
+    if (std::find(known.begin(), known.end(), entry->first) != known.end()) {
+      ++entry;
+    } else {
+      use.ignored += (use.ignored.empty() ? "" : ", ") + entry->first;
+      entry = values.erase(entry);
+    }
+  }
+  const Device device = config->device;
+  pipeline::read_slam_config(pipeline::TextParameterSource(values), config);
+  config->device = device;
+  use.applied = values.size();
+  return use;
 }
 
 }  // namespace tools

@@ -77,5 +77,15 @@ pipeline::SlamConfig lidar_keyframe_slam_config(Device device);
 // "arche", "rgbd" or "lidar-keyframes"; throws covox::Error naming the bad value otherwise.
 pipeline::SlamConfig preset_slam_config(const std::string& preset, Device device);
 
+// Applies the SLAM parameters of a flat YAML file (as the nodelet reads them, e.g.
+// config/arche.yaml) over `config`; the device stays as it was. Frames, topics and visualisation
+// settings are the nodelet's: they are skipped and named in `ignored`. Throws covox::Error for an
+// unreadable file or a bad value.
+struct ConfigFileUse {
+  size_t applied = 0;
+  std::string ignored;  // comma-separated names
+};
+ConfigFileUse apply_slam_config_file(const std::string& path, pipeline::SlamConfig* config);
+
 }  // namespace tools
 }  // namespace covox
