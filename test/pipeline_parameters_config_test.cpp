@@ -107,6 +107,11 @@ std::map<std::string, Expectation> expectations() {
       {"registration_search_max_yaw_rad", {"0.3", [](const SlamConfig& c) { return c.registration.search_max_yaw_rad == 0.3; }}},
       {"registration_search_candidates", {"5", [](const SlamConfig& c) { return c.registration.search_candidates == 5; }}},
       {"registration_search_max_points", {"900", [](const SlamConfig& c) { return c.registration.search_max_points == 900; }}},
+      {"registration_revisit_wall_search", {"true", [](const SlamConfig& c) { return c.registration.revisit_wall_search; }}},
+      {"registration_revisit_min_id_gap", {"6", [](const SlamConfig& c) { return c.registration.revisit_min_id_gap == 6; }}},
+      {"registration_wall_search_range_m", {"1.5", [](const SlamConfig& c) { return c.registration.wall_search_range_m == 1.5; }}},
+      {"registration_wall_search_min_score", {"80", [](const SlamConfig& c) { return c.registration.wall_search_min_score == 80.0; }}},
+      {"registration_wall_search_min_jump_m", {"0.3", [](const SlamConfig& c) { return c.registration.wall_search_min_jump_m == 0.3; }}},
       {"registration_max_partners", {"0", [](const SlamConfig& c) { return c.registration.max_partners == 0; }}},
       {"registration_max_iterations", {"25", [](const SlamConfig& c) { return c.registration.max_iterations == 25; }}},
       {"registration_coarse_levels", {"3", [](const SlamConfig& c) { return c.registration.coarse_levels == 3; }}},
@@ -157,6 +162,8 @@ TEST(SlamParameterFiles, BadRegistrationAndSolverValuesAreReportedByName) {
   expect_error_names({{"registration_search_step_m", "-1"}}, "registration_search_step_m");
   expect_error_names({{"registration_search_candidates", "0"}}, "registration_search_candidates");
   expect_error_names({{"registration_search_max_points", "3"}}, "registration_search_max_points");
+  expect_error_names({{"registration_revisit_min_id_gap", "0"}}, "registration_revisit_min_id_gap");
+  expect_error_names({{"registration_wall_search_range_m", "-1"}}, "registration_wall_search_range_m");
   expect_error_names({{"registration_min_points", "2"}}, "registration_min_points");
   expect_error_names({{"registration_max_correction_rad", "4"}}, "registration_max_correction_rad");
   expect_error_names({{"solver_preconditioner", "jacobi"}}, "solver_preconditioner");

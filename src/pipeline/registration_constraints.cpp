@@ -4,11 +4,13 @@
 #include <algorithm>
 #include <cmath>
 #include <exception>
+#include <memory>
 
 #include "covoxslam/backend/pose_graph.h"
 #include "covoxslam/core/error.h"
 #include "covoxslam/core/log.h"
 #include "covoxslam/pipeline/submap.h"
+#include "covoxslam/pipeline/wall_map.h"
 
 namespace covox {
 namespace pipeline {
@@ -55,6 +57,13 @@ void validate(const SubmapRegistrationConfig& config) {
   require(config.max_iterations >= 1, "max_iterations must be at least 1, got " + std::to_string(config.max_iterations));
   require(std::isfinite(config.max_graph_residual_m) && config.max_graph_residual_m >= 0.0,
           "max_graph_residual_m must be >= 0 (metres; 0: off), got " + std::to_string(config.max_graph_residual_m));
+  require(config.revisit_min_id_gap >= 1, "revisit_min_id_gap must be at least 1, got " + std::to_string(config.revisit_min_id_gap));
+  require(std::isfinite(config.wall_search_range_m) && config.wall_search_range_m >= 0.0,
+          "wall_search_range_m must be >= 0, got " + std::to_string(config.wall_search_range_m));
+  require(std::isfinite(config.wall_search_min_score) && config.wall_search_min_score >= 0.0,
+          "wall_search_min_score must be >= 0, got " + std::to_string(config.wall_search_min_score));
+  require(std::isfinite(config.wall_search_min_jump_m) && config.wall_search_min_jump_m >= 0.0,
+          "wall_search_min_jump_m must be >= 0, got " + std::to_string(config.wall_search_min_jump_m));
   require(config.coarse_levels >= 0 && config.coarse_levels <= 6,
           "coarse_levels must be in [0, 6] (coarsest stride 2^6 voxels), got " + std::to_string(config.coarse_levels));
 }
@@ -128,6 +137,7 @@ void RegistrationCounts::add(const RegistrationCounts& other) {
   rejected_too_few_points += other.rejected_too_few_points;
   rejected_poor_fit += other.rejected_poor_fit;
   found_by_search += other.found_by_search;
+  started_from_walls += other.started_from_walls;
   joint_pairs += other.joint_pairs;
 }
 
@@ -351,6 +361,9 @@ std::vector<SubmapConstraint> registration_constraints(int64_t id, const TsdfMap
   aligner.min_used_points = config.min_points;
   aligner.coarse_levels = config.coarse_levels;
   Buffer<backend::RegistrationResidual> scratch(map.device());
+  // The new submap's wall columns, built at the first revisit that needs them.
+  std::unique_ptr<WallMap> own_walls;
+  const double wall_cap_m = 1.0;
 
   for (const RegistrationPartner* partner_pointer : partners) {
     const RegistrationPartner& partner = *partner_pointer;
@@ -373,7 +386,23 @@ std::vector<SubmapConstraint> registration_constraints(int64_t id, const TsdfMap
       pair.reverse_weight_scale = points.mean_weight / partner_points->mean_weight;
     }
     const backend::SymmetricRegistrationPair* reverse = config.symmetric ? &pair : nullptr;
-    Attempt best = attempt_alignment(points, *partner.map, initial, initial, aligner, config, reverse, &scratch, stream);
+    backend::Pose4Dof start = initial;
+    bool from_walls = false;
+    if (config.revisit_wall_search && id - partner.id >= config.revisit_min_id_gap) {
+      if (!own_walls) own_walls = std::make_unique<WallMap>(WallMap::from_map(map, wall_cap_m, stream));
+      const WallMap partner_walls = WallMap::from_map(*partner.map, wall_cap_m, stream);
+      WallSearchConfig search;
+      search.range_m = config.wall_search_range_m;
+      const WallMatch match = match_walls(*own_walls, partner_walls, initial, search);
+      const double jump_m = std::hypot(match.T_fixed_moving.x - initial.x, match.T_fixed_moving.y - initial.y);
+      if (match.score >= config.wall_search_min_score && jump_m > config.wall_search_min_jump_m) {
+        start = match.T_fixed_moving;
+        from_walls = true;
+        log_message(LogLevel::kDebug, "SLAM registration: submap ", partner.id, " -> ", id, ": the walls match ",
+                    jump_m, " m from the guess (score ", match.score, ")");
+      }
+    }
+    Attempt best = attempt_alignment(points, *partner.map, initial, start, aligner, config, reverse, &scratch, stream);
     const Verdict direct_verdict = best.verdict;
     bool from_search = false;
     if (best.verdict != Verdict::kAccepted && config.search_enabled) {
@@ -400,6 +429,7 @@ std::vector<SubmapConstraint> registration_constraints(int64_t id, const TsdfMap
       continue;
     }
     if (from_search) ++counts->found_by_search;
+    if (from_walls && !from_search) ++counts->started_from_walls;
     log_message(LogLevel::kDebug, "SLAM registration: submap ", partner.id, " -> ", id, ": ", best.fit.inliers, " of ",
                 best.fit.used, " points fit", from_search ? " (found by the revisit search)" : "");
     // The backend's constraint (information = hessian / sigma^2, here sigma in residual units),

@@ -102,6 +102,18 @@ struct SubmapRegistrationConfig {
   double search_max_yaw_rad = 0.174532925199433;  // 10 degrees (and at most max_correction_rad)
   int search_candidates = 3;
   int64_t search_max_points = 1500;
+  // Revisit start from the walls (pipeline/wall_map.h): for pairs at least revisit_min_id_gap
+  // submap ids apart, the top views' wall columns are matched over +-wall_search_range_m and
+  // +-3 degrees around the guess, and when the best match has a score of at least
+  // wall_search_min_score (about that many matched columns) and lies more than
+  // wall_search_min_jump_m from the guess, the alignment starts there instead of at the guess.
+  // Near the guess the aligner is better on its own (the wall match is only good to 0.1-0.5 m).
+  // Off by default; on in the ARCHE preset.
+  bool revisit_wall_search = false;
+  int64_t revisit_min_id_gap = 4;
+  double wall_search_range_m = 2.5;
+  double wall_search_min_score = 50.0;
+  double wall_search_min_jump_m = 0.5;
   // Align to at most this many earlier submaps (those sharing most blocks); 0: all.
   int max_partners = 10;
   int max_iterations = 60;
@@ -161,6 +173,7 @@ struct RegistrationCounts {
   int64_t rejected_too_few_points = 0;  // fewer than min_points inside the partner's field
   int64_t rejected_poor_fit = 0;        // fewer than min_inlier_fraction of the points fit
   int64_t found_by_search = 0;          // accepted ones that needed the revisit search
+  int64_t started_from_walls = 0;       // accepted revisits aligned from the wall match
   int64_t joint_pairs = 0;              // kJoint: overlapping pairs added as dense terms
   void add(const RegistrationCounts& other);
 };
