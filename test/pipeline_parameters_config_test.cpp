@@ -117,6 +117,8 @@ std::map<std::string, Expectation> expectations() {
       {"registration_coarse_levels", {"3", [](const SlamConfig& c) { return c.registration.coarse_levels == 3; }}},
       {"registration_max_graph_residual_m",
        {"0.75", [](const SlamConfig& c) { return c.registration.max_graph_residual_m == 0.75; }}},
+      {"registration_gate_worst_fraction",
+       {"0.25", [](const SlamConfig& c) { return c.registration.gate_worst_fraction == 0.25; }}},
   };
 }
 
@@ -157,6 +159,7 @@ TEST(SlamParameterFiles, BadRegistrationAndSolverValuesAreReportedByName) {
   expect_error_names({{"registration_coarse_levels", "7"}}, "registration_coarse_levels");
   expect_error_names({{"registration_coarse_levels", "-1"}}, "registration_coarse_levels");
   expect_error_names({{"registration_max_graph_residual_m", "-0.5"}}, "registration_max_graph_residual_m");
+  expect_error_names({{"registration_gate_worst_fraction", "1"}}, "registration_gate_worst_fraction");
   expect_error_names({{"registration_min_fit_points", "-1"}}, "registration_min_fit_points");
   expect_error_names({{"registration_search_enabled", "maybe"}}, "registration_search_enabled");
   expect_error_names({{"registration_search_step_m", "-1"}}, "registration_search_step_m");

@@ -319,6 +319,40 @@ TEST(PipelineSubmapPoseGraph, ConsistencyGateMeasuresResidualsInTheFromFrameAndS
   EXPECT_THROW(at_truth.set_active(at_truth.constraints().size(), false), Error);
 }
 
+TEST(PipelineSubmapPoseGraph, ConsistencyGateWorstFirstSetsAsideOnlyTheLargestResiduals) {
+  // At the true poses: the wrong revisit 2 m off, two more registrations 0.8 m and 0.3 m off.
+  GateLoop loop = gate_loop();
+  SubmapPoseGraph at_truth;
+  for (size_t k = 0; k < loop.truth.size(); ++k) at_truth.add_submap(static_cast<int64_t>(k), loop.truth[k], false);
+  for (const SubmapConstraint& c : loop.graph.constraints()) at_truth.add_constraint(c);
+  const size_t off_08 = at_truth.constraints().size(), off_03 = off_08 + 1;
+  for (const double offset_m : {0.8, 0.3}) {
+    SubmapConstraint c = at_truth.constraints()[loop.wrong_index];
+    c.measurement = compose(relative_pose_4dof(loop.truth[c.from_submap], loop.truth[c.to_submap]),
+                            pose(0.0, offset_m, 0.0, 0.0));
+    at_truth.add_constraint(c);
+  }
+  auto set_aside_list = [&]() {
+    std::vector<size_t> aside;
+    for (size_t k = 0; k < at_truth.constraints().size(); ++k) {
+      if (!at_truth.constraints()[k].active) aside.push_back(k);
+    }
+    return aside;
+  };
+  SubmapPoseGraph all_at_once = at_truth;
+  // Fraction 0: everything above the threshold at once.
+  EXPECT_EQ(set_aside_inconsistent_registrations(&all_at_once, 0.2, 0.0), 3);
+  // Fraction 0.5 of the worst (2 m): only residuals above 1 m; then above 0.4 m (0.5 x 0.8); then
+  // the threshold itself.
+  EXPECT_EQ(set_aside_inconsistent_registrations(&at_truth, 0.2, 0.5), 1);
+  EXPECT_EQ(set_aside_list(), std::vector<size_t>({loop.wrong_index}));
+  EXPECT_EQ(set_aside_inconsistent_registrations(&at_truth, 0.2, 0.5), 1);
+  EXPECT_EQ(set_aside_list(), std::vector<size_t>({loop.wrong_index, off_08}));
+  EXPECT_EQ(set_aside_inconsistent_registrations(&at_truth, 0.2, 0.5), 1);
+  EXPECT_EQ(set_aside_list(), std::vector<size_t>({loop.wrong_index, off_08, off_03}));
+  EXPECT_EQ(set_aside_inconsistent_registrations(&at_truth, 0.2, 0.5), 0);
+}
+
 TEST(PipelineSubmapPoseGraph, ConsistencyGateSetsAsideTheWrongRevisitAndTheLoopCloses) {
   GateLoop without = gate_loop();
   solve(&without.graph);

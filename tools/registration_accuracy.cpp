@@ -15,7 +15,11 @@
 // re-registration from a corrected pose would converge further).
 //
 // Output: one row per accepted constraint (translation and yaw error against the truth) and the
-// medians for neighbours (ids at most `--neighbour-gap` apart) and revisits.
+// medians for neighbours (ids at most `--neighbour-gap` apart) and revisits, with the mean signed
+// error along the true relative translation (`along_m`; negative: the pair drawn together) and
+// its sum over the sum of the pairs' lengths (`scale_%`): a bias there is a scale error of the
+// trajectory. `--walls` adds the top-view wall match alone (pipeline/wall_map.h) of every
+// overlapping revisit pair, started where the registration starts.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -35,6 +39,7 @@
 #include "covoxslam/pipeline/registration_constraints.h"
 #include "covoxslam/pipeline/submap.h"
 #include "covoxslam/pipeline/submap_pose_graph.h"
+#include "covoxslam/pipeline/wall_map.h"
 #include "slam_run.h"
 #include "trajectory_evaluation.h"
 
@@ -53,7 +58,8 @@ const char* kUsage =
     "  --start-yaw-deg A      and A degrees off its true yaw, sign alternating (default 0)\n"
     "  --repeat N             align each accepted pair N more times, each from the last result\n"
     "  --neighbour-gap N      pairs at most N submap ids apart count as neighbours (default 3)\n"
-    "  --rows                 print every constraint, not only the summary\n";
+    "  --rows                 print every constraint, not only the summary\n"
+    "  --walls                also the wall match alone (pipeline/wall_map.h) of every overlapping revisit\n";
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kGoldenAngleRad = 2.399963229728653;
@@ -105,19 +111,38 @@ double mean(const std::vector<double>& values) {
 struct PairError {
   int64_t from = 0, to = 0;
   double horizontal_m = 0.0, vertical_m = 0.0, yaw_deg = 0.0;
+  // Signed error along the true relative translation (negative: the pair drawn closer), and that
+  // translation's length: a systematic along-track error is a scale error of the trajectory.
+  double along_m = 0.0, length_m = 0.0;
 };
+
+PairError pair_error(int64_t from, int64_t to, const backend::Pose4Dof& found, const backend::Pose4Dof& expected) {
+  PairError e;
+  e.from = from;
+  e.to = to;
+  e.horizontal_m = std::hypot(found.x - expected.x, found.y - expected.y);
+  e.vertical_m = found.z - expected.z;
+  e.yaw_deg = wrap_angle(found.yaw - expected.yaw) * 180.0 / kPi;
+  e.length_m = std::hypot(expected.x, expected.y);
+  if (e.length_m > 1e-6) e.along_m = ((found.x - expected.x) * expected.x + (found.y - expected.y) * expected.y) / e.length_m;
+  return e;
+}
 
 void print_group(const char* name, const std::vector<PairError>& errors) {
   std::vector<double> horizontal, vertical, yaw;
   int64_t over_half_metre = 0;
+  double along_sum = 0.0, length_sum = 0.0;
   for (const PairError& e : errors) {
+    along_sum += e.along_m;
+    length_sum += e.length_m;
     horizontal.push_back(e.horizontal_m);
     vertical.push_back(std::abs(e.vertical_m));
     yaw.push_back(std::abs(e.yaw_deg));
     over_half_metre += e.horizontal_m > 0.5;
   }
-  std::printf("%-11s %5zu %10.3f %10.3f %10.3f %10.2f %8lld\n", name, errors.size(), median(horizontal),
-              mean(horizontal), median(vertical), median(yaw), static_cast<long long>(over_half_metre));
+  std::printf("%-11s %5zu %10.3f %10.3f %10.3f %10.2f %8lld %10.3f %10.2f\n", name, errors.size(), median(horizontal),
+              mean(horizontal), median(vertical), median(yaw), static_cast<long long>(over_half_metre),
+              errors.empty() ? NAN : along_sum / errors.size(), length_sum > 0.0 ? 100.0 * along_sum / length_sum : NAN);
 }
 
 }  // namespace
@@ -134,6 +159,7 @@ int main(int argc, char** argv) {
   const int64_t neighbour_gap = args.integer("--neighbour-gap", 3);
   const int64_t repeat = args.integer("--repeat", 0);
   const bool rows = args.flag("--rows");
+  const bool walls = args.flag("--walls");
   args.finish();
   if (map_path.empty() || graph_path.empty() || truth_path.empty()) args.fail("--map, --graph and --truth are required");
   if (!(start_offset_m >= 0.0)) args.fail("--start-offset-m must be >= 0");
@@ -153,10 +179,10 @@ int main(int argc, char** argv) {
     const Stream stream(device);
 
     std::vector<pipeline::RegistrationPartner> earlier;
-    std::vector<PairError> neighbours, revisits;
+    std::vector<PairError> neighbours, revisits, wall_matches;
     pipeline::RegistrationCounts counts;
     std::map<int64_t, backend::Pose4Dof> true_pose;
-    if (rows) std::printf("from -> to   horizontal_m  vertical_m  yaw_deg\n");
+    if (rows) std::printf("from -> to   horizontal_m  vertical_m  yaw_deg  along_m\n");
     for (size_t k = 0; k < contents.submaps.size(); ++k) {
       const int64_t id = contents.submaps[k].id;
       const auto stamp = stamps.find(id);
@@ -173,6 +199,25 @@ int main(int argc, char** argv) {
           pipeline::prepare_registration_points(*maps[k], config.registration, stream);
       const std::vector<pipeline::SubmapConstraint> constraints = pipeline::registration_constraints(
           id, *maps[k], *points, start, earlier, config.registration, stream, &counts);
+      if (walls) {
+        const pipeline::WallMap own = pipeline::WallMap::from_map(*maps[k], 1.0, stream);
+        for (const pipeline::RegistrationPartner* partner :
+             pipeline::overlapping_partners(*maps[k], start, earlier, config.registration)) {
+          if (id - partner->id < config.registration.revisit_min_id_gap) continue;
+          const pipeline::WallMap other = pipeline::WallMap::from_map(*partner->map, 1.0, stream);
+          pipeline::WallSearchConfig search;
+          search.range_m = config.registration.wall_search_range_m;
+          const pipeline::WallMatch match =
+              pipeline::match_walls(own, other, pipeline::relative_pose_4dof(partner->pose, start), search);
+          const backend::Pose4Dof expected = pipeline::relative_pose_4dof(true_pose.at(partner->id), truth_k);
+          const PairError e = pair_error(partner->id, id, match.T_fixed_moving, expected);
+          wall_matches.push_back(e);
+          if (rows) {
+            std::printf("walls %4lld -> %-4lld %11.3f %8.2f score %.1f\n", static_cast<long long>(e.from),
+                        static_cast<long long>(e.to), e.horizontal_m, e.yaw_deg, match.score);
+          }
+        }
+      }
       for (pipeline::SubmapConstraint c : constraints) {
         for (int64_t again = 0; again < repeat; ++again) {
           const pipeline::RegistrationPartner* partner = nullptr;
@@ -187,16 +232,11 @@ int main(int argc, char** argv) {
           c = redo.front();
         }
         const backend::Pose4Dof expected = pipeline::relative_pose_4dof(true_pose.at(c.from_submap), truth_k);
-        PairError e;
-        e.from = c.from_submap;
-        e.to = c.to_submap;
-        e.horizontal_m = std::hypot(c.measurement.x - expected.x, c.measurement.y - expected.y);
-        e.vertical_m = c.measurement.z - expected.z;
-        e.yaw_deg = wrap_angle(c.measurement.yaw - expected.yaw) * 180.0 / kPi;
+        const PairError e = pair_error(c.from_submap, c.to_submap, c.measurement, expected);
         (e.to - e.from <= neighbour_gap ? neighbours : revisits).push_back(e);
         if (rows) {
-          std::printf("%4lld -> %-4lld %11.3f %11.3f %8.2f\n", static_cast<long long>(e.from),
-                      static_cast<long long>(e.to), e.horizontal_m, e.vertical_m, e.yaw_deg);
+          std::printf("%4lld -> %-4lld %11.3f %11.3f %8.2f %8.3f\n", static_cast<long long>(e.from),
+                      static_cast<long long>(e.to), e.horizontal_m, e.vertical_m, e.yaw_deg, e.along_m);
         }
       }
       earlier.push_back(pipeline::RegistrationPartner{id, maps[k].get(), truth_k});
@@ -204,13 +244,14 @@ int main(int argc, char** argv) {
     std::printf("registration from %.2f m / %.1f deg off the truth (%s): %lld attempted, %lld accepted\n",
                 start_offset_m, start_yaw_deg, describe_device(device).c_str(),
                 static_cast<long long>(counts.attempted), static_cast<long long>(counts.accepted));
-    std::printf("%-11s %5s %10s %10s %10s %10s %8s\n", "pairs", "n", "med_xy_m", "mean_xy_m", "med_z_m", "med_yaw_deg",
-                ">0.5m");
+    std::printf("%-11s %5s %10s %10s %10s %10s %8s %10s %10s\n", "pairs", "n", "med_xy_m", "mean_xy_m", "med_z_m",
+                "med_yaw_deg", ">0.5m", "along_m", "scale_%");
     print_group("neighbours", neighbours);
     print_group("revisits", revisits);
     std::vector<PairError> all = neighbours;
     all.insert(all.end(), revisits.begin(), revisits.end());
     print_group("all", all);
+    if (walls) print_group("wall match", wall_matches);
   } catch (const std::exception& error) {
     std::fprintf(stderr, "registration_accuracy: %s\n", error.what());
     return 1;

@@ -55,6 +55,9 @@ void validate(const SubmapRegistrationConfig& config) {
   require(config.search_max_points >= 4, "search_max_points must be at least 4, got " + std::to_string(config.search_max_points));
   require(config.max_partners >= 0, "max_partners must be >= 0, got " + std::to_string(config.max_partners));
   require(config.max_iterations >= 1, "max_iterations must be at least 1, got " + std::to_string(config.max_iterations));
+  require(std::isfinite(config.gate_worst_fraction) && config.gate_worst_fraction >= 0.0 &&
+              config.gate_worst_fraction < 1.0,
+          "gate_worst_fraction must be in [0, 1), got " + std::to_string(config.gate_worst_fraction));
   require(std::isfinite(config.max_graph_residual_m) && config.max_graph_residual_m >= 0.0,
           "max_graph_residual_m must be >= 0 (metres; 0: off), got " + std::to_string(config.max_graph_residual_m));
   require(config.revisit_min_id_gap >= 1, "revisit_min_id_gap must be at least 1, got " + std::to_string(config.revisit_min_id_gap));

@@ -152,6 +152,7 @@ SlamParameter bool_parameter(const char* name, Field field) {
 
 std::string in_unit_interval_open_closed(double v) { return v > 0.0 && v <= 1.0 ? "" : "must be in (0, 1]"; }
 std::string in_unit_interval_closed(double v) { return v >= 0.0 && v <= 1.0 ? "" : "must be in [0, 1]"; }
+std::string in_unit_interval_right_open(double v) { return v >= 0.0 && v < 1.0 ? "" : "must be in [0, 1)"; }
 std::string in_open_unit_interval(double v) { return v > 0.0 && v < 1.0 ? "" : "must be in (0, 1)"; }
 std::string angle_up_to_pi(double v) { return v > 0.0 && v <= 3.14159265358979323846 ? "" : "must be in (0, pi]"; }
 
@@ -265,6 +266,8 @@ const std::vector<SlamParameter>& slam_parameters() {
       integer_parameter("registration_coarse_levels", COVOX_FIELD(registration.coarse_levels), 0, 6),
       number_parameter("registration_max_graph_residual_m", COVOX_FIELD(registration.max_graph_residual_m),
                        non_negative),
+      number_parameter("registration_gate_worst_fraction", COVOX_FIELD(registration.gate_worst_fraction),
+                       in_unit_interval_right_open),
   };
   return table;
 }

@@ -543,14 +543,16 @@ void SlamSystem::optimize_locked() {
     }
   }
   // Each round sets aside at least one constraint, so the rounds end; the cap bounds the time.
-  const int max_rounds = 10;
+  // Worst-first rounds (gate_worst_fraction) set aside fewer per round, so they get more.
+  const double worst_fraction = config_.registration.gate_worst_fraction;
+  const int max_rounds = worst_fraction > 0.0 ? 25 : 10;
   int set_aside = 0;
   for (int round = 0; round < max_rounds; ++round) {
     if (!solve_graph_locked()) return;
     int now = 0;
     {
       std::lock_guard<std::mutex> lock(state_mutex_);
-      now = set_aside_inconsistent_registrations(&pose_graph_, max_residual_m);
+      now = set_aside_inconsistent_registrations(&pose_graph_, max_residual_m, worst_fraction);
     }
     set_aside += now;
     if (now == 0) break;

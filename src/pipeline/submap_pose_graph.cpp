@@ -89,10 +89,11 @@ void SubmapPoseGraph::set_active(size_t index, bool active) {
   constraints_[index].active = active;
 }
 
-int set_aside_inconsistent_registrations(SubmapPoseGraph* graph, double max_residual_m) {
+int set_aside_inconsistent_registrations(SubmapPoseGraph* graph, double max_residual_m, double worst_fraction) {
   const std::vector<SubmapConstraint>& constraints = graph->constraints();
   const std::vector<SubmapPoseGraphNode>& nodes = graph->nodes();
-  int count = 0;
+  std::vector<double> residual_m(constraints.size(), -1.0);  // -1: not judged
+  double worst_m = 0.0;
   for (size_t k = 0; k < constraints.size(); ++k) {
     const SubmapConstraint& c = constraints[k];
     if (c.kind != SubmapConstraintKind::kRegistration || !c.active) continue;
@@ -103,8 +104,13 @@ int set_aside_inconsistent_registrations(SubmapPoseGraph* graph, double max_resi
     const backend::Pose4Dof& b = nodes[static_cast<size_t>(to)].pose;
     const double cs = std::cos(a.yaw), sn = std::sin(a.yaw);
     const double dx = b.x - a.x, dy = b.y - a.y;
-    const double residual_m = std::hypot(cs * dx + sn * dy - c.measurement.x, -sn * dx + cs * dy - c.measurement.y);
-    if (residual_m > max_residual_m) {
+    residual_m[k] = std::hypot(cs * dx + sn * dy - c.measurement.x, -sn * dx + cs * dy - c.measurement.y);
+    worst_m = std::max(worst_m, residual_m[k]);
+  }
+  const double cut_m = std::max(max_residual_m, worst_fraction * worst_m);
+  int count = 0;
+  for (size_t k = 0; k < constraints.size(); ++k) {
+    if (residual_m[k] > cut_m) {
       graph->set_active(k, false);
       ++count;
     }

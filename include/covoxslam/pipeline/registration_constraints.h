@@ -130,6 +130,11 @@ struct SubmapRegistrationConfig {
   // in a wrong minimum of the registration cost (repeated structure) disagrees with the chain of
   // the other constraints by metres. 0: off (the default).
   double max_graph_residual_m = 0.0;
+  // The gate's rounds set aside only the constraints further than this fraction of the largest
+  // residual (and than max_graph_residual_m), the worst first: when wrong revisits pull the
+  // solution, the right ones disagree with it too, and setting aside everything above the
+  // threshold at once lost them with the wrong ones. In [0, 1); 0: all above the threshold at once.
+  double gate_worst_fraction = 0.0;
 };
 
 // The information of a registration constraint: `points_information` (over x, y, z, yaw; may be

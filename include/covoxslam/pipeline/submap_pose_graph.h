@@ -109,7 +109,10 @@ class SubmapPoseGraph {
 // active registration constraints whose measurement lies further than `max_residual_m`
 // (horizontal distance in the frame of the `from` submap) from the relative pose of their two
 // submaps at the graph's current poses; returns how many. Other kinds are never touched.
-int set_aside_inconsistent_registrations(SubmapPoseGraph* graph, double max_residual_m);
+// `worst_fraction` > 0 sets aside only those further than max(max_residual_m, worst_fraction x the
+// largest residual): the worst first, so that constraints pulled off by them are judged again
+// after the next solve (SubmapRegistrationConfig::gate_worst_fraction).
+int set_aside_inconsistent_registrations(SubmapPoseGraph* graph, double max_residual_m, double worst_fraction = 0.0);
 
 // 4-DoF pose algebra (x_a = Rz(yaw) x_b + t): a * b (the inverse is backend::inverse_pose_4dof).
 backend::Pose4Dof compose(const backend::Pose4Dof& a, const backend::Pose4Dof& b);
