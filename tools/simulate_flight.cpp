@@ -8,9 +8,9 @@
 // Deterministic: the same options and seed give byte-identical files.
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
 #include <string>
-#include <sys/stat.h>
 
 #include "command_line.h"
 #include "covoxslam/core/error.h"
@@ -67,7 +67,11 @@ int main(int argc, char** argv) {
   try {
     sim::validate(lidar);
     const auto start = std::chrono::steady_clock::now();
-    ::mkdir(output_dir.c_str(), 0755);  // an existing folder is fine; a real failure shows on writing
+    // With its parents (a nested --output-dir used to fail only at the first write); an existing
+    // folder is fine.
+    std::error_code folder_error;
+    std::filesystem::create_directories(output_dir, folder_error);
+    if (folder_error) throw Error("cannot create the output folder " + output_dir + ": " + folder_error.message());
     const sim::Figure8Path path(flight);
     const sim::Site site = sim::build_site(sim::SiteConfig(), path, seed);
     std::vector<sim::StampedIsometry> truth = sim::simulate_truth(path, flight);
