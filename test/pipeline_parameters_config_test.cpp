@@ -16,6 +16,7 @@
 #include "covoxslam/pipeline/slam_parameters.h"
 #include "support/parameter_errors.h"
 #include "flat_yaml.h"
+#include "slam_run.h"
 
 namespace covox {
 namespace pipeline {
@@ -218,6 +219,44 @@ TEST(SlamParameterFiles, ShippedConfigsListAndDocumentEveryParameter) {
   SlamConfig arche_config;
   ASSERT_NO_THROW(read_slam_config(TextParameterSource(arche), &arche_config));
   EXPECT_FLOAT_EQ(arche_config.tsdf.sparsity_compensation_factor, 20.0f);  // voxgraph's ARCHE setting
+}
+
+// config/arche_sim.yaml is the offline runner's ARCHE preset for the ROS node (what `make demo`
+// measures): every SLAM setting the preset changes reads back the same from the file.
+TEST(SlamParameterFiles, ArcheSimFileEqualsTheRunnersArchePreset) {
+  const fs::path root = repository_root();
+  std::map<std::string, std::string> keys =
+      slam_keys(tools::read_flat_yaml((root / "config" / "covoxslam.yaml").string()));
+  for (const auto& [name, value] : slam_keys(tools::read_flat_yaml((root / "config" / "arche_sim.yaml").string()))) {
+    keys[name] = value;
+  }
+  SlamConfig file;
+  ASSERT_NO_THROW(read_slam_config(TextParameterSource(keys), &file));
+  const SlamConfig preset = tools::arche_slam_config(Device::kCpu);
+  EXPECT_EQ(file.map.voxel_size_m, preset.map.voxel_size_m);
+  EXPECT_EQ(file.map.voxels_per_side, preset.map.voxels_per_side);
+  EXPECT_EQ(file.tsdf.truncation_distance_m, preset.tsdf.truncation_distance_m);
+  EXPECT_EQ(file.tsdf.max_ray_length_m, preset.tsdf.max_ray_length_m);
+  EXPECT_EQ(file.tsdf.use_const_weight, preset.tsdf.use_const_weight);
+  EXPECT_EQ(file.tsdf.use_weight_dropoff, preset.tsdf.use_weight_dropoff);
+  EXPECT_EQ(file.tsdf.use_sparsity_compensation_factor, preset.tsdf.use_sparsity_compensation_factor);
+  EXPECT_EQ(file.tsdf.sparsity_compensation_factor, preset.tsdf.sparsity_compensation_factor);
+  EXPECT_EQ(file.submaps.policy, preset.submaps.policy);
+  EXPECT_EQ(file.submaps.interval_s, preset.submaps.interval_s);
+  EXPECT_EQ(file.registration.symmetric, preset.registration.symmetric);
+  EXPECT_EQ(file.registration.sampling_ratio, preset.registration.sampling_ratio);
+  EXPECT_EQ(file.registration.robust_loss, preset.registration.robust_loss);
+  EXPECT_EQ(file.registration.min_sigma_m, preset.registration.min_sigma_m);
+  EXPECT_NEAR(file.registration.min_sigma_yaw_rad, preset.registration.min_sigma_yaw_rad, 1e-6);
+  EXPECT_EQ(file.registration.max_correction_m, preset.registration.max_correction_m);
+  EXPECT_EQ(file.registration.coarse_levels, preset.registration.coarse_levels);
+  EXPECT_EQ(file.registration.search_enabled, preset.registration.search_enabled);
+  EXPECT_EQ(file.registration.revisit_wall_search, preset.registration.revisit_wall_search);
+  EXPECT_EQ(file.registration.max_graph_residual_m, preset.registration.max_graph_residual_m);
+  EXPECT_EQ(file.registration.gate_worst_fraction, preset.registration.gate_worst_fraction);
+  EXPECT_EQ(file.interpolate_trajectory_correction, preset.interpolate_trajectory_correction);
+  EXPECT_EQ(file.odometry_translation_sigma_m, preset.odometry_translation_sigma_m);
+  EXPECT_EQ(file.odometry_yaw_sigma_rad, preset.odometry_yaw_sigma_rad);
 }
 
 }  // namespace

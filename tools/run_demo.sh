@@ -7,7 +7,8 @@
 #   tools/run_demo.sh [BUILD_DIR] [OUTPUT_DIR]
 # Settings (environment): DEMO_COLUMNS (LiDAR columns, default 256 so that the CPU twin maps the
 # whole flight in minutes; 1024 is the real OS1-64), DEMO_DEVICE (auto|cpu|cuda), DEMO_SEED.
-# The flight bag is what launch/arche.launch plays for the rviz variant.
+# The flight bag is what launch/arche.launch plays for the rviz variant (config:=arche_sim.yaml,
+# the runner's settings).
 set -euo pipefail
 build=${1:-build}
 out=${2:-demo_output}
@@ -58,4 +59,5 @@ $(sed -n 's/^map: /  map:               /p' "$out/run_slam.txt")
   mesh:              $out/mesh.ply (ground truth: $flight/world.ply)
   trajectory plot:   $out/trajectory.png
   flight bag:        $flight/flight.bag (rosbag play-able, ARCHE topics)
+  in rviz (ROS):     roslaunch covoxslam arche.launch bag:=$(cd "$flight" && pwd)/flight.bag rviz:=true config:=arche_sim.yaml
 SUMMARY
