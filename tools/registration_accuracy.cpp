@@ -180,6 +180,7 @@ int main(int argc, char** argv) {
 
     std::vector<pipeline::RegistrationPartner> earlier;
     std::vector<PairError> neighbours, revisits, wall_matches;
+    std::vector<std::unique_ptr<pipeline::WallMapCache>> wall_caches;  // one per submap, as the SLAM system keeps
     pipeline::RegistrationCounts counts;
     std::map<int64_t, backend::Pose4Dof> true_pose;
     if (rows) std::printf("from -> to   horizontal_m  vertical_m  yaw_deg  along_m\n");
@@ -197,18 +198,19 @@ int main(int argc, char** argv) {
       start.yaw = wrap_angle(start.yaw + (k % 2 ? 1.0 : -1.0) * start_yaw_deg * kPi / 180.0);
       const std::unique_ptr<pipeline::SubmapRegistrationPoints> points =
           pipeline::prepare_registration_points(*maps[k], config.registration, stream);
+      wall_caches.push_back(std::make_unique<pipeline::WallMapCache>());
+      pipeline::WallMapCache* const own_walls = wall_caches.back().get();
       const std::vector<pipeline::SubmapConstraint> constraints = pipeline::registration_constraints(
-          id, *maps[k], *points, start, earlier, config.registration, stream, &counts);
+          id, *maps[k], *points, start, earlier, config.registration, stream, &counts, own_walls);
       if (walls) {
-        const pipeline::WallMap own = pipeline::WallMap::from_map(*maps[k], 1.0, stream);
         for (const pipeline::RegistrationPartner* partner :
              pipeline::overlapping_partners(*maps[k], start, earlier, config.registration)) {
           if (id - partner->id < config.registration.revisit_min_id_gap) continue;
-          const pipeline::WallMap other = pipeline::WallMap::from_map(*partner->map, 1.0, stream);
           pipeline::WallSearchConfig search;
           search.range_m = config.registration.wall_search_range_m;
           const pipeline::WallMatch match =
-              pipeline::match_walls(own, other, pipeline::relative_pose_4dof(partner->pose, start), search);
+              pipeline::match_walls(own_walls->get(*maps[k], stream), partner->walls->get(*partner->map, stream),
+                                    pipeline::relative_pose_4dof(partner->pose, start), search);
           const backend::Pose4Dof expected = pipeline::relative_pose_4dof(true_pose.at(partner->id), truth_k);
           const PairError e = pair_error(partner->id, id, match.T_fixed_moving, expected);
           wall_matches.push_back(e);
@@ -239,7 +241,7 @@ int main(int argc, char** argv) {
                       static_cast<long long>(e.to), e.horizontal_m, e.vertical_m, e.yaw_deg, e.along_m);
         }
       }
-      earlier.push_back(pipeline::RegistrationPartner{id, maps[k].get(), truth_k});
+      earlier.push_back(pipeline::RegistrationPartner{id, maps[k].get(), truth_k, own_walls});
     }
     std::printf("registration from %.2f m / %.1f deg off the truth (%s): %lld attempted, %lld accepted\n",
                 start_offset_m, start_yaw_deg, describe_device(device).c_str(),

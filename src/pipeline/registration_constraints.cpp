@@ -348,7 +348,7 @@ std::vector<SubmapConstraint> registration_constraints(int64_t id, const TsdfMap
                                                        const backend::Pose4Dof& pose,
                                                        const std::vector<RegistrationPartner>& earlier,
                                                        const SubmapRegistrationConfig& config, const Stream& stream,
-                                                       RegistrationCounts* counts) {
+                                                       RegistrationCounts* counts, WallMapCache* own_walls) {
   std::vector<SubmapConstraint> constraints;
   if (!config.enabled) return constraints;
 
@@ -364,9 +364,10 @@ std::vector<SubmapConstraint> registration_constraints(int64_t id, const TsdfMap
   aligner.min_used_points = config.min_points;
   aligner.coarse_levels = config.coarse_levels;
   Buffer<backend::RegistrationResidual> scratch(map.device());
-  // The new submap's wall columns, built at the first revisit that needs them.
-  std::unique_ptr<WallMap> own_walls;
-  const double wall_cap_m = 1.0;
+  // Wall maps are built at the first revisit that needs them; without a caller's cache, the new
+  // submap's lives for this call and a partner's for its pair.
+  WallMapCache local_own_walls;
+  WallMapCache* const walls_i = own_walls ? own_walls : &local_own_walls;
 
   for (const RegistrationPartner* partner_pointer : partners) {
     const RegistrationPartner& partner = *partner_pointer;
@@ -392,11 +393,11 @@ std::vector<SubmapConstraint> registration_constraints(int64_t id, const TsdfMap
     backend::Pose4Dof start = initial;
     bool from_walls = false;
     if (config.revisit_wall_search && id - partner.id >= config.revisit_min_id_gap) {
-      if (!own_walls) own_walls = std::make_unique<WallMap>(WallMap::from_map(map, wall_cap_m, stream));
-      const WallMap partner_walls = WallMap::from_map(*partner.map, wall_cap_m, stream);
+      WallMapCache local_partner_walls;
+      WallMapCache* const walls_j = partner.walls ? partner.walls : &local_partner_walls;
       WallSearchConfig search;
       search.range_m = config.wall_search_range_m;
-      const WallMatch match = match_walls(*own_walls, partner_walls, initial, search);
+      const WallMatch match = match_walls(walls_i->get(map, stream), walls_j->get(*partner.map, stream), initial, search);
       const double jump_m = std::hypot(match.T_fixed_moving.x - initial.x, match.T_fixed_moving.y - initial.y);
       if (match.score >= config.wall_search_min_score && jump_m > config.wall_search_min_jump_m) {
         start = match.T_fixed_moving;

@@ -458,7 +458,8 @@ void SlamSystem::add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
       }
     }
     for (const GraphSubmap& earlier : graph_submaps_) {
-      const RegistrationPartner partner{earlier.submap->id(), &earlier.submap->map(), earlier.submap->pose()};
+      const RegistrationPartner partner{earlier.submap->id(), &earlier.submap->map(), earlier.submap->pose(),
+                                        earlier.walls.get()};
       // kJoint: pairs with mapped submaps become dense terms; loaded ones stay pairwise.
       if (joint && !earlier.loaded) {
         joint_partners.push_back(partner);
@@ -474,9 +475,10 @@ void SlamSystem::add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
   RegistrationCounts counts;
   std::vector<SubmapConstraint> registrations;
   std::vector<int64_t> joint_pair_partners;
+  auto walls = std::make_unique<WallMapCache>();
   if (points) {
     registrations = registration_constraints(submap->id(), submap->map(), *points, guess, partners,
-                                             config_.registration, backend_stream_, &counts);
+                                             config_.registration, backend_stream_, &counts, walls.get());
     if (config_.registration.enabled) {
       for (const RegistrationPartner* partner :
            overlapping_partners(submap->map(), guess, joint_partners, config_.registration)) {
@@ -495,7 +497,7 @@ void SlamSystem::add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
   for (int64_t partner : joint_pair_partners) joint_pairs_.push_back(JointPair{submap->id(), partner});
   counts.joint_pairs += static_cast<int64_t>(joint_pair_partners.size());
   counters_.registration.add(counts);
-  graph_submaps_.push_back(GraphSubmap{std::move(submap), std::move(points), false});
+  graph_submaps_.push_back(GraphSubmap{std::move(submap), std::move(points), false, std::move(walls)});
 }
 
 int SlamSystem::integrate_pending_constraints_locked(bool final) {

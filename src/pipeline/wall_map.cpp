@@ -90,6 +90,12 @@ WallMap WallMap::from_map(const TsdfMap& map, double cap_m, const Stream& stream
   return from_columns(columns, map.voxel_size_m(), cap_m);
 }
 
+const WallMap& WallMapCache::get(const TsdfMap& map, const Stream& stream) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (!walls_) walls_ = std::make_unique<WallMap>(WallMap::from_map(map, kCapM, stream));
+  return *walls_;
+}
+
 double WallMap::distance_m(double x, double y) const {
   const int64_t ix = static_cast<int64_t>(std::floor(x / cell_m_)) - origin_x_;
   const int64_t iy = static_cast<int64_t>(std::floor(y / cell_m_)) - origin_y_;

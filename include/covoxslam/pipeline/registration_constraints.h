@@ -44,6 +44,7 @@
 #include "covoxslam/core/stream.h"
 #include "covoxslam/map/tsdf_map.h"
 #include "covoxslam/pipeline/submap_pose_graph.h"
+#include "covoxslam/pipeline/wall_map.h"
 
 namespace covox {
 namespace pipeline {
@@ -188,6 +189,7 @@ struct RegistrationPartner {
   int64_t id = 0;
   const TsdfMap* map = nullptr;
   backend::Pose4Dof pose;
+  WallMapCache* walls = nullptr;  // the map's wall map cache; null: built for each revisit
 };
 
 // The earlier submaps that overlap the new one at `pose` (bounding boxes, then shared blocks),
@@ -197,12 +199,14 @@ std::vector<const RegistrationPartner*> overlapping_partners(const TsdfMap& map,
                                                              const SubmapRegistrationConfig& config);
 
 // The constraints (kind kRegistration, from each partner to `id`) for the new submap at `pose`.
+// `own_walls`: the new submap's wall map cache, kept by the caller for the revisits to come (null:
+// built for this call only).
 std::vector<SubmapConstraint> registration_constraints(int64_t id, const TsdfMap& map,
                                                        const SubmapRegistrationPoints& points,
                                                        const backend::Pose4Dof& pose,
                                                        const std::vector<RegistrationPartner>& earlier,
                                                        const SubmapRegistrationConfig& config, const Stream& stream,
-                                                       RegistrationCounts* counts);
+                                                       RegistrationCounts* counts, WallMapCache* own_walls = nullptr);
 
 }  // namespace pipeline
 }  // namespace covox

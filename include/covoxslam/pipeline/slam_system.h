@@ -334,6 +334,8 @@ class SlamSystem {
     std::unique_ptr<Submap> submap;
     std::unique_ptr<SubmapRegistrationPoints> registration_points;  // null when disabled
     bool loaded = false;
+    // Its wall map for the revisit start (pipeline/wall_map.h), built when first needed.
+    std::unique_ptr<WallMapCache> walls = std::make_unique<WallMapCache>();
   };
 
   void frontend_loop();

@@ -20,6 +20,8 @@
 // The search runs on the host (a few million look-ups per pair, OpenMP over the yaw steps) and is
 // deterministic: the best score wins, ties go to the first grid pose.
 #include <cstdint>
+#include <memory>
+#include <mutex>
 #include <vector>
 
 #include <Eigen/Core>
@@ -52,6 +54,21 @@ class WallMap {
   double cap_m_ = 1.0;
   int32_t origin_x_ = 0, origin_y_ = 0, size_x_ = 0, size_y_ = 0;
   std::vector<float> distance_;
+};
+
+// A finished submap's wall map, built at most once (at the first revisit that needs it) and
+// shared by every later registration with that submap: building one extracts and evaluates every
+// surface voxel of the submap, and a submap is the partner of several revisits.
+class WallMapCache {
+ public:
+  // Distances capped at this (m): beyond three Gaussian sigmas of the search a column scores 0.
+  static constexpr double kCapM = 1.0;
+  // The wall map of `map` (the same map at every call).
+  const WallMap& get(const TsdfMap& map, const Stream& stream);
+
+ private:
+  std::mutex mutex_;
+  std::unique_ptr<WallMap> walls_;
 };
 
 struct WallSearchConfig {
