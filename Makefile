@@ -99,7 +99,7 @@ demo: demo-deps
 
 # What a release builds: every supported CUDA architecture.
 release:
-	$(MAKE) build BUILD_DIR=build_release CUDA_ARCH="72;75;86;87;89;90"
+	$(MAKE) build BUILD_DIR=build_release CUDA_ARCH="75;80;86;87;89;90"
 
 clean:
 	rm -rf $(BUILD_DIR) $(DEMO_BUILD_DIR)

@@ -469,6 +469,32 @@ TEST_P(TsdfIntegratorTest, SameInputTwiceGivesBitIdenticalMaps) {
   expect_bit_identical_tsdf(snapshots[0], snapshots[1]);
 }
 
+// The merged method's bundle table lives with the integrator and is cleaned by each frame as it
+// uses it, not cleared before the next. A frame must therefore come out the same whether the
+// integrator merged other frames before it (here into another map) or not: bit-identical maps.
+TEST_P(TsdfIntegratorTest, MergeTableLeavesNoTraceBetweenFrames) {
+  const AnalyticScene scene = make_scene(Shape::kBox);
+  const auto poses = viewpoints();
+  std::vector<Vec3f> earlier = testing_support::simulate_lidar(scene, poses[1], 1024, 32, 60.0, 9.5);
+  std::vector<Rgb8> earlier_colours(earlier.size(), Rgb8{200, 10, 30});
+  const std::vector<Vec3f> frame = testing_support::simulate_lidar(scene, poses[0], 512, 32, 60.0, 9.5);
+  TsdfIntegratorConfig config = analytic_config(0.1f);
+  ASSERT_EQ(config.method, TsdfIntegrationMethod::kMerged);
+  TsdfIntegrator used(config);
+  TsdfMap other(device(), TsdfMapConfig{0.1f, 16, {}});
+  // A larger cloud with colour from elsewhere (the table grows), then the frame itself (the same
+  // keys hashed the same way: a slot left behind would double its bundle).
+  used.integrate(other, earlier, earlier_colours, poses[1]);
+  used.integrate(other, frame, std::vector<Rgb8>(frame.size(), Rgb8{9, 99, 199}), poses[0]);
+  TsdfMap after_others(device(), TsdfMapConfig{0.1f, 16, {}});
+  const IntegrationStats stats = used.integrate(after_others, frame, {}, poses[0]);
+  TsdfMap fresh(device(), TsdfMapConfig{0.1f, 16, {}});
+  const IntegrationStats fresh_stats = TsdfIntegrator(config).integrate(fresh, frame, {}, poses[0]);
+  EXPECT_EQ(stats.rays_cast, fresh_stats.rays_cast);
+  EXPECT_LT(stats.rays_cast, stats.surface_rays);  // bundles did form
+  expect_bit_identical_tsdf(after_others.snapshot(), fresh.snapshot());
+}
+
 // Colour rides along: the same cloud with colours, or with colour fusion off (which moves the
 // slimmer distance-only updates), gives the same distances and weights: bit-identical on the CPU
 // (each voxel's updates summed left to right), equal up to float summation order on the GPU (CUB

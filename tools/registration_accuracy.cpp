@@ -181,6 +181,7 @@ int main(int argc, char** argv) {
     std::vector<pipeline::RegistrationPartner> earlier;
     std::vector<PairError> neighbours, revisits, wall_matches;
     std::vector<std::unique_ptr<pipeline::WallMapCache>> wall_caches;  // one per submap, as the SLAM system keeps
+    std::vector<std::unique_ptr<pipeline::SubmapRegistrationPoints>> kept_points;  // the same for their points
     pipeline::RegistrationCounts counts;
     std::map<int64_t, backend::Pose4Dof> true_pose;
     if (rows) std::printf("from -> to   horizontal_m  vertical_m  yaw_deg  along_m\n");
@@ -196,8 +197,8 @@ int main(int argc, char** argv) {
       start.x += start_offset_m * std::cos(direction);
       start.y += start_offset_m * std::sin(direction);
       start.yaw = wrap_angle(start.yaw + (k % 2 ? 1.0 : -1.0) * start_yaw_deg * kPi / 180.0);
-      const std::unique_ptr<pipeline::SubmapRegistrationPoints> points =
-          pipeline::prepare_registration_points(*maps[k], config.registration, stream);
+      kept_points.push_back(pipeline::prepare_registration_points(*maps[k], config.registration, stream));
+      const std::unique_ptr<pipeline::SubmapRegistrationPoints>& points = kept_points.back();
       wall_caches.push_back(std::make_unique<pipeline::WallMapCache>());
       pipeline::WallMapCache* const own_walls = wall_caches.back().get();
       const std::vector<pipeline::SubmapConstraint> constraints = pipeline::registration_constraints(
@@ -241,7 +242,7 @@ int main(int argc, char** argv) {
                       static_cast<long long>(e.to), e.horizontal_m, e.vertical_m, e.yaw_deg, e.along_m);
         }
       }
-      earlier.push_back(pipeline::RegistrationPartner{id, maps[k].get(), truth_k, own_walls});
+      earlier.push_back(pipeline::RegistrationPartner{id, maps[k].get(), truth_k, own_walls, points.get()});
     }
     std::printf("registration from %.2f m / %.1f deg off the truth (%s): %lld attempted, %lld accepted\n",
                 start_offset_m, start_yaw_deg, describe_device(device).c_str(),

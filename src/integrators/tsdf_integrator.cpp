@@ -46,9 +46,7 @@ FrameKeyCodec make_frame_key_codec(const Index3D& min_voxel, const Index3D& max_
 MergeKeys make_merge_keys(const Index3D& min_voxel, const Index3D& max_voxel, int32_t voxels_per_side) {
   MergeKeys keys;
   keys.codec = make_frame_key_codec(min_voxel, max_voxel, voxels_per_side);
-  keys.alone_key = keys.codec.zero_weight_key;
-  keys.dropped_key = keys.alone_key + 1;
-  keys.key_bits = bits_for(keys.dropped_key + (kDroppedTooFar - kDroppedNonFinite));
+  keys.key_bits = keys.codec.key_bits;
   return keys;
 }
 

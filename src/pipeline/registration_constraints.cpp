@@ -379,10 +379,14 @@ std::vector<SubmapConstraint> registration_constraints(int64_t id, const TsdfMap
     const backend::Pose4Dof initial = relative_pose_4dof(partner.pose, pose);  // T_Sj_Si
     // Symmetric: the partner's own registration points in the new submap's field as well, their
     // weights brought to the new submap's units (the ratio of the mean weights, see the header).
-    std::unique_ptr<SubmapRegistrationPoints> partner_points;
+    std::unique_ptr<SubmapRegistrationPoints> prepared_partner_points;
     backend::SymmetricRegistrationPair pair;
     if (config.symmetric) {
-      partner_points = prepare_registration_points(*partner.map, config, stream);
+      const SubmapRegistrationPoints* partner_points = partner.points;
+      if (!partner_points) {
+        prepared_partner_points = prepare_registration_points(*partner.map, config, stream);
+        partner_points = prepared_partner_points.get();
+      }
       pair.points_i = &points.points;
       pair.map_j = partner.map;
       pair.points_j = &partner_points->points;

@@ -459,7 +459,7 @@ void SlamSystem::add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
     }
     for (const GraphSubmap& earlier : graph_submaps_) {
       const RegistrationPartner partner{earlier.submap->id(), &earlier.submap->map(), earlier.submap->pose(),
-                                        earlier.walls.get()};
+                                        earlier.walls.get(), earlier.registration_points.get()};
       // kJoint: pairs with mapped submaps become dense terms; loaded ones stay pairwise.
       if (joint && !earlier.loaded) {
         joint_partners.push_back(partner);

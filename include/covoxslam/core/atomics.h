@@ -64,6 +64,32 @@ COVOX_HD_INLINE uint32_t atomic_min(uint32_t* address, uint32_t value) {
 #endif
 }
 
+COVOX_HD_INLINE int32_t atomic_min(int32_t* address, int32_t value) {
+#if COVOX_DEVICE_CODE
+  return atomicMin(reinterpret_cast<int*>(address), value);
+#else
+  int32_t current = __atomic_load_n(address, __ATOMIC_RELAXED);
+  while (value < current &&
+         !__atomic_compare_exchange_n(address, &current, value, true, __ATOMIC_ACQ_REL,
+                                      __ATOMIC_RELAXED)) {
+  }
+  return current;
+#endif
+}
+
+COVOX_HD_INLINE int32_t atomic_max(int32_t* address, int32_t value) {
+#if COVOX_DEVICE_CODE
+  return atomicMax(reinterpret_cast<int*>(address), value);
+#else
+  int32_t current = __atomic_load_n(address, __ATOMIC_RELAXED);
+  while (value > current &&
+         !__atomic_compare_exchange_n(address, &current, value, true, __ATOMIC_ACQ_REL,
+                                      __ATOMIC_RELAXED)) {
+  }
+  return current;
+#endif
+}
+
 // A load that other threads' atomics may race with (relaxed on the host; on the GPU a plain
 // load, which is enough where a stale value only sends the caller to a CAS that settles it).
 COVOX_HD_INLINE uint64_t atomic_load_relaxed(const uint64_t* address) {

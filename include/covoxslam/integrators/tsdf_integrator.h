@@ -1,17 +1,22 @@
 #pragma once
 // TsdfIntegrator: fuses point clouds (LiDAR, or depth images turned into points on the device)
 // into a TsdfMap by raycasting, with the "merged" update of the coVoxSLAM paper (III-C/D):
-//   1. one ray per valid point; its voxel count is known in closed form -> exclusive scan gives
-//      every ray its range in one update array;
+//   1. one ray per valid point, or with the merged method one per bundle of points whose
+//      surface falls into one voxel (bundled in a hash table with integer sums, ranked by their
+//      first point: tsdf_ray_merging.h); a ray's voxel count is known in closed form ->
+//      exclusive scan gives every ray its range in one update array;
 //   2. each ray walks its voxels (Amanatides-Woo, in pieces of ~8 voxels) and writes one visit
 //      record per voxel: the voxel's key with its (weighted sdf, weight) update, or, in a frame
 //      with colour, with the ray's index, from which the reduction recomputes the update and its
 //      weighted colour (tsdf_traverse.h: 4 bytes through the sort instead of 32);
-//   3. records are sorted by voxel key and merged per voxel with a segmented reduce;
+//   3. records are sorted by voxel key and merged per voxel with a segmented reduce (the CPU
+//      twin groups them by block and sums each block's in a dense array instead, with the same
+//      result: tsdf_group_updates_cpu.h);
 //   4. the blocks of all touched voxels are allocated in one BlockHashTable::activate batch;
 //   5. one weighted-average write per distinct voxel.
-// No atomics touch voxel data and every step is order-preserving, so results are deterministic
-// run to run, and the CPU twin runs the same code.
+// No atomics touch voxel data (only the merge's integer sums of points), and every float sum is
+// taken in an order fixed by the input, so results are deterministic run to run, and the CPU
+// twin runs the same code.
 #include <cstdint>
 #include <memory>
 #include <vector>

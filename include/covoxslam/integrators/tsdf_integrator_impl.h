@@ -1,7 +1,9 @@
 #pragma once
 // Definitions of the TSDF integration steps (see tsdf_integrator.h for the algorithm), written
 // once for both backends.
+#include <algorithm>
 #include <climits>
+#include <string>
 
 #include <array>
 #include <type_traits>
@@ -12,11 +14,14 @@
 #include <thrust/reduce.h>
 
 #include "covoxslam/core/eigen_conversions.h"
+#include "covoxslam/core/error.h"
 #include "covoxslam/core/parallel.h"
 #include "covoxslam/core/memory.h"
 #include "covoxslam/core/radix_sort.h"
 #include "covoxslam/core/sorted_search.h"
 #include "covoxslam/core/stage_profiler.h"
+#include "covoxslam/core/warp_reduce.h"
+#include "covoxslam/integrators/tsdf_group_updates_cpu.h"
 #include "covoxslam/integrators/tsdf_integrator_ops.h"
 #include "covoxslam/integrators/tsdf_traverse.h"
 
@@ -62,20 +67,6 @@ struct TallyPoint {
     return tally_ray(tsdf::make_ray(ray_parameters, point), 1, inverse_voxel_size);
   }
 };
-// The tally of merged ray m, which stands for ray_weights[m] points; empty past the ray count
-// (on the device), so that the tally runs over a bound known without a read-back.
-struct TallyMergedRay {
-  const tsdf::RaySegment* rays;
-  const float* ray_weights;
-  const uint32_t* ray_count;
-  float inverse_voxel_size;
-  COVOX_HD_INLINE RayTally operator()(int64_t m) const {
-    if (m >= *ray_count) return RayTally{};
-    RayTally tally = tally_ray(rays[m], static_cast<int64_t>(ray_weights[m]), inverse_voxel_size);
-    tally.rays = 1;
-    return tally;
-  }
-};
 struct AddTallies {
   COVOX_HD_INLINE RayTally operator()(const RayTally& a, const RayTally& b) const {
     RayTally sum;
@@ -118,94 +109,201 @@ std::array<uint32_t, N> read_back(const Buffer<uint32_t>& readback, const Stream
   return host;
 }
 
+// The merge table for a frame of n points: at least twice n slots (a power of two), all free.
+// A frame frees the slots it used (tsdf_merge_rays), so the table is cleared only when it grows
+// or when the last frame did not get that far (an exception between its kernels).
+template <class Backend>
+tsdf::MergeTable clean_merge_table(Backend backend, TsdfScratchBuffers& scratch, int64_t n, const Stream& stream) {
+  int log2_capacity = 10;
+  while ((int64_t(1) << log2_capacity) < 2 * n) ++log2_capacity;
+  const int64_t capacity = int64_t(1) << log2_capacity;
+  if (log2_capacity > 31) throw Error("TSDF integrator: " + std::to_string(n) + " points in one frame are too many to merge");
+  if (static_cast<int64_t>(scratch.merge_table_keys.size()) < capacity || !scratch.merge_table_clean) {
+    const int64_t size = std::max<int64_t>(capacity, static_cast<int64_t>(scratch.merge_table_keys.size()));
+    scratch.merge_table_keys.resize_discard(size);
+    scratch.merge_table_bundles.resize_discard(size);
+    const tsdf::MergeTable all{scratch.merge_table_keys.data(), scratch.merge_table_bundles.data(), 0u, 0};
+    parallel_for(backend, stream, size, [=] COVOX_HD(int64_t slot) { all.free_slot(static_cast<uint32_t>(slot)); });
+  }
+  scratch.merge_table_clean = false;  // until the frame's last merge kernel has freed its slots
+  return tsdf::MergeTable{scratch.merge_table_keys.data(), scratch.merge_table_bundles.data(),
+                          static_cast<uint32_t>(capacity - 1), 64 - log2_capacity};
+}
+
 }  // namespace tsdf_detail
 
 // Bundles surface rays by the voxel their point falls into and writes scratch.rays with one ray
-// per bundle (see tsdf_ray_merging.h), with the number of points it stands for in
-// scratch.ray_weights and, when `has_color`, its mean colour in scratch.ray_colors. Dropped
-// points come out as one ray of their drop kind per reason, weighted by their count, so the
-// tally of the merged rays accounts for every point. The number of rays is left on the device in
-// scratch.readback[0] (TallyMergedRay reads it); each ray's piece count goes to scratch.counts.
+// per bundle and one per point that stays alone (clearing rays, surface voxels outside the merge
+// box), ranked by the index of the point that emits it (see tsdf_ray_merging.h), with the number
+// of points each stands for in scratch.ray_weights and, when `has_color`, its mean colour in
+// scratch.ray_colors; each ray's piece count goes to scratch.counts, with a 0 after the last ray.
+// Returns the tally of the points and rays (one read-back, the merge's only wait).
 template <class Backend>
-void tsdf_merge_rays(Backend backend, const tsdf::RayParameters& ray_parameters, const tsdf::MergeKeys& merge_keys,
-                        const PointCloudView& cloud, const Rgb8* colors, const float* intensities,
-                        float grey_per_intensity, TsdfScratchBuffers& scratch, const Stream& stream) {
+tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters& ray_parameters,
+                                      const tsdf::MergeKeys& merge_keys, const PointCloudView& cloud,
+                                      const Rgb8* colors, const float* intensities, float grey_per_intensity,
+                                      TsdfScratchBuffers& scratch, const Stream& stream) {
   StageProfiler::Scope profile("tsdf merge", stream);
   const int64_t n = cloud.count;
   const float inverse_voxel_size = 1.0f / ray_parameters.voxel_size_m;
-  scratch.keys.resize_discard(n);
-  scratch.order.resize_discard(n);
-  uint64_t* keys = scratch.keys.data();
-  uint32_t* order = scratch.order.data();
+  const tsdf::MergeTable table = tsdf_detail::clean_merge_table(backend, scratch, n, stream);
+  scratch.merge_tally.resize_discard(1);
+  tsdf::MergeTally* counters = scratch.merge_tally.data();
+  parallel_for(backend, stream, 1, [=] COVOX_HD(int64_t) { *counters = tsdf::MergeTally{}; });
+  profile.mark("table");
+  scratch.point_codes.resize_discard(n);
+  uint32_t* codes = scratch.point_codes.data();
   const Vec3f* points = cloud.points;
-  // Keys and point indices only (12 bytes a point): each point's bundle is built where the
-  // reduction reads it, from the point in sorted order.
+  const bool has_color = colors || intensities;
+  // Every point: its ray, its bundle (claimed or found in the table), its sums added. A warp's
+  // points of one bundle add their sums together, one atomic per field (warp_reduce.h): a 5 cm
+  // voxel holds about 80 pixels of a depth image, whose atomics would otherwise queue up.
   parallel_for(backend, stream, n, [=] COVOX_HD(int64_t i) {
-    keys[i] = merge_keys.key(tsdf::make_ray(ray_parameters, points[i]), inverse_voxel_size);
-    order[i] = static_cast<uint32_t>(i);
+    const uint32_t lanes = warp_lanes();
+    const Vec3f point = points[i];
+    uint64_t key = 0;
+    uint32_t code = merge_keys.classify(tsdf::make_ray(ray_parameters, point), inverse_voxel_size, &key);
+    if (code != 0u) key = tsdf::kFreeMergeKey;  // no bundle
+    const Rgb8 color = tsdf::color_of(colors, intensities, grey_per_intensity, i);
+    // The warp's points of one bundle (equal keys) reduce among themselves, all bundles at once.
+    const uint32_t peers = warp_match(lanes, key);
+    const int leader = warp_first_lane(peers);
+    if (key != tsdf::kFreeMergeKey) {  // the same for all peers
+      tsdf::PointBundle sums;
+      sums.x = static_cast<int64_t>(warp_sum(peers, static_cast<uint64_t>(tsdf::to_merge_units(point.x))));
+      sums.y = static_cast<int64_t>(warp_sum(peers, static_cast<uint64_t>(tsdf::to_merge_units(point.y))));
+      sums.z = static_cast<int64_t>(warp_sum(peers, static_cast<uint64_t>(tsdf::to_merge_units(point.z))));
+      if (has_color) {
+        sums.r = warp_sum(peers, static_cast<uint32_t>(color.r));
+        sums.g = warp_sum(peers, static_cast<uint32_t>(color.g));
+        sums.b = warp_sum(peers, static_cast<uint32_t>(color.b));
+      }
+      sums.count = warp_sum(peers, 1u);
+      sums.first = warp_min(peers, static_cast<uint32_t>(i));
+      uint32_t slot = 0;
+      if (warp_lane() == leader) {
+        slot = table.slot_of(key);
+        table.add(slot, sums, has_color);
+      }
+      code = warp_broadcast(peers, slot, leader);
+    }
+    codes[i] = code;
+    // Dropped points are only counted, per warp.
+    if (warp_ballot(lanes, tsdf::is_dropped_code(code)) == 0u) return;
+    for (uint32_t k = 0; k < 4; ++k) {
+      const uint32_t dropped = warp_sum(lanes, code == tsdf::kDroppedPointCode + k ? 1u : 0u);
+      if (dropped != 0u && warp_lane() == warp_first_lane(lanes)) {
+        atomic_add(&counters->kinds[tsdf::kDroppedNonFinite + k].value, static_cast<uint64_t>(dropped));
+      }
+    }
   });
-  scratch.keys_alt.resize_discard(n);
-  scratch.order_alt.resize_discard(n);
-  profile.mark("keys");
-  uint64_t* keys_alt = scratch.keys_alt.data();
-  uint32_t* order_alt = scratch.order_alt.data();
-  radix_sort_pairs_swapping(backend, stream, keys, order, n, merge_keys.key_bits, keys_alt, order_alt);
-  profile.mark("sort");
-  scratch.merged_keys.resize_discard(n);
-  scratch.merged_bundles.resize_discard(n);
-  scratch.readback.resize_discard(4);
-  const auto sorted_bundles = thrust::make_transform_iterator(
-      thrust::make_counting_iterator<int64_t>(0),
-      tsdf::BundleOfSortedPoint{points, order, keys, merge_keys, colors, intensities, grey_per_intensity});
-  const auto apart_keys = thrust::make_transform_iterator(thrust::make_counting_iterator<int64_t>(0),
-                                                          tsdf::AloneKeysApart{keys, merge_keys.alone_key});
-  reduce_runs_counted_on_device(backend, stream, apart_keys, sorted_bundles, n, scratch.merged_keys.data(),
-                                scratch.merged_bundles.data(), tsdf::AddBundles(), scratch.readback.data());
-  profile.mark("reduce runs");
-
-  // The number of rays stays on the device: the rays are written over the bound n, and the tally
-  // of the merged rays reads it back together with everything else (one wait, not two).
-  const uint32_t* ray_count = scratch.readback.data();
+  profile.mark("bundle");
+  // Which points emit a ray, and its rank among the rays (point order: the same on both backends).
+  scratch.ray_flags.resize_discard(n + 1);
+  scratch.ray_ranks.resize_discard(n + 1);
+  uint32_t* emits_ray = scratch.ray_flags.data();
+  uint32_t* ray_rank = scratch.ray_ranks.data();
+  const tsdf::PointBundle* bundles = table.bundles;
+  parallel_for(backend, stream, n + 1, [=] COVOX_HD(int64_t i) {
+    if (i == n) {
+      emits_ray[n] = 0;
+      return;
+    }
+    const uint32_t code = codes[i];
+    emits_ray[i] = code == tsdf::kAlonePoint ||
+                           (tsdf::is_bundle_slot(code) && bundles[code].first == static_cast<uint32_t>(i))
+                       ? 1u
+                       : 0u;
+  });
+  exclusive_scan(backend, stream, static_cast<const uint32_t*>(emits_ray), n + 1, ray_rank);
+  profile.mark("rank");
   scratch.rays.resize_discard(n);
   scratch.ray_weights.resize_discard(n);
   scratch.ray_colors.resize_discard(n);
   scratch.counts.resize_discard(n + 1);
-  uint32_t* ray_pieces = scratch.counts.data();  // zero from the ray count on (the scan's end)
+  uint32_t* ray_pieces = scratch.counts.data();
   tsdf::RaySegment* merged_rays = scratch.rays.data();
   float* weights = scratch.ray_weights.data();
   Rgb8* ray_colors = scratch.ray_colors.data();
-  const tsdf::PointBundle* merged = scratch.merged_bundles.data();
-  const uint64_t* merged_keys = scratch.merged_keys.data();
-  parallel_for(backend, stream, n + 1, [=] COVOX_HD(int64_t m) {
-    if (m >= *ray_count) {
-      ray_pieces[m] = 0;
-      return;
+  // Each emitting point writes its ray, frees its bundle's slot (the table is clean again) and
+  // adds its ray to the tally, per warp.
+  parallel_for(backend, stream, n + 1, [=] COVOX_HD(int64_t i) {
+    const uint32_t lanes = warp_lanes();
+    const bool emits = i < n && emits_ray[i] != 0u;
+    uint32_t count = 0, voxels = 0;
+    uint8_t kind = tsdf::kSurfaceRay;
+    Index3D low(INT32_MAX, INT32_MAX, INT32_MAX), high(INT32_MIN, INT32_MIN, INT32_MIN);
+    if (i == n) ray_pieces[ray_rank[n]] = 0;  // the scan's end
+    if (emits) {
+      const uint32_t m = ray_rank[i];
+      const uint32_t code = codes[i];
+      Vec3f point = points[i];
+      count = 1;
+      Rgb8 color = tsdf::color_of(colors, intensities, grey_per_intensity, i);
+      if (code != tsdf::kAlonePoint) {
+        const tsdf::PointBundle bundle = bundles[code];
+        table.free_slot(code);
+        count = bundle.count;
+        if (count > 1) {
+          const double scale = 1.0 / (static_cast<double>(count) * tsdf::kMergeUnitsPerMetre);
+          point = Vec3f(static_cast<float>(bundle.x * scale), static_cast<float>(bundle.y * scale),
+                        static_cast<float>(bundle.z * scale));
+          const uint32_t half = count / 2;
+          color = Rgb8{static_cast<uint8_t>((bundle.r + half) / count),
+                       static_cast<uint8_t>((bundle.g + half) / count),
+                       static_cast<uint8_t>((bundle.b + half) / count)};
+        }
+      }
+      const tsdf::RaySegment ray = tsdf::make_ray(ray_parameters, point);
+      merged_rays[m] = ray;
+      weights[m] = static_cast<float>(count);
+      ray_colors[m] = color;
+      voxels = tsdf::ray_voxel_count(ray, inverse_voxel_size);
+      ray_pieces[m] = tsdf::ray_piece_count(voxels);
+      kind = ray.kind;
+      if (kind <= tsdf::kClearingRay) {  // a segment's voxels lie in the box of its end voxels
+        const Index3D a = tsdf::voxel_of(ray.start, inverse_voxel_size);
+        const Index3D b = tsdf::voxel_of(ray.end, inverse_voxel_size);
+        low = Index3D(a.x < b.x ? a.x : b.x, a.y < b.y ? a.y : b.y, a.z < b.z ? a.z : b.z);
+        high = Index3D(a.x > b.x ? a.x : b.x, a.y > b.y ? a.y : b.y, a.z > b.z ? a.z : b.z);
+      } else {  // rare: a bundle's mean point dropped (closer than min_ray_length_m): counted as such
+        atomic_add(&counters->kinds[kind].value, static_cast<uint64_t>(count));
+      }
     }
-    const tsdf::PointBundle bundle = merged[m];
-    weights[m] = static_cast<float>(bundle.count);
-    const uint8_t dropped = merge_keys.dropped_kind(merged_keys[m]);
-    if (dropped != tsdf::kSurfaceRay) {  // the points dropped for one reason: counted, not cast
-      tsdf::RaySegment none;
-      none.kind = dropped;
-      merged_rays[m] = none;
-      ray_colors[m] = Rgb8{};
-      ray_pieces[m] = 0;
-      return;
+    if (warp_ballot(lanes, emits) == 0u) return;
+    const uint32_t surface_points = warp_sum(lanes, emits && kind == tsdf::kSurfaceRay ? count : 0u);
+    const uint32_t clearing_rays = warp_sum(lanes, emits && kind == tsdf::kClearingRay ? count : 0u);
+    const uint32_t rays = warp_sum(lanes, emits ? 1u : 0u);
+    const uint32_t cast = warp_sum(lanes, emits && kind <= tsdf::kClearingRay ? 1u : 0u);
+    const uint32_t visits = warp_sum(lanes, voxels);
+    const int32_t box[6] = {warp_min(lanes, low.x),  warp_min(lanes, low.y),  warp_min(lanes, low.z),
+                            warp_max(lanes, high.x), warp_max(lanes, high.y), warp_max(lanes, high.z)};
+    if (warp_lane() != warp_first_lane(lanes)) return;
+    atomic_add(&counters->kinds[tsdf::kSurfaceRay].value, static_cast<uint64_t>(surface_points));
+    if (clearing_rays != 0u) atomic_add(&counters->kinds[tsdf::kClearingRay].value, static_cast<uint64_t>(clearing_rays));
+    atomic_add(&counters->cast.value, static_cast<uint64_t>(cast));
+    atomic_add(&counters->rays.value, static_cast<uint64_t>(rays));
+    atomic_add(&counters->voxels.value, static_cast<uint64_t>(visits));
+    for (int axis = 0; axis < 3; ++axis) {
+      atomic_min(&counters->low[axis].value, box[axis]);
+      atomic_max(&counters->high[axis].value, box[3 + axis]);
     }
-    Vec3f point = points[bundle.first];
-    if (bundle.count > 1) {
-      const double scale = 1.0 / (static_cast<double>(bundle.count) * tsdf::kMergeUnitsPerMetre);
-      point = Vec3f(static_cast<float>(bundle.x * scale), static_cast<float>(bundle.y * scale),
-                    static_cast<float>(bundle.z * scale));
-    }
-    const tsdf::RaySegment ray = tsdf::make_ray(ray_parameters, point);
-    merged_rays[m] = ray;
-    ray_pieces[m] = tsdf::ray_piece_count(tsdf::ray_voxel_count(ray, inverse_voxel_size));
-    const uint32_t half = bundle.count / 2;
-    ray_colors[m] = Rgb8{static_cast<uint8_t>((bundle.r + half) / bundle.count),
-                         static_cast<uint8_t>((bundle.g + half) / bundle.count),
-                         static_cast<uint8_t>((bundle.b + half) / bundle.count)};
   });
+  scratch.merge_table_clean = true;
+  profile.mark("rays");
+  tsdf::MergeTally host;
+  copy_bytes(&host, Device::kCpu, counters, scratch.merge_tally.device(), sizeof(host), stream);
+  tsdf_detail::RayTally tally;
+  for (int k = 0; k < 6; ++k) tally.kinds[k] = static_cast<int64_t>(host.kinds[k].value);
+  tally.cast = static_cast<int64_t>(host.cast.value);
+  tally.rays = static_cast<int64_t>(host.rays.value);
+  tally.voxels = static_cast<int64_t>(host.voxels.value);
+  for (int axis = 0; axis < 3; ++axis) {
+    tally.low[axis] = host.low[axis].value;
+    tally.high[axis] = host.high[axis].value;
+  }
+  profile.mark("tally");
+  return tally;
 }
 
 // Steps 2b to 5 of a frame (see tsdf_integrate_points): traverse the ray pieces into one visit
@@ -246,34 +344,64 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   //    float sums are the same every run)
   scratch.readback.resize_discard(8);
   uint32_t* counts_on_device = scratch.readback.data();
-  radix_sort_pairs_swapping(backend, stream, keys, values, total_updates, codec.key_bits, keys_alt, values_alt);
-  profile.mark("3a sort updates");
   SumT* merged_updates = nullptr;
   if constexpr (kColored) {
     scratch.merged_updates.resize_discard(total_updates);
     merged_updates = scratch.merged_updates.data();
-    const auto record_updates = thrust::make_transform_iterator(
-        thrust::make_counting_iterator<int64_t>(0),
-        tsdf::VoxelUpdateOfRecord<KeyT>{frame, keys, values, out_of_range_key, truncation});
-    reduce_runs_counted_on_device(backend, stream, static_cast<const KeyT*>(keys), record_updates, total_updates,
-                                  merged_keys_out, merged_updates, tsdf::MergeUpdates(), counts_on_device);
-  } else {
-    merged_updates = values_alt;  // free after the sort: the merged updates go there
-    reduce_runs_counted_on_device(backend, stream, static_cast<const KeyT*>(keys), static_cast<const ValueT*>(values),
-                                  total_updates, merged_keys_out, merged_updates, tsdf::MergeUpdates(),
-                                  counts_on_device);
   }
-  // Updates to drop (zero weight, outside the key range) sort last, one run per kind present:
-  // their counts are where their keys begin in the sorted keys.
-  const KeyT* sorted_keys = keys;
-  parallel_for(backend, stream, 1, [=] COVOX_HD(int64_t) {
-    const int64_t zero_begin = lower_bound_index(sorted_keys, total_updates, zero_weight_key);
-    const int64_t out_begin = lower_bound_index(sorted_keys, total_updates, out_of_range_key);
-    counts_on_device[1] = static_cast<uint32_t>(total_updates - zero_begin);
-    counts_on_device[2] = static_cast<uint32_t>(zero_begin - out_begin);
-    counts_on_device[3] = counts_on_device[0] - (zero_begin < total_updates ? 1u : 0u) - (out_begin < zero_begin ? 1u : 0u);
-  });
-  profile.mark("3b reduce runs");
+  bool grouped = false;
+  if constexpr (std::is_same<Backend, CpuBackend>::value) {
+    // The CPU twin groups by block and sums in dense per-block arrays (tsdf_group_updates_cpu.h):
+    // the same merged keys and sums as the sort and reduction below, with a third of the moves.
+    if (tsdf::dense_grouping_fits(codec)) {
+      tsdf::GroupCounts grouping;
+      if constexpr (kColored) {
+        const tsdf::VoxelUpdateOfRecord<KeyT> update_of{frame, keys_alt, values_alt, out_of_range_key, truncation};
+        grouping = tsdf::group_updates_by_voxel_cpu(codec, keys, values, total_updates, keys_alt, values_alt,
+                                                    merged_keys_out, merged_updates, update_of, tsdf::MergeUpdates());
+      } else {
+        merged_updates = values;  // free once the records have moved
+        const ValueT* moved = values_alt;
+        grouping = tsdf::group_updates_by_voxel_cpu(
+            codec, keys, values, total_updates, keys_alt, values_alt, merged_keys_out, merged_updates,
+            [moved](int64_t j) { return moved[j]; }, tsdf::MergeUpdates());
+      }
+      counts_on_device[0] = grouping.runs;
+      counts_on_device[1] = grouping.zero_weight;
+      counts_on_device[2] = grouping.out_of_range;
+      counts_on_device[3] = grouping.voxels;
+      grouped = true;
+      profile.mark("3 group by voxel");
+    }
+  }
+  if (!grouped) {
+    radix_sort_pairs_swapping(backend, stream, keys, values, total_updates, codec.key_bits, keys_alt, values_alt);
+    profile.mark("3a sort updates");
+    if constexpr (kColored) {
+      const auto record_updates = thrust::make_transform_iterator(
+          thrust::make_counting_iterator<int64_t>(0),
+          tsdf::VoxelUpdateOfRecord<KeyT>{frame, keys, values, out_of_range_key, truncation});
+      reduce_runs_counted_on_device(backend, stream, static_cast<const KeyT*>(keys), record_updates, total_updates,
+                                    merged_keys_out, merged_updates, tsdf::MergeUpdates(), counts_on_device);
+    } else {
+      merged_updates = values_alt;  // free after the sort: the merged updates go there
+      reduce_runs_counted_on_device(backend, stream, static_cast<const KeyT*>(keys),
+                                    static_cast<const ValueT*>(values), total_updates, merged_keys_out,
+                                    merged_updates, tsdf::MergeUpdates(), counts_on_device);
+    }
+    // Updates to drop (zero weight, outside the key range) sort last, one run per kind present:
+    // their counts are where their keys begin in the sorted keys.
+    const KeyT* sorted_keys = keys;
+    parallel_for(backend, stream, 1, [=] COVOX_HD(int64_t) {
+      const int64_t zero_begin = lower_bound_index(sorted_keys, total_updates, zero_weight_key);
+      const int64_t out_begin = lower_bound_index(sorted_keys, total_updates, out_of_range_key);
+      counts_on_device[1] = static_cast<uint32_t>(total_updates - zero_begin);
+      counts_on_device[2] = static_cast<uint32_t>(zero_begin - out_begin);
+      counts_on_device[3] =
+          counts_on_device[0] - (zero_begin < total_updates ? 1u : 0u) - (out_begin < zero_begin ? 1u : 0u);
+    });
+    profile.mark("3b reduce runs");
+  }
 
   // 4. allocate the distinct blocks of the touched voxels in one batch. Merged keys are sorted
   //    block-major, so each block's voxels form one run: the run's first voxel names the block and
@@ -372,7 +500,10 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   profile.mark("5 voxel writes");
 }
 
-// Merge keys longer than this come from the points' own box rather than the sensor's range box.
+// Merge keys longer than this come from the points' own box rather than the sensor's range box,
+// which is then mostly empty space (rays of hundreds of metres at fine voxels). The merge table
+// hashes keys of any length, so this only keeps the keys well away from 64 bits; both boxes give
+// the same bundles (tested).
 constexpr int kMaxRangeBoxMergeKeyBits = 32;
 
 template <class Backend>
@@ -437,8 +568,8 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
     });
   } else {
     // Merge keys from a box around the sensor (no pass over the points first), unless that box
-    // needs keys long enough to add radix passes (rays of hundreds of metres at fine voxels):
-    // then the box of the points' own rays.
+    // needs long keys (rays of hundreds of metres at fine voxels): then the box of the points'
+    // own rays.
     tsdf::MergeKeys merge_keys = tsdf::make_merge_keys(ray_parameters.T_world_sensor.translation,
                                                        config.max_ray_length_m, voxel_size, voxels_per_side);
     if (merge_keys.key_bits > kMaxRangeBoxMergeKeyBits) {
@@ -447,15 +578,11 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
       merge_keys = box.cast > 0 ? tsdf::make_merge_keys(box.low_voxel(), box.high_voxel(), voxels_per_side)
                                 : tsdf::make_merge_keys(sensor_voxel, sensor_voxel, voxels_per_side);
     }
-    tsdf_merge_rays(backend, ray_parameters, merge_keys, cloud, colors, intensities, grey_per_intensity, scratch,
-                    stream);
+    tally = tsdf_merge_rays(backend, ray_parameters, merge_keys, cloud, colors, intensities, grey_per_intensity,
+                            scratch, stream);
     ray_weights = scratch.ray_weights.data();
     colors = has_color ? scratch.ray_colors.data() : nullptr;
     intensities = nullptr;
-    tally = transform_reduce(
-        backend, stream, thrust::make_counting_iterator<int64_t>(0), n,
-        tsdf_detail::TallyMergedRay{scratch.rays.data(), ray_weights, scratch.readback.data(), inverse_voxel_size},
-        tsdf_detail::RayTally{}, tsdf_detail::AddTallies{});
     ray_count = tally.rays;
     profile.mark("1 merge rays + tally");
   }

@@ -17,23 +17,31 @@ namespace covox {
 struct TsdfScratchBuffers {
   explicit TsdfScratchBuffers(Device device)
       : points(device), colors(device), rays(device), counts(device), offsets(device),
-        keys(device), order(device), merged_keys(device),
-        block_indices(device), slots(device), is_new(device), merged_bundles(device),
+        keys(device), merged_keys(device),
+        block_indices(device), slots(device), is_new(device), point_codes(device), ray_flags(device), ray_ranks(device),
+        merge_table_keys(device), merge_table_bundles(device), merge_tally(device),
         ray_colors(device), ray_weights(device), block_flags(device), block_ranks(device), keys_alt(device),
-        order_alt(device), keys32(device), keys32_alt(device), merged_keys32(device), distance_records(device), distance_records_alt(device), color_visits(device), color_visits_alt(device), merged_updates(device), pieces(device), piece_voxels(device), piece_offsets(device), readback(device) {}
+        keys32(device), keys32_alt(device), merged_keys32(device), distance_records(device), distance_records_alt(device), color_visits(device), color_visits_alt(device), merged_updates(device), pieces(device), piece_voxels(device), piece_offsets(device), readback(device) {}
   Buffer<Vec3f> points;  // depth images unprojected, or host clouds uploaded
   Buffer<Rgb8> colors;
   Buffer<tsdf::RaySegment> rays;
   Buffer<uint32_t> counts;
   Buffer<uint32_t> offsets;
   Buffer<uint64_t> keys;
-  Buffer<uint32_t> order;
   Buffer<uint64_t> merged_keys;
   Buffer<Index3D> block_indices;
   Buffer<uint32_t> slots;
   Buffer<uint8_t> is_new;
-  // merged integration only
-  Buffer<tsdf::PointBundle> merged_bundles;
+  // merged integration only (tsdf_ray_merging.h): what each point became, which points emit a
+  // ray and its rank, the bundle table (kept between frames, clean after each), the rays' weights
+  // and colours
+  Buffer<uint32_t> point_codes;
+  Buffer<uint32_t> ray_flags;
+  Buffer<uint32_t> ray_ranks;
+  Buffer<uint64_t> merge_table_keys;
+  Buffer<tsdf::PointBundle> merge_table_bundles;
+  bool merge_table_clean = false;
+  Buffer<tsdf::MergeTally> merge_tally;
   Buffer<Rgb8> ray_colors;
   Buffer<float> ray_weights;
   // distinct blocks of the merged voxels
@@ -41,7 +49,6 @@ struct TsdfScratchBuffers {
   Buffer<uint32_t> block_ranks;
   // radix sort scratch
   Buffer<uint64_t> keys_alt;
-  Buffer<uint32_t> order_alt;
   // update keys of frames whose keys fit in 32 bits
   Buffer<uint32_t> keys32;
   Buffer<uint32_t> keys32_alt;

@@ -24,14 +24,16 @@ struct FrameKeyCodec {
   uint64_t zero_weight_key = 1;   // an update that carries no weight; for merging: "alone"
   int key_bits = 1;               // every key is < 2^key_bits
 
+  // Voxels per side are a power of two (8 or 16), so the block is an arithmetic shift (a floor
+  // division for negative indices too) and the voxel within it a mask: no integer division in
+  // the traverse's per-voxel work.
   COVOX_HD_INLINE uint64_t key(const Index3D& voxel) const {
-    const Index3D block(floor_divide(voxel.x, voxels_per_side), floor_divide(voxel.y, voxels_per_side),
-                        floor_divide(voxel.z, voxels_per_side));
-    const int32_t bx = block.x - origin_block.x, by = block.y - origin_block.y, bz = block.z - origin_block.z;
+    const int shift = voxel_bits / 3;
+    const int32_t mask = voxels_per_side - 1;
+    const int32_t bx = (voxel.x >> shift) - origin_block.x, by = (voxel.y >> shift) - origin_block.y,
+                  bz = (voxel.z >> shift) - origin_block.z;
     if (bx < 0 || by < 0 || bz < 0 || bx >= size_x || by >= size_y || bz >= size_z) return out_of_range_key;
-    const int32_t local = (voxel.x - block.x * voxels_per_side) +
-                          voxels_per_side * ((voxel.y - block.y * voxels_per_side) +
-                                             voxels_per_side * (voxel.z - block.z * voxels_per_side));
+    const int32_t local = (voxel.x & mask) | ((voxel.y & mask) << shift) | ((voxel.z & mask) << (2 * shift));
     const uint64_t block_number =
         static_cast<uint64_t>(bx) +
         static_cast<uint64_t>(size_x) * (static_cast<uint64_t>(by) + static_cast<uint64_t>(size_y) * bz);
@@ -49,9 +51,9 @@ struct FrameKeyCodec {
   COVOX_HD_INLINE int32_t voxel_in_block(uint64_t key) const {
     return static_cast<int32_t>(key & ((uint64_t(1) << voxel_bits) - 1));
   }
-  // The voxel a valid key names (the inverse of key()). Voxels per side are a power of two (8 or
-  // 16), so the voxel within the block comes out by shifts; keys of up to 32 bits (almost every
-  // frame) divide in 32-bit arithmetic, several times cheaper on the GPU than 64-bit division.
+  // The voxel a valid key names (the inverse of key()). The voxel within the block comes out by
+  // shifts; keys of up to 32 bits (almost every frame) divide in 32-bit arithmetic, several times
+  // cheaper on the GPU than 64-bit division.
   COVOX_HD_INLINE Index3D voxel(uint64_t key) const {
     const int shift = voxel_bits / 3;
     const int32_t mask = voxels_per_side - 1;

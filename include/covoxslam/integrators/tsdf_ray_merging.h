@@ -8,8 +8,10 @@
 // The sums are integers (positions in 2^-30 m, colour channels, counts), so they are exact and
 // independent of the order a backend reduces in: both backends and every run give bit-identical
 // merged rays. A bundle of one point keeps the original point exactly.
+#include <climits>
 #include <cstdint>
 
+#include "covoxslam/core/atomics.h"
 #include "covoxslam/core/macros.h"
 #include "covoxslam/core/vec3.h"
 #include "covoxslam/integrators/tsdf_kernels.h"
@@ -49,35 +51,32 @@ COVOX_HD_INLINE int64_t to_merge_units(float metres) {
   return static_cast<int64_t>(llrintf(metres * kMergeUnitsPerMetre));
 }
 
+// What a point became in the merge: its bundle's slot, or one of these (above every slot).
+constexpr uint32_t kAlonePoint = 0xFFFFFFFFu;        // a ray of its own (clearing, outside the box)
+constexpr uint32_t kDroppedPointCode = 0xFFFFFFF0u;  // + (kind - kDroppedNonFinite): counted only
+COVOX_HD_INLINE bool is_bundle_slot(uint32_t code) { return code < kDroppedPointCode; }
+COVOX_HD_INLINE bool is_dropped_code(uint32_t code) { return code >= kDroppedPointCode && code != kAlonePoint; }
+COVOX_HD_INLINE uint8_t dropped_kind_of_code(uint32_t code) {
+  return static_cast<uint8_t>(kDroppedNonFinite + (code - kDroppedPointCode));
+}
+
 // Merge keys: a surface point's key is the FrameKeyCodec key of the voxel its measured point falls
 // into; points with the same key are bundled into one ray. The codec's box is fixed by the sensor
 // origin and max_ray_length_m (every surface point lies within that range), so no pass over the
-// points is needed before keying them. Above the codec's keys: the "alone" key (its zero-weight
-// key) for rays that must not merge (clearing rays, a surface voxel outside the box), which
-// AloneKeysApart keeps apart, then one key per drop reason: the dropped points of one reason form
-// one bundle whose count is the number of such points, so the tally of the merged rays counts
-// every input point without a tally of the points themselves.
+// points is needed before keying them.
 struct MergeKeys {
   FrameKeyCodec codec;
-  uint64_t alone_key = 0;    // == codec.zero_weight_key
-  uint64_t dropped_key = 0;  // dropped_key + (kind - kDroppedNonFinite) for the four drop kinds
-  int key_bits = 1;          // every merge key is < 2^key_bits
+  int key_bits = 1;  // every merge key is < 2^key_bits
 
-  COVOX_HD_INLINE uint64_t key(const RaySegment& ray, float inverse_voxel_size) const {
+  // What point `index` with ray `ray` becomes: a bundle (its key, returned through `key`), a ray
+  // of its own (kAlonePoint: a clearing ray, or a surface voxel outside the box), or a drop.
+  COVOX_HD_INLINE uint32_t classify(const RaySegment& ray, float inverse_voxel_size, uint64_t* key) const {
     if (ray.kind == kSurfaceRay) {
-      const uint64_t surface_key = codec.key(voxel_of(ray.surface, inverse_voxel_size));
-      if (surface_key != codec.out_of_range_key) return surface_key;
+      *key = codec.key(voxel_of(ray.surface, inverse_voxel_size));
+      return *key != codec.out_of_range_key ? 0u : kAlonePoint;
     }
-    if (ray.kind > kClearingRay) return dropped_key + (ray.kind - kDroppedNonFinite);
-    return alone_key;
-  }
-  // The keys that sum the coordinates of their points (the others keep their first point).
-  COVOX_HD_INLINE bool is_surface_key(uint64_t key) const { return key < codec.out_of_range_key; }
-  // The drop reason of a merged key, or kSurfaceRay when it is not a drop key.
-  COVOX_HD_INLINE uint8_t dropped_kind(uint64_t key) const {
-    return key >= dropped_key && key <= dropped_key + (kDroppedTooFar - kDroppedNonFinite)
-               ? static_cast<uint8_t>(kDroppedNonFinite + (key - dropped_key))
-               : static_cast<uint8_t>(kSurfaceRay);
+    if (ray.kind == kClearingRay) return kAlonePoint;
+    return kDroppedPointCode + (ray.kind - kDroppedNonFinite);
   }
 };
 
@@ -87,44 +86,81 @@ MergeKeys make_merge_keys(const Vec3f& origin, float max_ray_length_m, float vox
 // The same for a known box of surface voxels (the fallback when the range box needs long keys).
 MergeKeys make_merge_keys(const Index3D& min_voxel, const Index3D& max_voxel, int32_t voxels_per_side);
 
-// The merge keys as a reduction compares them (with ==): rays that must stay alone share the
-// "alone" key, so each is given a distinct key of its own above every real key (FrameKeyCodec
-// keys stay below 2^62) and the stable sort keeps them in input order.
-struct AloneKeysApart {
-  const uint64_t* keys;
-  uint64_t alone_key;
-  COVOX_HD_INLINE uint64_t operator()(int64_t i) const {
-    return keys[i] == alone_key ? ~uint64_t(0) - static_cast<uint64_t>(i) : keys[i];
+// The frame's bundles, gathered without sorting the points: an open-addressing hash table from
+// merge key to bundle, filled with integer atomics. The sums are integers (and `first` a minimum),
+// so a bundle comes out the same whatever order the points arrive in; which slot a key lands in
+// does depend on that order, so nothing downstream reads slots in slot order: each bundle is
+// emitted as a ray by its first point, and the rays are ranked by that point's index (a scan), an
+// order that is the same on both backends and in every run. These are atomics on scratch sums of
+// points, not on voxel data: the voxels are still written once each, after a sort by key.
+//
+// Free slots hold kFreeMergeKey and an empty bundle (first == kNoPoint). The table is cleaned as
+// it is used: the kernel that turns each bundle into a ray frees its slot, so a frame leaves the
+// table as it found it and no frame pays for clearing all of it.
+constexpr uint64_t kFreeMergeKey = ~uint64_t(0);
+constexpr uint32_t kNoPoint = 0xFFFFFFFFu;
+
+struct MergeTable {
+  uint64_t* keys;
+  PointBundle* bundles;
+  uint32_t mask;    // capacity - 1; the capacity is a power of two, at least twice the points
+  int shift;        // 64 - log2(capacity): the hash keeps the product's top bits
+
+  COVOX_HD_INLINE uint32_t home_slot(uint64_t key) const {
+    return static_cast<uint32_t>((key * 0x9E3779B97F4A7C15ull) >> shift) & mask;
+  }
+  // The slot of `key`, claimed if no point of the frame claimed it yet. Linear probing; the table
+  // is never more than half full, so the probe ends.
+  COVOX_HD_INLINE uint32_t slot_of(uint64_t key) const {
+    uint32_t slot = home_slot(key);
+    while (true) {
+      const uint64_t there = atomic_load_relaxed(&keys[slot]);
+      if (there == key) return slot;
+      if (there == kFreeMergeKey) {
+        const uint64_t before = atomic_compare_exchange(&keys[slot], kFreeMergeKey, key);
+        if (before == kFreeMergeKey || before == key) return slot;
+      }
+      slot = (slot + 1) & mask;
+    }
+  }
+  // Adds the sums of some of a bundle's points (a warp's, warp_reduce.h) to the bundle.
+  COVOX_HD_INLINE void add(uint32_t slot, const PointBundle& sums, bool has_color) const {
+    PointBundle& bundle = bundles[slot];
+    atomic_add(reinterpret_cast<uint64_t*>(&bundle.x), static_cast<uint64_t>(sums.x));
+    atomic_add(reinterpret_cast<uint64_t*>(&bundle.y), static_cast<uint64_t>(sums.y));
+    atomic_add(reinterpret_cast<uint64_t*>(&bundle.z), static_cast<uint64_t>(sums.z));
+    if (has_color) {
+      atomic_add(&bundle.r, sums.r);
+      atomic_add(&bundle.g, sums.g);
+      atomic_add(&bundle.b, sums.b);
+    }
+    atomic_add(&bundle.count, sums.count);
+    atomic_min(&bundle.first, sums.first);
+  }
+  COVOX_HD_INLINE void free_slot(uint32_t slot) const {
+    keys[slot] = kFreeMergeKey;
+    PointBundle empty;
+    empty.first = kNoPoint;
+    bundles[slot] = empty;
   }
 };
 
-// The bundle of the i-th point in key order, built where the reduction reads it (no bundle per
-// point is written): a surface key sums the point's coordinates, any other key only counts it.
-struct BundleOfSortedPoint {
-  const Vec3f* points;
-  const uint32_t* order;        // sorted position -> point index
-  const uint64_t* sorted_keys;  // merge keys in sorted order
-  MergeKeys merge_keys;
-  const Rgb8* colors;
-  const float* intensities;
-  float grey_per_intensity;
-  COVOX_HD_INLINE PointBundle operator()(int64_t i) const {
-    const uint32_t index = order[i];
-    PointBundle bundle;
-    if (merge_keys.is_surface_key(sorted_keys[i])) {
-      const Vec3f point = points[index];
-      bundle.x = to_merge_units(point.x);
-      bundle.y = to_merge_units(point.y);
-      bundle.z = to_merge_units(point.z);
-    }
-    const Rgb8 color = color_of(colors, intensities, grey_per_intensity, index);
-    bundle.r = color.r;
-    bundle.g = color.g;
-    bundle.b = color.b;
-    bundle.count = 1;
-    bundle.first = index;
-    return bundle;
-  }
+// What a frame's merge made of its points, counted with integer atomics as the rays are written
+// (the same sums in any order): points per kind (a ray counts the points it stands for), rays
+// cast, rays written, voxels their traversal will visit, and the box of those voxels. Every
+// counter has a cache line of its own: thousands of warps add to them, and atomics on one line
+// queue in one slice of the GPU's L2.
+template <class T>
+struct alignas(128) LoneCounter {
+  T value;
+};
+struct MergeTally {
+  LoneCounter<uint64_t> kinds[6] = {{0}, {0}, {0}, {0}, {0}, {0}};
+  LoneCounter<uint64_t> cast = {0};
+  LoneCounter<uint64_t> rays = {0};
+  LoneCounter<uint64_t> voxels = {0};
+  LoneCounter<int32_t> low[3] = {{INT32_MAX}, {INT32_MAX}, {INT32_MAX}};
+  LoneCounter<int32_t> high[3] = {{INT32_MIN}, {INT32_MIN}, {INT32_MIN}};
 };
 
 }  // namespace tsdf

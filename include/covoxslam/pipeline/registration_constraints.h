@@ -190,6 +190,9 @@ struct RegistrationPartner {
   const TsdfMap* map = nullptr;
   backend::Pose4Dof pose;
   WallMapCache* walls = nullptr;  // the map's wall map cache; null: built for each revisit
+  // The map's registration points (prepare_registration_points with the same config), for the
+  // reverse half of symmetric registration; null: prepared again for each pair.
+  const SubmapRegistrationPoints* points = nullptr;
 };
 
 // The earlier submaps that overlap the new one at `pose` (bounding boxes, then shared blocks),
