@@ -50,43 +50,39 @@ COVOX_HD_INLINE uint64_t atomic_add(uint64_t* address, uint64_t value) {
 #endif
 }
 
-// Returns the previous value.
+namespace detail {
+// The host's atomic minimum / maximum: a CAS loop that stops once the stored value is no longer
+// worse than `value`. Returns the previous value.
+template <class T, class Better>
+inline T host_atomic_extreme(T* address, T value, Better better) {
+  T current = __atomic_load_n(address, __ATOMIC_RELAXED);
+  while (better(value, current) &&
+         !__atomic_compare_exchange_n(address, &current, value, true, __ATOMIC_ACQ_REL, __ATOMIC_RELAXED)) {
+  }
+  return current;
+}
+}  // namespace detail
+
+// Atomic minimum / maximum; return the previous value.
 COVOX_HD_INLINE uint32_t atomic_min(uint32_t* address, uint32_t value) {
 #if COVOX_DEVICE_CODE
   return atomicMin(reinterpret_cast<unsigned int*>(address), value);
 #else
-  uint32_t current = __atomic_load_n(address, __ATOMIC_RELAXED);
-  while (value < current &&
-         !__atomic_compare_exchange_n(address, &current, value, true, __ATOMIC_ACQ_REL,
-                                      __ATOMIC_RELAXED)) {
-  }
-  return current;
+  return detail::host_atomic_extreme(address, value, [](uint32_t a, uint32_t b) { return a < b; });
 #endif
 }
-
 COVOX_HD_INLINE int32_t atomic_min(int32_t* address, int32_t value) {
 #if COVOX_DEVICE_CODE
   return atomicMin(reinterpret_cast<int*>(address), value);
 #else
-  int32_t current = __atomic_load_n(address, __ATOMIC_RELAXED);
-  while (value < current &&
-         !__atomic_compare_exchange_n(address, &current, value, true, __ATOMIC_ACQ_REL,
-                                      __ATOMIC_RELAXED)) {
-  }
-  return current;
+  return detail::host_atomic_extreme(address, value, [](int32_t a, int32_t b) { return a < b; });
 #endif
 }
-
 COVOX_HD_INLINE int32_t atomic_max(int32_t* address, int32_t value) {
 #if COVOX_DEVICE_CODE
   return atomicMax(reinterpret_cast<int*>(address), value);
 #else
-  int32_t current = __atomic_load_n(address, __ATOMIC_RELAXED);
-  while (value > current &&
-         !__atomic_compare_exchange_n(address, &current, value, true, __ATOMIC_ACQ_REL,
-                                      __ATOMIC_RELAXED)) {
-  }
-  return current;
+  return detail::host_atomic_extreme(address, value, [](int32_t a, int32_t b) { return a > b; });
 #endif
 }
 

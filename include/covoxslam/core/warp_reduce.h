@@ -88,17 +88,9 @@ COVOX_HD_INLINE uint32_t warp_match(uint32_t lanes, uint64_t key) {
 #endif
 }
 
-// `value` as lane `source` holds it.
-COVOX_HD_INLINE uint64_t warp_broadcast(uint32_t lanes, uint64_t value, int source) {
-#if COVOX_DEVICE_CODE
-  return __shfl_sync(lanes, static_cast<unsigned long long>(value), source);
-#else
-  (void)lanes;
-  (void)source;
-  return value;
-#endif
-}
-COVOX_HD_INLINE uint32_t warp_broadcast(uint32_t lanes, uint32_t value, int source) {
+// `value` as lane `source` holds it (32- or 64-bit).
+template <class T>
+COVOX_HD_INLINE T warp_broadcast(uint32_t lanes, T value, int source) {
 #if COVOX_DEVICE_CODE
   return __shfl_sync(lanes, value, source);
 #else
@@ -108,19 +100,30 @@ COVOX_HD_INLINE uint32_t warp_broadcast(uint32_t lanes, uint32_t value, int sour
 #endif
 }
 
-// Sums and extremes over `lanes`, the same in every lane.
-COVOX_HD_INLINE uint32_t warp_sum(uint32_t lanes, uint32_t value) {
-#if COVOX_DEVICE_CODE
-  #if __CUDA_ARCH__ >= 800
-  return __reduce_add_sync(lanes, value);
+// Sums and extremes over `lanes`, the same in every lane: 32-bit values (unsigned or int) in
+// one instruction from sm_80 on.
+#if COVOX_DEVICE_CODE && __CUDA_ARCH__ >= 800
+#define COVOX_WARP_REDUCE_32(intrinsic, fold) return intrinsic(lanes, value)
+#elif COVOX_DEVICE_CODE
+#define COVOX_WARP_REDUCE_32(intrinsic, fold) return detail::warp_fold(lanes, value, fold{})
 #else
-  return detail::warp_fold(lanes, value, detail::FoldAdd{});
+#define COVOX_WARP_REDUCE_32(intrinsic, fold) \
+  (void)lanes;                                 \
+  return value
 #endif
-#else
-  (void)lanes;
-  return value;
-#endif
+template <class T>
+COVOX_HD_INLINE T warp_min(uint32_t lanes, T value) {
+  static_assert(sizeof(T) == 4, "warp_min: 32-bit values");
+  COVOX_WARP_REDUCE_32(__reduce_min_sync, detail::FoldMin);
 }
+template <class T>
+COVOX_HD_INLINE T warp_max(uint32_t lanes, T value) {
+  static_assert(sizeof(T) == 4, "warp_max: 32-bit values");
+  COVOX_WARP_REDUCE_32(__reduce_max_sync, detail::FoldMax);
+}
+COVOX_HD_INLINE uint32_t warp_sum(uint32_t lanes, uint32_t value) { COVOX_WARP_REDUCE_32(__reduce_add_sync, detail::FoldAdd); }
+#undef COVOX_WARP_REDUCE_32
+
 // 64-bit sums (modulo 2^64, so signed values sum right in two's complement): the hardware sums
 // 32-bit words, so the value goes through in four 16-bit pieces, whose sums over 32 lanes cannot
 // carry out of 32 bits.
@@ -134,42 +137,6 @@ COVOX_HD_INLINE uint64_t warp_sum(uint32_t lanes, uint64_t value) {
     sum += static_cast<uint64_t>(warp_sum(lanes, part)) << (16 * piece);
   }
   return sum;
-#else
-  (void)lanes;
-  return value;
-#endif
-}
-COVOX_HD_INLINE uint32_t warp_min(uint32_t lanes, uint32_t value) {
-#if COVOX_DEVICE_CODE
-  #if __CUDA_ARCH__ >= 800
-  return __reduce_min_sync(lanes, value);
-#else
-  return detail::warp_fold(lanes, value, detail::FoldMin{});
-#endif
-#else
-  (void)lanes;
-  return value;
-#endif
-}
-COVOX_HD_INLINE int32_t warp_min(uint32_t lanes, int32_t value) {
-#if COVOX_DEVICE_CODE
-  #if __CUDA_ARCH__ >= 800
-  return __reduce_min_sync(lanes, value);
-#else
-  return detail::warp_fold(lanes, value, detail::FoldMin{});
-#endif
-#else
-  (void)lanes;
-  return value;
-#endif
-}
-COVOX_HD_INLINE int32_t warp_max(uint32_t lanes, int32_t value) {
-#if COVOX_DEVICE_CODE
-  #if __CUDA_ARCH__ >= 800
-  return __reduce_max_sync(lanes, value);
-#else
-  return detail::warp_fold(lanes, value, detail::FoldMax{});
-#endif
 #else
   (void)lanes;
   return value;
