@@ -13,7 +13,9 @@
 namespace covox {
 namespace {
 
-constexpr size_t kHostAlignmentBytes = 64;  // one cache line: SIMD loads and no false sharing
+// Two cache lines: SIMD loads, no false sharing, and room for types aligned to the GPU's 128-byte
+// lines (tsdf::MergeTally's counters), which the CPU twin allocates in host memory.
+constexpr size_t kHostAlignmentBytes = 128;
 
 std::string mebibytes(size_t bytes) {
   std::ostringstream text;
