@@ -43,13 +43,6 @@ FrameKeyCodec make_frame_key_codec(const Index3D& min_voxel, const Index3D& max_
   return codec;
 }
 
-MergeKeys make_merge_keys(const Index3D& min_voxel, const Index3D& max_voxel, int32_t voxels_per_side) {
-  MergeKeys keys;
-  keys.codec = make_frame_key_codec(min_voxel, max_voxel, voxels_per_side);
-  keys.key_bits = keys.codec.key_bits;
-  return keys;
-}
-
 MergeKeys make_merge_keys(const Vec3f& origin, float max_ray_length_m, float voxel_size_m, int32_t voxels_per_side) {
   // Every surface point lies within max_ray_length_m of the origin (make_ray drops the others);
   // one voxel more on each side absorbs the rounding of the world transform.
@@ -57,8 +50,10 @@ MergeKeys make_merge_keys(const Vec3f& origin, float max_ray_length_m, float vox
   const Vec3f reach(max_ray_length_m, max_ray_length_m, max_ray_length_m);
   const Index3D low = voxel_of(origin - reach, inverse_voxel_size);
   const Index3D high = voxel_of(origin + reach, inverse_voxel_size);
-  return make_merge_keys(Index3D(low.x - 1, low.y - 1, low.z - 1), Index3D(high.x + 1, high.y + 1, high.z + 1),
-                         voxels_per_side);
+  MergeKeys keys;
+  keys.codec = make_frame_key_codec(Index3D(low.x - 1, low.y - 1, low.z - 1), Index3D(high.x + 1, high.y + 1, high.z + 1),
+                                    voxels_per_side);
+  return keys;
 }
 
 }  // namespace tsdf

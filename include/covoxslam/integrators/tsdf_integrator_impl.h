@@ -230,15 +230,13 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
   parallel_for(backend, stream, n + 1, [=] COVOX_HD(int64_t i) {
     const uint32_t lanes = warp_lanes();
     const bool emits = i < n && emits_ray[i] != 0u;
-    uint32_t count = 0, voxels = 0;
-    uint8_t kind = tsdf::kSurfaceRay;
-    Index3D low(INT32_MAX, INT32_MAX, INT32_MAX), high(INT32_MIN, INT32_MIN, INT32_MIN);
+    tsdf_detail::RayTally own;  // this point's ray, if it emits one
     if (i == n) ray_pieces[ray_rank[n]] = 0;  // the scan's end
     if (emits) {
       const uint32_t m = ray_rank[i];
       const uint32_t code = codes[i];
       Vec3f point = points[i];
-      count = 1;
+      uint32_t count = 1;
       Rgb8 color = tsdf::color_of(colors, intensities, grey_per_intensity, i);
       if (code != tsdf::kAlonePoint) {
         const tsdf::PointBundle bundle = bundles[code];
@@ -258,26 +256,23 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
       merged_rays[m] = ray;
       weights[m] = static_cast<float>(count);
       ray_colors[m] = color;
-      voxels = tsdf::ray_voxel_count(ray, inverse_voxel_size);
-      ray_pieces[m] = tsdf::ray_piece_count(voxels);
-      kind = ray.kind;
-      if (kind <= tsdf::kClearingRay) {  // a segment's voxels lie in the box of its end voxels
-        const Index3D a = tsdf::voxel_of(ray.start, inverse_voxel_size);
-        const Index3D b = tsdf::voxel_of(ray.end, inverse_voxel_size);
-        low = Index3D(a.x < b.x ? a.x : b.x, a.y < b.y ? a.y : b.y, a.z < b.z ? a.z : b.z);
-        high = Index3D(a.x > b.x ? a.x : b.x, a.y > b.y ? a.y : b.y, a.z > b.z ? a.z : b.z);
-      } else {  // rare: a bundle's mean point dropped (closer than min_ray_length_m): counted as such
-        atomic_add(&counters->kinds[kind].value, static_cast<uint64_t>(count));
+      own = tsdf_detail::tally_ray(ray, count, inverse_voxel_size);
+      own.rays = 1;
+      ray_pieces[m] = tsdf::ray_piece_count(static_cast<uint32_t>(own.voxels));
+      if (ray.kind > tsdf::kClearingRay) {  // rare: a bundle's mean point dropped (closer than min_ray_length_m)
+        atomic_add(&counters->kinds[ray.kind].value, static_cast<uint64_t>(count));
       }
     }
+    // The warp's rays summed, then one atomic per counter (a warp's counts fit in 32 bits).
     if (warp_ballot(lanes, emits) == 0u) return;
-    const uint32_t surface_points = warp_sum(lanes, emits && kind == tsdf::kSurfaceRay ? count : 0u);
-    const uint32_t clearing_rays = warp_sum(lanes, emits && kind == tsdf::kClearingRay ? count : 0u);
-    const uint32_t rays = warp_sum(lanes, emits ? 1u : 0u);
-    const uint32_t cast = warp_sum(lanes, emits && kind <= tsdf::kClearingRay ? 1u : 0u);
-    const uint32_t visits = warp_sum(lanes, voxels);
-    const int32_t box[6] = {warp_min(lanes, low.x),  warp_min(lanes, low.y),  warp_min(lanes, low.z),
-                            warp_max(lanes, high.x), warp_max(lanes, high.y), warp_max(lanes, high.z)};
+    const auto sum32 = [lanes](int64_t value) { return warp_sum(lanes, static_cast<uint32_t>(value)); };
+    const uint32_t surface_points = sum32(own.kinds[tsdf::kSurfaceRay]);
+    const uint32_t clearing_rays = sum32(own.kinds[tsdf::kClearingRay]);
+    const uint32_t rays = sum32(own.rays);
+    const uint32_t cast = sum32(own.cast);
+    const uint32_t visits = sum32(own.voxels);
+    const int32_t box[6] = {warp_min(lanes, own.low[0]),  warp_min(lanes, own.low[1]),  warp_min(lanes, own.low[2]),
+                            warp_max(lanes, own.high[0]), warp_max(lanes, own.high[1]), warp_max(lanes, own.high[2])};
     if (warp_lane() != warp_first_lane(lanes)) return;
     atomic_add(&counters->kinds[tsdf::kSurfaceRay].value, static_cast<uint64_t>(surface_points));
     if (clearing_rays != 0u) atomic_add(&counters->kinds[tsdf::kClearingRay].value, static_cast<uint64_t>(clearing_rays));
@@ -500,12 +495,6 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   profile.mark("5 voxel writes");
 }
 
-// Merge keys longer than this come from the points' own box rather than the sensor's range box,
-// which is then mostly empty space (rays of hundreds of metres at fine voxels). The merge table
-// hashes keys of any length, so this only keeps the keys well away from 64 bits; both boxes give
-// the same bundles (tested).
-constexpr int kMaxRangeBoxMergeKeyBits = 32;
-
 template <class Backend>
 IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConfig& config,
                                        TsdfMap& map, const PointCloudView& cloud,
@@ -544,14 +533,11 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
   const bool has_color = colors || intensities;
   const float* ray_weights = nullptr;
   int64_t ray_count = n;
-  // Why points did or did not become rays, and the box of voxels their own rays traverse.
-  const auto tally_points = [&] {
-    return transform_reduce(backend, stream, points, n, tsdf_detail::TallyPoint{ray_parameters, inverse_voxel_size},
-                            tsdf_detail::RayTally{}, tsdf_detail::AddTallies{});
-  };
   tsdf_detail::RayTally tally;
   if (config.method != TsdfIntegrationMethod::kMerged) {
-    tally = tally_points();
+    // Why points did or did not become rays, and the box of voxels their own rays traverse.
+    tally = transform_reduce(backend, stream, points, n, tsdf_detail::TallyPoint{ray_parameters, inverse_voxel_size},
+                             tsdf_detail::RayTally{}, tsdf_detail::AddTallies{});
     profile.mark("1 rays + tally");
     scratch.rays.resize_discard(n);
     scratch.counts.resize_discard(n + 1);
@@ -567,17 +553,10 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
       ray_pieces[i] = tsdf::ray_piece_count(tsdf::ray_voxel_count(ray, inverse_voxel_size));
     });
   } else {
-    // Merge keys from a box around the sensor (no pass over the points first), unless that box
-    // needs long keys (rays of hundreds of metres at fine voxels): then the box of the points'
-    // own rays.
-    tsdf::MergeKeys merge_keys = tsdf::make_merge_keys(ray_parameters.T_world_sensor.translation,
-                                                       config.max_ray_length_m, voxel_size, voxels_per_side);
-    if (merge_keys.key_bits > kMaxRangeBoxMergeKeyBits) {
-      const tsdf_detail::RayTally box = tally_points();
-      const Index3D sensor_voxel = tsdf::voxel_of(ray_parameters.T_world_sensor.translation, inverse_voxel_size);
-      merge_keys = box.cast > 0 ? tsdf::make_merge_keys(box.low_voxel(), box.high_voxel(), voxels_per_side)
-                                : tsdf::make_merge_keys(sensor_voxel, sensor_voxel, voxels_per_side);
-    }
+    // Merge keys from a box around the sensor (no pass over the points first); the merge table
+    // hashes them, so their length costs nothing.
+    const tsdf::MergeKeys merge_keys = tsdf::make_merge_keys(ray_parameters.T_world_sensor.translation,
+                                                             config.max_ray_length_m, voxel_size, voxels_per_side);
     tally = tsdf_merge_rays(backend, ray_parameters, merge_keys, cloud, colors, intensities, grey_per_intensity,
                             scratch, stream);
     ray_weights = scratch.ray_weights.data();

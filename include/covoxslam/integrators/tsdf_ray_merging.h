@@ -32,21 +32,6 @@ struct alignas(16) PointBundle {  // 48 bytes: three 16-byte loads
   uint32_t first = 0;           // smallest point index of the bundle
 };
 
-struct AddBundles {
-  COVOX_HD_INLINE PointBundle operator()(const PointBundle& a, const PointBundle& b) const {
-    PointBundle sum;
-    sum.x = a.x + b.x;
-    sum.y = a.y + b.y;
-    sum.z = a.z + b.z;
-    sum.r = a.r + b.r;
-    sum.g = a.g + b.g;
-    sum.b = a.b + b.b;
-    sum.count = a.count + b.count;
-    sum.first = a.first < b.first ? a.first : b.first;
-    return sum;
-  }
-};
-
 COVOX_HD_INLINE int64_t to_merge_units(float metres) {
   return static_cast<int64_t>(llrintf(metres * kMergeUnitsPerMetre));
 }
@@ -66,7 +51,6 @@ COVOX_HD_INLINE uint8_t dropped_kind_of_code(uint32_t code) {
 // points is needed before keying them.
 struct MergeKeys {
   FrameKeyCodec codec;
-  int key_bits = 1;  // every merge key is < 2^key_bits
 
   // What point `index` with ray `ray` becomes: a bundle (its key, returned through `key`), a ray
   // of its own (kAlonePoint: a clearing ray, or a surface voxel outside the box), or a drop.
@@ -83,8 +67,6 @@ struct MergeKeys {
 // The merge keys of a frame whose sensor sits at `origin` (world) with rays up to
 // max_ray_length_m. Throws covox::Error like make_frame_key_codec for an absurdly large box.
 MergeKeys make_merge_keys(const Vec3f& origin, float max_ray_length_m, float voxel_size_m, int32_t voxels_per_side);
-// The same for a known box of surface voxels (the fallback when the range box needs long keys).
-MergeKeys make_merge_keys(const Index3D& min_voxel, const Index3D& max_voxel, int32_t voxels_per_side);
 
 // The frame's bundles, gathered without sorting the points: an open-addressing hash table from
 // merge key to bundle, filled with integer atomics. The sums are integers (and `first` a minimum),
