@@ -21,7 +21,7 @@ struct TsdfScratchBuffers {
         block_indices(device), slots(device), is_new(device), point_codes(device), ray_flags(device), ray_ranks(device),
         merge_table_keys(device), merge_table_bundles(device), merge_tally(device),
         ray_colors(device), ray_weights(device), block_flags(device), block_ranks(device), keys_alt(device),
-        keys32(device), keys32_alt(device), merged_keys32(device), distance_records(device), distance_records_alt(device), color_visits(device), color_visits_alt(device), merged_updates(device), pieces(device), piece_voxels(device), piece_offsets(device), readback(device) {}
+        keys32(device), keys32_alt(device), merged_keys32(device), distance_records(device), distance_records_alt(device), color_visits(device), color_visits_alt(device), merged_updates(device), pieces(device), piece_first_voxels(device), piece_voxels(device), piece_offsets(device), readback(device) {}
   Buffer<Vec3f> points;  // depth images unprojected, or host clouds uploaded
   Buffer<Rgb8> colors;
   Buffer<tsdf::RaySegment> rays;
@@ -80,6 +80,7 @@ struct TsdfScratchBuffers {
   Buffer<tsdf::VoxelUpdate> merged_updates;
   // ray pieces (tsdf_kernels.h): the piece table, voxels per piece and their update offsets
   Buffer<tsdf::RayPiece> pieces;
+  Buffer<Index3D> piece_first_voxels;  // the CPU twin's: each piece's first voxel
   Buffer<uint32_t> piece_voxels;
   Buffer<uint32_t> piece_offsets;
   // counts computed on the device and read back together in one copy

@@ -300,31 +300,53 @@ COVOX_HD_INLINE int32_t clamp_between(int32_t v, int32_t a, int32_t b) {
   return v < low ? low : (v > high ? high : v);
 }
 
-COVOX_HD_INLINE Index3D ray_cut_voxel(const RaySegment& ray, uint32_t k, uint32_t pieces, float inverse_voxel_size) {
-  const Index3D first = voxel_of(ray.start, inverse_voxel_size);
-  const Index3D last = voxel_of(ray.end, inverse_voxel_size);
-  if (k == 0) return first;
-  if (k >= pieces) return last;
+// A ray's first and last voxel, which every cut is clamped between.
+struct RayEndVoxels {
+  Index3D first;
+  Index3D last;
+};
+COVOX_HD_INLINE RayEndVoxels ray_end_voxels(const RaySegment& ray, float inverse_voxel_size) {
+  return RayEndVoxels{voxel_of(ray.start, inverse_voxel_size), voxel_of(ray.end, inverse_voxel_size)};
+}
+
+COVOX_HD_INLINE Index3D ray_cut_voxel(const RaySegment& ray, const RayEndVoxels& ends, uint32_t k, uint32_t pieces,
+                                      float inverse_voxel_size) {
+  if (k == 0) return ends.first;
+  if (k >= pieces) return ends.last;
   const Index3D v = voxel_of(ray_cut_point(ray, k, pieces), inverse_voxel_size);
-  return Index3D(clamp_between(v.x, first.x, last.x), clamp_between(v.y, first.y, last.y),
-                 clamp_between(v.z, first.z, last.z));
+  return Index3D(clamp_between(v.x, ends.first.x, ends.last.x), clamp_between(v.y, ends.first.y, ends.last.y),
+                 clamp_between(v.z, ends.first.z, ends.last.z));
+}
+COVOX_HD_INLINE Index3D ray_cut_voxel(const RaySegment& ray, uint32_t k, uint32_t pieces, float inverse_voxel_size) {
+  return ray_cut_voxel(ray, ray_end_voxels(ray, inverse_voxel_size), k, pieces, inverse_voxel_size);
+}
+
+// Voxels of the piece from cut voxel a to cut voxel b (the last piece includes b).
+COVOX_HD_INLINE uint32_t piece_voxel_count(const Index3D& a, const Index3D& b, bool last_piece) {
+  return static_cast<uint32_t>(abs_i32(b.x - a.x) + abs_i32(b.y - a.y) + abs_i32(b.z - a.z)) + (last_piece ? 1u : 0u);
 }
 
 // Voxels piece k of `pieces` visits.
 COVOX_HD_INLINE uint32_t ray_piece_voxel_count(const RaySegment& ray, uint32_t k, uint32_t pieces,
                                                float inverse_voxel_size) {
-  const Index3D a = ray_cut_voxel(ray, k, pieces, inverse_voxel_size);
-  const Index3D b = ray_cut_voxel(ray, k + 1, pieces, inverse_voxel_size);
-  return static_cast<uint32_t>(abs_i32(b.x - a.x) + abs_i32(b.y - a.y) + abs_i32(b.z - a.z)) +
-         (k + 1 == pieces ? 1u : 0u);
+  const RayEndVoxels ends = ray_end_voxels(ray, inverse_voxel_size);
+  return piece_voxel_count(ray_cut_voxel(ray, ends, k, pieces, inverse_voxel_size),
+                           ray_cut_voxel(ray, ends, k + 1, pieces, inverse_voxel_size), k + 1 == pieces);
 }
 
+// Piece k of `pieces`, from cut voxel `first` to cut voxel `last` (computed by the caller).
+template <class Visitor>
+COVOX_HD_INLINE void traverse_ray_piece(const RaySegment& ray, uint32_t k, uint32_t pieces, const Index3D& first,
+                                        const Index3D& last, float inverse_voxel_size, Visitor&& visit) {
+  traverse_voxels(ray_cut_point(ray, k, pieces), ray_cut_point(ray, k + 1, pieces), first, last, inverse_voxel_size,
+                  k + 1 == pieces, visit);
+}
 template <class Visitor>
 COVOX_HD_INLINE void traverse_ray_piece(const RaySegment& ray, uint32_t k, uint32_t pieces, float inverse_voxel_size,
                                         Visitor&& visit) {
-  traverse_voxels(ray_cut_point(ray, k, pieces), ray_cut_point(ray, k + 1, pieces),
-                  ray_cut_voxel(ray, k, pieces, inverse_voxel_size),
-                  ray_cut_voxel(ray, k + 1, pieces, inverse_voxel_size), inverse_voxel_size, k + 1 == pieces, visit);
+  const RayEndVoxels ends = ray_end_voxels(ray, inverse_voxel_size);
+  traverse_ray_piece(ray, k, pieces, ray_cut_voxel(ray, ends, k, pieces, inverse_voxel_size),
+                     ray_cut_voxel(ray, ends, k + 1, pieces, inverse_voxel_size), inverse_voxel_size, visit);
 }
 
 // Which ray a piece belongs to, and which of its pieces it is.
@@ -350,6 +372,9 @@ struct FrameUpdates {
   int64_t piece_bound;
   const uint32_t* piece_total;  // on the device
   const RayPiece* pieces;
+  // Each piece's first voxel (its cut voxel), where the piece table was written with them (the
+  // CPU twin); null: the traverse computes both cuts of a piece (the GPU).
+  const Index3D* piece_first_voxels;
   const RaySegment* rays;
   const Rgb8* colors;
   const float* intensities;

@@ -82,7 +82,20 @@ struct PieceTraversal {
     uint32_t out = piece_offsets[p];
     const RaySegment ray = frame.rays[i];
     const float ray_weight = ray_weight_of(frame, i);
-    traverse_ray_piece(ray, piece.index, piece.pieces, frame.inverse_voxel_size, [&](const Index3D& voxel) {
+    // The piece's cut voxels: from the piece table where it has them (its own first voxel, and
+    // the next piece's or the ray's last voxel), else computed.
+    Index3D first, last;
+    if (frame.piece_first_voxels) {
+      first = frame.piece_first_voxels[p];
+      last = piece.index + 1 == piece.pieces ? voxel_of(ray.end, frame.inverse_voxel_size)
+                                             : frame.piece_first_voxels[p + 1];
+    } else {
+      const RayEndVoxels ends = ray_end_voxels(ray, frame.inverse_voxel_size);
+      first = ray_cut_voxel(ray, ends, piece.index, piece.pieces, frame.inverse_voxel_size);
+      last = ray_cut_voxel(ray, ends, piece.index + 1, piece.pieces, frame.inverse_voxel_size);
+    }
+    traverse_ray_piece(ray, piece.index, piece.pieces, first, last, frame.inverse_voxel_size,
+                       [&](const Index3D& voxel) {
       bool takes_color = false;
       const DistanceUpdate update = voxel_update(frame, ray, ray_weight, voxel, truncation, &takes_color);
       ValueT value;
