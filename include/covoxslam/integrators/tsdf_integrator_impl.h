@@ -225,8 +225,11 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
   tsdf::RaySegment* merged_rays = scratch.rays.data();
   float* weights = scratch.ray_weights.data();
   Rgb8* ray_colors = scratch.ray_colors.data();
-  // Each emitting point writes its ray, frees its bundle's slot (the table is clean again) and
-  // adds its ray to the tally, per warp.
+  // Each emitting point writes its ray, frees its bundle's slot (the table is clean again) and,
+  // on the GPU, adds its ray to the tally, per warp. On the CPU twin a "warp" is one call, so the
+  // tally's atomics would be one per ray and counter, on lines both cores write: the rays are
+  // tallied by a reduction afterwards instead (2-core CPU, OS1-64 scan: this step 3.0 -> 0.9 ms).
+  constexpr bool kTallyWithAtomics = Backend::kDevice != Device::kCpu;
   parallel_for(backend, stream, n + 1, [=] COVOX_HD(int64_t i) {
     const uint32_t lanes = warp_lanes();
     const bool emits = i < n && emits_ray[i] != 0u;
@@ -264,7 +267,7 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
       }
     }
     // The warp's rays summed, then one atomic per counter (a warp's counts fit in 32 bits).
-    if (warp_ballot(lanes, emits) == 0u) return;
+    if (!kTallyWithAtomics || warp_ballot(lanes, emits) == 0u) return;
     const auto sum32 = [lanes](int64_t value) { return warp_sum(lanes, static_cast<uint32_t>(value)); };
     const uint32_t surface_points = sum32(own.kinds[tsdf::kSurfaceRay]);
     const uint32_t clearing_rays = sum32(own.kinds[tsdf::kClearingRay]);
@@ -296,6 +299,21 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
   for (int axis = 0; axis < 3; ++axis) {
     tally.low[axis] = host.low[axis].value;
     tally.high[axis] = host.high[axis].value;
+  }
+  if constexpr (!kTallyWithAtomics) {
+    // The rays' part of the tally (the counters hold the dropped points' only).
+    const int64_t ray_count = ray_rank[n];  // host memory on the CPU twin
+    const tsdf_detail::RayTally rays_tally = transform_reduce(
+        backend, stream, thrust::make_counting_iterator<int64_t>(0), ray_count,
+        [=](int64_t m) {
+          const tsdf::RaySegment& ray = merged_rays[m];
+          tsdf_detail::RayTally own = tsdf_detail::tally_ray(ray, static_cast<int64_t>(weights[m]), inverse_voxel_size);
+          if (ray.kind > tsdf::kClearingRay) own.kinds[ray.kind] = 0;  // counted by the kernel's atomic
+          own.rays = 1;
+          return own;
+        },
+        tsdf_detail::RayTally{}, tsdf_detail::AddTallies{});
+    tally = tsdf_detail::AddTallies{}(tally, rays_tally);
   }
   profile.mark("tally");
   return tally;
