@@ -1,7 +1,8 @@
 // Ray pieces (tsdf_kernels.h): cutting a ray into pieces walked by separate threads must visit
 // the same number of voxels as the whole ray, each once, as one 6-connected path from the ray's
 // first voxel to its last - for any ray, including long, axis-aligned, tiny and far-from-origin
-// ones where float rounding near the cuts is most likely to bite.
+// ones where float rounding near the cuts is most likely to bite. The CPU twin's one-pass piece
+// table must give the same cuts and counts as the per-piece functions the GPU uses.
 #include <gtest/gtest.h>
 
 #include <random>
@@ -48,6 +49,16 @@ void expect_valid_walk(const RaySegment& ray, float voxel_size) {
   size_t whole = 0;
   tsdf::traverse_ray(ray, inverse, [&](const Index3D&) { ++whole; });
   EXPECT_EQ(whole, voxels.size());
+  // The CPU twin's piece table (cuts computed once, in order) has the cuts and counts that the
+  // GPU computes piece by piece.
+  const uint32_t pieces = tsdf::ray_piece_count(tsdf::ray_voxel_count(ray, inverse));
+  uint32_t listed = 0;
+  tsdf::for_each_ray_piece(ray, pieces, inverse, [&](uint32_t k, const Index3D& first, uint32_t count) {
+    EXPECT_EQ(k, listed++);
+    EXPECT_EQ(first, tsdf::ray_cut_voxel(ray, k, pieces, inverse)) << "piece " << k;
+    EXPECT_EQ(count, tsdf::ray_piece_voxel_count(ray, k, pieces, inverse)) << "piece " << k;
+  });
+  EXPECT_EQ(listed, pieces);
 }
 
 RaySegment segment(const Vec3f& start, const Vec3f& end) {

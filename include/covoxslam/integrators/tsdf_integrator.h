@@ -15,8 +15,10 @@
 //   4. the blocks of all touched voxels are allocated in one BlockHashTable::activate batch;
 //   5. one weighted-average write per distinct voxel.
 // No atomics touch voxel data (only the merge's integer sums of points), and every float sum is
-// taken in an order fixed by the input, so results are deterministic run to run, and the CPU
-// twin runs the same code.
+// taken in an order fixed by the input, so results are deterministic run to run. The CPU twin
+// runs the same kernels except in three places, each with the same result and a comment saying
+// why: step 3's grouping, the piece table of step 2 (written one ray at a time, its cut voxels
+// kept for the traverse), and the merge's tally (a reduction instead of per-warp atomics).
 #include <cstdint>
 #include <memory>
 #include <vector>

@@ -334,6 +334,20 @@ COVOX_HD_INLINE uint32_t ray_piece_voxel_count(const RaySegment& ray, uint32_t k
                            ray_cut_voxel(ray, ends, k + 1, pieces, inverse_voxel_size), k + 1 == pieces);
 }
 
+// A ray's `pieces` pieces in order, each cut voxel computed once (it ends one piece and starts the
+// next): emit(k, first voxel of piece k, voxels of piece k). The same cuts and counts as
+// ray_cut_voxel and ray_piece_voxel_count give piece by piece (the CPU twin's piece table).
+template <class Emit>
+COVOX_HD_INLINE void for_each_ray_piece(const RaySegment& ray, uint32_t pieces, float inverse_voxel_size, Emit&& emit) {
+  const RayEndVoxels ends = ray_end_voxels(ray, inverse_voxel_size);
+  Index3D start = ends.first;
+  for (uint32_t k = 0; k < pieces; ++k) {
+    const Index3D end = ray_cut_voxel(ray, ends, k + 1, pieces, inverse_voxel_size);
+    emit(k, start, piece_voxel_count(start, end, k + 1 == pieces));
+    start = end;
+  }
+}
+
 // Piece k of `pieces`, from cut voxel `first` to cut voxel `last` (computed by the caller).
 template <class Visitor>
 COVOX_HD_INLINE void traverse_ray_piece(const RaySegment& ray, uint32_t k, uint32_t pieces, const Index3D& first,
