@@ -691,6 +691,7 @@ TEST(TsdfIntegratorParity, CpuAndCudaBuildTheSameMap) {
   COVOX_SKIP_WITHOUT_GPU();
   const AnalyticScene scene = make_scene(Shape::kBox);
   std::vector<std::vector<HostBlock>> snapshots;
+  std::vector<std::vector<IntegrationStats>> stats(2);
   for (Device device : {Device::kCpu, Device::kCuda}) {
     TsdfMap map(device, TsdfMapConfig{0.05f, 8, {}});
     TsdfIntegrator integrator(analytic_config(0.05f));
@@ -699,9 +700,24 @@ TEST(TsdfIntegratorParity, CpuAndCudaBuildTheSameMap) {
       std::vector<Rgb8> colors(points.size());
       for (size_t i = 0; i < colors.size(); ++i)
         colors[i] = Rgb8{uint8_t(i), uint8_t(i * 7), uint8_t(i * 13)};
-      integrator.integrate(map, points, colors, pose);
+      stats[device == Device::kCuda].push_back(integrator.integrate(map, points, colors, pose));
     }
     snapshots.push_back(map.snapshot());
+  }
+  // The counts, found by different code on each backend (the CPU groups by block, the GPU finds
+  // the dropped records' runs in its sorted keys), agree exactly.
+  ASSERT_EQ(stats[0].size(), stats[1].size());
+  for (size_t f = 0; f < stats[0].size(); ++f) {
+    const IntegrationStats& cpu = stats[0][f];
+    const IntegrationStats& gpu = stats[1][f];
+    EXPECT_EQ(cpu.surface_rays, gpu.surface_rays) << "frame " << f;
+    EXPECT_EQ(cpu.clearing_rays, gpu.clearing_rays) << "frame " << f;
+    EXPECT_EQ(cpu.dropped_total(), gpu.dropped_total()) << "frame " << f;
+    EXPECT_EQ(cpu.rays_cast, gpu.rays_cast) << "frame " << f;
+    EXPECT_EQ(cpu.voxel_updates, gpu.voxel_updates) << "frame " << f;
+    EXPECT_EQ(cpu.voxels_updated, gpu.voxels_updated) << "frame " << f;
+    EXPECT_EQ(cpu.voxels_out_of_range, gpu.voxels_out_of_range) << "frame " << f;
+    EXPECT_EQ(cpu.blocks_allocated, gpu.blocks_allocated) << "frame " << f;
   }
   ASSERT_EQ(snapshots[0].size(), snapshots[1].size());
   for (size_t b = 0; b < snapshots[0].size(); ++b) {

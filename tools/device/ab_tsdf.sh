@@ -17,7 +17,12 @@ configure() {  # source dir, build dir
   cmake -S "$1" -B "$2" -DCMAKE_BUILD_TYPE=Release -DCOVOX_CUDA_ARCHITECTURES=90 -DCOVOX_BUILD_ROS=OFF \
     -DCOVOX_DATA_DIR="$COVOX_DATA_DIR" > "$OUT/ab/configure_$(basename "$2").log" 2>&1
 }
-configure "$BASE_DIR" build_base && configure . build_gpu || { echo "configure failed"; exit 1; }
+# A machine kept warm between calls may hold a build_base configured from another base tree.
+if [ -f build_base/CMakeCache.txt ] &&
+   ! grep -q "^CMAKE_HOME_DIRECTORY:INTERNAL=$(cd "$BASE_DIR" && pwd)$" build_base/CMakeCache.txt; then
+  rm -rf build_base
+fi
+configure "$BASE_DIR" build_base && configure . build_gpu || { echo "configure failed"; tail -5 "$OUT"/ab/configure_*.log; exit 1; }
 jobs=$(( $(nproc) / 2 ))
 cmake --build build_base -j "$jobs" --target benchmark_tsdf > "$OUT/ab/build_base.log" 2>&1 &
 base_build=$!
