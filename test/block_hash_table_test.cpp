@@ -274,6 +274,98 @@ TEST(BlockKey, PacksAndUnpacksTheWholeRange) {
   EXPECT_EQ(pack_block_key(Index3D(kMaxBlockIndex + 1, 0, 0)), kInvalidBlockKey);
 }
 
+// activate_queued + finish_queued_activation against activate() on a twin table: the first
+// *count keys of a longer array (duplicates, keys already present, freed slots to reuse, one key
+// outside the key range). Which duplicate of a new key wins its insert (and so the order in which
+// new keys take slots) depends on thread timing, so the check is the contract: known keys keep
+// their slot, each new key is flagged once and all its occurrences share a slot, the new keys take
+// the same set of slots as activate() hands out, entries past the count get kInvalidSlot; other
+// calls are refused until the activation is finished.
+TEST_P(BlockHashTableTest, QueuedActivationMatchesActivate) {
+  const BlockHashTableConfig config{1 << 14, 0.75, true};
+  BlockHashTable queued(device(), config), direct(device(), config);
+  const auto first = random_blocks(3000, 3000, 5);
+  for (BlockHashTable* table : {&queued, &direct}) {
+    activate(*table, first);
+    erase(*table, std::vector<Index3D>(first.begin(), first.begin() + 500));  // slots to reuse
+  }
+  std::vector<Index3D> keys = random_blocks(6000, 2500, 6);
+  keys.insert(keys.begin() + 10, first.begin() + 100, first.begin() + 1100);  // erased and live keys
+  keys[20] = Index3D(kMaxBlockIndex + 1, 0, 0);                               // rejected
+  const int64_t count = 5200, bound = static_cast<int64_t>(keys.size());
+  const std::vector<Index3D> counted(keys.begin(), keys.begin() + count);
+  const std::vector<uint32_t> before = find(queued, counted);
+
+  auto keys_device = Buffer<Index3D>::from_host(device(), keys);
+  auto count_device = Buffer<uint32_t>::from_host(device(), {static_cast<uint32_t>(count)});
+  Buffer<uint32_t> slots(device(), bound), totals(device(), 2);
+  Buffer<uint8_t> is_new(device(), bound);
+  Stream stream(device());
+  ASSERT_TRUE(queued.activate_queued(keys_device.data(), count_device.data(), bound, slots.data(), is_new.data(),
+                                     totals.data(), stream));
+  EXPECT_THROW(activate(queued, counted), Error);
+  EXPECT_THROW(erase(queued, counted), Error);
+  stream.synchronize();
+  const std::vector<uint32_t> host_totals = totals.to_host();
+  const ActivateResult result = queued.finish_queued_activation(host_totals[0], host_totals[1], stream);
+  const ActivateOutput expected = activate(direct, counted);
+  EXPECT_EQ(result.num_new, expected.result.num_new);
+  EXPECT_EQ(result.num_out_of_range, 1);
+  EXPECT_EQ(expected.result.num_out_of_range, 1);
+  EXPECT_EQ(result.num_failed_full, 0);
+
+  const std::vector<uint32_t> host_slots = slots.to_host();
+  const std::vector<uint8_t> host_is_new = is_new.to_host();
+  std::unordered_map<Index3D, uint32_t, IndexHash> new_slots;
+  int64_t flagged = 0;
+  for (int64_t i = 0; i < count; ++i) {
+    if (i == 20) {
+      ASSERT_EQ(host_slots[i], kInvalidSlot);
+      continue;
+    }
+    if (before[i] != kInvalidSlot) {
+      ASSERT_EQ(host_slots[i], before[i]) << "a known key changed its slot, key " << i;
+      ASSERT_EQ(host_is_new[i], 0) << "key " << i;
+      continue;
+    }
+    const auto [it, first_time] = new_slots.emplace(keys[i], host_slots[i]);
+    if (!first_time) ASSERT_EQ(host_slots[i], it->second) << "duplicates got different slots, key " << i;
+    flagged += host_is_new[i];
+  }
+  EXPECT_EQ(flagged, static_cast<int64_t>(new_slots.size()));
+  EXPECT_EQ(result.num_new, static_cast<int64_t>(new_slots.size()));
+  for (int64_t i = count; i < bound; ++i) {
+    ASSERT_EQ(host_slots[i], kInvalidSlot) << "key " << i;
+    ASSERT_EQ(host_is_new[i], 0) << "key " << i;
+  }
+  std::set<uint32_t> queued_new, direct_new;
+  for (const auto& entry : new_slots) queued_new.insert(entry.second);
+  for (int64_t i = 0; i < count; ++i) {
+    if (expected.is_new[i]) direct_new.insert(expected.slots[i]);
+  }
+  EXPECT_EQ(queued_new, direct_new);
+  EXPECT_EQ(queued.size(), direct.size());
+  EXPECT_EQ(queued.slot_count(), direct.slot_count());
+  // Both tables go on alike (distinct keys take slots in input order).
+  const auto more = random_blocks(2000, 2000, 7, 100000);
+  EXPECT_EQ(activate(queued, more).slots, activate(direct, more).slots);
+}
+
+TEST_P(BlockHashTableTest, QueuedActivationDeclinesWhenTheTableMightGrow) {
+  BlockHashTable table(device(), BlockHashTableConfig{1024, 0.75, true});
+  const auto keys = random_blocks(1000, 1000, 8);
+  auto keys_device = Buffer<Index3D>::from_host(device(), keys);
+  auto count_device = Buffer<uint32_t>::from_host(device(), {10u});
+  Buffer<uint32_t> slots(device(), keys.size()), totals(device(), 2);
+  Stream stream(device());
+  // 1000 possible new keys do not fit under 0.75 x 1024: the caller must take activate().
+  EXPECT_FALSE(table.activate_queued(keys_device.data(), count_device.data(), 1000, slots.data(), nullptr,
+                                     totals.data(), stream));
+  EXPECT_EQ(table.size(), 0);
+  EXPECT_NO_THROW(activate(table, keys));  // nothing was left queued
+  EXPECT_EQ(table.size(), 1000);
+}
+
 TEST(BlockHashTableConfigCheck, RejectsBadParameters) {
   EXPECT_THROW(BlockHashTable(Device::kCpu, BlockHashTableConfig{1024, 1.5, true}), Error);
   EXPECT_THROW(BlockHashTable(Device::kCpu, BlockHashTableConfig{0, 0.5, true}), Error);

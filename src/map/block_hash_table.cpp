@@ -40,9 +40,32 @@ ActivateResult BlockHashTable::activate(const Index3D* keys, int64_t count, uint
 
 ActivateResult BlockHashTable::activate(const Index3D* keys, int64_t count, uint32_t* slots_out,
                                         uint8_t* is_new_out, const Stream& stream) {
+  require_nothing_queued("activate");
   return dispatch(state_.device, [&](auto backend) {
     return hash_table_activate(backend, state_, keys, count, slots_out, is_new_out, stream);
   });
+}
+
+bool BlockHashTable::activate_queued(const Index3D* keys, const uint32_t* count_on_device, int64_t count_bound,
+                                     uint32_t* slots_out, uint8_t* is_new_out, uint32_t* totals_out,
+                                     const Stream& stream) {
+  return dispatch(state_.device, [&](auto backend) {
+    return hash_table_activate_queued(backend, state_, keys, count_on_device, count_bound, slots_out, is_new_out,
+                                      totals_out, stream);
+  });
+}
+
+ActivateResult BlockHashTable::finish_queued_activation(uint32_t num_new, uint32_t num_rejected, const Stream& stream) {
+  return dispatch(state_.device, [&](auto backend) {
+    return hash_table_finish_queued(backend, state_, num_new, num_rejected, stream);
+  });
+}
+
+void BlockHashTable::require_nothing_queued(const char* operation) const {
+  if (state_.pending_count >= 0) {
+    throw Error(std::string("BlockHashTable::") + operation +
+                ": an activation is queued; call finish_queued_activation() first");
+  }
 }
 
 int64_t BlockHashTable::find(const Index3D* keys, int64_t count, uint32_t* slots_out) const {
@@ -63,6 +86,7 @@ int64_t BlockHashTable::erase(const Index3D* keys, int64_t count) {
 }
 
 int64_t BlockHashTable::erase(const Index3D* keys, int64_t count, const Stream& stream) {
+  require_nothing_queued("erase");
   return dispatch(state_.device, [&](auto backend) {
     return hash_table_erase(backend, state_, keys, count, stream);
   });
@@ -75,12 +99,14 @@ void BlockHashTable::reserve(int64_t key_count) {
 }
 
 void BlockHashTable::rehash(uint64_t new_bucket_count) {
+  require_nothing_queued("rehash");
   dispatch(state_.device, [&](auto backend) {
     hash_table_rehash(backend, state_, new_bucket_count, default_stream());
   });
 }
 
 void BlockHashTable::clear() {
+  require_nothing_queued("clear");
   state_.keys.fill_bytes(0xff, default_stream_);
   default_stream_.synchronize();
   state_.free_count = 0;
@@ -90,6 +116,7 @@ void BlockHashTable::clear() {
 }
 
 void BlockHashTable::export_entries(Buffer<Index3D>* keys, Buffer<uint32_t>* slots) const {
+  require_nothing_queued("export_entries");
   auto& state = const_cast<BlockHashTableState&>(state_);  // scratch only
   dispatch(state_.device, [&](auto backend) {
     hash_table_export(backend, state, keys, slots, default_stream());

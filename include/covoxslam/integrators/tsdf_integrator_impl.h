@@ -475,17 +475,33 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
     }
     counts_on_device[4] = block_ranks[counts_on_device[3]];
   });
-  const std::array<uint32_t, 5> counts = tsdf_detail::read_back<5>(scratch.readback, stream);
+  // On the GPU the blocks' activation is queued before that read-back, for the blocks counted on
+  // the device (at most one per flagged voxel and per block of the frame's box), and its totals
+  // come back with the frame's counts: one wait instead of two. When the table might have to grow
+  // it needs the exact count first (activate_queued says no), and on the CPU waiting costs nothing.
+  bool queued = false;
+  if (!read_back_is_free) {
+    const int64_t box_blocks = static_cast<int64_t>(codec.size_x) * codec.size_y * codec.size_z;
+    const int64_t block_bound = std::min<int64_t>(flag_bound, box_blocks);
+    scratch.slots.resize_discard(block_bound);
+    scratch.is_new.resize_discard(block_bound);
+    queued = map.blocks().activate_queued(block_indices, counts_on_device + 4, block_bound, scratch.slots.data(),
+                                          scratch.is_new.data(), counts_on_device + 5, stream);
+  }
+  const std::array<uint32_t, 7> counts = tsdf_detail::read_back<7>(scratch.readback, stream);
   stats.voxels_out_of_range = counts[2];
   const int64_t voxel_count = counts[3];
   const int64_t block_count = counts[4];
   stats.voxels_updated = voxel_count;
-  if (voxel_count == 0) return;
-  scratch.slots.resize_discard(block_count);
-  scratch.is_new.resize_discard(block_count);
   profile.mark("4a distinct blocks");
-  const ActivateResult activation =
-      map.blocks().activate(block_indices, block_count, scratch.slots.data(), scratch.is_new.data(), stream);
+  ActivateResult activation;
+  if (queued) activation = map.blocks().finish_queued_activation(counts[5], counts[6], stream);
+  if (voxel_count == 0) return;
+  if (!queued) {
+    scratch.slots.resize_discard(block_count);
+    scratch.is_new.resize_discard(block_count);
+    activation = map.blocks().activate(block_indices, block_count, scratch.slots.data(), scratch.is_new.data(), stream);
+  }
   stats.blocks_allocated = activation.num_new;
   profile.mark("4b hash activate");
   map.ensure_pool_capacity(stream);

@@ -38,6 +38,18 @@ class BlockHashTable {
   ActivateResult activate(const Index3D* keys, int64_t count, uint32_t* slots_out,
                           uint8_t* is_new_out, const Stream& stream);
 
+  // activate() without waiting for the device: for a caller that reads figures back anyway and
+  // can take the table's with them (one wait instead of two). The keys are the first
+  // *count_on_device (device memory) of `keys`, at most count_bound; slots_out and is_new_out hold
+  // count_bound entries, those past the count get kInvalidSlot and 0. totals_out (device memory)
+  // receives the number of new keys and of rejected keys once the queued work has run; pass them
+  // to finish_queued_activation() before any other call on this table. Returns false, queuing
+  // nothing, when the table might have to grow for count_bound new keys (growth needs the exact
+  // count): call activate() then.
+  bool activate_queued(const Index3D* keys, const uint32_t* count_on_device, int64_t count_bound,
+                       uint32_t* slots_out, uint8_t* is_new_out, uint32_t* totals_out, const Stream& stream);
+  ActivateResult finish_queued_activation(uint32_t num_new, uint32_t num_rejected, const Stream& stream);
+
   // slots_out[i] = slot of keys[i] or kInvalidSlot. Returns how many were found.
   int64_t find(const Index3D* keys, int64_t count, uint32_t* slots_out) const;
   int64_t find(const Index3D* keys, int64_t count, uint32_t* slots_out, const Stream& stream) const;
@@ -77,6 +89,8 @@ class BlockHashTable {
 
  private:
   const Stream& default_stream() const { return default_stream_; }
+  // Throws covox::Error while an activate_queued() awaits its finish.
+  void require_nothing_queued(const char* operation) const;
 
   BlockHashTableState state_;
   Stream default_stream_;

@@ -112,46 +112,53 @@ void hash_table_grow_for_batch(Backend backend, BlockHashTableState& state, cons
   hash_table_rehash(backend, state, buckets, stream);
 }
 
-template <class Backend>
-ActivateResult hash_table_activate(Backend backend, BlockHashTableState& state,
-                                   const Index3D* keys, int64_t count, uint32_t* slots_out,
-                                   uint8_t* is_new_out, const Stream& stream) {
-  ActivateResult result;
-  if (count <= 0) return result;
-  if (state.config.allow_growth) hash_table_grow_for_batch(backend, state, keys, count, stream);
+namespace hash_table_detail {
 
+// Steps 1 and 2 for the first `count` keys, or, when `count_on_device` is given, for the first
+// *count_on_device of them (`count` is then a bound; the keys past it get no bucket). Keys that
+// could not be placed (outside the key range, table full) are counted in new_flags[count], which
+// the scan carries into ranks[count + 1]: the new keys' and the failures' totals lie at ranks[count]
+// and ranks[count + 1].
+template <class Backend>
+void activate_insert_and_rank(Backend backend, BlockHashTableState& state, const Index3D* keys, int64_t count,
+                              const uint32_t* count_on_device, const Stream& stream) {
   state.scratch_buckets.resize_discard(static_cast<size_t>(count));
   state.scratch_flags.resize_discard(static_cast<size_t>(count) + 2);
+  state.scratch_ranks.resize_discard(static_cast<size_t>(count) + 2);
   uint64_t* buckets = state.scratch_buckets.data();
   uint32_t* new_flags = state.scratch_flags.data();
   const BlockHashTableView table = state.view();
-
-  // 1. insert. Keys that could not be placed (outside the key range, table full) are counted in
-  //    new_flags[count], which the scan below then carries into ranks[count + 1]: the number of
-  //    new keys and of failures come back in one copy.
   set_bytes(new_flags + count, state.scratch_flags.device(), 0, 2 * sizeof(uint32_t), stream);
   parallel_for(backend, stream, count, [=] COVOX_HD(int64_t i) {
+    if (count_on_device && i >= *count_on_device) {
+      buckets[i] = kNoBucket;
+      new_flags[i] = 0u;
+      return;
+    }
     const uint64_t key = pack_block_key(keys[i]);
     bool inserted = false;
     buckets[i] = key == kInvalidBlockKey ? kNoBucket : table.insert(key, &inserted);
     new_flags[i] = inserted ? 1u : 0u;
     if (buckets[i] >= kTableFullBucket) atomic_add(&new_flags[count], 1u);
   });
+  exclusive_scan(backend, stream, static_cast<const uint32_t*>(new_flags), count + 2, state.scratch_ranks.data());
+}
 
-  // 2. rank the new keys
-  state.scratch_ranks.resize_discard(static_cast<size_t>(count) + 2);
-  exclusive_scan(backend, stream, new_flags, count + 2, state.scratch_ranks.data());
-  uint32_t totals[2];
-  copy_bytes(totals, Device::kCpu, state.scratch_ranks.data() + count, state.scratch_ranks.device(), sizeof(totals),
-             stream);
-  const int64_t num_new = totals[0];
-  const int64_t failed = static_cast<int64_t>(totals[1]) - totals[0];
-  // 3. assign slots: reuse freed ones first (top of the stack), then never-used ones
+// Steps 3 and 4. The assignment reads each key's flag, so it may run without the host knowing
+// whether any key is new (`assign`: run it at all). `totals_out` (device memory, optional) gets the
+// new keys' and the failures' totals, copied by the gather's first thread.
+template <class Backend>
+void activate_assign_and_gather(Backend backend, BlockHashTableState& state, int64_t count, bool assign,
+                                uint32_t* slots_out, uint8_t* is_new_out, uint32_t* totals_out, const Stream& stream) {
+  const uint64_t* buckets = state.scratch_buckets.data();
+  const uint32_t* new_flags = state.scratch_flags.data();
   const uint32_t* ranks = state.scratch_ranks.data();
+  const BlockHashTableView table = state.view();
+  // reuse freed slots first (top of the stack), then never-used ones
   const uint32_t* free_stack = state.free_slots.data();
   const uint32_t free_count = state.free_count;
   const uint32_t next_unused = state.next_unused_slot;
-  if (num_new > 0) {
+  if (assign) {
     parallel_for(backend, stream, count, [=] COVOX_HD(int64_t i) {
       if (!new_flags[i]) return;
       const uint32_t rank = ranks[i];
@@ -159,14 +166,23 @@ ActivateResult hash_table_activate(Backend backend, BlockHashTableState& state,
           rank < free_count ? free_stack[free_count - 1 - rank] : next_unused + (rank - free_count);
     });
   }
-  // 4. gather every key's slot
   parallel_for(backend, stream, count, [=] COVOX_HD(int64_t i) {
+    if (totals_out && i == 0) {
+      totals_out[0] = ranks[count];
+      totals_out[1] = ranks[count + 1] - ranks[count];
+    }
     const uint64_t bucket = buckets[i];
     slots_out[i] = bucket < table.bucket_count ? table.slots[bucket] : kInvalidSlot;
     if (is_new_out) is_new_out[i] = static_cast<uint8_t>(new_flags[i]);
   });
+}
 
-  const uint32_t reused = static_cast<uint32_t>(std::min<int64_t>(num_new, free_count));
+// The host's part once the totals are known: slot bookkeeping, the failures' kinds and warnings.
+template <class Backend>
+ActivateResult activate_finish(Backend backend, BlockHashTableState& state, int64_t count, int64_t num_new,
+                               int64_t failed, const Stream& stream) {
+  ActivateResult result;
+  const uint32_t reused = static_cast<uint32_t>(std::min<int64_t>(num_new, state.free_count));
   state.free_count -= reused;
   state.next_unused_slot += static_cast<uint32_t>(num_new - reused);
   state.live_count += num_new;
@@ -175,9 +191,8 @@ ActivateResult hash_table_activate(Backend backend, BlockHashTableState& state,
 
   // Failures are rare: the detailed counts only when there were any.
   if (failed > 0) {
-    result.num_failed_full = count_if(backend, stream, buckets, count, [] COVOX_HD(uint64_t bucket) {
-      return bucket == kTableFullBucket;
-    });
+    result.num_failed_full = count_if(backend, stream, state.scratch_buckets.data(), count,
+                                      [] COVOX_HD(uint64_t bucket) { return bucket == kTableFullBucket; });
     result.num_out_of_range = failed - result.num_failed_full;
     state.total_out_of_range += result.num_out_of_range;
     state.total_failed_full += result.num_failed_full;
@@ -195,6 +210,50 @@ ActivateResult hash_table_activate(Backend backend, BlockHashTableState& state,
     }
   }
   return result;
+}
+
+}  // namespace hash_table_detail
+
+template <class Backend>
+ActivateResult hash_table_activate(Backend backend, BlockHashTableState& state,
+                                   const Index3D* keys, int64_t count, uint32_t* slots_out,
+                                   uint8_t* is_new_out, const Stream& stream) {
+  if (count <= 0) return ActivateResult{};
+  if (state.config.allow_growth) hash_table_grow_for_batch(backend, state, keys, count, stream);
+  hash_table_detail::activate_insert_and_rank(backend, state, keys, count, nullptr, stream);
+  uint32_t totals[2];
+  copy_bytes(totals, Device::kCpu, state.scratch_ranks.data() + count, state.scratch_ranks.device(), sizeof(totals),
+             stream);
+  const int64_t num_new = totals[0];
+  const int64_t failed = static_cast<int64_t>(totals[1]) - totals[0];
+  hash_table_detail::activate_assign_and_gather(backend, state, count, num_new > 0, slots_out, is_new_out, nullptr,
+                                                stream);
+  return hash_table_detail::activate_finish(backend, state, count, num_new, failed, stream);
+}
+
+template <class Backend>
+bool hash_table_activate_queued(Backend backend, BlockHashTableState& state, const Index3D* keys,
+                                const uint32_t* count_on_device, int64_t count_bound, uint32_t* slots_out,
+                                uint8_t* is_new_out, uint32_t* totals_out, const Stream& stream) {
+  if (state.pending_count >= 0) throw Error("BlockHashTable::activate_queued: the previous one is not finished");
+  if (count_bound <= 0) return false;
+  // Growth needs the exact count of new keys: the caller takes the synchronous path then.
+  const double limit = state.config.max_load_factor * static_cast<double>(state.bucket_count());
+  if (state.config.allow_growth && static_cast<double>(state.occupied_count + count_bound) > limit) return false;
+  hash_table_detail::activate_insert_and_rank(backend, state, keys, count_bound, count_on_device, stream);
+  hash_table_detail::activate_assign_and_gather(backend, state, count_bound, true, slots_out, is_new_out, totals_out,
+                                                stream);
+  state.pending_count = count_bound;
+  return true;
+}
+
+template <class Backend>
+ActivateResult hash_table_finish_queued(Backend backend, BlockHashTableState& state, uint32_t num_new,
+                                        uint32_t failed, const Stream& stream) {
+  if (state.pending_count < 0) throw Error("BlockHashTable::finish_queued_activation: no activation is queued");
+  const int64_t count = state.pending_count;
+  state.pending_count = -1;
+  return hash_table_detail::activate_finish(backend, state, count, num_new, failed, stream);
 }
 
 template <class Backend>
@@ -281,6 +340,11 @@ void hash_table_export(Backend backend, BlockHashTableState& state, Buffer<Index
   template ActivateResult hash_table_activate<Backend>(Backend, BlockHashTableState&,            \
                                                        const Index3D*, int64_t, uint32_t*,       \
                                                        uint8_t*, const Stream&);                 \
+  template bool hash_table_activate_queued<Backend>(Backend, BlockHashTableState&, const Index3D*, \
+                                                   const uint32_t*, int64_t, uint32_t*, uint8_t*,   \
+                                                   uint32_t*, const Stream&);                       \
+  template ActivateResult hash_table_finish_queued<Backend>(Backend, BlockHashTableState&, uint32_t,\
+                                                            uint32_t, const Stream&);               \
   template int64_t hash_table_find<Backend>(Backend, BlockHashTableState&, const Index3D*,       \
                                             int64_t, uint32_t*, const Stream&);                  \
   template int64_t hash_table_erase<Backend>(Backend, BlockHashTableState&, const Index3D*,      \
