@@ -16,9 +16,12 @@
 //   5. one weighted-average write per distinct voxel.
 // No atomics touch voxel data (only the merge's integer sums of points), and every float sum is
 // taken in an order fixed by the input, so results are deterministic run to run. The CPU twin
-// runs the same kernels except in three places, each with the same result and a comment saying
-// why: step 3's grouping, the piece table of step 2 (written one ray at a time, its cut voxels
-// kept for the traverse), and the merge's tally (a reduction instead of per-warp atomics).
+// runs the same kernels except in four places, each with the same result and a comment saying
+// why: step 3's grouping (with it the counts of dropped records, which the GPU finds in its
+// sorted keys), the piece table of step 2 (written one ray at a time, its cut voxels kept for the
+// traverse; on the GPU one thread per piece), the merge's tally (a reduction instead of per-warp
+// atomics), and step 4's activation (queued before the count read-back on the GPU, so that one
+// wait serves both; after it on the CPU, where a read-back costs nothing).
 #include <cstdint>
 #include <memory>
 #include <vector>

@@ -156,7 +156,8 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
   const Vec3f* points = cloud.points;
   const bool has_color = colors || intensities;
   // Points of one voxel lie within 2^31 merge units of each other (per axis) when the voxel's
-  // diagonal is under 2 m: their coordinates sum in two warp reductions each instead of four.
+  // diagonal is under about 1.8 m (voxels under 1 m): their coordinates sum in two warp reductions
+  // each instead of four (warp_sum_clustered).
   const bool clustered = ray_parameters.voxel_size_m * 1.7320508f * tsdf::kMergeUnitsPerMetre < 2.0e9f;
   // Every point: its ray, its bundle (claimed or found in the table), its sums added. A warp's
   // points of one bundle add their sums together, one atomic per field (warp_reduce.h): a 5 cm
@@ -690,7 +691,6 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
     // first pieces (a few kilobytes, cached), writes its table entry and counts its own voxels;
     // the traverse computes the cuts again. (A loop per ray listing its pieces, then a kernel
     // per piece: 15 us more per 7-Scenes 5 cm frame, H100, 2026-11-24.)
-    const int64_t rays_listed = ray_count;
     parallel_for(backend, stream, piece_bound, [=] COVOX_HD(int64_t p) {
       if (p >= *piece_total) {
         piece_voxels[p] = 0;
@@ -698,7 +698,7 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
       }
       const uint32_t piece = static_cast<uint32_t>(p);
       // the last ray whose first piece is at or before p (rays without pieces share the next one's)
-      const uint32_t i = static_cast<uint32_t>(lower_bound_index(first_piece, rays_listed, piece + 1u) - 1);
+      const uint32_t i = static_cast<uint32_t>(lower_bound_index(first_piece, ray_count, piece + 1u) - 1);
       const uint32_t index = piece - first_piece[i];
       const uint32_t count = ray_pieces[i];
       pieces[p] = tsdf::RayPiece{i, index, count};
