@@ -12,6 +12,7 @@
 #include "covoxslam/core/buffer.h"
 #include "covoxslam/core/device_algorithms.h"
 #include "covoxslam/core/error.h"
+#include "covoxslam/core/run_sums.h"
 #include "support/test_devices.h"
 
 namespace covox {
@@ -136,6 +137,68 @@ TEST_P(CorePrimitivesTest, ReduceByKeySumsEachRun) {
     ASSERT_EQ(out_keys[r], expected_keys[r]);
     // Quarter-integers sum exactly in float at these magnitudes, whatever the order.
     ASSERT_EQ(out_sums[r], static_cast<float>(expected_sums[r])) << r;
+  }
+}
+
+// Runs of chosen lengths around consume_run_sums' tile size: runs of one, runs ending or
+// starting exactly at a tile edge, runs crossing one edge, runs passing through several whole
+// tiles, and a last tile cut short.
+std::vector<uint64_t> keys_with_runs(const std::vector<int64_t>& lengths) {
+  std::vector<uint64_t> keys;
+  uint64_t key = 7;
+  for (int64_t length : lengths) {
+    keys.insert(keys.end(), static_cast<size_t>(length), key);
+    key += 1 + key % 3;  // ascending, with gaps
+  }
+  return keys;
+}
+
+TEST_P(CorePrimitivesTest, RunSumsHandEachRunOverOnceWithItsSum) {
+  const int64_t tile = kRunSumTile;
+  const std::vector<std::vector<int64_t>> cases = {
+      {1, 1, 1},                                       // one short tile
+      {tile, tile, 1},                                 // runs filling tiles exactly
+      {tile - 1, 2, tile - 1, 1, 1},                   // runs crossing one edge
+      {5, 5 * tile, 3, 2 * tile, 1},                   // runs passing through whole tiles
+      {tile - 24, 24, tile, 4 * tile, 3, 77},          // runs ending at edges, runs starting there
+      {2, 1, 3, 1, 1, tile / 2, 1, 1, 1, 9 * tile, 1}  // mixed
+  };
+  std::mt19937 random(11);
+  std::vector<int64_t> random_lengths;
+  std::geometric_distribution<int64_t> length(0.02);
+  for (int64_t total = 0; total < 200000;) {
+    random_lengths.push_back(1 + length(random));
+    total += random_lengths.back();
+  }
+  std::vector<std::vector<int64_t>> all_cases = cases;
+  all_cases.push_back(random_lengths);
+  for (size_t c = 0; c < all_cases.size(); ++c) {
+    const std::vector<uint64_t> keys = keys_with_runs(all_cases[c]);
+    const int64_t count = static_cast<int64_t>(keys.size());
+    std::vector<double> values(keys.size());
+    for (size_t i = 0; i < values.size(); ++i) values[i] = static_cast<double>((i * 7919) % 1000);  // exact sums
+    std::vector<double> expected(keys.size(), -1.0);
+    std::vector<uint32_t> expected_calls(keys.size(), 0u);
+    for (int64_t i = 0, first = 0; i < count; ++i) {
+      if (i == 0 || keys[i] != keys[i - 1]) {
+        first = i;
+        expected[first] = 0.0;
+        expected_calls[first] = 1u;
+      }
+      expected[first] += values[i];
+    }
+    auto keys_device = Buffer<uint64_t>::from_host(device(), keys);
+    auto values_device = Buffer<double>::from_host(device(), values);
+    auto sums = Buffer<double>::from_host(device(), std::vector<double>(keys.size(), -1.0));
+    auto calls = Buffer<uint32_t>::from_host(device(), std::vector<uint32_t>(keys.size(), 0u));
+    algorithms::sum_runs_at_first(device(), Stream(device()), keys_device.data(), values_device.data(), count,
+                                  sums.data(), calls.data());
+    const auto got = sums.to_host();
+    const auto got_calls = calls.to_host();
+    for (int64_t i = 0; i < count; ++i) {
+      ASSERT_EQ(got_calls[i], expected_calls[i]) << "case " << c << ", record " << i;
+      ASSERT_EQ(got[i], expected[i]) << "case " << c << ", record " << i;
+    }
   }
 }
 

@@ -43,6 +43,10 @@ void atomic_histogram(Device device, const Stream& stream, const uint32_t* bins,
                       uint32_t* histogram) {
   COVOX_DISPATCH_PRIMITIVE(atomic_histogram(stream, bins, count, histogram));
 }
+void sum_runs_at_first(Device device, const Stream& stream, const uint64_t* keys, const double* values,
+                       int64_t count, double* sums, uint32_t* calls) {
+  COVOX_DISPATCH_PRIMITIVE(sum_runs_at_first(stream, keys, values, count, sums, calls));
+}
 void atomic_claim_min(Device device, const Stream& stream, const uint32_t* targets, int64_t count,
                       uint32_t* owners) {
   COVOX_DISPATCH_PRIMITIVE(atomic_claim_min(stream, targets, count, owners));

@@ -65,6 +65,32 @@ void* allocate_bytes(Device device, size_t bytes) {
   return pointer;
 }
 
+void* allocate_readback_bytes(Device source, size_t bytes) {
+  if (source == Device::kCuda) {
+#if COVOX_WITH_CUDA
+    void* pointer = nullptr;
+    if (cudaMallocHost(&pointer, bytes == 0 ? 1 : bytes) != cudaSuccess) {
+      throw OutOfMemoryError("page-locked host allocation of " + mebibytes(bytes) + " failed");
+    }
+    return pointer;
+#else
+    throw NotAvailableError("allocate_readback_bytes: CUDA memory read back in a build without CUDA");
+#endif
+  }
+  return allocate_bytes(Device::kCpu, bytes);
+}
+
+void free_readback_bytes(Device source, void* pointer) noexcept {
+  if (!pointer) return;
+  if (source == Device::kCuda) {
+#if COVOX_WITH_CUDA
+    cudaFreeHost(pointer);
+#endif
+    return;
+  }
+  free_bytes(Device::kCpu, pointer);
+}
+
 void free_bytes(Device device, void* pointer) noexcept {
   if (!pointer) return;
   if (device == Device::kCuda) {

@@ -6,6 +6,7 @@
 #include "covoxslam/core/device_algorithms_primitives.h"
 #include "covoxslam/core/parallel.h"
 #include "covoxslam/core/radix_sort.h"
+#include "covoxslam/core/run_sums.h"
 
 namespace covox {
 namespace algorithms {
@@ -34,6 +35,19 @@ int64_t Primitives<Backend>::reduce_by_key_sum(const Stream& stream, const uint6
     return covox::reduce_by_key(Backend{}, stream, keys, values, count, keys_out, values_out,
                                 thrust::plus<float>());
   }
+template <class Backend>
+void Primitives<Backend>::sum_runs_at_first(const Stream& stream, const uint64_t* keys, const double* values,
+                                            int64_t count, double* sums, uint32_t* calls) {
+  Buffer<uint64_t> scratch(Backend::kDevice);
+  consume_run_sums<double>(
+      Backend{}, stream, keys, count, [=] COVOX_HD(int64_t j) { return values[j]; }, thrust::plus<double>(),
+      [=] COVOX_HD(int64_t first, double sum) {
+        sums[first] = sum;
+        atomic_add(calls + first, 1u);
+      },
+      scratch);
+  stream.synchronize();  // the scratch goes out of scope
+}
 template <class Backend>
 int64_t Primitives<Backend>::unique(const Stream& stream, uint64_t* data, int64_t count) {
     return covox::unique(Backend{}, stream, data, count);

@@ -227,38 +227,6 @@ Result transform_reduce(CudaBackend, const Stream& stream, InputIterator data, i
 }
 #endif
 
-// Reduces each run of equal consecutive keys (compared with ==, read through any random-access
-// iterator) with `op`, like reduce_runs, but leaves the number of runs in device memory at
-// `run_count` instead of reading it back, so that a caller can fetch it together with other
-// figures in one copy. Needs count < 2^31.
-template <class KeyIterator, class Key, class ValueIterator, class Value, class ReduceOp>
-void reduce_runs_counted_on_device(CpuBackend backend, const Stream& stream, KeyIterator keys, ValueIterator values,
-                                   int64_t count, Key* keys_out, Value* values_out, ReduceOp op, uint32_t* run_count) {
-  *run_count = static_cast<uint32_t>(
-      reduce_runs(backend, stream, keys, values, count, keys_out, values_out, thrust::equal_to<Key>(), op));
-}
-#if defined(__CUDACC__)
-template <class KeyIterator, class Key, class ValueIterator, class Value, class ReduceOp>
-void reduce_runs_counted_on_device(CudaBackend, const Stream& stream, KeyIterator keys, ValueIterator values,
-                                   int64_t count, Key* keys_out, Value* values_out, ReduceOp op, uint32_t* run_count) {
-  const auto cuda_stream = static_cast<cudaStream_t>(stream.native_handle());
-  if (count <= 0) {
-    cuda_check(cudaMemsetAsync(run_count, 0, sizeof(uint32_t), cuda_stream), "reduce_runs (empty)");
-    return;
-  }
-  size_t temporary_bytes = 0;
-  cuda_check(cub::DeviceReduce::ReduceByKey(nullptr, temporary_bytes, keys, keys_out, values, values_out, run_count, op,
-                                            static_cast<int>(count), cuda_stream),
-             "reduce_runs (sizing)");
-  CudaTemporaryAllocator allocator{stream.native_handle()};
-  char* temporary = allocator.allocate(static_cast<std::ptrdiff_t>(temporary_bytes));
-  cuda_check(cub::DeviceReduce::ReduceByKey(temporary, temporary_bytes, keys, keys_out, values, values_out, run_count,
-                                            op, static_cast<int>(count), cuda_stream),
-             "reduce_runs");
-  allocator.deallocate(temporary, temporary_bytes);
-}
-#endif
-
 template <class Backend, class T, class Predicate>
 int64_t count_if(Backend backend, const Stream& stream, const T* data, int64_t count,
                  Predicate predicate) {

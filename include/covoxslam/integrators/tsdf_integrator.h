@@ -7,21 +7,22 @@
 //      exclusive scan gives every ray its range in one update array;
 //   2. each ray walks its voxels (Amanatides-Woo, in pieces of ~8 voxels) and writes one visit
 //      record per voxel: the voxel's key with its (weighted sdf, weight) update, or, in a frame
-//      with colour, with the ray's index, from which the reduction recomputes the update and its
+//      with colour, with the ray's index, from which step 5 recomputes the update and its
 //      weighted colour (tsdf_traverse.h: 4 bytes through the sort instead of 32);
-//   3. records are sorted by voxel key and merged per voxel with a segmented reduce (the CPU
-//      twin groups them by block and sums each block's in a dense array instead, with the same
-//      result: tsdf_group_updates_cpu.h);
+//   3. records are sorted by voxel key (the CPU twin groups them by block and sums each block's
+//      in a dense array instead, leaving one merged record per voxel: tsdf_group_updates_cpu.h);
 //   4. the blocks of all touched voxels are allocated in one BlockHashTable::activate batch;
-//   5. one weighted-average write per distinct voxel.
+//   5. each voxel's records are summed (a segmented reduction in tiles, core/run_sums.h) and
+//      the sum goes straight into one weighted-average write per distinct voxel.
 // No atomics touch voxel data (only the merge's integer sums of points), and every float sum is
 // taken in an order fixed by the input, so results are deterministic run to run. The CPU twin
-// runs the same kernels except in four places, each with the same result and a comment saying
-// why: step 3's grouping (with it the counts of dropped records, which the GPU finds in its
-// sorted keys), the piece table of step 2 (written one ray at a time, its cut voxels kept for the
-// traverse; on the GPU one thread per piece), the merge's tally (a reduction instead of per-warp
-// atomics), and step 4's activation (queued before the count read-back on the GPU, so that one
-// wait serves both; after it on the CPU, where a read-back costs nothing).
+// runs the same kernels except in four places, each with the same result (step 3's sums within
+// float rounding: the GPU adds a long run's pieces as a tree) and a comment saying why: step 3's
+// grouping (with it the counts of dropped records, which the GPU finds in its sorted keys), the
+// piece table of step 2 (written one ray at a time, its cut voxels kept for the traverse; on the
+// GPU one thread per piece), the merge's tally (a reduction instead of per-warp atomics), and
+// step 4's activation (queued before the count read-back on the GPU, so that one wait serves
+// both; after it on the CPU, where a read-back costs nothing).
 #include <cstdint>
 #include <memory>
 #include <vector>

@@ -10,7 +10,6 @@
 
 #include <thrust/functional.h>
 #include <thrust/iterator/counting_iterator.h>
-#include <thrust/iterator/transform_iterator.h>
 #include <thrust/reduce.h>
 
 #include "covoxslam/core/eigen_conversions.h"
@@ -18,6 +17,7 @@
 #include "covoxslam/core/parallel.h"
 #include "covoxslam/core/memory.h"
 #include "covoxslam/core/radix_sort.h"
+#include "covoxslam/core/run_sums.h"
 #include "covoxslam/core/sorted_search.h"
 #include "covoxslam/core/stage_profiler.h"
 #include "covoxslam/core/warp_reduce.h"
@@ -82,6 +82,13 @@ struct AddTallies {
   }
 };
 
+// Step 5's terms when the records are sums already (no colour, or the CPU twin's merged voxels).
+template <class SumT>
+struct ArrayTerm {
+  const SumT* sums;
+  COVOX_HD_INLINE SumT operator()(int64_t j) const { return sums[j]; }
+};
+
 // Step 5's colour blend: a frame without colour (DistanceUpdate) has none to blend. (Overloads,
 // not `if constexpr`: nvcc's extended lambdas may not first-capture inside a constexpr if.)
 template <class ColorView>
@@ -101,11 +108,15 @@ COVOX_HD_INLINE void blend_color(const ColorView& color_view, int64_t index, con
   color_view.store(index, color);
 }
 
-// Copies `count` figures left on the device to the host (one small copy, one wait).
+// Copies the first N figures left on the device (scratch.readback) to the host: one small copy
+// into page-locked memory, one wait.
 template <size_t N>
-std::array<uint32_t, N> read_back(const Buffer<uint32_t>& readback, const Stream& stream) {
+std::array<uint32_t, N> read_back(TsdfScratchBuffers& scratch, const Stream& stream) {
+  static_assert(N <= 8, "read_back: the frame's figures are 8 words");
+  copy_bytes(scratch.readback_host.data(), Device::kCpu, scratch.readback.data(), scratch.readback.device(),
+             N * sizeof(uint32_t), stream);
   std::array<uint32_t, N> host{};
-  copy_bytes(host.data(), Device::kCpu, readback.data(), readback.device(), N * sizeof(uint32_t), stream);
+  std::copy(scratch.readback_host.data(), scratch.readback_host.data() + N, host.begin());
   return host;
 }
 
@@ -147,9 +158,17 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
   const int64_t n = cloud.count;
   const float inverse_voxel_size = 1.0f / ray_parameters.voxel_size_m;
   const tsdf::MergeTable table = tsdf_detail::clean_merge_table(backend, scratch, n, stream);
+  // The tally is reset after the last frame's read-back, where the GPU waits for the host's next
+  // launches anyway (here it cost 2.4 us + a launch gap per frame), unless that frame did not get
+  // that far.
+  const bool tally_clean = scratch.merge_tally_clean && scratch.merge_tally.size() == 1;
   scratch.merge_tally.resize_discard(1);
   tsdf::MergeTallyStripe* stripes = scratch.merge_tally.data()->stripes;
-  parallel_for(backend, stream, tsdf::kMergeTallyStripes, [=] COVOX_HD(int64_t k) { stripes[k].reset(); });
+  const auto reset_tally = [&] {
+    parallel_for(backend, stream, tsdf::kMergeTallyStripes, [=] COVOX_HD(int64_t k) { stripes[k].reset(); });
+  };
+  if (!tally_clean) reset_tally();
+  scratch.merge_tally_clean = false;
   profile.mark("table");
   scratch.point_codes.resize_discard(n);
   uint32_t* codes = scratch.point_codes.data();
@@ -304,8 +323,11 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
   });
   scratch.merge_table_clean = true;
   profile.mark("rays");
-  tsdf::MergeTally host;
-  copy_bytes(&host, Device::kCpu, stripes, scratch.merge_tally.device(), sizeof(host), stream);
+  copy_bytes(scratch.merge_tally_host.data(), Device::kCpu, stripes, scratch.merge_tally.device(),
+             sizeof(tsdf::MergeTally), stream);
+  const tsdf::MergeTally& host = *scratch.merge_tally_host.data();
+  reset_tally();  // for the next frame
+  scratch.merge_tally_clean = true;
   tsdf_detail::RayTally tally;
   for (const tsdf::MergeTallyStripe& stripe : host.stripes) {
     tsdf_detail::RayTally part;
@@ -339,11 +361,11 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
 }
 
 // Steps 2b to 5 of a frame (see tsdf_integrate_points): traverse the ray pieces into one visit
-// record per voxel visit, group the records by voxel (radix sort) and merge each group into one
-// update (reduction by key), allocate the blocks, write each voxel once. ValueT is the records'
-// value (tsdf_traverse.h): tsdf::DistanceUpdate without colour, summed as it is; tsdf::ColorVisit
-// with colour, whose update (a tsdf::VoxelUpdate, with the ray's colour) is computed from its ray
-// and voxel as the reduction reads it.
+// record per voxel visit, group the records by voxel (radix sort), allocate the blocks, then sum
+// each voxel's records and write the voxel once (consume_run_sums: the sums go from registers to
+// the map). ValueT is the records' value (tsdf_traverse.h): tsdf::DistanceUpdate without colour,
+// summed as it is; tsdf::ColorVisit with colour, whose update (a tsdf::VoxelUpdate, with the
+// ray's colour) is computed from its ray and voxel as the sum reads it.
 template <class KeyT, class ValueT, class Backend>
 void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, const tsdf::FrameUpdates& frame,
                        TsdfMap& map, TsdfScratchBuffers& scratch, IntegrationStats& stats, StageProfiler::Scope& profile,
@@ -356,10 +378,9 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   // Keys are 32-bit when the frame's box allows (almost always): half the key bytes through the
   // traverse's writes, every radix pass and the reduction.
   auto key_buffers = scratch.update_key_buffers<KeyT>();
-  for (Buffer<KeyT>* buffer : key_buffers) buffer->resize_discard(total_updates);
+  for (int k = 0; k < 2; ++k) key_buffers[k]->resize_discard(total_updates);
   KeyT* keys = key_buffers[0]->data();
   KeyT* keys_alt = key_buffers[1]->data();
-  KeyT* merged_keys_out = key_buffers[2]->data();
   const KeyT zero_weight_key = static_cast<KeyT>(codec.zero_weight_key);
   const KeyT out_of_range_key = static_cast<KeyT>(codec.out_of_range_key);
   auto value_buffers = scratch.record_value_buffers<ValueT>();
@@ -372,33 +393,37 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
 
   profile.mark("2b traverse");
 
-  // 3. group by voxel and merge (stable sort keeps each voxel's records in ray order, so the
-  //    float sums are the same every run)
+  // 3. group by voxel (a stable sort keeps each voxel's records in ray order, so the float sums
+  //    are the same every run). The records to sum are then the sorted ones, or on the CPU twin
+  //    one merged record per voxel.
   scratch.readback.resize_discard(8);
   uint32_t* counts_on_device = scratch.readback.data();
-  SumT* merged_updates = nullptr;
-  if constexpr (kColored) {
-    scratch.merged_updates.resize_discard(total_updates);
-    merged_updates = scratch.merged_updates.data();
-  }
+  const KeyT* record_keys = keys;
+  SumT* merged_updates = nullptr;  // the CPU twin's merged records' sums
   bool grouped = false;
   if constexpr (std::is_same<Backend, CpuBackend>::value) {
     // The CPU twin groups by block and sums in dense per-block arrays (tsdf_group_updates_cpu.h):
-    // the same merged keys and sums as the sort and reduction below, with a third of the moves.
+    // the same voxels and (within rounding) sums as the sort and run sums below, with a third of
+    // the moves. Its merged records are runs of one.
     if (tsdf::dense_grouping_fits(codec)) {
+      key_buffers[2]->resize_discard(total_updates);
+      KeyT* merged_keys = key_buffers[2]->data();
       tsdf::GroupCounts grouping;
       if constexpr (kColored) {
+        scratch.merged_updates.resize_discard(total_updates);
+        merged_updates = scratch.merged_updates.data();
         const tsdf::VoxelUpdateOfRecord<KeyT> update_of{frame, keys_alt, values_alt, out_of_range_key, truncation};
         grouping = tsdf::group_updates_by_voxel_cpu(codec, keys, values, total_updates, keys_alt, values_alt,
-                                                    merged_keys_out, merged_updates, update_of, tsdf::MergeUpdates());
+                                                    merged_keys, merged_updates, update_of, tsdf::MergeUpdates());
       } else {
         merged_updates = values;  // free once the records have moved
         const ValueT* moved = values_alt;
         grouping = tsdf::group_updates_by_voxel_cpu(
-            codec, keys, values, total_updates, keys_alt, values_alt, merged_keys_out, merged_updates,
+            codec, keys, values, total_updates, keys_alt, values_alt, merged_keys, merged_updates,
             [moved](int64_t j) { return moved[j]; }, tsdf::MergeUpdates());
       }
-      counts_on_device[0] = grouping.runs;
+      record_keys = merged_keys;
+      counts_on_device[0] = grouping.voxels;
       counts_on_device[1] = grouping.zero_weight;
       counts_on_device[2] = grouping.out_of_range;
       counts_on_device[3] = grouping.voxels;
@@ -408,54 +433,41 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   }
   if (!grouped) {
     radix_sort_pairs_swapping(backend, stream, keys, values, total_updates, codec.key_bits, keys_alt, values_alt);
-    profile.mark("3a sort updates");
-    if constexpr (kColored) {
-      const auto record_updates = thrust::make_transform_iterator(
-          thrust::make_counting_iterator<int64_t>(0),
-          tsdf::VoxelUpdateOfRecord<KeyT>{frame, keys, values, out_of_range_key, truncation});
-      reduce_runs_counted_on_device(backend, stream, static_cast<const KeyT*>(keys), record_updates, total_updates,
-                                    merged_keys_out, merged_updates, tsdf::MergeUpdates(), counts_on_device);
-    } else {
-      merged_updates = values_alt;  // free after the sort: the merged updates go there
-      reduce_runs_counted_on_device(backend, stream, static_cast<const KeyT*>(keys),
-                                    static_cast<const ValueT*>(values), total_updates, merged_keys_out,
-                                    merged_updates, tsdf::MergeUpdates(), counts_on_device);
-    }
-    // Updates to drop (zero weight, outside the key range) sort last, one run per kind present:
-    // the block flags' kernel below finds where their keys begin (counts_on_device[1] and [2]
-    // count the records at or past each kind's first key; none found: 0).
-    set_bytes(counts_on_device + 1, scratch.readback.device(), 0, 2 * sizeof(uint32_t), stream);
-    profile.mark("3b reduce runs");
+    record_keys = keys;
+    // Records to drop (outside the key range, zero weight) sort last, in one run per kind
+    // present: the block flags' kernel below counts them ([1]: at or past the first zero-weight
+    // key, [2]: at or past the first out-of-range key; none: 0); step 5 counts the distinct
+    // voxels ([7]).
+    set_bytes(counts_on_device + 1, scratch.readback.device(), 0, 7 * sizeof(uint32_t), stream);
+    profile.mark("3 sort records");
   }
 
-  // 4. allocate the distinct blocks of the touched voxels in one batch. Merged keys are sorted
-  //    block-major, so each block's voxels form one run: the run's first voxel names the block and
-  //    a scan ranks the runs. The hash table sees a few hundred blocks, not one key per voxel.
+  // 4. allocate the distinct blocks of the touched voxels in one batch. Records are sorted
+  //    block-major, so each block's records form one run: the run's first record names the block
+  //    and a scan ranks the runs. The hash table sees a few hundred blocks, not one key per record.
   //    On the GPU each read-back is a wait, so the flags and their scan run over the bound
-  //    total_updates (no flag past the kept voxels, whose count stays on the device) and the
+  //    total_updates (no flag past the kept records, whose count stays on the device) and the
   //    counts come back in one copy; on the CPU a read-back is free and the exact count scans less.
-  //    Without the CPU's grouping the counts of dropped records and of kept voxels are found here:
-  //    the same kernels, no extra launch.
+  //    Without the CPU's grouping the counts of dropped records are found here: the same
+  //    kernels, no extra launch.
   const bool counts_known = grouped;
   const bool read_back_is_free = Backend::kDevice == Device::kCpu;
   const int64_t flag_bound =
-      read_back_is_free && counts_known ? tsdf_detail::read_back<4>(scratch.readback, stream)[3] : total_updates;
+      read_back_is_free && counts_known ? tsdf_detail::read_back<4>(scratch, stream)[0] : total_updates;
   scratch.block_flags.resize_discard(flag_bound + 1);
   scratch.block_ranks.resize_discard(flag_bound + 1);
   scratch.block_indices.resize_discard(flag_bound + 1);
   uint32_t* block_flags = scratch.block_flags.data();
   uint32_t* block_ranks = scratch.block_ranks.data();
   Index3D* block_indices = scratch.block_indices.data();
-  const KeyT* merged_keys = merged_keys_out;
-  const KeyT* sorted_keys = keys;  // sorted when !counts_known
   parallel_for(backend, stream, flag_bound + 1, [=] COVOX_HD(int64_t v) {
-    // merged keys past the kept voxels: the dropped kinds' runs (last), then nothing written
-    const bool kept = counts_known ? v < flag_bound : v < counts_on_device[0] && merged_keys[v] < out_of_range_key;
+    // records past the kept ones: the dropped kinds' runs (last), then nothing written
+    const bool kept = counts_known ? v < flag_bound : v < total_updates && record_keys[v] < out_of_range_key;
     block_flags[v] =
-        kept && (v == 0 || codec.block_part(merged_keys[v]) != codec.block_part(merged_keys[v - 1])) ? 1u : 0u;
+        kept && (v == 0 || codec.block_part(record_keys[v]) != codec.block_part(record_keys[v - 1])) ? 1u : 0u;
     if (counts_known || v >= total_updates) return;
-    const KeyT key = sorted_keys[v];
-    const KeyT previous = v > 0 ? sorted_keys[v - 1] : KeyT(0);
+    const KeyT key = record_keys[v];
+    const KeyT previous = v > 0 ? record_keys[v - 1] : KeyT(0);
     if (key >= zero_weight_key && (v == 0 || previous < zero_weight_key)) {
       counts_on_device[1] = static_cast<uint32_t>(total_updates - v);
     }
@@ -466,18 +478,18 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   exclusive_scan(backend, stream, static_cast<const uint32_t*>(block_flags), flag_bound + 1, block_ranks);
   // Each block's index at its rank; the counts completed by one thread.
   parallel_for(backend, stream, flag_bound + 1, [=] COVOX_HD(int64_t v) {
-    if (block_flags[v]) block_indices[block_ranks[v]] = codec.block(merged_keys[v]);
+    if (block_flags[v]) block_indices[block_ranks[v]] = codec.block(record_keys[v]);
     if (v != 0) return;
     if (!counts_known) {
       const uint32_t zero_weight = counts_on_device[1];
-      const uint32_t out_of_range = counts_on_device[2] - zero_weight;
-      counts_on_device[2] = out_of_range;
-      counts_on_device[3] = counts_on_device[0] - (zero_weight > 0u ? 1u : 0u) - (out_of_range > 0u ? 1u : 0u);
+      const uint32_t dropped = counts_on_device[2];  // out of range and zero weight
+      counts_on_device[2] = dropped - zero_weight;
+      counts_on_device[0] = static_cast<uint32_t>(total_updates) - dropped;
     }
-    counts_on_device[4] = block_ranks[counts_on_device[3]];
+    counts_on_device[4] = block_ranks[counts_on_device[0]];
   });
   // On the GPU the blocks' activation is queued before that read-back, for the blocks counted on
-  // the device (at most one per flagged voxel and per block of the frame's box), and its totals
+  // the device (at most one per flagged record and per block of the frame's box), and its totals
   // come back with the frame's counts: one wait instead of two. When the table might have to grow
   // it needs the exact count first (activate_queued says no), and on the CPU waiting costs nothing.
   bool queued = false;
@@ -489,15 +501,14 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
     queued = map.blocks().activate_queued(block_indices, counts_on_device + 4, block_bound, scratch.slots.data(),
                                           scratch.is_new.data(), counts_on_device + 5, stream);
   }
-  const std::array<uint32_t, 7> counts = tsdf_detail::read_back<7>(scratch.readback, stream);
+  const std::array<uint32_t, 7> counts = tsdf_detail::read_back<7>(scratch, stream);
+  const int64_t record_count = counts[0];  // kept records (sorted), or merged voxels (grouped)
   stats.voxels_out_of_range = counts[2];
-  const int64_t voxel_count = counts[3];
   const int64_t block_count = counts[4];
-  stats.voxels_updated = voxel_count;
   profile.mark("4a distinct blocks");
   ActivateResult activation;
   if (queued) activation = map.blocks().finish_queued_activation(counts[5], counts[6], stream);
-  if (voxel_count == 0) return;
+  if (record_count == 0) return;
   if (!queued) {
     scratch.slots.resize_discard(block_count);
     scratch.is_new.resize_discard(block_count);
@@ -510,12 +521,13 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   const uint32_t* slots = scratch.slots.data();
   if (activation.num_out_of_range + activation.num_failed_full > 0) {
     // Rare: count the voxels whose block the hash table rejected (outside its key range, or full).
-    scratch.counts.resize_discard(voxel_count);
+    scratch.counts.resize_discard(record_count);
     uint32_t* rejected = scratch.counts.data();
-    parallel_for(backend, stream, voxel_count, [=] COVOX_HD(int64_t v) {
-      rejected[v] = slots[block_ranks[v] + block_flags[v] - 1] == kInvalidSlot ? 1u : 0u;
+    parallel_for(backend, stream, record_count, [=] COVOX_HD(int64_t j) {
+      const bool voxel_start = j == 0 || record_keys[j] != record_keys[j - 1];
+      rejected[j] = voxel_start && slots[block_ranks[j] + block_flags[j] - 1] == kInvalidSlot ? 1u : 0u;
     });
-    stats.voxels_out_of_range += count_if(backend, stream, rejected, voxel_count, [] COVOX_HD(uint32_t r) { return r != 0; });
+    stats.voxels_out_of_range += count_if(backend, stream, rejected, record_count, [] COVOX_HD(uint32_t r) { return r != 0; });
   }
 
   // Clear new blocks: a new block may reuse the slot of an erased one. (The voxel writes below
@@ -539,16 +551,15 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
 
   profile.mark("4d clear new blocks");
 
-  // 5. one weighted-average write per distinct voxel
-  const SumT* merged = merged_updates;
+  // 5. each voxel's records summed and written once: a weighted average with the voxel, given
+  //    the index of the voxel's first record and the sum of its updates
   const float max_weight = config.max_weight;
-  parallel_for(backend, stream, voxel_count, [=] COVOX_HD(int64_t v) {
-    const uint32_t slot = slots[block_ranks[v] + block_flags[v] - 1];  // the rank of v's run
+  const auto write_voxel = [=] COVOX_HD(int64_t j, const SumT& update) {
+    const uint32_t slot = slots[block_ranks[j] + block_flags[j] - 1];  // the rank of j's block
     if (slot == kInvalidSlot) return;
-    if (block_flags[v]) block_changed[slot] = kAllPending;  // once per block: its first voxel
-    const SumT update = merged[v];
+    if (block_flags[j]) block_changed[slot] = kAllPending;  // once per block: its first voxel
     if (update.weight <= 0.0f) return;
-    const int64_t index = static_cast<int64_t>(slot) * voxels_per_block + codec.voxel_in_block(merged_keys[v]);
+    const int64_t index = static_cast<int64_t>(slot) * voxels_per_block + codec.voxel_in_block(record_keys[j]);
     TsdfVoxel voxel = tsdf_view.load(index);
     const float combined = voxel.weight + update.weight;
     float distance = (voxel.distance_m * voxel.weight + update.weighted_distance) / combined;
@@ -557,9 +568,25 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
     voxel.weight = combined < max_weight ? combined : max_weight;
     tsdf_view.store(index, voxel);
     tsdf_detail::blend_color(color_view, index, update, max_weight);
-  });
-  stream.synchronize();
-  profile.mark("5 voxel writes");
+  };
+  if (grouped) {  // one record per voxel: the count is known
+    consume_run_sums<SumT>(backend, stream, record_keys, record_count, tsdf_detail::ArrayTerm<SumT>{merged_updates},
+                           tsdf::MergeUpdates(), write_voxel, scratch.run_tile_parts);
+    stats.voxels_updated = counts[3];
+    stream.synchronize();
+  } else {
+    uint32_t* voxels_counted = counts_on_device + 7;
+    if constexpr (kColored) {
+      const tsdf::VoxelUpdateOfRecord<KeyT> update_of{frame, keys, values, out_of_range_key, truncation};
+      consume_run_sums<SumT>(backend, stream, record_keys, record_count, update_of, tsdf::MergeUpdates(), write_voxel,
+                             scratch.run_tile_parts, voxels_counted);
+    } else {
+      consume_run_sums<SumT>(backend, stream, record_keys, record_count, tsdf_detail::ArrayTerm<SumT>{values},
+                             tsdf::MergeUpdates(), write_voxel, scratch.run_tile_parts, voxels_counted);
+    }
+    stats.voxels_updated = tsdf_detail::read_back<8>(scratch, stream)[7];  // waits for the writes too
+  }
+  profile.mark("5 sum and write voxels");
 }
 
 template <class Backend>

@@ -8,6 +8,7 @@
 #include <Eigen/Geometry>
 
 #include "covoxslam/core/buffer.h"
+#include "covoxslam/core/memory.h"
 #include "covoxslam/integrators/tsdf_integrator.h"
 #include "covoxslam/integrators/tsdf_kernels.h"
 #include "covoxslam/integrators/tsdf_ray_merging.h"
@@ -21,7 +22,8 @@ struct TsdfScratchBuffers {
         block_indices(device), slots(device), is_new(device), point_codes(device), ray_flags(device), ray_ranks(device),
         merge_table_keys(device), merge_table_bundles(device), merge_tally(device),
         ray_colors(device), ray_weights(device), block_flags(device), block_ranks(device), keys_alt(device),
-        keys32(device), keys32_alt(device), merged_keys32(device), distance_records(device), distance_records_alt(device), color_visits(device), color_visits_alt(device), merged_updates(device), pieces(device), piece_first_voxels(device), piece_voxels(device), piece_offsets(device), readback(device) {}
+        keys32(device), keys32_alt(device), merged_keys32(device), distance_records(device), distance_records_alt(device), color_visits(device), color_visits_alt(device), merged_updates(device), pieces(device), piece_first_voxels(device), piece_voxels(device), piece_offsets(device), run_tile_parts(device), readback(device),
+        readback_host(device, 8), merge_tally_host(device, 1) {}
   Buffer<Vec3f> points;  // depth images unprojected, or host clouds uploaded
   Buffer<Rgb8> colors;
   Buffer<tsdf::RaySegment> rays;
@@ -41,6 +43,7 @@ struct TsdfScratchBuffers {
   Buffer<uint64_t> merge_table_keys;
   Buffer<tsdf::PointBundle> merge_table_bundles;
   bool merge_table_clean = false;
+  bool merge_tally_clean = false;  // reset by the last frame after its read-back
   Buffer<tsdf::MergeTally> merge_tally;
   Buffer<Rgb8> ray_colors;
   Buffer<float> ray_weights;
@@ -83,8 +86,11 @@ struct TsdfScratchBuffers {
   Buffer<Index3D> piece_first_voxels;  // the CPU twin's: each piece's first voxel
   Buffer<uint32_t> piece_voxels;
   Buffer<uint32_t> piece_offsets;
+  Buffer<uint64_t> run_tile_parts;  // consume_run_sums' partial sums at tile edges
   // counts computed on the device and read back together in one copy
   Buffer<uint32_t> readback;
+  ReadbackArray<uint32_t> readback_host;             // where `readback` is copied to
+  ReadbackArray<tsdf::MergeTally> merge_tally_host;  // where `merge_tally` is copied to
 };
 
 template <class Backend>
