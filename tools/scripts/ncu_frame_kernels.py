@@ -5,7 +5,8 @@
    tools/scripts/ncu_frame_kernels.py f.csv
 Frames are cut at each depth image's unproject kernel; prints each whole frame's kernel count and
 time (us), then the last whole frame's kernels one by one."""
-import csv,sys
+import csv,signal,sys
+signal.signal(signal.SIGPIPE, signal.SIG_DFL)  # quiet under `| head`
 rows=list(csv.reader(open(sys.argv[1])))
 hdr=None; out=[]
 for r in rows:

@@ -99,16 +99,16 @@ TileParts<SumT> carve_tile_parts(Buffer<uint64_t>& scratch, int64_t tiles) {
 }
 
 // Record j's place after `part` (the partial sum up to j - 1): its run's partial sum with it
-// added, handed to `consume` or left in the tile's parts where the run ends or the tile does.
-// The same step on both backends, after each has built `part` its own way.
-template <class KeyT, class SumT, class Op, class Consume>
+// added, handed over (to `hand_over`) or left in the tile's parts where the run ends or the tile
+// does. The same step on both backends, after each has built `part` its own way.
+template <class KeyT, class SumT, class HandOver>
 COVOX_HD_INLINE void close_record(const KeyT* keys, int64_t count, int64_t j, int64_t tile, int64_t tile_end,
-                                  const RunPart<SumT>& part, const Op&, const Consume& consume,
+                                  const RunPart<SumT>& part, const HandOver& hand_over,
                                   const TileParts<SumT>& parts) {
   const bool ends = j + 1 >= count || keys[j + 1] != keys[j];
   if (ends) {
     if (part.first != kNoRun) {
-      consume(static_cast<int64_t>(part.first), part.sum);
+      hand_over(static_cast<int64_t>(part.first), part.sum);
     } else {
       parts.head_sums[tile] = part.sum;  // the end of a run from earlier tiles
     }
@@ -139,7 +139,7 @@ void sum_tile_in_order(const KeyT* keys, int64_t count, int64_t tile, const Term
     const bool start = starts_run(keys, j);
     starts += start ? 1u : 0u;
     part = start ? RunPart<SumT>{value, static_cast<uint32_t>(j)} : RunPart<SumT>{op(part.sum, value), part.first};
-    close_record(keys, count, j, tile, end, part, op, consume, parts);
+    close_record(keys, count, j, tile, end, part, consume, parts);
   }
   if (run_count && starts) atomic_add(run_count, starts);
 }
@@ -151,7 +151,22 @@ __global__ void __launch_bounds__(kRunSumThreads, kRunSumBlocksPerSm)
                      uint32_t* run_count) {
   using Part = RunPart<SumT>;
   using BlockScan = cub::BlockScan<Part, kRunSumThreads>;
-  __shared__ typename BlockScan::TempStorage scan_storage;
+  // The runs that end in the tile, handed to `consume` one per thread after the scan: a thread
+  // consuming its own records' runs one after the other waited for each one's writes in turn
+  // (consumers load and store: the voxel's slot, the voxel). The list takes the scan's place in
+  // shared memory (48 KB at most).
+  struct ClosedRuns {
+    uint32_t firsts[kRunSumTile];
+    SumT sums[kRunSumTile];
+  };
+  constexpr size_t kScanBytes = sizeof(typename BlockScan::TempStorage);
+  constexpr size_t kSharedBytes = kScanBytes > sizeof(ClosedRuns) ? kScanBytes : sizeof(ClosedRuns);
+  __shared__ alignas(16) unsigned char shared_bytes[kSharedBytes];
+  __shared__ uint32_t closed_count;
+  auto& scan_storage = *reinterpret_cast<typename BlockScan::TempStorage*>(shared_bytes);
+  uint32_t* closed_firsts = reinterpret_cast<ClosedRuns*>(shared_bytes)->firsts;
+  SumT* closed_sums = reinterpret_cast<ClosedRuns*>(shared_bytes)->sums;
+  if (threadIdx.x == 0) closed_count = 0;
   const int64_t tile = blockIdx.x;
   const int64_t tile_begin = tile * kRunSumTile;
   const int64_t tile_end = tile_begin + kRunSumTile < count ? tile_begin + kRunSumTile : count;
@@ -176,16 +191,28 @@ __global__ void __launch_bounds__(kRunSumThreads, kRunSumBlocksPerSm)
     const uint32_t warp_starts = __reduce_add_sync(0xFFFFFFFFu, own_starts);
     if ((threadIdx.x & 31u) == 0u && warp_starts != 0u) atomicAdd(run_count, warp_starts);
   }
-  // 2. the partial run reaching this thread from the threads before it
+  // 2. the partial run reaching this thread from the threads before it (the barrier after it
+  //    frees the scan's memory for the list, and orders the counter's reset before its use)
   Part part;
   BlockScan(scan_storage).ExclusiveScan(own, part, Part{SumT{}, kNoRun}, JoinRunParts<Op>{op});
-  // 3. the records again, each run closed where it ends
+  __syncthreads();
+  // 3. the records again, each run closed where it ends; then the closed runs consumed. (Their
+  //    order in the list varies, but each is a different key's, so the results do not.)
+  const auto list_run = [&](int64_t run_first, const SumT& sum) {
+    const uint32_t slot = atomicAdd(&closed_count, 1u);
+    closed_firsts[slot] = static_cast<uint32_t>(run_first);
+    closed_sums[slot] = sum;
+  };
 #pragma unroll
   for (int k = 0; k < kRunSumItems; ++k) {
     const int64_t j = first + k;
     if (j >= tile_end) break;
     part = starts[k] ? Part{values[k], static_cast<uint32_t>(j)} : Part{op(part.sum, values[k]), part.first};
-    close_record(keys, count, j, tile, tile_end, part, op, consume, parts);
+    close_record(keys, count, j, tile, tile_end, part, list_run, parts);
+  }
+  __syncthreads();
+  for (uint32_t r = threadIdx.x; r < closed_count; r += kRunSumThreads) {
+    consume(static_cast<int64_t>(closed_firsts[r]), closed_sums[r]);
   }
 }
 #endif
