@@ -34,6 +34,21 @@ cudaMemcpyKind copy_kind(Device destination, Device source) {
                                                                    : cudaMemcpyHostToDevice;
   return source == Device::kCuda ? cudaMemcpyDeviceToHost : cudaMemcpyHostToHost;
 }
+
+// The calling thread's page-locked staging buffer for small device-to-host copies (allocated on
+// first use; freed when the thread ends).
+constexpr size_t kStagedCopyMaxBytes = 64 * 1024;
+void* staging_buffer() {
+  struct Staging {
+    void* data = nullptr;
+    ~Staging() {
+      if (data) cudaFreeHost(data);
+    }
+  };
+  thread_local Staging staging;
+  if (!staging.data) check(cudaMallocHost(&staging.data, kStagedCopyMaxBytes), "page-locked staging allocation");
+  return staging.data;
+}
 #endif
 
 }  // namespace
@@ -65,32 +80,6 @@ void* allocate_bytes(Device device, size_t bytes) {
   return pointer;
 }
 
-void* allocate_readback_bytes(Device source, size_t bytes) {
-  if (source == Device::kCuda) {
-#if COVOX_WITH_CUDA
-    void* pointer = nullptr;
-    if (cudaMallocHost(&pointer, bytes == 0 ? 1 : bytes) != cudaSuccess) {
-      throw OutOfMemoryError("page-locked host allocation of " + mebibytes(bytes) + " failed");
-    }
-    return pointer;
-#else
-    throw NotAvailableError("allocate_readback_bytes: CUDA memory read back in a build without CUDA");
-#endif
-  }
-  return allocate_bytes(Device::kCpu, bytes);
-}
-
-void free_readback_bytes(Device source, void* pointer) noexcept {
-  if (!pointer) return;
-  if (source == Device::kCuda) {
-#if COVOX_WITH_CUDA
-    cudaFreeHost(pointer);
-#endif
-    return;
-  }
-  free_bytes(Device::kCpu, pointer);
-}
-
 void free_bytes(Device device, void* pointer) noexcept {
   if (!pointer) return;
   if (device == Device::kCuda) {
@@ -113,6 +102,13 @@ void copy_bytes(void* destination, Device destination_device, const void* source
   cudaStream_t cuda_stream = stream.device() == Device::kCuda
                                  ? static_cast<cudaStream_t>(stream.native_handle())
                                  : nullptr;
+  if (destination_device == Device::kCpu && source_device == Device::kCuda && bytes <= kStagedCopyMaxBytes) {
+    void* staging = staging_buffer();
+    check(cudaMemcpyAsync(staging, source, bytes, cudaMemcpyDeviceToHost, cuda_stream), "copy_bytes");
+    check(cudaStreamSynchronize(cuda_stream), "copy_bytes synchronize");
+    std::memcpy(destination, staging, bytes);
+    return;
+  }
   check(cudaMemcpyAsync(destination, source, bytes, copy_kind(destination_device, source_device),
                         cuda_stream),
         "copy_bytes");

@@ -25,6 +25,7 @@
 
 #include "covoxslam/core/device.h"
 #include "covoxslam/core/macros.h"
+#include "covoxslam/core/memory.h"
 #include "covoxslam/core/stream.h"
 
 #if defined(__CUDACC__)
@@ -219,9 +220,7 @@ Result transform_reduce(CudaBackend, const Stream& stream, InputIterator data, i
                                                 static_cast<int>(count), op, transform, init, cuda_stream),
              "transform_reduce");
   Result host;
-  cuda_check(cudaMemcpyAsync(&host, result, sizeof(Result), cudaMemcpyDeviceToHost, cuda_stream),
-             "transform_reduce (read-back)");
-  cuda_check(cudaStreamSynchronize(cuda_stream), "transform_reduce (synchronize)");
+  copy_bytes(&host, Device::kCpu, result, Device::kCuda, sizeof(Result), stream);  // staged, waits
   allocator.deallocate(temporary, result_bytes + temporary_bytes);
   return host;
 }

@@ -108,15 +108,14 @@ COVOX_HD_INLINE void blend_color(const ColorView& color_view, int64_t index, con
   color_view.store(index, color);
 }
 
-// Copies the first N figures left on the device (scratch.readback) to the host: one small copy
-// into page-locked memory, one wait.
+// Copies the first N figures left on the device (scratch.readback) to the host: one small copy,
+// one wait.
 template <size_t N>
-std::array<uint32_t, N> read_back(TsdfScratchBuffers& scratch, const Stream& stream) {
+std::array<uint32_t, N> read_back(const TsdfScratchBuffers& scratch, const Stream& stream) {
   static_assert(N <= 8, "read_back: the frame's figures are 8 words");
-  copy_bytes(scratch.readback_host.data(), Device::kCpu, scratch.readback.data(), scratch.readback.device(),
-             N * sizeof(uint32_t), stream);
   std::array<uint32_t, N> host{};
-  std::copy(scratch.readback_host.data(), scratch.readback_host.data() + N, host.begin());
+  copy_bytes(host.data(), Device::kCpu, scratch.readback.data(), scratch.readback.device(), N * sizeof(uint32_t),
+             stream);
   return host;
 }
 
@@ -323,9 +322,8 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
   });
   scratch.merge_table_clean = true;
   profile.mark("rays");
-  copy_bytes(scratch.merge_tally_host.data(), Device::kCpu, stripes, scratch.merge_tally.device(),
-             sizeof(tsdf::MergeTally), stream);
-  const tsdf::MergeTally& host = *scratch.merge_tally_host.data();
+  tsdf::MergeTally host;
+  copy_bytes(&host, Device::kCpu, stripes, scratch.merge_tally.device(), sizeof(host), stream);
   reset_tally();  // for the next frame
   scratch.merge_tally_clean = true;
   tsdf_detail::RayTally tally;

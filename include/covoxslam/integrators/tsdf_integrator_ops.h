@@ -8,7 +8,6 @@
 #include <Eigen/Geometry>
 
 #include "covoxslam/core/buffer.h"
-#include "covoxslam/core/memory.h"
 #include "covoxslam/integrators/tsdf_integrator.h"
 #include "covoxslam/integrators/tsdf_kernels.h"
 #include "covoxslam/integrators/tsdf_ray_merging.h"
@@ -22,8 +21,7 @@ struct TsdfScratchBuffers {
         block_indices(device), slots(device), is_new(device), point_codes(device), ray_flags(device), ray_ranks(device),
         merge_table_keys(device), merge_table_bundles(device), merge_tally(device),
         ray_colors(device), ray_weights(device), block_flags(device), block_ranks(device), keys_alt(device),
-        keys32(device), keys32_alt(device), merged_keys32(device), distance_records(device), distance_records_alt(device), color_visits(device), color_visits_alt(device), merged_updates(device), pieces(device), piece_first_voxels(device), piece_voxels(device), piece_offsets(device), run_tile_parts(device), readback(device),
-        readback_host(device, 8), merge_tally_host(device, 1) {}
+        keys32(device), keys32_alt(device), merged_keys32(device), distance_records(device), distance_records_alt(device), color_visits(device), color_visits_alt(device), merged_updates(device), pieces(device), piece_first_voxels(device), piece_voxels(device), piece_offsets(device), run_tile_parts(device), readback(device) {}
   Buffer<Vec3f> points;  // depth images unprojected, or host clouds uploaded
   Buffer<Rgb8> colors;
   Buffer<tsdf::RaySegment> rays;
@@ -89,8 +87,6 @@ struct TsdfScratchBuffers {
   Buffer<uint64_t> run_tile_parts;  // consume_run_sums' partial sums at tile edges
   // counts computed on the device and read back together in one copy
   Buffer<uint32_t> readback;
-  ReadbackArray<uint32_t> readback_host;             // where `readback` is copied to
-  ReadbackArray<tsdf::MergeTally> merge_tally_host;  // where `merge_tally` is copied to
 };
 
 template <class Backend>
