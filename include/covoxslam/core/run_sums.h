@@ -14,15 +14,17 @@
 // and hands them over itself; a run that goes on past its tile leaves its partial sums (the start
 // tile's tail, the head of each tile it reaches) for a second kernel, one thread per tile, in
 // which the run's start tile adds them up in tile order. On the GPU a tile is one thread block:
-// each thread sums kRunSumItems consecutive records, then a segmented scan over the block joins
-// the threads' partial runs; on the CPU each tile is summed left to right by one thread. Either
+// each thread sums kRunSumItems consecutive records, a segmented scan over the block joins the
+// threads' partial runs, and the runs that end in the tile are listed in shared memory and
+// consumed one per thread; on the CPU each tile is summed left to right by one thread. Either
 // way the order of the additions is fixed by the records' positions, so the sums are the same
 // every run (the two backends may round differently: the GPU adds a run's pieces as a tree).
 //
 // Why not a device-wide reduction by key: on the H100 CUB's, reading 24-byte coloured updates,
 // took 38 us of a 7-Scenes 5 cm frame (124 registers per thread, a quarter of the GPU's threads
 // resident, half its cycles at barriers), and its output went through memory once more for the
-// writes. Here a run's sum goes from registers to the consumer.
+// writes. Here a run's sum goes from registers (or shared memory) to the consumer: 22 us for the
+// same frame, sums and writes together (docs/benchmarks.md, "seventh pass").
 #include <cstddef>
 #include <cstdint>
 #include <string>
