@@ -36,6 +36,7 @@
 #include "covoxslam/core/macros.h"
 #include "covoxslam/core/parallel.h"
 #include "covoxslam/core/stream.h"
+#include "covoxslam/core/warp_reduce.h"
 
 #if defined(__CUDACC__)
 #include <cub/block/block_scan.cuh>
@@ -190,8 +191,8 @@ __global__ void __launch_bounds__(kRunSumThreads, kRunSumBlocksPerSm)
     uint32_t own_starts = 0;
 #pragma unroll
     for (int k = 0; k < kRunSumItems; ++k) own_starts += starts[k] ? 1u : 0u;
-    const uint32_t warp_starts = __reduce_add_sync(0xFFFFFFFFu, own_starts);
-    if ((threadIdx.x & 31u) == 0u && warp_starts != 0u) atomicAdd(run_count, warp_starts);
+    const uint32_t warp_starts = warp_sum(0xFFFFFFFFu, own_starts);
+    if (warp_lane() == 0 && warp_starts != 0u) atomic_add(run_count, warp_starts);
   }
   // 2. the partial run reaching this thread from the threads before it (the barrier after it
   //    frees the scan's memory for the list, and orders the counter's reset before its use)
