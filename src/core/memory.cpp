@@ -3,6 +3,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <sstream>
+#include <string>
 
 #include "covoxslam/core/error.h"
 
@@ -51,7 +52,81 @@ void* staging_buffer() {
 }
 #endif
 
+// The calling thread's pending read-back: its bytes (page-locked when CUDA is built in), the
+// event that marks the copy's end, and whether one is pending.
+struct ReadBackSlot {
+  unsigned char* pinned = nullptr;
+  bool pending = false;
+  bool from_gpu = false;
+#if COVOX_WITH_CUDA
+  cudaEvent_t done = nullptr;
+#endif
+  unsigned char host_bytes[PendingReadBack::kMaxBytes];
+  ~ReadBackSlot() {
+#if COVOX_WITH_CUDA
+    if (done) cudaEventDestroy(done);
+    if (pinned) cudaFreeHost(pinned);
+#endif
+  }
+};
+ReadBackSlot& read_back_slot() {
+  thread_local ReadBackSlot slot;
+  return slot;
+}
+
 }  // namespace
+
+PendingReadBack::PendingReadBack(const void* source, Device source_device, size_t bytes, const Stream& stream)
+    : bytes_(bytes) {
+  if (bytes > kMaxBytes) {
+    throw Error("PendingReadBack: " + std::to_string(bytes) + " bytes, at most " + std::to_string(kMaxBytes));
+  }
+  ReadBackSlot& slot = read_back_slot();
+  if (slot.pending) throw Error("PendingReadBack: this thread has one pending already; wait for it first");
+  slot.from_gpu = source_device == Device::kCuda;
+  if (!slot.from_gpu) {
+    std::memcpy(slot.host_bytes, source, bytes);
+    slot.pending = true;
+    return;
+  }
+#if COVOX_WITH_CUDA
+  if (!slot.pinned) {
+    void* pinned = nullptr;
+    check(cudaMallocHost(&pinned, kMaxBytes), "page-locked read-back allocation");
+    slot.pinned = static_cast<unsigned char*>(pinned);
+  }
+  if (!slot.done) check(cudaEventCreateWithFlags(&slot.done, cudaEventDisableTiming), "read-back event creation");
+  cudaStream_t cuda_stream =
+      stream.device() == Device::kCuda ? static_cast<cudaStream_t>(stream.native_handle()) : nullptr;
+  check(cudaMemcpyAsync(slot.pinned, source, bytes, cudaMemcpyDeviceToHost, cuda_stream), "PendingReadBack copy");
+  check(cudaEventRecord(slot.done, cuda_stream), "PendingReadBack event");
+  slot.pending = true;
+#else
+  (void)stream;
+  throw NotAvailableError("PendingReadBack: CUDA memory used in a build without CUDA");
+#endif
+}
+
+void PendingReadBack::wait(void* destination) {
+  ReadBackSlot& slot = read_back_slot();
+  if (waited_ || !slot.pending) throw Error("PendingReadBack::wait: nothing pending");
+  waited_ = true;
+  slot.pending = false;
+#if COVOX_WITH_CUDA
+  if (slot.from_gpu) check(cudaEventSynchronize(slot.done), "PendingReadBack wait");
+#endif
+  std::memcpy(destination, slot.from_gpu ? slot.pinned : slot.host_bytes, bytes_);
+}
+
+PendingReadBack::~PendingReadBack() {
+  if (waited_) return;
+  ReadBackSlot& slot = read_back_slot();
+#if COVOX_WITH_CUDA
+  // the copy must end before the buffer is reused (errors are the next call's to report)
+  if (slot.from_gpu && slot.done) cudaEventSynchronize(slot.done);
+#endif
+  slot.pending = false;
+}
 
 void* allocate_bytes(Device device, size_t bytes) {
   if (bytes == 0) return nullptr;

@@ -19,6 +19,26 @@ void free_bytes(Device device, void* pointer) noexcept;
 // read-back on the H100 (docs/benchmarks.md, "seventh pass").
 void copy_bytes(void* destination, Device destination_device, const void* source,
                 Device source_device, size_t bytes, const Stream& stream);
+// A small copy to the host (at most kMaxBytes) queued on `stream` now and collected later: the
+// GPU goes on with the work queued after it while the host waits for the copy alone, not for the
+// stream. On the CPU the bytes are copied at once. It uses a page-locked buffer and an event of
+// the calling thread, so each thread has at most one pending at a time (a second one throws).
+class PendingReadBack {
+ public:
+  static constexpr size_t kMaxBytes = 256;
+  PendingReadBack(const void* source, Device source_device, size_t bytes, const Stream& stream);
+  ~PendingReadBack();  // waits for the copy if nobody did
+  PendingReadBack(const PendingReadBack&) = delete;
+  PendingReadBack& operator=(const PendingReadBack&) = delete;
+  // Waits for the copy (on the GPU, for it and the work queued before it) and copies the bytes
+  // to `destination`.
+  void wait(void* destination);
+
+ private:
+  size_t bytes_;
+  bool waited_ = false;
+};
+
 // memset on a device, queued on `stream`.
 void set_bytes(void* destination, Device device, int value, size_t bytes, const Stream& stream);
 

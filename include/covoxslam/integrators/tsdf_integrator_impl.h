@@ -3,6 +3,7 @@
 // once for both backends.
 #include <algorithm>
 #include <climits>
+#include <optional>
 #include <string>
 
 #include <array>
@@ -108,15 +109,92 @@ COVOX_HD_INLINE void blend_color(const ColorView& color_view, int64_t index, con
   color_view.store(index, color);
 }
 
-// Copies the first N figures left on the device (scratch.readback) to the host: one small copy,
-// one wait.
-template <size_t N>
-std::array<uint32_t, N> read_back(const TsdfScratchBuffers& scratch, const Stream& stream) {
-  static_assert(N <= 8, "read_back: the frame's figures are 8 words");
-  std::array<uint32_t, N> host{};
-  copy_bytes(host.data(), Device::kCpu, scratch.readback.data(), scratch.readback.device(), N * sizeof(uint32_t),
-             stream);
-  return host;
+// The frame's figures that step 4 and step 5 leave on the device (scratch.readback), by word.
+constexpr int kFrameCountWords = 8;
+constexpr int kZeroWeightFirstWord = 1;  // 1 + the first zero-weight record (sorted last); 0: none
+constexpr int kOutOfRangeFirstWord = 2;  // 1 + the first record outside the box (before them); 0: none
+constexpr int kBlockCountWord = 4;       // the frame's distinct blocks
+constexpr int kActivationWords = 5;      // the queued activation's totals: new blocks, rejected ones
+constexpr int kRunCountWord = 7;         // runs of equal keys that step 5 summed
+struct FrameCounts {
+  uint32_t zero_weight_first = 0, out_of_range_first = 0;
+  uint32_t blocks = 0, new_blocks = 0, rejected_blocks = 0;
+  uint32_t runs = 0;
+};
+// One copy, one wait.
+inline FrameCounts read_frame_counts(const TsdfScratchBuffers& scratch, const Stream& stream) {
+  uint32_t words[kFrameCountWords];
+  copy_bytes(words, Device::kCpu, scratch.readback.data(), scratch.readback.device(), sizeof(words), stream);
+  FrameCounts counts;
+  counts.zero_weight_first = words[kZeroWeightFirstWord];
+  counts.out_of_range_first = words[kOutOfRangeFirstWord];
+  counts.blocks = words[kBlockCountWord];
+  counts.new_blocks = words[kActivationWords];
+  counts.rejected_blocks = words[kActivationWords + 1];
+  counts.runs = words[kRunCountWord];
+  return counts;
+}
+// Written by one thread of the kernel that lists the blocks (before step 5 runs).
+COVOX_HD_INLINE void start_frame_counts(uint32_t* words, uint32_t blocks) {
+  words[kBlockCountWord] = blocks;
+  words[kZeroWeightFirstWord] = 0u;
+  words[kOutOfRangeFirstWord] = 0u;
+  words[kRunCountWord] = 0u;
+}
+// Step 5's consumer at the run of a dropped kind: each kind is one key, so one run and one call.
+COVOX_HD_INLINE void note_dropped_run(uint32_t* words, bool zero_weight, int64_t first) {
+  words[zero_weight ? kZeroWeightFirstWord : kOutOfRangeFirstWord] = static_cast<uint32_t>(first + 1);
+}
+// The kept voxels and the records outside the box, from the runs and where the dropped ones start.
+struct DroppedRecords {
+  int64_t kept_voxels = 0;
+  int64_t out_of_range = 0;
+};
+inline DroppedRecords dropped_records(const FrameCounts& counts, int64_t record_count) {
+  DroppedRecords dropped;
+  const int kinds = (counts.zero_weight_first ? 1 : 0) + (counts.out_of_range_first ? 1 : 0);
+  dropped.kept_voxels = static_cast<int64_t>(counts.runs) - kinds;
+  if (counts.out_of_range_first) {
+    const int64_t end = counts.zero_weight_first ? counts.zero_weight_first - 1 : record_count;
+    dropped.out_of_range = end - (counts.out_of_range_first - 1);
+  }
+  return dropped;
+}
+
+// The slot of a kept record's block: by the block's number in the frame's box (blocks listed from
+// the traverse's marks) or by its rank among the sorted records' blocks.
+struct RecordSlots {
+  tsdf::FrameKeyCodec codec;
+  const uint32_t* box_slots;    // per box block, or null
+  const uint32_t* slots;        // per listed block
+  const uint32_t* block_ranks;  // sorted records: the rank of each record's block
+  const uint32_t* block_flags;  //   and whether the record starts it
+  COVOX_HD_INLINE uint32_t slot_of(int64_t j, uint64_t key) const {
+    return box_slots ? box_slots[codec.block_part(key)] : slots[block_ranks[j] + block_flags[j] - 1];
+  }
+};
+
+// Boxes of up to this many blocks are always marked (the CPU twin's dense grouping needs no more),
+// larger ones when they have no more blocks than the frame has records, so that listing them
+// costs no more than listing the sorted records' blocks.
+constexpr int64_t kAlwaysMarkedBoxBlocks = int64_t(1) << 16;
+inline bool marks_blocks(int64_t box_blocks, int64_t total_updates) {
+  return box_blocks <= std::max<int64_t>(kAlwaysMarkedBoxBlocks, total_updates) && box_blocks < (int64_t(1) << 31);
+}
+
+// The traverse's block marks for a box of `box_blocks` blocks, all clear (and one past them, for
+// the scan's total). A frame clears the marks it set once it has listed them, so the array is
+// cleared here only when it grows or when the last frame did not get that far.
+template <class Backend>
+uint32_t* clean_box_marks(Backend, TsdfScratchBuffers& scratch, int64_t box_blocks, const Stream& stream) {
+  const size_t needed = static_cast<size_t>(box_blocks) + 1;
+  if (scratch.box_marks.size() < needed || !scratch.box_marks_clean) {
+    const size_t size = std::max(needed, scratch.box_marks.size());
+    scratch.box_marks.resize_discard(size);
+    set_bytes(scratch.box_marks.data(), scratch.box_marks.device(), 0, size * sizeof(uint32_t), stream);
+  }
+  scratch.box_marks_clean = false;  // until the frame's listing has cleared its marks
+  return scratch.box_marks.data();
 }
 
 // The merge table for a frame of n points: at least twice n slots (a power of two), all free.
@@ -385,28 +463,34 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   for (Buffer<ValueT>* buffer : value_buffers) buffer->resize_discard(total_updates);
   ValueT* values = value_buffers[0]->data();
   ValueT* values_alt = value_buffers[1]->data();
-  const tsdf::PieceTraversal<KeyT, ValueT> traversal{frame, zero_weight_key, scratch.piece_offsets.data(), truncation};
+  // The traverse marks the frame's blocks in a flag array over the frame's box when the box is
+  // not too large (almost always): the blocks are then listed and allocated before the sort.
+  const int64_t box_blocks = static_cast<int64_t>(codec.size_x) * codec.size_y * codec.size_z;
+  const bool mark_blocks = tsdf_detail::marks_blocks(box_blocks, total_updates);
+  uint32_t* box_marks = mark_blocks ? tsdf_detail::clean_box_marks(backend, scratch, box_blocks, stream) : nullptr;
+  const tsdf::PieceTraversal<KeyT, ValueT> traversal{frame, zero_weight_key, scratch.piece_offsets.data(), truncation,
+                                                     box_marks};
   tsdf::traverse_pieces(backend, stream, frame.piece_bound, total_updates, traversal,
                         tsdf::RecordArrays<KeyT, ValueT>{keys, values});
 
   profile.mark("2b traverse");
 
-  // 3. group by voxel (a stable sort keeps each voxel's records in ray order, so the float sums
-  //    are the same every run). The records to sum are then the sorted ones, or on the CPU twin
-  //    one merged record per voxel.
-  scratch.readback.resize_discard(8);
+  // The frame's figures left on the device (tsdf_detail::FrameCounts) and read back together.
+  scratch.readback.resize_discard(tsdf_detail::kFrameCountWords);
   uint32_t* counts_on_device = scratch.readback.data();
+
+  // 3. (CPU twin) group by voxel in dense per-block arrays (tsdf_group_updates_cpu.h): the same
+  //    voxels and (within rounding) sums as the sort and run sums below, with a third of the
+  //    moves. Its merged records are runs of one, and none is dropped.
   const KeyT* record_keys = keys;
-  SumT* merged_updates = nullptr;  // the CPU twin's merged records' sums
+  int64_t record_count = total_updates;  // the records step 5 reads (the dropped ones sort last)
+  SumT* merged_updates = nullptr;        // the CPU twin's merged records' sums
+  tsdf::GroupCounts grouping;
   bool grouped = false;
   if constexpr (std::is_same<Backend, CpuBackend>::value) {
-    // The CPU twin groups by block and sums in dense per-block arrays (tsdf_group_updates_cpu.h):
-    // the same voxels and (within rounding) sums as the sort and run sums below, with a third of
-    // the moves. Its merged records are runs of one.
     if (tsdf::dense_grouping_fits(codec)) {
       key_buffers[2]->resize_discard(total_updates);
       KeyT* merged_keys = key_buffers[2]->data();
-      tsdf::GroupCounts grouping;
       if constexpr (kColored) {
         scratch.merged_updates.resize_discard(total_updates);
         merged_updates = scratch.merged_updates.data();
@@ -421,112 +505,109 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
             [moved](int64_t j) { return moved[j]; }, tsdf::MergeUpdates());
       }
       record_keys = merged_keys;
-      counts_on_device[0] = grouping.voxels;
-      counts_on_device[1] = grouping.zero_weight;
-      counts_on_device[2] = grouping.out_of_range;
-      counts_on_device[3] = grouping.voxels;
+      record_count = grouping.voxels;
       grouped = true;
       profile.mark("3 group by voxel");
     }
   }
+
+  // 4. the frame's distinct blocks, listed and allocated in one batch (the hash table sees a few
+  //    hundred blocks, not one key per record). Listed from the traverse's marks (before the
+  //    sort), or else from the sorted records, block-major, where each block's records form one
+  //    run. On the GPU the activation is queued for the blocks counted on the device (at most
+  //    one per box block and per record) and its totals come back while the records are sorted,
+  //    so the host's wait overlaps the sort; when the table might have to grow it needs the exact
+  //    count first (activate_queued says no), and on the CPU a read-back is free.
+  const int64_t block_bound = std::max<int64_t>(1, std::min<int64_t>(box_blocks, record_count));
+  scratch.block_indices.resize_discard(block_bound);
+  scratch.slots.resize_discard(block_bound);
+  scratch.is_new.resize_discard(block_bound);
+  Index3D* block_indices = scratch.block_indices.data();
+  uint32_t* slots = scratch.slots.data();
+  const uint32_t* block_ranks = nullptr;
+  const uint32_t* block_flags = nullptr;
+  bool queued = false;
+  ActivateResult activation;
+  tsdf_detail::FrameCounts counts;
+  const auto activate_listed_blocks = [&] {
+    if (Backend::kDevice != Device::kCpu) {
+      queued = map.blocks().activate_queued(block_indices, counts_on_device + tsdf_detail::kBlockCountWord, block_bound,
+                                            slots, scratch.is_new.data(),
+                                            counts_on_device + tsdf_detail::kActivationWords, stream);
+    }
+    if (!queued) {
+      counts = tsdf_detail::read_frame_counts(scratch, stream);
+      activation = map.blocks().activate(block_indices, counts.blocks, slots, scratch.is_new.data(), stream);
+    }
+  };
+  std::optional<PendingReadBack> activation_totals;
+  uint32_t* box_slots = nullptr;
+  if (mark_blocks) {
+    scratch.block_ranks.resize_discard(box_blocks + 1);
+    scratch.box_slots.resize_discard(box_blocks);
+    uint32_t* marked_ranks = scratch.block_ranks.data();
+    box_slots = scratch.box_slots.data();
+    exclusive_scan(backend, stream, static_cast<const uint32_t*>(box_marks), box_blocks + 1, marked_ranks);
+    parallel_for(backend, stream, box_blocks, [=] COVOX_HD(int64_t b) {
+      if (marked_ranks[b + 1] != marked_ranks[b]) {
+        block_indices[marked_ranks[b]] = codec.block(static_cast<uint64_t>(b) << codec.voxel_bits);
+      }
+      if (b == 0) tsdf_detail::start_frame_counts(counts_on_device, marked_ranks[box_blocks]);
+    });
+    activate_listed_blocks();
+    // Each box block's slot, for the writes; the marks cleared for the next frame (the scan has
+    // read them).
+    parallel_for(backend, stream, box_blocks, [=] COVOX_HD(int64_t b) {
+      if (marked_ranks[b + 1] != marked_ranks[b]) box_slots[b] = slots[marked_ranks[b]];
+      box_marks[b] = 0u;
+    });
+    scratch.box_marks_clean = true;
+    if (queued) {
+      activation_totals.emplace(counts_on_device + tsdf_detail::kBlockCountWord, Backend::kDevice,
+                                3 * sizeof(uint32_t), stream);
+    }
+    profile.mark("4a list and activate marked blocks");
+  }
   if (!grouped) {
+    // 3. group by voxel: a stable sort keeps each voxel's records in ray order, so the float
+    //    sums are the same every run. Records to drop (outside the key range, zero weight) sort
+    //    last, one run per kind.
     radix_sort_pairs_swapping(backend, stream, keys, values, total_updates, codec.key_bits, keys_alt, values_alt);
-    record_keys = keys;
-    // Records to drop (outside the key range, zero weight) sort last, in one run per kind
-    // present: the block flags' kernel below counts them ([1]: at or past the first zero-weight
-    // key, [2]: at or past the first out-of-range key; none: 0); step 5 counts the distinct
-    // voxels ([7]).
-    set_bytes(counts_on_device + 1, scratch.readback.device(), 0, 7 * sizeof(uint32_t), stream);
+    record_keys = keys;  // the sort may have swapped the buffers
     profile.mark("3 sort records");
   }
-
-  // 4. allocate the distinct blocks of the touched voxels in one batch. Records are sorted
-  //    block-major, so each block's records form one run: the run's first record names the block
-  //    and a scan ranks the runs. The hash table sees a few hundred blocks, not one key per record.
-  //    On the GPU each read-back is a wait, so the flags and their scan run over the bound
-  //    total_updates (no flag past the kept records, whose count stays on the device) and the
-  //    counts come back in one copy; on the CPU a read-back is free and the exact count scans less.
-  //    Without the CPU's grouping the counts of dropped records are found here: the same
-  //    kernels, no extra launch.
-  const bool counts_known = grouped;
-  const bool read_back_is_free = Backend::kDevice == Device::kCpu;
-  const int64_t flag_bound =
-      read_back_is_free && counts_known ? tsdf_detail::read_back<4>(scratch, stream)[0] : total_updates;
-  scratch.block_flags.resize_discard(flag_bound + 1);
-  scratch.block_ranks.resize_discard(flag_bound + 1);
-  scratch.block_indices.resize_discard(flag_bound + 1);
-  uint32_t* block_flags = scratch.block_flags.data();
-  uint32_t* block_ranks = scratch.block_ranks.data();
-  Index3D* block_indices = scratch.block_indices.data();
-  parallel_for(backend, stream, flag_bound + 1, [=] COVOX_HD(int64_t v) {
-    // records past the kept ones: the dropped kinds' runs (last), then nothing written
-    const bool kept = counts_known ? v < flag_bound : v < total_updates && record_keys[v] < out_of_range_key;
-    block_flags[v] =
-        kept && (v == 0 || codec.block_part(record_keys[v]) != codec.block_part(record_keys[v - 1])) ? 1u : 0u;
-    if (counts_known || v >= total_updates) return;
-    const KeyT key = record_keys[v];
-    const KeyT previous = v > 0 ? record_keys[v - 1] : KeyT(0);
-    if (key >= zero_weight_key && (v == 0 || previous < zero_weight_key)) {
-      counts_on_device[1] = static_cast<uint32_t>(total_updates - v);
-    }
-    if (key >= out_of_range_key && (v == 0 || previous < out_of_range_key)) {
-      counts_on_device[2] = static_cast<uint32_t>(total_updates - v);
-    }
-  });
-  exclusive_scan(backend, stream, static_cast<const uint32_t*>(block_flags), flag_bound + 1, block_ranks);
-  // Each block's index at its rank; the counts completed by one thread.
-  parallel_for(backend, stream, flag_bound + 1, [=] COVOX_HD(int64_t v) {
-    if (block_flags[v]) block_indices[block_ranks[v]] = codec.block(record_keys[v]);
-    if (v != 0) return;
-    if (!counts_known) {
-      const uint32_t zero_weight = counts_on_device[1];
-      const uint32_t dropped = counts_on_device[2];  // out of range and zero weight
-      counts_on_device[2] = dropped - zero_weight;
-      counts_on_device[0] = static_cast<uint32_t>(total_updates) - dropped;
-    }
-    counts_on_device[4] = block_ranks[counts_on_device[0]];
-  });
-  // On the GPU the blocks' activation is queued before that read-back, for the blocks counted on
-  // the device (at most one per flagged record and per block of the frame's box), and its totals
-  // come back with the frame's counts: one wait instead of two. When the table might have to grow
-  // it needs the exact count first (activate_queued says no), and on the CPU waiting costs nothing.
-  bool queued = false;
-  if (!read_back_is_free) {
-    const int64_t box_blocks = static_cast<int64_t>(codec.size_x) * codec.size_y * codec.size_z;
-    const int64_t block_bound = std::min<int64_t>(flag_bound, box_blocks);
-    scratch.slots.resize_discard(block_bound);
-    scratch.is_new.resize_discard(block_bound);
-    queued = map.blocks().activate_queued(block_indices, counts_on_device + 4, block_bound, scratch.slots.data(),
-                                          scratch.is_new.data(), counts_on_device + 5, stream);
+  if (!mark_blocks) {
+    scratch.block_flags.resize_discard(record_count + 1);
+    scratch.block_ranks.resize_discard(record_count + 1);
+    uint32_t* flags = scratch.block_flags.data();
+    uint32_t* ranks = scratch.block_ranks.data();
+    block_flags = flags;
+    block_ranks = ranks;
+    parallel_for(backend, stream, record_count + 1, [=] COVOX_HD(int64_t v) {
+      const bool kept = v < record_count && record_keys[v] < out_of_range_key;
+      flags[v] = kept && (v == 0 || codec.block_part(record_keys[v]) != codec.block_part(record_keys[v - 1])) ? 1u : 0u;
+    });
+    exclusive_scan(backend, stream, static_cast<const uint32_t*>(flags), record_count + 1, ranks);
+    parallel_for(backend, stream, record_count + 1, [=] COVOX_HD(int64_t v) {
+      if (flags[v]) block_indices[ranks[v]] = codec.block(record_keys[v]);
+      if (v == 0) tsdf_detail::start_frame_counts(counts_on_device, ranks[record_count]);
+    });
+    activate_listed_blocks();
+    profile.mark("4a list and activate sorted blocks");
   }
-  const std::array<uint32_t, 7> counts = tsdf_detail::read_back<7>(scratch, stream);
-  const int64_t record_count = counts[0];  // kept records (sorted), or merged voxels (grouped)
-  stats.voxels_out_of_range = counts[2];
-  const int64_t block_count = counts[4];
-  profile.mark("4a distinct blocks");
-  ActivateResult activation;
-  if (queued) activation = map.blocks().finish_queued_activation(counts[5], counts[6], stream);
-  if (record_count == 0) return;
-  if (!queued) {
-    scratch.slots.resize_discard(block_count);
-    scratch.is_new.resize_discard(block_count);
-    activation = map.blocks().activate(block_indices, block_count, scratch.slots.data(), scratch.is_new.data(), stream);
+  if (activation_totals) {
+    uint32_t totals[3];
+    activation_totals->wait(totals);
+    counts.blocks = totals[0];
+    activation = map.blocks().finish_queued_activation(totals[1], totals[2], stream);
+  } else if (queued) {  // listed after the sort: its totals come back now
+    counts = tsdf_detail::read_frame_counts(scratch, stream);
+    activation = map.blocks().finish_queued_activation(counts.new_blocks, counts.rejected_blocks, stream);
   }
   stats.blocks_allocated = activation.num_new;
   profile.mark("4b hash activate");
   map.ensure_pool_capacity(stream);
   profile.mark("4c pool capacity");
-  const uint32_t* slots = scratch.slots.data();
-  if (activation.num_out_of_range + activation.num_failed_full > 0) {
-    // Rare: count the voxels whose block the hash table rejected (outside its key range, or full).
-    scratch.counts.resize_discard(record_count);
-    uint32_t* rejected = scratch.counts.data();
-    parallel_for(backend, stream, record_count, [=] COVOX_HD(int64_t j) {
-      const bool voxel_start = j == 0 || record_keys[j] != record_keys[j - 1];
-      rejected[j] = voxel_start && slots[block_ranks[j] + block_flags[j] - 1] == kInvalidSlot ? 1u : 0u;
-    });
-    stats.voxels_out_of_range += count_if(backend, stream, rejected, record_count, [] COVOX_HD(uint32_t r) { return r != 0; });
-  }
 
   // Clear new blocks: a new block may reuse the slot of an erased one. (The voxel writes below
   // mark the blocks changed, for the ESDF and the mesh.)
@@ -537,7 +618,7 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   const uint8_t* is_new = scratch.is_new.data();
   const int64_t voxels_per_block = map.voxels_per_block();
   if (activation.num_new > 0) {
-    parallel_for(backend, stream, block_count * voxels_per_block, [=] COVOX_HD(int64_t i) {
+    parallel_for(backend, stream, int64_t(counts.blocks) * voxels_per_block, [=] COVOX_HD(int64_t i) {
       const int64_t b = i / voxels_per_block;
       if (!is_new[b] || slots[b] == kInvalidSlot) return;
       const int64_t index = static_cast<int64_t>(slots[b]) * voxels_per_block + i % voxels_per_block;
@@ -546,18 +627,26 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
       esdf_view.store(index, EsdfVoxel{});
     });
   }
-
   profile.mark("4d clear new blocks");
 
   // 5. each voxel's records summed and written once: a weighted average with the voxel, given
-  //    the index of the voxel's first record and the sum of its updates
+  //    the index of the voxel's first record and the sum of its updates. The runs of dropped
+  //    records (sorted last) only leave their first index, from which their counts follow.
+  const tsdf_detail::RecordSlots record_slots{codec, box_slots, slots, block_ranks, block_flags};
   const float max_weight = config.max_weight;
   const auto write_voxel = [=] COVOX_HD(int64_t j, const SumT& update) {
-    const uint32_t slot = slots[block_ranks[j] + block_flags[j] - 1];  // the rank of j's block
+    const KeyT key = record_keys[j];
+    if (key >= out_of_range_key) {
+      tsdf_detail::note_dropped_run(counts_on_device, key == zero_weight_key, j);
+      return;
+    }
+    const uint32_t slot = record_slots.slot_of(j, key);
     if (slot == kInvalidSlot) return;
-    if (block_flags[j]) block_changed[slot] = kAllPending;  // once per block: its first voxel
+    if (j == 0 || codec.block_part(record_keys[j - 1]) != codec.block_part(key)) {
+      block_changed[slot] = kAllPending;  // once per block: its first voxel
+    }
     if (update.weight <= 0.0f) return;
-    const int64_t index = static_cast<int64_t>(slot) * voxels_per_block + codec.voxel_in_block(record_keys[j]);
+    const int64_t index = static_cast<int64_t>(slot) * voxels_per_block + codec.voxel_in_block(key);
     TsdfVoxel voxel = tsdf_view.load(index);
     const float combined = voxel.weight + update.weight;
     float distance = (voxel.distance_m * voxel.weight + update.weighted_distance) / combined;
@@ -567,22 +656,32 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
     tsdf_view.store(index, voxel);
     tsdf_detail::blend_color(color_view, index, update, max_weight);
   };
-  if (grouped) {  // one record per voxel: the count is known
+  uint32_t* runs_counted = counts_on_device + tsdf_detail::kRunCountWord;
+  if (grouped) {  // one record per voxel, none dropped
     consume_run_sums<SumT>(backend, stream, record_keys, record_count, tsdf_detail::ArrayTerm<SumT>{merged_updates},
-                           tsdf::MergeUpdates(), write_voxel, scratch.run_tile_parts);
-    stats.voxels_updated = counts[3];
-    stream.synchronize();
+                           tsdf::MergeUpdates(), write_voxel, scratch.run_tile_parts, runs_counted);
+  } else if constexpr (kColored) {
+    const tsdf::VoxelUpdateOfRecord<KeyT> update_of{frame, keys, values, out_of_range_key, truncation};
+    consume_run_sums<SumT>(backend, stream, record_keys, record_count, update_of, tsdf::MergeUpdates(), write_voxel,
+                           scratch.run_tile_parts, runs_counted);
   } else {
-    uint32_t* voxels_counted = counts_on_device + 7;
-    if constexpr (kColored) {
-      const tsdf::VoxelUpdateOfRecord<KeyT> update_of{frame, keys, values, out_of_range_key, truncation};
-      consume_run_sums<SumT>(backend, stream, record_keys, record_count, update_of, tsdf::MergeUpdates(), write_voxel,
-                             scratch.run_tile_parts, voxels_counted);
-    } else {
-      consume_run_sums<SumT>(backend, stream, record_keys, record_count, tsdf_detail::ArrayTerm<SumT>{values},
-                             tsdf::MergeUpdates(), write_voxel, scratch.run_tile_parts, voxels_counted);
-    }
-    stats.voxels_updated = tsdf_detail::read_back<8>(scratch, stream)[7];  // waits for the writes too
+    consume_run_sums<SumT>(backend, stream, record_keys, record_count, tsdf_detail::ArrayTerm<SumT>{values},
+                           tsdf::MergeUpdates(), write_voxel, scratch.run_tile_parts, runs_counted);
+  }
+  counts = tsdf_detail::read_frame_counts(scratch, stream);  // waits for the writes too
+  const tsdf_detail::DroppedRecords dropped = tsdf_detail::dropped_records(counts, record_count);
+  stats.voxels_updated = dropped.kept_voxels;
+  stats.voxels_out_of_range = grouped ? grouping.out_of_range : dropped.out_of_range;
+  if (activation.num_out_of_range + activation.num_failed_full > 0) {
+    // Rare: count the voxels whose block the hash table rejected (outside its key range, or full).
+    scratch.counts.resize_discard(record_count);
+    uint32_t* rejected = scratch.counts.data();
+    parallel_for(backend, stream, record_count, [=] COVOX_HD(int64_t j) {
+      const KeyT key = record_keys[j];
+      const bool voxel_start = j == 0 || key != record_keys[j - 1];
+      rejected[j] = voxel_start && key < out_of_range_key && record_slots.slot_of(j, key) == kInvalidSlot ? 1u : 0u;
+    });
+    stats.voxels_out_of_range += count_if(backend, stream, rejected, record_count, [] COVOX_HD(uint32_t r) { return r != 0; });
   }
   profile.mark("5 sum and write voxels");
 }

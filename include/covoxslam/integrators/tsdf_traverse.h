@@ -20,6 +20,7 @@
 //   cut rule does not produce) writes directly, as the CPU does.
 #include <cstdint>
 
+#include "covoxslam/core/atomics.h"
 #include "covoxslam/core/device.h"
 #include "covoxslam/core/macros.h"
 #include "covoxslam/core/parallel.h"
@@ -73,6 +74,10 @@ struct PieceTraversal {
   KeyT zero_weight_key;
   const uint32_t* piece_offsets;  // each piece's first record (exclusive scan of its voxel count)
   float truncation;
+  // When given, one flag per block of the frame's box (the codec's block number), set for every
+  // block that a kept record (weight, inside the box) falls in: the frame's blocks, known before
+  // the records are sorted (tsdf_integrator_impl.h, step 4).
+  uint32_t* block_marks = nullptr;
 
   template <class Emit>
   COVOX_HD_INLINE void operator()(int64_t p, Emit&& emit) const {
@@ -94,13 +99,19 @@ struct PieceTraversal {
       first = ray_cut_voxel(ray, ends, piece.index, piece.pieces, frame.inverse_voxel_size);
       last = ray_cut_voxel(ray, ends, piece.index + 1, piece.pieces, frame.inverse_voxel_size);
     }
+    uint64_t marked = ~uint64_t(0);  // the block this piece marked last (a piece spans one to three)
     traverse_ray_piece(ray, piece.index, piece.pieces, first, last, frame.inverse_voxel_size,
                        [&](const Index3D& voxel) {
       bool takes_color = false;
       const DistanceUpdate update = voxel_update(frame, ray, ray_weight, voxel, truncation, &takes_color);
       ValueT value;
       make_record_value(update, i, &value);
-      emit(out, update.weight > 0.0f ? static_cast<KeyT>(frame.codec.key(voxel)) : zero_weight_key, value);
+      const uint64_t key = update.weight > 0.0f ? frame.codec.key(voxel) : static_cast<uint64_t>(zero_weight_key);
+      if (block_marks && key < frame.codec.out_of_range_key && frame.codec.block_part(key) != marked) {
+        marked = frame.codec.block_part(key);
+        mark_flag(&block_marks[marked]);
+      }
+      emit(out, static_cast<KeyT>(key), value);
       ++out;
     });
   }
