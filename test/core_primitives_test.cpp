@@ -56,6 +56,33 @@ TEST_P(CorePrimitivesTest, ExclusiveScanMatchesStd) {
   EXPECT_EQ(out.to_host(), expected);
 }
 
+// The single-pass scan: one tile, tile edges, look-back past windows of 32 tiles, full 32-bit
+// values (the sums wrap, as std's do), each value read exactly once; then in place, three scans
+// queued back to back on one stream (each with its own epoch of tile descriptors).
+TEST_P(CorePrimitivesTest, ScanOfValuesReadsEachOnceAndMatchesStd) {
+  const Stream stream(device());
+  std::mt19937 random(3);
+  for (const int64_t count : {int64_t(1), int64_t(2047), int64_t(2048), int64_t(2049), int64_t(65 * 2048 + 5),
+                              int64_t(300001)}) {
+    std::vector<uint32_t> values(count);
+    for (auto& v : values) v = static_cast<uint32_t>(random());
+    std::vector<uint32_t> expected(count);
+    std::exclusive_scan(values.begin(), values.end(), expected.begin(), 0u);
+    auto in = Buffer<uint32_t>::from_host(device(), values);
+    Buffer<uint32_t> out(device(), count);
+    Buffer<uint32_t> calls(device(), count);
+    calls.fill_bytes(0, stream);
+    algorithms::scan_values_once(device(), stream, in.data(), count, out.data(), calls.data());
+    ASSERT_EQ(out.to_host(stream), expected) << count;
+    ASSERT_EQ(calls.to_host(stream), std::vector<uint32_t>(count, 1u)) << count;
+    for (int round = 0; round < 3; ++round) {
+      algorithms::exclusive_scan(device(), stream, in.data(), count, in.data());
+      std::exclusive_scan(values.begin(), values.end(), values.begin(), 0u);
+    }
+    ASSERT_EQ(in.to_host(stream), values) << count;
+  }
+}
+
 TEST_P(CorePrimitivesTest, SortByKeyIsStableAndMatchesStd) {
   const auto keys = random_keys(500000, 1000, 11);  // many equal keys: stability matters
   std::vector<uint32_t> values(keys.size());

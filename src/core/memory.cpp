@@ -1,7 +1,10 @@
 #include "covoxslam/core/memory.h"
 
+#include <algorithm>
 #include <cstdlib>
 #include <cstring>
+#include <mutex>
+#include <unordered_map>
 #include <sstream>
 #include <string>
 
@@ -212,6 +215,32 @@ void set_bytes(void* destination, Device device, int value, size_t bytes, const 
   (void)stream;
   throw NotAvailableError("set_bytes: CUDA memory used in a build without CUDA");
 #endif
+}
+
+ScanDescriptors single_pass_scan_descriptors(const Stream& stream, int64_t tiles) {
+  struct Descriptors {
+    uint64_t* words = nullptr;
+    int64_t capacity = 0;
+    uint32_t last_epoch = 0;
+  };
+  static std::mutex mutex;
+  static std::unordered_map<const void*, Descriptors> by_stream;  // kept for the process's life
+  constexpr uint32_t kLastEpoch = (1u << 30) - 1u;
+  std::lock_guard<std::mutex> lock(mutex);
+  Descriptors& d = by_stream[stream.native_handle()];
+  if (d.capacity < tiles || d.last_epoch == kLastEpoch) {
+    if (d.capacity < tiles) {
+      // cudaFree waits for the work queued before it, the last scans on this stream included
+      free_bytes(stream.device(), d.words);
+      d.words = nullptr;
+      d.capacity = std::max<int64_t>(tiles, std::max<int64_t>(2 * d.capacity, 1024));
+      d.words = static_cast<uint64_t*>(allocate_bytes(stream.device(), static_cast<size_t>(d.capacity) * sizeof(uint64_t)));
+    }
+    set_bytes(d.words, stream.device(), 0, static_cast<size_t>(d.capacity) * sizeof(uint64_t), stream);
+    d.last_epoch = 0;
+  }
+  ++d.last_epoch;  // from 1: zeroed words (epoch 0) are never current
+  return ScanDescriptors{d.words, d.last_epoch};
 }
 
 }  // namespace covox

@@ -49,6 +49,14 @@ void Primitives<Backend>::sum_runs_at_first(const Stream& stream, const uint64_t
   stream.synchronize();  // the scratch goes out of scope
 }
 template <class Backend>
+void Primitives<Backend>::scan_values_once(const Stream& stream, const uint32_t* in, int64_t count, uint32_t* out,
+                                           uint32_t* calls) {
+  exclusive_scan_of(Backend{}, stream, count, [=] COVOX_HD(int64_t i) -> uint32_t {
+    atomic_add(calls + i, 1u);
+    return in[i];
+  }, out);
+}
+template <class Backend>
 int64_t Primitives<Backend>::unique(const Stream& stream, uint64_t* data, int64_t count) {
     return covox::unique(Backend{}, stream, data, count);
   }

@@ -1,5 +1,6 @@
 #pragma once
 #include <cstddef>
+#include <cstdint>
 
 #include "covoxslam/core/device.h"
 #include "covoxslam/core/stream.h"
@@ -38,6 +39,16 @@ class PendingReadBack {
   size_t bytes_;
   bool waited_ = false;
 };
+
+// The tile descriptors of the single-pass scans queued on `stream` (single_pass_scan.h), at least
+// `tiles` of them, and the epoch of the next scan: a fresh epoch per call, the descriptors zeroed
+// (epoch 0, never current) when they grow and when the 30-bit epoch would wrap. One registry per
+// process, by stream.
+struct ScanDescriptors {
+  uint64_t* words = nullptr;
+  uint32_t epoch = 0;
+};
+ScanDescriptors single_pass_scan_descriptors(const Stream& stream, int64_t tiles);
 
 // memset on a device, queued on `stream`.
 void set_bytes(void* destination, Device device, int value, size_t bytes, const Stream& stream);

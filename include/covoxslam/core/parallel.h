@@ -9,6 +9,7 @@
 // cuda::par_nosync on the stream. Functors must be COVOX_HD (or `[=] COVOX_HD` lambdas).
 #include <algorithm>
 #include <cstdint>
+#include <type_traits>
 #include <vector>
 
 #include <omp.h>
@@ -26,6 +27,7 @@
 #include "covoxslam/core/device.h"
 #include "covoxslam/core/macros.h"
 #include "covoxslam/core/memory.h"
+#include "covoxslam/core/single_pass_scan.h"
 #include "covoxslam/core/stream.h"
 
 #if defined(__CUDACC__)
@@ -86,20 +88,33 @@ void exclusive_scan(CpuBackend backend, const Stream& stream, const T* in, int64
   if (count <= 0) return;
   thrust::exclusive_scan(execution_policy(backend, stream), in, in + count, out, T(0));
 }
-#if defined(__CUDACC__)
-// CUB directly: a TSDF frame scans four times, and Thrust's scan costs several microseconds
-// more per call in fixed overhead than CUB's single pass.
-template <class T>
-void exclusive_scan(CudaBackend, const Stream& stream, const T* in, int64_t count, T* out) {
+// out[i] = value_of(0) + ... + value_of(i - 1) for 32-bit values, value_of called once per i (see
+// single_pass_scan.h for the GPU version). Here the values are written to `out` and scanned there.
+template <class ValueOf>
+void exclusive_scan_of(CpuBackend backend, const Stream& stream, int64_t count, const ValueOf& value_of, uint32_t* out) {
   if (count <= 0) return;
-  const auto cuda_stream = static_cast<cudaStream_t>(stream.native_handle());
-  size_t temporary_bytes = 0;
-  cuda_check(cub::DeviceScan::ExclusiveSum(nullptr, temporary_bytes, in, out, count, cuda_stream),
-             "exclusive_scan (sizing)");
-  CudaTemporaryAllocator allocator{stream.native_handle()};
-  char* temporary = allocator.allocate(static_cast<std::ptrdiff_t>(temporary_bytes));
-  cuda_check(cub::DeviceScan::ExclusiveSum(temporary, temporary_bytes, in, out, count, cuda_stream), "exclusive_scan");
-  allocator.deallocate(temporary, temporary_bytes);
+  parallel_for(backend, stream, count, [&](int64_t i) { out[i] = value_of(i); });
+  thrust::exclusive_scan(execution_policy(backend, stream), out, out + count, out, 0u);
+}
+#if defined(__CUDACC__)
+// 32-bit values: the single-pass scan, one launch (single_pass_scan.h). Others: CUB directly
+// (Thrust's scan costs several microseconds more per call in fixed overhead).
+template <class T>
+void exclusive_scan(CudaBackend backend, const Stream& stream, const T* in, int64_t count, T* out) {
+  if (count <= 0) return;
+  if constexpr (std::is_same<T, uint32_t>::value) {
+    exclusive_scan_of(backend, stream, count, single_pass_scan_detail::ArrayValues{in}, out);
+  } else {
+    const auto cuda_stream = static_cast<cudaStream_t>(stream.native_handle());
+    size_t temporary_bytes = 0;
+    cuda_check(cub::DeviceScan::ExclusiveSum(nullptr, temporary_bytes, in, out, count, cuda_stream),
+               "exclusive_scan (sizing)");
+    CudaTemporaryAllocator allocator{stream.native_handle()};
+    char* temporary = allocator.allocate(static_cast<std::ptrdiff_t>(temporary_bytes));
+    cuda_check(cub::DeviceScan::ExclusiveSum(temporary, temporary_bytes, in, out, count, cuda_stream),
+               "exclusive_scan");
+    allocator.deallocate(temporary, temporary_bytes);
+  }
 }
 #endif
 

@@ -307,24 +307,18 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
     }
   });
   profile.mark("bundle");
-  // Which points emit a ray, and its rank among the rays (point order: the same on both backends).
-  scratch.ray_flags.resize_discard(n + 1);
+  // Each point's rank among the rays, counting the points that emit one (point order: the same on
+  // both backends); point i emits one when ray_rank[i + 1] != ray_rank[i].
   scratch.ray_ranks.resize_discard(n + 1);
-  uint32_t* emits_ray = scratch.ray_flags.data();
   uint32_t* ray_rank = scratch.ray_ranks.data();
   const tsdf::PointBundle* bundles = table.bundles;
-  parallel_for(backend, stream, n + 1, [=] COVOX_HD(int64_t i) {
-    if (i == n) {
-      emits_ray[n] = 0;
-      return;
-    }
+  exclusive_scan_of(backend, stream, n + 1, [=] COVOX_HD(int64_t i) -> uint32_t {
+    if (i == n) return 0u;
     const uint32_t code = codes[i];
-    emits_ray[i] = code == tsdf::kAlonePoint ||
-                           (tsdf::is_bundle_slot(code) && bundles[code].first == static_cast<uint32_t>(i))
-                       ? 1u
-                       : 0u;
-  });
-  exclusive_scan(backend, stream, static_cast<const uint32_t*>(emits_ray), n + 1, ray_rank);
+    return code == tsdf::kAlonePoint || (tsdf::is_bundle_slot(code) && bundles[code].first == static_cast<uint32_t>(i))
+               ? 1u
+               : 0u;
+  }, ray_rank);
   profile.mark("rank");
   scratch.rays.resize_discard(n);
   scratch.ray_weights.resize_discard(n);
@@ -342,7 +336,7 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
   constexpr bool kTallyWithAtomics = Backend::kDevice != Device::kCpu;
   parallel_for(backend, stream, n + 1, [=] COVOX_HD(int64_t i) {
     const uint32_t lanes = warp_lanes();
-    const bool emits = i < n && emits_ray[i] != 0u;
+    const bool emits = i < n && ray_rank[i + 1] != ray_rank[i];
     tsdf_detail::RayTally own;  // this point's ray, if it emits one
     if (i == n) ray_pieces[ray_rank[n]] = 0;  // the scan's end
     if (emits) {
@@ -781,14 +775,14 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
   const uint32_t* first_piece = scratch.offsets.data();
   const uint32_t* piece_total = first_piece + ray_count;  // on the device
   scratch.pieces.resize_discard(piece_bound);
-  scratch.piece_voxels.resize_discard(piece_bound);
   scratch.piece_offsets.resize_discard(piece_bound);
   tsdf::RayPiece* pieces = scratch.pieces.data();
-  uint32_t* piece_voxels = scratch.piece_voxels.data();
-  // The piece table (each piece's ray and index) and each piece's voxel count; the counts past
-  // the last piece are zeroed for the scan over the bound.
+  // The piece table (each piece's ray and index) and each piece's voxel count, scanned into the
+  // pieces' first records; the counts past the last piece are zero for the scan over the bound.
   const Index3D* piece_first_voxels = nullptr;
   if constexpr (Backend::kDevice == Device::kCpu) {
+    scratch.piece_voxels.resize_discard(piece_bound);
+    uint32_t* piece_voxels = scratch.piece_voxels.data();
     // One ray per iteration, its cuts in order: each cut voxel computed once (it ends one piece
     // and starts the next) and kept for the traverse, which then computes none (2-core CPU,
     // OS1-64 scan: this step 7 -> 3 ms, the traverse -10 %). Thread i also zeroes the i-th count
@@ -807,6 +801,7 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
         piece_voxels[p] = voxels;
       });
     });
+    exclusive_scan(backend, stream, piece_voxels, piece_bound, scratch.piece_offsets.data());
   } else {
     // Not on the GPU, where both versions tried cost more than they saved (H100, KITTI 50 m
     // rays of about 30 pieces, this step 85-92 -> 140-145 us per scan): the loop over a ray's
@@ -815,21 +810,19 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
     // first pieces (a few kilobytes, cached), writes its table entry and counts its own voxels;
     // the traverse computes the cuts again. (A loop per ray listing its pieces, then a kernel
     // per piece: 15 us more per 7-Scenes 5 cm frame, H100, 2026-11-24.)
-    parallel_for(backend, stream, piece_bound, [=] COVOX_HD(int64_t p) {
-      if (p >= *piece_total) {
-        piece_voxels[p] = 0;
-        return;
-      }
+    // The table is written by the scan of the pieces' voxel counts, which computes them (one
+    // launch instead of a kernel and a scan).
+    exclusive_scan_of(backend, stream, piece_bound, [=] COVOX_HD(int64_t p) -> uint32_t {
+      if (p >= *piece_total) return 0u;
       const uint32_t piece = static_cast<uint32_t>(p);
       // the last ray whose first piece is at or before p (rays without pieces share the next one's)
       const uint32_t i = static_cast<uint32_t>(lower_bound_index(first_piece, ray_count, piece + 1u) - 1);
       const uint32_t index = piece - first_piece[i];
       const uint32_t count = ray_pieces[i];
       pieces[p] = tsdf::RayPiece{i, index, count};
-      piece_voxels[p] = tsdf::ray_piece_voxel_count(rays[i], index, count, inverse_voxel_size);
-    });
+      return tsdf::ray_piece_voxel_count(rays[i], index, count, inverse_voxel_size);
+    }, scratch.piece_offsets.data());
   }
-  exclusive_scan(backend, stream, piece_voxels, piece_bound, scratch.piece_offsets.data());
   profile.mark("2a ray pieces");
 
   const tsdf::FrameUpdates frame{codec,

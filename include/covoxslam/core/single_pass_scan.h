@@ -1,0 +1,158 @@
+#pragma once
+// Exclusive prefix sums of 32-bit values given by a functor, in one kernel launch on the GPU:
+//
+//   exclusive_scan_of(backend, stream, count, value_of, out)   out[i] = value_of(0) + ... + value_of(i - 1)
+//
+// value_of(i) is called exactly once for each i in [0, count) (so it may also write something of
+// its own, such as the piece table beside the piece sizes), and `out` may be the array value_of
+// reads, since each element is read before it is written. Sums wrap modulo 2^32.
+//
+// Why not CUB's DeviceScan: on the H100 machine a frame's launches, not its kernels, set its
+// latency (docs/benchmarks.md, "eighth pass": a kernel launch costs the host 4-5 us there, CUB's
+// scan 10-11 us for its sizing call, its init kernel and its scan kernel), and a scan of a
+// functor saves the kernel that would have written the values first. The GPU version is a
+// decoupled look-back scan (Merrill and Garland, 2016) whose tile descriptors carry an epoch: a
+// descriptor left by an earlier scan on the same stream reads as "not yet published", so the
+// descriptors need no init kernel. Tiles of 2048 values, one thread block each: a block sums its
+// tile, publishes the sum, finds its prefix from its predecessors' published sums (one warp
+// looking back 32 tiles at a time) and publishes its inclusive prefix. Like CUB's scan it relies
+// on blocks starting in index order (a block waits only for lower-numbered ones).
+//
+// The CPU version (parallel.h) writes the values to `out` and scans them in place (Thrust,
+// OpenMP). This header holds the GPU version; include parallel.h for both.
+#include <cstdint>
+
+#include "covoxslam/core/device.h"
+#include "covoxslam/core/error.h"
+#include "covoxslam/core/macros.h"
+#include "covoxslam/core/memory.h"
+#include "covoxslam/core/stream.h"
+
+#if defined(__CUDACC__)
+#include <cub/block/block_scan.cuh>
+#include "covoxslam/core/cuda_check.cuh"
+#endif
+
+namespace covox {
+
+#if defined(__CUDACC__)
+namespace single_pass_scan_detail {
+
+constexpr int kThreads = 256;
+constexpr int kItems = 8;  // consecutive values per thread
+constexpr int64_t kTile = int64_t(kThreads) * kItems;
+
+// A descriptor word: kind (2 bits), epoch (30 bits), value (32 bits), published by one 64-bit
+// store so that the value and its kind arrive together.
+constexpr uint64_t kTileSum = uint64_t(1) << 62;     // the tile's own sum
+constexpr uint64_t kTilePrefix = uint64_t(2) << 62;  // the sum of the tile and all before it
+constexpr uint32_t kEpochMask = (1u << 30) - 1u;
+
+// The values of an array (exclusive_scan of uint32_t).
+struct ArrayValues {
+  const uint32_t* in;
+  __device__ __forceinline__ uint32_t operator()(int64_t i) const { return in[i]; }
+};
+
+__device__ __forceinline__ uint64_t describe(uint64_t kind, uint32_t epoch, uint32_t value) {
+  return kind | (static_cast<uint64_t>(epoch & kEpochMask) << 32) | value;
+}
+__device__ __forceinline__ void publish(uint64_t* word, uint64_t value) {
+  *reinterpret_cast<volatile uint64_t*>(word) = value;
+}
+// Waits until `word` holds a descriptor of this scan (its epoch) and returns it.
+__device__ __forceinline__ uint64_t await(const uint64_t* word, uint32_t epoch) {
+  uint64_t seen;
+  do {
+    seen = *reinterpret_cast<const volatile uint64_t*>(word);
+  } while (static_cast<uint32_t>(seen >> 32 & kEpochMask) != (epoch & kEpochMask) || (seen >> 62) == 0u);
+  return seen;
+}
+
+template <class ValueOf>
+__global__ void __launch_bounds__(kThreads) single_pass_scan_kernel(int64_t count, ValueOf value_of, uint32_t* out,
+                                                                     uint64_t* descriptors, uint32_t epoch) {
+  using BlockScan = cub::BlockScan<uint32_t, kThreads>;
+  __shared__ typename BlockScan::TempStorage scan_storage;
+  __shared__ uint32_t staged[kTile];  // the tile's values, then its outputs (coalesced in and out)
+  __shared__ uint32_t tile_prefix;
+  const int64_t tile = blockIdx.x;
+  const int64_t tile_begin = tile * kTile;
+  // 1. the values, in striped order (neighbouring threads, neighbouring i), then each thread's
+  //    kItems consecutive ones and their sum
+#pragma unroll
+  for (int k = 0; k < kItems; ++k) {
+    const int64_t i = tile_begin + k * kThreads + threadIdx.x;
+    staged[k * kThreads + threadIdx.x] = i < count ? value_of(i) : 0u;
+  }
+  __syncthreads();
+  uint32_t own[kItems];
+  uint32_t thread_sum = 0;
+#pragma unroll
+  for (int k = 0; k < kItems; ++k) {
+    own[k] = staged[threadIdx.x * kItems + k];
+    thread_sum += own[k];
+  }
+  uint32_t thread_prefix = 0, tile_sum = 0;
+  BlockScan(scan_storage).ExclusiveSum(thread_sum, thread_prefix, tile_sum);
+  // 2. the tile's prefix: its predecessors' published sums, nearest first, until one of them has
+  //    published its inclusive prefix (tile 0 has none to wait for)
+  if (threadIdx.x < 32) {
+    const int lane = static_cast<int>(threadIdx.x);
+    uint32_t prefix = 0;
+    if (tile == 0) {
+      if (lane == 0 && descriptors) publish(&descriptors[0], describe(kTilePrefix, epoch, tile_sum));
+    } else {
+      if (lane == 0) publish(&descriptors[tile], describe(kTileSum, epoch, tile_sum));
+      int64_t window_end = tile;  // looks at tiles window_end - 1 - lane
+      while (true) {
+        const int64_t predecessor = window_end - 1 - lane;
+        const uint64_t seen = predecessor >= 0 ? await(&descriptors[predecessor], epoch) : kTilePrefix;
+        const bool inclusive = (seen >> 62) == (kTilePrefix >> 62);
+        const uint32_t stops = __ballot_sync(0xFFFFFFFFu, inclusive);
+        const int nearest = stops ? __ffs(static_cast<int>(stops)) - 1 : 32;
+        uint32_t value = lane <= nearest ? static_cast<uint32_t>(seen) : 0u;
+#pragma unroll
+        for (int offset = 16; offset > 0; offset >>= 1) value += __shfl_down_sync(0xFFFFFFFFu, value, offset);
+        prefix += __shfl_sync(0xFFFFFFFFu, value, 0);
+        if (stops) break;
+        window_end -= 32;
+      }
+      if (lane == 0) publish(&descriptors[tile], describe(kTilePrefix, epoch, prefix + tile_sum));
+    }
+    if (lane == 0) tile_prefix = prefix;
+  }
+  __syncthreads();
+  // 3. the outputs, staged back into shared memory and stored in striped order
+  uint32_t running = tile_prefix + thread_prefix;
+#pragma unroll
+  for (int k = 0; k < kItems; ++k) {
+    staged[threadIdx.x * kItems + k] = running;
+    running += own[k];
+  }
+  __syncthreads();
+#pragma unroll
+  for (int k = 0; k < kItems; ++k) {
+    const int64_t i = tile_begin + k * kThreads + threadIdx.x;
+    if (i < count) out[i] = staged[k * kThreads + threadIdx.x];
+  }
+}
+
+}  // namespace single_pass_scan_detail
+
+template <class ValueOf>
+void exclusive_scan_of(CudaBackend, const Stream& stream, int64_t count, const ValueOf& value_of, uint32_t* out) {
+  using namespace single_pass_scan_detail;
+  if (count <= 0) return;
+  const int64_t tiles = (count + kTile - 1) / kTile;
+  if (tiles > 0x7FFFFFFF) throw Error("exclusive_scan_of: too many values for one launch");
+  // One tile needs no descriptors (and no registry lookup).
+  const ScanDescriptors descriptors = tiles > 1 ? single_pass_scan_descriptors(stream, tiles) : ScanDescriptors{};
+  single_pass_scan_kernel<<<static_cast<unsigned>(tiles), kThreads, 0,
+                            static_cast<cudaStream_t>(stream.native_handle())>>>(count, value_of, out, descriptors.words,
+                                                                                 descriptors.epoch);
+  cuda_check(cudaGetLastError(), "exclusive_scan_of kernel launch");
+}
+#endif
+
+}  // namespace covox
