@@ -51,7 +51,8 @@ void Primitives<Backend>::sum_runs_at_first(const Stream& stream, const uint64_t
 template <class Backend>
 void Primitives<Backend>::scan_values_once(const Stream& stream, const uint32_t* in, int64_t count, uint32_t* out,
                                            uint32_t* calls) {
-  exclusive_scan_of(Backend{}, stream, count, [=] COVOX_HD(int64_t i) -> uint32_t {
+  // one value per GPU thread (many small tiles, long look-backs); exclusive_scan tests the default
+  exclusive_scan_of<1>(Backend{}, stream, count, [=] COVOX_HD(int64_t i) -> uint32_t {
     atomic_add(calls + i, 1u);
     return in[i];
   }, out);

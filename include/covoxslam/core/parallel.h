@@ -90,7 +90,7 @@ void exclusive_scan(CpuBackend backend, const Stream& stream, const T* in, int64
 }
 // out[i] = value_of(0) + ... + value_of(i - 1) for 32-bit values, value_of called once per i (see
 // single_pass_scan.h for the GPU version). Here the values are written to `out` and scanned there.
-template <class ValueOf>
+template <int kItems = kScanItemsPerThread, class ValueOf>
 void exclusive_scan_of(CpuBackend backend, const Stream& stream, int64_t count, const ValueOf& value_of, uint32_t* out) {
   if (count <= 0) return;
   parallel_for(backend, stream, count, [&](int64_t i) { out[i] = value_of(i); });

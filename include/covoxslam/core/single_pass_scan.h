@@ -13,10 +13,11 @@
 // functor saves the kernel that would have written the values first. The GPU version is a
 // decoupled look-back scan (Merrill and Garland, 2016) whose tile descriptors carry an epoch: a
 // descriptor left by an earlier scan on the same stream reads as "not yet published", so the
-// descriptors need no init kernel. Tiles of 2048 values, one thread block each: a block sums its
-// tile, publishes the sum, finds its prefix from its predecessors' published sums (one warp
-// looking back 32 tiles at a time) and publishes its inclusive prefix. Like CUB's scan it relies
-// on blocks starting in index order (a block waits only for lower-numbered ones).
+// descriptors need no init kernel. Tiles of 256 x kItems values (2048 by default), one thread
+// block each: a block sums its tile, publishes the sum, finds its prefix from its predecessors'
+// published sums (one warp looking back 32 tiles at a time) and publishes its inclusive prefix.
+// Like CUB's scan it relies on blocks starting in index order (a block waits only for
+// lower-numbered ones).
 //
 // The CPU version (parallel.h) writes the values to `out` and scans them in place (Thrust,
 // OpenMP). This header holds the GPU version; include parallel.h for both.
@@ -35,12 +36,15 @@
 
 namespace covox {
 
+// Consecutive values per GPU thread: 8 for values read from arrays (2048 per tile). A functor
+// whose values cost a chain of dependent loads each (a binary search) runs faster with fewer
+// per thread and more tiles: exclusive_scan_of<1>(...).
+constexpr int kScanItemsPerThread = 8;
+
 #if defined(__CUDACC__)
 namespace single_pass_scan_detail {
 
 constexpr int kThreads = 256;
-constexpr int kItems = 8;  // consecutive values per thread
-constexpr int64_t kTile = int64_t(kThreads) * kItems;
 
 // A descriptor word: kind (2 bits), epoch (30 bits), value (32 bits), published by one 64-bit
 // store so that the value and its kind arrive together.
@@ -69,9 +73,10 @@ __device__ __forceinline__ uint64_t await(const uint64_t* word, uint32_t epoch) 
   return seen;
 }
 
-template <class ValueOf>
+template <int kItems, class ValueOf>
 __global__ void __launch_bounds__(kThreads) single_pass_scan_kernel(int64_t count, ValueOf value_of, uint32_t* out,
                                                                      uint64_t* descriptors, uint32_t epoch) {
+  constexpr int64_t kTile = int64_t(kThreads) * kItems;
   using BlockScan = cub::BlockScan<uint32_t, kThreads>;
   __shared__ typename BlockScan::TempStorage scan_storage;
   __shared__ uint32_t staged[kTile];  // the tile's values, then its outputs (coalesced in and out)
@@ -140,15 +145,16 @@ __global__ void __launch_bounds__(kThreads) single_pass_scan_kernel(int64_t coun
 
 }  // namespace single_pass_scan_detail
 
-template <class ValueOf>
+template <int kItems = kScanItemsPerThread, class ValueOf>
 void exclusive_scan_of(CudaBackend, const Stream& stream, int64_t count, const ValueOf& value_of, uint32_t* out) {
   using namespace single_pass_scan_detail;
+  constexpr int64_t kTile = int64_t(kThreads) * kItems;
   if (count <= 0) return;
   const int64_t tiles = (count + kTile - 1) / kTile;
   if (tiles > 0x7FFFFFFF) throw Error("exclusive_scan_of: too many values for one launch");
   // One tile needs no descriptors (and no registry lookup).
   const ScanDescriptors descriptors = tiles > 1 ? single_pass_scan_descriptors(stream, tiles) : ScanDescriptors{};
-  single_pass_scan_kernel<<<static_cast<unsigned>(tiles), kThreads, 0,
+  single_pass_scan_kernel<kItems><<<static_cast<unsigned>(tiles), kThreads, 0,
                             static_cast<cudaStream_t>(stream.native_handle())>>>(count, value_of, out, descriptors.words,
                                                                                  descriptors.epoch);
   cuda_check(cudaGetLastError(), "exclusive_scan_of kernel launch");
