@@ -31,9 +31,10 @@ void radix_sort_pairs(Device device, const Stream& stream, uint64_t* keys, uint3
 int64_t reduce_by_key_sum(Device device, const Stream& stream, const uint64_t* keys,
                           const float* values, int64_t count, uint64_t* keys_out,
                           float* values_out);
-// consume_run_sums (run_sums.h) over sorted keys with double terms: each run's sum is written at
-// sums[first record of the run] and calls[that record] is incremented (atomically), so a test can
-// check every run was handed over exactly once with the right sum; other entries are untouched.
+// consume_run_sums (run_sums.h) over sorted keys with double terms, twice with one scratch
+// buffer: each run's sum is written at sums[first record of the run] and calls[that record] is
+// incremented (atomically), so a test can check every run was handed over exactly once per call
+// (calls == 2) with the right sum; other entries are untouched.
 void sum_runs_at_first(Device device, const Stream& stream, const uint64_t* keys, const double* values,
                        int64_t count, double* sums, uint32_t* calls);
 // Removes consecutive duplicates in place; returns the new count.
