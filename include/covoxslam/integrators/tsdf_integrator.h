@@ -8,21 +8,29 @@
 //   2. each ray walks its voxels (Amanatides-Woo, in pieces of ~8 voxels) and writes one visit
 //      record per voxel: the voxel's key with its (weighted sdf, weight) update, or, in a frame
 //      with colour, with the ray's index, from which step 5 recomputes the update and its
-//      weighted colour (tsdf_traverse.h: 4 bytes through the sort instead of 32);
+//      weighted colour (tsdf_traverse.h: 4 bytes through the sort instead of 32); it also marks
+//      the blocks its kept records fall in, in a flag array over the frame's box;
 //   3. records are sorted by voxel key (the CPU twin groups them by block and sums each block's
 //      in a dense array instead, leaving one merged record per voxel: tsdf_group_updates_cpu.h);
-//   4. the blocks of all touched voxels are allocated in one BlockHashTable::activate batch;
+//   4. the marked blocks are listed (a scan of the marks) and allocated in one
+//      BlockHashTable::activate batch, before step 3 on the GPU, whose sort then hides the wait
+//      for the activation's totals (for boxes with more blocks than records, listed from the
+//      sorted records after step 3 instead);
 //   5. each voxel's records are summed (a segmented reduction in tiles, core/run_sums.h) and
 //      the sum goes straight into one weighted-average write per distinct voxel.
+// Why this order, not DESIGN.md's "segmented reduce, allocate, write": the sums never go
+// through memory, and the allocation waits for nothing but the traverse (docs/benchmarks.md,
+// "seventh pass", "eighth pass"); the reduction and the single write per voxel are the same.
 // No atomics touch voxel data (only the merge's integer sums of points), and every float sum is
 // taken in an order fixed by the input, so results are deterministic run to run. The CPU twin
 // runs the same kernels except in four places, each with the same result (step 3's sums within
 // float rounding: the GPU adds a long run's pieces as a tree) and a comment saying why: step 3's
-// grouping (with it the counts of dropped records, which the GPU finds in its sorted keys), the
-// piece table of step 2 (written one ray at a time, its cut voxels kept for the traverse; on the
-// GPU one thread per piece), the merge's tally (a reduction instead of per-warp atomics), and
-// step 4's activation (queued before the count read-back on the GPU, so that one wait serves
-// both; after it on the CPU, where a read-back costs nothing).
+// grouping (with it the counts of dropped records, which the GPU finds where their runs start in
+// its sorted keys), the piece table of step 2 (written one ray at a time, its cut voxels kept for
+// the traverse; on the GPU one thread per piece, inside the scan of the pieces' sizes), the
+// merge's tally (a reduction instead of per-warp atomics), and step 4's activation (queued on the
+// GPU for the blocks counted on the device, its totals read back while the records sort; on the
+// CPU after reading the count, which costs nothing there).
 #include <cstdint>
 #include <memory>
 #include <vector>
