@@ -200,6 +200,18 @@ uint32_t* clean_box_marks(Backend, TsdfScratchBuffers& scratch, int64_t box_bloc
   return scratch.box_marks.data();
 }
 
+// Clears the merge's tally (tsdf_merge_rays) for the next frame. A frame does it at its end,
+// where the host has queued everything and waits for the GPU anyway: right after the tally's
+// read-back, the GPU waited for this launch before the frame's next ones (host trace, H100
+// machine: a launch costs the host 4-5 us there; docs/benchmarks.md, "eighth pass").
+template <class Backend>
+void reset_merge_tally(Backend backend, TsdfScratchBuffers& scratch, const Stream& stream) {
+  if (scratch.merge_tally.size() != 1 || scratch.merge_tally_clean) return;
+  tsdf::MergeTallyStripe* stripes = scratch.merge_tally.data()->stripes;
+  parallel_for(backend, stream, tsdf::kMergeTallyStripes, [=] COVOX_HD(int64_t k) { stripes[k].reset(); });
+  scratch.merge_tally_clean = true;
+}
+
 // The merge table for a frame of n points: at least twice n slots (a power of two), all free.
 // A frame frees the slots it used (tsdf_merge_rays), so the table is cleared only when it grows
 // or when the last frame did not get that far (an exception between its kernels).
@@ -238,16 +250,12 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
   const int64_t n = cloud.count;
   const float inverse_voxel_size = 1.0f / ray_parameters.voxel_size_m;
   const tsdf::MergeTable table = tsdf_detail::clean_merge_table(backend, scratch, n, stream);
-  // The tally is reset after the last frame's read-back, where the GPU waits for the host's next
-  // launches anyway (here it cost 2.4 us + a launch gap per frame), unless that frame did not get
-  // that far.
+  // The tally is reset at the end of the last frame (tsdf_detail::reset_merge_tally), unless that
+  // frame did not get that far.
   const bool tally_clean = scratch.merge_tally_clean && scratch.merge_tally.size() == 1;
   scratch.merge_tally.resize_discard(1);
   tsdf::MergeTallyStripe* stripes = scratch.merge_tally.data()->stripes;
-  const auto reset_tally = [&] {
-    parallel_for(backend, stream, tsdf::kMergeTallyStripes, [=] COVOX_HD(int64_t k) { stripes[k].reset(); });
-  };
-  if (!tally_clean) reset_tally();
+  if (!tally_clean) tsdf_detail::reset_merge_tally(backend, scratch, stream);
   scratch.merge_tally_clean = false;
   profile.mark("table");
   scratch.point_codes.resize_discard(n);
@@ -399,8 +407,6 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
   profile.mark("rays");
   tsdf::MergeTally host;
   copy_bytes(&host, Device::kCpu, stripes, scratch.merge_tally.device(), sizeof(host), stream);
-  reset_tally();  // for the next frame
-  scratch.merge_tally_clean = true;
   tsdf_detail::RayTally tally;
   for (const tsdf::MergeTallyStripe& stripe : host.stripes) {
     tsdf_detail::RayTally part;
@@ -661,6 +667,7 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
     consume_run_sums<SumT>(backend, stream, record_keys, record_count, tsdf_detail::ArrayTerm<SumT>{values},
                            tsdf::MergeUpdates(), write_voxel, scratch.run_tile_parts, runs_counted);
   }
+  tsdf_detail::reset_merge_tally(backend, scratch, stream);  // for the next frame
   counts = tsdf_detail::read_frame_counts(scratch, stream);  // waits for the writes too
   const tsdf_detail::DroppedRecords dropped = tsdf_detail::dropped_records(counts, record_count);
   stats.voxels_updated = dropped.kept_voxels;
