@@ -115,61 +115,66 @@ void hash_table_grow_for_batch(Backend backend, BlockHashTableState& state, cons
 namespace hash_table_detail {
 
 // Steps 1 and 2 for the first `count` keys, or, when `count_on_device` is given, for the first
-// *count_on_device of them (`count` is then a bound; the keys past it get no bucket). Keys that
-// could not be placed (outside the key range, table full) are counted in new_flags[count], which
-// the scan carries into ranks[count + 1]: the new keys' and the failures' totals lie at ranks[count]
-// and ranks[count + 1].
+// *count_on_device of them (`count` is then a bound; the keys past it get no bucket), in one
+// launch: each key is inserted by the scan that ranks the new ones (exclusive_scan_of reads each
+// value once), so ranks[count] is the number of new keys. Keys that could not be placed (outside
+// the key range, table full) are counted in the state's failure counter, which the gather reads
+// and clears. (Before: a memset, the insert kernel and a scan; on the H100 machine each launch
+// costs the host 4-5 us, and a TSDF frame waits for them: docs/benchmarks.md, "eighth pass".)
 template <class Backend>
 void activate_insert_and_rank(Backend backend, BlockHashTableState& state, const Index3D* keys, int64_t count,
                               const uint32_t* count_on_device, const Stream& stream) {
   state.scratch_buckets.resize_discard(static_cast<size_t>(count));
-  state.scratch_flags.resize_discard(static_cast<size_t>(count) + 2);
-  state.scratch_ranks.resize_discard(static_cast<size_t>(count) + 2);
+  state.scratch_flags.resize_discard(static_cast<size_t>(count));
+  state.scratch_ranks.resize_discard(static_cast<size_t>(count) + 1);
   uint64_t* buckets = state.scratch_buckets.data();
   uint32_t* new_flags = state.scratch_flags.data();
+  uint32_t* failures = state.activation_failures(stream);
   const BlockHashTableView table = state.view();
-  set_bytes(new_flags + count, state.scratch_flags.device(), 0, 2 * sizeof(uint32_t), stream);
-  parallel_for(backend, stream, count, [=] COVOX_HD(int64_t i) {
+  // one key per GPU thread: an insertion is a chain of dependent probes
+  exclusive_scan_of<1>(backend, stream, count + 1, [=] COVOX_HD(int64_t i) -> uint32_t {
+    if (i == count) return 0u;
     if (count_on_device && i >= *count_on_device) {
       buckets[i] = kNoBucket;
       new_flags[i] = 0u;
-      return;
+      return 0u;
     }
     const uint64_t key = pack_block_key(keys[i]);
     bool inserted = false;
-    buckets[i] = key == kInvalidBlockKey ? kNoBucket : table.insert(key, &inserted);
+    const uint64_t bucket = key == kInvalidBlockKey ? kNoBucket : table.insert(key, &inserted);
+    buckets[i] = bucket;
     new_flags[i] = inserted ? 1u : 0u;
-    if (buckets[i] >= kTableFullBucket) atomic_add(&new_flags[count], 1u);
-  });
-  exclusive_scan(backend, stream, static_cast<const uint32_t*>(new_flags), count + 2, state.scratch_ranks.data());
+    if (bucket >= kTableFullBucket) atomic_add(failures, 1u);
+    return inserted ? 1u : 0u;
+  }, state.scratch_ranks.data());
 }
 
-// Steps 3 and 4. The assignment reads each key's flag, so it may run without the host knowing
-// whether any key is new (`assign`: run it at all). `totals_out` (device memory, optional) gets the
-// new keys' and the failures' totals, copied by the gather's first thread.
+// Steps 3 and 4. The assignment reads each key's flag, so it runs without the host knowing
+// whether any key is new. `totals_out` (device memory) gets the new keys' and the failures'
+// totals from the gather's first thread, which also clears the failure counter for the next call.
 template <class Backend>
-void activate_assign_and_gather(Backend backend, BlockHashTableState& state, int64_t count, bool assign,
-                                uint32_t* slots_out, uint8_t* is_new_out, uint32_t* totals_out, const Stream& stream) {
+void activate_assign_and_gather(Backend backend, BlockHashTableState& state, int64_t count, uint32_t* slots_out,
+                                uint8_t* is_new_out, uint32_t* totals_out, const Stream& stream) {
   const uint64_t* buckets = state.scratch_buckets.data();
   const uint32_t* new_flags = state.scratch_flags.data();
   const uint32_t* ranks = state.scratch_ranks.data();
+  uint32_t* failures = state.activation_failures(stream);
   const BlockHashTableView table = state.view();
   // reuse freed slots first (top of the stack), then never-used ones
   const uint32_t* free_stack = state.free_slots.data();
   const uint32_t free_count = state.free_count;
   const uint32_t next_unused = state.next_unused_slot;
-  if (assign) {
-    parallel_for(backend, stream, count, [=] COVOX_HD(int64_t i) {
-      if (!new_flags[i]) return;
-      const uint32_t rank = ranks[i];
-      table.slots[buckets[i]] =
-          rank < free_count ? free_stack[free_count - 1 - rank] : next_unused + (rank - free_count);
-    });
-  }
   parallel_for(backend, stream, count, [=] COVOX_HD(int64_t i) {
-    if (totals_out && i == 0) {
+    if (!new_flags[i]) return;
+    const uint32_t rank = ranks[i];
+    table.slots[buckets[i]] =
+        rank < free_count ? free_stack[free_count - 1 - rank] : next_unused + (rank - free_count);
+  });
+  parallel_for(backend, stream, count, [=] COVOX_HD(int64_t i) {
+    if (i == 0) {
       totals_out[0] = ranks[count];
-      totals_out[1] = ranks[count + 1] - ranks[count];
+      totals_out[1] = *failures;
+      *failures = 0u;
     }
     const uint64_t bucket = buckets[i];
     slots_out[i] = bucket < table.bucket_count ? table.slots[bucket] : kInvalidSlot;
@@ -221,14 +226,11 @@ ActivateResult hash_table_activate(Backend backend, BlockHashTableState& state,
   if (count <= 0) return ActivateResult{};
   if (state.config.allow_growth) hash_table_grow_for_batch(backend, state, keys, count, stream);
   hash_table_detail::activate_insert_and_rank(backend, state, keys, count, nullptr, stream);
+  uint32_t* totals_on_device = state.activation_failures(stream) + 1;
+  hash_table_detail::activate_assign_and_gather(backend, state, count, slots_out, is_new_out, totals_on_device, stream);
   uint32_t totals[2];
-  copy_bytes(totals, Device::kCpu, state.scratch_ranks.data() + count, state.scratch_ranks.device(), sizeof(totals),
-             stream);
-  const int64_t num_new = totals[0];
-  const int64_t failed = static_cast<int64_t>(totals[1]) - totals[0];
-  hash_table_detail::activate_assign_and_gather(backend, state, count, num_new > 0, slots_out, is_new_out, nullptr,
-                                                stream);
-  return hash_table_detail::activate_finish(backend, state, count, num_new, failed, stream);
+  copy_bytes(totals, Device::kCpu, totals_on_device, state.activation_words.device(), sizeof(totals), stream);
+  return hash_table_detail::activate_finish(backend, state, count, totals[0], totals[1], stream);
 }
 
 template <class Backend>
@@ -241,8 +243,7 @@ bool hash_table_activate_queued(Backend backend, BlockHashTableState& state, con
   const double limit = state.config.max_load_factor * static_cast<double>(state.bucket_count());
   if (state.config.allow_growth && static_cast<double>(state.occupied_count + count_bound) > limit) return false;
   hash_table_detail::activate_insert_and_rank(backend, state, keys, count_bound, count_on_device, stream);
-  hash_table_detail::activate_assign_and_gather(backend, state, count_bound, true, slots_out, is_new_out, totals_out,
-                                                stream);
+  hash_table_detail::activate_assign_and_gather(backend, state, count_bound, slots_out, is_new_out, totals_out, stream);
   state.pending_count = count_bound;
   return true;
 }

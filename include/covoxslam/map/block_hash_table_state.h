@@ -33,7 +33,7 @@ struct BlockHashTableState {
   explicit BlockHashTableState(Device device_in = Device::kCpu)
       : device(device_in), keys(device_in), slots(device_in), free_slots(device_in),
         scratch_buckets(device_in), scratch_flags(device_in), scratch_ranks(device_in),
-        scratch_slots(device_in), scratch_keys(device_in) {}
+        scratch_slots(device_in), scratch_keys(device_in), activation_words(device_in) {}
 
   Device device;
   BlockHashTableConfig config;
@@ -57,6 +57,16 @@ struct BlockHashTableState {
   Buffer<uint32_t> scratch_ranks;
   Buffer<uint32_t> scratch_slots;
   Buffer<uint64_t> scratch_keys;
+  // activate(): the failure counter (zero between calls: zeroed once, cleared by each call's
+  // gather) and, after it, the totals of the synchronous activate(). Returns the counter.
+  Buffer<uint32_t> activation_words;
+  uint32_t* activation_failures(const Stream& stream) {
+    if (activation_words.size() < 3) {
+      activation_words.resize_discard(3);
+      activation_words.fill_bytes(0, stream);
+    }
+    return activation_words.data();
+  }
 
   uint64_t bucket_count() const { return keys.size(); }
   BlockHashTableView view() { return BlockHashTableView{keys.data(), slots.data(), keys.size()}; }
