@@ -12,6 +12,7 @@
 #include "covoxslam/core/buffer.h"
 #include "covoxslam/core/device_algorithms.h"
 #include "covoxslam/core/error.h"
+#include "covoxslam/core/memory.h"
 #include "covoxslam/core/run_sums.h"
 #include "support/test_devices.h"
 
@@ -81,6 +82,31 @@ TEST_P(CorePrimitivesTest, ScanOfValuesReadsEachOnceAndMatchesStd) {
     }
     ASSERT_EQ(in.to_host(stream), values) << count;
   }
+}
+
+// A pending read-back returns the bytes as they were when it was queued (later work on the stream
+// does not change them), one per thread at a time, at most kMaxBytes; one dropped unwaited frees
+// its thread's slot.
+TEST_P(CorePrimitivesTest, PendingReadBackReturnsTheQueuedBytesOneAtATime) {
+  const Stream stream(device());
+  auto words = Buffer<uint32_t>::from_host(device(), std::vector<uint32_t>{7u, 11u, 13u}, stream);
+  {
+    PendingReadBack pending(words.data(), device(), 3 * sizeof(uint32_t), stream);
+    EXPECT_THROW({ PendingReadBack second(words.data(), device(), sizeof(uint32_t), stream); }, Error);
+    words.fill_bytes(0, stream);  // queued after the copy
+    uint32_t host[3] = {0u, 0u, 0u};
+    pending.wait(host);
+    EXPECT_EQ(host[0], 7u);
+    EXPECT_EQ(host[1], 11u);
+    EXPECT_EQ(host[2], 13u);
+    EXPECT_THROW(pending.wait(host), Error);
+  }
+  EXPECT_THROW({ PendingReadBack too_big(words.data(), device(), PendingReadBack::kMaxBytes + 1, stream); }, Error);
+  { PendingReadBack dropped(words.data(), device(), sizeof(uint32_t), stream); }
+  PendingReadBack again(words.data(), device(), sizeof(uint32_t), stream);
+  uint32_t first = 1u;
+  again.wait(&first);
+  EXPECT_EQ(first, 0u);
 }
 
 TEST_P(CorePrimitivesTest, SortByKeyIsStableAndMatchesStd) {

@@ -226,17 +226,19 @@ ScanDescriptors single_pass_scan_descriptors(const Stream& stream, int64_t tiles
   static std::mutex mutex;
   static std::unordered_map<const void*, Descriptors> by_stream;  // kept for the process's life
   constexpr uint32_t kLastEpoch = (1u << 30) - 1u;
+  // GPU memory whatever the stream's tag: the scan is a CUDA kernel, and a CPU-tagged stream
+  // stands for the legacy default stream there (as in copy_bytes), keyed by its null handle.
   std::lock_guard<std::mutex> lock(mutex);
   Descriptors& d = by_stream[stream.native_handle()];
   if (d.capacity < tiles || d.last_epoch == kLastEpoch) {
     if (d.capacity < tiles) {
       // cudaFree waits for the work queued before it, the last scans on this stream included
-      free_bytes(stream.device(), d.words);
+      free_bytes(Device::kCuda, d.words);
       d.words = nullptr;
       d.capacity = std::max<int64_t>(tiles, std::max<int64_t>(2 * d.capacity, 1024));
-      d.words = static_cast<uint64_t*>(allocate_bytes(stream.device(), static_cast<size_t>(d.capacity) * sizeof(uint64_t)));
+      d.words = static_cast<uint64_t*>(allocate_bytes(Device::kCuda, static_cast<size_t>(d.capacity) * sizeof(uint64_t)));
     }
-    set_bytes(d.words, stream.device(), 0, static_cast<size_t>(d.capacity) * sizeof(uint64_t), stream);
+    set_bytes(d.words, Device::kCuda, 0, static_cast<size_t>(d.capacity) * sizeof(uint64_t), stream);
     d.last_epoch = 0;
   }
   ++d.last_epoch;  // from 1: zeroed words (epoch 0) are never current

@@ -250,12 +250,11 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
   const int64_t n = cloud.count;
   const float inverse_voxel_size = 1.0f / ray_parameters.voxel_size_m;
   const tsdf::MergeTable table = tsdf_detail::clean_merge_table(backend, scratch, n, stream);
-  // The tally is reset at the end of the last frame (tsdf_detail::reset_merge_tally), unless that
-  // frame did not get that far.
-  const bool tally_clean = scratch.merge_tally_clean && scratch.merge_tally.size() == 1;
+  // The tally is reset at the end of the last frame (tsdf_detail::reset_merge_tally), so here
+  // only when that frame did not get that far or the tally is new (never marked clean).
   scratch.merge_tally.resize_discard(1);
   tsdf::MergeTallyStripe* stripes = scratch.merge_tally.data()->stripes;
-  if (!tally_clean) tsdf_detail::reset_merge_tally(backend, scratch, stream);
+  tsdf_detail::reset_merge_tally(backend, scratch, stream);
   scratch.merge_tally_clean = false;
   profile.mark("table");
   scratch.point_codes.resize_discard(n);

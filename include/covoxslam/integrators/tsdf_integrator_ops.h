@@ -40,7 +40,7 @@ struct TsdfScratchBuffers {
   Buffer<uint64_t> merge_table_keys;
   Buffer<tsdf::PointBundle> merge_table_bundles;
   bool merge_table_clean = false;
-  bool merge_tally_clean = false;  // reset by the last frame after its read-back
+  bool merge_tally_clean = false;  // reset by the last frame at its end
   Buffer<tsdf::MergeTally> merge_tally;
   Buffer<Rgb8> ray_colors;
   Buffer<float> ray_weights;
