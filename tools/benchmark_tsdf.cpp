@@ -2,7 +2,10 @@
 // docs/benchmarks/tsdf.json.
 //
 //   benchmark_tsdf [--data DIR] [--device all|cuda|cpu] [--integrations 100]
-//                  [--output docs/benchmarks/tsdf.json] [--skip-rgbd]
+//                  [--output docs/benchmarks/tsdf.json] [--skip-rgbd] [--skip-lidar] [--case TEXT]
+//
+// --case runs only the cases whose name contains TEXT (for example "2 cm colour carving"), so
+// that a kernel profiler sees one case's frames from the start.
 //
 // Cases (issue 3): Ouster OS1-64 (newer_06) at 0.1 and 0.2 m voxels, truncation 3 voxels, 16 m
 // rays (voxgraph's ARCHE setting); KITTI HDL-64 at 0.2 m with 50 m rays; 7-Scenes at 5 cm and
@@ -36,12 +39,15 @@ struct Options {
   std::string output;
   bool skip_rgbd = false;
   bool skip_lidar = false;
+  std::string only_case;  // run only the cases whose name contains this (all when empty)
+  bool runs(const std::string& name) const { return only_case.empty() || name.find(only_case) != std::string::npos; }
 };
 
 Options parse(int argc, char** argv) {
   tools::CommandLine args(argc, argv,
                           "usage: benchmark_tsdf [--data DIR] [--device all|cuda|cpu] [--integrations N]\n"
-                          "       [--output docs/benchmarks/tsdf.json] [--skip-rgbd] [--skip-lidar]");
+                          "       [--output docs/benchmarks/tsdf.json] [--skip-rgbd] [--skip-lidar]\n"
+                          "       [--case TEXT]");
   Options options;
   options.data = args.text("--data", io::data_directory());
   options.device = args.text("--device", options.device);
@@ -49,6 +55,7 @@ Options parse(int argc, char** argv) {
   options.output = args.text("--output", "");
   options.skip_rgbd = args.flag("--skip-rgbd");
   options.skip_lidar = args.flag("--skip-lidar");
+  options.only_case = args.text("--case", "");
   args.finish();
   return options;
 }
@@ -97,6 +104,8 @@ void add_rows(tools::BenchmarkReport* report, const std::string& name, const Tim
 void benchmark_lidar(Device device, const Options& options, const std::string& label,
                      const tools::DeviceScans& scans, float voxel_size, float max_ray_m,
                      TsdfIntegrationMethod method, tools::BenchmarkReport* report) {
+  const std::string name = std::string(to_string(device)) + " " + label + ", " + to_string(method);
+  if (!options.runs(name)) return;
   const Stream stream(device);
   TsdfMapConfig map_config;
   map_config.voxel_size_m = voxel_size;
@@ -114,13 +123,16 @@ void benchmark_lidar(Device device, const Options& options, const std::string& l
   const Timing timing = time_integrations(stream, scans.size(), options.integrations, map, [&](size_t f) {
     return integrator.integrate(map, scans.view(f), Eigen::Isometry3d::Identity(), stream);
   });
-  add_rows(report, std::string(to_string(device)) + " " + label + ", " + to_string(method), timing);
+  add_rows(report, name, timing);
 }
 
 // nvblox was timed on frames 0-69 with depth only; we fuse colour as well, and raycast every
 // pixel with free-space carving (voxblox semantics), `carving` off keeps only the band.
 void benchmark_rgbd(Device device, const Options& options, const tools::DeviceRgbdFrames& frames,
                     float voxel_size, bool carving, tools::BenchmarkReport* report) {
+  const std::string name = std::string(to_string(device)) + " 7-Scenes " + std::to_string(int(voxel_size * 100 + 0.5)) +
+                           " cm colour" + (carving ? " carving" : " band only");
+  if (!options.runs(name)) return;
   const Stream stream(device);
   TsdfMapConfig map_config;
   map_config.voxel_size_m = voxel_size;
@@ -134,8 +146,7 @@ void benchmark_rgbd(Device device, const Options& options, const tools::DeviceRg
   const Timing timing = time_integrations(stream, frames.size(), options.integrations, map, [&](size_t f) {
     return integrator.integrate_depth(map, frames.view(f), frames.T_world_camera[f], stream);
   });
-  add_rows(report, std::string(to_string(device)) + " 7-Scenes " + std::to_string(int(voxel_size * 100 + 0.5)) +
-                       " cm colour" + (carving ? " carving" : " band only"), timing);
+  add_rows(report, name, timing);
 }
 
 }  // namespace

@@ -769,6 +769,10 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
   const int64_t total_updates = tally.voxels;
   stats.voxel_updates = total_updates;
   if (total_updates == 0) return stats;
+  if (has_color && ray_count >= static_cast<int64_t>(tsdf::ColorVisit::kBandVisitBit)) {
+    throw Error("TSDF integrator: " + std::to_string(ray_count) +
+                " rays in one coloured frame, at most 2^31 - 1 fit a visit record's ray index");
+  }
   const tsdf::FrameKeyCodec codec = tsdf::make_frame_key_codec(tally.low_voxel(), tally.high_voxel(), voxels_per_side);
   // Every ray has at most voxels / kVoxelsPerPiece + 1 pieces: a bound known without a read-back.
   const int64_t piece_bound = total_updates / tsdf::kVoxelsPerPiece + ray_count;

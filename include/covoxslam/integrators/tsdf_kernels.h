@@ -1,6 +1,7 @@
 #pragma once
 // Per-ray and per-voxel functions of TSDF raycast integration, shared by both backends.
 #include <cstdint>
+#include <cstring>
 
 #include "covoxslam/core/index3d.h"
 #include "covoxslam/core/macros.h"
@@ -104,11 +105,30 @@ struct alignas(16) VoxelUpdate {
   float color_weight = 0.0f;
 };
 
-// A coloured frame's visit record value (tsdf_traverse.h): the index of the ray that visited the
-// voxel; the reduction recomputes the update, and whether it takes the ray's colour, from it.
+// A coloured frame's visit record value (tsdf_traverse.h), one 32-bit word:
+// - a visit in the truncation band (or behind the surface): the index of the ray that made it,
+//   with kBandVisitBit set; the reduction recomputes the update, and whether it takes the ray's
+//   colour, from the ray and the voxel;
+// - a visit in free space (its distance clamped to the truncation, so no colour): the bits of its
+//   weight, a float >= 0 (sign bit clear), from which the update follows without the ray. At 2 cm
+//   voxels with carving about 93 % of a 7-Scenes frame's visits are of this kind, and looking
+//   their rays up again was most of the reduction's time (docs/benchmarks.md, "ninth pass").
 struct ColorVisit {
-  uint32_t ray = 0;
+  static constexpr uint32_t kBandVisitBit = 0x80000000u;
+  uint32_t word = 0;
 };
+
+// The float a word's bits stand for, and back (a free-space visit's weight).
+COVOX_HD_INLINE float float_of_bits(uint32_t bits) {
+  float value;
+  memcpy(&value, &bits, sizeof(value));
+  return value;
+}
+COVOX_HD_INLINE uint32_t bits_of_float(float value) {
+  uint32_t bits;
+  memcpy(&bits, &value, sizeof(bits));
+  return bits;
+}
 
 // Point or ray i's colour: its own colour, else its intensity as grey, else none.
 COVOX_HD_INLINE Rgb8 color_of(const Rgb8* colors, const float* intensities, float grey_per_intensity, int64_t i) {

@@ -4,12 +4,14 @@
 // the record arrays. The key is the voxel's (or the zero-weight key when the visit carries no
 // weight); the value is
 // - for a frame without colour, the distance update itself (8 bytes), summed as it is;
-// - for a coloured frame, the index of the ray that made the visit (4 bytes). The update, with
-//   the ray's colour when the visit takes it, is computed again from the ray and
-//   the voxel where the reduction reads the record (VoxelUpdateOfRecord), with the same function:
-//   moving 4 bytes through the traverse's writes and every radix pass costs less than moving a
-//   32-byte coloured update (measured: 2 cm RGB-D traverse 164 -> 98 us on the H100), while for
-//   8 bytes the recomputation costs about what it saves (LiDAR frames, measured).
+// - for a coloured frame, one word (ColorVisit, tsdf_kernels.h): in the band, the index of the ray
+//   that made the visit; the update, with the ray's colour when the visit takes it, is computed
+//   again from the ray and the voxel where the reduction reads the record (VoxelUpdateOfRecord),
+//   with the same function: moving 4 bytes through the traverse's writes and every radix pass
+//   costs less than moving a 32-byte coloured update (measured: 2 cm RGB-D traverse 164 -> 98 us
+//   on the H100), while for 8 bytes the recomputation costs about what it saves (LiDAR frames,
+//   measured). In free space, where the distance is the truncation and no colour is taken, the
+//   word is the visit's weight itself, so the reduction needs neither the ray nor the voxel.
 // The per-voxel arithmetic is one __host__ __device__ function for both backends; only how the
 // records reach memory differs:
 // - CPU: each OpenMP thread writes its pieces' records directly (contiguous per thread).
@@ -40,7 +42,8 @@ COVOX_HD_INLINE float ray_weight_of(const FrameUpdates& frame, uint32_t i) {
 // band or dropped off). `takes_color` tells whether the visit also takes the ray's colour: inside
 // the band of a surface ray, with weight (voxblox's rule). The ray comes in by value, loaded once
 // per piece by the traverse (the record stores in between could alias it, so a lookup here would
-// be repeated for every voxel).
+// be repeated for every voxel). A visit whose distance is the truncation (free space, clearing
+// rays) contributes (weight * truncation, weight) and no colour: free_space_update() below.
 COVOX_HD_INLINE DistanceUpdate voxel_update(const FrameUpdates& frame, const RaySegment& ray, float ray_weight,
                                             const Index3D& voxel, float truncation, bool* takes_color) {
   const float voxel_size = frame.voxel_size;
@@ -59,12 +62,28 @@ COVOX_HD_INLINE DistanceUpdate voxel_update(const FrameUpdates& frame, const Ray
   return update;
 }
 
-// A record's value (see above): the update without colour, the ray index (ColorVisit,
-// tsdf_kernels.h) with it.
-COVOX_HD_INLINE void make_record_value(const DistanceUpdate& update, uint32_t, DistanceUpdate* value) {
+// The update of a visit at the truncation distance (free space) from its weight alone: what
+// voxel_update() computes there (the same product, so the same float).
+COVOX_HD_INLINE DistanceUpdate free_space_update(float weight, float truncation) {
+  DistanceUpdate update;
+  update.weighted_distance = weight * truncation;
+  update.weight = weight;
+  return update;
+}
+
+// A record's value (see above): the update without colour; with colour (ColorVisit,
+// tsdf_kernels.h) the weight of a free-space visit (its distance the truncation: clamped, or a
+// clearing ray's), else the ray's index flagged as a band visit.
+// (A visit without colour has its distance at +truncation or -truncation, or no weight: the
+// product tells the first.)
+COVOX_HD_INLINE void make_record_value(const DistanceUpdate& update, bool, uint32_t, float, DistanceUpdate* value) {
   *value = update;
 }
-COVOX_HD_INLINE void make_record_value(const DistanceUpdate&, uint32_t ray, ColorVisit* value) { value->ray = ray; }
+COVOX_HD_INLINE void make_record_value(const DistanceUpdate& update, bool takes_color, uint32_t ray, float truncation,
+                                       ColorVisit* value) {
+  const bool free_space = !takes_color && update.weight >= 0.0f && update.weighted_distance == update.weight * truncation;
+  value->word = free_space ? bits_of_float(update.weight) : (ray | ColorVisit::kBandVisitBit);
+}
 
 // The records of piece p, handed to emit(out, key, value) with out = the record's index in the
 // frame's record arrays.
@@ -105,7 +124,7 @@ struct PieceTraversal {
       bool takes_color = false;
       const DistanceUpdate update = voxel_update(frame, ray, ray_weight, voxel, truncation, &takes_color);
       ValueT value;
-      make_record_value(update, i, &value);
+      make_record_value(update, takes_color, i, truncation, &value);
       const uint64_t key = update.weight > 0.0f ? frame.codec.key(voxel) : static_cast<uint64_t>(zero_weight_key);
       if (block_marks && key < frame.codec.out_of_range_key && frame.codec.block_part(key) != marked) {
         marked = frame.codec.block_part(key);
@@ -142,11 +161,18 @@ struct VoxelUpdateOfRecord {
   COVOX_HD_INLINE VoxelUpdate operator()(int64_t j) const {
     const KeyT key = keys[j];
     if (key >= first_dropped_key) return VoxelUpdate{};
-    const uint32_t i = visits[j].ray;
+    const uint32_t word = visits[j].word;
+    VoxelUpdate sum;
+    if (!(word & ColorVisit::kBandVisitBit)) {  // free space: the weight itself
+      const DistanceUpdate update = free_space_update(float_of_bits(word), truncation);
+      sum.weighted_distance = update.weighted_distance;
+      sum.weight = update.weight;
+      return sum;
+    }
+    const uint32_t i = word & ~ColorVisit::kBandVisitBit;
     bool takes_color = false;
     const DistanceUpdate update =
         voxel_update(frame, frame.rays[i], ray_weight_of(frame, i), frame.codec.voxel(key), truncation, &takes_color);
-    VoxelUpdate sum;
     sum.weighted_distance = update.weighted_distance;
     sum.weight = update.weight;
     if (takes_color) {
