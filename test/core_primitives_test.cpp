@@ -256,6 +256,33 @@ TEST_P(CorePrimitivesTest, RunSumsHandEachRunOverOnceWithItsSum) {
       ASSERT_EQ(got_calls[i], expected_calls[i]) << "case " << c << ", record " << i;
       ASSERT_EQ(got[i], expected[i]) << "case " << c << ", record " << i;
     }
+    // Only the first `live` records, known on the device (the run across `live` is cut there; the
+    // records after it, a long run of one key here, are not read).
+    const int64_t live = count * 3 / 5;
+    std::vector<uint64_t> live_keys(keys.begin(), keys.begin() + live);
+    live_keys.resize(keys.size(), keys.back() + 1);
+    auto live_keys_device = Buffer<uint64_t>::from_host(device(), live_keys);
+    auto live_device = Buffer<uint32_t>::from_host(device(), std::vector<uint32_t>{static_cast<uint32_t>(live)});
+    auto live_sums = Buffer<double>::from_host(device(), std::vector<double>(keys.size(), -1.0));
+    auto live_calls = Buffer<uint32_t>::from_host(device(), std::vector<uint32_t>(keys.size(), 0u));
+    algorithms::sum_runs_at_first(device(), Stream(device()), live_keys_device.data(), values_device.data(), count,
+                                  live_sums.data(), live_calls.data(), live_device.data());
+    std::vector<double> expected_live(keys.size(), -1.0);
+    std::vector<uint32_t> expected_live_calls(keys.size(), 0u);
+    for (int64_t i = 0, first = 0; i < live; ++i) {
+      if (i == 0 || keys[i] != keys[i - 1]) {
+        first = i;
+        expected_live[first] = 0.0;
+        expected_live_calls[first] = 2u;
+      }
+      expected_live[first] += values[i];
+    }
+    const auto got_live = live_sums.to_host();
+    const auto got_live_calls = live_calls.to_host();
+    for (int64_t i = 0; i < count; ++i) {
+      ASSERT_EQ(got_live_calls[i], expected_live_calls[i]) << "case " << c << ", live, record " << i;
+      ASSERT_EQ(got_live[i], expected_live[i]) << "case " << c << ", live, record " << i;
+    }
   }
 }
 

@@ -536,6 +536,86 @@ TEST_P(TsdfIntegratorTest, ColourDoesNotChangeDistancesOrWeights) {
   EXPECT_GT(coloured, 100);  // the colour run did fuse colour
 }
 
+// Free-space visits summed in fixed point as the rays are walked (the default) against every
+// visit sorted and reduced: a depth camera and a LiDAR with colour, carving, several views. The
+// same voxels and counts; distances and weights equal up to the fixed point's rounding and the
+// order of float sums; colours (band only) within one level.
+TEST_P(TsdfIntegratorTest, FreeSpaceSumsMatchEveryVisitSorted) {
+  const AnalyticScene scene = make_scene(Shape::kBox);
+  const int width = 160, height = 120;
+  const double f = 140.0;
+  std::vector<std::vector<HostBlock>> snapshots;
+  std::vector<IntegrationStats> totals;
+  for (const bool fixed_point : {true, false}) {
+    TsdfIntegratorConfig config = analytic_config(0.05f);
+    config.max_ray_length_m = 8.0f;
+    config.sum_free_space_in_fixed_point = fixed_point;
+    config.free_space_sums_min_visits = 0;  // these small frames too
+    TsdfMap map(device(), TsdfMapConfig{0.05f, 8, {}});
+    TsdfIntegrator integrator(config);
+    const Stream stream(device());
+    IntegrationStats total;
+    const auto add = [&](const IntegrationStats& s) {
+      total.voxel_updates += s.voxel_updates;
+      total.voxels_updated += s.voxels_updated;
+      total.records_grouped += s.records_grouped;
+      total.voxels_out_of_range += s.voxels_out_of_range;
+    };
+    for (const auto& pose : viewpoints()) {
+      Eigen::Isometry3d camera = pose;
+      camera.linear() = pose.linear() * Eigen::Matrix3d(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitY()));
+      const auto depth = testing_support::simulate_depth_mm(scene, camera, width, height, f, f, width / 2.0,
+                                                            height / 2.0, 80.0);
+      std::vector<Rgb8> colours(depth.size());
+      for (size_t p = 0; p < colours.size(); ++p) colours[p] = Rgb8{uint8_t(p % 251), uint8_t(p % 13), 200};
+      auto depth_device = Buffer<uint16_t>::from_host(device(), depth);
+      auto colour_device = Buffer<Rgb8>::from_host(device(), colours);
+      DepthImageView image;
+      image.depth = depth_device.data();
+      image.colors = colour_device.data();
+      image.intrinsics = PinholeIntrinsics{float(f), float(f), width / 2.0f, height / 2.0f, width, height};
+      image.depth_units_per_m = 1000.0f;
+      image.invalid_value = 65535;
+      add(integrator.integrate_depth(map, image, camera, stream));
+      const std::vector<Vec3f> points = testing_support::simulate_lidar(scene, pose, 256, 32, 60.0, 7.5);
+      std::vector<Rgb8> lidar_colours(points.size());
+      for (size_t i = 0; i < points.size(); ++i) lidar_colours[i] = Rgb8{uint8_t(i % 7), uint8_t(i % 253), 9};
+      add(integrator.integrate(map, points, lidar_colours, pose));
+    }
+    snapshots.push_back(map.snapshot());
+    totals.push_back(total);
+  }
+  // The fixed-point run sorted only the band's records; the other sorted every visit.
+  EXPECT_EQ(totals[0].voxel_updates, totals[1].voxel_updates);
+  EXPECT_EQ(totals[1].records_grouped, totals[1].voxel_updates);
+  EXPECT_LT(totals[0].records_grouped, totals[0].voxel_updates / 2);
+  EXPECT_EQ(totals[0].voxels_updated, totals[1].voxels_updated);
+  EXPECT_EQ(totals[0].voxels_out_of_range, totals[1].voxels_out_of_range);
+  ASSERT_EQ(snapshots[0].size(), snapshots[1].size());
+  ASSERT_GT(snapshots[0].size(), 50u);
+  int observed = 0, coloured = 0;
+  for (size_t b = 0; b < snapshots[0].size(); ++b) {
+    ASSERT_EQ(snapshots[0][b].index, snapshots[1][b].index);
+    for (size_t v = 0; v < snapshots[0][b].tsdf.size(); ++v) {
+      const TsdfVoxel& a = snapshots[0][b].tsdf[v];
+      const TsdfVoxel& c = snapshots[1][b].tsdf[v];
+      ASSERT_EQ(a.weight > 0.0f, c.weight > 0.0f);
+      ASSERT_NEAR(a.distance_m, c.distance_m, 1e-5f);
+      ASSERT_NEAR(a.weight, c.weight, 1e-5f * c.weight + 1e-6f);
+      observed += a.weight > 0.0f;
+      const ColorVoxel& ca = snapshots[0][b].color[v];
+      const ColorVoxel& cc = snapshots[1][b].color[v];
+      ASSERT_NEAR(ca.weight, cc.weight, 1e-5f * cc.weight + 1e-6f);
+      ASSERT_LE(std::abs(int(ca.r) - int(cc.r)), 1);
+      ASSERT_LE(std::abs(int(ca.g) - int(cc.g)), 1);
+      ASSERT_LE(std::abs(int(ca.b) - int(cc.b)), 1);
+      coloured += ca.weight > 0.0f;
+    }
+  }
+  EXPECT_GT(observed, 5000);
+  EXPECT_GT(coloured, 500);
+}
+
 TEST_P(TsdfIntegratorTest, BadPointsAreDroppedAndCounted) {
   TsdfIntegratorConfig config;
   config.max_ray_length_m = 5.0f;

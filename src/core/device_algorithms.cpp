@@ -48,8 +48,8 @@ void atomic_histogram(Device device, const Stream& stream, const uint32_t* bins,
   COVOX_DISPATCH_PRIMITIVE(atomic_histogram(stream, bins, count, histogram));
 }
 void sum_runs_at_first(Device device, const Stream& stream, const uint64_t* keys, const double* values,
-                       int64_t count, double* sums, uint32_t* calls) {
-  COVOX_DISPATCH_PRIMITIVE(sum_runs_at_first(stream, keys, values, count, sums, calls));
+                       int64_t count, double* sums, uint32_t* calls, const uint32_t* live_count) {
+  COVOX_DISPATCH_PRIMITIVE(sum_runs_at_first(stream, keys, values, count, sums, calls, live_count));
 }
 void atomic_claim_min(Device device, const Stream& stream, const uint32_t* targets, int64_t count,
                       uint32_t* owners) {

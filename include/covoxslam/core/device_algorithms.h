@@ -34,9 +34,10 @@ int64_t reduce_by_key_sum(Device device, const Stream& stream, const uint64_t* k
 // consume_run_sums (run_sums.h) over sorted keys with double terms, twice with one scratch
 // buffer: each run's sum is written at sums[first record of the run] and calls[that record] is
 // incremented (atomically), so a test can check every run was handed over exactly once per call
-// (calls == 2) with the right sum; other entries are untouched.
+// (calls == 2) with the right sum; other entries are untouched. With `live_count` (memory of the
+// device), only the first *live_count records count.
 void sum_runs_at_first(Device device, const Stream& stream, const uint64_t* keys, const double* values,
-                       int64_t count, double* sums, uint32_t* calls);
+                       int64_t count, double* sums, uint32_t* calls, const uint32_t* live_count = nullptr);
 // Removes consecutive duplicates in place; returns the new count.
 int64_t unique(Device device, const Stream& stream, uint64_t* data, int64_t count);
 double reduce_sum(Device device, const Stream& stream, const double* data, int64_t count);

@@ -37,7 +37,8 @@ int64_t Primitives<Backend>::reduce_by_key_sum(const Stream& stream, const uint6
   }
 template <class Backend>
 void Primitives<Backend>::sum_runs_at_first(const Stream& stream, const uint64_t* keys, const double* values,
-                                            int64_t count, double* sums, uint32_t* calls) {
+                                            int64_t count, double* sums, uint32_t* calls,
+                                            const uint32_t* live_count) {
   // Twice with one scratch buffer, as frames reuse theirs.
   Buffer<uint64_t> scratch(Backend::kDevice);
   for (int round = 0; round < 2; ++round) {
@@ -47,7 +48,7 @@ void Primitives<Backend>::sum_runs_at_first(const Stream& stream, const uint64_t
           sums[first] = sum;
           atomic_add(calls + first, 1u);
         },
-        scratch);
+        scratch, nullptr, live_count);
   }
   stream.synchronize();  // the scratch goes out of scope
 }

@@ -21,7 +21,7 @@ struct Primitives {
   static int64_t reduce_by_key_sum(const Stream& stream, const uint64_t* keys, const float* values,
                                    int64_t count, uint64_t* keys_out, float* values_out);
   static void sum_runs_at_first(const Stream& stream, const uint64_t* keys, const double* values, int64_t count,
-                                double* sums, uint32_t* calls);
+                                double* sums, uint32_t* calls, const uint32_t* live_count);
   static int64_t unique(const Stream& stream, uint64_t* data, int64_t count);
   static double reduce_sum(const Stream& stream, const double* data, int64_t count);
   static void atomic_histogram(const Stream& stream, const uint32_t* bins, int64_t count,

@@ -25,6 +25,7 @@
 // resident, half its cycles at barriers), and its output went through memory once more for the
 // writes. Here a run's sum goes from registers (or shared memory) to the consumer: 22 us for the
 // same frame, sums and writes together (docs/benchmarks.md, "seventh pass").
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -150,8 +151,10 @@ void sum_tile_in_order(const KeyT* keys, int64_t count, int64_t tile, const Term
 #if defined(__CUDACC__)
 template <class KeyT, class SumT, class Term, class Op, class Consume>
 __global__ void __launch_bounds__(kRunSumThreads, kRunSumBlocksPerSm)
-    sum_tiles_kernel(const KeyT* keys, int64_t count, Term term, Op op, Consume consume, TileParts<SumT> parts,
-                     uint32_t* run_count) {
+    sum_tiles_kernel(const KeyT* keys, int64_t count_bound, const uint32_t* live_count, Term term, Op op,
+                     Consume consume, TileParts<SumT> parts, uint32_t* run_count) {
+  const int64_t count = live_count && *live_count < count_bound ? static_cast<int64_t>(*live_count) : count_bound;
+  if (static_cast<int64_t>(blockIdx.x) * kRunSumTile >= count) return;  // a tile past the live records
   using Part = RunPart<SumT>;
   using BlockScan = cub::BlockScan<Part, kRunSumThreads>;
   // The runs that end in the tile, handed to `consume` one per thread after the scan: a thread
@@ -221,19 +224,22 @@ __global__ void __launch_bounds__(kRunSumThreads, kRunSumBlocksPerSm)
 #endif
 
 template <class KeyT, class SumT, class Term, class Op, class Consume>
-void sum_tiles(CpuBackend backend, const Stream& stream, const KeyT* keys, int64_t count, int64_t tiles,
-               const Term& term, const Op& op, const Consume& consume, const TileParts<SumT>& parts,
-               uint32_t* run_count) {
-  parallel_for(backend, stream, tiles,
-               [&](int64_t tile) { sum_tile_in_order(keys, count, tile, term, op, consume, parts, run_count); });
+void sum_tiles(CpuBackend backend, const Stream& stream, const KeyT* keys, int64_t count_bound,
+               const uint32_t* live_count, int64_t tiles, const Term& term, const Op& op, const Consume& consume,
+               const TileParts<SumT>& parts, uint32_t* run_count) {
+  const int64_t count = live_count ? std::min<int64_t>(count_bound, *live_count) : count_bound;
+  parallel_for(backend, stream, tiles, [&](int64_t tile) {
+    if (tile * kRunSumTile < count) sum_tile_in_order(keys, count, tile, term, op, consume, parts, run_count);
+  });
 }
 #if defined(__CUDACC__)
 template <class KeyT, class SumT, class Term, class Op, class Consume>
-void sum_tiles(CudaBackend, const Stream& stream, const KeyT* keys, int64_t count, int64_t tiles, const Term& term,
-               const Op& op, const Consume& consume, const TileParts<SumT>& parts, uint32_t* run_count) {
+void sum_tiles(CudaBackend, const Stream& stream, const KeyT* keys, int64_t count_bound, const uint32_t* live_count,
+               int64_t tiles, const Term& term, const Op& op, const Consume& consume, const TileParts<SumT>& parts,
+               uint32_t* run_count) {
   sum_tiles_kernel<<<static_cast<unsigned>(tiles), kRunSumThreads, 0,
-                     static_cast<cudaStream_t>(stream.native_handle())>>>(keys, count, term, op, consume, parts,
-                                                                          run_count);
+                     static_cast<cudaStream_t>(stream.native_handle())>>>(keys, count_bound, live_count, term, op,
+                                                                          consume, parts, run_count);
   cuda_check(cudaGetLastError(), "consume_run_sums: tile kernel launch");
 }
 #endif
@@ -242,10 +248,13 @@ void sum_tiles(CudaBackend, const Stream& stream, const KeyT* keys, int64_t coun
 
 // See the top of the file. Needs count < 2^32 - 1; `scratch` holds the tiles' parts (resized
 // here, on the backend's device). `run_count`, when given (memory of the backend's device), is
-// increased by the number of runs.
+// increased by the number of runs. `live_count`, when given (memory of the backend's device),
+// says how many of the `count` records are there (known on the device only: the rest are
+// ignored, and the tiles past them return at once).
 template <class SumT, class Backend, class KeyT, class Term, class Op, class Consume>
 void consume_run_sums(Backend backend, const Stream& stream, const KeyT* keys, int64_t count, const Term& term,
-                      const Op& op, const Consume& consume, Buffer<uint64_t>& scratch, uint32_t* run_count = nullptr) {
+                      const Op& op, const Consume& consume, Buffer<uint64_t>& scratch, uint32_t* run_count = nullptr,
+                      const uint32_t* live_count = nullptr) {
   using namespace run_sums_detail;
   if (count <= 0) return;
   if (count >= static_cast<int64_t>(kNoRun)) {
@@ -253,13 +262,15 @@ void consume_run_sums(Backend backend, const Stream& stream, const KeyT* keys, i
   }
   const int64_t tiles = (count + kRunSumTile - 1) / kRunSumTile;
   const TileParts<SumT> parts = carve_tile_parts<SumT>(scratch, tiles);
-  sum_tiles(backend, stream, keys, count, tiles, term, op, consume, parts, run_count);
+  sum_tiles(backend, stream, keys, count, live_count, tiles, term, op, consume, parts, run_count);
   if (tiles == 1) return;  // no run crosses a tile's edge
   // The runs crossing tile edges, each by its start tile: its tail, then the heads of the tiles
   // it passes through and of the one it ends in, in tile order. (About 5 us on the H100 however
   // few the tiles: a chain of dependent loads, down to the voxel's; looking eight tiles ahead at
   // a time changed nothing measurable, 2026-11-24.)
   parallel_for(backend, stream, tiles - 1, [=] COVOX_HD(int64_t tile) {
+    // (the live records' last tile ends its last run: no walk goes past it)
+    if (live_count && tile * kRunSumTile >= static_cast<int64_t>(*live_count)) return;
     const uint32_t run_first = parts.tail_firsts[tile];
     if (run_first == kNoRun) return;
     SumT sum = parts.tail_sums[tile];

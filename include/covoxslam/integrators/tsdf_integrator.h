@@ -9,7 +9,12 @@
 //      record per voxel: the voxel's key with its (weighted sdf, weight) update, or, in a frame
 //      with colour, with the ray's index, from which step 5 recomputes the update and its
 //      weighted colour (tsdf_traverse.h: 4 bytes through the sort instead of 32); it also marks
-//      the blocks its kept records fall in, in a flag array over the frame's box;
+//      the blocks its kept records fall in, in a flag array over the frame's box. A free-space
+//      visit (distance clamped to +truncation, so no colour: only a weight) instead adds its
+//      weight to its voxel's cell of a fixed-point grid over the box, and only the band's visits
+//      (at most a bound per ray, known without a read-back) are compacted into records: with
+//      carving most visits are free space and near the sensor many rays cross each voxel
+//      (config.sum_free_space_in_fixed_point; tsdf_integrator_impl.h, "free-space sums");
 //   3. records are sorted by voxel key (the CPU twin groups them by block and sums each block's
 //      in a dense array instead, leaving one merged record per voxel: tsdf_group_updates_cpu.h);
 //   4. the marked blocks are listed (a scan of the marks) and allocated in one
@@ -17,12 +22,17 @@
 //      for the activation's totals (for boxes with more blocks than records, listed from the
 //      sorted records after step 3 instead);
 //   5. each voxel's records are summed (a segmented reduction in tiles, core/run_sums.h) and
-//      the sum goes straight into one weighted-average write per distinct voxel.
+//      the sum, with the voxel's free-space sum, goes straight into one weighted-average write
+//      per distinct voxel; a pass over the listed blocks' cells then writes the voxels that had
+//      free-space visits only.
 // Why this order, not DESIGN.md's "segmented reduce, allocate, write": the sums never go
 // through memory, and the allocation waits for nothing but the traverse (docs/benchmarks.md,
 // "seventh pass", "eighth pass"); the reduction and the single write per voxel are the same.
-// No atomics touch voxel data (only the merge's integer sums of points), and every float sum is
-// taken in an order fixed by the input, so results are deterministic run to run. The CPU twin
+// No atomics touch voxel data (only integer sums in scratch: the merge's sums of points and the
+// free-space weights in fixed point, exact in any order), and every float sum is taken in an
+// order fixed by the input, so results are deterministic run to run. (DESIGN.md sorts every
+// update; summing the free-space weights as integers gives the same map, up to 2^-28 of a unit
+// weight, with a tenth of the records sorted at 2 cm: docs/benchmarks.md, "ninth pass".) The CPU twin
 // runs the same kernels except in four places, each with the same result (step 3's sums within
 // float rounding: the GPU adds a long run's pieces as a tree) and a comment saying why: step 3's
 // grouping (with it the counts of dropped records, which the GPU finds where their runs start in
@@ -60,6 +70,8 @@ struct IntegrationStats {
   int64_t voxels_updated = 0;           // distinct voxels written
   int64_t voxels_out_of_range = 0;      // voxels dropped: block outside the map's key range
   int64_t blocks_allocated = 0;         // new blocks this call
+  int64_t records_grouped = 0;          // visit records grouped by voxel (sorted) and reduced: every
+                                        // visit, or with free-space sums the band's (a bound on them)
 
   int64_t dropped_total() const {
     return dropped_non_finite + dropped_zero + dropped_too_close + dropped_too_far;

@@ -90,6 +90,14 @@ struct ArrayTerm {
   COVOX_HD_INLINE SumT operator()(int64_t j) const { return sums[j]; }
 };
 
+// A voxel's free-space sum (fixed point, tsdf_kernels.h) added to its band visits' sum.
+template <class SumT>
+COVOX_HD_INLINE void add_free_space_sum(SumT& sum, uint64_t units, float truncation) {
+  const tsdf::DistanceUpdate free = tsdf::free_space_update(tsdf::free_space_weight(units), truncation);
+  sum.weighted_distance += free.weighted_distance;
+  sum.weight += free.weight;
+}
+
 // Step 5's colour blend: a frame without colour (DistanceUpdate) has none to blend. (Overloads,
 // not `if constexpr`: nvcc's extended lambdas may not first-capture inside a constexpr if.)
 template <class ColorView>
@@ -110,16 +118,23 @@ COVOX_HD_INLINE void blend_color(const ColorView& color_view, int64_t index, con
 }
 
 // The frame's figures that step 4 and step 5 leave on the device (scratch.readback), by word.
-constexpr int kFrameCountWords = 8;
+constexpr int kFrameCountWords = 12;
 constexpr int kZeroWeightFirstWord = 1;  // 1 + the first zero-weight record (sorted last); 0: none
 constexpr int kOutOfRangeFirstWord = 2;  // 1 + the first record outside the box (before them); 0: none
 constexpr int kBlockCountWord = 4;       // the frame's distinct blocks
 constexpr int kActivationWords = 5;      // the queued activation's totals: new blocks, rejected ones
 constexpr int kRunCountWord = 7;         // runs of equal keys that step 5 summed
+// With free-space sums: the voxels that had only free-space visits, and those of them in blocks
+// the hash table rejected; the free-space visits outside the box; the band records kept.
+constexpr int kFreeOnlyVoxelsWord = 8;
+constexpr int kFreeRejectedWord = 9;
+constexpr int kFreeOutOfRangeWord = 10;
+constexpr int kBandRecordsWord = 11;
 struct FrameCounts {
   uint32_t zero_weight_first = 0, out_of_range_first = 0;
   uint32_t blocks = 0, new_blocks = 0, rejected_blocks = 0;
   uint32_t runs = 0;
+  uint32_t free_only_voxels = 0, free_rejected = 0, free_out_of_range = 0, band_records = 0;
 };
 // One copy, one wait.
 inline FrameCounts read_frame_counts(const TsdfScratchBuffers& scratch, const Stream& stream) {
@@ -132,6 +147,10 @@ inline FrameCounts read_frame_counts(const TsdfScratchBuffers& scratch, const St
   counts.new_blocks = words[kActivationWords];
   counts.rejected_blocks = words[kActivationWords + 1];
   counts.runs = words[kRunCountWord];
+  counts.free_only_voxels = words[kFreeOnlyVoxelsWord];
+  counts.free_rejected = words[kFreeRejectedWord];
+  counts.free_out_of_range = words[kFreeOutOfRangeWord];
+  counts.band_records = words[kBandRecordsWord];
   return counts;
 }
 // Written by one thread of the kernel that lists the blocks (before step 5 runs).
@@ -140,6 +159,9 @@ COVOX_HD_INLINE void start_frame_counts(uint32_t* words, uint32_t blocks) {
   words[kZeroWeightFirstWord] = 0u;
   words[kOutOfRangeFirstWord] = 0u;
   words[kRunCountWord] = 0u;
+  words[kFreeOnlyVoxelsWord] = 0u;
+  words[kFreeRejectedWord] = 0u;
+  words[kFreeOutOfRangeWord] = 0u;
 }
 // Step 5's consumer at the run of a dropped kind: each kind is one key, so one run and one call.
 COVOX_HD_INLINE void note_dropped_run(uint32_t* words, bool zero_weight, int64_t first) {
@@ -188,16 +210,41 @@ inline bool marks_blocks(int64_t box_blocks, int64_t total_updates) {
 // The traverse's block marks for a box of `box_blocks` blocks, all clear (and one past them, for
 // the scan's total). A frame clears the marks it set once it has listed them, so the array is
 // cleared here only when it grows or when the last frame did not get that far.
-template <class Backend>
-uint32_t* clean_box_marks(Backend, TsdfScratchBuffers& scratch, int64_t box_blocks, const Stream& stream) {
-  const size_t needed = static_cast<size_t>(box_blocks) + 1;
-  if (scratch.box_marks.size() < needed || !scratch.box_marks_clean) {
-    const size_t size = std::max(needed, scratch.box_marks.size());
-    scratch.box_marks.resize_discard(size);
-    set_bytes(scratch.box_marks.data(), scratch.box_marks.device(), 0, size * sizeof(uint32_t), stream);
+// (A scratch array that the frame that uses it leaves all zero: cleared here only when it grows or
+// when the last frame did not get that far; `clean` stays false until the frame clears it.)
+template <class T>
+T* clean_frame_scratch(Buffer<T>& buffer, bool& clean, size_t needed, const Stream& stream) {
+  if (buffer.size() < needed || !clean) {
+    const size_t size = std::max(needed, buffer.size());
+    buffer.resize_discard(size);
+    set_bytes(buffer.data(), buffer.device(), 0, size * sizeof(T), stream);
   }
-  scratch.box_marks_clean = false;  // until the frame's listing has cleared its marks
-  return scratch.box_marks.data();
+  clean = false;
+  return buffer.data();
+}
+inline uint32_t* clean_box_marks(TsdfScratchBuffers& scratch, int64_t box_blocks, const Stream& stream) {
+  return clean_frame_scratch(scratch.box_marks, scratch.box_marks_clean, static_cast<size_t>(box_blocks) + 1, stream);
+}
+
+// Free-space sums (tsdf_traverse.h, PieceTraversal::free_space_sums): a frame's free-space visits
+// add their weights into one fixed-point cell per key of the frame's box, and only the band's
+// visits (at most band_visits_per_ray_bound() per ray) are compacted, sorted and reduced; each
+// voxel is still written once, by the band's reduction (with its free-space sum added) or by a
+// pass over the listed blocks' cells. With carving, most visits are free space and one voxel is
+// visited by many rays near the sensor: a 7-Scenes frame at 2 cm has 4.1 M visits, 3.8 M of them
+// in free space, in 0.4 M voxels (docs/benchmarks.md, "ninth pass"). Used when the band's bound
+// is at most a quarter of the visits, the frame has config.free_space_sums_min_visits of them and
+// the box's cells (8 bytes each) fit in kMaxFreeSpaceCells.
+constexpr int64_t kMaxFreeSpaceCells = int64_t(1) << 24;
+// The CPU twin groups the records in dense per-block arrays, which merges a voxel's visits about
+// as cheaply: there the sums' atomics and pass cost more than they save (2-core CPU, OS1-64 at
+// 0.2 m: 30 -> 36 ms per scan), so it uses them only when the threshold is 0 (the tests).
+inline bool uses_free_space_sums(const TsdfIntegratorConfig& config, Device backend, bool marks_blocks,
+                                 uint64_t box_cells, int64_t band_bound, int64_t total_updates) {
+  const bool wanted = backend == Device::kCpu ? config.free_space_sums_min_visits == 0
+                                              : total_updates >= config.free_space_sums_min_visits;
+  return config.sum_free_space_in_fixed_point && wanted && marks_blocks &&
+         box_cells <= static_cast<uint64_t>(kMaxFreeSpaceCells) && 4 * band_bound <= total_updates;
 }
 
 // Clears the merge's tally (tsdf_merge_rays) for the next frame. A frame does it at its end,
@@ -446,8 +493,8 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
 // ray's colour) is computed from its ray and voxel as the sum reads it.
 template <class KeyT, class ValueT, class Backend>
 void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, const tsdf::FrameUpdates& frame,
-                       TsdfMap& map, TsdfScratchBuffers& scratch, IntegrationStats& stats, StageProfiler::Scope& profile,
-                       const Stream& stream) {
+                       int64_t ray_count, TsdfMap& map, TsdfScratchBuffers& scratch, IntegrationStats& stats,
+                       StageProfiler::Scope& profile, const Stream& stream) {
   constexpr bool kColored = std::is_same<ValueT, tsdf::ColorVisit>::value;
   using SumT = std::conditional_t<kColored, tsdf::VoxelUpdate, tsdf::DistanceUpdate>;
   const tsdf::FrameKeyCodec codec = frame.codec;
@@ -469,9 +516,20 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   // not too large (almost always): the blocks are then listed and allocated before the sort.
   const int64_t box_blocks = static_cast<int64_t>(codec.size_x) * codec.size_y * codec.size_z;
   const bool mark_blocks = tsdf_detail::marks_blocks(box_blocks, total_updates);
-  uint32_t* box_marks = mark_blocks ? tsdf_detail::clean_box_marks(backend, scratch, box_blocks, stream) : nullptr;
-  const tsdf::PieceTraversal<KeyT, ValueT> traversal{frame, zero_weight_key, scratch.piece_offsets.data(), truncation,
-                                                     box_marks};
+  uint32_t* box_marks = mark_blocks ? tsdf_detail::clean_box_marks(scratch, box_blocks, stream) : nullptr;
+  // Free-space visits summed per voxel in the traverse when that pays (tsdf_detail::
+  // uses_free_space_sums): the band's visits are then at most band_bound records.
+  const uint64_t box_cells = codec.out_of_range_key;  // one per key of the box
+  const int64_t band_bound =
+      std::min<int64_t>(total_updates, ray_count * tsdf::band_visits_per_ray_bound(truncation, frame.voxel_size));
+  uint64_t* free_space_sums =
+      tsdf_detail::uses_free_space_sums(config, Backend::kDevice, mark_blocks, box_cells, band_bound, total_updates)
+          ? tsdf_detail::clean_frame_scratch(scratch.free_space_sums, scratch.free_space_sums_clean, box_cells + 1, stream)
+          : nullptr;
+  uint64_t* free_out_of_range = free_space_sums ? free_space_sums + box_cells : nullptr;  // the cell past the box's
+  const tsdf::PieceTraversal<KeyT, ValueT> traversal{frame,      zero_weight_key, scratch.piece_offsets.data(),
+                                                     truncation, box_marks,       free_space_sums,
+                                                     free_out_of_range};
   tsdf::traverse_pieces(backend, stream, frame.piece_bound, total_updates, traversal,
                         tsdf::RecordArrays<KeyT, ValueT>{keys, values});
 
@@ -481,29 +539,61 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   scratch.readback.resize_discard(tsdf_detail::kFrameCountWords);
   uint32_t* counts_on_device = scratch.readback.data();
 
+  // 2c. (free-space sums) the band's records compacted, in order, into the first band_bound
+  //     places (the rest: zero-weight records, dropped like them), so that the sort and the
+  //     reduction see band_bound records; a bound known on the host without a read-back.
+  int64_t record_count = total_updates;  // the records step 5 reads (the dropped ones sort last)
+  if (free_space_sums) {
+    scratch.record_ranks.resize_discard(total_updates + 1);
+    uint32_t* ranks = scratch.record_ranks.data();
+    const KeyT* visit_keys = keys;
+    const ValueT* visit_values = values;
+    exclusive_scan_of(backend, stream, total_updates + 1, [=] COVOX_HD(int64_t j) -> uint32_t {
+      return j < total_updates && visit_keys[j] != zero_weight_key ? 1u : 0u;
+    }, ranks);
+    KeyT* band_keys = keys_alt;
+    ValueT* band_values = values_alt;
+    parallel_for(backend, stream, std::max(total_updates, band_bound), [=] COVOX_HD(int64_t j) {
+      const uint32_t kept = ranks[total_updates];
+      if (j < total_updates && visit_keys[j] != zero_weight_key && ranks[j] < band_bound) {
+        band_keys[ranks[j]] = visit_keys[j];
+        band_values[ranks[j]] = visit_values[j];
+      }
+      if (j < band_bound && j >= kept) {
+        band_keys[j] = zero_weight_key;
+        band_values[j] = ValueT{};
+      }
+      if (j == 0) counts_on_device[tsdf_detail::kBandRecordsWord] = kept;
+    });
+    std::swap(keys, keys_alt);
+    std::swap(values, values_alt);
+    record_count = band_bound;
+    profile.mark("2c compact band records");
+  }
+
   // 3. (CPU twin) group by voxel in dense per-block arrays (tsdf_group_updates_cpu.h): the same
   //    voxels and (within rounding) sums as the sort and run sums below, with a third of the
   //    moves. Its merged records are runs of one, and none is dropped.
+  stats.records_grouped = record_count;
   const KeyT* record_keys = keys;
-  int64_t record_count = total_updates;  // the records step 5 reads (the dropped ones sort last)
   SumT* merged_updates = nullptr;        // the CPU twin's merged records' sums
   tsdf::GroupCounts grouping;
   bool grouped = false;
   if constexpr (std::is_same<Backend, CpuBackend>::value) {
     if (tsdf::dense_grouping_fits(codec)) {
-      key_buffers[2]->resize_discard(total_updates);
+      key_buffers[2]->resize_discard(record_count);
       KeyT* merged_keys = key_buffers[2]->data();
       if constexpr (kColored) {
-        scratch.merged_updates.resize_discard(total_updates);
+        scratch.merged_updates.resize_discard(record_count);
         merged_updates = scratch.merged_updates.data();
         const tsdf::VoxelUpdateOfRecord<KeyT> update_of{frame, keys_alt, values_alt, out_of_range_key, truncation};
-        grouping = tsdf::group_updates_by_voxel_cpu(codec, keys, values, total_updates, keys_alt, values_alt,
+        grouping = tsdf::group_updates_by_voxel_cpu(codec, keys, values, record_count, keys_alt, values_alt,
                                                     merged_keys, merged_updates, update_of, tsdf::MergeUpdates());
       } else {
         merged_updates = values;  // free once the records have moved
         const ValueT* moved = values_alt;
         grouping = tsdf::group_updates_by_voxel_cpu(
-            codec, keys, values, total_updates, keys_alt, values_alt, merged_keys, merged_updates,
+            codec, keys, values, record_count, keys_alt, values_alt, merged_keys, merged_updates,
             [moved](int64_t j) { return moved[j]; }, tsdf::MergeUpdates());
       }
       record_keys = merged_keys;
@@ -520,7 +610,7 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   //    one per box block and per record) and its totals come back while the records are sorted,
   //    so the host's wait overlaps the sort; when the table might have to grow it needs the exact
   //    count first (activate_queued says no), and on the CPU a read-back is free.
-  const int64_t block_bound = std::max<int64_t>(1, std::min<int64_t>(box_blocks, record_count));
+  const int64_t block_bound = std::max<int64_t>(1, std::min<int64_t>(box_blocks, free_space_sums ? total_updates : record_count));
   scratch.block_indices.resize_discard(block_bound);
   scratch.slots.resize_discard(block_bound);
   scratch.is_new.resize_discard(block_bound);
@@ -570,7 +660,7 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
     // 3. group by voxel: a stable sort keeps each voxel's records in ray order, so the float
     //    sums are the same every run. Records to drop (outside the key range, zero weight) sort
     //    last, one run per kind.
-    radix_sort_pairs_swapping(backend, stream, keys, values, total_updates, codec.key_bits, keys_alt, values_alt);
+    radix_sort_pairs_swapping(backend, stream, keys, values, record_count, codec.key_bits, keys_alt, values_alt);
     record_keys = keys;  // the sort may have swapped the buffers
     profile.mark("3 sort records");
   }
@@ -632,19 +722,8 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   //    records (sorted last) only leave their first index, from which their counts follow.
   const tsdf_detail::RecordSlots record_slots{codec, box_ranks, slots, block_ranks, block_flags};
   const float max_weight = config.max_weight;
-  const auto write_voxel = [=] COVOX_HD(int64_t j, const SumT& update) {
-    const KeyT key = record_keys[j];
-    if (key >= out_of_range_key) {
-      tsdf_detail::note_dropped_run(counts_on_device, key == zero_weight_key, j);
-      return;
-    }
-    const uint32_t slot = record_slots.slot_of(j, key);
-    if (slot == kInvalidSlot) return;
-    if (j == 0 || codec.block_part(record_keys[j - 1]) != codec.block_part(key)) {
-      block_changed[slot] = kAllPending;  // once per block: its first voxel
-    }
-    if (update.weight <= 0.0f) return;
-    const int64_t index = static_cast<int64_t>(slot) * voxels_per_block + codec.voxel_in_block(key);
+  // A voxel's one write: the weighted average of the voxel and its frame's sum.
+  const auto merge_into_voxel = [=] COVOX_HD(int64_t index, const SumT& update) {
     TsdfVoxel voxel = tsdf_view.load(index);
     const float combined = voxel.weight + update.weight;
     float distance = (voxel.distance_m * voxel.weight + update.weighted_distance) / combined;
@@ -654,23 +733,98 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
     tsdf_view.store(index, voxel);
     tsdf_detail::blend_color(color_view, index, update, max_weight);
   };
+  const auto write_voxel = [=] COVOX_HD(int64_t j, const SumT& band_update) {
+    const KeyT key = record_keys[j];
+    if (key >= out_of_range_key) {
+      tsdf_detail::note_dropped_run(counts_on_device, key == zero_weight_key, j);
+      return;
+    }
+    SumT update = band_update;
+    if (free_space_sums) {  // the voxel's free-space visits (taken, so the pass below skips it)
+      const uint64_t units = free_space_sums[key];
+      if (units != 0) {
+        free_space_sums[key] = 0;
+        tsdf_detail::add_free_space_sum(update, units, truncation);
+      }
+    }
+    const uint32_t slot = record_slots.slot_of(j, key);
+    if (slot == kInvalidSlot) return;
+    if (j == 0 || codec.block_part(record_keys[j - 1]) != codec.block_part(key)) {
+      block_changed[slot] = kAllPending;  // once per block: its first voxel
+    }
+    if (update.weight <= 0.0f) return;
+    merge_into_voxel(static_cast<int64_t>(slot) * voxels_per_block + codec.voxel_in_block(key), update);
+  };
   uint32_t* runs_counted = counts_on_device + tsdf_detail::kRunCountWord;
+  // With free-space sums the sorted records are the band's, then zero-weight fill up to the bound:
+  // only the band's are read (a fill of 100 k records, one run, cost a serial walk over its tiles).
+  const uint32_t* live_records = free_space_sums ? counts_on_device + tsdf_detail::kBandRecordsWord : nullptr;
   if (grouped) {  // one record per voxel, none dropped
     consume_run_sums<SumT>(backend, stream, record_keys, record_count, tsdf_detail::ArrayTerm<SumT>{merged_updates},
                            tsdf::MergeUpdates(), write_voxel, scratch.run_tile_parts, runs_counted);
   } else if constexpr (kColored) {
     const tsdf::VoxelUpdateOfRecord<KeyT> update_of{frame, keys, values, out_of_range_key, truncation};
     consume_run_sums<SumT>(backend, stream, record_keys, record_count, update_of, tsdf::MergeUpdates(), write_voxel,
-                           scratch.run_tile_parts, runs_counted);
+                           scratch.run_tile_parts, runs_counted, live_records);
   } else {
     consume_run_sums<SumT>(backend, stream, record_keys, record_count, tsdf_detail::ArrayTerm<SumT>{values},
-                           tsdf::MergeUpdates(), write_voxel, scratch.run_tile_parts, runs_counted);
+                           tsdf::MergeUpdates(), write_voxel, scratch.run_tile_parts, runs_counted, live_records);
+  }
+  if (free_space_sums) {
+    // The voxels with free-space visits only: every cell of the listed blocks read (and cleared);
+    // one thread past them hands over the count of free-space visits outside the box.
+    const int64_t cells = static_cast<int64_t>(counts.blocks) * voxels_per_block;
+    const int32_t voxels_per_side = codec.voxels_per_side;
+    const int voxel_bits = codec.voxel_bits;
+    parallel_for(backend, stream, cells + 1, [=] COVOX_HD(int64_t i) {
+      bool written = false, rejected = false;
+      if (i < cells) {
+        const int64_t b = i >> voxel_bits;  // voxels_per_block = 2^voxel_bits (no 64-bit division)
+        const Index3D block = block_indices[b];
+        const uint64_t block_key =
+            codec.key(Index3D(block.x * voxels_per_side, block.y * voxels_per_side, block.z * voxels_per_side));
+        const uint64_t key = block_key | static_cast<uint64_t>(i & (voxels_per_block - 1));
+        const uint64_t units = free_space_sums[key];
+        const uint32_t slot = slots[b];
+        if (units != 0) {
+          free_space_sums[key] = 0;
+          rejected = slot == kInvalidSlot;
+          written = !rejected;
+          if (written) {
+            SumT update{};
+            tsdf_detail::add_free_space_sum(update, units, truncation);
+            merge_into_voxel(static_cast<int64_t>(slot) * voxels_per_block + (key & ((uint64_t(1) << voxel_bits) - 1)),
+                             update);
+          }
+        }
+        // Every listed block has a kept visit, so it changes (the band's writes mark theirs too).
+        if ((i & (voxels_per_block - 1)) == 0 && slot != kInvalidSlot) block_changed[slot] = kAllPending;
+      } else {
+        counts_on_device[tsdf_detail::kFreeOutOfRangeWord] = static_cast<uint32_t>(*free_out_of_range);
+        *free_out_of_range = 0;
+      }
+      const uint32_t lanes = warp_lanes();
+      const uint32_t written_in_warp = warp_sum(lanes, written ? 1u : 0u);
+      const uint32_t rejected_in_warp = warp_sum(lanes, rejected ? 1u : 0u);
+      if (warp_lane() == warp_first_lane(lanes)) {
+        if (written_in_warp) atomic_add(&counts_on_device[tsdf_detail::kFreeOnlyVoxelsWord], written_in_warp);
+        if (rejected_in_warp) atomic_add(&counts_on_device[tsdf_detail::kFreeRejectedWord], rejected_in_warp);
+      }
+    });
+    scratch.free_space_sums_clean = true;
+    profile.mark("5b free-space voxels");
   }
   tsdf_detail::reset_merge_tally(backend, scratch, stream);  // for the next frame
   counts = tsdf_detail::read_frame_counts(scratch, stream);  // waits for the writes too
-  const tsdf_detail::DroppedRecords dropped = tsdf_detail::dropped_records(counts, record_count);
-  stats.voxels_updated = dropped.kept_voxels;
-  stats.voxels_out_of_range = grouped ? grouping.out_of_range : dropped.out_of_range;
+  if (free_space_sums && counts.band_records > band_bound) {
+    throw Error("TSDF integrator: " + std::to_string(counts.band_records) + " band visits in one frame, more than the " +
+                std::to_string(band_bound) + " its rays allow (internal error; please report it)");
+  }
+  const tsdf_detail::DroppedRecords dropped =
+      tsdf_detail::dropped_records(counts, live_records ? static_cast<int64_t>(counts.band_records) : record_count);
+  stats.voxels_updated = dropped.kept_voxels + counts.free_only_voxels;
+  stats.voxels_out_of_range =
+      (grouped ? grouping.out_of_range : dropped.out_of_range) + counts.free_out_of_range + counts.free_rejected;
   if (activation.num_out_of_range + activation.num_failed_full > 0) {
     // Rare: count the voxels whose block the hash table rejected (outside its key range, or full).
     scratch.counts.resize_discard(record_count);
@@ -852,13 +1006,15 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
                                   weight_parameters};
   const bool short_keys = codec.key_bits <= 32;
   if (has_color && short_keys) {
-    tsdf_fuse_updates<uint32_t, tsdf::ColorVisit>(backend, config, frame, map, scratch, stats, profile, stream);
+    tsdf_fuse_updates<uint32_t, tsdf::ColorVisit>(backend, config, frame, ray_count, map, scratch, stats, profile, stream);
   } else if (has_color) {
-    tsdf_fuse_updates<uint64_t, tsdf::ColorVisit>(backend, config, frame, map, scratch, stats, profile, stream);
+    tsdf_fuse_updates<uint64_t, tsdf::ColorVisit>(backend, config, frame, ray_count, map, scratch, stats, profile, stream);
   } else if (short_keys) {
-    tsdf_fuse_updates<uint32_t, tsdf::DistanceUpdate>(backend, config, frame, map, scratch, stats, profile, stream);
+    tsdf_fuse_updates<uint32_t, tsdf::DistanceUpdate>(backend, config, frame, ray_count, map, scratch, stats, profile,
+                                                      stream);
   } else {
-    tsdf_fuse_updates<uint64_t, tsdf::DistanceUpdate>(backend, config, frame, map, scratch, stats, profile, stream);
+    tsdf_fuse_updates<uint64_t, tsdf::DistanceUpdate>(backend, config, frame, ray_count, map, scratch, stats, profile,
+                                                      stream);
   }
   return stats;
 }

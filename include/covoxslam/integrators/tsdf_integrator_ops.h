@@ -21,7 +21,7 @@ struct TsdfScratchBuffers {
         block_indices(device), slots(device), is_new(device), point_codes(device), ray_ranks(device),
         merge_table_keys(device), merge_table_bundles(device), merge_tally(device),
         ray_colors(device), ray_weights(device), block_flags(device), block_ranks(device), keys_alt(device),
-        keys32(device), keys32_alt(device), merged_keys32(device), distance_records(device), distance_records_alt(device), color_visits(device), color_visits_alt(device), merged_updates(device), pieces(device), piece_first_voxels(device), piece_voxels(device), piece_offsets(device), run_tile_parts(device), readback(device), box_marks(device) {}
+        keys32(device), keys32_alt(device), merged_keys32(device), distance_records(device), distance_records_alt(device), color_visits(device), color_visits_alt(device), merged_updates(device), pieces(device), piece_first_voxels(device), piece_voxels(device), piece_offsets(device), run_tile_parts(device), readback(device), box_marks(device), free_space_sums(device), record_ranks(device) {}
   Buffer<Vec3f> points;  // depth images unprojected, or host clouds uploaded
   Buffer<Rgb8> colors;
   Buffer<tsdf::RaySegment> rays;
@@ -89,6 +89,11 @@ struct TsdfScratchBuffers {
   // the traverse's marks of the blocks of the frame's box (clear between frames)
   Buffer<uint32_t> box_marks;
   bool box_marks_clean = false;
+  // the free-space visits' weight sums, one per key of the frame's box (clear between frames),
+  // and the kept records' ranks for the compaction that follows them (tsdf_integrator_impl.h)
+  Buffer<uint64_t> free_space_sums;
+  bool free_space_sums_clean = false;
+  Buffer<uint32_t> record_ranks;
 };
 
 template <class Backend>

@@ -130,6 +130,27 @@ COVOX_HD_INLINE uint32_t bits_of_float(float value) {
   return bits;
 }
 
+// Free-space weights summed per voxel in fixed point (tsdf_integrator_impl.h, "free-space sums"):
+// integer sums are exact, so the order in which the visits add them does not change the result
+// (the frame stays deterministic with atomic adds into a scratch grid, not into voxels). 2^28
+// units per unit of weight: a weight of 1e-4 (an inverse-square weight at 100 m) keeps 4 decimal
+// digits, and a voxel's sum may reach 3e10 before the 64 bits overflow.
+constexpr double kFreeSpaceWeightUnits = 268435456.0;  // 2^28
+COVOX_HD_INLINE uint64_t free_space_weight_units(float weight) {
+  return static_cast<uint64_t>(static_cast<double>(weight) * kFreeSpaceWeightUnits + 0.5);
+}
+COVOX_HD_INLINE float free_space_weight(uint64_t units) {
+  return static_cast<float>(static_cast<double>(units) / kFreeSpaceWeightUnits);
+}
+
+// At most this many of a ray's visits lie in the truncation band (the visits that are not free
+// space: a voxel's centre projects within truncation of the surface, so the ray enters it no more
+// than sqrt(3)/2 voxel before that; a segment of length L crosses at most sqrt(3) L / voxel + 3
+// voxel faces), with a margin for rounding.
+inline int64_t band_visits_per_ray_bound(float truncation_m, float voxel_size_m) {
+  return static_cast<int64_t>(1.7320508 * (2.0 * truncation_m / voxel_size_m + 1.0)) + 6;
+}
+
 // Point or ray i's colour: its own colour, else its intensity as grey, else none.
 COVOX_HD_INLINE Rgb8 color_of(const Rgb8* colors, const float* intensities, float grey_per_intensity, int64_t i) {
   return colors ? colors[i] : (intensities ? intensity_to_grey(intensities[i], grey_per_intensity) : Rgb8{});

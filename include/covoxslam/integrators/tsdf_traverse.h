@@ -79,10 +79,13 @@ COVOX_HD_INLINE DistanceUpdate free_space_update(float weight, float truncation)
 COVOX_HD_INLINE void make_record_value(const DistanceUpdate& update, bool, uint32_t, float, DistanceUpdate* value) {
   *value = update;
 }
+COVOX_HD_INLINE bool is_free_space_visit(const DistanceUpdate& update, bool takes_color, float truncation) {
+  return !takes_color && update.weight >= 0.0f && update.weighted_distance == update.weight * truncation;
+}
 COVOX_HD_INLINE void make_record_value(const DistanceUpdate& update, bool takes_color, uint32_t ray, float truncation,
                                        ColorVisit* value) {
-  const bool free_space = !takes_color && update.weight >= 0.0f && update.weighted_distance == update.weight * truncation;
-  value->word = free_space ? bits_of_float(update.weight) : (ray | ColorVisit::kBandVisitBit);
+  value->word = is_free_space_visit(update, takes_color, truncation) ? bits_of_float(update.weight)
+                                                                      : (ray | ColorVisit::kBandVisitBit);
 }
 
 // The records of piece p, handed to emit(out, key, value) with out = the record's index in the
@@ -97,6 +100,12 @@ struct PieceTraversal {
   // block that a kept record (weight, inside the box) falls in: the frame's blocks, known before
   // the records are sorted (tsdf_integrator_impl.h, step 4).
   uint32_t* block_marks = nullptr;
+  // When given (with block_marks), one fixed-point weight sum per key of the frame's box: a kept
+  // free-space visit adds its weight there (free_space_weight_units) and leaves a record with the
+  // zero-weight key, which the compaction drops; only the band's visits are sorted and reduced.
+  // A free-space visit outside the box is counted in *free_out_of_range instead.
+  uint64_t* free_space_sums = nullptr;
+  uint64_t* free_out_of_range = nullptr;
 
   template <class Emit>
   COVOX_HD_INLINE void operator()(int64_t p, Emit&& emit) const {
@@ -125,10 +134,18 @@ struct PieceTraversal {
       const DistanceUpdate update = voxel_update(frame, ray, ray_weight, voxel, truncation, &takes_color);
       ValueT value;
       make_record_value(update, takes_color, i, truncation, &value);
-      const uint64_t key = update.weight > 0.0f ? frame.codec.key(voxel) : static_cast<uint64_t>(zero_weight_key);
+      uint64_t key = update.weight > 0.0f ? frame.codec.key(voxel) : static_cast<uint64_t>(zero_weight_key);
       if (block_marks && key < frame.codec.out_of_range_key && frame.codec.block_part(key) != marked) {
         marked = frame.codec.block_part(key);
         mark_flag(&block_marks[marked]);
+      }
+      if (free_space_sums && update.weight > 0.0f && is_free_space_visit(update, takes_color, truncation)) {
+        if (key < frame.codec.out_of_range_key) {
+          atomic_add(&free_space_sums[key], free_space_weight_units(update.weight));
+        } else {
+          atomic_add(free_out_of_range, uint64_t(1));
+        }
+        key = static_cast<uint64_t>(zero_weight_key);
       }
       emit(out, static_cast<KeyT>(key), value);
       ++out;
