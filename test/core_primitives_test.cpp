@@ -7,6 +7,7 @@
 #include <map>
 #include <numeric>
 #include <random>
+#include <utility>
 #include <vector>
 
 #include "covoxslam/core/buffer.h"
@@ -234,16 +235,21 @@ TEST_P(CorePrimitivesTest, RunSumsHandEachRunOverOnceWithItsSum) {
     const int64_t count = static_cast<int64_t>(keys.size());
     std::vector<double> values(keys.size());
     for (size_t i = 0; i < values.size(); ++i) values[i] = static_cast<double>((i * 7919) % 1000);  // exact sums
-    std::vector<double> expected(keys.size(), -1.0);
-    std::vector<uint32_t> expected_calls(keys.size(), 0u);
-    for (int64_t i = 0, first = 0; i < count; ++i) {
-      if (i == 0 || keys[i] != keys[i - 1]) {
-        first = i;
-        expected[first] = 0.0;
-        expected_calls[first] = 2u;  // two calls
+    // Each run's sum at its first record, over the first `live` records; two calls per run.
+    const auto expected_sums_and_calls = [&](int64_t live) {
+      std::pair<std::vector<double>, std::vector<uint32_t>> out{std::vector<double>(keys.size(), -1.0),
+                                                                std::vector<uint32_t>(keys.size(), 0u)};
+      for (int64_t i = 0, first = 0; i < live; ++i) {
+        if (i == 0 || keys[i] != keys[i - 1]) {
+          first = i;
+          out.first[first] = 0.0;
+          out.second[first] = 2u;
+        }
+        out.first[first] += values[i];
       }
-      expected[first] += values[i];
-    }
+      return out;
+    };
+    const auto [expected, expected_calls] = expected_sums_and_calls(count);
     auto keys_device = Buffer<uint64_t>::from_host(device(), keys);
     auto values_device = Buffer<double>::from_host(device(), values);
     auto sums = Buffer<double>::from_host(device(), std::vector<double>(keys.size(), -1.0));
@@ -267,16 +273,7 @@ TEST_P(CorePrimitivesTest, RunSumsHandEachRunOverOnceWithItsSum) {
     auto live_calls = Buffer<uint32_t>::from_host(device(), std::vector<uint32_t>(keys.size(), 0u));
     algorithms::sum_runs_at_first(device(), Stream(device()), live_keys_device.data(), values_device.data(), count,
                                   live_sums.data(), live_calls.data(), live_device.data());
-    std::vector<double> expected_live(keys.size(), -1.0);
-    std::vector<uint32_t> expected_live_calls(keys.size(), 0u);
-    for (int64_t i = 0, first = 0; i < live; ++i) {
-      if (i == 0 || keys[i] != keys[i - 1]) {
-        first = i;
-        expected_live[first] = 0.0;
-        expected_live_calls[first] = 2u;
-      }
-      expected_live[first] += values[i];
-    }
+    const auto [expected_live, expected_live_calls] = expected_sums_and_calls(live);
     const auto got_live = live_sums.to_host();
     const auto got_live_calls = live_calls.to_host();
     for (int64_t i = 0; i < count; ++i) {
