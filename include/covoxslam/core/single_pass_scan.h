@@ -73,6 +73,39 @@ __device__ __forceinline__ uint64_t await(const uint64_t* word, uint32_t epoch) 
   return seen;
 }
 
+// The sum of the values of all tiles before `tile` (a decoupled look-back), for a kernel whose
+// thread blocks are the tiles, in index order: called by the block's first warp (all 32 lanes),
+// with the tile's own sum; returns the prefix in every lane and publishes the tile's sum and then
+// its inclusive prefix. Tile 0 needs no descriptors (null when there is one tile only). Its
+// predecessors' sums are read nearest first, one warp looking back 32 tiles at a time, until one
+// of them has published its inclusive prefix.
+__device__ __forceinline__ uint32_t look_back_tile_prefix(uint64_t* descriptors, uint32_t epoch, int64_t tile,
+                                                          uint32_t tile_sum) {
+  const int lane = static_cast<int>(threadIdx.x & 31u);
+  uint32_t prefix = 0;
+  if (tile == 0) {
+    if (lane == 0 && descriptors) publish(&descriptors[0], describe(kTilePrefix, epoch, tile_sum));
+    return 0;
+  }
+  if (lane == 0) publish(&descriptors[tile], describe(kTileSum, epoch, tile_sum));
+  int64_t window_end = tile;  // looks at tiles window_end - 1 - lane
+  while (true) {
+    const int64_t predecessor = window_end - 1 - lane;
+    const uint64_t seen = predecessor >= 0 ? await(&descriptors[predecessor], epoch) : kTilePrefix;
+    const bool inclusive = (seen >> 62) == (kTilePrefix >> 62);
+    const uint32_t stops = __ballot_sync(0xFFFFFFFFu, inclusive);
+    const int nearest = stops ? __ffs(static_cast<int>(stops)) - 1 : 32;
+    uint32_t value = lane <= nearest ? static_cast<uint32_t>(seen) : 0u;
+#pragma unroll
+    for (int offset = 16; offset > 0; offset >>= 1) value += __shfl_down_sync(0xFFFFFFFFu, value, offset);
+    prefix += __shfl_sync(0xFFFFFFFFu, value, 0);
+    if (stops) break;
+    window_end -= 32;
+  }
+  if (lane == 0) publish(&descriptors[tile], describe(kTilePrefix, epoch, prefix + tile_sum));
+  return prefix;
+}
+
 template <int kItems, class ValueOf>
 __global__ void __launch_bounds__(kThreads) single_pass_scan_kernel(int64_t count, ValueOf value_of, uint32_t* out,
                                                                      uint64_t* descriptors, uint32_t epoch) {
@@ -100,32 +133,10 @@ __global__ void __launch_bounds__(kThreads) single_pass_scan_kernel(int64_t coun
   }
   uint32_t thread_prefix = 0, tile_sum = 0;
   BlockScan(scan_storage).ExclusiveSum(thread_sum, thread_prefix, tile_sum);
-  // 2. the tile's prefix: its predecessors' published sums, nearest first, until one of them has
-  //    published its inclusive prefix (tile 0 has none to wait for)
+  // 2. the tile's prefix: its predecessors' published sums (look_back_tile_prefix)
   if (threadIdx.x < 32) {
-    const int lane = static_cast<int>(threadIdx.x);
-    uint32_t prefix = 0;
-    if (tile == 0) {
-      if (lane == 0 && descriptors) publish(&descriptors[0], describe(kTilePrefix, epoch, tile_sum));
-    } else {
-      if (lane == 0) publish(&descriptors[tile], describe(kTileSum, epoch, tile_sum));
-      int64_t window_end = tile;  // looks at tiles window_end - 1 - lane
-      while (true) {
-        const int64_t predecessor = window_end - 1 - lane;
-        const uint64_t seen = predecessor >= 0 ? await(&descriptors[predecessor], epoch) : kTilePrefix;
-        const bool inclusive = (seen >> 62) == (kTilePrefix >> 62);
-        const uint32_t stops = __ballot_sync(0xFFFFFFFFu, inclusive);
-        const int nearest = stops ? __ffs(static_cast<int>(stops)) - 1 : 32;
-        uint32_t value = lane <= nearest ? static_cast<uint32_t>(seen) : 0u;
-#pragma unroll
-        for (int offset = 16; offset > 0; offset >>= 1) value += __shfl_down_sync(0xFFFFFFFFu, value, offset);
-        prefix += __shfl_sync(0xFFFFFFFFu, value, 0);
-        if (stops) break;
-        window_end -= 32;
-      }
-      if (lane == 0) publish(&descriptors[tile], describe(kTilePrefix, epoch, prefix + tile_sum));
-    }
-    if (lane == 0) tile_prefix = prefix;
+    const uint32_t prefix = look_back_tile_prefix(descriptors, epoch, tile, tile_sum);
+    if (threadIdx.x == 0) tile_prefix = prefix;
   }
   __syncthreads();
   // 3. the outputs, staged back into shared memory and stored in striped order

@@ -530,46 +530,31 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   const tsdf::PieceTraversal<KeyT, ValueT> traversal{frame,      zero_weight_key, scratch.piece_offsets.data(),
                                                      truncation, box_marks,       free_space_sums,
                                                      free_out_of_range};
-  tsdf::traverse_pieces(backend, stream, frame.piece_bound, total_updates, traversal,
-                        tsdf::RecordArrays<KeyT, ValueT>{keys, values});
-
-  profile.mark("2b traverse");
-
   // The frame's figures left on the device (tsdf_detail::FrameCounts) and read back together.
   scratch.readback.resize_discard(tsdf_detail::kFrameCountWords);
   uint32_t* counts_on_device = scratch.readback.data();
-
-  // 2c. (free-space sums) the band's records compacted, in order, into the first band_bound
-  //     places (the rest: zero-weight records, dropped like them), so that the sort and the
-  //     reduction see band_bound records; a bound known on the host without a read-back.
+  // With free-space sums only the band's records are kept, compacted in visit order into the first
+  // band_bound places of the other record arrays (tsdf::BandRecords; the GPU's traverse does it as
+  // it copies its records out), so that the sort and the reduction see band_bound records: a
+  // bound the host knows without a read-back.
+  tsdf::BandRecords<KeyT, ValueT> band;
+  if (free_space_sums) {
+    band = tsdf::BandRecords<KeyT, ValueT>{keys_alt, values_alt, band_bound,
+                                           counts_on_device + tsdf_detail::kBandRecordsWord, nullptr};
+    if constexpr (std::is_same<Backend, CpuBackend>::value) {
+      scratch.record_ranks.resize_discard(total_updates + 1);
+      band.ranks = scratch.record_ranks.data();
+    }
+  }
+  tsdf::traverse_pieces(backend, stream, frame.piece_bound, total_updates, traversal,
+                        tsdf::RecordArrays<KeyT, ValueT>{keys, values}, band);
   int64_t record_count = total_updates;  // the records step 5 reads (the dropped ones sort last)
   if (free_space_sums) {
-    scratch.record_ranks.resize_discard(total_updates + 1);
-    uint32_t* ranks = scratch.record_ranks.data();
-    const KeyT* visit_keys = keys;
-    const ValueT* visit_values = values;
-    exclusive_scan_of(backend, stream, total_updates + 1, [=] COVOX_HD(int64_t j) -> uint32_t {
-      return j < total_updates && visit_keys[j] != zero_weight_key ? 1u : 0u;
-    }, ranks);
-    KeyT* band_keys = keys_alt;
-    ValueT* band_values = values_alt;
-    parallel_for(backend, stream, std::max(total_updates, band_bound), [=] COVOX_HD(int64_t j) {
-      const uint32_t kept = ranks[total_updates];
-      if (j < total_updates && visit_keys[j] != zero_weight_key && ranks[j] < band_bound) {
-        band_keys[ranks[j]] = visit_keys[j];
-        band_values[ranks[j]] = visit_values[j];
-      }
-      if (j < band_bound && j >= kept) {
-        band_keys[j] = zero_weight_key;
-        band_values[j] = ValueT{};
-      }
-      if (j == 0) counts_on_device[tsdf_detail::kBandRecordsWord] = kept;
-    });
     std::swap(keys, keys_alt);
     std::swap(values, values_alt);
     record_count = band_bound;
-    profile.mark("2c compact band records");
   }
+  profile.mark("2b traverse");
 
   // 3. (CPU twin) group by voxel in dense per-block arrays (tsdf_group_updates_cpu.h): the same
   //    voxels and (within rounding) sums as the sort and run sums below, with a third of the
