@@ -43,7 +43,9 @@ struct TsdfIntegratorConfig {
   // true sums their weights in fixed point as the rays are walked (exact, so order-free and
   // deterministic) and sorts only the band's visits, which is much faster with carving; false
   // sorts every visit (the reference the tests compare with). The map is the same up to the
-  // fixed point's rounding (2^-28 of a unit weight). Not a ROS parameter.
+  // fixed point's rounding (2^-28 of a unit weight). The sums take 8 bytes of scratch per voxel
+  // of the frame's box (frames whose box has more than 2^24 voxels, 128 MB, sort every visit).
+  // Not a ROS parameter.
   bool sum_free_space_in_fixed_point = true;
   // ... on the GPU for frames of at least this many voxel visits (and at least 4 per band visit
   // the rays can make): below it the sums' extra passes cost more than the smaller sort saves
