@@ -595,7 +595,9 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   //    one per box block and per record) and its totals come back while the records are sorted,
   //    so the host's wait overlaps the sort; when the table might have to grow it needs the exact
   //    count first (activate_queued says no), and on the CPU a read-back is free.
-  const int64_t block_bound = std::max<int64_t>(1, std::min<int64_t>(box_blocks, free_space_sums ? total_updates : record_count));
+  // (with free-space sums the records are the band's only: the kept visits bound the blocks)
+  const int64_t listed_bound = free_space_sums ? total_updates : record_count;
+  const int64_t block_bound = std::max<int64_t>(1, std::min<int64_t>(box_blocks, listed_bound));
   scratch.block_indices.resize_discard(block_bound);
   scratch.slots.resize_discard(block_bound);
   scratch.is_new.resize_discard(block_bound);
