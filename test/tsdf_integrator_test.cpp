@@ -767,14 +767,22 @@ TEST_P(TsdfIntegratorTest, RejectsInvalidParametersByName) {
 
 COVOX_INSTANTIATE_ON_ALL_DEVICES(TsdfIntegratorTest);
 
-TEST(TsdfIntegratorParity, CpuAndCudaBuildTheSameMap) {
+// Twice: with each backend's default path (these frames, about 3 M visits, are above the GPU's
+// threshold: the GPU's free-space sums against the CPU's dense grouping of every visit), and with
+// free-space sums on both (the GPU compacting in its traverse, the CPU after it).
+class TsdfIntegratorParity : public ::testing::TestWithParam<bool> {};
+INSTANTIATE_TEST_SUITE_P(FreeSpaceSums, TsdfIntegratorParity, ::testing::Bool());
+
+TEST_P(TsdfIntegratorParity, CpuAndCudaBuildTheSameMap) {
   COVOX_SKIP_WITHOUT_GPU();
   const AnalyticScene scene = make_scene(Shape::kBox);
   std::vector<std::vector<HostBlock>> snapshots;
   std::vector<std::vector<IntegrationStats>> stats(2);
   for (Device device : {Device::kCpu, Device::kCuda}) {
     TsdfMap map(device, TsdfMapConfig{0.05f, 8, {}});
-    TsdfIntegrator integrator(analytic_config(0.05f));
+    TsdfIntegratorConfig config = analytic_config(0.05f);
+    if (GetParam()) config.free_space_sums_min_visits = 0;
+    TsdfIntegrator integrator(config);
     for (const auto& pose : viewpoints()) {
       std::vector<Vec3f> points = testing_support::simulate_lidar(scene, pose, 720, 64, 90.0, 9.5);
       std::vector<Rgb8> colors(points.size());
@@ -798,6 +806,8 @@ TEST(TsdfIntegratorParity, CpuAndCudaBuildTheSameMap) {
     EXPECT_EQ(cpu.voxels_updated, gpu.voxels_updated) << "frame " << f;
     EXPECT_EQ(cpu.voxels_out_of_range, gpu.voxels_out_of_range) << "frame " << f;
     EXPECT_EQ(cpu.blocks_allocated, gpu.blocks_allocated) << "frame " << f;
+    EXPECT_LT(gpu.records_grouped, gpu.voxel_updates / 2) << "frame " << f;
+    if (GetParam()) EXPECT_EQ(cpu.records_grouped, gpu.records_grouped) << "frame " << f;
   }
   ASSERT_EQ(snapshots[0].size(), snapshots[1].size());
   for (size_t b = 0; b < snapshots[0].size(); ++b) {

@@ -25,7 +25,6 @@
 // resident, half its cycles at barriers), and its output went through memory once more for the
 // writes. Here a run's sum goes from registers (or shared memory) to the consumer: 22 us for the
 // same frame, sums and writes together (docs/benchmarks.md, "seventh pass").
-#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -125,6 +124,13 @@ COVOX_HD_INLINE void close_record(const KeyT* keys, int64_t count, int64_t j, in
   parts.passes[tile] = goes_on && part.first == kNoRun ? 1u : 0u;
 }
 
+// The records there are: all `count_bound`, or the first *live_count (memory of the backend's
+// device) when given.
+COVOX_HD_INLINE int64_t live_records(int64_t count_bound, const uint32_t* live_count) {
+  return live_count && static_cast<int64_t>(*live_count) < count_bound ? static_cast<int64_t>(*live_count)
+                                                                         : count_bound;
+}
+
 template <class KeyT>
 COVOX_HD_INLINE bool starts_run(const KeyT* keys, int64_t j) {
   return j == 0 || keys[j] != keys[j - 1];
@@ -153,7 +159,7 @@ template <class KeyT, class SumT, class Term, class Op, class Consume>
 __global__ void __launch_bounds__(kRunSumThreads, kRunSumBlocksPerSm)
     sum_tiles_kernel(const KeyT* keys, int64_t count_bound, const uint32_t* live_count, Term term, Op op,
                      Consume consume, TileParts<SumT> parts, uint32_t* run_count) {
-  const int64_t count = live_count && *live_count < count_bound ? static_cast<int64_t>(*live_count) : count_bound;
+  const int64_t count = live_records(count_bound, live_count);
   if (static_cast<int64_t>(blockIdx.x) * kRunSumTile >= count) return;  // a tile past the live records
   using Part = RunPart<SumT>;
   using BlockScan = cub::BlockScan<Part, kRunSumThreads>;
@@ -227,7 +233,7 @@ template <class KeyT, class SumT, class Term, class Op, class Consume>
 void sum_tiles(CpuBackend backend, const Stream& stream, const KeyT* keys, int64_t count_bound,
                const uint32_t* live_count, int64_t tiles, const Term& term, const Op& op, const Consume& consume,
                const TileParts<SumT>& parts, uint32_t* run_count) {
-  const int64_t count = live_count ? std::min<int64_t>(count_bound, *live_count) : count_bound;
+  const int64_t count = live_records(count_bound, live_count);
   parallel_for(backend, stream, tiles, [&](int64_t tile) {
     if (tile * kRunSumTile < count) sum_tile_in_order(keys, count, tile, term, op, consume, parts, run_count);
   });
@@ -270,7 +276,7 @@ void consume_run_sums(Backend backend, const Stream& stream, const KeyT* keys, i
   // a time changed nothing measurable, 2026-11-24.)
   parallel_for(backend, stream, tiles - 1, [=] COVOX_HD(int64_t tile) {
     // (the live records' last tile ends its last run: no walk goes past it)
-    if (live_count && tile * kRunSumTile >= static_cast<int64_t>(*live_count)) return;
+    if (tile * kRunSumTile >= live_records(count, live_count)) return;
     const uint32_t run_first = parts.tail_firsts[tile];
     if (run_first == kNoRun) return;
     SumT sum = parts.tail_sums[tile];

@@ -77,21 +77,20 @@ COVOX_HD_INLINE DistanceUpdate free_space_update(float weight, float truncation)
   return update;
 }
 
-// A record's value (see above): the update without colour; with colour (ColorVisit,
-// tsdf_kernels.h) the weight of a free-space visit (its distance the truncation: clamped, or a
-// clearing ray's), else the ray's index flagged as a band visit.
-// (A visit without colour has its distance at +truncation or -truncation, or no weight: the
-// product tells the first.)
-COVOX_HD_INLINE void make_record_value(const DistanceUpdate& update, bool, uint32_t, float, DistanceUpdate* value) {
-  *value = update;
-}
+// A free-space visit: its distance is the truncation (clamped, or a clearing ray's) and it takes
+// no colour. (A visit without colour has its distance at +truncation or -truncation, or no
+// weight: the product tells the first.)
 COVOX_HD_INLINE bool is_free_space_visit(const DistanceUpdate& update, bool takes_color, float truncation) {
   return !takes_color && update.weight >= 0.0f && update.weighted_distance == update.weight * truncation;
 }
-COVOX_HD_INLINE void make_record_value(const DistanceUpdate& update, bool takes_color, uint32_t ray, float truncation,
-                                       ColorVisit* value) {
-  value->word = is_free_space_visit(update, takes_color, truncation) ? bits_of_float(update.weight)
-                                                                      : (ray | ColorVisit::kBandVisitBit);
+
+// A record's value (see above): the update without colour; with colour (ColorVisit,
+// tsdf_kernels.h) the weight of a free-space visit, else the ray's index flagged as a band visit.
+COVOX_HD_INLINE void make_record_value(const DistanceUpdate& update, bool, uint32_t, DistanceUpdate* value) {
+  *value = update;
+}
+COVOX_HD_INLINE void make_record_value(const DistanceUpdate& update, bool free_space, uint32_t ray, ColorVisit* value) {
+  value->word = free_space ? bits_of_float(update.weight) : (ray | ColorVisit::kBandVisitBit);
 }
 
 // The records of piece p, handed to emit(out, key, value) with out = the record's index in the
@@ -139,18 +138,18 @@ struct PieceTraversal {
                        [&](const Index3D& voxel) {
       bool takes_color = false;
       const DistanceUpdate update = voxel_update(frame, ray, ray_weight, voxel, truncation, &takes_color);
+      const bool free_space = is_free_space_visit(update, takes_color, truncation);
       ValueT value;
-      make_record_value(update, takes_color, i, truncation, &value);
+      make_record_value(update, free_space, i, &value);
       uint64_t key = update.weight > 0.0f ? frame.codec.key(voxel) : static_cast<uint64_t>(zero_weight_key);
       if (block_marks && key < frame.codec.out_of_range_key && frame.codec.block_part(key) != marked) {
         marked = frame.codec.block_part(key);
         mark_flag(&block_marks[marked]);
       }
-      if (free_space_sums && update.weight > 0.0f && is_free_space_visit(update, takes_color, truncation)) {
-        if (!accumulate_free_space) {
-        } else if (key < frame.codec.out_of_range_key) {
+      if (free_space_sums && free_space && update.weight > 0.0f) {
+        if (accumulate_free_space && key < frame.codec.out_of_range_key) {
           atomic_add(&free_space_sums[key], free_space_weight_units(update.weight));
-        } else {
+        } else if (accumulate_free_space) {
           atomic_add(free_out_of_range, uint64_t(1));
         }
         key = static_cast<uint64_t>(zero_weight_key);
