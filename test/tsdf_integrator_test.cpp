@@ -536,20 +536,22 @@ TEST_P(TsdfIntegratorTest, ColourDoesNotChangeDistancesOrWeights) {
   EXPECT_GT(coloured, 100);  // the colour run did fuse colour
 }
 
-// Free-space visits summed in fixed point as the rays are walked (the default) against every
-// visit sorted and reduced: a depth camera and a LiDAR with colour, carving, several views. The
-// same voxels and counts; distances and weights equal up to the fixed point's rounding and the
-// order of float sums; colours (band only) within one level.
-TEST_P(TsdfIntegratorTest, FreeSpaceSumsMatchEveryVisitSorted) {
+// Free-space visits summed in fixed point as the rays are walked, and every visit summed so (the
+// band's distances and colours too), against every visit sorted and reduced: a depth camera and a
+// LiDAR with colour, carving, several views. The same voxels and counts; distances and weights
+// equal up to the fixed point's rounding and the order of float sums; colours within one level.
+TEST_P(TsdfIntegratorTest, FixedPointSumsMatchEveryVisitSorted) {
   const AnalyticScene scene = make_scene(Shape::kBox);
   const int width = 160, height = 120;
   const double f = 140.0;
   std::vector<std::vector<HostBlock>> snapshots;
   std::vector<IntegrationStats> totals;
-  for (const bool fixed_point : {true, false}) {
+  enum Sums { kEveryVisit, kFreeSpace, kNone };
+  for (const Sums sums : {kEveryVisit, kFreeSpace, kNone}) {
     TsdfIntegratorConfig config = analytic_config(0.05f);
     config.max_ray_length_m = 8.0f;
-    config.sum_free_space_in_fixed_point = fixed_point;
+    config.sum_free_space_in_fixed_point = sums != kNone;
+    config.sum_band_in_fixed_point = sums == kEveryVisit;
     config.free_space_sums_min_visits = 0;  // these small frames too
     TsdfMap map(device(), TsdfMapConfig{0.05f, 8, {}});
     TsdfIntegrator integrator(config);
@@ -585,35 +587,44 @@ TEST_P(TsdfIntegratorTest, FreeSpaceSumsMatchEveryVisitSorted) {
     snapshots.push_back(map.snapshot());
     totals.push_back(total);
   }
-  // The fixed-point run sorted only the band's records; the other sorted every visit.
-  EXPECT_EQ(totals[0].voxel_updates, totals[1].voxel_updates);
-  EXPECT_EQ(totals[1].records_grouped, totals[1].voxel_updates);
-  EXPECT_LT(totals[0].records_grouped, totals[0].voxel_updates / 2);
-  EXPECT_EQ(totals[0].voxels_updated, totals[1].voxels_updated);
-  EXPECT_EQ(totals[0].voxels_out_of_range, totals[1].voxels_out_of_range);
-  ASSERT_EQ(snapshots[0].size(), snapshots[1].size());
-  ASSERT_GT(snapshots[0].size(), 50u);
-  int observed = 0, coloured = 0;
-  for (size_t b = 0; b < snapshots[0].size(); ++b) {
-    ASSERT_EQ(snapshots[0][b].index, snapshots[1][b].index);
-    for (size_t v = 0; v < snapshots[0][b].tsdf.size(); ++v) {
-      const TsdfVoxel& a = snapshots[0][b].tsdf[v];
-      const TsdfVoxel& c = snapshots[1][b].tsdf[v];
-      ASSERT_EQ(a.weight > 0.0f, c.weight > 0.0f);
-      ASSERT_NEAR(a.distance_m, c.distance_m, 1e-5f);
-      ASSERT_NEAR(a.weight, c.weight, 1e-5f * c.weight + 1e-6f);
-      observed += a.weight > 0.0f;
-      const ColorVoxel& ca = snapshots[0][b].color[v];
-      const ColorVoxel& cc = snapshots[1][b].color[v];
-      ASSERT_NEAR(ca.weight, cc.weight, 1e-5f * cc.weight + 1e-6f);
-      ASSERT_LE(std::abs(int(ca.r) - int(cc.r)), 1);
-      ASSERT_LE(std::abs(int(ca.g) - int(cc.g)), 1);
-      ASSERT_LE(std::abs(int(ca.b) - int(cc.b)), 1);
-      coloured += ca.weight > 0.0f;
+  // The free-space sums sorted only the band's records, the reference every visit, and with
+  // every visit summed none was.
+  const IntegrationStats& reference = totals[kNone];
+  EXPECT_EQ(reference.records_grouped, reference.voxel_updates);
+  EXPECT_LT(totals[kFreeSpace].records_grouped, totals[kFreeSpace].voxel_updates / 2);
+  EXPECT_GT(totals[kFreeSpace].records_grouped, 0);
+  EXPECT_EQ(totals[kEveryVisit].records_grouped, 0);
+  for (const Sums sums : {kEveryVisit, kFreeSpace}) {
+    SCOPED_TRACE(sums == kEveryVisit ? "every visit summed" : "free space summed");
+    EXPECT_EQ(totals[sums].voxel_updates, reference.voxel_updates);
+    EXPECT_EQ(totals[sums].voxels_updated, reference.voxels_updated);
+    EXPECT_EQ(totals[sums].voxels_out_of_range, reference.voxels_out_of_range);
+    const std::vector<HostBlock>& summed = snapshots[sums];
+    const std::vector<HostBlock>& sorted = snapshots[kNone];
+    ASSERT_EQ(summed.size(), sorted.size());
+    ASSERT_GT(summed.size(), 50u);
+    int observed = 0, coloured = 0;
+    for (size_t b = 0; b < summed.size(); ++b) {
+      ASSERT_EQ(summed[b].index, sorted[b].index);
+      for (size_t v = 0; v < summed[b].tsdf.size(); ++v) {
+        const TsdfVoxel& a = summed[b].tsdf[v];
+        const TsdfVoxel& c = sorted[b].tsdf[v];
+        ASSERT_EQ(a.weight > 0.0f, c.weight > 0.0f);
+        ASSERT_NEAR(a.distance_m, c.distance_m, 1e-5f);
+        ASSERT_NEAR(a.weight, c.weight, 1e-5f * c.weight + 1e-6f);
+        observed += a.weight > 0.0f;
+        const ColorVoxel& ca = summed[b].color[v];
+        const ColorVoxel& cc = sorted[b].color[v];
+        ASSERT_NEAR(ca.weight, cc.weight, 1e-5f * cc.weight + 1e-6f);
+        ASSERT_LE(std::abs(int(ca.r) - int(cc.r)), 1);
+        ASSERT_LE(std::abs(int(ca.g) - int(cc.g)), 1);
+        ASSERT_LE(std::abs(int(ca.b) - int(cc.b)), 1);
+        coloured += ca.weight > 0.0f;
+      }
     }
+    EXPECT_GT(observed, 5000);
+    EXPECT_GT(coloured, 500);
   }
-  EXPECT_GT(observed, 5000);
-  EXPECT_GT(coloured, 500);
 }
 
 TEST_P(TsdfIntegratorTest, BadPointsAreDroppedAndCounted) {
@@ -767,11 +778,15 @@ TEST_P(TsdfIntegratorTest, RejectsInvalidParametersByName) {
 
 COVOX_INSTANTIATE_ON_ALL_DEVICES(TsdfIntegratorTest);
 
-// Twice: with each backend's default path (these frames, about 3 M visits, are above the GPU's
-// threshold: the GPU's free-space sums against the CPU's dense grouping of every visit), and with
-// free-space sums on both (the GPU compacting in its traverse, the CPU after it).
-class TsdfIntegratorParity : public ::testing::TestWithParam<bool> {};
-INSTANTIATE_TEST_SUITE_P(FreeSpaceSums, TsdfIntegratorParity, ::testing::Bool());
+// Three times: with each backend's default path (the frames' boxes are small enough for the
+// GPU to sum every visit in fixed point: against the CPU's dense grouping of every visit), with
+// every visit summed on both, and with only the free-space visits summed on both (the band's
+// records compacted by the GPU in its traverse, by the CPU after it).
+enum class ParityPaths { kDefaults, kEveryVisitSummed, kFreeSpaceSummed };
+class TsdfIntegratorParity : public ::testing::TestWithParam<ParityPaths> {};
+INSTANTIATE_TEST_SUITE_P(FixedPointSums, TsdfIntegratorParity,
+                         ::testing::Values(ParityPaths::kDefaults, ParityPaths::kEveryVisitSummed,
+                                           ParityPaths::kFreeSpaceSummed));
 
 TEST_P(TsdfIntegratorParity, CpuAndCudaBuildTheSameMap) {
   COVOX_SKIP_WITHOUT_GPU();
@@ -781,7 +796,8 @@ TEST_P(TsdfIntegratorParity, CpuAndCudaBuildTheSameMap) {
   for (Device device : {Device::kCpu, Device::kCuda}) {
     TsdfMap map(device, TsdfMapConfig{0.05f, 8, {}});
     TsdfIntegratorConfig config = analytic_config(0.05f);
-    if (GetParam()) config.free_space_sums_min_visits = 0;
+    if (GetParam() != ParityPaths::kDefaults) config.free_space_sums_min_visits = 0;  // the CPU's too
+    config.sum_band_in_fixed_point = GetParam() != ParityPaths::kFreeSpaceSummed;
     TsdfIntegrator integrator(config);
     for (const auto& pose : viewpoints()) {
       std::vector<Vec3f> points = testing_support::simulate_lidar(scene, pose, 720, 64, 90.0, 9.5);
@@ -807,7 +823,12 @@ TEST_P(TsdfIntegratorParity, CpuAndCudaBuildTheSameMap) {
     EXPECT_EQ(cpu.voxels_out_of_range, gpu.voxels_out_of_range) << "frame " << f;
     EXPECT_EQ(cpu.blocks_allocated, gpu.blocks_allocated) << "frame " << f;
     EXPECT_LT(gpu.records_grouped, gpu.voxel_updates / 2) << "frame " << f;
-    if (GetParam()) EXPECT_EQ(cpu.records_grouped, gpu.records_grouped) << "frame " << f;
+    if (GetParam() != ParityPaths::kDefaults) {
+      EXPECT_EQ(cpu.records_grouped, gpu.records_grouped) << "frame " << f;
+    }
+    if (GetParam() == ParityPaths::kFreeSpaceSummed) {
+      EXPECT_GT(gpu.records_grouped, 0) << "frame " << f;
+    }
   }
   ASSERT_EQ(snapshots[0].size(), snapshots[1].size());
   for (size_t b = 0; b < snapshots[0].size(); ++b) {

@@ -53,6 +53,12 @@ struct TsdfIntegratorConfig {
   // faster). The CPU twin, whose dense grouping merges visits per block anyway, uses them only
   // when this is 0 (the tests, which compare both ways on both backends).
   int64_t free_space_sums_min_visits = int64_t(1) << 20;
+  // With sum_free_space_in_fixed_point, sum the band's visits too (distance, weight and colour,
+  // signed fixed point), so that no visit is sorted at all: faster for small frames, whose time
+  // the sort's launches set. On the GPU for frames whose box's sums fit in 128 MB (8 + 16 bytes
+  // per voxel of the box, 8 + 48 with colour); the CPU twin, like free_space_sums_min_visits,
+  // only when that threshold is 0. Same map up to the fixed point's rounding. Not a ROS parameter.
+  bool sum_band_in_fixed_point = true;
 };
 
 // "simple" or "merged"; throws covox::Error naming the bad value otherwise.

@@ -247,6 +247,24 @@ inline bool uses_free_space_sums(const TsdfIntegratorConfig& config, Device back
          box_cells <= static_cast<uint64_t>(kMaxFreeSpaceCells) && 4 * band_bound <= total_updates;
 }
 
+// Every visit summed in fixed point (free space as above, the band's visits into tsdf::BandCells):
+// no record is written, sorted or reduced, and the pass over the listed blocks' cells writes every
+// voxel. The frame's launches are fewer by the sort's five, the reduction's two and the records'
+// fill, and the host's work by about 60 us per frame on the H100 machine, where a small frame is
+// bound by the host's launches (docs/benchmarks.md, "eighth pass", "tenth pass"); a band visit
+// costs two to six 64-bit atomics instead of a record. Used when the box's cells, 8 bytes for the
+// free-space weight plus 16 (48 with colour) for the band, take at most kMaxEverySumBytes, on the
+// CPU twin only when config.free_space_sums_min_visits is 0 (the tests; its dense grouping
+// merges a block's visits as cheaply).
+constexpr uint64_t kMaxEverySumBytes = uint64_t(128) << 20;
+inline bool sums_every_visit(const TsdfIntegratorConfig& config, Device backend, bool marks_blocks, uint64_t box_cells,
+                             int band_cell_words) {
+  const bool wanted = backend != Device::kCpu || config.free_space_sums_min_visits == 0;
+  const uint64_t bytes_per_cell = sizeof(uint64_t) * (1 + static_cast<uint64_t>(band_cell_words));
+  return config.sum_free_space_in_fixed_point && config.sum_band_in_fixed_point && wanted && marks_blocks &&
+         box_cells <= kMaxEverySumBytes / bytes_per_cell;
+}
+
 // Clears the merge's tally (tsdf_merge_rays) for the next frame. A frame does it at its end,
 // where the host has queued everything and waits for the GPU anyway: right after the tally's
 // read-back, the GPU waited for this launch before the frame's next ones (host trace, H100
@@ -500,36 +518,50 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   const tsdf::FrameKeyCodec codec = frame.codec;
   const int64_t total_updates = frame.total_updates;
   const float truncation = config.truncation_distance_m;
-  // Keys are 32-bit when the frame's box allows (almost always): half the key bytes through the
-  // traverse's writes, every radix pass and the reduction.
-  auto key_buffers = scratch.update_key_buffers<KeyT>();
-  for (int k = 0; k < 2; ++k) key_buffers[k]->resize_discard(total_updates);
-  KeyT* keys = key_buffers[0]->data();
-  KeyT* keys_alt = key_buffers[1]->data();
   const KeyT zero_weight_key = static_cast<KeyT>(codec.zero_weight_key);
   const KeyT out_of_range_key = static_cast<KeyT>(codec.out_of_range_key);
-  auto value_buffers = scratch.record_value_buffers<ValueT>();
-  for (Buffer<ValueT>* buffer : value_buffers) buffer->resize_discard(total_updates);
-  ValueT* values = value_buffers[0]->data();
-  ValueT* values_alt = value_buffers[1]->data();
   // The traverse marks the frame's blocks in a flag array over the frame's box when the box is
   // not too large (almost always): the blocks are then listed and allocated before the sort.
   const int64_t box_blocks = static_cast<int64_t>(codec.size_x) * codec.size_y * codec.size_z;
   const bool mark_blocks = tsdf_detail::marks_blocks(box_blocks, total_updates);
   uint32_t* box_marks = mark_blocks ? tsdf_detail::clean_box_marks(scratch, box_blocks, stream) : nullptr;
-  // Free-space visits summed per voxel in the traverse when that pays (tsdf_detail::
+  // Every visit summed per voxel in fixed point when the box's cells fit (tsdf_detail::
+  // sums_every_visit), else the free-space visits only when that pays (tsdf_detail::
   // uses_free_space_sums): the band's visits are then at most band_bound records.
   const uint64_t box_cells = codec.out_of_range_key;  // one per key of the box
+  const int band_cell_words = kColored ? tsdf::kBandCellWords : 2;
+  const bool sum_every_visit =
+      tsdf_detail::sums_every_visit(config, Backend::kDevice, mark_blocks, box_cells, band_cell_words);
   const int64_t band_bound =
       std::min<int64_t>(total_updates, ray_count * tsdf::band_visits_per_ray_bound(truncation, frame.voxel_size));
   uint64_t* free_space_sums =
-      tsdf_detail::uses_free_space_sums(config, Backend::kDevice, mark_blocks, box_cells, band_bound, total_updates)
+      sum_every_visit ||
+              tsdf_detail::uses_free_space_sums(config, Backend::kDevice, mark_blocks, box_cells, band_bound, total_updates)
           ? tsdf_detail::clean_frame_scratch(scratch.free_space_sums, scratch.free_space_sums_clean, box_cells + 1, stream)
           : nullptr;
   uint64_t* free_out_of_range = free_space_sums ? free_space_sums + box_cells : nullptr;  // the cell past the box's
+  tsdf::BandCells band_cells;
+  if (sum_every_visit) {
+    band_cells.words = tsdf_detail::clean_frame_scratch(scratch.band_cells, scratch.band_cells_clean,
+                                                        box_cells * band_cell_words, stream);
+    band_cells.stride = band_cell_words;
+    band_cells.truncation = truncation;
+  }
   const tsdf::PieceTraversal<KeyT, ValueT> traversal{frame,      zero_weight_key, scratch.piece_offsets.data(),
                                                      truncation, box_marks,       free_space_sums,
-                                                     free_out_of_range};
+                                                     free_out_of_range, true,     band_cells};
+  // The records (none when every visit is summed). Keys are 32-bit when the frame's box allows
+  // (almost always): half the key bytes through the traverse's writes, every radix pass and the
+  // reduction.
+  const int64_t record_space = sum_every_visit ? 0 : total_updates;
+  auto key_buffers = scratch.update_key_buffers<KeyT>();
+  for (int k = 0; k < 2; ++k) key_buffers[k]->resize_discard(record_space);
+  KeyT* keys = key_buffers[0]->data();
+  KeyT* keys_alt = key_buffers[1]->data();
+  auto value_buffers = scratch.record_value_buffers<ValueT>();
+  for (Buffer<ValueT>* buffer : value_buffers) buffer->resize_discard(record_space);
+  ValueT* values = value_buffers[0]->data();
+  ValueT* values_alt = value_buffers[1]->data();
   // The frame's figures left on the device (tsdf_detail::FrameCounts) and read back together.
   scratch.readback.resize_discard(tsdf_detail::kFrameCountWords);
   uint32_t* counts_on_device = scratch.readback.data();
@@ -538,7 +570,7 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   // it copies its records out), so that the sort and the reduction see band_bound records: a
   // bound the host knows without a read-back.
   tsdf::BandRecords<KeyT, ValueT> band;
-  if (free_space_sums) {
+  if (free_space_sums && !sum_every_visit) {
     band = tsdf::BandRecords<KeyT, ValueT>{keys_alt, values_alt, band_bound,
                                            counts_on_device + tsdf_detail::kBandRecordsWord, nullptr};
     if constexpr (std::is_same<Backend, CpuBackend>::value) {
@@ -546,10 +578,15 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
       band.ranks = scratch.record_ranks.data();
     }
   }
-  tsdf::traverse_pieces(backend, stream, frame.piece_bound, total_updates, traversal,
-                        tsdf::RecordArrays<KeyT, ValueT>{keys, values}, band);
   int64_t record_count = total_updates;  // the records step 5 reads (the dropped ones sort last)
-  if (free_space_sums) {
+  if (sum_every_visit) {
+    tsdf::sum_pieces(backend, stream, frame.piece_bound, traversal);
+    record_count = 0;
+  } else {
+    tsdf::traverse_pieces(backend, stream, frame.piece_bound, total_updates, traversal,
+                          tsdf::RecordArrays<KeyT, ValueT>{keys, values}, band);
+  }
+  if (band.keys) {
     std::swap(keys, keys_alt);
     std::swap(values, values_alt);
     record_count = band_bound;
@@ -565,7 +602,7 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   tsdf::GroupCounts grouping;
   bool grouped = false;
   if constexpr (std::is_same<Backend, CpuBackend>::value) {
-    if (tsdf::dense_grouping_fits(codec)) {
+    if (!sum_every_visit && tsdf::dense_grouping_fits(codec)) {
       key_buffers[2]->resize_discard(record_count);
       KeyT* merged_keys = key_buffers[2]->data();
       if constexpr (kColored) {
@@ -643,7 +680,7 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
     }
     profile.mark("4a list and activate marked blocks");
   }
-  if (!grouped) {
+  if (!grouped && !sum_every_visit) {
     // 3. group by voxel: a stable sort keeps each voxel's records in ray order, so the float
     //    sums are the same every run. Records to drop (outside the key range, zero weight) sort
     //    last, one run per kind.
@@ -745,8 +782,10 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   uint32_t* runs_counted = counts_on_device + tsdf_detail::kRunCountWord;
   // With free-space sums the sorted records are the band's, then zero-weight fill up to the bound:
   // only the band's are read (a fill of 100 k records, one run, cost a serial walk over its tiles).
-  const uint32_t* live_records = free_space_sums ? counts_on_device + tsdf_detail::kBandRecordsWord : nullptr;
-  if (grouped) {  // one record per voxel, none dropped
+  const uint32_t* live_records = band.keys ? counts_on_device + tsdf_detail::kBandRecordsWord : nullptr;
+  if (sum_every_visit) {
+    // no records: the pass below writes every voxel
+  } else if (grouped) {  // one record per voxel, none dropped
     consume_run_sums<SumT>(backend, stream, record_keys, record_count, tsdf_detail::ArrayTerm<SumT>{merged_updates},
                            tsdf::MergeUpdates(), write_voxel, scratch.run_tile_parts, runs_counted);
   } else if constexpr (kColored) {
@@ -758,8 +797,9 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
                            tsdf::MergeUpdates(), write_voxel, scratch.run_tile_parts, runs_counted, live_records);
   }
   if (free_space_sums) {
-    // The voxels with free-space visits only: every cell of the listed blocks read (and cleared);
-    // one thread past them hands over the count of free-space visits outside the box.
+    // The voxels with free-space visits only (with every visit summed: every voxel, its band
+    // cell's sum added): every cell of the listed blocks read (and cleared); one thread past them
+    // hands over the count of summed visits outside the box.
     const int64_t cells = static_cast<int64_t>(counts.blocks) * voxels_per_block;
     const int32_t voxels_per_side = codec.voxels_per_side;
     const int voxel_bits = codec.voxel_bits;
@@ -773,13 +813,14 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
         const uint64_t key = block_key | static_cast<uint64_t>(i & (voxels_per_block - 1));
         const uint64_t units = free_space_sums[key];
         const uint32_t slot = slots[b];
-        if (units != 0) {
+        SumT update{};
+        const bool band_visited = band_cells.words && band_cells.take(key, &update);
+        if (units != 0 || band_visited) {
           free_space_sums[key] = 0;
           rejected = slot == kInvalidSlot;
           written = !rejected;
           if (written) {
-            SumT update{};
-            tsdf_detail::add_free_space_sum(update, units, truncation);
+            if (units != 0) tsdf_detail::add_free_space_sum(update, units, truncation);
             merge_into_voxel(static_cast<int64_t>(slot) * voxels_per_block + (key & ((uint64_t(1) << voxel_bits) - 1)),
                              update);
           }
@@ -799,11 +840,12 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
       }
     });
     scratch.free_space_sums_clean = true;
-    profile.mark("5b free-space voxels");
+    if (band_cells.words) scratch.band_cells_clean = true;
+    profile.mark(sum_every_visit ? "5 write summed voxels" : "5b free-space voxels");
   }
   tsdf_detail::reset_merge_tally(backend, scratch, stream);  // for the next frame
   counts = tsdf_detail::read_frame_counts(scratch, stream);  // waits for the writes too
-  if (free_space_sums && counts.band_records > band_bound) {
+  if (band.keys && counts.band_records > band_bound) {
     throw Error("TSDF integrator: " + std::to_string(counts.band_records) + " band visits in one frame, more than the " +
                 std::to_string(band_bound) + " its rays allow (internal error; please report it)");
   }
@@ -812,7 +854,7 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   stats.voxels_updated = dropped.kept_voxels + counts.free_only_voxels;
   stats.voxels_out_of_range =
       (grouped ? grouping.out_of_range : dropped.out_of_range) + counts.free_out_of_range + counts.free_rejected;
-  if (activation.num_out_of_range + activation.num_failed_full > 0) {
+  if (activation.num_out_of_range + activation.num_failed_full > 0 && record_count > 0) {
     // Rare: count the voxels whose block the hash table rejected (outside its key range, or full).
     scratch.counts.resize_discard(record_count);
     uint32_t* rejected = scratch.counts.data();

@@ -112,6 +112,9 @@ struct PieceTraversal {
   uint64_t* free_space_sums = nullptr;
   uint64_t* free_out_of_range = nullptr;
   bool accumulate_free_space = true;  // false: free-space visits only leave their zero-weight record
+  // When given (with free_space_sums), the band's visits are summed as well, into these cells
+  // (BandCells, tsdf_kernels.h), and leave zero-weight records too: no record is kept at all.
+  BandCells band_cells;
 
   template <class Emit>
   COVOX_HD_INLINE void operator()(int64_t p, Emit&& emit) const {
@@ -146,9 +149,14 @@ struct PieceTraversal {
         marked = frame.codec.block_part(key);
         mark_flag(&block_marks[marked]);
       }
-      if (free_space_sums && free_space && update.weight > 0.0f) {
+      if (free_space_sums && (free_space || band_cells.words) && update.weight > 0.0f) {
         if (accumulate_free_space && key < frame.codec.out_of_range_key) {
-          atomic_add(&free_space_sums[key], free_space_weight_units(update.weight));
+          if (free_space) {
+            atomic_add(&free_space_sums[key], free_space_weight_units(update.weight));
+          } else {
+            const Rgb8 color = takes_color ? color_of(frame.colors, frame.intensities, frame.grey_per_intensity, i) : Rgb8{};
+            band_cells.add(key, update, takes_color, color);
+          }
         } else if (accumulate_free_space) {
           atomic_add(free_out_of_range, uint64_t(1));
         }
@@ -250,6 +258,16 @@ void traverse_pieces(CpuBackend backend, const Stream& stream, int64_t piece_bou
       band.keys[j] = dropped;
       band.values[j] = ValueT{};
     }
+  });
+}
+
+// With every visit summed (PieceTraversal::band_cells) no record is kept: one thread per piece
+// walks it and adds its visits to the cells.
+template <class Backend, class KeyT, class ValueT>
+void sum_pieces(Backend backend, const Stream& stream, int64_t piece_bound, const PieceTraversal<KeyT, ValueT>& traversal) {
+  if (!traversal.free_space_sums || !traversal.band_cells.words) throw Error("TSDF traverse: sums asked without cells");
+  parallel_for(backend, stream, piece_bound, [=] COVOX_HD(int64_t p) {
+    traversal(p, [](uint32_t, KeyT, const ValueT&) {});
   });
 }
 
