@@ -773,6 +773,14 @@ TEST_P(TsdfIntegratorTest, RejectsInvalidParametersByName) {
   } catch (const Error& error) {
     EXPECT_NE(std::string(error.what()).find("truncation_distance_m"), std::string::npos);
   }
+  config = TsdfIntegratorConfig{};
+  config.fixed_point_sums_max_scratch_mb = -1;
+  try {
+    TsdfIntegrator(config).integrate(map, {Vec3f(1, 0, 0)}, {}, Eigen::Isometry3d::Identity());
+    FAIL() << "expected an error";
+  } catch (const Error& error) {
+    EXPECT_NE(std::string(error.what()).find("fixed_point_sums_max_scratch_mb"), std::string::npos);
+  }
   EXPECT_THROW(TsdfMap(device(), TsdfMapConfig{0.1f, 12, {}}), Error);
 }
 

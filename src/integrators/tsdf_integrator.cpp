@@ -84,6 +84,9 @@ void validate(const TsdfIntegratorConfig& c, float voxel_size_m) {
               std::to_string(tsdf::kMaxMergedRange_m) + " m with the merged method (use simple beyond)");
   require(!c.use_sparsity_compensation_factor || c.sparsity_compensation_factor > 0.0f,
           "sparsity_compensation_factor must be positive, got " + std::to_string(c.sparsity_compensation_factor));
+  require(c.fixed_point_sums_max_scratch_mb >= 0 && c.fixed_point_sums_max_scratch_mb <= (1 << 20),
+          "fixed_point_sums_max_scratch_mb must be in [0, 1048576] (0: never sum every visit), got " +
+              std::to_string(c.fixed_point_sums_max_scratch_mb));
 }
 
 struct TsdfIntegrator::Scratch {

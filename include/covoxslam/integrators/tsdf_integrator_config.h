@@ -53,12 +53,18 @@ struct TsdfIntegratorConfig {
   // faster). The CPU twin, whose dense grouping merges visits per block anyway, uses them only
   // when this is 0 (the tests, which compare both ways on both backends).
   int64_t free_space_sums_min_visits = int64_t(1) << 20;
-  // With sum_free_space_in_fixed_point, sum the band's visits too (distance, weight and colour,
-  // signed fixed point), so that no visit is sorted at all: faster for small frames, whose time
-  // the sort's launches set. On the GPU for frames whose box's sums fit in 128 MB (8 + 16 bytes
-  // per voxel of the box, 8 + 48 with colour); the CPU twin, like free_space_sums_min_visits,
-  // only when that threshold is 0. Same map up to the fixed point's rounding. Not a ROS parameter.
+  // With sum_free_space_in_fixed_point, sum the band's visits too (weight, distance and colour,
+  // in fixed point), so that no visit is sorted at all: 0.70-0.87 of the frame time on the H100
+  // (docs/benchmarks.md, "tenth pass"). On the GPU for frames whose box's sums fit in
+  // fixed_point_sums_max_scratch_mb (16 bytes per voxel of the box, 48 with colour); the CPU twin,
+  // like free_space_sums_min_visits, only when that threshold is 0. The same map up to the fixed
+  // point's rounding. Not a ROS parameter.
   bool sum_band_in_fixed_point = true;
+  // Device memory the sums may take (kept between frames); frames with larger boxes sort their
+  // visits. 512 MB holds a KITTI HDL-64 scan at 0.2 m with 50 m rays (28 M voxels in its box, 450
+  // MB) and a 7-Scenes frame at 2 cm with colour (4.6 M voxels, 220 MB); lower it on a Jetson
+  // with little memory to spare.
+  int fixed_point_sums_max_scratch_mb = 512;
 };
 
 // "simple" or "merged"; throws covox::Error naming the bad value otherwise.

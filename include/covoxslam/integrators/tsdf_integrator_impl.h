@@ -247,22 +247,23 @@ inline bool uses_free_space_sums(const TsdfIntegratorConfig& config, Device back
          box_cells <= static_cast<uint64_t>(kMaxFreeSpaceCells) && 4 * band_bound <= total_updates;
 }
 
-// Every visit summed in fixed point (free space as above, the band's visits into tsdf::BandCells):
-// no record is written, sorted or reduced, and the pass over the listed blocks' cells writes every
-// voxel. The frame's launches are fewer by the sort's five, the reduction's two and the records'
-// fill, and the host's work by about 60 us per frame on the H100 machine, where a small frame is
-// bound by the host's launches (docs/benchmarks.md, "eighth pass", "tenth pass"); a band visit
-// costs two to six 64-bit atomics instead of a record. Used when the box's cells, 8 bytes for the
-// free-space weight plus 16 (48 with colour) for the band, take at most kMaxEverySumBytes, on the
-// CPU twin only when config.free_space_sums_min_visits is 0 (the tests; its dense grouping
-// merges a block's visits as cheaply).
-constexpr uint64_t kMaxEverySumBytes = uint64_t(128) << 20;
+// Every visit summed in fixed point (tsdf::VoxelSumCells: the weight, the band's distance offset
+// and, with colour, the colour sums, per key of the frame's box): no record is written, sorted or
+// reduced, and one pass over the listed blocks' cells writes every voxel. A free-space visit costs
+// one 64-bit atomic and a band visit two to six, instead of a record through the sort and the
+// reduction; a frame has the sort's five launches and the reduction's two fewer, which on the
+// H100 machine, where a small frame is bound by the host's launches (docs/benchmarks.md, "eighth
+// pass"), is about 60 us of the host's time (same-run A/Bs in "tenth pass": 7-Scenes 5 cm 0.72,
+// OS1-64 0.2 m 0.77, 0.1 m 0.77, KITTI 0.70, 7-Scenes 2 cm 0.87). Used when the box's cells (16
+// bytes each, 48 with colour) fit in config.fixed_point_sums_max_scratch_mb; on the CPU twin only
+// when config.free_space_sums_min_visits is 0 (the tests: its dense grouping merges a block's
+// visits about as cheaply).
 inline bool sums_every_visit(const TsdfIntegratorConfig& config, Device backend, bool marks_blocks, uint64_t box_cells,
-                             int band_cell_words) {
+                             int cell_words) {
   const bool wanted = backend != Device::kCpu || config.free_space_sums_min_visits == 0;
-  const uint64_t bytes_per_cell = sizeof(uint64_t) * (1 + static_cast<uint64_t>(band_cell_words));
+  const uint64_t budget = static_cast<uint64_t>(config.fixed_point_sums_max_scratch_mb) << 20;
   return config.sum_free_space_in_fixed_point && config.sum_band_in_fixed_point && wanted && marks_blocks &&
-         box_cells <= kMaxEverySumBytes / bytes_per_cell;
+         box_cells <= budget / (sizeof(uint64_t) * static_cast<uint64_t>(cell_words));
 }
 
 // Clears the merge's tally (tsdf_merge_rays) for the next frame. A frame does it at its end,
@@ -529,27 +530,28 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   // sums_every_visit), else the free-space visits only when that pays (tsdf_detail::
   // uses_free_space_sums): the band's visits are then at most band_bound records.
   const uint64_t box_cells = codec.out_of_range_key;  // one per key of the box
-  const int band_cell_words = kColored ? tsdf::kBandCellWords : 2;
-  const bool sum_every_visit =
-      tsdf_detail::sums_every_visit(config, Backend::kDevice, mark_blocks, box_cells, band_cell_words);
+  const int cell_words = kColored ? tsdf::kSumCellWords : 2;
+  const bool sum_every_visit = tsdf_detail::sums_every_visit(config, Backend::kDevice, mark_blocks, box_cells, cell_words);
   const int64_t band_bound =
       std::min<int64_t>(total_updates, ray_count * tsdf::band_visits_per_ray_bound(truncation, frame.voxel_size));
-  uint64_t* free_space_sums =
-      sum_every_visit ||
-              tsdf_detail::uses_free_space_sums(config, Backend::kDevice, mark_blocks, box_cells, band_bound, total_updates)
-          ? tsdf_detail::clean_frame_scratch(scratch.free_space_sums, scratch.free_space_sums_clean, box_cells + 1, stream)
-          : nullptr;
-  uint64_t* free_out_of_range = free_space_sums ? free_space_sums + box_cells : nullptr;  // the cell past the box's
-  tsdf::BandCells band_cells;
+  uint64_t* free_space_sums = nullptr;
+  uint64_t* free_out_of_range = nullptr;  // the word past the box's cells: visits summed outside it
+  tsdf::VoxelSumCells sum_cells;
   if (sum_every_visit) {
-    band_cells.words = tsdf_detail::clean_frame_scratch(scratch.band_cells, scratch.band_cells_clean,
-                                                        box_cells * band_cell_words, stream);
-    band_cells.stride = band_cell_words;
-    band_cells.truncation = truncation;
+    sum_cells.words = tsdf_detail::clean_frame_scratch(scratch.voxel_sums, scratch.voxel_sums_clean,
+                                                       box_cells * cell_words + 1, stream);
+    sum_cells.stride = cell_words;
+    sum_cells.truncation = truncation;
+    free_out_of_range = sum_cells.words + box_cells * cell_words;
+  } else if (tsdf_detail::uses_free_space_sums(config, Backend::kDevice, mark_blocks, box_cells, band_bound,
+                                               total_updates)) {
+    free_space_sums =
+        tsdf_detail::clean_frame_scratch(scratch.free_space_sums, scratch.free_space_sums_clean, box_cells + 1, stream);
+    free_out_of_range = free_space_sums + box_cells;
   }
   const tsdf::PieceTraversal<KeyT, ValueT> traversal{frame,      zero_weight_key, scratch.piece_offsets.data(),
                                                      truncation, box_marks,       free_space_sums,
-                                                     free_out_of_range, true,     band_cells};
+                                                     free_out_of_range, true,     sum_cells};
   // The records (none when every visit is summed). Keys are 32-bit when the frame's box allows
   // (almost always): half the key bytes through the traverse's writes, every radix pass and the
   // reduction.
@@ -570,7 +572,7 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   // it copies its records out), so that the sort and the reduction see band_bound records: a
   // bound the host knows without a read-back.
   tsdf::BandRecords<KeyT, ValueT> band;
-  if (free_space_sums && !sum_every_visit) {
+  if (free_space_sums) {
     band = tsdf::BandRecords<KeyT, ValueT>{keys_alt, values_alt, band_bound,
                                            counts_on_device + tsdf_detail::kBandRecordsWord, nullptr};
     if constexpr (std::is_same<Backend, CpuBackend>::value) {
@@ -632,8 +634,8 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   //    one per box block and per record) and its totals come back while the records are sorted,
   //    so the host's wait overlaps the sort; when the table might have to grow it needs the exact
   //    count first (activate_queued says no), and on the CPU a read-back is free.
-  // (with free-space sums the records are the band's only: the kept visits bound the blocks)
-  const int64_t listed_bound = free_space_sums ? total_updates : record_count;
+  // (with sums the records are the band's only, or none: the kept visits bound the blocks)
+  const int64_t listed_bound = free_out_of_range ? total_updates : record_count;
   const int64_t block_bound = std::max<int64_t>(1, std::min<int64_t>(box_blocks, listed_bound));
   scratch.block_indices.resize_discard(block_bound);
   scratch.slots.resize_discard(block_bound);
@@ -796,10 +798,10 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
     consume_run_sums<SumT>(backend, stream, record_keys, record_count, tsdf_detail::ArrayTerm<SumT>{values},
                            tsdf::MergeUpdates(), write_voxel, scratch.run_tile_parts, runs_counted, live_records);
   }
-  if (free_space_sums) {
-    // The voxels with free-space visits only (with every visit summed: every voxel, its band
-    // cell's sum added): every cell of the listed blocks read (and cleared); one thread past them
-    // hands over the count of summed visits outside the box.
+  if (free_out_of_range) {
+    // The voxels with free-space visits only (with every visit summed: every voxel): every cell of
+    // the listed blocks read (and cleared); one thread past them hands over the count of summed
+    // visits outside the box.
     const int64_t cells = static_cast<int64_t>(counts.blocks) * voxels_per_block;
     const int32_t voxels_per_side = codec.voxels_per_side;
     const int voxel_bits = codec.voxel_bits;
@@ -811,16 +813,20 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
         const uint64_t block_key =
             codec.key(Index3D(block.x * voxels_per_side, block.y * voxels_per_side, block.z * voxels_per_side));
         const uint64_t key = block_key | static_cast<uint64_t>(i & (voxels_per_block - 1));
-        const uint64_t units = free_space_sums[key];
         const uint32_t slot = slots[b];
         SumT update{};
-        const bool band_visited = band_cells.words && band_cells.take(key, &update);
-        if (units != 0 || band_visited) {
+        bool visited = false;
+        if (sum_cells.words) {
+          visited = sum_cells.take(key, &update);
+        } else if (const uint64_t units = free_space_sums[key]) {
           free_space_sums[key] = 0;
+          tsdf_detail::add_free_space_sum(update, units, truncation);
+          visited = true;
+        }
+        if (visited) {
           rejected = slot == kInvalidSlot;
           written = !rejected;
           if (written) {
-            if (units != 0) tsdf_detail::add_free_space_sum(update, units, truncation);
             merge_into_voxel(static_cast<int64_t>(slot) * voxels_per_block + (key & ((uint64_t(1) << voxel_bits) - 1)),
                              update);
           }
@@ -839,8 +845,7 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
         if (rejected_in_warp) atomic_add(&counts_on_device[tsdf_detail::kFreeRejectedWord], rejected_in_warp);
       }
     });
-    scratch.free_space_sums_clean = true;
-    if (band_cells.words) scratch.band_cells_clean = true;
+    (sum_cells.words ? scratch.voxel_sums_clean : scratch.free_space_sums_clean) = true;
     profile.mark(sum_every_visit ? "5 write summed voxels" : "5b free-space voxels");
   }
   tsdf_detail::reset_merge_tally(backend, scratch, stream);  // for the next frame

@@ -21,7 +21,7 @@ struct TsdfScratchBuffers {
         block_indices(device), slots(device), is_new(device), point_codes(device), ray_ranks(device),
         merge_table_keys(device), merge_table_bundles(device), merge_tally(device),
         ray_colors(device), ray_weights(device), block_flags(device), block_ranks(device), keys_alt(device),
-        keys32(device), keys32_alt(device), merged_keys32(device), distance_records(device), distance_records_alt(device), color_visits(device), color_visits_alt(device), merged_updates(device), pieces(device), piece_first_voxels(device), piece_voxels(device), piece_offsets(device), run_tile_parts(device), readback(device), box_marks(device), free_space_sums(device), record_ranks(device), band_cells(device) {}
+        keys32(device), keys32_alt(device), merged_keys32(device), distance_records(device), distance_records_alt(device), color_visits(device), color_visits_alt(device), merged_updates(device), pieces(device), piece_first_voxels(device), piece_voxels(device), piece_offsets(device), run_tile_parts(device), readback(device), box_marks(device), free_space_sums(device), record_ranks(device), voxel_sums(device) {}
   Buffer<Vec3f> points;  // depth images unprojected, or host clouds uploaded
   Buffer<Rgb8> colors;
   Buffer<tsdf::RaySegment> rays;
@@ -94,9 +94,9 @@ struct TsdfScratchBuffers {
   Buffer<uint64_t> free_space_sums;
   bool free_space_sums_clean = false;
   Buffer<uint32_t> record_ranks;
-  // with every visit summed, the band's visits' sums (tsdf::BandCells), left clean like the above
-  Buffer<uint64_t> band_cells;
-  bool band_cells_clean = false;
+  // with every visit summed, every voxel's sums (tsdf::VoxelSumCells), left clean like the above
+  Buffer<uint64_t> voxel_sums;
+  bool voxel_sums_clean = false;
 };
 
 template <class Backend>

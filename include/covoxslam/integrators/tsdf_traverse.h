@@ -112,9 +112,10 @@ struct PieceTraversal {
   uint64_t* free_space_sums = nullptr;
   uint64_t* free_out_of_range = nullptr;
   bool accumulate_free_space = true;  // false: free-space visits only leave their zero-weight record
-  // When given (with free_space_sums), the band's visits are summed as well, into these cells
-  // (BandCells, tsdf_kernels.h), and leave zero-weight records too: no record is kept at all.
-  BandCells band_cells;
+  // When given (instead of free_space_sums), every kept visit adds its update to its voxel's cell
+  // (tsdf_kernels.h) and leaves a zero-weight record; the traverse then keeps no record at all
+  // (sum_pieces). Visits outside the box are counted in *free_out_of_range.
+  VoxelSumCells sum_cells;
 
   template <class Emit>
   COVOX_HD_INLINE void operator()(int64_t p, Emit&& emit) const {
@@ -149,13 +150,13 @@ struct PieceTraversal {
         marked = frame.codec.block_part(key);
         mark_flag(&block_marks[marked]);
       }
-      if (free_space_sums && (free_space || band_cells.words) && update.weight > 0.0f) {
+      if ((sum_cells.words || (free_space_sums && free_space)) && update.weight > 0.0f) {
         if (accumulate_free_space && key < frame.codec.out_of_range_key) {
-          if (free_space) {
-            atomic_add(&free_space_sums[key], free_space_weight_units(update.weight));
-          } else {
+          if (sum_cells.words) {
             const Rgb8 color = takes_color ? color_of(frame.colors, frame.intensities, frame.grey_per_intensity, i) : Rgb8{};
-            band_cells.add(key, update, takes_color, color);
+            sum_cells.add(key, update, free_space, takes_color, color);
+          } else {
+            atomic_add(&free_space_sums[key], free_space_weight_units(update.weight));
           }
         } else if (accumulate_free_space) {
           atomic_add(free_out_of_range, uint64_t(1));
@@ -261,11 +262,11 @@ void traverse_pieces(CpuBackend backend, const Stream& stream, int64_t piece_bou
   });
 }
 
-// With every visit summed (PieceTraversal::band_cells) no record is kept: one thread per piece
+// With every visit summed (PieceTraversal::sum_cells) no record is kept: one thread per piece
 // walks it and adds its visits to the cells.
 template <class Backend, class KeyT, class ValueT>
 void sum_pieces(Backend backend, const Stream& stream, int64_t piece_bound, const PieceTraversal<KeyT, ValueT>& traversal) {
-  if (!traversal.free_space_sums || !traversal.band_cells.words) throw Error("TSDF traverse: sums asked without cells");
+  if (!traversal.sum_cells.words) throw Error("TSDF traverse: every visit's sum asked without cells to add it to");
   parallel_for(backend, stream, piece_bound, [=] COVOX_HD(int64_t p) {
     traversal(p, [](uint32_t, KeyT, const ValueT&) {});
   });
