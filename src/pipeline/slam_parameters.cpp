@@ -196,6 +196,8 @@ const std::vector<SlamParameter>& slam_parameters() {
       bool_parameter("use_sparsity_compensation_factor", COVOX_FIELD(tsdf.use_sparsity_compensation_factor)),
       number_parameter("sparsity_compensation_factor", COVOX_FIELD(tsdf.sparsity_compensation_factor), positive),
       bool_parameter("integrate_color", COVOX_FIELD(tsdf.integrate_color)),
+      integer_parameter("fixed_point_sums_max_scratch_mb", COVOX_FIELD(tsdf.fixed_point_sums_max_scratch_mb), 0,
+                        1 << 20),
       // ESDF and mesh.
       number_parameter("esdf_max_distance_m", COVOX_FIELD(esdf.esdf_max_distance_m), positive),
       number_parameter("esdf_site_distance_threshold_vox", COVOX_FIELD(esdf.site_distance_threshold_vox), positive),
