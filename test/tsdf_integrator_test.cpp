@@ -803,12 +803,6 @@ TEST_P(TsdfIntegratorParity, CpuAndCudaBuildTheSameMap) {
   std::vector<std::vector<IntegrationStats>> stats(2);
   for (Device device : {Device::kCpu, Device::kCuda}) {
     TsdfMap map(device, TsdfMapConfig{0.05f, 8, {}});
-    if (GetParam() == ParityPaths::kEveryVisitSummed) {
-      // Room for every block the frames may add: the GPU then finishes each frame's activation at
-      // its end and clears the new blocks in the pass that writes the voxels (the other cases
-      // start from an exact pool, where it waits for the activation first).
-      map.ensure_pool_capacity(Stream(device), 20000);
-    }
     TsdfIntegratorConfig config = analytic_config(0.05f);
     if (GetParam() != ParityPaths::kDefaults) config.free_space_sums_min_visits = 0;  // the CPU's too
     config.sum_band_in_fixed_point = GetParam() != ParityPaths::kFreeSpaceSummed;

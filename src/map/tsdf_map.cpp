@@ -19,8 +19,8 @@ TsdfMap::TsdfMap(Device device, const TsdfMapConfig& config)
   }
 }
 
-void TsdfMap::ensure_pool_capacity(const Stream& stream, int64_t extra_slots) {
-  const size_t slots = blocks_.slot_count() + static_cast<size_t>(std::max<int64_t>(extra_slots, 0));
+void TsdfMap::ensure_pool_capacity(const Stream& stream) {
+  const size_t slots = blocks_.slot_count();
   const size_t needed = slots * voxels_per_block();
   if (tsdf_.size() >= needed) return;
   // Grow geometrically so that a map growing block by block does not copy its pool every frame.

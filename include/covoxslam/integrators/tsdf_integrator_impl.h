@@ -660,17 +660,6 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   };
   std::optional<PendingReadBack> activation_totals;
   const uint32_t* box_ranks = nullptr;
-  // With every visit summed the GPU need not wait for the activation at all: its totals come back
-  // with the frame's counts at the end, when the pools already hold room for every block the
-  // activation may add (made here when that is at most half again the blocks the map has) and the
-  // pass over the listed blocks clears the new ones (it is launched over the bound and reads the
-  // listed count on the device). One wait and one launch fewer per frame.
-  bool activation_deferred = false;
-  if (sum_every_visit && Backend::kDevice != Device::kCpu &&
-      (map.pool_has_room_for(block_bound) || 2 * block_bound <= static_cast<int64_t>(map.blocks().slot_count()))) {
-    map.ensure_pool_capacity(stream, block_bound);
-    activation_deferred = true;
-  }
   if (mark_blocks) {
     scratch.block_ranks.resize_discard(box_blocks + 1);
     uint32_t* marked_ranks = scratch.block_ranks.data();
@@ -687,8 +676,7 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
     });
     activate_listed_blocks();
     scratch.box_marks_clean = true;
-    activation_deferred = activation_deferred && queued;
-    if (queued && !activation_deferred) {
+    if (queued) {
       activation_totals.emplace(counts_on_device + tsdf_detail::kBlockCountWord, Backend::kDevice,
                                 3 * sizeof(uint32_t), stream);
     }
@@ -726,7 +714,7 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
     activation_totals->wait(totals);
     counts.blocks = totals[0];
     activation = map.blocks().finish_queued_activation(totals[1], totals[2], stream);
-  } else if (queued && !activation_deferred) {  // listed after the sort: its totals come back now
+  } else if (queued) {  // listed after the sort: its totals come back now
     counts = tsdf_detail::read_frame_counts(scratch, stream);
     activation = map.blocks().finish_queued_activation(counts.new_blocks, counts.rejected_blocks, stream);
   }
@@ -743,7 +731,7 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   auto esdf_view = map.esdf().view();
   const uint8_t* is_new = scratch.is_new.data();
   const int64_t voxels_per_block = map.voxels_per_block();
-  if (activation.num_new > 0 && !activation_deferred) {
+  if (activation.num_new > 0) {
     parallel_for(backend, stream, int64_t(counts.blocks) * voxels_per_block, [=] COVOX_HD(int64_t i) {
       const int64_t b = i / voxels_per_block;
       if (!is_new[b] || slots[b] == kInvalidSlot) return;
@@ -813,27 +801,19 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   if (free_out_of_range) {
     // The voxels with free-space visits only (with every visit summed: every voxel): every cell of
     // the listed blocks read (and cleared); one thread past them hands over the count of summed
-    // visits outside the box. With the activation deferred (above) it runs over the listed
-    // blocks' bound, stops at their count on the device, and clears the new blocks' voxels first.
-    const int64_t cells = static_cast<int64_t>(activation_deferred ? block_bound : counts.blocks) * voxels_per_block;
-    const uint32_t* listed_on_device = activation_deferred ? counts_on_device + tsdf_detail::kBlockCountWord : nullptr;
+    // visits outside the box.
+    const int64_t cells = static_cast<int64_t>(counts.blocks) * voxels_per_block;
     const int32_t voxels_per_side = codec.voxels_per_side;
     const int voxel_bits = codec.voxel_bits;
     parallel_for(backend, stream, cells + 1, [=] COVOX_HD(int64_t i) {
       bool written = false, rejected = false;
-      const int64_t b = i >> voxel_bits;  // voxels_per_block = 2^voxel_bits (no 64-bit division)
-      if (i < cells && (!listed_on_device || b < static_cast<int64_t>(*listed_on_device))) {
+      if (i < cells) {
+        const int64_t b = i >> voxel_bits;  // voxels_per_block = 2^voxel_bits (no 64-bit division)
         const Index3D block = block_indices[b];
         const uint64_t block_key =
             codec.key(Index3D(block.x * voxels_per_side, block.y * voxels_per_side, block.z * voxels_per_side));
         const uint64_t key = block_key | static_cast<uint64_t>(i & (voxels_per_block - 1));
         const uint32_t slot = slots[b];
-        const int64_t index = static_cast<int64_t>(slot) * voxels_per_block + (i & (voxels_per_block - 1));
-        if (listed_on_device && is_new[b] && slot != kInvalidSlot) {  // a new block may reuse an erased one's slot
-          tsdf_view.store(index, TsdfVoxel{});
-          color_view.store(index, ColorVoxel{});
-          esdf_view.store(index, EsdfVoxel{});
-        }
         SumT update{};
         bool visited = false;
         if (sum_cells.words) {
@@ -846,11 +826,14 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
         if (visited) {
           rejected = slot == kInvalidSlot;
           written = !rejected;
-          if (written) merge_into_voxel(index, update);
+          if (written) {
+            merge_into_voxel(static_cast<int64_t>(slot) * voxels_per_block + (key & ((uint64_t(1) << voxel_bits) - 1)),
+                             update);
+          }
         }
         // Every listed block has a kept visit, so it changes (the band's writes mark theirs too).
         if ((i & (voxels_per_block - 1)) == 0 && slot != kInvalidSlot) block_changed[slot] = kAllPending;
-      } else if (i == cells) {
+      } else {
         counts_on_device[tsdf_detail::kFreeOutOfRangeWord] = static_cast<uint32_t>(*free_out_of_range);
         *free_out_of_range = 0;
       }
@@ -867,11 +850,6 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   }
   tsdf_detail::reset_merge_tally(backend, scratch, stream);  // for the next frame
   counts = tsdf_detail::read_frame_counts(scratch, stream);  // waits for the writes too
-  if (activation_deferred) {
-    activation = map.blocks().finish_queued_activation(counts.new_blocks, counts.rejected_blocks, stream);
-    stats.blocks_allocated = activation.num_new;
-    map.ensure_pool_capacity(stream);  // (room was made before the activation: nothing to do)
-  }
   if (band.keys && counts.band_records > band_bound) {
     throw Error("TSDF integrator: " + std::to_string(counts.band_records) + " band visits in one frame, more than the " +
                 std::to_string(band_bound) + " its rays allow (internal error; please report it)");

@@ -59,15 +59,9 @@ class TsdfMap {
   // Per slot, bits of BlockChange: what has not yet caught up with the block's latest TSDF.
   Buffer<uint8_t>& block_changed() { return block_changed_; }
 
-  // Grows the pools (and per-slot arrays) to hold every slot the block table has handed out, and
-  // `extra_slots` more (room for the slots an activation still running may hand out); new voxels
-  // are zero.
-  void ensure_pool_capacity(const Stream& stream, int64_t extra_slots = 0);
-  // Whether the pools hold `extra_slots` more blocks than the table has handed out.
-  bool pool_has_room_for(int64_t extra_slots) const {
-    return tsdf_.size() >= (static_cast<size_t>(blocks_.slot_count()) + static_cast<size_t>(extra_slots)) *
-                               static_cast<size_t>(voxels_per_block());
-  }
+  // Grows the pools (and per-slot arrays) to hold every slot the block table has handed out;
+  // new voxels are zero.
+  void ensure_pool_capacity(const Stream& stream);
 
   // Every allocated block with its voxels, sorted by block index.
   std::vector<HostBlock> snapshot() const;
