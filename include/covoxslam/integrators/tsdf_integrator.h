@@ -14,7 +14,11 @@
 //      weight to its voxel's cell of a fixed-point grid over the box, and only the band's visits
 //      (at most a bound per ray, known without a read-back) are compacted into records: with
 //      carving most visits are free space and near the sensor many rays cross each voxel
-//      (config.sum_free_space_in_fixed_point; tsdf_integrator_impl.h, "free-space sums");
+//      (config.sum_free_space_in_fixed_point; tsdf_integrator_impl.h, "free-space sums").
+//      On the GPU, when the box's sums fit in config.fixed_point_sums_max_scratch_mb (almost
+//      always), every visit is summed so, the band's distance, weight and colour too
+//      (config.sum_band_in_fixed_point; tsdf::VoxelSumCells), and no record is kept at all:
+//      steps 3 and 5's reduction fall away and the pass of step 5 writes every voxel;
 //   3. records are sorted by voxel key (the CPU twin groups them by block and sums each block's
 //      in a dense array instead, leaving one merged record per voxel: tsdf_group_updates_cpu.h);
 //   4. the marked blocks are listed (a scan of the marks) and allocated in one
@@ -29,10 +33,12 @@
 // through memory, and the allocation waits for nothing but the traverse (docs/benchmarks.md,
 // "seventh pass", "eighth pass"); the reduction and the single write per voxel are the same.
 // No atomics touch voxel data (only integer sums in scratch: the merge's sums of points and the
-// free-space weights in fixed point, exact in any order), and every float sum is taken in an
-// order fixed by the input, so results are deterministic run to run. (DESIGN.md sorts every
-// update; summing the free-space weights as integers gives the same map, up to 2^-28 of a unit
-// weight, with a tenth of the records sorted at 2 cm: docs/benchmarks.md, "ninth pass".) The CPU twin
+// visits' sums in fixed point, exact in any order), and every float sum is taken in an order fixed
+// by the input, so results are deterministic run to run. (DESIGN.md sorts every update and merges
+// each voxel's with a segmented reduce; that path is kept, for boxes too large for the sums and
+// as the reference of the tests. Summing the visits as integers gives the same map up to the
+// fixed point's rounding, 2^-32 of a unit weight, with no sort: 0.64-0.82 of the frame time on
+// the H100, docs/benchmarks.md, "ninth pass" and "tenth pass".) The CPU twin
 // runs the same kernels except in four places, each with the same result (step 3's sums within
 // float rounding: the GPU adds a long run's pieces as a tree) and a comment saying why: step 3's
 // grouping (with it the counts of dropped records, which the GPU finds where their runs start in
