@@ -44,8 +44,8 @@ struct TsdfIntegratorConfig {
   // deterministic) and sorts only the band's visits, which is much faster with carving; false
   // sorts every visit (the reference the tests compare with). The map is the same up to the
   // fixed point's rounding (2^-28 of a unit weight). The sums take 8 bytes of scratch per voxel
-  // of the frame's box (frames whose box has more than 2^24 voxels, 128 MB, sort every visit).
-  // Not a ROS parameter.
+  // of the frame's box (frames whose box does not fit in fixed_point_sums_max_scratch_mb sort
+  // every visit). Not a ROS parameter.
   bool sum_free_space_in_fixed_point = true;
   // ... on the GPU for frames of at least this many voxel visits (and at least 4 per band visit
   // the rays can make): below it the sums' extra passes cost more than the smaller sort saves
@@ -60,10 +60,11 @@ struct TsdfIntegratorConfig {
   // like free_space_sums_min_visits, only when that threshold is 0. The same map up to the fixed
   // point's rounding. Not a ROS parameter.
   bool sum_band_in_fixed_point = true;
-  // Device memory the sums may take (kept between frames); frames with larger boxes sort their
-  // visits. 512 MB holds a KITTI HDL-64 scan at 0.2 m with 50 m rays (28 M voxels in its box, 450
-  // MB) and a 7-Scenes frame at 2 cm with colour (4.6 M voxels, 220 MB); lower it on a Jetson
-  // with little memory to spare.
+  // Device memory the sums may take (kept between frames): frames whose box's sums of every
+  // visit do not fit sum only their free-space visits (8 bytes per voxel) if those fit, else sort
+  // every visit. 512 MB holds every visit of a KITTI HDL-64 scan at 0.2 m with 50 m rays (28 M
+  // voxels in its box, 450 MB) and of a 7-Scenes frame at 2 cm with colour (4.6 M voxels, 220
+  // MB); lower it on a Jetson with little memory to spare. 0: always sort.
   int fixed_point_sums_max_scratch_mb = 512;
 };
 

@@ -234,8 +234,8 @@ inline uint32_t* clean_box_marks(TsdfScratchBuffers& scratch, int64_t box_blocks
 // visited by many rays near the sensor: a 7-Scenes frame at 2 cm has 4.1 M visits, 3.8 M of them
 // in free space, in 0.4 M voxels (docs/benchmarks.md, "ninth pass"). Used when the band's bound
 // is at most a quarter of the visits, the frame has config.free_space_sums_min_visits of them and
-// the box's cells (8 bytes each) fit in kMaxFreeSpaceCells.
-constexpr int64_t kMaxFreeSpaceCells = int64_t(1) << 24;
+// the box's cells (8 bytes each) fit in config.fixed_point_sums_max_scratch_mb: the middle way
+// for boxes too large to sum every visit (16 or 48 bytes per cell, sums_every_visit below).
 // The CPU twin groups the records in dense per-block arrays, which merges a voxel's visits about
 // as cheaply: there the sums' atomics and pass cost more than they save (2-core CPU, OS1-64 at
 // 0.2 m: 30 -> 36 ms per scan), so it uses them only when the threshold is 0 (the tests).
@@ -243,8 +243,9 @@ inline bool uses_free_space_sums(const TsdfIntegratorConfig& config, Device back
                                  uint64_t box_cells, int64_t band_bound, int64_t total_updates) {
   const bool wanted = backend == Device::kCpu ? config.free_space_sums_min_visits == 0
                                               : total_updates >= config.free_space_sums_min_visits;
-  return config.sum_free_space_in_fixed_point && wanted && marks_blocks &&
-         box_cells <= static_cast<uint64_t>(kMaxFreeSpaceCells) && 4 * band_bound <= total_updates;
+  const uint64_t budget = static_cast<uint64_t>(config.fixed_point_sums_max_scratch_mb) << 20;
+  return config.sum_free_space_in_fixed_point && wanted && marks_blocks && box_cells <= budget / sizeof(uint64_t) &&
+         4 * band_bound <= total_updates;
 }
 
 // Every visit summed in fixed point (tsdf::VoxelSumCells: the weight, the band's distance offset
