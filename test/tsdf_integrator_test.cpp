@@ -546,15 +546,17 @@ TEST_P(TsdfIntegratorTest, FixedPointSumsMatchEveryVisitSorted) {
   const double f = 140.0;
   std::vector<std::vector<HostBlock>> snapshots;
   std::vector<IntegrationStats> totals;
-  // kSmallBudget: every visit asked for, but the scratch budget (24 MB) holds the free-space
-  // sums of these boxes (0.7 to 2.3 M voxels, 8 bytes each) and not every visit's (48 bytes).
+  // kSmallBudget: every visit asked for, but the scratch budget (36 MB) holds every visit's sums
+  // (48 bytes per voxel of the box) only for the smaller boxes (0.68 and 0.72 M voxels) and the
+  // free-space sums (8 bytes) for the others (0.8 to 2.3 M voxels): one integrator takes both
+  // paths, in turn, with one scratch buffer.
   enum Sums { kEveryVisit, kFreeSpace, kSmallBudget, kNone };
   for (const Sums sums : {kEveryVisit, kFreeSpace, kSmallBudget, kNone}) {
     TsdfIntegratorConfig config = analytic_config(0.05f);
     config.max_ray_length_m = 8.0f;
     config.sum_free_space_in_fixed_point = sums != kNone;
     config.sum_band_in_fixed_point = sums != kFreeSpace;
-    if (sums == kSmallBudget) config.fixed_point_sums_max_scratch_mb = 24;
+    if (sums == kSmallBudget) config.fixed_point_sums_max_scratch_mb = 36;
     config.free_space_sums_min_visits = 0;  // these small frames too
     TsdfMap map(device(), TsdfMapConfig{0.05f, 8, {}});
     TsdfIntegrator integrator(config);
@@ -597,7 +599,8 @@ TEST_P(TsdfIntegratorTest, FixedPointSumsMatchEveryVisitSorted) {
   EXPECT_LT(totals[kFreeSpace].records_grouped, totals[kFreeSpace].voxel_updates / 2);
   EXPECT_GT(totals[kFreeSpace].records_grouped, 0);
   EXPECT_EQ(totals[kEveryVisit].records_grouped, 0);
-  EXPECT_EQ(totals[kSmallBudget].records_grouped, totals[kFreeSpace].records_grouped);
+  EXPECT_GT(totals[kSmallBudget].records_grouped, 0);
+  EXPECT_LT(totals[kSmallBudget].records_grouped, totals[kFreeSpace].records_grouped);
   for (const Sums sums : {kEveryVisit, kFreeSpace, kSmallBudget}) {
     SCOPED_TRACE(sums == kEveryVisit ? "every visit summed" : (sums == kFreeSpace ? "free space summed" : "small budget"));
     EXPECT_EQ(totals[sums].voxel_updates, reference.voxel_updates);

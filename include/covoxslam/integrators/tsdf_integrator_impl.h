@@ -539,7 +539,7 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   uint64_t* free_out_of_range = nullptr;  // the word past the box's cells: visits summed outside it
   tsdf::VoxelSumCells sum_cells;
   if (sum_every_visit) {
-    sum_cells.words = tsdf_detail::clean_frame_scratch(scratch.voxel_sums, scratch.voxel_sums_clean,
+    sum_cells.words = tsdf_detail::clean_frame_scratch(scratch.fixed_point_sums, scratch.fixed_point_sums_clean,
                                                        box_cells * cell_words + 1, stream);
     sum_cells.stride = cell_words;
     sum_cells.truncation = truncation;
@@ -547,7 +547,7 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   } else if (tsdf_detail::uses_free_space_sums(config, Backend::kDevice, mark_blocks, box_cells, band_bound,
                                                total_updates)) {
     free_space_sums =
-        tsdf_detail::clean_frame_scratch(scratch.free_space_sums, scratch.free_space_sums_clean, box_cells + 1, stream);
+        tsdf_detail::clean_frame_scratch(scratch.fixed_point_sums, scratch.fixed_point_sums_clean, box_cells + 1, stream);
     free_out_of_range = free_space_sums + box_cells;
   }
   const tsdf::PieceTraversal<KeyT, ValueT> traversal{frame,      zero_weight_key, scratch.piece_offsets.data(),
@@ -846,7 +846,7 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
         if (rejected_in_warp) atomic_add(&counts_on_device[tsdf_detail::kFreeRejectedWord], rejected_in_warp);
       }
     });
-    (sum_cells.words ? scratch.voxel_sums_clean : scratch.free_space_sums_clean) = true;
+    scratch.fixed_point_sums_clean = true;
     profile.mark(sum_every_visit ? "5 write summed voxels" : "5b free-space voxels");
   }
   tsdf_detail::reset_merge_tally(backend, scratch, stream);  // for the next frame

@@ -21,7 +21,7 @@ struct TsdfScratchBuffers {
         block_indices(device), slots(device), is_new(device), point_codes(device), ray_ranks(device),
         merge_table_keys(device), merge_table_bundles(device), merge_tally(device),
         ray_colors(device), ray_weights(device), block_flags(device), block_ranks(device), keys_alt(device),
-        keys32(device), keys32_alt(device), merged_keys32(device), distance_records(device), distance_records_alt(device), color_visits(device), color_visits_alt(device), merged_updates(device), pieces(device), piece_first_voxels(device), piece_voxels(device), piece_offsets(device), run_tile_parts(device), readback(device), box_marks(device), free_space_sums(device), record_ranks(device), voxel_sums(device) {}
+        keys32(device), keys32_alt(device), merged_keys32(device), distance_records(device), distance_records_alt(device), color_visits(device), color_visits_alt(device), merged_updates(device), pieces(device), piece_first_voxels(device), piece_voxels(device), piece_offsets(device), run_tile_parts(device), readback(device), box_marks(device), fixed_point_sums(device), record_ranks(device) {}
   Buffer<Vec3f> points;  // depth images unprojected, or host clouds uploaded
   Buffer<Rgb8> colors;
   Buffer<tsdf::RaySegment> rays;
@@ -89,14 +89,13 @@ struct TsdfScratchBuffers {
   // the traverse's marks of the blocks of the frame's box (clear between frames)
   Buffer<uint32_t> box_marks;
   bool box_marks_clean = false;
-  // the free-space visits' weight sums, one per key of the frame's box (clear between frames),
-  // and the kept records' ranks for the compaction that follows them (tsdf_integrator_impl.h)
-  Buffer<uint64_t> free_space_sums;
-  bool free_space_sums_clean = false;
+  // the visits' fixed-point sums over the frame's box: every visit's (tsdf::VoxelSumCells) or the
+  // free-space visits' weights, one word per key (clear between frames: each frame clears the
+  // cells it used; one buffer for both, so the scratch stays within the budget), and the kept
+  // records' ranks for the CPU twin's compaction of the band's records (tsdf_integrator_impl.h)
+  Buffer<uint64_t> fixed_point_sums;
+  bool fixed_point_sums_clean = false;
   Buffer<uint32_t> record_ranks;
-  // with every visit summed, every voxel's sums (tsdf::VoxelSumCells), left clean like the above
-  Buffer<uint64_t> voxel_sums;
-  bool voxel_sums_clean = false;
 };
 
 template <class Backend>
