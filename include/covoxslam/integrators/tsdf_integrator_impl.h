@@ -124,8 +124,9 @@ constexpr int kOutOfRangeFirstWord = 2;  // 1 + the first record outside the box
 constexpr int kBlockCountWord = 4;       // the frame's distinct blocks
 constexpr int kActivationWords = 5;      // the queued activation's totals: new blocks, rejected ones
 constexpr int kRunCountWord = 7;         // runs of equal keys that step 5 summed
-// With free-space sums: the voxels that had only free-space visits, and those of them in blocks
-// the hash table rejected; the free-space visits outside the box; the band records kept.
+// With free-space sums: the voxels that had only free-space visits (with every visit summed: every
+// voxel the pass wrote), and those of them in blocks the hash table rejected; the summed visits
+// outside the box; the band records kept.
 constexpr int kFreeOnlyVoxelsWord = 8;
 constexpr int kFreeRejectedWord = 9;
 constexpr int kFreeOutOfRangeWord = 10;
@@ -254,11 +255,13 @@ inline bool uses_free_space_sums(const TsdfIntegratorConfig& config, Device back
 // one 64-bit atomic and a band visit two to six, instead of a record through the sort and the
 // reduction; a frame has the sort's five launches and the reduction's two fewer, which on the
 // H100 machine, where a small frame is bound by the host's launches (docs/benchmarks.md, "eighth
-// pass"), is about 60 us of the host's time (same-run A/Bs in "tenth pass": 7-Scenes 5 cm 0.72,
-// OS1-64 0.2 m 0.77, 0.1 m 0.77, KITTI 0.70, 7-Scenes 2 cm 0.87). Used when the box's cells (16
-// bytes each, 48 with colour) fit in config.fixed_point_sums_max_scratch_mb; on the CPU twin only
-// when config.free_space_sums_min_visits is 0 (the tests: its dense grouping merges a block's
-// visits about as cheaply).
+// pass"), is about 60 us of the host's time (same-run A/Bs against the ninth pass's code in "tenth
+// pass": 7-Scenes 5 cm 0.68-0.73, 2 cm 0.80-0.82, OS1-64 0.2 m 0.75-0.79, 0.1 m 0.79-0.80, KITTI
+// 0.64-0.65 of the frame time). Used when the box's cells (16 bytes each, 48 with colour) fit in
+// config.fixed_point_sums_max_scratch_mb; on the CPU twin only when
+// config.free_space_sums_min_visits is 0 (the tests: its dense grouping merges a block's visits
+// about as cheaply, and the large boxes' scratch misses the CPU's caches: 2-core CPU, OS1-64 0.2 m
+// 0.93, 0.1 m 1.24-1.37, KITTI 1.01-1.12 with it).
 inline bool sums_every_visit(const TsdfIntegratorConfig& config, Device backend, bool marks_blocks, uint64_t box_cells,
                              int cell_words) {
   const bool wanted = backend != Device::kCpu || config.free_space_sums_min_visits == 0;
