@@ -567,6 +567,10 @@ TEST_P(TsdfIntegratorTest, FixedPointSumsMatchEveryVisitSorted) {
       total.voxels_updated += s.voxels_updated;
       total.records_grouped += s.records_grouped;
       total.voxels_out_of_range += s.voxels_out_of_range;
+      total.dropped_zero += s.dropped_zero;  // the merge's tally, cleared between frames
+      total.dropped_non_finite += s.dropped_non_finite;
+      total.dropped_too_far += s.dropped_too_far;
+      total.surface_rays += s.surface_rays;
     };
     for (const auto& pose : viewpoints()) {
       Eigen::Isometry3d camera = pose;
@@ -584,7 +588,10 @@ TEST_P(TsdfIntegratorTest, FixedPointSumsMatchEveryVisitSorted) {
       image.depth_units_per_m = 1000.0f;
       image.invalid_value = 65535;
       add(integrator.integrate_depth(map, image, camera, stream));
-      const std::vector<Vec3f> points = testing_support::simulate_lidar(scene, pose, 256, 32, 60.0, 7.5);
+      std::vector<Vec3f> points = testing_support::simulate_lidar(scene, pose, 256, 32, 60.0, 7.5);
+      // Bad returns, dropped and counted (the merge's tally, which each frame leaves clear).
+      for (int k = 0; k < 5; ++k) points.push_back(Vec3f(std::numeric_limits<float>::quiet_NaN(), 0.0f, 0.0f));
+      for (int k = 0; k < 3; ++k) points.push_back(Vec3f(0.0f, 0.0f, 0.0f));
       std::vector<Rgb8> lidar_colours(points.size());
       for (size_t i = 0; i < points.size(); ++i) lidar_colours[i] = Rgb8{uint8_t(i % 7), uint8_t(i % 253), 9};
       add(integrator.integrate(map, points, lidar_colours, pose));
@@ -596,6 +603,7 @@ TEST_P(TsdfIntegratorTest, FixedPointSumsMatchEveryVisitSorted) {
   // every visit summed none was.
   const IntegrationStats& reference = totals[kNone];
   EXPECT_EQ(reference.records_grouped, reference.voxel_updates);
+  EXPECT_EQ(reference.dropped_total(), 8 * static_cast<int64_t>(viewpoints().size()));
   EXPECT_LT(totals[kFreeSpace].records_grouped, totals[kFreeSpace].voxel_updates / 2);
   EXPECT_GT(totals[kFreeSpace].records_grouped, 0);
   EXPECT_EQ(totals[kEveryVisit].records_grouped, 0);
@@ -606,6 +614,8 @@ TEST_P(TsdfIntegratorTest, FixedPointSumsMatchEveryVisitSorted) {
     EXPECT_EQ(totals[sums].voxel_updates, reference.voxel_updates);
     EXPECT_EQ(totals[sums].voxels_updated, reference.voxels_updated);
     EXPECT_EQ(totals[sums].voxels_out_of_range, reference.voxels_out_of_range);
+    EXPECT_EQ(totals[sums].dropped_total(), reference.dropped_total());
+    EXPECT_EQ(totals[sums].surface_rays, reference.surface_rays);
     const std::vector<HostBlock>& summed = snapshots[sums];
     const std::vector<HostBlock>& sorted = snapshots[kNone];
     ASSERT_EQ(summed.size(), sorted.size());

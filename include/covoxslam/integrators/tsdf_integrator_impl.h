@@ -274,10 +274,15 @@ inline bool sums_every_visit(const TsdfIntegratorConfig& config, Device backend,
 // where the host has queued everything and waits for the GPU anyway: right after the tally's
 // read-back, the GPU waited for this launch before the frame's next ones (host trace, H100
 // machine: a launch costs the host 4-5 us there; docs/benchmarks.md, "eighth pass").
+// A frame whose last kernel is the pass over the listed blocks' cells has that kernel do it (one
+// launch fewer): merge_tally_to_reset() hands it the stripes, or null when there is nothing to do.
+inline tsdf::MergeTallyStripe* merge_tally_to_reset(TsdfScratchBuffers& scratch) {
+  return scratch.merge_tally.size() != 1 || scratch.merge_tally_clean ? nullptr : scratch.merge_tally.data()->stripes;
+}
 template <class Backend>
 void reset_merge_tally(Backend backend, TsdfScratchBuffers& scratch, const Stream& stream) {
-  if (scratch.merge_tally.size() != 1 || scratch.merge_tally_clean) return;
-  tsdf::MergeTallyStripe* stripes = scratch.merge_tally.data()->stripes;
+  tsdf::MergeTallyStripe* stripes = merge_tally_to_reset(scratch);
+  if (!stripes) return;
   parallel_for(backend, stream, tsdf::kMergeTallyStripes, [=] COVOX_HD(int64_t k) { stripes[k].reset(); });
   scratch.merge_tally_clean = true;
 }
@@ -805,11 +810,18 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   if (free_out_of_range) {
     // The voxels with free-space visits only (with every visit summed: every voxel): every cell of
     // the listed blocks read (and cleared); one thread past them hands over the count of summed
-    // visits outside the box.
+    // visits outside the box; the merge's tally stripes, if any, are cleared by threads after it
+    // (tsdf_detail::reset_merge_tally).
     const int64_t cells = static_cast<int64_t>(counts.blocks) * voxels_per_block;
     const int32_t voxels_per_side = codec.voxels_per_side;
     const int voxel_bits = codec.voxel_bits;
-    parallel_for(backend, stream, cells + 1, [=] COVOX_HD(int64_t i) {
+    tsdf::MergeTallyStripe* tally_stripes = tsdf_detail::merge_tally_to_reset(scratch);
+    const int64_t stripe_threads = tally_stripes ? tsdf::kMergeTallyStripes : 0;
+    parallel_for(backend, stream, cells + 1 + stripe_threads, [=] COVOX_HD(int64_t i) {
+      if (i > cells) {  // after the cells and the hand-over: one of the tally's stripes
+        tally_stripes[i - cells - 1].reset();
+        return;
+      }
       bool written = false, rejected = false;
       if (i < cells) {
         const int64_t b = i >> voxel_bits;  // voxels_per_block = 2^voxel_bits (no 64-bit division)
@@ -850,6 +862,7 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
       }
     });
     scratch.fixed_point_sums_clean = true;
+    if (tally_stripes) scratch.merge_tally_clean = true;
     profile.mark(sum_every_visit ? "5 write summed voxels" : "5b free-space voxels");
   }
   tsdf_detail::reset_merge_tally(backend, scratch, stream);  // for the next frame
