@@ -77,6 +77,12 @@ TEST_P(CorePrimitivesTest, ScanOfValuesReadsEachOnceAndMatchesStd) {
     algorithms::scan_values_once(device(), stream, in.data(), count, out.data(), calls.data());
     ASSERT_EQ(out.to_host(stream), expected) << count;
     ASSERT_EQ(calls.to_host(stream), std::vector<uint32_t>(count, 1u)) << count;
+    // The prefixes handed to a functor instead, each once, after its value was read.
+    out.fill_bytes(0, stream);
+    calls.fill_bytes(0, stream);
+    algorithms::scan_values_once(device(), stream, in.data(), count, out.data(), calls.data(), true);
+    ASSERT_EQ(out.to_host(stream), expected) << count;
+    ASSERT_EQ(calls.to_host(stream), std::vector<uint32_t>(count, (1u << 16) + 1u)) << count;
     for (int round = 0; round < 3; ++round) {
       algorithms::exclusive_scan(device(), stream, in.data(), count, in.data());
       std::exclusive_scan(values.begin(), values.end(), values.begin(), 0u);

@@ -20,8 +20,8 @@ void exclusive_scan(Device device, const Stream& stream, const uint32_t* in, int
   COVOX_DISPATCH_PRIMITIVE(exclusive_scan(stream, in, count, out));
 }
 void scan_values_once(Device device, const Stream& stream, const uint32_t* in, int64_t count, uint32_t* out,
-                      uint32_t* calls) {
-  COVOX_DISPATCH_PRIMITIVE(scan_values_once(stream, in, count, out, calls));
+                      uint32_t* calls, bool through_functor) {
+  COVOX_DISPATCH_PRIMITIVE(scan_values_once(stream, in, count, out, calls, through_functor));
 }
 void sort_by_key(Device device, const Stream& stream, uint64_t* keys, uint32_t* values,
                  int64_t count) {

@@ -17,9 +17,11 @@ void scale_add(Device device, const Stream& stream, float a, const float* x, flo
 void exclusive_scan(Device device, const Stream& stream, const uint32_t* in, int64_t count,
                     uint32_t* out);
 // exclusive_scan_of (parallel.h, single_pass_scan.h) of value_of(i) = in[i], which also
-// increments calls[i] (atomically): a test can check each value was read exactly once.
+// increments calls[i] (atomically): a test can check each value was read exactly once. With
+// `through_functor` the prefixes go out through a functor (scan_output), which stores them and
+// adds 2^16 to calls[i].
 void scan_values_once(Device device, const Stream& stream, const uint32_t* in, int64_t count, uint32_t* out,
-                      uint32_t* calls);
+                      uint32_t* calls, bool through_functor = false);
 // Stable sort of keys, values permuted along.
 void sort_by_key(Device device, const Stream& stream, uint64_t* keys, uint32_t* values,
                  int64_t count);

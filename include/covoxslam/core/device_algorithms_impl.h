@@ -54,12 +54,20 @@ void Primitives<Backend>::sum_runs_at_first(const Stream& stream, const uint64_t
 }
 template <class Backend>
 void Primitives<Backend>::scan_values_once(const Stream& stream, const uint32_t* in, int64_t count, uint32_t* out,
-                                           uint32_t* calls) {
+                                           uint32_t* calls, bool through_functor) {
   // one value per GPU thread (many small tiles, long look-backs); exclusive_scan tests the default
-  exclusive_scan_of<1>(Backend{}, stream, count, [=] COVOX_HD(int64_t i) -> uint32_t {
+  const auto value_of = [=] COVOX_HD(int64_t i) -> uint32_t {
     atomic_add(calls + i, 1u);
     return in[i];
-  }, out);
+  };
+  if (!through_functor) {
+    exclusive_scan_of<1>(Backend{}, stream, count, value_of, out);
+    return;
+  }
+  exclusive_scan_of<1>(Backend{}, stream, count, value_of, [=] COVOX_HD(int64_t i, uint32_t prefix) {
+    out[i] = prefix;
+    atomic_add(calls + i, 1u << 16);
+  });
 }
 template <class Backend>
 int64_t Primitives<Backend>::unique(const Stream& stream, uint64_t* data, int64_t count) {

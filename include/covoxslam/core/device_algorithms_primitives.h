@@ -14,7 +14,7 @@ struct Primitives {
   static void exclusive_scan(const Stream& stream, const uint32_t* in, int64_t count,
                              uint32_t* out);
   static void scan_values_once(const Stream& stream, const uint32_t* in, int64_t count, uint32_t* out,
-                               uint32_t* calls);
+                               uint32_t* calls, bool through_functor);
   static void sort_by_key(const Stream& stream, uint64_t* keys, uint32_t* values, int64_t count);
   static void radix_sort_pairs(const Stream& stream, uint64_t* keys, uint32_t* values, int64_t count, int key_bits,
                                uint64_t* keys_alt, uint32_t* values_alt);

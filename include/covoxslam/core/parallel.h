@@ -89,12 +89,21 @@ void exclusive_scan(CpuBackend backend, const Stream& stream, const T* in, int64
   thrust::exclusive_scan(execution_policy(backend, stream), in, in + count, out, T(0));
 }
 // out[i] = value_of(0) + ... + value_of(i - 1) for 32-bit values, value_of called once per i (see
-// single_pass_scan.h for the GPU version). Here the values are written to `out` and scanned there.
-template <int kItems = kScanItemsPerThread, class ValueOf>
-void exclusive_scan_of(CpuBackend backend, const Stream& stream, int64_t count, const ValueOf& value_of, uint32_t* out) {
+// single_pass_scan.h for the GPU version). Here the values are written to `out` and scanned there;
+// for a functor `out` (scan_output), to a temporary array first, then handed to it.
+template <int kItems = kScanItemsPerThread, class ValueOf, class Output>
+void exclusive_scan_of(CpuBackend backend, const Stream& stream, int64_t count, const ValueOf& value_of, Output out) {
   if (count <= 0) return;
-  parallel_for(backend, stream, count, [&](int64_t i) { out[i] = value_of(i); });
-  thrust::exclusive_scan(execution_policy(backend, stream), out, out + count, out, 0u);
+  if constexpr (std::is_pointer<Output>::value) {
+    parallel_for(backend, stream, count, [&](int64_t i) { out[i] = value_of(i); });
+    thrust::exclusive_scan(execution_policy(backend, stream), out, out + count, out, 0u);
+  } else {
+    std::vector<uint32_t> prefixes(static_cast<size_t>(count));
+    uint32_t* scanned = prefixes.data();
+    parallel_for(backend, stream, count, [&](int64_t i) { scanned[i] = value_of(i); });
+    thrust::exclusive_scan(execution_policy(backend, stream), scanned, scanned + count, scanned, 0u);
+    parallel_for(backend, stream, count, [&](int64_t i) { scan_output(out, i, scanned[i]); });
+  }
 }
 #if defined(__CUDACC__)
 // 32-bit values: the single-pass scan, one launch (single_pass_scan.h). Others: CUB directly

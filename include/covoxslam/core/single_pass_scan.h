@@ -5,7 +5,9 @@
 //
 // value_of(i) is called exactly once for each i in [0, count) (so it may also write something of
 // its own, such as the piece table beside the piece sizes), and `out` may be the array value_of
-// reads, since each element is read before it is written. Sums wrap modulo 2^32.
+// reads, since each element is read before it is written. Sums wrap modulo 2^32. `out` may also
+// be a functor, called as out(i, prefix) once for each i after value_of(i) (scan_output below):
+// what a kernel after the scan would have done with each prefix, without its launch.
 //
 // Why not CUB's DeviceScan: on the H100 machine a frame's launches, not its kernels, set its
 // latency (docs/benchmarks.md, "eighth pass": a kernel launch costs the host 4-5 us there, CUB's
@@ -40,6 +42,13 @@ namespace covox {
 // whose values cost a chain of dependent loads each (a binary search) runs faster with fewer
 // per thread and more tiles: exclusive_scan_of<1>(...).
 constexpr int kScanItemsPerThread = 8;
+
+// Where exclusive_scan_of puts prefix i: an array, or a functor's call.
+COVOX_HD_INLINE void scan_output(uint32_t* out, int64_t i, uint32_t prefix) { out[i] = prefix; }
+template <class Output>
+COVOX_HD_INLINE void scan_output(const Output& out, int64_t i, uint32_t prefix) {
+  out(i, prefix);
+}
 
 #if defined(__CUDACC__)
 namespace single_pass_scan_detail {
@@ -106,8 +115,8 @@ __device__ __forceinline__ uint32_t look_back_tile_prefix(uint64_t* descriptors,
   return prefix;
 }
 
-template <int kItems, class ValueOf>
-__global__ void __launch_bounds__(kThreads) single_pass_scan_kernel(int64_t count, ValueOf value_of, uint32_t* out,
+template <int kItems, class ValueOf, class Output>
+__global__ void __launch_bounds__(kThreads) single_pass_scan_kernel(int64_t count, ValueOf value_of, Output out,
                                                                      uint64_t* descriptors, uint32_t epoch) {
   constexpr int64_t kTile = int64_t(kThreads) * kItems;
   using BlockScan = cub::BlockScan<uint32_t, kThreads>;
@@ -150,14 +159,14 @@ __global__ void __launch_bounds__(kThreads) single_pass_scan_kernel(int64_t coun
 #pragma unroll
   for (int k = 0; k < kItems; ++k) {
     const int64_t i = tile_begin + k * kThreads + threadIdx.x;
-    if (i < count) out[i] = staged[k * kThreads + threadIdx.x];
+    if (i < count) scan_output(out, i, staged[k * kThreads + threadIdx.x]);
   }
 }
 
 }  // namespace single_pass_scan_detail
 
-template <int kItems = kScanItemsPerThread, class ValueOf>
-void exclusive_scan_of(CudaBackend, const Stream& stream, int64_t count, const ValueOf& value_of, uint32_t* out) {
+template <int kItems = kScanItemsPerThread, class ValueOf, class Output>
+void exclusive_scan_of(CudaBackend, const Stream& stream, int64_t count, const ValueOf& value_of, Output out) {
   using namespace single_pass_scan_detail;
   constexpr int64_t kTile = int64_t(kThreads) * kItems;
   if (count <= 0) return;

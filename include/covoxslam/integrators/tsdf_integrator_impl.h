@@ -673,16 +673,21 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
     scratch.block_ranks.resize_discard(box_blocks + 1);
     uint32_t* marked_ranks = scratch.block_ranks.data();
     box_ranks = marked_ranks;
-    exclusive_scan(backend, stream, static_cast<const uint32_t*>(box_marks), box_blocks + 1, marked_ranks);
-    // The marked blocks listed by rank; the marks cleared for the next frame (the scan has read
-    // them; a block is marked when marked_ranks[b + 1] != marked_ranks[b]).
-    parallel_for(backend, stream, box_blocks, [=] COVOX_HD(int64_t b) {
-      if (marked_ranks[b + 1] != marked_ranks[b]) {
-        block_indices[marked_ranks[b]] = codec.block(static_cast<uint64_t>(b) << codec.voxel_bits);
-      }
-      box_marks[b] = 0u;
-      if (b == 0) tsdf_detail::start_frame_counts(counts_on_device, marked_ranks[box_blocks]);
-    });
+    // The marks scanned into ranks, and as each rank is known the marked block listed at it and
+    // its mark cleared for the next frame (the scan has read it); the rank past the box is the
+    // count. One launch: the listing was a kernel of its own (2.6 us of GPU time and 5-10 us of
+    // the host's per 7-Scenes 5 cm frame on the H100 machine, docs/benchmarks.md "tenth pass").
+    exclusive_scan_of(
+        backend, stream, box_blocks + 1, [=] COVOX_HD(int64_t b) -> uint32_t { return box_marks[b] != 0u ? 1u : 0u; },
+        [=] COVOX_HD(int64_t b, uint32_t rank) {
+          marked_ranks[b] = rank;
+          if (b == box_blocks) {
+            tsdf_detail::start_frame_counts(counts_on_device, rank);
+          } else if (box_marks[b] != 0u) {
+            block_indices[rank] = codec.block(static_cast<uint64_t>(b) << codec.voxel_bits);
+            box_marks[b] = 0u;
+          }
+        });
     activate_listed_blocks();
     scratch.box_marks_clean = true;
     if (queued) {
