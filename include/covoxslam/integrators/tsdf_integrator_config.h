@@ -43,7 +43,7 @@ struct TsdfIntegratorConfig {
   // true sums their weights in fixed point as the rays are walked (exact, so order-free and
   // deterministic) and sorts only the band's visits, which is much faster with carving; false
   // sorts every visit (the reference the tests compare with). The map is the same up to the
-  // fixed point's rounding (2^-28 of a unit weight). The sums take 8 bytes of scratch per voxel
+  // fixed point's rounding (2^-32 of a unit weight). The sums take 8 bytes of scratch per voxel
   // of the frame's box (frames whose box does not fit in fixed_point_sums_max_scratch_mb sort
   // every visit). Not a ROS parameter.
   bool sum_free_space_in_fixed_point = true;
@@ -54,7 +54,7 @@ struct TsdfIntegratorConfig {
   // when this is 0 (the tests, which compare both ways on both backends).
   int64_t free_space_sums_min_visits = int64_t(1) << 20;
   // With sum_free_space_in_fixed_point, sum the band's visits too (weight, distance and colour,
-  // in fixed point), so that no visit is sorted at all: 0.70-0.87 of the frame time on the H100
+  // in fixed point), so that no visit is sorted at all: 0.64-0.82 of the frame time on the H100
   // (docs/benchmarks.md, "tenth pass"). On the GPU for frames whose box's sums fit in
   // fixed_point_sums_max_scratch_mb (16 bytes per voxel of the box, 48 with colour); the CPU twin,
   // like free_space_sums_min_visits, only when that threshold is 0. The same map up to the fixed

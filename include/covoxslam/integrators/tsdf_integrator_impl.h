@@ -93,7 +93,7 @@ struct ArrayTerm {
 // A voxel's free-space sum (fixed point, tsdf_kernels.h) added to its band visits' sum.
 template <class SumT>
 COVOX_HD_INLINE void add_free_space_sum(SumT& sum, uint64_t units, float truncation) {
-  const tsdf::DistanceUpdate free = tsdf::free_space_update(tsdf::free_space_weight(units), truncation);
+  const tsdf::DistanceUpdate free = tsdf::free_space_update(tsdf::weight_of_units(units), truncation);
   sum.weighted_distance += free.weighted_distance;
   sum.weight += free.weight;
 }

@@ -132,36 +132,14 @@ COVOX_HD_INLINE uint32_t bits_of_float(float value) {
   return bits;
 }
 
-// Free-space weights summed per voxel in fixed point (tsdf_integrator_impl.h, "free-space sums"):
-// integer sums are exact, so the order in which the visits add them does not change the result
-// (the frame stays deterministic with atomic adds into a scratch grid, not into voxels). 2^28
-// units per unit of weight: a weight of 1e-4 (an inverse-square weight at 100 m) keeps 4 decimal
-// digits, and a voxel's sum may reach 3e10 before the 64 bits overflow.
-constexpr double kFreeSpaceWeightUnits = 268435456.0;  // 2^28
-COVOX_HD_INLINE uint64_t free_space_weight_units(float weight) {
-  return static_cast<uint64_t>(static_cast<double>(weight) * kFreeSpaceWeightUnits + 0.5);
-}
-COVOX_HD_INLINE float free_space_weight(uint64_t units) {
-  return static_cast<float>(static_cast<double>(units) / kFreeSpaceWeightUnits);
-}
-
-// Every visit summed per voxel in fixed point (tsdf_integrator_impl.h, "every visit summed"): one
-// cell per key of the frame's box of 2 64-bit words, kSumCellWords with colour:
-//   0: the weight of all the voxel's visits, in kSumUnits per unit of weight;
-//   1: the band visits' sum of weight x (distance / truncation - 1), in the same units (a
-//      free-space visit's distance is the truncation, so it adds nothing here and one atomic in
-//      all): the weighted distance is truncation x (word 0 + word 1), an exact integer sum;
-//   2-5 (with colour): the colour weight in kSumUnits and the three weighted channels in
-//      kWeightedColorUnits.
-// Integer sums are exact, so the order of the atomic adds does not change the result. 2^32 units
-// per unit of weight: a voxel's weight may reach 2e9 in one frame before the 64 bits overflow (an
-// inverse-square weight is at most 1 / min_ray_length^2, times the points a merged ray stands
-// for), and a distance keeps 1e-5 m where the voxel's weight is 1e-5 (behind the surface, where
-// the drop-off ends; with 2^28 units per unit of weight x metre such voxels differed from the
-// float sums by 7e-5 m). 2^24 units per unit of weight x colour level: the same bound for 255
-// levels (with 2^20, colours drifted 2 levels from the float sums' over four frames). A visit
-// whose weight rounds to no units adds nothing, so a cell whose word 0 is zero is empty.
-constexpr int kSumCellWords = 6;
+// Visits' weights and updates summed per voxel in fixed point (tsdf_integrator_impl.h, "free-space
+// sums" and "every visit summed"): integer sums are exact, so the order in which atomic adds
+// arrive does not change the result (the frame stays deterministic with atomics into a scratch
+// grid, never into voxels). Values go in as signed 64-bit integers (two's complement), rounded to
+// the nearest unit. Weights, in both paths, take kSumUnits = 2^32 units per unit of weight: a
+// voxel's weight may reach 2e9 in one frame before 64 bits overflow (an inverse-square weight is
+// at most 1 / min_ray_length^2, times the points a merged ray stands for), and a weight of 1e-4
+// (an inverse-square weight at 100 m) keeps 5 decimal digits.
 constexpr double kSumUnits = 4294967296.0;          // 2^32 per unit of weight
 constexpr double kWeightedColorUnits = 16777216.0;  // 2^24 per unit of weight x colour level
 COVOX_HD_INLINE uint64_t signed_fixed_units(double value, double units_per_one) {
@@ -170,21 +148,39 @@ COVOX_HD_INLINE uint64_t signed_fixed_units(double value, double units_per_one) 
 COVOX_HD_INLINE double signed_fixed_value(uint64_t units, double units_per_one) {
   return static_cast<double>(static_cast<int64_t>(units)) / units_per_one;
 }
+// The free-space-only sums (one word per voxel): a visit's weight, and a sum's weight.
+COVOX_HD_INLINE uint64_t weight_units(float weight) { return signed_fixed_units(weight, kSumUnits); }
+COVOX_HD_INLINE float weight_of_units(uint64_t units) { return static_cast<float>(signed_fixed_value(units, kSumUnits)); }
+
+// Every visit summed: one cell per key of the frame's box, 2 64-bit words, kSumCellWords with
+// colour:
+//   0: the weight of all the voxel's visits, in kSumUnits;
+//   1: the band visits' sum of weight x (distance / truncation - 1), in the same units (a
+//      free-space visit's distance is the truncation, so it adds nothing here and one atomic in
+//      all): the weighted distance is truncation x (word 0 + word 1), an exact integer sum;
+//   2-5 (with colour): the colour weight in kSumUnits and the three weighted channels in
+//      kWeightedColorUnits (the same overflow bound for 255 levels).
+// A distance keeps 1e-5 m where the voxel's weight is 1e-5 (behind the surface, where the
+// drop-off ends; with 2^28 units per unit of weight x metre such voxels differed from the float
+// sums by 7e-5 m); with 2^20 colour units, colours drifted 2 levels from the float sums' over four
+// frames. A visit whose weight rounds to no units adds nothing, so a cell whose word 0 is zero is
+// empty.
+constexpr int kSumCellWords = 6;
 struct VoxelSumCells {
   uint64_t* words = nullptr;  // cell k: words[k * stride ...]
   int stride = 0;             // 2 without colour, kSumCellWords with
   float truncation = 0.0f;
   COVOX_HD_INLINE void add(uint64_t key, const DistanceUpdate& update, bool free_space, bool takes_color,
                            const Rgb8& color) const {
-    const uint64_t weight_units = signed_fixed_units(update.weight, kSumUnits);
-    if (weight_units == 0) return;
+    const uint64_t units = weight_units(update.weight);
+    if (units == 0) return;
     uint64_t* cell = words + key * static_cast<uint64_t>(stride);
-    atomic_add(&cell[0], weight_units);
+    atomic_add(&cell[0], units);
     if (free_space) return;
     const double offset = static_cast<double>(update.weighted_distance) / truncation - static_cast<double>(update.weight);
     atomic_add(&cell[1], signed_fixed_units(offset, kSumUnits));
     if (stride < kSumCellWords || !takes_color) return;
-    atomic_add(&cell[2], weight_units);
+    atomic_add(&cell[2], units);
     atomic_add(&cell[3], signed_fixed_units(update.weight * color.r, kWeightedColorUnits));
     atomic_add(&cell[4], signed_fixed_units(update.weight * color.g, kWeightedColorUnits));
     atomic_add(&cell[5], signed_fixed_units(update.weight * color.b, kWeightedColorUnits));
@@ -192,10 +188,10 @@ struct VoxelSumCells {
   // The cell's sum (into a zeroed `sum`) and the cell cleared; false for an empty cell.
   COVOX_HD_INLINE bool take(uint64_t key, DistanceUpdate* sum) const {
     uint64_t* cell = words + key * static_cast<uint64_t>(stride);
-    const uint64_t weight_units = cell[0];
-    if (weight_units == 0) return false;
-    sum->weight = static_cast<float>(signed_fixed_value(weight_units, kSumUnits));
-    sum->weighted_distance = static_cast<float>(signed_fixed_value(weight_units + cell[1], kSumUnits) * truncation);
+    const uint64_t units = cell[0];
+    if (units == 0) return false;
+    sum->weight = weight_of_units(units);
+    sum->weighted_distance = static_cast<float>(signed_fixed_value(units + cell[1], kSumUnits) * truncation);
     cell[0] = 0;
     cell[1] = 0;
     return true;
@@ -207,7 +203,7 @@ struct VoxelSumCells {
     sum->weighted_distance = distance.weighted_distance;
     uint64_t* cell = words + key * static_cast<uint64_t>(stride);
     if (stride < kSumCellWords || cell[2] == 0) return true;
-    sum->color_weight = static_cast<float>(signed_fixed_value(cell[2], kSumUnits));
+    sum->color_weight = weight_of_units(cell[2]);
     sum->weighted_r = static_cast<float>(signed_fixed_value(cell[3], kWeightedColorUnits));
     sum->weighted_g = static_cast<float>(signed_fixed_value(cell[4], kWeightedColorUnits));
     sum->weighted_b = static_cast<float>(signed_fixed_value(cell[5], kWeightedColorUnits));

@@ -106,7 +106,7 @@ struct PieceTraversal {
   // the records are sorted (tsdf_integrator_impl.h, step 4).
   uint32_t* block_marks = nullptr;
   // When given (with block_marks), one fixed-point weight sum per key of the frame's box: a kept
-  // free-space visit adds its weight there (free_space_weight_units) and leaves a record with the
+  // free-space visit adds its weight there (weight_units, tsdf_kernels.h) and leaves a record with the
   // zero-weight key, which the compaction drops; only the band's visits are sorted and reduced.
   // A free-space visit outside the box is counted in *free_out_of_range instead.
   uint64_t* free_space_sums = nullptr;
@@ -156,7 +156,7 @@ struct PieceTraversal {
             const Rgb8 color = takes_color ? color_of(frame.colors, frame.intensities, frame.grey_per_intensity, i) : Rgb8{};
             sum_cells.add(key, update, free_space, takes_color, color);
           } else {
-            atomic_add(&free_space_sums[key], free_space_weight_units(update.weight));
+            atomic_add(&free_space_sums[key], weight_units(update.weight));
           }
         } else if (accumulate_free_space) {
           atomic_add(free_out_of_range, uint64_t(1));
