@@ -46,7 +46,8 @@ struct RayTally {
 // merging).
 COVOX_HD_INLINE RayTally tally_ray(const tsdf::RaySegment& ray, int64_t points, float inverse_voxel_size) {
   RayTally tally;
-  tally.kinds[ray.kind] = points;
+  // (each kind by a constant index: an index by ray.kind put the tally in local memory on the GPU)
+  for (int k = 0; k < 6; ++k) tally.kinds[k] = ray.kind == k ? points : 0;
   tally.cast = ray.kind <= tsdf::kClearingRay ? 1 : 0;
   tally.voxels = tsdf::ray_voxel_count(ray, inverse_voxel_size);
   if (ray.kind <= tsdf::kClearingRay) {  // a segment's voxels lie in the box of its end voxels
@@ -871,7 +872,9 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
     profile.mark(sum_every_visit ? "5 write summed voxels" : "5b free-space voxels");
   }
   tsdf_detail::reset_merge_tally(backend, scratch, stream);  // for the next frame
+ 
   counts = tsdf_detail::read_frame_counts(scratch, stream);  // waits for the writes too
+ 
   if (band.keys && counts.band_records > band_bound) {
     throw Error("TSDF integrator: " + std::to_string(counts.band_records) + " band visits in one frame, more than the " +
                 std::to_string(band_bound) + " its rays allow (internal error; please report it)");

@@ -328,51 +328,67 @@ COVOX_HD_INLINE uint32_t ray_voxel_count(const RaySegment& ray, float inverse_vo
 // `first` to `last` in order, or for all but `last` when `include_last` is false. An axis is only
 // stepped while it has grid lines left to cross, so rounding can never step past `last` or change
 // the count, even when `first`/`last` were clamped a voxel away from the points' own voxels.
+// One axis of the walk below. The three axes are named registers, not arrays: with arrays indexed
+// by the axis chosen at each step, the GPU kept them in local memory (a 64-byte stack frame per
+// thread, every step a round trip through L1; ncu on the 7-Scenes 2 cm traverse: loads with 1.2
+// of 32 bytes used, 13 cycles of each 24 per instruction waiting on them).
+struct WalkAxis {
+  int32_t position;
+  int32_t remaining;  // grid lines left to cross
+  int32_t step;
+  float t_max;        // where along the segment (0..1) the next grid line is crossed
+  float t_delta;
+  COVOX_HD_INLINE WalkAxis(float a, float b, int32_t cur, int32_t end)
+      : position(cur), remaining(abs_i32(end - cur)), step(end > cur ? 1 : -1) {
+    const float delta = b - a;
+    if (remaining == 0 || delta == 0.0f) {
+      t_max = 3.0e38f;
+      t_delta = 3.0e38f;
+    } else {
+      const float boundary = static_cast<float>(step > 0 ? cur + 1 : cur);
+      t_max = (boundary - a) / delta;
+      t_delta = static_cast<float>(step) / delta;
+    }
+  }
+  COVOX_HD_INLINE void advance() {
+    position += step;
+    --remaining;
+    t_max += t_delta;
+  }
+};
+
 template <class Visitor>
 COVOX_HD_INLINE void traverse_voxels(const Vec3f& a_world, const Vec3f& b_world, const Index3D& first,
                                      const Index3D& last, float inverse_voxel_size, bool include_last,
                                      Visitor&& visit) {
   const Vec3f a = a_world * inverse_voxel_size;
   const Vec3f b = b_world * inverse_voxel_size;
-  const int32_t cur[3] = {first.x, first.y, first.z};
-  const int32_t end[3] = {last.x, last.y, last.z};
-  int32_t position[3] = {cur[0], cur[1], cur[2]};
-  int32_t remaining[3];
-  int32_t step[3];
-  float t_max[3];
-  float t_delta[3];
-  for (int axis = 0; axis < 3; ++axis) {
-    const float delta = b[axis] - a[axis];
-    step[axis] = end[axis] > cur[axis] ? 1 : -1;
-    remaining[axis] = abs_i32(end[axis] - cur[axis]);
-    if (remaining[axis] == 0 || delta == 0.0f) {
-      t_max[axis] = 3.0e38f;
-      t_delta[axis] = 3.0e38f;
-    } else {
-      const float boundary = static_cast<float>(step[axis] > 0 ? cur[axis] + 1 : cur[axis]);
-      t_max[axis] = (boundary - a[axis]) / delta;
-      t_delta[axis] = static_cast<float>(step[axis]) / delta;
-    }
-  }
-  const int32_t steps = remaining[0] + remaining[1] + remaining[2] - (include_last ? 0 : 1);
+  WalkAxis x(a.x, b.x, first.x, last.x);
+  WalkAxis y(a.y, b.y, first.y, last.y);
+  WalkAxis z(a.z, b.z, first.z, last.z);
+  const int32_t steps = x.remaining + y.remaining + z.remaining - (include_last ? 0 : 1);
   if (steps < 0) return;  // an empty piece: first == last and the last voxel is excluded
-  visit(Index3D(position[0], position[1], position[2]));
+  visit(Index3D(x.position, y.position, z.position));
   for (int32_t k = 0; k < steps; ++k) {
-    int axis = -1;
-    float best = 3.4e38f;
-    for (int candidate = 0; candidate < 3; ++candidate) {
-      if (remaining[candidate] > 0 && t_max[candidate] < best) {
-        best = t_max[candidate];
-        axis = candidate;
-      }
+    // The axis whose next grid line comes first among those with lines left; ties go to the
+    // lower axis.
+    const bool take_x = x.remaining > 0 && x.t_max < 3.4e38f;
+    float best = take_x ? x.t_max : 3.4e38f;
+    const bool take_y = y.remaining > 0 && y.t_max < best;
+    best = take_y ? y.t_max : best;
+    const bool take_z = z.remaining > 0 && z.t_max < best;
+    if (take_z) {
+      z.advance();
+    } else if (take_y) {
+      y.advance();
+    } else if (take_x || x.remaining > 0) {  // (or degenerate: a delta rounded to 0 with lines left)
+      x.advance();
+    } else if (y.remaining > 0) {
+      y.advance();
+    } else {
+      z.advance();
     }
-    if (axis < 0) {  // degenerate (delta rounded to 0 with lines left): step any axis left
-      axis = remaining[0] > 0 ? 0 : (remaining[1] > 0 ? 1 : 2);
-    }
-    position[axis] += step[axis];
-    --remaining[axis];
-    t_max[axis] += t_delta[axis];
-    visit(Index3D(position[0], position[1], position[2]));
+    visit(Index3D(x.position, y.position, z.position));
   }
 }
 
