@@ -5,6 +5,8 @@
 // with known content are written by the tests themselves.
 #include <gtest/gtest.h>
 
+#include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -30,6 +32,7 @@
 #include "covoxslam/io/pose_file_readers.h"
 #include "covoxslam/io/rgbd_folder.h"
 #include "covoxslam/io/rigid_pose_check.h"
+#include "covoxslam/io/trajectory_io.h"
 
 #if COVOX_HAVE_PNG
 #include <png.h>
@@ -799,6 +802,59 @@ TEST(IoPly, WriterOutputReadsBackExactly) {
     EXPECT_EQ(read.colors[v].b, mesh.colors[v].b);
   }
   EXPECT_EQ(read.triangles, mesh.triangles);
+}
+
+// The writers (mesh, trajectory, map) replace a file through a temporary and a rename; a path that
+// is not a regular file must be written in place, or `--mesh /dev/null` run as root would replace
+// /dev/null with a plain file (seen: two runs writing /dev/null at once also collided on one
+// temporary). A FIFO stands in for /dev/null here, so a regression breaks nothing but the test.
+TEST(IoFileWriting, NonRegularFileIsWrittenInPlaceNotReplaced) {
+  ScratchFolder scratch;
+  const std::string fifo = scratch.file("pipe");
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0) << std::strerror(errno);
+  // A non-blocking reader opened first: the writer's open does not wait, the few bytes fit the
+  // pipe's buffer, and a writer that replaced the FIFO leaves the read empty instead of hanging.
+  const int reader = ::open(fifo.c_str(), O_RDONLY | O_NONBLOCK);
+  ASSERT_GE(reader, 0) << std::strerror(errno);
+  io::Trajectory trajectory;
+  trajectory.poses.push_back({1.5, Eigen::Vector3d(1, 2, 3), Eigen::Quaterniond::Identity()});
+  io::write_tum_trajectory(fifo, trajectory);
+  std::string received(4096, '\0');
+  const ssize_t got = ::read(reader, &received[0], received.size());
+  ::close(reader);
+  received.resize(got > 0 ? static_cast<size_t>(got) : 0);
+  EXPECT_NE(received.find("1.5"), std::string::npos) << received;
+  struct stat status {};
+  ASSERT_EQ(::stat(fifo.c_str(), &status), 0);
+  EXPECT_TRUE(S_ISFIFO(status.st_mode)) << "the FIFO was replaced by a plain file";
+  for (const auto& entry : std::filesystem::directory_iterator(scratch.path())) {
+    EXPECT_EQ(entry.path().filename().string(), "pipe") << "left behind: " << entry.path();
+  }
+}
+
+TEST(IoFileWriting, RegularFileIsReplacedWholeAndAFailedWriteKeepsTheOldOne) {
+  ScratchFolder scratch;
+  const std::string path = scratch.file("out.txt");
+  io::write_file_replacing(path, "test", false, [](std::ostream& out) { out << "first"; });
+  EXPECT_EQ(io::read_text_file(path), "first");
+  io::write_file_replacing(path, "test", false, [](std::ostream& out) { out << "second"; });
+  EXPECT_EQ(io::read_text_file(path), "second");
+  EXPECT_THROW(io::write_file_replacing(path, "test", false,
+                                        [](std::ostream& out) {
+                                          out << "half";
+                                          out.setstate(std::ios::badbit);
+                                        }),
+               Error);
+  EXPECT_EQ(io::read_text_file(path), "second");
+  size_t files = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(scratch.path())) {
+    (void)entry;
+    ++files;
+  }
+  EXPECT_EQ(files, 1u) << "a temporary was left behind";
+  expect_error_mentioning(
+      [&] { io::write_file_replacing(scratch.file("no/such/dir/x"), "my_writer", false, [](std::ostream&) {}); },
+      {"my_writer", "no/such/dir/x"});
 }
 
 TEST(IoPly, AsciiWithPolygonsExtraPropertiesAndElements) {

@@ -3,7 +3,11 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <fstream>
 #include <memory>
+
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include "covoxslam/core/error.h"
 
@@ -36,6 +40,36 @@ Container read_all(const std::string& path) {
 std::vector<uint8_t> read_file_bytes(const std::string& path) { return read_all<std::vector<uint8_t>>(path); }
 
 std::string read_text_file(const std::string& path) { return read_all<std::string>(path); }
+
+void write_file_replacing(const std::string& path, const std::string& what, bool binary,
+                          const std::function<void(std::ostream&)>& write) {
+  const std::ios::openmode mode = std::ios::trunc | std::ios::out | (binary ? std::ios::binary : std::ios::openmode{});
+  struct stat status {};
+  if (::stat(path.c_str(), &status) == 0 && !S_ISREG(status.st_mode)) {
+    std::ofstream file(path, mode);
+    if (!file) throw Error(what + ": cannot open " + path + " for writing");
+    write(file);
+    file.flush();
+    if (!file) throw Error(what + ": writing " + path + " failed");
+    return;
+  }
+  const std::string temporary = path + ".tmp." + std::to_string(::getpid());
+  {
+    std::ofstream file(temporary, mode);
+    if (!file) throw Error(what + ": cannot write " + temporary + ": " + std::strerror(errno));
+    write(file);
+    file.flush();
+    if (!file) {
+      std::remove(temporary.c_str());
+      throw Error(what + ": writing " + temporary + " failed (disk full?)");
+    }
+  }
+  if (std::rename(temporary.c_str(), path.c_str()) != 0) {
+    const std::string reason = std::strerror(errno);
+    std::remove(temporary.c_str());
+    throw Error(what + ": cannot move " + temporary + " to " + path + ": " + reason);
+  }
+}
 
 }  // namespace io
 }  // namespace covox

@@ -7,6 +7,7 @@
 #include <type_traits>
 
 #include "covoxslam/core/error.h"
+#include "covoxslam/io/file_bytes.h"
 
 namespace covox {
 namespace io {
@@ -149,21 +150,9 @@ void save_map_file(const std::string& path, const MapFileContents& contents) {
   }
   w.put(fnv1a(w.bytes().data(), w.bytes().size()));
 
-  const std::string temporary = path + ".tmp";
-  {
-    std::ofstream file(temporary, std::ios::binary | std::ios::trunc);
-    if (!file) throw Error("save_map_file: cannot write " + temporary);
+  write_file_replacing(path, "save_map_file", /*binary=*/true, [&](std::ostream& file) {
     file.write(reinterpret_cast<const char*>(w.bytes().data()), static_cast<std::streamsize>(w.bytes().size()));
-    file.flush();
-    if (!file) {
-      std::remove(temporary.c_str());
-      throw Error("save_map_file: writing " + temporary + " failed (disk full?)");
-    }
-  }
-  if (std::rename(temporary.c_str(), path.c_str()) != 0) {
-    std::remove(temporary.c_str());
-    throw Error("save_map_file: cannot move " + temporary + " to " + path);
-  }
+  });
 }
 
 MapFileContents load_map_file(const std::string& path) {

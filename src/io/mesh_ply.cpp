@@ -1,19 +1,16 @@
 #include "covoxslam/io/mesh_ply.h"
 
-#include <cstdio>
-#include <fstream>
+#include <ostream>
 
 #include "covoxslam/core/error.h"
+#include "covoxslam/io/file_bytes.h"
 
 namespace covox {
 namespace io {
 
 void write_mesh_ply(const std::string& path, const Mesh& mesh) {
   const bool has_color = mesh.colors.size() == mesh.vertices_m.size();
-  const std::string temporary = path + ".tmp";
-  {
-    std::ofstream file(temporary, std::ios::binary | std::ios::trunc);
-    if (!file) throw Error("write_mesh_ply: cannot write " + temporary);
+  write_file_replacing(path, "write_mesh_ply", /*binary=*/true, [&](std::ostream& file) {
     file << "ply\nformat binary_little_endian 1.0\ncomment written by covoxslam\n"
          << "element vertex " << mesh.vertices_m.size() << "\n"
          << "property float x\nproperty float y\nproperty float z\n";
@@ -35,16 +32,7 @@ void write_mesh_ply(const std::string& path, const Mesh& mesh) {
       file.write(reinterpret_cast<const char*>(&three), 1);
       file.write(reinterpret_cast<const char*>(indices), sizeof(indices));
     }
-    file.flush();
-    if (!file) {
-      std::remove(temporary.c_str());
-      throw Error("write_mesh_ply: writing " + temporary + " failed (disk full?)");
-    }
-  }
-  if (std::rename(temporary.c_str(), path.c_str()) != 0) {
-    std::remove(temporary.c_str());
-    throw Error("write_mesh_ply: cannot move " + temporary + " to " + path);
-  }
+  });
 }
 
 }  // namespace io

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "covoxslam/core/error.h"
+#include "covoxslam/io/file_bytes.h"
 
 namespace covox {
 namespace io {
@@ -139,21 +140,8 @@ void write_tum_trajectory(std::ostream& output, const Trajectory& trajectory) {
 }
 
 void write_tum_trajectory(const std::string& path, const Trajectory& trajectory) {
-  const std::string temporary = path + ".tmp";
-  {
-    std::ofstream file(temporary, std::ios::trunc);
-    if (!file) throw Error(temporary + ": cannot open for writing");
-    write_tum_trajectory(file, trajectory);
-    file.flush();
-    if (!file) {
-      std::remove(temporary.c_str());
-      throw Error(temporary + ": write failed (disk full?)");
-    }
-  }
-  if (std::rename(temporary.c_str(), path.c_str()) != 0) {
-    std::remove(temporary.c_str());
-    throw Error(path + ": cannot rename " + temporary + " into place");
-  }
+  write_file_replacing(path, "write_tum_trajectory", /*binary=*/false,
+                       [&](std::ostream& file) { write_tum_trajectory(file, trajectory); });
 }
 
 }  // namespace io
