@@ -832,7 +832,7 @@ TEST(IoFileWriting, NonRegularFileIsWrittenInPlaceNotReplaced) {
   }
 }
 
-TEST(IoFileWriting, RegularFileIsReplacedWholeAndAFailedWriteKeepsTheOldOne) {
+TEST(IoFileWriting, RegularFileIsReplacedWholeAndAFailedOrThrowingWriteKeepsTheOldOne) {
   ScratchFolder scratch;
   const std::string path = scratch.file("out.txt");
   io::write_file_replacing(path, "test", false, [](std::ostream& out) { out << "first"; });
@@ -843,6 +843,13 @@ TEST(IoFileWriting, RegularFileIsReplacedWholeAndAFailedWriteKeepsTheOldOne) {
                                         [](std::ostream& out) {
                                           out << "half";
                                           out.setstate(std::ios::badbit);
+                                        }),
+               Error);
+  EXPECT_EQ(io::read_text_file(path), "second");
+  EXPECT_THROW(io::write_file_replacing(path, "test", false,
+                                        [](std::ostream& out) {
+                                          out << "part";
+                                          throw Error("the writer gave up");
                                         }),
                Error);
   EXPECT_EQ(io::read_text_file(path), "second");

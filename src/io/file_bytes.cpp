@@ -57,9 +57,16 @@ void write_file_replacing(const std::string& path, const std::string& what, bool
   {
     std::ofstream file(temporary, mode);
     if (!file) throw Error(what + ": cannot write " + temporary + ": " + std::strerror(errno));
-    write(file);
+    try {
+      write(file);
+    } catch (...) {  // the writer's own error: no half-written temporary left behind
+      file.close();
+      std::remove(temporary.c_str());
+      throw;
+    }
     file.flush();
     if (!file) {
+      file.close();
       std::remove(temporary.c_str());
       throw Error(what + ": writing " + temporary + " failed (disk full?)");
     }

@@ -1,6 +1,6 @@
 #pragma once
-// Whole-file reads with errors that name the file: every reader starts here, so a missing or
-// unreadable file always gives the same clear covox::Error.
+// Whole-file reads and writes with errors that name the file: every reader and writer starts
+// here, so a missing, unreadable or unwritable file always gives the same clear covox::Error.
 #include <cstdint>
 #include <functional>
 #include <ostream>
@@ -17,8 +17,8 @@ std::string read_text_file(const std::string& path);
 // beside `path` (named with the process id, so two processes writing the same path do not share
 // it), then renamed over `path`. A path that exists and is not a regular file (/dev/null, a FIFO,
 // /dev/stdout) is written in place instead: renaming over it would replace the device or pipe
-// with a plain file. `what` starts the error messages (the writer's name); a failed write
-// removes the temporary and leaves an existing `path` as it was.
+// with a plain file. `what` starts the error messages (the writer's name); a failed write, or an
+// exception thrown by `write`, removes the temporary and leaves an existing `path` as it was.
 void write_file_replacing(const std::string& path, const std::string& what, bool binary,
                           const std::function<void(std::ostream&)>& write);
 
