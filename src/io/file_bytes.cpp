@@ -41,35 +41,35 @@ std::vector<uint8_t> read_file_bytes(const std::string& path) { return read_all<
 
 std::string read_text_file(const std::string& path) { return read_all<std::string>(path); }
 
+namespace {
+
+// Opens `target`, hands it to `write` and flushes; throws naming `target` when any step fails.
+// Returns with the stream closed; on failure `target` may hold part of the output.
+void write_stream(const std::string& target, std::ios::openmode mode, const std::string& what,
+                  const std::function<void(std::ostream&)>& write) {
+  std::ofstream file(target, mode);
+  if (!file) throw Error(what + ": cannot open " + target + " for writing: " + std::strerror(errno));
+  write(file);
+  file.flush();
+  if (!file) throw Error(what + ": writing " + target + " failed (disk full?)");
+}
+
+}  // namespace
+
 void write_file_replacing(const std::string& path, const std::string& what, bool binary,
                           const std::function<void(std::ostream&)>& write) {
   const std::ios::openmode mode = std::ios::trunc | std::ios::out | (binary ? std::ios::binary : std::ios::openmode{});
   struct stat status {};
   if (::stat(path.c_str(), &status) == 0 && !S_ISREG(status.st_mode)) {
-    std::ofstream file(path, mode);
-    if (!file) throw Error(what + ": cannot open " + path + " for writing");
-    write(file);
-    file.flush();
-    if (!file) throw Error(what + ": writing " + path + " failed");
+    write_stream(path, mode, what, write);  // a device or pipe: nothing to replace
     return;
   }
   const std::string temporary = path + ".tmp." + std::to_string(::getpid());
-  {
-    std::ofstream file(temporary, mode);
-    if (!file) throw Error(what + ": cannot write " + temporary + ": " + std::strerror(errno));
-    try {
-      write(file);
-    } catch (...) {  // the writer's own error: no half-written temporary left behind
-      file.close();
-      std::remove(temporary.c_str());
-      throw;
-    }
-    file.flush();
-    if (!file) {
-      file.close();
-      std::remove(temporary.c_str());
-      throw Error(what + ": writing " + temporary + " failed (disk full?)");
-    }
+  try {
+    write_stream(temporary, mode, what, write);
+  } catch (...) {  // a failed write or the writer's own error: no half-written temporary left
+    std::remove(temporary.c_str());
+    throw;
   }
   if (std::rename(temporary.c_str(), path.c_str()) != 0) {
     const std::string reason = std::strerror(errno);

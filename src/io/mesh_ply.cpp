@@ -2,7 +2,6 @@
 
 #include <ostream>
 
-#include "covoxslam/core/error.h"
 #include "covoxslam/io/file_bytes.h"
 
 namespace covox {

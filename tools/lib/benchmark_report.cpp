@@ -1,6 +1,5 @@
 #include "benchmark_report.h"
 
-#include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
@@ -9,7 +8,6 @@
 #include <cstdlib>
 #include <ctime>
 #include <filesystem>
-#include <fstream>
 #include <iostream>
 #include <sstream>
 #include <system_error>
@@ -17,6 +15,7 @@
 #include <utility>
 
 #include "covoxslam/core/error.h"
+#include "covoxslam/io/file_bytes.h"
 
 namespace covox {
 namespace tools {
@@ -234,27 +233,12 @@ void BenchmarkReport::write_json(const std::string& path) const {
     fs::create_directories(target.parent_path(), error);
     if (error) fail("cannot create its folder (" + error.message() + ")");
   }
-  // The temporary file lives in the same folder, so the rename cannot cross file systems.
-  fs::path temporary = target;
-  temporary += ".tmp." + std::to_string(::getpid());
-  {
-    std::ofstream file(temporary, std::ios::binary | std::ios::trunc);
-    if (!file) fail("cannot create " + temporary.string());
-    const std::string text = to_json();
+  // Through a temporary in the same folder and a rename (io::write_file_replacing), so a reader
+  // never sees half a report.
+  const std::string text = to_json();
+  io::write_file_replacing(target.string(), "BenchmarkReport", /*binary=*/true, [&](std::ostream& file) {
     file.write(text.data(), static_cast<std::streamsize>(text.size()));
-    file.flush();
-    if (!file) {
-      file.close();
-      fs::remove(temporary, error);
-      fail("writing " + temporary.string() + " failed (disk full?)");
-    }
-  }
-  fs::rename(temporary, target, error);
-  if (error) {
-    const std::string why = error.message();
-    fs::remove(temporary, error);
-    fail("cannot rename " + temporary.string() + " over it (" + why + ")");
-  }
+  });
 }
 
 }  // namespace tools
