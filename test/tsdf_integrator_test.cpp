@@ -550,12 +550,14 @@ TEST_P(TsdfIntegratorTest, FixedPointSumsMatchEveryVisitSorted) {
   // (48 bytes per voxel of the box) only for the smaller boxes (0.68 and 0.72 M voxels) and the
   // free-space sums (8 bytes) for the others (0.8 to 2.3 M voxels): one integrator takes both
   // paths, in turn, with one scratch buffer.
-  enum Sums { kEveryVisit, kFreeSpace, kSmallBudget, kNone };
-  for (const Sums sums : {kEveryVisit, kFreeSpace, kSmallBudget, kNone}) {
+  // kEveryVisitInWarps: every visit summed, a warp's free-space visits to one voxel in one atomic.
+  enum Sums { kEveryVisit, kFreeSpace, kSmallBudget, kNone, kEveryVisitInWarps };
+  for (const Sums sums : {kEveryVisit, kFreeSpace, kSmallBudget, kNone, kEveryVisitInWarps}) {
     TsdfIntegratorConfig config = analytic_config(0.05f);
     config.max_ray_length_m = 8.0f;
     config.sum_free_space_in_fixed_point = sums != kNone;
     config.sum_band_in_fixed_point = sums != kFreeSpace;
+    config.aggregate_free_space_in_warp = sums == kEveryVisitInWarps;
     if (sums == kSmallBudget) config.fixed_point_sums_max_scratch_mb = 36;
     config.free_space_sums_min_visits = 0;  // these small frames too
     TsdfMap map(device(), TsdfMapConfig{0.05f, 8, {}});
@@ -607,10 +609,13 @@ TEST_P(TsdfIntegratorTest, FixedPointSumsMatchEveryVisitSorted) {
   EXPECT_LT(totals[kFreeSpace].records_grouped, totals[kFreeSpace].voxel_updates / 2);
   EXPECT_GT(totals[kFreeSpace].records_grouped, 0);
   EXPECT_EQ(totals[kEveryVisit].records_grouped, 0);
+  EXPECT_EQ(totals[kEveryVisitInWarps].records_grouped, 0);
   EXPECT_GT(totals[kSmallBudget].records_grouped, 0);
   EXPECT_LT(totals[kSmallBudget].records_grouped, totals[kFreeSpace].records_grouped);
-  for (const Sums sums : {kEveryVisit, kFreeSpace, kSmallBudget}) {
-    SCOPED_TRACE(sums == kEveryVisit ? "every visit summed" : (sums == kFreeSpace ? "free space summed" : "small budget"));
+  for (const Sums sums : {kEveryVisit, kFreeSpace, kSmallBudget, kEveryVisitInWarps}) {
+    SCOPED_TRACE(sums == kEveryVisit ? "every visit summed"
+                 : sums == kFreeSpace ? "free space summed"
+                 : sums == kSmallBudget ? "small budget" : "every visit summed, warps merging free space");
     EXPECT_EQ(totals[sums].voxel_updates, reference.voxel_updates);
     EXPECT_EQ(totals[sums].voxels_updated, reference.voxels_updated);
     EXPECT_EQ(totals[sums].voxels_out_of_range, reference.voxels_out_of_range);
@@ -641,6 +646,18 @@ TEST_P(TsdfIntegratorTest, FixedPointSumsMatchEveryVisitSorted) {
     }
     EXPECT_GT(observed, 5000);
     EXPECT_GT(coloured, 500);
+  }
+  // Integer sums: merging a warp's free-space visits changes no bit of the map.
+  const std::vector<HostBlock>& plain = snapshots[kEveryVisit];
+  const std::vector<HostBlock>& merged = snapshots[kEveryVisitInWarps];
+  ASSERT_EQ(plain.size(), merged.size());
+  for (size_t b = 0; b < plain.size(); ++b) {
+    ASSERT_EQ(plain[b].index, merged[b].index);
+    for (size_t v = 0; v < plain[b].tsdf.size(); ++v) {
+      ASSERT_EQ(plain[b].tsdf[v].distance_m, merged[b].tsdf[v].distance_m);
+      ASSERT_EQ(plain[b].tsdf[v].weight, merged[b].tsdf[v].weight);
+      ASSERT_EQ(plain[b].color[v].weight, merged[b].color[v].weight);
+    }
   }
 }
 

@@ -18,7 +18,9 @@
 //      On the GPU, when the box's sums fit in config.fixed_point_sums_max_scratch_mb (almost
 //      always), every visit is summed so, the band's distance, weight and colour too
 //      (config.sum_band_in_fixed_point; tsdf::VoxelSumCells), and no record is kept at all:
-//      steps 3 and 5's reduction fall away and the pass of step 5 writes every voxel;
+//      steps 3 and 5's reduction fall away and the pass of step 5 writes every voxel. Such a
+//      frame walks its rays in groups of 32 neighbours, one warp per group and piece index
+//      (tsdf_traverse.h, RayGroups), without a piece table;
 //   3. records are sorted by voxel key (the CPU twin groups them by block and sums each block's
 //      in a dense array instead, leaving one merged record per voxel: tsdf_group_updates_cpu.h);
 //   4. the marked blocks are listed (a scan of the marks) and allocated in one

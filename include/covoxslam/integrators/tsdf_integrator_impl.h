@@ -271,6 +271,13 @@ inline bool sums_every_visit(const TsdfIntegratorConfig& config, Device backend,
          box_cells <= budget / (sizeof(uint64_t) * static_cast<uint64_t>(cell_words));
 }
 
+// Whether a frame whose tally gave this box sums every visit (sums_every_visit).
+inline bool frame_sums_every_visit(const TsdfIntegratorConfig& config, Device backend, const tsdf::FrameKeyCodec& codec,
+                                   int64_t total_updates, bool colored) {
+  const int64_t box_blocks = static_cast<int64_t>(codec.size_x) * codec.size_y * codec.size_z;
+  return sums_every_visit(config, backend, marks_blocks(box_blocks, total_updates), codec.out_of_range_key,
+                          colored ? tsdf::kSumCellWords : 2);
+}
 // Clears the merge's tally (tsdf_merge_rays) for the next frame. A frame does it at its end,
 // where the host has queued everything and waits for the GPU anyway: right after the tally's
 // read-back, the GPU waited for this launch before the frame's next ones (host trace, H100
@@ -541,7 +548,10 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   // uses_free_space_sums): the band's visits are then at most band_bound records.
   const uint64_t box_cells = codec.out_of_range_key;  // one per key of the box
   const int cell_words = kColored ? tsdf::kSumCellWords : 2;
-  const bool sum_every_visit = tsdf_detail::sums_every_visit(config, Backend::kDevice, mark_blocks, box_cells, cell_words);
+  const bool sum_every_visit = tsdf_detail::frame_sums_every_visit(config, Backend::kDevice, codec, total_updates, kColored);
+  if ((frame.group_levels != nullptr) != sum_every_visit) {  // (decided alike in tsdf_integrate_points)
+    throw Error("TSDF integrator: ray groups and summing every visit disagree (internal error; please report it)");
+  }
   const int64_t band_bound =
       std::min<int64_t>(total_updates, ray_count * tsdf::band_visits_per_ray_bound(truncation, frame.voxel_size));
   uint64_t* free_space_sums = nullptr;
@@ -552,6 +562,7 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
                                                        box_cells * cell_words + 1, stream);
     sum_cells.stride = cell_words;
     sum_cells.truncation = truncation;
+    sum_cells.aggregate_in_warp = config.aggregate_free_space_in_warp;
     free_out_of_range = sum_cells.words + box_cells * cell_words;
   } else if (tsdf_detail::uses_free_space_sums(config, Backend::kDevice, mark_blocks, box_cells, band_bound,
                                                total_updates)) {
@@ -592,7 +603,9 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   }
   int64_t record_count = total_updates;  // the records step 5 reads (the dropped ones sort last)
   if (sum_every_visit) {
-    tsdf::sum_pieces(backend, stream, frame.piece_bound, traversal);
+    tsdf::sum_ray_groups(backend, stream, frame.piece_bound, traversal,
+                         tsdf::RayGroups{frame.ray_pieces, frame.group_levels, frame.ray_count,
+                                         tsdf::ray_group_count(frame.ray_count)});
     record_count = 0;
   } else {
     tsdf::traverse_pieces(backend, stream, frame.piece_bound, total_updates, traversal,
@@ -898,6 +911,28 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   profile.mark("5 sum and write voxels");
 }
 
+namespace tsdf_detail {
+// Steps 2b to 5 with the frame's record types: 32-bit keys when its box allows, colour visits
+// when it has colour.
+template <class Backend>
+void fuse_frame(Backend backend, const TsdfIntegratorConfig& config, const tsdf::FrameUpdates& frame, bool has_color,
+                int64_t ray_count, TsdfMap& map, TsdfScratchBuffers& scratch, IntegrationStats& stats,
+                StageProfiler::Scope& profile, const Stream& stream) {
+  const bool short_keys = frame.codec.key_bits <= 32;
+  if (has_color && short_keys) {
+    tsdf_fuse_updates<uint32_t, tsdf::ColorVisit>(backend, config, frame, ray_count, map, scratch, stats, profile, stream);
+  } else if (has_color) {
+    tsdf_fuse_updates<uint64_t, tsdf::ColorVisit>(backend, config, frame, ray_count, map, scratch, stats, profile, stream);
+  } else if (short_keys) {
+    tsdf_fuse_updates<uint32_t, tsdf::DistanceUpdate>(backend, config, frame, ray_count, map, scratch, stats, profile,
+                                                      stream);
+  } else {
+    tsdf_fuse_updates<uint64_t, tsdf::DistanceUpdate>(backend, config, frame, ray_count, map, scratch, stats, profile,
+                                                      stream);
+  }
+}
+}  // namespace tsdf_detail
+
 template <class Backend>
 IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConfig& config,
                                        TsdfMap& map, const PointCloudView& cloud,
@@ -988,11 +1023,37 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
   }
   const tsdf::FrameKeyCodec codec = tsdf::make_frame_key_codec(tally.low_voxel(), tally.high_voxel(), voxels_per_side);
   // Every ray has at most voxels / kVoxelsPerPiece + 1 pieces: a bound known without a read-back.
-  const int64_t piece_bound = total_updates / tsdf::kVoxelsPerPiece + ray_count;
-  // (each ray's piece count was written with the ray, and a 0 after the last ray)
-  scratch.offsets.resize_discard(ray_count + 1);
+  int64_t piece_bound = total_updates / tsdf::kVoxelsPerPiece + ray_count;
   tsdf::RaySegment* rays = scratch.rays.data();
+  // (each ray's piece count was written with the ray, and a 0 after the last ray)
   const uint32_t* ray_pieces = scratch.counts.data();
+  if (tsdf_detail::frame_sums_every_visit(config, Backend::kDevice, codec, total_updates, has_color)) {
+    // Every visit summed: the rays are walked in groups (tsdf_traverse.h, RayGroups), from their
+    // piece counts and the groups' levels scanned, without a piece table. The launch covers
+    // about as many work items as there can be: a group has at most as many levels as its rays
+    // have pieces, and no more than a ray of max_ray_length_m + truncation can have (the loop
+    // over the items covers any excess).
+    const int64_t groups = tsdf::ray_group_count(ray_count);
+    scratch.offsets.resize_discard(groups + 1);
+    uint32_t* levels = scratch.offsets.data();
+    exclusive_scan_of<1>(backend, stream, groups + 1, [=] COVOX_HD(int64_t g) -> uint32_t {
+      return g < groups ? tsdf::ray_group_levels(ray_pieces, ray_count, g) : 0u;
+    }, levels);
+    const double longest_ray_voxels =
+        1.7320508 * (config.max_ray_length_m + config.truncation_distance_m) * inverse_voxel_size + 4.0;
+    const int64_t most_pieces = tsdf::ray_piece_count(static_cast<uint32_t>(std::min(longest_ray_voxels, 1.0e9)));
+    piece_bound = std::min(piece_bound, groups * std::max<int64_t>(1, most_pieces));
+    tsdf::FrameUpdates frame{codec,  total_updates, piece_bound,        nullptr,    nullptr,
+                             nullptr, rays,         colors,             intensities, grey_per_intensity,
+                             ray_weights, inverse_voxel_size, voxel_size, weight_parameters};
+    frame.ray_pieces = ray_pieces;
+    frame.group_levels = levels;
+    frame.ray_count = ray_count;
+    profile.mark("2a ray groups");
+    tsdf_detail::fuse_frame(backend, config, frame, has_color, ray_count, map, scratch, stats, profile, stream);
+    return stats;
+  }
+  scratch.offsets.resize_discard(ray_count + 1);
   exclusive_scan(backend, stream, ray_pieces, ray_count + 1, scratch.offsets.data());
   const uint32_t* first_piece = scratch.offsets.data();
   const uint32_t* piece_total = first_piece + ray_count;  // on the device
@@ -1063,18 +1124,7 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
                                   inverse_voxel_size,
                                   voxel_size,
                                   weight_parameters};
-  const bool short_keys = codec.key_bits <= 32;
-  if (has_color && short_keys) {
-    tsdf_fuse_updates<uint32_t, tsdf::ColorVisit>(backend, config, frame, ray_count, map, scratch, stats, profile, stream);
-  } else if (has_color) {
-    tsdf_fuse_updates<uint64_t, tsdf::ColorVisit>(backend, config, frame, ray_count, map, scratch, stats, profile, stream);
-  } else if (short_keys) {
-    tsdf_fuse_updates<uint32_t, tsdf::DistanceUpdate>(backend, config, frame, ray_count, map, scratch, stats, profile,
-                                                      stream);
-  } else {
-    tsdf_fuse_updates<uint64_t, tsdf::DistanceUpdate>(backend, config, frame, ray_count, map, scratch, stats, profile,
-                                                      stream);
-  }
+  tsdf_detail::fuse_frame(backend, config, frame, has_color, ray_count, map, scratch, stats, profile, stream);
   return stats;
 }
 

@@ -32,6 +32,7 @@
 #include "covoxslam/core/macros.h"
 #include "covoxslam/core/memory.h"
 #include "covoxslam/core/parallel.h"
+#include "covoxslam/core/sorted_search.h"
 #include "covoxslam/core/stream.h"
 #include "covoxslam/integrators/tsdf_kernels.h"
 
@@ -114,31 +115,39 @@ struct PieceTraversal {
   bool accumulate_free_space = true;  // false: free-space visits only leave their zero-weight record
   // When given (instead of free_space_sums), every kept visit adds its update to its voxel's cell
   // (tsdf_kernels.h) and leaves a zero-weight record; the traverse then keeps no record at all
-  // (sum_pieces). Visits outside the box are counted in *free_out_of_range.
+  // (sum_ray_groups). Visits outside the box are counted in *free_out_of_range.
   VoxelSumCells sum_cells;
 
+  // Piece p of the piece table, its records from piece_offsets[p] on.
   template <class Emit>
   COVOX_HD_INLINE void operator()(int64_t p, Emit&& emit) const {
     if (p >= *frame.piece_total) return;
     const RayPiece piece = frame.pieces[p];
-    const uint32_t i = piece.ray;
-    uint32_t out = piece_offsets[p];
-    const RaySegment ray = frame.rays[i];
-    const float ray_weight = ray_weight_of(frame, i);
+    const RaySegment ray = frame.rays[piece.ray];
     // The piece's cut voxels: from the piece table where it has them (its own first voxel, and
     // the next piece's or the ray's last voxel), else computed.
-    Index3D first, last;
     if (frame.piece_first_voxels) {
-      first = frame.piece_first_voxels[p];
-      last = piece.index + 1 == piece.pieces ? voxel_of(ray.end, frame.inverse_voxel_size)
-                                             : frame.piece_first_voxels[p + 1];
+      const Index3D last = piece.index + 1 == piece.pieces ? voxel_of(ray.end, frame.inverse_voxel_size)
+                                                           : frame.piece_first_voxels[p + 1];
+      visit_piece(ray, piece.ray, piece.index, piece.pieces, frame.piece_first_voxels[p], last, piece_offsets[p], emit);
     } else {
-      const RayEndVoxels ends = ray_end_voxels(ray, frame.inverse_voxel_size);
-      first = ray_cut_voxel(ray, ends, piece.index, piece.pieces, frame.inverse_voxel_size);
-      last = ray_cut_voxel(ray, ends, piece.index + 1, piece.pieces, frame.inverse_voxel_size);
+      visit_piece(ray, piece.ray, piece.index, piece.pieces, piece_offsets[p], emit);
     }
+  }
+  // Piece k of ray i's `pieces`, its cut voxels computed (records from `out` on).
+  template <class Emit>
+  COVOX_HD_INLINE void visit_piece(const RaySegment& ray, uint32_t i, uint32_t k, uint32_t pieces, uint32_t out,
+                                   Emit&& emit) const {
+    const RayEndVoxels ends = ray_end_voxels(ray, frame.inverse_voxel_size);
+    visit_piece(ray, i, k, pieces, ray_cut_voxel(ray, ends, k, pieces, frame.inverse_voxel_size),
+                ray_cut_voxel(ray, ends, k + 1, pieces, frame.inverse_voxel_size), out, emit);
+  }
+  template <class Emit>
+  COVOX_HD_INLINE void visit_piece(const RaySegment& ray, uint32_t i, uint32_t k, uint32_t pieces, const Index3D& first,
+                                   const Index3D& last, uint32_t out, Emit&& emit) const {
+    const float ray_weight = ray_weight_of(frame, i);
     uint64_t marked = ~uint64_t(0);  // the block this piece marked last (a piece spans one to three)
-    traverse_ray_piece(ray, piece.index, piece.pieces, first, last, frame.inverse_voxel_size,
+    traverse_ray_piece(ray, k, pieces, first, last, frame.inverse_voxel_size,
                        [&](const Index3D& voxel) {
       bool takes_color = false;
       const DistanceUpdate update = voxel_update(frame, ray, ray_weight, voxel, truncation, &takes_color);
@@ -262,15 +271,98 @@ void traverse_pieces(CpuBackend backend, const Stream& stream, int64_t piece_bou
   });
 }
 
-// With every visit summed (PieceTraversal::sum_cells) no record is kept: one thread per piece
-// walks it and adds its visits to the cells.
-template <class Backend, class KeyT, class ValueT>
-void sum_pieces(Backend backend, const Stream& stream, int64_t piece_bound, const PieceTraversal<KeyT, ValueT>& traversal) {
+// With every visit summed no record is kept, and the rays are walked in groups of kRayGroupRays
+// consecutive rays (neighbouring pixels or beams: their rays leave the sensor side by side), one
+// GPU warp per group and piece index ("level"): lane l walks piece k of the group's ray l, so that
+// at each step the lanes visit voxels at about the same distance along neighbouring rays, and
+// where they visit the same voxel (near the sensor) their free-space weights can go in one atomic
+// (VoxelSumCells::aggregate_in_warp). A group has as many levels as its longest ray has pieces;
+// the work items are the groups' levels, found from their scan. It needs no piece table, only
+// the rays' piece counts: on the H100 the frame loses the piece table's scan (27.7 us of a
+// 7-Scenes 2 cm frame) for the levels' (about 8 us), and the walk costs what one thread per piece
+// did (142 against 149 us there); docs/benchmarks.md, "eleventh pass".
+constexpr int kRayGroupRays = 32;
+struct RayGroups {
+  const uint32_t* ray_pieces;  // each ray's piece count
+  const uint32_t* levels;      // groups + 1 values: the exclusive scan of each group's levels
+  int64_t rays;
+  int64_t groups;
+};
+COVOX_HD_INLINE int64_t ray_group_count(int64_t rays) { return (rays + kRayGroupRays - 1) / kRayGroupRays; }
+// Group g's levels: its rays' most pieces. (The loads unrolled: issued together, not one after
+// the other.)
+COVOX_HD_INLINE uint32_t ray_group_levels(const uint32_t* ray_pieces, int64_t rays, int64_t g) {
+  const uint32_t* group = ray_pieces + g * kRayGroupRays;
+  const int64_t count = rays - g * kRayGroupRays;
+  uint32_t most = 0;
+#if COVOX_DEVICE_CODE
+#pragma unroll
+#endif
+  for (int l = 0; l < kRayGroupRays; ++l) {
+    const uint32_t pieces = l < count ? group[l] : 0u;
+    most = pieces > most ? pieces : most;
+  }
+  return most;
+}
+// Work item w (level k of group g): lane `lane` walks piece k of the group's ray `lane`, if that
+// ray has that many pieces.
+template <class KeyT, class ValueT>
+COVOX_HD_INLINE void sum_ray_group_piece(const PieceTraversal<KeyT, ValueT>& traversal, const RayGroups& groups,
+                                         int64_t w, int lane) {
+  const int64_t g = lower_bound_index(groups.levels, groups.groups + 1, static_cast<uint32_t>(w + 1)) - 1;
+  const uint32_t k = static_cast<uint32_t>(w) - groups.levels[g];
+  const int64_t i = g * kRayGroupRays + lane;
+  if (i >= groups.rays) return;
+  const uint32_t pieces = groups.ray_pieces[i];
+  if (k >= pieces) return;
+  traversal.visit_piece(traversal.frame.rays[i], static_cast<uint32_t>(i), k, pieces, 0u,
+                        [](uint32_t, KeyT, const ValueT&) {});
+}
+// The CPU twin: one call per work item, its lanes in turn.
+template <class KeyT, class ValueT>
+void sum_ray_groups(CpuBackend backend, const Stream& stream, int64_t, const PieceTraversal<KeyT, ValueT>& traversal,
+                    const RayGroups& groups) {
   if (!traversal.sum_cells.words) throw Error("TSDF traverse: every visit's sum asked without cells to add it to");
-  parallel_for(backend, stream, piece_bound, [=] COVOX_HD(int64_t p) {
-    traversal(p, [](uint32_t, KeyT, const ValueT&) {});
+  const int64_t items = groups.levels[groups.groups];
+  parallel_for(backend, stream, items, [&](int64_t w) {
+    for (int lane = 0; lane < kRayGroupRays; ++lane) sum_ray_group_piece(traversal, groups, w, lane);
   });
 }
+
+#if defined(__CUDACC__)
+namespace detail {
+constexpr int kRayGroupThreads = 128;
+// One warp per work item, in a grid-stride loop up to the items' total (on the device). (Tried on
+// the H100, 2026-11-26: four consecutive items per warp, one search for them, 1.05-1.40x slower,
+// the fewer warps hiding less latency; 40-51 registers instead of 99 for more resident warps
+// spilled, 1.04-1.17x slower.)
+template <class KeyT, class ValueT>
+__global__ void __launch_bounds__(kRayGroupThreads) sum_ray_groups_kernel(PieceTraversal<KeyT, ValueT> traversal,
+                                                                          RayGroups groups) {
+  static_assert(kRayGroupRays == 32, "one lane per ray of a group");
+  const int64_t items = groups.levels[groups.groups];
+  const int64_t warps = static_cast<int64_t>(gridDim.x) * (kRayGroupThreads / 32);
+  for (int64_t w = (static_cast<int64_t>(blockIdx.x) * kRayGroupThreads + threadIdx.x) / 32; w < items; w += warps) {
+    sum_ray_group_piece(traversal, groups, w, static_cast<int>(threadIdx.x & 31u));
+  }
+}
+}  // namespace detail
+
+// `item_bound`: about how many work items there can be (the launch's size; the loop covers more).
+template <class KeyT, class ValueT>
+void sum_ray_groups(CudaBackend, const Stream& stream, int64_t item_bound, const PieceTraversal<KeyT, ValueT>& traversal,
+                    const RayGroups& groups) {
+  if (!traversal.sum_cells.words) throw Error("TSDF traverse: every visit's sum asked without cells to add it to");
+  if (groups.groups <= 0) return;
+  constexpr int64_t kWarpsPerBlock = detail::kRayGroupThreads / 32;
+  const int64_t blocks = std::min<int64_t>(std::max<int64_t>(1, (item_bound + kWarpsPerBlock - 1) / kWarpsPerBlock),
+                                           int64_t(1) << 16);
+  detail::sum_ray_groups_kernel<KeyT, ValueT>
+      <<<static_cast<unsigned>(blocks), detail::kRayGroupThreads, 0, static_cast<cudaStream_t>(stream.native_handle())>>>(
+          traversal, groups);
+  cuda_check(cudaGetLastError(), "TSDF ray groups kernel launch");
+}
+#endif
 
 #if defined(__CUDACC__)
 namespace detail {
