@@ -334,8 +334,9 @@ namespace detail {
 constexpr int kRayGroupThreads = 128;
 // One warp per work item, in a grid-stride loop up to the items' total (on the device). (Tried on
 // the H100, 2026-11-26: four consecutive items per warp, one search for them, 1.05-1.40x slower,
-// the fewer warps hiding less latency; 40-51 registers instead of 99 for more resident warps
-// spilled, 1.04-1.17x slower.)
+// the fewer warps hiding less latency; 40-51 registers instead of 94-99 for more resident warps
+// spilled, 1.04-1.17x slower; 64 registers (32 bytes spilled) 0.94-0.99x, within the runs'
+// spread.)
 template <class KeyT, class ValueT>
 __global__ void __launch_bounds__(kRayGroupThreads) sum_ray_groups_kernel(PieceTraversal<KeyT, ValueT> traversal,
                                                                           RayGroups groups) {
