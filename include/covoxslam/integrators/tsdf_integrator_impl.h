@@ -1135,12 +1135,21 @@ void tsdf_unproject_depth(Backend backend, const DepthImageView& image, TsdfScra
   const int64_t pixels = static_cast<int64_t>(k.width) * k.height;
   scratch.points.resize_discard(pixels);
   Vec3f* points = scratch.points.data();
+  const Rgb8* image_colors = image.colors;
+  Rgb8* colors = nullptr;
+  if (image_colors) {
+    scratch.colors.resize_discard(pixels);
+    colors = scratch.colors.data();
+  }
   const uint16_t* depth = image.depth;
   const float* depth_m = image.depth_m;
   const float metres_per_unit = 1.0f / image.depth_units_per_m;
   const uint16_t invalid = image.invalid_value;
   const float inverse_fx = 1.0f / k.fx, inverse_fy = 1.0f / k.fy;
   parallel_for(backend, stream, pixels, [=] COVOX_HD(int64_t p) {
+    const int32_t u = static_cast<int32_t>(p % k.width), v = static_cast<int32_t>(p / k.width);
+    const int64_t out = tsdf::pixel_tile_order(u, v, k.width, k.height);
+    if (colors) colors[out] = image_colors[p];
     float z = 0.0f;
     if (depth_m) {
       z = depth_m[p];
@@ -1150,11 +1159,10 @@ void tsdf_unproject_depth(Backend backend, const DepthImageView& image, TsdfScra
       z = (raw == 0 || raw == invalid) ? 0.0f : raw * metres_per_unit;
     }
     if (z == 0.0f) {
-      points[p] = Vec3f(0.0f, 0.0f, 0.0f);  // dropped (and counted) as a zero point
+      points[out] = Vec3f(0.0f, 0.0f, 0.0f);  // dropped (and counted) as a zero point
       return;
     }
-    const float u = static_cast<float>(p % k.width), v = static_cast<float>(p / k.width);
-    points[p] = Vec3f((u - k.cx) * z * inverse_fx, (v - k.cy) * z * inverse_fy, z);
+    points[out] = Vec3f((static_cast<float>(u) - k.cx) * z * inverse_fx, (static_cast<float>(v) - k.cy) * z * inverse_fy, z);
   });
 }
 
