@@ -69,9 +69,9 @@ struct TsdfIntegratorConfig {
   // When every visit is summed on the GPU: the free-space visits that a warp's lanes (32
   // neighbouring rays, walked side by side) make to one voxel at one step add their weights in
   // one atomic. The same map (integer sums). It pays where many rays cross the same voxels near
-  // the sensor and costs the matching where few do (H100, two same-run A/Bs, 2026-11-26, frame
-  // time with it / without: OS1-64 at 0.1 m 0.86-0.89, at 0.2 m 0.97-1.05, KITTI 1.06-1.08,
-  // 7-Scenes 5 cm 1.06-1.07, 2 cm 1.03-1.05; docs/benchmarks.md, "eleventh pass"); off by
+  // the sensor and costs the matching where few do (H100, three same-run A/Bs, 2026-11-26, frame
+  // time with it / without: OS1-64 at 0.1 m 0.86-0.91, at 0.2 m 0.97-1.08, KITTI 1.06-1.22,
+  // 7-Scenes 5 cm 1.06-1.07, 2 cm 1.03-1.15; docs/benchmarks.md, "eleventh pass"); off by
   // default. Ignored by the CPU twin, whose "warp" is one ray.
   bool aggregate_free_space_in_warp = false;
 };
