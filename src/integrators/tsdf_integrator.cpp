@@ -164,7 +164,7 @@ IntegrationStats TsdfIntegrator::integrate_depth(TsdfMap& map, const DepthImageV
   StageProfiler::Scope profile("tsdf depth", stream);
   dispatch(map.device(), [&](auto backend) { tsdf_unproject_depth(backend, image, scratch_->buffers, stream); });
   profile.mark("unproject");
-  // (the points and colours in tile order: tsdf_integrator_impl.h, pixel_tile_order)
+  // (the points and colours in tile order: tsdf::pixel_tile_order, tsdf_kernels.h)
   const PointCloudView view{scratch_->buffers.points.data(), image.colors ? scratch_->buffers.colors.data() : nullptr,
                             static_cast<int64_t>(k.width) * k.height};
   return integrate(map, view, T_map_camera, stream);

@@ -45,7 +45,9 @@
 // float rounding: the GPU adds a long run's pieces as a tree) and a comment saying why: step 3's
 // grouping (with it the counts of dropped records, which the GPU finds where their runs start in
 // its sorted keys), the piece table of step 2 (written one ray at a time, its cut voxels kept for
-// the traverse; on the GPU one thread per piece, inside the scan of the pieces' sizes), the
+// the traverse; on the GPU one thread per piece, inside the scan of the pieces' sizes; a frame
+// that sums every visit - on the GPU almost always, on the CPU twin only in the tests - has no
+// piece table on either backend and walks its rays in groups), the
 // merge's tally (a reduction instead of per-warp atomics), and step 4's activation (queued on the
 // GPU for the blocks counted on the device, its totals read back while the records sort; on the
 // CPU after reading the count, which costs nothing there).
@@ -129,7 +131,8 @@ class TsdfIntegrator {
   // Host-memory convenience: uploads, then integrates.
   IntegrationStats integrate(TsdfMap& map, const std::vector<Vec3f>& points,
                              const std::vector<Rgb8>& colors, const Eigen::Isometry3d& T_map_sensor);
-  // Unprojects a depth image on the device, then integrates the points.
+  // Unprojects a depth image on the device (its points and colours in tiles of 8 x 4 pixels:
+  // tsdf::pixel_tile_order), then integrates the points.
   IntegrationStats integrate_depth(TsdfMap& map, const DepthImageView& image,
                                    const Eigen::Isometry3d& T_map_camera, const Stream& stream);
 

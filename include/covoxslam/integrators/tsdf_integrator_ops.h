@@ -105,8 +105,8 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
                                        TsdfScratchBuffers& scratch, const Stream& stream);
 
 // Writes width*height points (invalid pixels become (0,0,0), which integration drops as zero
-// points) and colours into scratch.points / scratch.colors, in tile order (pixel_tile_order,
-// tsdf_integrator_impl.h).
+// points) and colours into scratch.points / scratch.colors, in tile order (tsdf::pixel_tile_order,
+// tsdf_kernels.h).
 template <class Backend>
 void tsdf_unproject_depth(Backend backend, const DepthImageView& image, TsdfScratchBuffers& scratch,
                           const Stream& stream);
