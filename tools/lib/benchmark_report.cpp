@@ -1,6 +1,5 @@
 #include "benchmark_report.h"
 
-
 #include <algorithm>
 #include <cctype>
 #include <cmath>

@@ -548,10 +548,8 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   // uses_free_space_sums): the band's visits are then at most band_bound records.
   const uint64_t box_cells = codec.out_of_range_key;  // one per key of the box
   const int cell_words = kColored ? tsdf::kSumCellWords : 2;
-  const bool sum_every_visit = tsdf_detail::frame_sums_every_visit(config, Backend::kDevice, codec, total_updates, kColored);
-  if ((frame.group_levels != nullptr) != sum_every_visit) {  // (decided alike in tsdf_integrate_points)
-    throw Error("TSDF integrator: ray groups and summing every visit disagree (internal error; please report it)");
-  }
+  // (decided once, in tsdf_integrate_points: such a frame comes with its ray groups)
+  const bool sum_every_visit = frame.group_levels != nullptr;
   const int64_t band_bound =
       std::min<int64_t>(total_updates, ray_count * tsdf::band_visits_per_ray_bound(truncation, frame.voxel_size));
   uint64_t* free_space_sums = nullptr;
