@@ -469,6 +469,53 @@ TEST_P(TsdfIntegratorTest, SameInputTwiceGivesBitIdenticalMaps) {
   expect_bit_identical_tsdf(snapshots[0], snapshots[1]);
 }
 
+// An erased block's slot goes back to the table's free stack, and a later frame that activates a
+// block may get it, stale voxels and all: the frame must find such a block as empty as a block
+// that never existed, whichever way it writes its voxels (the GPU's default path and every visit
+// summed on the CPU clear the new blocks in their pass over the summed cells, the CPU's default
+// path in a kernel of its own). Reference: a fresh map that integrates only the last frame.
+TEST_P(TsdfIntegratorTest, ErasedBlocksComeBackEmpty) {
+  const AnalyticScene scene = make_scene(Shape::kBox);
+  const auto poses = viewpoints();
+  for (const bool every_visit_summed : {false, true}) {
+    SCOPED_TRACE(every_visit_summed ? "every visit summed" : "default path");
+    TsdfIntegratorConfig config = analytic_config(0.1f);
+    if (every_visit_summed) config.free_space_sums_min_visits = 0;
+    TsdfIntegrator integrator(config);
+    TsdfMap reused(device(), TsdfMapConfig{0.1f, 8, {}});
+    TsdfMap fresh(device(), TsdfMapConfig{0.1f, 8, {}});
+    const std::vector<Vec3f> last = testing_support::simulate_lidar(scene, poses[0], 512, 32, 60.0, 9.5);
+    const std::vector<Rgb8> last_colours(last.size(), Rgb8{20, 140, 230});
+    for (const auto& pose : poses) {
+      const std::vector<Vec3f> points = testing_support::simulate_lidar(scene, pose, 512, 32, 60.0, 9.5);
+      integrator.integrate(reused, points, std::vector<Rgb8>(points.size(), Rgb8{250, 5, 5}), pose);
+    }
+    std::vector<Index3D> keys;
+    for (const HostBlock& block : reused.snapshot()) keys.push_back(block.index);
+    ASSERT_GT(keys.size(), 10u);
+    const Buffer<Index3D> device_keys = Buffer<Index3D>::from_host(device(), keys);
+    ASSERT_EQ(reused.blocks().erase(device_keys.data(), static_cast<int64_t>(keys.size())),
+              static_cast<int64_t>(keys.size()));
+    ASSERT_EQ(reused.block_count(), 0);
+    const IntegrationStats again = integrator.integrate(reused, last, last_colours, poses[0]);
+    const IntegrationStats once = integrator.integrate(fresh, last, last_colours, poses[0]);
+    EXPECT_EQ(again.blocks_allocated, once.blocks_allocated);
+    EXPECT_EQ(again.voxels_updated, once.voxels_updated);
+    const std::vector<HostBlock> a = reused.snapshot(), b = fresh.snapshot();
+    expect_bit_identical_tsdf(a, b);
+    for (size_t k = 0; k < a.size() && k < b.size(); ++k) {
+      for (size_t v = 0; v < a[k].color.size(); ++v) {  // (field by field: the struct has padding)
+        const ColorVoxel& x = a[k].color[v];
+        const ColorVoxel& y = b[k].color[v];
+        ASSERT_TRUE(x.r == y.r && x.g == y.g && x.b == y.b && x.weight == y.weight)
+            << "colour of voxel " << v << " of block " << k << ": " << int(x.r) << " " << int(x.g) << " " << int(x.b)
+            << " weight " << x.weight << " against " << int(y.r) << " " << int(y.g) << " " << int(y.b) << " weight "
+            << y.weight;
+      }
+    }
+  }
+}
+
 // The merged method's bundle table lives with the integrator and is cleaned by each frame as it
 // uses it, not cleared before the next. A frame must therefore come out the same whether the
 // integrator merged other frames before it (here into another map) or not: bit-identical maps.

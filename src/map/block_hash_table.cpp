@@ -48,10 +48,10 @@ ActivateResult BlockHashTable::activate(const Index3D* keys, int64_t count, uint
 
 bool BlockHashTable::activate_queued(const Index3D* keys, const uint32_t* count_on_device, int64_t count_bound,
                                      uint32_t* slots_out, uint8_t* is_new_out, uint32_t* totals_out,
-                                     const Stream& stream) {
+                                     const Stream& stream, bool keys_distinct) {
   return dispatch(state_.device, [&](auto backend) {
     return hash_table_activate_queued(backend, state_, keys, count_on_device, count_bound, slots_out, is_new_out,
-                                      totals_out, stream);
+                                      totals_out, keys_distinct, stream);
   });
 }
 

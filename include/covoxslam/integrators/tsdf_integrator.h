@@ -26,7 +26,9 @@
 //   4. the marked blocks are listed (a scan of the marks) and allocated in one
 //      BlockHashTable::activate batch, before step 3 on the GPU, whose sort then hides the wait
 //      for the activation's totals (for boxes with more blocks than records, listed from the
-//      sorted records after step 3 instead);
+//      sorted records after step 3 instead); a small frame that sums every visit does not wait
+//      for them at all: its pass reads the block count on the device, and the totals come back
+//      at the frame's end;
 //   5. each voxel's records are summed (a segmented reduction in tiles, core/run_sums.h) and
 //      the sum, with the voxel's free-space sum, goes straight into one weighted-average write
 //      per distinct voxel; a pass over the listed blocks' cells then writes the voxels that had

@@ -36,6 +36,7 @@ struct RayTally {
   int64_t cast = 0;                       // surface and clearing rays (after merging)
   int64_t rays = 0;                       // merged rays, of every kind
   int64_t voxels = 0;
+  int32_t most_pieces = 0;  // the longest ray's pieces: the ray groups' levels (tsdf_traverse.h)
   int32_t low[3] = {INT32_MAX, INT32_MAX, INT32_MAX};
   int32_t high[3] = {INT32_MIN, INT32_MIN, INT32_MIN};
 
@@ -50,6 +51,7 @@ COVOX_HD_INLINE RayTally tally_ray(const tsdf::RaySegment& ray, int64_t points, 
   for (int k = 0; k < 6; ++k) tally.kinds[k] = ray.kind == k ? points : 0;
   tally.cast = ray.kind <= tsdf::kClearingRay ? 1 : 0;
   tally.voxels = tsdf::ray_voxel_count(ray, inverse_voxel_size);
+  tally.most_pieces = static_cast<int32_t>(tsdf::ray_piece_count(static_cast<uint32_t>(tally.voxels)));
   if (ray.kind <= tsdf::kClearingRay) {  // a segment's voxels lie in the box of its end voxels
     const Index3D a = tsdf::voxel_of(ray.start, inverse_voxel_size);
     const Index3D b = tsdf::voxel_of(ray.end, inverse_voxel_size);
@@ -76,6 +78,7 @@ struct AddTallies {
     sum.cast = a.cast + b.cast;
     sum.rays = a.rays + b.rays;
     sum.voxels = a.voxels + b.voxels;
+    sum.most_pieces = a.most_pieces > b.most_pieces ? a.most_pieces : b.most_pieces;
     for (int axis = 0; axis < 3; ++axis) {
       sum.low[axis] = a.low[axis] < b.low[axis] ? a.low[axis] : b.low[axis];
       sum.high[axis] = a.high[axis] > b.high[axis] ? a.high[axis] : b.high[axis];
@@ -117,6 +120,27 @@ COVOX_HD_INLINE void blend_color(const ColorView& color_view, int64_t index, con
   color.weight = color_combined < max_weight ? color_combined : max_weight;
   color_view.store(index, color);
 }
+
+// A voxel's one write per frame: the weighted average of the voxel and the frame's sum of its
+// visits (DistanceUpdate, or VoxelUpdate with colour). Holds the pools' views: taken again after
+// the pools grow.
+struct VoxelMerge {
+  TsdfMap::TsdfStorage::View tsdf_view;
+  TsdfMap::ColorStorage::View color_view;
+  float truncation;
+  float max_weight;
+  template <class SumT>
+  COVOX_HD_INLINE void operator()(int64_t index, const SumT& update) const {
+    TsdfVoxel voxel = tsdf_view.load(index);
+    const float combined = voxel.weight + update.weight;
+    float distance = (voxel.distance_m * voxel.weight + update.weighted_distance) / combined;
+    distance = distance > truncation ? truncation : (distance < -truncation ? -truncation : distance);
+    voxel.distance_m = distance;
+    voxel.weight = combined < max_weight ? combined : max_weight;
+    tsdf_view.store(index, voxel);
+    blend_color(color_view, index, update, max_weight);
+  }
+};
 
 // The frame's figures that step 4 and step 5 leave on the device (scratch.readback), by word.
 constexpr int kFrameCountWords = 12;
@@ -183,6 +207,24 @@ inline DroppedRecords dropped_records(const FrameCounts& counts, int64_t record_
     dropped.out_of_range = end - (counts.out_of_range_first - 1);
   }
   return dropped;
+}
+
+// A frame that sums every visit defers its activation's totals (step 4) when its listed blocks'
+// cells are bounded by this many: then the wait is what the frame saves, not the pass's time lost
+// to the loose bound (below). Larger frames (7-Scenes 2 cm, LiDAR) wait: their passes started
+// that way took longer than the wait saved (H100: KITTI's pass 51 -> 72 us, "twelfth pass").
+constexpr int64_t kDeferredPassMaxCells = int64_t(1) << 20;
+
+// Threads for a pass whose work items the host knows only by a bound (`bound`: `extra` items
+// and the cells of the blocks the frame lists, whose count is on the device), in a grid-stride
+// loop over the count. The bound is loose (the frame's box's blocks: 4 times the listed ones in a
+// 7-Scenes 5 cm frame, 10 times at 2 cm), and threads past the count cost their launch (the 5 cm
+// frame's pass 8 -> 11 us on the H100 with 2^18 threads); the listed blocks change little from
+// frame to frame, so the pass starts 1.5 times as many threads as the last frame's cells
+// (`last_cells`, negative when unknown: then at most 2^20) and the loop covers any more.
+inline int64_t counted_pass_threads(int64_t bound, int64_t extra, int64_t last_cells) {
+  const int64_t wanted = last_cells >= 0 ? extra + last_cells + last_cells / 2 + 1024 : int64_t(1) << 20;
+  return std::max<int64_t>(1, std::min(bound, wanted));
 }
 
 // The slot of a kept record's block, from the block's rank among the listed blocks: by its number
@@ -458,7 +500,7 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
       ray_colors[m] = color;
       own = tsdf_detail::tally_ray(ray, count, inverse_voxel_size);
       own.rays = 1;
-      ray_pieces[m] = tsdf::ray_piece_count(static_cast<uint32_t>(own.voxels));
+      ray_pieces[m] = static_cast<uint32_t>(own.most_pieces);
       if (ray.kind > tsdf::kClearingRay) {  // rare: a bundle's mean point dropped (closer than min_ray_length_m)
         atomic_add(&stripes[tsdf::merge_tally_stripe(i)].kinds[ray.kind], static_cast<uint64_t>(count));
       }
@@ -471,6 +513,7 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
     const uint32_t rays = sum32(own.rays);
     const uint32_t cast = sum32(own.cast);
     const uint32_t visits = sum32(own.voxels);
+    const int32_t most_pieces = warp_max(lanes, own.most_pieces);
     const int32_t box[6] = {warp_min(lanes, own.low[0]),  warp_min(lanes, own.low[1]),  warp_min(lanes, own.low[2]),
                             warp_max(lanes, own.high[0]), warp_max(lanes, own.high[1]), warp_max(lanes, own.high[2])};
     if (warp_lane() != warp_first_lane(lanes)) return;
@@ -480,6 +523,7 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
     atomic_add(&stripe.cast, static_cast<uint64_t>(cast));
     atomic_add(&stripe.rays, static_cast<uint64_t>(rays));
     atomic_add(&stripe.voxels, static_cast<uint64_t>(visits));
+    atomic_max(&stripe.most_pieces, most_pieces);
     for (int axis = 0; axis < 3; ++axis) {
       atomic_min(&stripe.low[axis], box[axis]);
       atomic_max(&stripe.high[axis], box[3 + axis]);
@@ -496,6 +540,7 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
     part.cast = static_cast<int64_t>(stripe.cast);
     part.rays = static_cast<int64_t>(stripe.rays);
     part.voxels = static_cast<int64_t>(stripe.voxels);
+    part.most_pieces = stripe.most_pieces;
     for (int axis = 0; axis < 3; ++axis) {
       part.low[axis] = stripe.low[axis];
       part.high[axis] = stripe.high[axis];
@@ -549,7 +594,7 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   const uint64_t box_cells = codec.out_of_range_key;  // one per key of the box
   const int cell_words = kColored ? tsdf::kSumCellWords : 2;
   // (decided once, in tsdf_integrate_points: such a frame comes with its ray groups)
-  const bool sum_every_visit = frame.group_levels != nullptr;
+  const bool sum_every_visit = frame.walks_ray_groups;
   const int64_t band_bound =
       std::min<int64_t>(total_updates, ray_count * tsdf::band_visits_per_ray_bound(truncation, frame.voxel_size));
   uint64_t* free_space_sums = nullptr;
@@ -601,8 +646,8 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   }
   int64_t record_count = total_updates;  // the records step 5 reads (the dropped ones sort last)
   if (sum_every_visit) {
-    tsdf::sum_ray_groups(backend, stream, frame.piece_bound, traversal,
-                         tsdf::RayGroups{frame.ray_pieces, frame.group_levels, frame.ray_count,
+    tsdf::sum_ray_groups(backend, stream, traversal,
+                         tsdf::RayGroups{frame.ray_pieces, frame.most_ray_pieces, frame.ray_count,
                                          tsdf::ray_group_count(frame.ray_count)});
     record_count = 0;
   } else {
@@ -672,7 +717,8 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
     if (Backend::kDevice != Device::kCpu) {
       queued = map.blocks().activate_queued(block_indices, counts_on_device + tsdf_detail::kBlockCountWord, block_bound,
                                             slots, scratch.is_new.data(),
-                                            counts_on_device + tsdf_detail::kActivationWords, stream);
+                                            counts_on_device + tsdf_detail::kActivationWords, stream,
+                                            true);  // (a frame lists each of its blocks once)
     }
     if (!queued) {
       counts = tsdf_detail::read_frame_counts(scratch, stream);
@@ -735,7 +781,17 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
     activate_listed_blocks();
     profile.mark("4a list and activate sorted blocks");
   }
-  if (activation_totals) {
+  // A frame that sums every visit does not wait for the queued activation's totals at all: its
+  // pass over the listed blocks' cells (step 5) reads the block count on the device and writes
+  // the blocks whose slots the voxel pool already holds; the totals come back with the frame's
+  // other figures at its end, where any block whose new slot lies past the pool is written by a
+  // second pass once the pool has grown (rare: the pool grows geometrically). One wait and one
+  // launch fewer per frame (the new blocks are cleared by the pass too); "twelfth pass".
+  const bool activation_deferred = sum_every_visit && activation_totals.has_value() &&
+                                   block_bound * map.voxels_per_block() <= tsdf_detail::kDeferredPassMaxCells;
+  if (activation_deferred) {
+    activation_totals.reset();  // (nothing to wait for: the figures come back at the end)
+  } else if (activation_totals) {
     uint32_t totals[3];
     activation_totals->wait(totals);
     counts.blocks = totals[0];
@@ -747,6 +803,9 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   stats.blocks_allocated = activation.num_new;
   profile.mark("4b hash activate");
   map.ensure_pool_capacity(stream);
+  // The slots below this one have voxels in the pool (with the activation deferred, new ones past
+  // it wait for the second pass).
+  const uint32_t pool_slots = static_cast<uint32_t>(std::min<int64_t>(map.pool_slots(), kInvalidSlot));
   profile.mark("4c pool capacity");
 
   // Clear new blocks: a new block may reuse the slot of an erased one. (The voxel writes below
@@ -757,7 +816,7 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   auto esdf_view = map.esdf().view();
   const uint8_t* is_new = scratch.is_new.data();
   const int64_t voxels_per_block = map.voxels_per_block();
-  if (activation.num_new > 0) {
+  if (activation.num_new > 0 && !sum_every_visit) {  // (with every visit summed, the pass clears them)
     parallel_for(backend, stream, int64_t(counts.blocks) * voxels_per_block, [=] COVOX_HD(int64_t i) {
       const int64_t b = i / voxels_per_block;
       if (!is_new[b] || slots[b] == kInvalidSlot) return;
@@ -774,17 +833,7 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   //    records (sorted last) only leave their first index, from which their counts follow.
   const tsdf_detail::RecordSlots record_slots{codec, box_ranks, slots, block_ranks, block_flags};
   const float max_weight = config.max_weight;
-  // A voxel's one write: the weighted average of the voxel and its frame's sum.
-  const auto merge_into_voxel = [=] COVOX_HD(int64_t index, const SumT& update) {
-    TsdfVoxel voxel = tsdf_view.load(index);
-    const float combined = voxel.weight + update.weight;
-    float distance = (voxel.distance_m * voxel.weight + update.weighted_distance) / combined;
-    distance = distance > truncation ? truncation : (distance < -truncation ? -truncation : distance);
-    voxel.distance_m = distance;
-    voxel.weight = combined < max_weight ? combined : max_weight;
-    tsdf_view.store(index, voxel);
-    tsdf_detail::blend_color(color_view, index, update, max_weight);
-  };
+  const tsdf_detail::VoxelMerge merge_into_voxel{tsdf_view, color_view, truncation, max_weight};
   const auto write_voxel = [=] COVOX_HD(int64_t j, const SumT& band_update) {
     const KeyT key = record_keys[j];
     if (key >= out_of_range_key) {
@@ -824,29 +873,56 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
     consume_run_sums<SumT>(backend, stream, record_keys, record_count, tsdf_detail::ArrayTerm<SumT>{values},
                            tsdf::MergeUpdates(), write_voxel, scratch.run_tile_parts, runs_counted, live_records);
   }
-  if (free_out_of_range) {
-    // The voxels with free-space visits only (with every visit summed: every voxel): every cell of
-    // the listed blocks read (and cleared); one thread past them hands over the count of summed
-    // visits outside the box; the merge's tally stripes, if any, are cleared by threads after it
-    // (tsdf_detail::reset_merge_tally).
-    const int64_t cells = static_cast<int64_t>(counts.blocks) * voxels_per_block;
-    const int32_t voxels_per_side = codec.voxels_per_side;
-    const int voxel_bits = codec.voxel_bits;
-    tsdf::MergeTallyStripe* tally_stripes = tsdf_detail::merge_tally_to_reset(scratch);
-    const int64_t stripe_threads = tally_stripes ? tsdf::kMergeTallyStripes : 0;
-    parallel_for(backend, stream, cells + 1 + stripe_threads, [=] COVOX_HD(int64_t i) {
-      if (i > cells) {  // after the cells and the hand-over: one of the tally's stripes
-        tally_stripes[i - cells - 1].reset();
-        return;
-      }
-      bool written = false, rejected = false;
-      if (i < cells) {
+  // The voxels with free-space visits only (with every visit summed: every voxel): every cell of
+  // the listed blocks read (and cleared), a new block's voxels cleared first when every visit is
+  // summed; the first pass also hands over the count of summed visits outside the box and clears
+  // the merge's tally stripes, if any (tsdf_detail::reset_merge_tally). A pass writes the blocks
+  // whose slots lie in [slot_begin, slot_end) (and, the first, counts the rejected blocks'
+  // visited cells), leaving the others' cells for the second. `device_blocks`: the listed blocks'
+  // count on the device, `blocks` then only its bound (a grid-stride loop covers the count).
+  const int32_t voxels_per_side = codec.voxels_per_side;
+  const int voxel_bits = codec.voxel_bits;
+  const auto write_listed_cells = [&](bool first_pass, int64_t blocks, const uint32_t* device_blocks,
+                                      uint32_t slot_begin, uint32_t slot_end) {
+    // (the pools' views taken now: the second pass runs after they grew)
+    const auto tsdf_view = map.tsdf().view();
+    const auto color_view = map.color().view();
+    const auto esdf_view = map.esdf().view();
+    uint8_t* block_changed = map.block_changed().data();
+    const tsdf_detail::VoxelMerge merge_into_voxel{tsdf_view, color_view, truncation, max_weight};
+    tsdf::MergeTallyStripe* tally_stripes = first_pass ? tsdf_detail::merge_tally_to_reset(scratch) : nullptr;
+    const int64_t extra = first_pass ? 1 + (tally_stripes ? tsdf::kMergeTallyStripes : 0) : 0;
+    const int64_t bound = extra + blocks * voxels_per_block;
+    const int64_t threads =
+        device_blocks ? tsdf_detail::counted_pass_threads(bound, extra, scratch.last_listed_blocks * voxels_per_block)
+                      : bound;
+    parallel_for(backend, stream, threads, [=] COVOX_HD(int64_t t) {
+      // the cells first (a warp's 32 cells aligned), then the extra items
+      const int64_t cells = device_blocks ? static_cast<int64_t>(*device_blocks) * voxels_per_block : bound - extra;
+      uint32_t written = 0, rejected = 0;
+      for (int64_t i = t; i < cells + extra; i += threads) {
+        if (i >= cells) {  // the hand-over, then the tally's stripes
+          if (i == cells) {
+            counts_on_device[tsdf_detail::kFreeOutOfRangeWord] = static_cast<uint32_t>(*free_out_of_range);
+            *free_out_of_range = 0;
+          } else {
+            tally_stripes[i - cells - 1].reset();
+          }
+          continue;
+        }
         const int64_t b = i >> voxel_bits;  // voxels_per_block = 2^voxel_bits (no 64-bit division)
+        const uint32_t slot = slots[b];
+        if (slot == kInvalidSlot ? !first_pass : (slot < slot_begin || slot >= slot_end)) continue;
         const Index3D block = block_indices[b];
         const uint64_t block_key =
             codec.key(Index3D(block.x * voxels_per_side, block.y * voxels_per_side, block.z * voxels_per_side));
         const uint64_t key = block_key | static_cast<uint64_t>(i & (voxels_per_block - 1));
-        const uint32_t slot = slots[b];
+        const int64_t index = static_cast<int64_t>(slot) * voxels_per_block + (key & ((uint64_t(1) << voxel_bits) - 1));
+        if (sum_every_visit && slot != kInvalidSlot && is_new[b]) {  // a new block may reuse an erased one's slot
+          tsdf_view.store(index, TsdfVoxel{});
+          color_view.store(index, ColorVoxel{});
+          esdf_view.store(index, EsdfVoxel{});
+        }
         SumT update{};
         bool visited = false;
         if (sum_cells.words) {
@@ -856,36 +932,48 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
           tsdf_detail::add_free_space_sum(update, units, truncation);
           visited = true;
         }
-        if (visited) {
-          rejected = slot == kInvalidSlot;
-          written = !rejected;
-          if (written) {
-            merge_into_voxel(static_cast<int64_t>(slot) * voxels_per_block + (key & ((uint64_t(1) << voxel_bits) - 1)),
-                             update);
-          }
+        if (visited && slot == kInvalidSlot) ++rejected;
+        if (visited && slot != kInvalidSlot) {
+          ++written;
+          merge_into_voxel(index, update);
         }
         // Every listed block has a kept visit, so it changes (the band's writes mark theirs too).
         if ((i & (voxels_per_block - 1)) == 0 && slot != kInvalidSlot) block_changed[slot] = kAllPending;
-      } else {
-        counts_on_device[tsdf_detail::kFreeOutOfRangeWord] = static_cast<uint32_t>(*free_out_of_range);
-        *free_out_of_range = 0;
       }
       const uint32_t lanes = warp_lanes();
-      const uint32_t written_in_warp = warp_sum(lanes, written ? 1u : 0u);
-      const uint32_t rejected_in_warp = warp_sum(lanes, rejected ? 1u : 0u);
+      const uint32_t written_in_warp = warp_sum(lanes, written);
+      const uint32_t rejected_in_warp = warp_sum(lanes, rejected);
       if (warp_lane() == warp_first_lane(lanes)) {
         if (written_in_warp) atomic_add(&counts_on_device[tsdf_detail::kFreeOnlyVoxelsWord], written_in_warp);
         if (rejected_in_warp) atomic_add(&counts_on_device[tsdf_detail::kFreeRejectedWord], rejected_in_warp);
       }
     });
-    scratch.fixed_point_sums_clean = true;
     if (tally_stripes) scratch.merge_tally_clean = true;
+  };
+  if (free_out_of_range) {
+    if (activation_deferred) {
+      write_listed_cells(true, block_bound, counts_on_device + tsdf_detail::kBlockCountWord, 0u, pool_slots);
+    } else {
+      write_listed_cells(true, counts.blocks, nullptr, 0u, kInvalidSlot);
+    }
     profile.mark(sum_every_visit ? "5 write summed voxels" : "5b free-space voxels");
   }
   tsdf_detail::reset_merge_tally(backend, scratch, stream);  // for the next frame
- 
+
   counts = tsdf_detail::read_frame_counts(scratch, stream);  // waits for the writes too
- 
+  scratch.last_listed_blocks = counts.blocks;
+
+  if (activation_deferred) {
+    activation = map.blocks().finish_queued_activation(counts.new_blocks, counts.rejected_blocks, stream);
+    stats.blocks_allocated = activation.num_new;
+    if (map.blocks().slot_count() > pool_slots) {  // new slots past the pool: grown, then written
+      map.ensure_pool_capacity(stream);
+      write_listed_cells(false, counts.blocks, nullptr, pool_slots, kInvalidSlot);
+      counts = tsdf_detail::read_frame_counts(scratch, stream);
+    }
+  }
+  if (free_out_of_range) scratch.fixed_point_sums_clean = true;
+
   if (band.keys && counts.band_records > band_bound) {
     throw Error("TSDF integrator: " + std::to_string(counts.band_records) + " band visits in one frame, more than the " +
                 std::to_string(band_bound) + " its rays allow (internal error; please report it)");
@@ -1021,31 +1109,19 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
   }
   const tsdf::FrameKeyCodec codec = tsdf::make_frame_key_codec(tally.low_voxel(), tally.high_voxel(), voxels_per_side);
   // Every ray has at most voxels / kVoxelsPerPiece + 1 pieces: a bound known without a read-back.
-  int64_t piece_bound = total_updates / tsdf::kVoxelsPerPiece + ray_count;
+  const int64_t piece_bound = total_updates / tsdf::kVoxelsPerPiece + ray_count;
   tsdf::RaySegment* rays = scratch.rays.data();
   // (each ray's piece count was written with the ray, and a 0 after the last ray)
   const uint32_t* ray_pieces = scratch.counts.data();
   if (tsdf_detail::frame_sums_every_visit(config, Backend::kDevice, codec, total_updates, has_color)) {
-    // Every visit summed: the rays are walked in groups (tsdf_traverse.h, RayGroups), from their
-    // piece counts and the groups' levels scanned, without a piece table. The launch covers
-    // about as many work items as there can be: a group has at most as many levels as its rays
-    // have pieces, and no more than a ray of max_ray_length_m + truncation can have (the loop
-    // over the items covers any excess).
-    const int64_t groups = tsdf::ray_group_count(ray_count);
-    scratch.offsets.resize_discard(groups + 1);
-    uint32_t* levels = scratch.offsets.data();
-    exclusive_scan_of<1>(backend, stream, groups + 1, [=] COVOX_HD(int64_t g) -> uint32_t {
-      return g < groups ? tsdf::ray_group_levels(ray_pieces, ray_count, g) : 0u;
-    }, levels);
-    const double longest_ray_voxels =
-        1.7320508 * (config.max_ray_length_m + config.truncation_distance_m) * inverse_voxel_size + 4.0;
-    const int64_t most_pieces = tsdf::ray_piece_count(static_cast<uint32_t>(std::min(longest_ray_voxels, 1.0e9)));
-    piece_bound = std::min(piece_bound, groups * std::max<int64_t>(1, most_pieces));
-    tsdf::FrameUpdates frame{codec,  total_updates, piece_bound,        nullptr,    nullptr,
+    // Every visit summed: the rays are walked in groups (tsdf_traverse.h, RayGroups), each group
+    // in as many levels as the longest ray has pieces (from the tally), without a piece table.
+    tsdf::FrameUpdates frame{codec,  total_updates, 0,                  nullptr,    nullptr,
                              nullptr, rays,         colors,             intensities, grey_per_intensity,
                              ray_weights, inverse_voxel_size, voxel_size, weight_parameters};
+    frame.walks_ray_groups = true;
     frame.ray_pieces = ray_pieces;
-    frame.group_levels = levels;
+    frame.most_ray_pieces = static_cast<uint32_t>(tally.most_pieces);
     frame.ray_count = ray_count;
     profile.mark("2a ray groups");
     tsdf_detail::fuse_frame(backend, config, frame, has_color, ray_count, map, scratch, stats, profile, stream);

@@ -96,6 +96,9 @@ struct TsdfScratchBuffers {
   Buffer<uint64_t> fixed_point_sums;
   bool fixed_point_sums_clean = false;
   Buffer<uint32_t> record_ranks;
+  // The blocks the last frame listed (-1: none yet): how many threads to start for a pass whose
+  // count only the device knows (tsdf_integrator_impl.h, step 5).
+  int64_t last_listed_blocks = -1;
 };
 
 template <class Backend>

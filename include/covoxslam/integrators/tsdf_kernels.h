@@ -549,9 +549,10 @@ struct FrameUpdates {
   float voxel_size;
   WeightParameters weight_parameters;
   // When every visit is summed, the rays are walked in groups (tsdf_traverse.h, RayGroups) and
-  // there is no piece table: each ray's piece count, and the groups' levels scanned.
+  // there is no piece table: each ray's piece count, and the most pieces of any ray.
+  bool walks_ray_groups = false;  // false: walked by the piece table
   const uint32_t* ray_pieces = nullptr;
-  const uint32_t* group_levels = nullptr;  // null: walked by the piece table
+  uint32_t most_ray_pieces = 0;
   int64_t ray_count = 0;
 };
 

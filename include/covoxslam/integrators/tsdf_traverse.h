@@ -276,41 +276,34 @@ void traverse_pieces(CpuBackend backend, const Stream& stream, int64_t piece_bou
 // GPU warp per group and piece index ("level"): lane l walks piece k of the group's ray l, so that
 // at each step the lanes visit voxels at about the same distance along neighbouring rays, and
 // where they visit the same voxel (near the sensor) their free-space weights can go in one atomic
-// (VoxelSumCells::aggregate_in_warp). A group has as many levels as its longest ray has pieces;
-// the work items are the groups' levels, found from their scan. It needs no piece table, only
-// the rays' piece counts: on the H100 the frame loses the piece table's scan (27.7 us of a
-// 7-Scenes 2 cm frame) for the levels' (about 8 us), and the walk costs what one thread per piece
-// did (142 against 149 us there); docs/benchmarks.md, "eleventh pass".
+// (VoxelSumCells::aggregate_in_warp). It needs no piece table, only the rays' piece counts: on the
+// H100 the frame loses the piece table's scan (27.7 us of a 7-Scenes 2 cm frame), and the walk
+// costs what one thread per piece did (142 against 149 us there); docs/benchmarks.md, "eleventh
+// pass". Every group gets as many levels as the frame's longest ray has pieces (the merge's tally
+// knows it), so work item w is level w % levels of group w / levels: a warp whose lanes' rays are
+// all shorter leaves at once. (Before, each group's own levels were scanned and every item found
+// its group by a binary search of the scan: one launch more, 5-8 us of GPU time per 7-Scenes frame
+// for the scan, and the search's chain of loads in every item; "twelfth pass".)
 constexpr int kRayGroupRays = 32;
 struct RayGroups {
   const uint32_t* ray_pieces;  // each ray's piece count
-  const uint32_t* levels;      // groups + 1 values: the exclusive scan of each group's levels
+  uint32_t levels;             // the most pieces of any ray: each group's levels
   int64_t rays;
   int64_t groups;
+  COVOX_HD_INLINE int64_t items() const { return groups * static_cast<int64_t>(levels); }
 };
 COVOX_HD_INLINE int64_t ray_group_count(int64_t rays) { return (rays + kRayGroupRays - 1) / kRayGroupRays; }
-// Group g's levels: its rays' most pieces. (The loads unrolled: issued together, not one after
-// the other.)
-COVOX_HD_INLINE uint32_t ray_group_levels(const uint32_t* ray_pieces, int64_t rays, int64_t g) {
-  const uint32_t* group = ray_pieces + g * kRayGroupRays;
-  const int64_t count = rays - g * kRayGroupRays;
-  uint32_t most = 0;
-#if COVOX_DEVICE_CODE
-#pragma unroll
-#endif
-  for (int l = 0; l < kRayGroupRays; ++l) {
-    const uint32_t pieces = l < count ? group[l] : 0u;
-    most = pieces > most ? pieces : most;
-  }
-  return most;
-}
 // Work item w (level k of group g): lane `lane` walks piece k of the group's ray `lane`, if that
 // ray has that many pieces.
 template <class KeyT, class ValueT>
 COVOX_HD_INLINE void sum_ray_group_piece(const PieceTraversal<KeyT, ValueT>& traversal, const RayGroups& groups,
                                          int64_t w, int lane) {
-  const int64_t g = lower_bound_index(groups.levels, groups.groups + 1, static_cast<uint32_t>(w + 1)) - 1;
-  const uint32_t k = static_cast<uint32_t>(w) - groups.levels[g];
+  const uint32_t levels = groups.levels;
+  // (a 32-bit division where the items allow, as they always do in practice: a 64-bit one is a
+  // long software sequence on the GPU)
+  const int64_t g = w <= int64_t(UINT32_MAX) ? static_cast<int64_t>(static_cast<uint32_t>(w) / levels)
+                                            : static_cast<int64_t>(static_cast<uint64_t>(w) / levels);
+  const uint32_t k = static_cast<uint32_t>(w - g * levels);
   const int64_t i = g * kRayGroupRays + lane;
   if (i >= groups.rays) return;
   const uint32_t pieces = groups.ray_pieces[i];
@@ -324,11 +317,10 @@ COVOX_HD_INLINE void sum_ray_group_piece(const PieceTraversal<KeyT, ValueT>& tra
 }
 // The CPU twin: one call per work item, its lanes in turn.
 template <class KeyT, class ValueT>
-void sum_ray_groups(CpuBackend backend, const Stream& stream, int64_t, const PieceTraversal<KeyT, ValueT>& traversal,
+void sum_ray_groups(CpuBackend backend, const Stream& stream, const PieceTraversal<KeyT, ValueT>& traversal,
                     const RayGroups& groups) {
   if (!traversal.sum_cells.words) throw Error("TSDF traverse: every visit's sum asked without cells to add it to");
-  const int64_t items = groups.levels[groups.groups];
-  parallel_for(backend, stream, items, [&](int64_t w) {
+  parallel_for(backend, stream, groups.items(), [&](int64_t w) {
     for (int lane = 0; lane < kRayGroupRays; ++lane) sum_ray_group_piece(traversal, groups, w, lane);
   });
 }
@@ -345,7 +337,7 @@ template <class KeyT, class ValueT>
 __global__ void __launch_bounds__(kRayGroupThreads) sum_ray_groups_kernel(PieceTraversal<KeyT, ValueT> traversal,
                                                                           RayGroups groups) {
   static_assert(kRayGroupRays == 32, "one lane per ray of a group");
-  const int64_t items = groups.levels[groups.groups];
+  const int64_t items = groups.items();
   const int64_t warps = static_cast<int64_t>(gridDim.x) * (kRayGroupThreads / 32);
   for (int64_t w = (static_cast<int64_t>(blockIdx.x) * kRayGroupThreads + threadIdx.x) / 32; w < items; w += warps) {
     sum_ray_group_piece(traversal, groups, w, static_cast<int>(threadIdx.x & 31u));
@@ -353,15 +345,13 @@ __global__ void __launch_bounds__(kRayGroupThreads) sum_ray_groups_kernel(PieceT
 }
 }  // namespace detail
 
-// `item_bound`: about how many work items there can be (the launch's size; the loop covers more).
 template <class KeyT, class ValueT>
-void sum_ray_groups(CudaBackend, const Stream& stream, int64_t item_bound, const PieceTraversal<KeyT, ValueT>& traversal,
+void sum_ray_groups(CudaBackend, const Stream& stream, const PieceTraversal<KeyT, ValueT>& traversal,
                     const RayGroups& groups) {
   if (!traversal.sum_cells.words) throw Error("TSDF traverse: every visit's sum asked without cells to add it to");
-  if (groups.groups <= 0) return;
+  if (groups.items() <= 0) return;
   constexpr int64_t kWarpsPerBlock = detail::kRayGroupThreads / 32;
-  const int64_t blocks = std::min<int64_t>(std::max<int64_t>(1, (item_bound + kWarpsPerBlock - 1) / kWarpsPerBlock),
-                                           int64_t(1) << 16);
+  const int64_t blocks = std::min<int64_t>((groups.items() + kWarpsPerBlock - 1) / kWarpsPerBlock, int64_t(1) << 16);
   detail::sum_ray_groups_kernel<KeyT, ValueT>
       <<<static_cast<unsigned>(blocks), detail::kRayGroupThreads, 0, static_cast<cudaStream_t>(stream.native_handle())>>>(
           traversal, groups);

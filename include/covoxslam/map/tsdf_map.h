@@ -2,6 +2,7 @@
 // TsdfMap: the TSDF and colour voxels of one map (or submap), indexed by one BlockHashTable.
 // Both layers share the block index: a block's slot addresses its voxels in both pools, so colour
 // costs no second lookup. Voxel pools are SoA and grow with the hash table's slot count.
+#include <algorithm>
 #include <cstdint>
 #include <vector>
 
@@ -62,6 +63,12 @@ class TsdfMap {
   // Grows the pools (and per-slot arrays) to hold every slot the block table has handed out;
   // new voxels are zero.
   void ensure_pool_capacity(const Stream& stream);
+  // The slots the pools hold voxels for now (at least the table's slot_count() after
+  // ensure_pool_capacity()).
+  int64_t pool_slots() const {
+    return std::min<int64_t>(static_cast<int64_t>(tsdf_.size()) / voxels_per_block(),
+                             static_cast<int64_t>(block_changed_.size()));
+  }
 
   // Every allocated block with its voxels, sorted by block index.
   std::vector<HostBlock> snapshot() const;
