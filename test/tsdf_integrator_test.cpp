@@ -1,6 +1,7 @@
 // TSDF raycast integration against analytic signed distances, weighting, colour, determinism,
 // dropped input, and CPU vs CUDA parity.
 #include "covoxslam/integrators/tsdf_integrator.h"
+#include "covoxslam/integrators/tsdf_kernels.h"
 
 #include <gtest/gtest.h>
 
@@ -9,6 +10,7 @@
 #include <limits>
 #include <map>
 #include <set>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -467,6 +469,82 @@ TEST_P(TsdfIntegratorTest, SameInputTwiceGivesBitIdenticalMaps) {
     snapshots.push_back(map.snapshot());
   }
   expect_bit_identical_tsdf(snapshots[0], snapshots[1]);
+}
+
+// A depth image is unprojected on the device into points in tile order (tsdf_unproject_depth).
+// The map must be the one built from the same points unprojected on the host (pixel by pixel,
+// placed in tile order) and integrated as a coloured point cloud: bit for bit, with the same
+// counts, with either method. Sizes that are not multiples of the tile, invalid pixels, raw units
+// and metres.
+TEST_P(TsdfIntegratorTest, DepthImagesMatchHostUnprojectedPoints) {
+  const AnalyticScene scene = make_scene(Shape::kBox);
+  const int width = 157, height = 117;
+  const float fx = 140.0f, fy = 138.0f, cx = 77.5f, cy = 60.25f;
+  Eigen::Isometry3d camera = viewpoints()[1];
+  camera.linear() = camera.linear() * Eigen::Matrix3d(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitY()));
+  std::vector<uint16_t> depth = testing_support::simulate_depth_mm(scene, camera, width, height, fx, fy, cx, cy, 80.0);
+  for (size_t p = 0; p < depth.size(); p += 7) depth[p] = p % 2 ? 0 : 65535;  // no measurement
+  std::vector<float> depth_metres(depth.size());
+  for (size_t p = 0; p < depth.size(); ++p) depth_metres[p] = depth[p] == 65535 ? NAN : depth[p] * 1e-3f;
+  std::vector<Rgb8> colours(depth.size());
+  for (size_t p = 0; p < colours.size(); ++p) colours[p] = Rgb8{uint8_t(p), uint8_t(p / 3), uint8_t(p * 5)};
+  for (const TsdfIntegrationMethod method : {TsdfIntegrationMethod::kMerged, TsdfIntegrationMethod::kSimple}) {
+    for (const bool metres : {false, true}) {
+      SCOPED_TRACE(std::string(method == TsdfIntegrationMethod::kMerged ? "merged" : "simple") +
+                   (metres ? ", metres" : ", raw units"));
+      // The host's points: ((u - cx) z / fx, (v - cy) z / fy, z), the zero point for no measurement.
+      std::vector<Vec3f> points(depth.size());
+      std::vector<Rgb8> point_colours(depth.size());
+      for (int v = 0; v < height; ++v) {
+        for (int u = 0; u < width; ++u) {
+          const size_t p = static_cast<size_t>(v) * width + u;
+          const float z = metres ? (std::isfinite(depth_metres[p]) && depth_metres[p] > 0.0f ? depth_metres[p] : 0.0f)
+                                 : (depth[p] == 0 || depth[p] == 65535 ? 0.0f : depth[p] * (1.0f / 1000.0f));
+          const size_t place = static_cast<size_t>(tsdf::pixel_tile_order(u, v, width, height));
+          points[place] = z == 0.0f ? Vec3f(0.0f, 0.0f, 0.0f)
+                                    : Vec3f((u - cx) * z * (1.0f / fx), (v - cy) * z * (1.0f / fy), z);
+          point_colours[place] = colours[p];
+        }
+      }
+      TsdfIntegratorConfig config = analytic_config(0.05f);
+      config.method = method;
+      TsdfIntegrator in_place(config), from_points(config);
+      TsdfMap a(device(), TsdfMapConfig{0.05f, 8, {}}), b(device(), TsdfMapConfig{0.05f, 8, {}});
+      const auto depth_device = Buffer<uint16_t>::from_host(device(), depth);
+      const auto metres_device = Buffer<float>::from_host(device(), depth_metres);
+      const auto colours_device = Buffer<Rgb8>::from_host(device(), colours);
+      DepthImageView image;
+      if (metres) {
+        image.depth_m = metres_device.data();
+      } else {
+        image.depth = depth_device.data();
+      }
+      image.colors = colours_device.data();
+      image.intrinsics = PinholeIntrinsics{fx, fy, cx, cy, width, height};
+      image.depth_units_per_m = 1000.0f;
+      image.invalid_value = 65535;
+      const Stream stream(device());
+      const IntegrationStats read = in_place.integrate_depth(a, image, camera, stream);
+      const IntegrationStats unprojected = from_points.integrate(b, points, point_colours, camera);
+      EXPECT_EQ(read.points_in, unprojected.points_in);
+      EXPECT_EQ(read.dropped_zero, unprojected.dropped_zero);
+      EXPECT_GT(read.dropped_zero, static_cast<int64_t>(depth.size() / 8));
+      EXPECT_EQ(read.rays_cast, unprojected.rays_cast);
+      EXPECT_EQ(read.voxel_updates, unprojected.voxel_updates);
+      EXPECT_EQ(read.voxels_updated, unprojected.voxels_updated);
+      const std::vector<HostBlock> map_a = a.snapshot(), map_b = b.snapshot();
+      ASSERT_GT(map_a.size(), 10u);
+      expect_bit_identical_tsdf(map_a, map_b);
+      for (size_t k = 0; k < map_a.size() && k < map_b.size(); ++k) {
+        for (size_t v = 0; v < map_a[k].color.size(); ++v) {
+          const ColorVoxel& x = map_a[k].color[v];
+          const ColorVoxel& y = map_b[k].color[v];
+          ASSERT_TRUE(x.r == y.r && x.g == y.g && x.b == y.b && x.weight == y.weight)
+              << "colour of voxel " << v << " of block " << k;
+        }
+      }
+    }
+  }
 }
 
 // An erased block's slot goes back to the table's free stack, and a later frame that activates a
