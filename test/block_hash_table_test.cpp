@@ -383,6 +383,72 @@ TEST_P(BlockHashTableTest, QueuedActivationDeclinesWhenTheTableMightGrow) {
   EXPECT_EQ(table.size(), 1000);
 }
 
+// The in-kernel activation (block_activator.h) against activate() on a twin table, on the CPU
+// twin (where a test can call it from its own parallel loop; on the GPU it runs inside the TSDF
+// frames' scan of their block marks, which the TSDF tests check against the CPU): distinct keys,
+// known ones keep their slot, the new ones take the same set of slots as activate() hands out
+// (freed ones first), a key outside the key range is rejected and counted, and the table is
+// locked until the totals are handed back.
+TEST(BlockActivatorTest, InKernelActivationMatchesActivate) {
+  const BlockHashTableConfig config{1 << 14, 0.75, true};
+  BlockHashTable in_kernel(Device::kCpu, config), direct(Device::kCpu, config);
+  const auto first = random_blocks(3000, 3000, 5);
+  for (BlockHashTable* table : {&in_kernel, &direct}) {
+    activate(*table, first);
+    erase(*table, std::vector<Index3D>(first.begin(), first.begin() + 500));  // slots to reuse
+  }
+  std::vector<Index3D> keys(first.begin() + 100, first.begin() + 1100);  // erased and live keys
+  for (const Index3D& key : random_blocks(2500, 2500, 6, 100000)) keys.push_back(key);
+  keys.push_back(Index3D(kMaxBlockIndex + 1, 0, 0));  // rejected
+  const std::vector<uint32_t> before = find(in_kernel, keys);
+
+  const Stream stream(Device::kCpu);
+  BlockActivator activator;
+  ASSERT_TRUE(in_kernel.begin_in_kernel_activation(static_cast<int64_t>(keys.size()), &activator, stream));
+  EXPECT_THROW(activate(in_kernel, keys), Error);
+  std::vector<uint32_t> slots(keys.size());
+  std::vector<uint8_t> is_new(keys.size());
+#pragma omp parallel for
+  for (int64_t i = 0; i < static_cast<int64_t>(keys.size()); ++i) {
+    bool fresh = false;
+    slots[i] = activator.activate(keys[i], &fresh);
+    is_new[i] = fresh;
+  }
+  uint32_t totals[3];
+  activator.hand_over_totals(totals);
+  const ActivateResult result = in_kernel.finish_in_kernel_activation(totals[0], totals[1], totals[2]);
+  const ActivateOutput expected = activate(direct, keys);
+  EXPECT_EQ(result.num_new, expected.result.num_new);
+  EXPECT_EQ(result.num_out_of_range, 1);
+  EXPECT_EQ(result.num_failed_full, 0);
+  std::set<uint32_t> in_kernel_new, direct_new;
+  for (size_t i = 0; i < keys.size(); ++i) {
+    if (i + 1 == keys.size()) {
+      EXPECT_EQ(slots[i], kInvalidSlot);
+      continue;
+    }
+    if (before[i] != kInvalidSlot) {
+      ASSERT_EQ(slots[i], before[i]) << "a known key changed its slot, key " << i;
+      ASSERT_EQ(is_new[i], 0) << "key " << i;
+    } else {
+      ASSERT_EQ(is_new[i], 1) << "key " << i;
+      in_kernel_new.insert(slots[i]);
+    }
+    if (expected.is_new[i]) direct_new.insert(expected.slots[i]);
+  }
+  EXPECT_EQ(in_kernel_new.size(), static_cast<size_t>(result.num_new));
+  EXPECT_EQ(in_kernel_new, direct_new);
+  EXPECT_EQ(find(in_kernel, keys), slots);
+  EXPECT_EQ(in_kernel.size(), direct.size());
+  EXPECT_EQ(in_kernel.slot_count(), direct.slot_count());
+  // The counters were cleared for the next activation.
+  ASSERT_TRUE(in_kernel.begin_in_kernel_activation(1, &activator, stream));
+  activator.hand_over_totals(totals);
+  EXPECT_EQ(totals[0] + totals[1] + totals[2], 0u);
+  in_kernel.finish_in_kernel_activation(0, 0, 0);
+  EXPECT_NO_THROW(activate(in_kernel, keys));
+}
+
 TEST(BlockHashTableConfigCheck, RejectsBadParameters) {
   EXPECT_THROW(BlockHashTable(Device::kCpu, BlockHashTableConfig{1024, 1.5, true}), Error);
   EXPECT_THROW(BlockHashTable(Device::kCpu, BlockHashTableConfig{0, 0.5, true}), Error);

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "covoxslam/core/error.h"
+#include "covoxslam/core/log.h"
 #include "covoxslam/map/block_hash_table_ops.h"
 
 namespace covox {
@@ -61,10 +62,34 @@ ActivateResult BlockHashTable::finish_queued_activation(uint32_t num_new, uint32
   });
 }
 
+// The same growth check as activate_queued.
+bool BlockHashTable::begin_in_kernel_activation(int64_t count_bound, BlockActivator* activator, const Stream& stream) {
+  require_nothing_queued("begin_in_kernel_activation");
+  if (count_bound <= 0) return false;
+  const double limit = state_.config.max_load_factor * static_cast<double>(state_.bucket_count());
+  if (state_.config.allow_growth && static_cast<double>(state_.occupied_count + count_bound) > limit) return false;
+  activator->table = state_.view();
+  activator->free_stack = state_.free_slots.data();
+  activator->free_count = state_.free_count;
+  activator->next_unused = state_.next_unused_slot;
+  activator->counters = state_.activation_failures(stream) + 3;
+  state_.pending_count = count_bound;
+  return true;
+}
+
+ActivateResult BlockHashTable::finish_in_kernel_activation(uint32_t num_new, uint32_t num_out_of_range,
+                                                           uint32_t num_table_full) {
+  if (state_.pending_count < 0) {
+    throw Error("BlockHashTable::finish_in_kernel_activation: no activation is pending");
+  }
+  state_.pending_count = -1;
+  return hash_table_detail::activate_finish_counted(state_, num_new, num_out_of_range, num_table_full);
+}
+
 void BlockHashTable::require_nothing_queued(const char* operation) const {
   if (state_.pending_count >= 0) {
     throw Error(std::string("BlockHashTable::") + operation +
-                ": an activation is queued; call finish_queued_activation() first");
+                ": an activation is pending; finish it first (finish_queued_activation or finish_in_kernel_activation)");
   }
 }
 
@@ -130,5 +155,33 @@ double BlockHashTable::load_factor() const {
 double BlockHashTable::occupancy() const {
   return static_cast<double>(state_.occupied_count) / static_cast<double>(bucket_count());
 }
+
+namespace hash_table_detail {
+ActivateResult activate_finish_counted(BlockHashTableState& state, int64_t num_new, int64_t num_out_of_range,
+                                       int64_t num_failed_full) {
+  ActivateResult result;
+  const uint32_t reused = static_cast<uint32_t>(std::min<int64_t>(num_new, state.free_count));
+  state.free_count -= reused;
+  state.next_unused_slot += static_cast<uint32_t>(num_new - reused);
+  state.live_count += num_new;
+  state.occupied_count += num_new;
+  result.num_new = num_new;
+  result.num_failed_full = num_failed_full;
+  result.num_out_of_range = num_out_of_range;
+  state.total_out_of_range += num_out_of_range;
+  state.total_failed_full += num_failed_full;
+  if (num_out_of_range > 0) {
+    log_warning("BlockHashTable: rejected ", num_out_of_range, " block indices outside the key range [",
+                kMinBlockIndex, ", ", kMaxBlockIndex, "] per axis (", state.total_out_of_range,
+                " so far); points that far from the map origin are dropped");
+  }
+  if (num_failed_full > 0) {
+    log_warning("BlockHashTable is full: ", num_failed_full, " keys not inserted (", state.bucket_count(),
+                " buckets, occupancy ", static_cast<double>(state.occupied_count) / state.bucket_count(),
+                "). Enable allow_growth or raise initial_bucket_count.");
+  }
+  return result;
+}
+}  // namespace hash_table_detail
 
 }  // namespace covox

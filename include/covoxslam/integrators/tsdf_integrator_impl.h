@@ -143,11 +143,13 @@ struct VoxelMerge {
 };
 
 // The frame's figures that step 4 and step 5 leave on the device (scratch.readback), by word.
-constexpr int kFrameCountWords = 12;
+constexpr int kFrameCountWords = 13;
 constexpr int kZeroWeightFirstWord = 1;  // 1 + the first zero-weight record (sorted last); 0: none
 constexpr int kOutOfRangeFirstWord = 2;  // 1 + the first record outside the box (before them); 0: none
 constexpr int kBlockCountWord = 4;       // the frame's distinct blocks
-constexpr int kActivationWords = 5;      // the queued activation's totals: new blocks, rejected ones
+constexpr int kActivationWords = 5;      // the activation's totals: new blocks, rejected ones
+constexpr int kTableFullWord = 12;       // the in-kernel activation's blocks that found the table full
+                                         // (counted among the rejected by a queued activation)
 constexpr int kRunCountWord = 7;         // runs of equal keys that step 5 summed
 // With free-space sums: the voxels that had only free-space visits (with every visit summed: every
 // voxel the pass wrote), and those of them in blocks the hash table rejected; the summed visits
@@ -161,6 +163,7 @@ struct FrameCounts {
   uint32_t blocks = 0, new_blocks = 0, rejected_blocks = 0;
   uint32_t runs = 0;
   uint32_t free_only_voxels = 0, free_rejected = 0, free_out_of_range = 0, band_records = 0;
+  uint32_t full_blocks = 0;
 };
 // One copy, one wait.
 inline FrameCounts read_frame_counts(const TsdfScratchBuffers& scratch, const Stream& stream) {
@@ -177,6 +180,7 @@ inline FrameCounts read_frame_counts(const TsdfScratchBuffers& scratch, const St
   counts.free_rejected = words[kFreeRejectedWord];
   counts.free_out_of_range = words[kFreeOutOfRangeWord];
   counts.band_records = words[kBandRecordsWord];
+  counts.full_blocks = words[kTableFullWord];
   return counts;
 }
 // Written by one thread of the kernel that lists the blocks (before step 5 runs).
@@ -188,6 +192,7 @@ COVOX_HD_INLINE void start_frame_counts(uint32_t* words, uint32_t blocks) {
   words[kFreeOnlyVoxelsWord] = 0u;
   words[kFreeRejectedWord] = 0u;
   words[kFreeOutOfRangeWord] = 0u;
+  words[kTableFullWord] = 0u;
 }
 // Step 5's consumer at the run of a dropped kind: each kind is one key, so one run and one call.
 COVOX_HD_INLINE void note_dropped_run(uint32_t* words, bool zero_weight, int64_t first) {
@@ -726,6 +731,8 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
     }
   };
   std::optional<PendingReadBack> activation_totals;
+  BlockActivator activator;
+  bool activates_while_listing = false;
   const uint32_t* box_ranks = nullptr;
   if (mark_blocks) {
     scratch.block_ranks.resize_discard(box_blocks + 1);
@@ -735,18 +742,37 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
     // its mark cleared for the next frame (the scan has read it); the rank past the box is the
     // count. One launch: the listing was a kernel of its own (2.6 us of GPU time and 5-10 us of
     // the host's per 7-Scenes 5 cm frame on the H100 machine, docs/benchmarks.md "tenth pass").
-    exclusive_scan_of(
-        backend, stream, box_blocks + 1, [=] COVOX_HD(int64_t b) -> uint32_t { return box_marks[b] != 0u ? 1u : 0u; },
-        [=] COVOX_HD(int64_t b, uint32_t rank) {
-          marked_ranks[b] = rank;
-          if (b == box_blocks) {
-            tsdf_detail::start_frame_counts(counts_on_device, rank);
-          } else if (box_marks[b] != 0u) {
-            block_indices[rank] = codec.block(static_cast<uint64_t>(b) << codec.voxel_bits);
-            box_marks[b] = 0u;
-          }
-        });
-    activate_listed_blocks();
+    // A frame that sums every visit also activates each listed block there (BlockActivator,
+    // block_activator.h: no activation kernel; its totals come back at the frame's end).
+    activates_while_listing =
+        sum_every_visit && map.blocks().begin_in_kernel_activation(block_bound, &activator, stream);
+    const BlockActivator listing_activator = activator;
+    const bool activate_here = activates_while_listing;
+    uint8_t* listed_is_new = scratch.is_new.data();
+    const auto is_marked = [=] COVOX_HD(int64_t b) -> uint32_t { return box_marks[b] != 0u ? 1u : 0u; };
+    const auto list_marked = [=] COVOX_HD(int64_t b, uint32_t rank) {
+      marked_ranks[b] = rank;
+      if (b == box_blocks) {
+        tsdf_detail::start_frame_counts(counts_on_device, rank);
+      } else if (box_marks[b] != 0u) {
+        const Index3D block = codec.block(static_cast<uint64_t>(b) << codec.voxel_bits);
+        block_indices[rank] = block;
+        if (activate_here) {
+          bool fresh = false;
+          slots[rank] = listing_activator.activate(block, &fresh);
+          listed_is_new[rank] = fresh ? 1u : 0u;
+        }
+        box_marks[b] = 0u;
+      }
+    };
+    // An insertion is a chain of dependent probes: one block per GPU thread then (with eight per
+    // thread, as the scan reads arrays, the 2 cm frame's scan took 29 us instead of 7; H100).
+    if (activate_here) {
+      exclusive_scan_of<1>(backend, stream, box_blocks + 1, is_marked, list_marked);
+    } else {
+      exclusive_scan_of(backend, stream, box_blocks + 1, is_marked, list_marked);
+    }
+    if (!activates_while_listing) activate_listed_blocks();
     scratch.box_marks_clean = true;
     if (queued) {
       activation_totals.emplace(counts_on_device + tsdf_detail::kBlockCountWord, Backend::kDevice,
@@ -787,10 +813,13 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   // other figures at its end, where any block whose new slot lies past the pool is written by a
   // second pass once the pool has grown (rare: the pool grows geometrically). One wait and one
   // launch fewer per frame (the new blocks are cleared by the pass too); "twelfth pass".
-  const bool activation_deferred = sum_every_visit && activation_totals.has_value() &&
-                                   block_bound * map.voxels_per_block() <= tsdf_detail::kDeferredPassMaxCells;
+  // (a frame that activated its blocks while listing them gets the totals at its end; it waits
+  // only for the count of its listed blocks, when its pass is too large to start by a bound)
+  const bool activation_deferred = activates_while_listing;
+  const bool pass_counted_on_device =
+      activation_deferred && block_bound * map.voxels_per_block() <= tsdf_detail::kDeferredPassMaxCells;
   if (activation_deferred) {
-    activation_totals.reset();  // (nothing to wait for: the figures come back at the end)
+    if (!pass_counted_on_device) counts = tsdf_detail::read_frame_counts(scratch, stream);
   } else if (activation_totals) {
     uint32_t totals[3];
     activation_totals->wait(totals);
@@ -891,6 +920,7 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
     uint8_t* block_changed = map.block_changed().data();
     const tsdf_detail::VoxelMerge merge_into_voxel{tsdf_view, color_view, truncation, max_weight};
     tsdf::MergeTallyStripe* tally_stripes = first_pass ? tsdf_detail::merge_tally_to_reset(scratch) : nullptr;
+    const bool hands_over_activation = first_pass && activates_while_listing;
     const int64_t extra = first_pass ? 1 + (tally_stripes ? tsdf::kMergeTallyStripes : 0) : 0;
     const int64_t bound = extra + blocks * voxels_per_block;
     const int64_t threads =
@@ -905,6 +935,13 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
           if (i == cells) {
             counts_on_device[tsdf_detail::kFreeOutOfRangeWord] = static_cast<uint32_t>(*free_out_of_range);
             *free_out_of_range = 0;
+            if (hands_over_activation) {
+              uint32_t totals[3];
+              activator.hand_over_totals(totals);
+              counts_on_device[tsdf_detail::kActivationWords] = totals[0];
+              counts_on_device[tsdf_detail::kActivationWords + 1] = totals[1];
+              counts_on_device[tsdf_detail::kTableFullWord] = totals[2];
+            }
           } else {
             tally_stripes[i - cells - 1].reset();
           }
@@ -951,8 +988,10 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
     if (tally_stripes) scratch.merge_tally_clean = true;
   };
   if (free_out_of_range) {
-    if (activation_deferred) {
+    if (pass_counted_on_device) {
       write_listed_cells(true, block_bound, counts_on_device + tsdf_detail::kBlockCountWord, 0u, pool_slots);
+    } else if (activation_deferred) {
+      write_listed_cells(true, counts.blocks, nullptr, 0u, pool_slots);
     } else {
       write_listed_cells(true, counts.blocks, nullptr, 0u, kInvalidSlot);
     }
@@ -964,7 +1003,7 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   scratch.last_listed_blocks = counts.blocks;
 
   if (activation_deferred) {
-    activation = map.blocks().finish_queued_activation(counts.new_blocks, counts.rejected_blocks, stream);
+    activation = map.blocks().finish_in_kernel_activation(counts.new_blocks, counts.rejected_blocks, counts.full_blocks);
     stats.blocks_allocated = activation.num_new;
     if (map.blocks().slot_count() > pool_slots) {  // new slots past the pool: grown, then written
       map.ensure_pool_capacity(stream);

@@ -15,6 +15,7 @@
 #include "covoxslam/core/device.h"
 #include "covoxslam/core/index3d.h"
 #include "covoxslam/core/stream.h"
+#include "covoxslam/map/block_activator.h"
 #include "covoxslam/map/block_hash_table_state.h"
 
 namespace covox {
@@ -52,6 +53,13 @@ class BlockHashTable {
                        uint32_t* slots_out, uint8_t* is_new_out, uint32_t* totals_out, const Stream& stream,
                        bool keys_distinct = false);
   ActivateResult finish_queued_activation(uint32_t num_new, uint32_t num_rejected, const Stream& stream);
+
+  // An activation of at most `count_bound` distinct keys made from inside the caller's kernels
+  // (block_activator.h): fills *activator and returns true, or returns false when the table might
+  // have to grow (call activate() then). Until finish_in_kernel_activation() gets the totals that
+  // BlockActivator::hand_over_totals() wrote, other calls on this table are refused.
+  bool begin_in_kernel_activation(int64_t count_bound, BlockActivator* activator, const Stream& stream);
+  ActivateResult finish_in_kernel_activation(uint32_t num_new, uint32_t num_out_of_range, uint32_t num_table_full);
 
   // slots_out[i] = slot of keys[i] or kInvalidSlot. Returns how many were found.
   int64_t find(const Index3D* keys, int64_t count, uint32_t* slots_out) const;

@@ -218,39 +218,16 @@ void activate_gather(Backend backend, BlockHashTableState& state, int64_t count,
   });
 }
 
-// The host's part once the totals are known: slot bookkeeping, the failures' kinds and warnings.
+// The host's part once the totals are known (activate_finish_counted, block_hash_table.cpp: slot
+// bookkeeping and warnings), with the failures' kinds found from the batch's buckets.
 template <class Backend>
 ActivateResult activate_finish(Backend backend, BlockHashTableState& state, int64_t count, int64_t num_new,
                                int64_t failed, const Stream& stream) {
-  ActivateResult result;
-  const uint32_t reused = static_cast<uint32_t>(std::min<int64_t>(num_new, state.free_count));
-  state.free_count -= reused;
-  state.next_unused_slot += static_cast<uint32_t>(num_new - reused);
-  state.live_count += num_new;
-  state.occupied_count += num_new;
-  result.num_new = num_new;
-
-  // Failures are rare: the detailed counts only when there were any.
-  if (failed > 0) {
-    result.num_failed_full = count_if(backend, stream, state.scratch_buckets.data(), count,
-                                      [] COVOX_HD(uint64_t bucket) { return bucket == kTableFullBucket; });
-    result.num_out_of_range = failed - result.num_failed_full;
-    state.total_out_of_range += result.num_out_of_range;
-    state.total_failed_full += result.num_failed_full;
-    if (result.num_out_of_range > 0) {
-      log_warning("BlockHashTable: rejected ", result.num_out_of_range,
-                  " block indices outside the key range [", kMinBlockIndex, ", ", kMaxBlockIndex,
-                  "] per axis (", state.total_out_of_range, " so far); points that far from the "
-                  "map origin are dropped");
-    }
-    if (result.num_failed_full > 0) {
-      log_warning("BlockHashTable is full: ", result.num_failed_full, " keys not inserted (",
-                  state.bucket_count(), " buckets, occupancy ",
-                  static_cast<double>(state.occupied_count) / state.bucket_count(),
-                  "). Enable allow_growth or raise initial_bucket_count.");
-    }
-  }
-  return result;
+  // Failures are rare: their kinds are counted only when there were any.
+  const int64_t full = failed > 0 ? count_if(backend, stream, state.scratch_buckets.data(), count,
+                                             [] COVOX_HD(uint64_t bucket) { return bucket == kTableFullBucket; })
+                                  : 0;
+  return activate_finish_counted(state, num_new, failed - full, full);
 }
 
 }  // namespace hash_table_detail

@@ -10,6 +10,13 @@
 
 namespace covox {
 
+namespace hash_table_detail {
+// An activation's host part once its totals are known: slot bookkeeping, the failure totals and
+// their warnings (block_hash_table.cpp).
+ActivateResult activate_finish_counted(BlockHashTableState& state, int64_t num_new, int64_t num_out_of_range,
+                                       int64_t num_failed_full);
+}  // namespace hash_table_detail
+
 template <class Backend>
 void hash_table_rehash(Backend backend, BlockHashTableState& state, uint64_t new_bucket_count,
                        const Stream& stream);

@@ -59,10 +59,12 @@ struct BlockHashTableState {
   Buffer<uint64_t> scratch_keys;
   // activate(): the failure counter (zero between calls: zeroed once, cleared by each call's
   // gather) and, after it, the totals of the synchronous activate(). Returns the counter.
+  // [0] the batch activation's failures, [1..2] its totals; [3..5] the in-kernel activation's
+  // counters (BlockActivator). Zero between activations.
   Buffer<uint32_t> activation_words;
   uint32_t* activation_failures(const Stream& stream) {
-    if (activation_words.size() < 3) {
-      activation_words.resize_discard(3);
+    if (activation_words.size() < 6) {
+      activation_words.resize_discard(6);
       activation_words.fill_bytes(0, stream);
     }
     return activation_words.data();

@@ -1,0 +1,65 @@
+#pragma once
+// Insert-if-absent of distinct block keys one at a time, from inside the caller's own kernel
+// (BlockHashTable::begin_in_kernel_activation): for a caller that lists its keys in a kernel
+// anyway, which then needs no activation kernel of its own. A TSDF frame lists its blocks in the
+// scan of its traverse's marks and activates each as its rank is known (tsdf_integrator_impl.h):
+// on the H100 one launch and 5-7 us of GPU time fewer per frame (docs/benchmarks.md, "twelfth
+// pass"). Each new key takes the next slot by an atomic counter (freed slots first, from the top
+// of the free stack, then never-used ones): the same set of slots as activate() hands out for the
+// same keys, in an order set by thread timing. The keys must be distinct within one activation
+// (a known key's slot is read at once; a second occurrence of a key new in this batch could read
+// it before its slot is written). One thread of a later kernel hands the totals over and clears
+// the counters (hand_over_totals); the host passes them to
+// BlockHashTable::finish_in_kernel_activation().
+#include <cstdint>
+
+#include "covoxslam/core/atomics.h"
+#include "covoxslam/core/index3d.h"
+#include "covoxslam/core/macros.h"
+#include "covoxslam/map/block_hash_table_view.h"
+#include "covoxslam/map/block_key.h"
+
+namespace covox {
+
+struct BlockActivator {
+  BlockHashTableView table;
+  const uint32_t* free_stack = nullptr;
+  uint32_t free_count = 0;
+  uint32_t next_unused = 0;
+  // Device words, zero before the activation: [0] new keys, [1] keys outside the key range,
+  // [2] keys that found the table full.
+  uint32_t* counters = nullptr;
+
+  // The slot of `block` (kInvalidSlot when rejected); *is_new tells whether this call created it.
+  COVOX_HD_INLINE uint32_t activate(const Index3D& block, bool* is_new) const {
+    *is_new = false;
+    const uint64_t key = pack_block_key(block);
+    if (key == kInvalidBlockKey) {
+      atomic_add(&counters[1], 1u);
+      return kInvalidSlot;
+    }
+    bool inserted = false;
+    const uint64_t bucket = table.insert(key, &inserted);
+    if (bucket >= kTableFullBucket) {
+      atomic_add(&counters[2], 1u);
+      return kInvalidSlot;
+    }
+    if (!inserted) return table.slots[bucket];
+    const uint32_t k = atomic_add(&counters[0], 1u);
+    const uint32_t slot = k < free_count ? free_stack[free_count - 1 - k] : next_unused + (k - free_count);
+    table.slots[bucket] = slot;
+    *is_new = true;
+    return slot;
+  }
+
+  // Called by one thread of a kernel after the activating one: the totals (new keys, keys outside
+  // the range, keys that found the table full) into out[0..2], the counters cleared for the next.
+  COVOX_HD_INLINE void hand_over_totals(uint32_t* out) const {
+    for (int k = 0; k < 3; ++k) {
+      out[k] = counters[k];
+      counters[k] = 0u;
+    }
+  }
+};
+
+}  // namespace covox
