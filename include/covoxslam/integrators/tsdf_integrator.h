@@ -26,9 +26,10 @@
 //   4. the marked blocks are listed (a scan of the marks) and allocated in one
 //      BlockHashTable::activate batch, before step 3 on the GPU, whose sort then hides the wait
 //      for the activation's totals (for boxes with more blocks than records, listed from the
-//      sorted records after step 3 instead); a small frame that sums every visit does not wait
-//      for them at all: its pass reads the block count on the device, and the totals come back
-//      at the frame's end;
+//      sorted records after step 3 instead); a frame that sums every visit activates each
+//      block in the scan that lists it (BlockActivator, block_activator.h) and gets the totals at
+//      its end, and a small one does not wait for its block count either (its pass reads it on
+//      the device);
 //   5. each voxel's records are summed (a segmented reduction in tiles, core/run_sums.h) and
 //      the sum, with the voxel's free-space sum, goes straight into one weighted-average write
 //      per distinct voxel; a pass over the listed blocks' cells then writes the voxels that had

@@ -214,10 +214,11 @@ inline DroppedRecords dropped_records(const FrameCounts& counts, int64_t record_
   return dropped;
 }
 
-// A frame that sums every visit defers its activation's totals (step 4) when its listed blocks'
-// cells are bounded by this many: then the wait is what the frame saves, not the pass's time lost
-// to the loose bound (below). Larger frames (7-Scenes 2 cm, LiDAR) wait: their passes started
-// that way took longer than the wait saved (H100: KITTI's pass 51 -> 72 us, "twelfth pass").
+// A frame that sums every visit starts its pass without waiting for the count of its listed
+// blocks when their cells are bounded by this many: then the wait is what the frame saves, not
+// the pass's time lost to the loose bound (below). Larger frames (7-Scenes 2 cm, LiDAR) wait for
+// the count: their passes started by the bound took longer than the wait saved (H100, same run:
+// every frame so 1.02-1.06x the frame time on LiDAR, 1.00-1.02x at 2 cm; "twelfth pass").
 constexpr int64_t kDeferredPassMaxCells = int64_t(1) << 20;
 
 // Threads for a pass whose work items the host knows only by a bound (`bound`: `extra` items
@@ -807,14 +808,14 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
     activate_listed_blocks();
     profile.mark("4a list and activate sorted blocks");
   }
-  // A frame that sums every visit does not wait for the queued activation's totals at all: its
-  // pass over the listed blocks' cells (step 5) reads the block count on the device and writes
-  // the blocks whose slots the voxel pool already holds; the totals come back with the frame's
-  // other figures at its end, where any block whose new slot lies past the pool is written by a
-  // second pass once the pool has grown (rare: the pool grows geometrically). One wait and one
-  // launch fewer per frame (the new blocks are cleared by the pass too); "twelfth pass".
-  // (a frame that activated its blocks while listing them gets the totals at its end; it waits
-  // only for the count of its listed blocks, when its pass is too large to start by a bound)
+  // A frame that sums every visit activated its blocks while listing them and does not wait for
+  // the activation's totals: they come back with the frame's other figures at its end (the pass
+  // hands them over), where any block whose new slot lies past the voxel pool is written by a
+  // second pass once the pool has grown (rare: the pool grows geometrically); the first pass
+  // writes the blocks whose slots the pool already holds, and clears the new ones. A small frame
+  // does not wait at all: its pass reads the listed blocks' count on the device; a larger one
+  // waits for that count only (kDeferredPassMaxCells). One wait and two launches fewer per
+  // 7-Scenes 5 cm frame on the H100; docs/benchmarks.md, "twelfth pass".
   const bool activation_deferred = activates_while_listing;
   const bool pass_counted_on_device =
       activation_deferred && block_bound * map.voxels_per_block() <= tsdf_detail::kDeferredPassMaxCells;
