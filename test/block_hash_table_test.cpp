@@ -449,6 +449,33 @@ TEST(BlockActivatorTest, InKernelActivationMatchesActivate) {
   EXPECT_NO_THROW(activate(in_kernel, keys));
 }
 
+// A caller stopped between its activating kernel and the hand-over (an exception in a TSDF frame)
+// abandons the activation: the table takes later calls, and the keys inserted so far keep the
+// slots they got, none of which is handed out again.
+TEST(BlockActivatorTest, AnAbandonedActivationLeavesTheTableConsistent) {
+  BlockHashTable table(Device::kCpu, BlockHashTableConfig{1 << 12, 0.75, true});
+  const auto keys = random_blocks(600, 600, 9);
+  const Stream stream(Device::kCpu);
+  BlockActivator activator;
+  ASSERT_TRUE(table.begin_in_kernel_activation(static_cast<int64_t>(keys.size()), &activator, stream));
+  std::vector<uint32_t> slots(300);
+  for (size_t i = 0; i < 300; ++i) {
+    bool fresh = false;
+    slots[i] = activator.activate(keys[i], &fresh);
+    ASSERT_TRUE(fresh);
+  }
+  EXPECT_THROW(activate(table, keys), Error);  // pending
+  table.abandon_in_kernel_activation(stream);
+  table.abandon_in_kernel_activation(stream);  // nothing pending: nothing to do
+  EXPECT_EQ(table.size(), 300);
+  EXPECT_EQ(table.slot_count(), 300u);
+  const ActivateOutput all = activate(table, keys);
+  EXPECT_EQ(all.result.num_new, 300);
+  std::set<uint32_t> distinct(all.slots.begin(), all.slots.end());
+  EXPECT_EQ(distinct.size(), keys.size());
+  for (size_t i = 0; i < 300; ++i) EXPECT_EQ(all.slots[i], slots[i]) << "key " << i;
+}
+
 TEST(BlockHashTableConfigCheck, RejectsBadParameters) {
   EXPECT_THROW(BlockHashTable(Device::kCpu, BlockHashTableConfig{1024, 1.5, true}), Error);
   EXPECT_THROW(BlockHashTable(Device::kCpu, BlockHashTableConfig{0, 0.5, true}), Error);

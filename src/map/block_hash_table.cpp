@@ -6,6 +6,7 @@
 
 #include "covoxslam/core/error.h"
 #include "covoxslam/core/log.h"
+#include "covoxslam/core/memory.h"
 #include "covoxslam/map/block_hash_table_ops.h"
 
 namespace covox {
@@ -74,7 +75,25 @@ bool BlockHashTable::begin_in_kernel_activation(int64_t count_bound, BlockActiva
   activator->next_unused = state_.next_unused_slot;
   activator->counters = state_.activation_failures(stream) + 3;
   state_.pending_count = count_bound;
+  state_.pending_in_kernel = true;
   return true;
+}
+
+void BlockHashTable::abandon_in_kernel_activation(const Stream& stream) noexcept {
+  if (state_.pending_count < 0 || !state_.pending_in_kernel) return;
+  try {
+    uint32_t counters[3] = {0u, 0u, 0u};
+    uint32_t* words = state_.activation_words.data() + 3;
+    copy_bytes(counters, Device::kCpu, words, state_.device, sizeof(counters), stream);
+    const uint32_t zeros[3] = {0u, 0u, 0u};
+    copy_bytes(words, state_.device, zeros, Device::kCpu, sizeof(zeros), stream);
+    finish_in_kernel_activation(counters[0], counters[1], counters[2]);
+  } catch (const std::exception& error) {
+    state_.pending_count = -1;
+    state_.pending_in_kernel = false;
+    log_warning("BlockHashTable: an abandoned in-kernel activation could not be read back (", error.what(),
+                "); its new keys' slots are not accounted for");
+  }
 }
 
 ActivateResult BlockHashTable::finish_in_kernel_activation(uint32_t num_new, uint32_t num_out_of_range,
@@ -83,6 +102,7 @@ ActivateResult BlockHashTable::finish_in_kernel_activation(uint32_t num_new, uin
     throw Error("BlockHashTable::finish_in_kernel_activation: no activation is pending");
   }
   state_.pending_count = -1;
+  state_.pending_in_kernel = false;
   return hash_table_detail::activate_finish_counted(state_, num_new, num_out_of_range, num_table_full);
 }
 

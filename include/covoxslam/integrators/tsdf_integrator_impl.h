@@ -214,6 +214,21 @@ inline DroppedRecords dropped_records(const FrameCounts& counts, int64_t record_
   return dropped;
 }
 
+// An in-kernel activation (block_activator.h) that a frame began and did not finish, because an
+// exception stopped it, is finished from the device's counters as the frame unwinds: else the
+// table would refuse every later frame's blocks.
+class PendingActivationGuard {
+ public:
+  PendingActivationGuard(BlockHashTable& table, const Stream& stream) : table_(table), stream_(stream) {}
+  PendingActivationGuard(const PendingActivationGuard&) = delete;
+  PendingActivationGuard& operator=(const PendingActivationGuard&) = delete;
+  ~PendingActivationGuard() { table_.abandon_in_kernel_activation(stream_); }
+
+ private:
+  BlockHashTable& table_;
+  const Stream& stream_;
+};
+
 // A frame that sums every visit starts its pass without waiting for the count of its listed
 // blocks when their cells are bounded by this many: then the wait is what the frame saves, not
 // the pass's time lost to the loose bound (below). Larger frames (7-Scenes 2 cm, LiDAR) wait for
@@ -734,6 +749,7 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   std::optional<PendingReadBack> activation_totals;
   BlockActivator activator;
   bool activates_while_listing = false;
+  const tsdf_detail::PendingActivationGuard activation_guard(map.blocks(), stream);
   const uint32_t* box_ranks = nullptr;
   if (mark_blocks) {
     scratch.block_ranks.resize_discard(box_blocks + 1);

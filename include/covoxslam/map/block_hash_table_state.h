@@ -50,6 +50,7 @@ struct BlockHashTableState {
   int64_t total_failed_full = 0;
   int64_t rehash_count = 0;
   int64_t pending_count = -1;  // a queued activation's key bound until it is finished; -1: none
+  bool pending_in_kernel = false;  // the pending activation is an in-kernel one (block_activator.h)
 
   // Per-batch scratch, kept between calls so steady-state batches allocate nothing.
   Buffer<uint64_t> scratch_buckets;
