@@ -830,8 +830,9 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   // second pass once the pool has grown (rare: the pool grows geometrically); the first pass
   // writes the blocks whose slots the pool already holds, and clears the new ones. A small frame
   // does not wait at all: its pass reads the listed blocks' count on the device; a larger one
-  // waits for that count only (kDeferredPassMaxCells). One wait and two launches fewer per
-  // 7-Scenes 5 cm frame on the H100; docs/benchmarks.md, "twelfth pass".
+  // waits for that count only (kDeferredPassMaxCells). With the levels scan and the activation
+  // kernels gone too, a 7-Scenes 5 cm frame went from eleven kernels and three waits to seven and
+  // two (H100: 0.124 -> 0.103 ms in two same-run steps; docs/benchmarks.md, "twelfth pass").
   const bool activation_deferred = activates_while_listing;
   const bool pass_counted_on_device =
       activation_deferred && block_bound * map.voxels_per_block() <= tsdf_detail::kDeferredPassMaxCells;
