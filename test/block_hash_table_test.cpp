@@ -449,9 +449,9 @@ TEST(BlockActivatorTest, InKernelActivationMatchesActivate) {
   EXPECT_NO_THROW(activate(in_kernel, keys));
 }
 
-// A caller stopped between its activating kernel and the hand-over (an exception in a TSDF frame)
-// abandons the activation: the table takes later calls, and the keys inserted so far keep the
-// slots they got, none of which is handed out again.
+// A caller stopped before it finished an activation (an exception in a TSDF frame) abandons it,
+// in-kernel or queued: the table takes later calls, and the keys inserted so far keep the slots
+// they got, none of which is handed out again.
 TEST(BlockActivatorTest, AnAbandonedActivationLeavesTheTableConsistent) {
   BlockHashTable table(Device::kCpu, BlockHashTableConfig{1 << 12, 0.75, true});
   const auto keys = random_blocks(600, 600, 9);
@@ -465,15 +465,27 @@ TEST(BlockActivatorTest, AnAbandonedActivationLeavesTheTableConsistent) {
     ASSERT_TRUE(fresh);
   }
   EXPECT_THROW(activate(table, keys), Error);  // pending
-  table.abandon_in_kernel_activation(stream);
-  table.abandon_in_kernel_activation(stream);  // nothing pending: nothing to do
+  table.abandon_pending_activation(nullptr, stream);
+  table.abandon_pending_activation(nullptr, stream);  // nothing pending: nothing to do
   EXPECT_EQ(table.size(), 300);
   EXPECT_EQ(table.slot_count(), 300u);
+  // A queued activation abandoned after its kernels ran: finished from the totals it wrote.
+  const std::vector<Index3D> more(keys.begin() + 250, keys.begin() + 400);  // 50 known, 100 new
+  auto more_device = Buffer<Index3D>::from_host(Device::kCpu, more);
+  auto count_device = Buffer<uint32_t>::from_host(Device::kCpu, {static_cast<uint32_t>(more.size())});
+  Buffer<uint32_t> more_slots(Device::kCpu, more.size()), totals(Device::kCpu, 2);
+  ASSERT_TRUE(table.activate_queued(more_device.data(), count_device.data(), static_cast<int64_t>(more.size()),
+                                    more_slots.data(), nullptr, totals.data(), stream, true));
+  table.abandon_pending_activation(totals.data(), stream);
+  EXPECT_EQ(table.size(), 400);
+  EXPECT_EQ(table.slot_count(), 400u);
   const ActivateOutput all = activate(table, keys);
-  EXPECT_EQ(all.result.num_new, 300);
+  EXPECT_EQ(all.result.num_new, 200);
   std::set<uint32_t> distinct(all.slots.begin(), all.slots.end());
   EXPECT_EQ(distinct.size(), keys.size());
   for (size_t i = 0; i < 300; ++i) EXPECT_EQ(all.slots[i], slots[i]) << "key " << i;
+  const std::vector<uint32_t> queued_slots = more_slots.to_host();
+  for (size_t i = 0; i < more.size(); ++i) EXPECT_EQ(all.slots[250 + i], queued_slots[i]) << "key " << 250 + i;
 }
 
 TEST(BlockHashTableConfigCheck, RejectsBadParameters) {

@@ -79,19 +79,26 @@ bool BlockHashTable::begin_in_kernel_activation(int64_t count_bound, BlockActiva
   return true;
 }
 
-void BlockHashTable::abandon_in_kernel_activation(const Stream& stream) noexcept {
-  if (state_.pending_count < 0 || !state_.pending_in_kernel) return;
+void BlockHashTable::abandon_pending_activation(const uint32_t* queued_totals, const Stream& stream) noexcept {
+  if (state_.pending_count < 0) return;
   try {
-    uint32_t counters[3] = {0u, 0u, 0u};
-    uint32_t* words = state_.activation_words.data() + 3;
-    copy_bytes(counters, Device::kCpu, words, state_.device, sizeof(counters), stream);
-    const uint32_t zeros[3] = {0u, 0u, 0u};
-    copy_bytes(words, state_.device, zeros, Device::kCpu, sizeof(zeros), stream);
-    finish_in_kernel_activation(counters[0], counters[1], counters[2]);
+    if (state_.pending_in_kernel) {
+      uint32_t counters[3] = {0u, 0u, 0u};
+      uint32_t* words = state_.activation_words.data() + 3;
+      copy_bytes(counters, Device::kCpu, words, state_.device, sizeof(counters), stream);
+      const uint32_t zeros[3] = {0u, 0u, 0u};
+      copy_bytes(words, state_.device, zeros, Device::kCpu, sizeof(zeros), stream);
+      finish_in_kernel_activation(counters[0], counters[1], counters[2]);
+      return;
+    }
+    if (!queued_totals) throw Error("the queued activation's totals were not given");
+    uint32_t totals[2] = {0u, 0u};
+    copy_bytes(totals, Device::kCpu, queued_totals, state_.device, sizeof(totals), stream);
+    finish_queued_activation(totals[0], totals[1], stream);
   } catch (const std::exception& error) {
     state_.pending_count = -1;
     state_.pending_in_kernel = false;
-    log_warning("BlockHashTable: an abandoned in-kernel activation could not be read back (", error.what(),
+    log_warning("BlockHashTable: an abandoned activation could not be read back (", error.what(),
                 "); its new keys' slots are not accounted for");
   }
 }

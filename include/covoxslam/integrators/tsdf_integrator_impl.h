@@ -214,18 +214,21 @@ inline DroppedRecords dropped_records(const FrameCounts& counts, int64_t record_
   return dropped;
 }
 
-// An in-kernel activation (block_activator.h) that a frame began and did not finish, because an
-// exception stopped it, is finished from the device's counters as the frame unwinds: else the
+// An activation that a frame began and did not finish, because an exception stopped it, is
+// finished from what the device holds as the frame unwinds (BlockHashTable::
+// abandon_pending_activation; a queued one's totals are the frame's activation words): else the
 // table would refuse every later frame's blocks.
 class PendingActivationGuard {
  public:
-  PendingActivationGuard(BlockHashTable& table, const Stream& stream) : table_(table), stream_(stream) {}
+  PendingActivationGuard(BlockHashTable& table, const uint32_t* queued_totals, const Stream& stream)
+      : table_(table), queued_totals_(queued_totals), stream_(stream) {}
   PendingActivationGuard(const PendingActivationGuard&) = delete;
   PendingActivationGuard& operator=(const PendingActivationGuard&) = delete;
-  ~PendingActivationGuard() { table_.abandon_in_kernel_activation(stream_); }
+  ~PendingActivationGuard() { table_.abandon_pending_activation(queued_totals_, stream_); }
 
  private:
   BlockHashTable& table_;
+  const uint32_t* queued_totals_;
   const Stream& stream_;
 };
 
@@ -749,7 +752,8 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   std::optional<PendingReadBack> activation_totals;
   BlockActivator activator;
   bool activates_while_listing = false;
-  const tsdf_detail::PendingActivationGuard activation_guard(map.blocks(), stream);
+  const tsdf_detail::PendingActivationGuard activation_guard(map.blocks(),
+                                                             counts_on_device + tsdf_detail::kActivationWords, stream);
   const uint32_t* box_ranks = nullptr;
   if (mark_blocks) {
     scratch.block_ranks.resize_discard(box_blocks + 1);

@@ -60,12 +60,13 @@ class BlockHashTable {
   // BlockActivator::hand_over_totals() wrote, other calls on this table are refused.
   bool begin_in_kernel_activation(int64_t count_bound, BlockActivator* activator, const Stream& stream);
   ActivateResult finish_in_kernel_activation(uint32_t num_new, uint32_t num_out_of_range, uint32_t num_table_full);
-  // For a caller that stops (an exception) between the activating kernel and the hand-over: waits
-  // for the stream, finishes the activation from the device's counters as they stand and clears
-  // them, so that the table takes later calls and hands out no slot twice. Nothing to do when no
-  // in-kernel activation is pending. Does not throw: if the device cannot be read, the activation
-  // is dropped from the books and a warning logged (the table may then hand out a slot twice).
-  void abandon_in_kernel_activation(const Stream& stream) noexcept;
+  // For a caller that stops (an exception) before it finishes a pending activation: waits for the
+  // stream and finishes it from what the device holds, an in-kernel activation from its counters
+  // (cleared again), a queued one from the totals it wrote to `queued_totals` (the caller's
+  // totals_out; null: unknown), so that the table takes later calls and hands out no slot twice.
+  // Nothing to do when no activation is pending. Does not throw: if the device cannot be read, the
+  // activation is dropped from the books and a warning logged (a slot may then be handed out twice).
+  void abandon_pending_activation(const uint32_t* queued_totals, const Stream& stream) noexcept;
 
   // slots_out[i] = slot of keys[i] or kInvalidSlot. Returns how many were found.
   int64_t find(const Index3D* keys, int64_t count, uint32_t* slots_out) const;
