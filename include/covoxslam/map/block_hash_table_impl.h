@@ -191,7 +191,8 @@ void activate_insert_rank_and_assign(Backend backend, BlockHashTableState& state
         }
         if (gather.slots_out) gather.slots_out[i] = slot;
         if (gather.is_new_out) gather.is_new_out[i] = static_cast<uint8_t>(is_new);
-      });
+      },
+      ranks);  // (the CPU twin's scratch: the prefixes land where the output puts them anyway)
 }
 
 // Step 4. The gather reads every key's slot, so it runs without the host knowing whether any
