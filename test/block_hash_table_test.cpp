@@ -281,12 +281,9 @@ TEST(BlockKey, PacksAndUnpacksTheWholeRange) {
 // their slot, each new key is flagged once and all its occurrences share a slot, the new keys take
 // the same set of slots as activate() hands out, entries past the count get kInvalidSlot; other
 // calls are refused until the activation is finished.
-// With `distinct` the keys are deduplicated first (the promise activate_queued's keys_distinct
-// takes, which gathers the slots in the same launch).
-void check_queued_activation(Device device, bool distinct) {
-  SCOPED_TRACE(distinct ? "distinct keys" : "keys with duplicates");
+TEST_P(BlockHashTableTest, QueuedActivationMatchesActivate) {
   const BlockHashTableConfig config{1 << 14, 0.75, true};
-  BlockHashTable queued(device, config), direct(device, config);
+  BlockHashTable queued(device(), config), direct(device(), config);
   const auto first = random_blocks(3000, 3000, 5);
   for (BlockHashTable* table : {&queued, &direct}) {
     activate(*table, first);
@@ -294,27 +291,18 @@ void check_queued_activation(Device device, bool distinct) {
   }
   std::vector<Index3D> keys = random_blocks(6000, 2500, 6);
   keys.insert(keys.begin() + 10, first.begin() + 100, first.begin() + 1100);  // erased and live keys
-  if (distinct) {
-    std::unordered_set<Index3D, IndexHash> seen;
-    std::vector<Index3D> once;
-    for (const Index3D& key : keys) {
-      if (seen.insert(key).second) once.push_back(key);
-    }
-    ASSERT_GT(once.size(), 3000u);
-    keys = once;
-  }
   keys[20] = Index3D(kMaxBlockIndex + 1, 0, 0);                               // rejected
-  const int64_t count = distinct ? 3000 : 5200, bound = static_cast<int64_t>(keys.size());
+  const int64_t count = 5200, bound = static_cast<int64_t>(keys.size());
   const std::vector<Index3D> counted(keys.begin(), keys.begin() + count);
   const std::vector<uint32_t> before = find(queued, counted);
 
-  auto keys_device = Buffer<Index3D>::from_host(device, keys);
-  auto count_device = Buffer<uint32_t>::from_host(device, {static_cast<uint32_t>(count)});
-  Buffer<uint32_t> slots(device, bound), totals(device, 2);
-  Buffer<uint8_t> is_new(device, bound);
-  Stream stream(device);
+  auto keys_device = Buffer<Index3D>::from_host(device(), keys);
+  auto count_device = Buffer<uint32_t>::from_host(device(), {static_cast<uint32_t>(count)});
+  Buffer<uint32_t> slots(device(), bound), totals(device(), 2);
+  Buffer<uint8_t> is_new(device(), bound);
+  Stream stream(device());
   ASSERT_TRUE(queued.activate_queued(keys_device.data(), count_device.data(), bound, slots.data(), is_new.data(),
-                                     totals.data(), stream, distinct));
+                                     totals.data(), stream));
   EXPECT_THROW(activate(queued, counted), Error);
   EXPECT_THROW(erase(queued, counted), Error);
   stream.synchronize();
@@ -361,11 +349,6 @@ void check_queued_activation(Device device, bool distinct) {
   // Both tables go on alike (distinct keys take slots in input order).
   const auto more = random_blocks(2000, 2000, 7, 100000);
   EXPECT_EQ(activate(queued, more).slots, activate(direct, more).slots);
-}
-
-TEST_P(BlockHashTableTest, QueuedActivationMatchesActivate) {
-  check_queued_activation(device(), false);
-  check_queued_activation(device(), true);
 }
 
 TEST_P(BlockHashTableTest, QueuedActivationDeclinesWhenTheTableMightGrow) {
@@ -475,7 +458,7 @@ TEST(BlockActivatorTest, AnAbandonedActivationLeavesTheTableConsistent) {
   auto count_device = Buffer<uint32_t>::from_host(Device::kCpu, {static_cast<uint32_t>(more.size())});
   Buffer<uint32_t> more_slots(Device::kCpu, more.size()), totals(Device::kCpu, 2);
   ASSERT_TRUE(table.activate_queued(more_device.data(), count_device.data(), static_cast<int64_t>(more.size()),
-                                    more_slots.data(), nullptr, totals.data(), stream, true));
+                                    more_slots.data(), nullptr, totals.data(), stream));
   table.abandon_pending_activation(totals.data(), stream);
   EXPECT_EQ(table.size(), 400);
   EXPECT_EQ(table.slot_count(), 400u);

@@ -50,10 +50,10 @@ ActivateResult BlockHashTable::activate(const Index3D* keys, int64_t count, uint
 
 bool BlockHashTable::activate_queued(const Index3D* keys, const uint32_t* count_on_device, int64_t count_bound,
                                      uint32_t* slots_out, uint8_t* is_new_out, uint32_t* totals_out,
-                                     const Stream& stream, bool keys_distinct) {
+                                     const Stream& stream) {
   return dispatch(state_.device, [&](auto backend) {
     return hash_table_activate_queued(backend, state_, keys, count_on_device, count_bound, slots_out, is_new_out,
-                                      totals_out, keys_distinct, stream);
+                                      totals_out, stream);
   });
 }
 
@@ -66,9 +66,7 @@ ActivateResult BlockHashTable::finish_queued_activation(uint32_t num_new, uint32
 // The same growth check as activate_queued.
 bool BlockHashTable::begin_in_kernel_activation(int64_t count_bound, BlockActivator* activator, const Stream& stream) {
   require_nothing_queued("begin_in_kernel_activation");
-  if (count_bound <= 0) return false;
-  const double limit = state_.config.max_load_factor * static_cast<double>(state_.bucket_count());
-  if (state_.config.allow_growth && static_cast<double>(state_.occupied_count + count_bound) > limit) return false;
+  if (count_bound <= 0 || state_.might_grow_for(count_bound)) return false;
   activator->table = state_.view();
   activator->free_stack = state_.free_slots.data();
   activator->free_count = state_.free_count;

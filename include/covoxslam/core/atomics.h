@@ -50,25 +50,6 @@ COVOX_HD_INLINE uint64_t atomic_add(uint64_t* address, uint64_t value) {
 #endif
 }
 
-// Stores `value`, returns the previous value.
-COVOX_HD_INLINE uint32_t atomic_exchange(uint32_t* address, uint32_t value) {
-#if COVOX_DEVICE_CODE
-  return atomicExch(reinterpret_cast<unsigned int*>(address), value);
-#else
-  return __atomic_exchange_n(address, value, __ATOMIC_ACQ_REL);
-#endif
-}
-
-// The calling thread's memory operations before it are seen by every thread of the device (the
-// GPU) or process (the host) before its operations after it.
-COVOX_HD_INLINE void device_memory_fence() {
-#if COVOX_DEVICE_CODE
-  __threadfence();
-#else
-  __atomic_thread_fence(__ATOMIC_SEQ_CST);
-#endif
-}
-
 namespace detail {
 // The host's atomic minimum / maximum: a CAS loop that stops once the stored value is no longer
 // worse than `value`. Returns the previous value.

@@ -741,8 +741,7 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
     if (Backend::kDevice != Device::kCpu) {
       queued = map.blocks().activate_queued(block_indices, counts_on_device + tsdf_detail::kBlockCountWord, block_bound,
                                             slots, scratch.is_new.data(),
-                                            counts_on_device + tsdf_detail::kActivationWords, stream,
-                                            true);  // (a frame lists each of its blocks once)
+                                            counts_on_device + tsdf_detail::kActivationWords, stream);
     }
     if (!queued) {
       counts = tsdf_detail::read_frame_counts(scratch, stream);

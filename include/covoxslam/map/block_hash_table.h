@@ -46,12 +46,9 @@ class BlockHashTable {
   // receives the number of new keys and of rejected keys once the queued work has run; pass them
   // to finish_queued_activation() before any other call on this table. Returns false, queuing
   // nothing, when the table might have to grow for count_bound new keys (growth needs the exact
-  // count): call activate() then. `keys_distinct`: the caller promises that no key occurs twice
-  // among the counted ones (a TSDF frame's listed blocks), and the work takes one launch instead
-  // of two.
+  // count): call activate() then.
   bool activate_queued(const Index3D* keys, const uint32_t* count_on_device, int64_t count_bound,
-                       uint32_t* slots_out, uint8_t* is_new_out, uint32_t* totals_out, const Stream& stream,
-                       bool keys_distinct = false);
+                       uint32_t* slots_out, uint8_t* is_new_out, uint32_t* totals_out, const Stream& stream);
   ActivateResult finish_queued_activation(uint32_t num_new, uint32_t num_rejected, const Stream& stream);
 
   // An activation of at most `count_bound` distinct keys made from inside the caller's kernels

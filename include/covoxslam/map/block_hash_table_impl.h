@@ -122,20 +122,9 @@ namespace hash_table_detail {
 // the state's failure counter, which the gather reads and clears. (Before: a memset, the insert
 // kernel, a scan and the assignment; on the H100 machine each launch costs the host 4-5 us, and a
 // TSDF frame waits for them: docs/benchmarks.md, "eighth pass" and "twelfth pass".)
-// When `gather` is given the keys are distinct, and step 4 runs in the same launch: a known key's
-// slot does not change, and a new key's is the one just assigned, so each key's slot is known as
-// soon as its rank is (with duplicates another occurrence might assign it later: activate_gather).
-// The totals then come from the scan's last output, after every tile's inserts: a failure's count
-// is fenced before its tile publishes its sum, and read by an atomic exchange (which clears it).
-struct ActivationGather {
-  uint32_t* slots_out = nullptr;  // null: no gather here
-  uint8_t* is_new_out = nullptr;
-  uint32_t* totals_out = nullptr;
-};
 template <class Backend>
 void activate_insert_rank_and_assign(Backend backend, BlockHashTableState& state, const Index3D* keys, int64_t count,
-                                     const uint32_t* count_on_device, const Stream& stream,
-                                     const ActivationGather& gather = {}) {
+                                     const uint32_t* count_on_device, const Stream& stream) {
   state.scratch_buckets.resize_discard(static_cast<size_t>(count));
   state.scratch_flags.resize_discard(static_cast<size_t>(count));
   state.scratch_ranks.resize_discard(static_cast<size_t>(count) + 1);
@@ -144,7 +133,6 @@ void activate_insert_rank_and_assign(Backend backend, BlockHashTableState& state
   uint32_t* ranks = state.scratch_ranks.data();
   uint32_t* failures = state.activation_failures(stream);
   const BlockHashTableView table = state.view();
-  // reuse freed slots first (top of the stack), then never-used ones
   const uint32_t* free_stack = state.free_slots.data();
   const uint32_t free_count = state.free_count;
   const uint32_t next_unused = state.next_unused_slot;
@@ -163,34 +151,13 @@ void activate_insert_rank_and_assign(Backend backend, BlockHashTableState& state
         const uint64_t bucket = key == kInvalidBlockKey ? kNoBucket : table.insert(key, &inserted);
         buckets[i] = bucket;
         new_flags[i] = inserted ? 1u : 0u;
-        if (bucket >= kTableFullBucket) {
-          atomic_add(failures, 1u);
-          device_memory_fence();  // (before this tile's sum is published: see above)
-        }
+        if (bucket >= kTableFullBucket) atomic_add(failures, 1u);
         return inserted ? 1u : 0u;
       },
       [=] COVOX_HD(int64_t i, uint32_t rank) {
         ranks[i] = rank;
-        if (i == count) {
-          if (gather.totals_out) {
-            device_memory_fence();
-            gather.totals_out[0] = rank;
-            gather.totals_out[1] = atomic_exchange(failures, 0u);
-          }
-          return;
-        }
         // (the scan called value_of(i) before, in this block)
-        const bool is_new = new_flags[i] != 0u;
-        const uint64_t bucket = buckets[i];
-        uint32_t slot = kInvalidSlot;
-        if (is_new) {
-          slot = rank < free_count ? free_stack[free_count - 1 - rank] : next_unused + (rank - free_count);
-          table.slots[bucket] = slot;
-        } else if (gather.slots_out && bucket < table.bucket_count) {
-          slot = table.slots[bucket];
-        }
-        if (gather.slots_out) gather.slots_out[i] = slot;
-        if (gather.is_new_out) gather.is_new_out[i] = static_cast<uint8_t>(is_new);
+        if (i < count && new_flags[i]) table.slots[buckets[i]] = new_key_slot(free_stack, free_count, next_unused, rank);
       },
       ranks);  // (the CPU twin's scratch: the prefixes land where the output puts them anyway)
 }
@@ -250,20 +217,12 @@ ActivateResult hash_table_activate(Backend backend, BlockHashTableState& state,
 template <class Backend>
 bool hash_table_activate_queued(Backend backend, BlockHashTableState& state, const Index3D* keys,
                                 const uint32_t* count_on_device, int64_t count_bound, uint32_t* slots_out,
-                                uint8_t* is_new_out, uint32_t* totals_out, bool keys_distinct, const Stream& stream) {
+                                uint8_t* is_new_out, uint32_t* totals_out, const Stream& stream) {
   if (state.pending_count >= 0) throw Error("BlockHashTable::activate_queued: the previous one is not finished");
-  if (count_bound <= 0) return false;
   // Growth needs the exact count of new keys: the caller takes the synchronous path then.
-  const double limit = state.config.max_load_factor * static_cast<double>(state.bucket_count());
-  if (state.config.allow_growth && static_cast<double>(state.occupied_count + count_bound) > limit) return false;
-  if (keys_distinct) {
-    hash_table_detail::activate_insert_rank_and_assign(backend, state, keys, count_bound, count_on_device, stream,
-                                                       hash_table_detail::ActivationGather{slots_out, is_new_out,
-                                                                                           totals_out});
-  } else {
-    hash_table_detail::activate_insert_rank_and_assign(backend, state, keys, count_bound, count_on_device, stream);
-    hash_table_detail::activate_gather(backend, state, count_bound, slots_out, is_new_out, totals_out, stream);
-  }
+  if (count_bound <= 0 || state.might_grow_for(count_bound)) return false;
+  hash_table_detail::activate_insert_rank_and_assign(backend, state, keys, count_bound, count_on_device, stream);
+  hash_table_detail::activate_gather(backend, state, count_bound, slots_out, is_new_out, totals_out, stream);
   state.pending_count = count_bound;
   return true;
 }
@@ -363,7 +322,7 @@ void hash_table_export(Backend backend, BlockHashTableState& state, Buffer<Index
                                                        uint8_t*, const Stream&);                 \
   template bool hash_table_activate_queued<Backend>(Backend, BlockHashTableState&, const Index3D*, \
                                                    const uint32_t*, int64_t, uint32_t*, uint8_t*,   \
-                                                   uint32_t*, bool, const Stream&);                 \
+                                                   uint32_t*, const Stream&);                       \
   template ActivateResult hash_table_finish_queued<Backend>(Backend, BlockHashTableState&, uint32_t,\
                                                             uint32_t, const Stream&);               \
   template int64_t hash_table_find<Backend>(Backend, BlockHashTableState&, const Index3D*,       \

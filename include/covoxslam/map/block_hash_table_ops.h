@@ -27,7 +27,7 @@ ActivateResult hash_table_activate(Backend backend, BlockHashTableState& state,
 template <class Backend>
 bool hash_table_activate_queued(Backend backend, BlockHashTableState& state, const Index3D* keys,
                                 const uint32_t* count_on_device, int64_t count_bound, uint32_t* slots_out,
-                                uint8_t* is_new_out, uint32_t* totals_out, bool keys_distinct, const Stream& stream);
+                                uint8_t* is_new_out, uint32_t* totals_out, const Stream& stream);
 template <class Backend>
 ActivateResult hash_table_finish_queued(Backend backend, BlockHashTableState& state, uint32_t num_new,
                                         uint32_t failed, const Stream& stream);

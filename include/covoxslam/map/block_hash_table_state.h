@@ -72,6 +72,12 @@ struct BlockHashTableState {
   }
 
   uint64_t bucket_count() const { return keys.size(); }
+  // Whether `new_keys` more keys could take the table past its maximum load factor (it would
+  // grow): an activation that cannot count its new keys first must then take the synchronous path.
+  bool might_grow_for(int64_t new_keys) const {
+    return config.allow_growth &&
+           static_cast<double>(occupied_count + new_keys) > config.max_load_factor * static_cast<double>(bucket_count());
+  }
   BlockHashTableView view() { return BlockHashTableView{keys.data(), slots.data(), keys.size()}; }
 };
 
