@@ -1,6 +1,7 @@
 // Tile order of a depth image's points (tsdf::pixel_tile_order, tsdf_kernels.h): every pixel
 // gets its own place in [0, width x height), for image sizes that are and are not multiples of
-// the tile, and each full tile's 32 pixels are consecutive.
+// the tile, and each full tile's 32 pixels are consecutive; pixel_at_tile_place (which the merge
+// uses to read a depth image in place) inverts it.
 #include <gtest/gtest.h>
 
 #include <vector>
@@ -23,6 +24,19 @@ TEST(TsdfPixelOrder, EveryPixelGetsItsOwnPlace) {
       }
     }
     for (size_t k = 0; k < hits.size(); ++k) ASSERT_EQ(hits[k], 1) << width << "x" << height << " place " << k;
+  }
+}
+
+TEST(TsdfPixelOrder, EveryPlaceLeadsBackToItsPixel) {
+  for (const auto& size : std::vector<std::pair<int, int>>{{640, 480}, {13, 7}, {1, 1}, {9, 5}, {8, 4}, {3, 11}, {157, 117}}) {
+    const int width = size.first, height = size.second;
+    for (int v = 0; v < height; ++v) {
+      for (int u = 0; u < width; ++u) {
+        const int64_t place = tsdf::pixel_tile_order(u, v, width, height);
+        ASSERT_EQ(tsdf::pixel_at_tile_place(place, width, height), static_cast<int64_t>(v) * width + u)
+            << width << "x" << height << " pixel " << u << "," << v << " place " << place;
+      }
+    }
   }
 }
 

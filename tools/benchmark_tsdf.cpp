@@ -27,6 +27,7 @@
 #include "covoxslam/core/buffer.h"
 #include "covoxslam/core/device.h"
 #include "covoxslam/core/error.h"
+#include "covoxslam/core/stage_profiler.h"
 #include "covoxslam/integrators/tsdf_integrator.h"
 #include "covoxslam/io/data_directory.h"
 #include "covoxslam/map/tsdf_map.h"
@@ -73,12 +74,15 @@ struct Timing {
 };
 
 // Integrates frames round-robin into one map `integrations` times; the first pass over the
-// frames is a warm-up (allocation of blocks and scratch), not timed.
+// frames is a warm-up (allocation of blocks and scratch), neither timed nor profiled.
 template <class IntegrateFrame>
 Timing time_integrations(const Stream& stream, size_t frame_count, int integrations, TsdfMap& map,
                          IntegrateFrame&& integrate_frame) {
   for (size_t f = 0; f < frame_count; ++f) integrate_frame(f);
   stream.synchronize();
+  // The stage profile (COVOX_PROFILE_STAGES) of the timed frames only: the warm-up's first frame
+  // allocates and loads the kernels (milliseconds), which would swamp the stages' means.
+  StageProfiler::reset();
   std::vector<double> times;
   int64_t updates = 0;
   int64_t rays = 0;

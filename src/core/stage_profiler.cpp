@@ -42,6 +42,14 @@ bool StageProfiler::enabled() {
   return on;
 }
 
+bool StageProfiler::synchronises() {
+  static const bool host_only = [] {
+    const char* value = std::getenv("COVOX_PROFILE_STAGES");
+    return value && std::strcmp(value, "host") == 0;
+  }();
+  return !host_only;
+}
+
 void StageProfiler::add(const char* algorithm, const char* stage, int64_t nanoseconds) {
   std::lock_guard<std::mutex> lock(totals_mutex());
   auto& stages = totals();
@@ -76,16 +84,19 @@ void StageProfiler::reset() {
 }
 
 StageProfiler::Scope::Scope(const char* algorithm, const Stream& stream)
-    : algorithm_(algorithm), stream_(&stream), enabled_(StageProfiler::enabled()) {
+    : algorithm_(algorithm),
+      stream_(&stream),
+      enabled_(StageProfiler::enabled()),
+      synchronises_(enabled_ && StageProfiler::synchronises()) {
   if (enabled_) {
-    stream_->synchronize();
+    if (synchronises_) stream_->synchronize();
     last_ns_ = now_ns();
   }
 }
 
 void StageProfiler::Scope::mark(const char* stage) {
   if (!enabled_) return;
-  stream_->synchronize();
+  if (synchronises_) stream_->synchronize();
   const int64_t now = now_ns();
   StageProfiler::add(algorithm_, stage, now - last_ns_);
   last_ns_ = now;

@@ -100,6 +100,12 @@ TsdfIntegrator::TsdfIntegrator(TsdfIntegrator&&) noexcept = default;
 TsdfIntegrator& TsdfIntegrator::operator=(TsdfIntegrator&&) noexcept = default;
 
 namespace {
+void check_pose(const Eigen::Isometry3d& T_map_sensor) {
+  if (!T_map_sensor.matrix().allFinite()) {
+    throw Error("TSDF integrator: the sensor pose is not finite; the cloud was not integrated");
+  }
+}
+
 // Logs dropped input once per call, so a bad sensor shows up without flooding the log.
 void log_drops(const IntegrationStats& stats) {
   if (stats.dropped_non_finite > 0 || stats.voxels_out_of_range > 0) {
@@ -116,9 +122,7 @@ IntegrationStats TsdfIntegrator::integrate(TsdfMap& map, const PointCloudView& c
   if (cloud.intensities && !(cloud.intensity_max_value > 0.0f)) {
     throw Error("TSDF integrator: intensity_max_value must be positive");
   }
-  if (!T_map_sensor.matrix().allFinite()) {
-    throw Error("TSDF integrator: the sensor pose is not finite; the cloud was not integrated");
-  }
+  check_pose(T_map_sensor);
   if (!scratch_ || scratch_->buffers.rays.device() != map.device()) {
     scratch_ = std::make_unique<Scratch>(map.device());
   }
@@ -158,16 +162,29 @@ IntegrationStats TsdfIntegrator::integrate_depth(TsdfMap& map, const DepthImageV
   if (!image.depth_m && !(image.depth_units_per_m > 0.0f)) {
     throw Error("TSDF integrator: depth_units_per_m must be positive");
   }
+  validate(config_, map.voxel_size_m());
+  check_pose(T_map_camera);
   if (!scratch_ || scratch_->buffers.rays.device() != map.device()) {
     scratch_ = std::make_unique<Scratch>(map.device());
   }
-  StageProfiler::Scope profile("tsdf depth", stream);
-  dispatch(map.device(), [&](auto backend) { tsdf_unproject_depth(backend, image, scratch_->buffers, stream); });
-  profile.mark("unproject");
+  tsdf::DepthImagePoints points;
+  points.depth = image.depth;
+  points.depth_m = image.depth_m;
+  points.colors = image.colors;
+  points.metres_per_unit = 1.0f / image.depth_units_per_m;
+  points.invalid_value = image.invalid_value;
+  points.inverse_fx = 1.0f / k.fx;
+  points.inverse_fy = 1.0f / k.fy;
+  points.cx = k.cx;
+  points.cy = k.cy;
+  points.width = k.width;
+  points.height = k.height;
   // (the points and colours in tile order: tsdf::pixel_tile_order, tsdf_kernels.h)
-  const PointCloudView view{scratch_->buffers.points.data(), image.colors ? scratch_->buffers.colors.data() : nullptr,
-                            static_cast<int64_t>(k.width) * k.height};
-  return integrate(map, view, T_map_camera, stream);
+  const IntegrationStats stats = dispatch(map.device(), [&](auto backend) {
+    return tsdf_integrate_depth_image(backend, config_, map, points, T_map_camera, scratch_->buffers, stream);
+  });
+  log_drops(stats);
+  return stats;
 }
 
 }  // namespace covox

@@ -7,6 +7,10 @@
 // (or since begin()) to the named stage, so each stage's figure holds its kernels, its host work
 // and its own synchronisations. The synchronisations themselves slow the whole down a little:
 // read the table for the shares, not the absolute sum.
+// COVOX_PROFILE_STAGES=host charges the host's time between marks without synchronising: where
+// the host spends a frame (its launches, its own work and the waits the code itself does), with
+// the GPU running ahead as it does unprofiled. Each mark costs the host about a microsecond
+// (a lookup under a lock), so the stages read high by that much each.
 //
 // Usage (the integrators do this):
 //   StageProfiler::Scope profile("tsdf", stream);   // begin
@@ -22,6 +26,7 @@ namespace covox {
 class StageProfiler {
  public:
   static bool enabled();
+  static bool synchronises();  // false for COVOX_PROFILE_STAGES=host
   // Totals of every stage seen so far, as a table ("algorithm/stage  calls  total ms  mean us").
   static std::string report();
   static void reset();
@@ -35,6 +40,7 @@ class StageProfiler {
     const char* algorithm_;
     const Stream* stream_;
     bool enabled_;
+    bool synchronises_;
     int64_t last_ns_ = 0;
   };
 

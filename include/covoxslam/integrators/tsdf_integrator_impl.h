@@ -233,11 +233,17 @@ class PendingActivationGuard {
 };
 
 // A frame that sums every visit starts its pass without waiting for the count of its listed
-// blocks when their cells are bounded by this many: then the wait is what the frame saves, not
-// the pass's time lost to the loose bound (below). Larger frames (7-Scenes 2 cm, LiDAR) wait for
-// the count: their passes started by the bound took longer than the wait saved (H100, same run:
-// every frame so 1.02-1.06x the frame time on LiDAR, 1.00-1.02x at 2 cm; "twelfth pass").
-constexpr int64_t kDeferredPassMaxCells = int64_t(1) << 20;
+// blocks when the last frame listed at most this many cells: then the wait is what the frame
+// saves, not the pass's time lost to its loose sizing (counted_pass_threads, below). Frames with
+// more (OS1-64 at 0.1 m: 6.3 M cells, KITTI: 3.5 M) wait for the count. (H100, same run,
+// 2026-11-27: deferring every frame whose box bounds its cells by 2^26 made 7-Scenes 2 cm
+// 0.965x, OS1-64 0.2 m (1.2 M cells) 0.95x, KITTI 1.00x and OS1-64 0.1 m 1.03x the frame time.
+// Before, only frames whose box bounded their cells by 2^20 deferred, which left out the 2 cm
+// frames: their boxes are ten times their listed blocks; "thirteenth pass".)
+constexpr int64_t kDeferredPassMaxCells = int64_t(1) << 21;
+inline bool defers_block_count(int64_t last_listed_blocks, int64_t voxels_per_block) {
+  return last_listed_blocks >= 0 && last_listed_blocks * voxels_per_block <= kDeferredPassMaxCells;
+}
 
 // Threads for a pass whose work items the host knows only by a bound (`bound`: `extra` items
 // and the cells of the blocks the frame lists, whose count is on the device), in a grid-stride
@@ -390,11 +396,15 @@ tsdf::MergeTable clean_merge_table(Backend backend, TsdfScratchBuffers& scratch,
 // of points each stands for in scratch.ray_weights and, when `has_color`, its mean colour in
 // scratch.ray_colors; each ray's piece count goes to scratch.counts, with a 0 after the last ray.
 // Returns the tally of the points and rays (one read-back, the merge's only wait).
+// With `depth_image` the points are that image's, read in place: the first kernel unprojects
+// each pixel (tsdf::DepthImagePoints) and writes the point, and its colour when `colors` is
+// given, to cloud.points / colors (scratch.points / scratch.colors) for the kernel after it.
 template <class Backend>
 tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters& ray_parameters,
                                       const tsdf::MergeKeys& merge_keys, const PointCloudView& cloud,
                                       const Rgb8* colors, const float* intensities, float grey_per_intensity,
-                                      TsdfScratchBuffers& scratch, const Stream& stream) {
+                                      TsdfScratchBuffers& scratch, const Stream& stream,
+                                      const tsdf::DepthImagePoints* depth_image = nullptr) {
   StageProfiler::Scope profile("tsdf merge", stream);
   const int64_t n = cloud.count;
   const float inverse_voxel_size = 1.0f / ray_parameters.voxel_size_m;
@@ -410,6 +420,10 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
   uint32_t* codes = scratch.point_codes.data();
   const Vec3f* points = cloud.points;
   const bool has_color = colors || intensities;
+  const bool reads_image = depth_image != nullptr;
+  const tsdf::DepthImagePoints image = reads_image ? *depth_image : tsdf::DepthImagePoints{};
+  Vec3f* image_points = const_cast<Vec3f*>(cloud.points);  // scratch.points when reading the image
+  Rgb8* image_colors = const_cast<Rgb8*>(colors);
   // Points of one voxel lie within 2^31 merge units of each other (per axis) when the voxel's
   // diagonal is under about 1.8 m (voxels under 1 m): their coordinates sum in two warp reductions
   // each instead of four (warp_sum_clustered).
@@ -422,11 +436,21 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
   // channels share a word (a sum of 32 is at most 8160).
   parallel_for(backend, stream, n, [=] COVOX_HD(int64_t i) {
     const uint32_t lanes = warp_lanes();
-    const Vec3f point = points[i];
+    Vec3f point;
+    Rgb8 color;
+    if (reads_image) {  // the same for every point
+      const int64_t pixel = image.pixel_at(i);
+      point = image.point(pixel);
+      image_points[i] = point;
+      color = image_colors ? image.colors[pixel] : Rgb8{};
+      if (image_colors) image_colors[i] = color;
+    } else {
+      point = points[i];
+      color = tsdf::color_of(colors, intensities, grey_per_intensity, i);
+    }
     uint64_t key = 0;
     uint32_t code = merge_keys.classify(tsdf::make_ray(ray_parameters, point), inverse_voxel_size, &key);
     if (code != 0u) key = tsdf::kFreeMergeKey;  // no bundle
-    const Rgb8 color = tsdf::color_of(colors, intensities, grey_per_intensity, i);
     // The warp's points of one bundle (equal keys) reduce among themselves, all bundles at once.
     const uint32_t peers = warp_match(lanes, key);
     const int leader = warp_first_lane(peers);
@@ -833,12 +857,12 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   // second pass once the pool has grown (rare: the pool grows geometrically); the first pass
   // writes the blocks whose slots the pool already holds, and clears the new ones. A small frame
   // does not wait at all: its pass reads the listed blocks' count on the device; a larger one
-  // waits for that count only (kDeferredPassMaxCells). With the levels scan and the activation
+  // (by the last frame's count) waits for that count only (kDeferredPassMaxCells). With the levels scan and the activation
   // kernels gone too, a 7-Scenes 5 cm frame went from eleven kernels and three waits to seven and
   // two (H100: 0.124 -> 0.103 ms in two same-run steps; docs/benchmarks.md, "twelfth pass").
   const bool activation_deferred = activates_while_listing;
   const bool pass_counted_on_device =
-      activation_deferred && block_bound * map.voxels_per_block() <= tsdf_detail::kDeferredPassMaxCells;
+      activation_deferred && tsdf_detail::defers_block_count(scratch.last_listed_blocks, map.voxels_per_block());
   if (activation_deferred) {
     if (!pass_counted_on_device) counts = tsdf_detail::read_frame_counts(scratch, stream);
   } else if (activation_totals) {
@@ -1079,11 +1103,15 @@ void fuse_frame(Backend backend, const TsdfIntegratorConfig& config, const tsdf:
 }
 }  // namespace tsdf_detail
 
+namespace tsdf_detail {
+// A frame's points: `cloud`, or with `depth_image` that image's points, read in place by the
+// merged method (tsdf_merge_rays; `cloud` then names scratch.points / scratch.colors, which the
+// merge writes) and unprojected first by the simple method.
 template <class Backend>
-IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConfig& config,
-                                       TsdfMap& map, const PointCloudView& cloud,
-                                       const Eigen::Isometry3d& T_map_sensor,
-                                       TsdfScratchBuffers& scratch, const Stream& stream) {
+IntegrationStats integrate_frame(Backend backend, const TsdfIntegratorConfig& config, TsdfMap& map,
+                                 const PointCloudView& cloud, const tsdf::DepthImagePoints* depth_image,
+                                 const Eigen::Isometry3d& T_map_sensor, TsdfScratchBuffers& scratch,
+                                 const Stream& stream) {
   IntegrationStats stats;
   const int64_t n = cloud.count;
   stats.points_in = n;
@@ -1119,6 +1147,10 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
   int64_t ray_count = n;
   tsdf_detail::RayTally tally;
   if (config.method != TsdfIntegrationMethod::kMerged) {
+    if (depth_image) {
+      tsdf_unproject_depth(backend, *depth_image, scratch, stream);
+      profile.mark("0 unproject");
+    }
     // Why points did or did not become rays, and the box of voxels their own rays traverse.
     tally = transform_reduce(backend, stream, points, n, tsdf_detail::TallyPoint{ray_parameters, inverse_voxel_size},
                              tsdf_detail::RayTally{}, tsdf_detail::AddTallies{});
@@ -1142,7 +1174,7 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
     const tsdf::MergeKeys merge_keys = tsdf::make_merge_keys(ray_parameters.T_world_sensor.translation,
                                                              config.max_ray_length_m, voxel_size, voxels_per_side);
     tally = tsdf_merge_rays(backend, ray_parameters, merge_keys, cloud, colors, intensities, grey_per_intensity,
-                            scratch, stream);
+                            scratch, stream, depth_image);
     ray_weights = scratch.ray_weights.data();
     colors = has_color ? scratch.ray_colors.data() : nullptr;
     intensities = nullptr;
@@ -1261,42 +1293,46 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
   tsdf_detail::fuse_frame(backend, config, frame, has_color, ray_count, map, scratch, stats, profile, stream);
   return stats;
 }
+}  // namespace tsdf_detail
 
 template <class Backend>
-void tsdf_unproject_depth(Backend backend, const DepthImageView& image, TsdfScratchBuffers& scratch,
+IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConfig& config,
+                                       TsdfMap& map, const PointCloudView& cloud,
+                                       const Eigen::Isometry3d& T_map_sensor,
+                                       TsdfScratchBuffers& scratch, const Stream& stream) {
+  return tsdf_detail::integrate_frame(backend, config, map, cloud, nullptr, T_map_sensor, scratch, stream);
+}
+
+template <class Backend>
+IntegrationStats tsdf_integrate_depth_image(Backend backend, const TsdfIntegratorConfig& config, TsdfMap& map,
+                                            const tsdf::DepthImagePoints& image,
+                                            const Eigen::Isometry3d& T_map_camera, TsdfScratchBuffers& scratch,
+                                            const Stream& stream) {
+  const int64_t pixels = image.pixels();
+  // The points (and colours) are written where the view names them: by the merge, or by the
+  // unprojection before the simple method's first kernel.
+  scratch.points.resize_discard(pixels);
+  if (image.colors) scratch.colors.resize_discard(pixels);
+  const PointCloudView cloud{scratch.points.data(), image.colors ? scratch.colors.data() : nullptr, pixels};
+  return tsdf_detail::integrate_frame(backend, config, map, cloud, &image, T_map_camera, scratch, stream);
+}
+
+template <class Backend>
+void tsdf_unproject_depth(Backend backend, const tsdf::DepthImagePoints& image, TsdfScratchBuffers& scratch,
                           const Stream& stream) {
-  const PinholeIntrinsics k = image.intrinsics;
-  const int64_t pixels = static_cast<int64_t>(k.width) * k.height;
+  const int64_t pixels = image.pixels();
   scratch.points.resize_discard(pixels);
   Vec3f* points = scratch.points.data();
-  const Rgb8* image_colors = image.colors;
   Rgb8* colors = nullptr;
-  if (image_colors) {
+  if (image.colors) {
     scratch.colors.resize_discard(pixels);
     colors = scratch.colors.data();
   }
-  const uint16_t* depth = image.depth;
-  const float* depth_m = image.depth_m;
-  const float metres_per_unit = 1.0f / image.depth_units_per_m;
-  const uint16_t invalid = image.invalid_value;
-  const float inverse_fx = 1.0f / k.fx, inverse_fy = 1.0f / k.fy;
-  parallel_for(backend, stream, pixels, [=] COVOX_HD(int64_t p) {
-    const int32_t u = static_cast<int32_t>(p % k.width), v = static_cast<int32_t>(p / k.width);
-    const int64_t out = tsdf::pixel_tile_order(u, v, k.width, k.height);
-    if (colors) colors[out] = image_colors[p];
-    float z = 0.0f;
-    if (depth_m) {
-      z = depth_m[p];
-      if (!(z > 0.0f) || !(z < 3.0e38f)) z = 0.0f;  // NaN, Inf, 0 or negative: no measurement
-    } else {
-      const uint16_t raw = depth[p];
-      z = (raw == 0 || raw == invalid) ? 0.0f : raw * metres_per_unit;
-    }
-    if (z == 0.0f) {
-      points[out] = Vec3f(0.0f, 0.0f, 0.0f);  // dropped (and counted) as a zero point
-      return;
-    }
-    points[out] = Vec3f((static_cast<float>(u) - k.cx) * z * inverse_fx, (static_cast<float>(v) - k.cy) * z * inverse_fy, z);
+  // One thread per place in tile order: the stores are contiguous, the reads 32 pixels of a tile.
+  parallel_for(backend, stream, pixels, [=] COVOX_HD(int64_t place) {
+    const int64_t pixel = image.pixel_at(place);
+    points[place] = image.point(pixel);
+    if (colors) colors[place] = image.colors[pixel];
   });
 }
 
@@ -1304,7 +1340,10 @@ void tsdf_unproject_depth(Backend backend, const DepthImageView& image, TsdfScra
   template IntegrationStats tsdf_integrate_points<Backend>(                                         \
       Backend, const TsdfIntegratorConfig&, TsdfMap&, const PointCloudView&,                        \
       const Eigen::Isometry3d&, TsdfScratchBuffers&, const Stream&);                                \
-  template void tsdf_unproject_depth<Backend>(Backend, const DepthImageView&, TsdfScratchBuffers&,  \
-                                              const Stream&);
+  template IntegrationStats tsdf_integrate_depth_image<Backend>(                                    \
+      Backend, const TsdfIntegratorConfig&, TsdfMap&, const tsdf::DepthImagePoints&,                 \
+      const Eigen::Isometry3d&, TsdfScratchBuffers&, const Stream&);                                \
+  template void tsdf_unproject_depth<Backend>(Backend, const tsdf::DepthImagePoints&,               \
+                                              TsdfScratchBuffers&, const Stream&);
 
 }  // namespace covox

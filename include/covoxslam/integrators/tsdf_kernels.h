@@ -578,6 +578,55 @@ COVOX_HD_INLINE int64_t pixel_tile_order(int32_t u, int32_t v, int32_t width, in
          (v % kPixelTileHeight) * tile_width + (u % kPixelTileWidth);
 }
 
+// The inverse of pixel_tile_order: the row-major index (v * width + u) of the pixel at `place`.
+// Every band but the last is full height and every tile but a band's last is full width, so
+// the band and the tile follow by division.
+COVOX_HD_INLINE int64_t pixel_at_tile_place(int64_t place, int32_t width, int32_t height) {
+  const int64_t band_pixels = static_cast<int64_t>(kPixelTileHeight) * width;
+  const int32_t band = static_cast<int32_t>(place / band_pixels);
+  const int32_t in_band = static_cast<int32_t>(place - band * band_pixels);
+  const int32_t band_rows = height - band * kPixelTileHeight;
+  const int32_t band_height = band_rows < kPixelTileHeight ? band_rows : kPixelTileHeight;
+  const int32_t column = in_band / (kPixelTileWidth * band_height);
+  const int32_t in_tile = in_band - column * kPixelTileWidth * band_height;
+  const int32_t tile_columns = width - column * kPixelTileWidth;
+  const int32_t tile_width = tile_columns < kPixelTileWidth ? tile_columns : kPixelTileWidth;
+  const int32_t v = band * kPixelTileHeight + in_tile / tile_width;
+  const int32_t u = column * kPixelTileWidth + in_tile % tile_width;
+  return static_cast<int64_t>(v) * width + u;
+}
+
+// A depth image (device memory, row-major) read as a frame's points in tile order: point `place`
+// is the pixel pixel_at_tile_place(place) unprojected, ((u - cx) z / fx, (v - cy) z / fy, z), or
+// the zero point (dropped and counted as such) where the pixel has no measurement. Both the
+// unprojection kernel and the merge (which reads the image in place: tsdf_merge_rays) compute
+// the points with this one function, so they agree bit for bit.
+struct DepthImagePoints {
+  const uint16_t* depth = nullptr;  // raw units, or
+  const float* depth_m = nullptr;   // metres (NaN, Inf, 0 or negative: no measurement)
+  const Rgb8* colors = nullptr;     // optional, registered to the depth image
+  float metres_per_unit = 1e-3f;
+  uint16_t invalid_value = 0;  // besides 0
+  float inverse_fx = 1.0f, inverse_fy = 1.0f, cx = 0.0f, cy = 0.0f;
+  int32_t width = 0, height = 0;
+
+  COVOX_HD_INLINE int64_t pixels() const { return static_cast<int64_t>(width) * height; }
+  COVOX_HD_INLINE int64_t pixel_at(int64_t place) const { return pixel_at_tile_place(place, width, height); }
+  COVOX_HD_INLINE Vec3f point(int64_t pixel) const {
+    float z = 0.0f;
+    if (depth_m) {
+      z = depth_m[pixel];
+      if (!(z > 0.0f) || !(z < 3.0e38f)) z = 0.0f;
+    } else {
+      const uint16_t raw = depth[pixel];
+      z = (raw == 0 || raw == invalid_value) ? 0.0f : raw * metres_per_unit;
+    }
+    if (z == 0.0f) return Vec3f(0.0f, 0.0f, 0.0f);
+    const int32_t u = static_cast<int32_t>(pixel % width), v = static_cast<int32_t>(pixel / width);
+    return Vec3f((static_cast<float>(u) - cx) * z * inverse_fx, (static_cast<float>(v) - cy) * z * inverse_fy, z);
+  }
+};
+
 // voxblox's weighting. The inverse-square term uses the measured range rather than the
 // camera z: for a LiDAR, z is height, not depth (for a depth camera near the image centre the
 // two agree).
