@@ -490,18 +490,31 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
     }
   });
   profile.mark("bundle");
-  // Each point's rank among the rays, counting the points that emit one (point order: the same on
-  // both backends); point i emits one when ray_rank[i + 1] != ray_rank[i].
-  scratch.ray_ranks.resize_discard(n + 1);
-  uint32_t* ray_rank = scratch.ray_ranks.data();
+  // The points that emit a ray, listed in point order (the same on both backends): ray m's point
+  // is ray_points[m], and ray_points[n] holds the count of rays. The scan of the points' flags
+  // lists each emitting point at its rank as the rank is known (its output reads the flag again,
+  // from cache), so that the ray kernel below runs one thread per ray, not per point: a warp then
+  // tallies 32 rays in one set of atomics where one per point had ~1.3 at 5 cm (H100, 7-Scenes:
+  // docs/benchmarks.md, "thirteenth pass").
+  scratch.ray_points.resize_discard(n + 1);
+  uint32_t* ray_points = scratch.ray_points.data();
   const tsdf::PointBundle* bundles = table.bundles;
-  exclusive_scan_of<2>(backend, stream, n + 1, [=] COVOX_HD(int64_t i) -> uint32_t {
+  const auto emits_ray = [=] COVOX_HD(int64_t i) -> uint32_t {
     if (i == n) return 0u;
     const uint32_t code = codes[i];
     return code == tsdf::kAlonePoint || (tsdf::is_bundle_slot(code) && bundles[code].first == static_cast<uint32_t>(i))
                ? 1u
                : 0u;
-  }, ray_rank);
+  };
+  const auto list_emitting_point = [=] COVOX_HD(int64_t i, uint32_t rank) {
+    if (i == n) {
+      ray_points[n] = rank;
+    } else if (emits_ray(i) != 0u) {
+      ray_points[rank] = static_cast<uint32_t>(i);
+    }
+  };
+  scratch.ray_ranks.resize_discard(Backend::kDevice == Device::kCpu ? n + 1 : 0);  // the CPU twin's scan scratch
+  exclusive_scan_of<2>(backend, stream, n + 1, emits_ray, list_emitting_point, scratch.ray_ranks.data());
   profile.mark("rank");
   scratch.rays.resize_discard(n);
   scratch.ray_weights.resize_discard(n);
@@ -511,19 +524,22 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
   tsdf::RaySegment* merged_rays = scratch.rays.data();
   float* weights = scratch.ray_weights.data();
   Rgb8* ray_colors = scratch.ray_colors.data();
-  // Each emitting point writes its ray, frees its bundle's slot (the table is clean again) and,
-  // on the GPU, adds its ray to the tally, per warp. On the CPU twin a "warp" is one call, so the
-  // tally's atomics would be one per ray and counter, on lines both cores write: the rays are
-  // tallied by a reduction afterwards instead (2-core CPU, OS1-64 scan: this step 3.0 -> 0.6-0.9
+  // Each ray (thread m < the count) written from its point, its bundle's slot freed (the table is
+  // clean again) and, on the GPU, the ray added to the tally, per warp; thread m == count writes
+  // the piece counts' end, and the threads past it leave. On the CPU twin a "warp" is one call,
+  // so the tally's atomics would be one per ray and counter, on lines both cores write: the rays
+  // are tallied by a reduction afterwards instead (2-core CPU, OS1-64 scan: this step 3.0 -> 0.6-0.9
   // ms, the reduction 0.2-0.3 ms; the whole merge 4.5 -> 2.5 ms).
   constexpr bool kTallyWithAtomics = Backend::kDevice != Device::kCpu;
-  parallel_for(backend, stream, n + 1, [=] COVOX_HD(int64_t i) {
+  parallel_for(backend, stream, n + 1, [=] COVOX_HD(int64_t m) {
+    const uint32_t ray_total = ray_points[n];
+    if (m > ray_total) return;
     const uint32_t lanes = warp_lanes();
-    const bool emits = i < n && ray_rank[i + 1] != ray_rank[i];
-    tsdf_detail::RayTally own;  // this point's ray, if it emits one
-    if (i == n) ray_pieces[ray_rank[n]] = 0;  // the scan's end
+    const bool emits = m < ray_total;
+    tsdf_detail::RayTally own;  // this thread's ray, if it has one
+    if (m == ray_total) ray_pieces[m] = 0;  // the end of the counts
     if (emits) {
-      const uint32_t m = ray_rank[i];
+      const int64_t i = static_cast<int64_t>(ray_points[m]);
       const uint32_t code = codes[i];
       Vec3f point = points[i];
       uint32_t count = 1;
@@ -550,7 +566,7 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
       own.rays = 1;
       ray_pieces[m] = static_cast<uint32_t>(own.most_pieces);
       if (ray.kind > tsdf::kClearingRay) {  // rare: a bundle's mean point dropped (closer than min_ray_length_m)
-        atomic_add(&stripes[tsdf::merge_tally_stripe(i)].kinds[ray.kind], static_cast<uint64_t>(count));
+        atomic_add(&stripes[tsdf::merge_tally_stripe(m)].kinds[ray.kind], static_cast<uint64_t>(count));
       }
     }
     // The warp's rays summed, then one atomic per counter (a warp's counts fit in 32 bits).
@@ -565,7 +581,7 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
     const int32_t box[6] = {warp_min(lanes, own.low[0]),  warp_min(lanes, own.low[1]),  warp_min(lanes, own.low[2]),
                             warp_max(lanes, own.high[0]), warp_max(lanes, own.high[1]), warp_max(lanes, own.high[2])};
     if (warp_lane() != warp_first_lane(lanes)) return;
-    tsdf::MergeTallyStripe& stripe = stripes[tsdf::merge_tally_stripe(i)];
+    tsdf::MergeTallyStripe& stripe = stripes[tsdf::merge_tally_stripe(m)];
     atomic_add(&stripe.kinds[tsdf::kSurfaceRay], static_cast<uint64_t>(surface_points));
     if (clearing_rays != 0u) atomic_add(&stripe.kinds[tsdf::kClearingRay], static_cast<uint64_t>(clearing_rays));
     atomic_add(&stripe.cast, static_cast<uint64_t>(cast));
@@ -597,7 +613,7 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
   }
   if constexpr (!kTallyWithAtomics) {
     // The rays' part of the tally (the counters hold the dropped points' only).
-    const int64_t ray_count = ray_rank[n];  // host memory on the CPU twin
+    const int64_t ray_count = ray_points[n];  // host memory on the CPU twin
     const tsdf_detail::RayTally rays_tally = transform_reduce(
         backend, stream, thrust::make_counting_iterator<int64_t>(0), ray_count,
         [=](int64_t m) {
