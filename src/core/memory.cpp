@@ -79,6 +79,36 @@ ReadBackSlot& read_back_slot() {
 
 }  // namespace
 
+MappedHostBytes::MappedHostBytes(Device device, size_t bytes) : device_kind_(device), bytes_(bytes) {
+  if (device == Device::kCpu) {
+    host_ = std::calloc(bytes > 0 ? bytes : 1, 1);
+    if (!host_) throw OutOfMemoryError("MappedHostBytes: " + std::to_string(bytes) + " bytes of host memory");
+    device_ = host_;
+    return;
+  }
+#if COVOX_WITH_CUDA
+  check(cudaHostAlloc(&host_, bytes > 0 ? bytes : 1, cudaHostAllocMapped), "mapped page-locked allocation");
+  std::memset(host_, 0, bytes);
+  const cudaError_t status = cudaHostGetDevicePointer(&device_, host_, 0);
+  if (status != cudaSuccess) {
+    cudaFreeHost(host_);
+    check(status, "mapped page-locked allocation's device pointer");
+  }
+#else
+  throw NotAvailableError("MappedHostBytes: CUDA memory asked of a build without CUDA");
+#endif
+}
+
+MappedHostBytes::~MappedHostBytes() {
+  if (device_kind_ == Device::kCpu) {
+    std::free(host_);
+    return;
+  }
+#if COVOX_WITH_CUDA
+  if (host_) cudaFreeHost(host_);
+#endif
+}
+
 PendingReadBack::PendingReadBack(const void* source, Device source_device, size_t bytes, const Stream& stream)
     : bytes_(bytes) {
   if (bytes > kMaxBytes) {

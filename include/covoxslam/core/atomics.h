@@ -86,6 +86,16 @@ COVOX_HD_INLINE int32_t atomic_max(int32_t* address, int32_t value) {
 #endif
 }
 
+// Orders the calling thread's earlier writes and atomics before its later ones as every thread
+// of the device sees them (a "last one out" hand-off: the GPU's __threadfence()).
+COVOX_HD_INLINE void device_fence() {
+#if COVOX_DEVICE_CODE
+  __threadfence();
+#else
+  __atomic_thread_fence(__ATOMIC_SEQ_CST);
+#endif
+}
+
 // A load that other threads' atomics may race with (relaxed on the host; on the GPU a plain
 // load, which is enough where a stale value only sends the caller to a CAS that settles it).
 COVOX_HD_INLINE uint64_t atomic_load_relaxed(const uint64_t* address) {

@@ -40,6 +40,28 @@ class PendingReadBack {
   bool waited_ = false;
 };
 
+// A few bytes of page-locked host memory that GPU kernels write directly (a mapped allocation):
+// a kernel that ends a stage leaves its results there and the host reads them once the stream is
+// synchronised, with no device-to-host copy queued after the kernel. `device_data()` is the
+// pointer kernels write through; on the CPU backend both are the same plain host memory. Zeroed
+// when allocated.
+class MappedHostBytes {
+ public:
+  MappedHostBytes(Device device, size_t bytes);
+  ~MappedHostBytes();
+  MappedHostBytes(const MappedHostBytes&) = delete;
+  MappedHostBytes& operator=(const MappedHostBytes&) = delete;
+  void* host_data() const { return host_; }
+  void* device_data() const { return device_; }
+  size_t size() const { return bytes_; }
+
+ private:
+  Device device_kind_;
+  size_t bytes_;
+  void* host_ = nullptr;
+  void* device_ = nullptr;
+};
+
 // The tile descriptors of the single-pass scans queued on `stream` (single_pass_scan.h), at least
 // `tiles` of them, and the epoch of the next scan: a fresh epoch per call, the descriptors zeroed
 // (epoch 0, never current) when they grow and when the 30-bit epoch would wrap. One registry per

@@ -531,6 +531,22 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
   // are tallied by a reduction afterwards instead (2-core CPU, OS1-64 scan: this step 3.0 -> 0.6-0.9
   // ms, the reduction 0.2-0.3 ms; the whole merge 4.5 -> 2.5 ms).
   constexpr bool kTallyWithAtomics = Backend::kDevice != Device::kCpu;
+  // The hand-off of the tally (GPU; tsdf::MergeTallySummary): the warps done, the summary, the
+  // frame's stamp.
+  tsdf::MergeTallySummary* summary = nullptr;
+  uint32_t* warps_done = nullptr;
+  const uint32_t sequence = ++scratch.merge_sequence;
+  if constexpr (kTallyWithAtomics) {
+    if (!scratch.merge_summary) {
+      scratch.merge_summary = std::make_unique<MappedHostBytes>(Backend::kDevice, sizeof(tsdf::MergeTallySummary));
+    }
+    summary = static_cast<tsdf::MergeTallySummary*>(scratch.merge_summary->device_data());
+    if (scratch.merge_warps_done.size() != 1) {
+      scratch.merge_warps_done.resize_discard(1);
+      scratch.merge_warps_done.fill_bytes(0, stream);
+    }
+    warps_done = scratch.merge_warps_done.data();
+  }
   parallel_for(backend, stream, n + 1, [=] COVOX_HD(int64_t m) {
     const uint32_t ray_total = ray_points[n];
     if (m > ray_total) return;
@@ -570,35 +586,71 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
       }
     }
     // The warp's rays summed, then one atomic per counter (a warp's counts fit in 32 bits).
-    if (!kTallyWithAtomics || warp_ballot(lanes, emits) == 0u) return;
-    const auto sum32 = [lanes](int64_t value) { return warp_sum(lanes, static_cast<uint32_t>(value)); };
-    const uint32_t surface_points = sum32(own.kinds[tsdf::kSurfaceRay]);
-    const uint32_t clearing_rays = sum32(own.kinds[tsdf::kClearingRay]);
-    const uint32_t rays = sum32(own.rays);
-    const uint32_t cast = sum32(own.cast);
-    const uint32_t visits = sum32(own.voxels);
-    const int32_t most_pieces = warp_max(lanes, own.most_pieces);
-    const int32_t box[6] = {warp_min(lanes, own.low[0]),  warp_min(lanes, own.low[1]),  warp_min(lanes, own.low[2]),
-                            warp_max(lanes, own.high[0]), warp_max(lanes, own.high[1]), warp_max(lanes, own.high[2])};
-    if (warp_lane() != warp_first_lane(lanes)) return;
-    tsdf::MergeTallyStripe& stripe = stripes[tsdf::merge_tally_stripe(m)];
-    atomic_add(&stripe.kinds[tsdf::kSurfaceRay], static_cast<uint64_t>(surface_points));
-    if (clearing_rays != 0u) atomic_add(&stripe.kinds[tsdf::kClearingRay], static_cast<uint64_t>(clearing_rays));
-    atomic_add(&stripe.cast, static_cast<uint64_t>(cast));
-    atomic_add(&stripe.rays, static_cast<uint64_t>(rays));
-    atomic_add(&stripe.voxels, static_cast<uint64_t>(visits));
-    atomic_max(&stripe.most_pieces, most_pieces);
-    for (int axis = 0; axis < 3; ++axis) {
-      atomic_min(&stripe.low[axis], box[axis]);
-      atomic_max(&stripe.high[axis], box[3 + axis]);
+    if (!kTallyWithAtomics) return;
+    const bool leader = warp_lane() == warp_first_lane(lanes);
+    if (warp_ballot(lanes, emits) != 0u) {
+      const auto sum32 = [lanes](int64_t value) { return warp_sum(lanes, static_cast<uint32_t>(value)); };
+      const uint32_t surface_points = sum32(own.kinds[tsdf::kSurfaceRay]);
+      const uint32_t clearing_rays = sum32(own.kinds[tsdf::kClearingRay]);
+      const uint32_t rays = sum32(own.rays);
+      const uint32_t cast = sum32(own.cast);
+      const uint32_t visits = sum32(own.voxels);
+      const int32_t most_pieces = warp_max(lanes, own.most_pieces);
+      const int32_t box[6] = {warp_min(lanes, own.low[0]),  warp_min(lanes, own.low[1]),  warp_min(lanes, own.low[2]),
+                              warp_max(lanes, own.high[0]), warp_max(lanes, own.high[1]), warp_max(lanes, own.high[2])};
+      if (leader) {
+        tsdf::MergeTallyStripe& stripe = stripes[tsdf::merge_tally_stripe(m)];
+        atomic_add(&stripe.kinds[tsdf::kSurfaceRay], static_cast<uint64_t>(surface_points));
+        if (clearing_rays != 0u) atomic_add(&stripe.kinds[tsdf::kClearingRay], static_cast<uint64_t>(clearing_rays));
+        atomic_add(&stripe.cast, static_cast<uint64_t>(cast));
+        atomic_add(&stripe.rays, static_cast<uint64_t>(rays));
+        atomic_add(&stripe.voxels, static_cast<uint64_t>(visits));
+        atomic_max(&stripe.most_pieces, most_pieces);
+        for (int axis = 0; axis < 3; ++axis) {
+          atomic_min(&stripe.low[axis], box[axis]);
+          atomic_max(&stripe.high[axis], box[3 + axis]);
+        }
+      }
     }
+    // The hand-off: the warps of threads 0..ray_total count themselves done; the last one out
+    // sums the stripes into the summary and stamps it.
+    uint32_t done = 0;
+    if (leader) {
+      device_fence();  // this warp's atomics before its count
+      done = atomic_add(warps_done, 1u);
+    }
+    done = warp_broadcast(lanes, done, warp_first_lane(lanes));
+    if (done != ray_total / 32u) return;  // (ray_total + 1 threads: ray_total / 32 + 1 warps)
+    device_fence();  // the other warps' atomics before the stripes' reads
+    const tsdf::MergeTallyStripe sum = tsdf::sum_merge_tally_stripes(stripes, lanes);
+    if (!leader) return;
+    summary->sum = sum;
+    summary->sequence = sequence;
+    *warps_done = 0;  // for the next frame
   });
   scratch.merge_table_clean = true;
   profile.mark("rays");
+  // The tally: on the GPU the summary the kernel left in host memory, once the stream is done
+  // (no copy); on the CPU the stripes themselves.
   tsdf::MergeTally host;
-  copy_bytes(&host, Device::kCpu, stripes, scratch.merge_tally.device(), sizeof(host), stream);
+  int stripe_count = tsdf::kMergeTallyStripes;
+  if constexpr (kTallyWithAtomics) {
+    stream.synchronize();
+    const auto* written = static_cast<const tsdf::MergeTallySummary*>(scratch.merge_summary->host_data());
+    if (written->sequence != sequence) {
+      scratch.merge_warps_done.fill_bytes(0, stream);
+      throw Error("TSDF integrator: the merge's tally of frame " + std::to_string(sequence) +
+                  " did not arrive (the summary is frame " + std::to_string(written->sequence) +
+                  "'s); the frame was not integrated");
+    }
+    host.stripes[0] = written->sum;
+    stripe_count = 1;
+  } else {
+    copy_bytes(&host, Device::kCpu, stripes, scratch.merge_tally.device(), sizeof(host), stream);
+  }
   tsdf_detail::RayTally tally;
-  for (const tsdf::MergeTallyStripe& stripe : host.stripes) {
+  for (int k = 0; k < stripe_count; ++k) {
+    const tsdf::MergeTallyStripe& stripe = host.stripes[k];
     tsdf_detail::RayTally part;
     for (int k = 0; k < 6; ++k) part.kinds[k] = static_cast<int64_t>(stripe.kinds[k]);
     part.cast = static_cast<int64_t>(stripe.cast);

@@ -2,6 +2,7 @@
 // Backend-templated steps of TsdfIntegrator (defined in tsdf_integrator_impl.h, instantiated per
 // backend). Scratch buffers are passed in so steady-state frames allocate nothing.
 #include <array>
+#include <memory>
 #include <cstdint>
 #include <type_traits>
 
@@ -19,7 +20,7 @@ struct TsdfScratchBuffers {
       : points(device), colors(device), rays(device), counts(device), offsets(device),
         keys(device), merged_keys(device),
         block_indices(device), slots(device), is_new(device), point_codes(device), ray_ranks(device), ray_points(device),
-        merge_table_keys(device), merge_table_bundles(device), merge_tally(device),
+        merge_table_keys(device), merge_table_bundles(device), merge_tally(device), merge_warps_done(device),
         ray_colors(device), ray_weights(device), block_flags(device), block_ranks(device), keys_alt(device),
         keys32(device), keys32_alt(device), merged_keys32(device), distance_records(device), distance_records_alt(device), color_visits(device), color_visits_alt(device), merged_updates(device), pieces(device), piece_first_voxels(device), piece_voxels(device), piece_offsets(device), run_tile_parts(device), readback(device), box_marks(device), fixed_point_sums(device), record_ranks(device) {}
   Buffer<Vec3f> points;  // depth images unprojected, or host clouds uploaded
@@ -43,6 +44,12 @@ struct TsdfScratchBuffers {
   bool merge_table_clean = false;
   bool merge_tally_clean = false;  // reset by the last frame at its end
   Buffer<tsdf::MergeTally> merge_tally;
+  // The GPU's hand-off of the tally (tsdf::MergeTallySummary): the ray kernel's warps done (one
+  // word, zero between frames: the last warp resets it), the summary it writes to mapped host
+  // memory, and the frame's sequence number that stamps it.
+  Buffer<uint32_t> merge_warps_done;
+  std::unique_ptr<MappedHostBytes> merge_summary;
+  uint32_t merge_sequence = 0;
   Buffer<Rgb8> ray_colors;
   Buffer<float> ray_weights;
   // distinct blocks of the merged voxels

@@ -163,5 +163,46 @@ struct MergeTally {
   MergeTallyStripe stripes[kMergeTallyStripes];
 };
 
+// The GPU's hand-off of the tally: the ray kernel's warps count themselves done once their atomics
+// are out, and the last one sums the stripes into a MergeTallySummary in page-locked host memory
+// that the kernel writes directly (MappedHostBytes, memory.h), stamped with the frame's sequence
+// number; the host reads it after its wait, without a 4 KB copy queued after the kernel.
+struct MergeTallySummary {
+  MergeTallyStripe sum;
+  uint32_t sequence = 0;
+};
+// The stripes' sum by the calling warp's `lanes`: each lane reads some stripes (volatile loads:
+// what the other warps' atomics left in L2, not a stale line of this multiprocessor's L1), then
+// the warp reduces; every lane gets the sum.
+COVOX_HD_INLINE MergeTallyStripe sum_merge_tally_stripes(const MergeTallyStripe* stripes, uint32_t lanes) {
+  MergeTallyStripe part;
+  part.reset();
+  const int lane_count = static_cast<int>(warp_count(lanes));
+  const int rank = static_cast<int>(warp_count(lanes & ((1u << warp_lane()) - 1u)));
+  for (int k = rank; k < kMergeTallyStripes; k += lane_count) {
+    const volatile MergeTallyStripe& stripe = stripes[k];
+    for (int kind = 0; kind < 6; ++kind) part.kinds[kind] += stripe.kinds[kind];
+    part.cast += stripe.cast;
+    part.rays += stripe.rays;
+    part.voxels += stripe.voxels;
+    part.most_pieces = part.most_pieces > stripe.most_pieces ? part.most_pieces : stripe.most_pieces;
+    for (int axis = 0; axis < 3; ++axis) {
+      part.low[axis] = part.low[axis] < stripe.low[axis] ? part.low[axis] : stripe.low[axis];
+      part.high[axis] = part.high[axis] > stripe.high[axis] ? part.high[axis] : stripe.high[axis];
+    }
+  }
+  MergeTallyStripe sum;
+  for (int kind = 0; kind < 6; ++kind) sum.kinds[kind] = warp_sum(lanes, part.kinds[kind]);
+  sum.cast = warp_sum(lanes, part.cast);
+  sum.rays = warp_sum(lanes, part.rays);
+  sum.voxels = warp_sum(lanes, part.voxels);
+  sum.most_pieces = warp_max(lanes, part.most_pieces);
+  for (int axis = 0; axis < 3; ++axis) {
+    sum.low[axis] = warp_min(lanes, part.low[axis]);
+    sum.high[axis] = warp_max(lanes, part.high[axis]);
+  }
+  return sum;
+}
+
 }  // namespace tsdf
 }  // namespace covox
