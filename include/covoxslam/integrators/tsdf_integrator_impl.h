@@ -422,8 +422,12 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
   const bool has_color = colors || intensities;
   const bool reads_image = depth_image != nullptr;
   const tsdf::DepthImagePoints image = reads_image ? *depth_image : tsdf::DepthImagePoints{};
-  Vec3f* image_points = const_cast<Vec3f*>(cloud.points);  // scratch.points when reading the image
-  Rgb8* image_colors = const_cast<Rgb8*>(colors);
+  // (reading the image: the points and colours written for the ray kernel, which `cloud` names)
+  Vec3f* image_points = reads_image ? scratch.points.data() : nullptr;
+  Rgb8* image_colors = reads_image && colors ? scratch.colors.data() : nullptr;
+  if (reads_image && (cloud.points != image_points || (colors && colors != image_colors))) {
+    throw Error("TSDF integrator: a depth image read in place must name the scratch points and colours (internal error)");
+  }
   // Points of one voxel lie within 2^31 merge units of each other (per axis) when the voxel's
   // diagonal is under about 1.8 m (voxels under 1 m): their coordinates sum in two warp reductions
   // each instead of four (warp_sum_clustered).
@@ -513,8 +517,8 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
       ray_points[rank] = static_cast<uint32_t>(i);
     }
   };
-  scratch.ray_ranks.resize_discard(Backend::kDevice == Device::kCpu ? n + 1 : 0);  // the CPU twin's scan scratch
-  exclusive_scan_of<2>(backend, stream, n + 1, emits_ray, list_emitting_point, scratch.ray_ranks.data());
+  scratch.ray_scan_scratch.resize_discard(Backend::kDevice == Device::kCpu ? n + 1 : 0);  // the CPU twin's only
+  exclusive_scan_of<2>(backend, stream, n + 1, emits_ray, list_emitting_point, scratch.ray_scan_scratch.data());
   profile.mark("rank");
   scratch.rays.resize_discard(n);
   scratch.ray_weights.resize_discard(n);
@@ -925,9 +929,10 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   // second pass once the pool has grown (rare: the pool grows geometrically); the first pass
   // writes the blocks whose slots the pool already holds, and clears the new ones. A small frame
   // does not wait at all: its pass reads the listed blocks' count on the device; a larger one
-  // (by the last frame's count) waits for that count only (kDeferredPassMaxCells). With the levels scan and the activation
-  // kernels gone too, a 7-Scenes 5 cm frame went from eleven kernels and three waits to seven and
-  // two (H100: 0.124 -> 0.103 ms in two same-run steps; docs/benchmarks.md, "twelfth pass").
+  // (by the last frame's count) waits for that count only (kDeferredPassMaxCells). With the
+  // levels scan and the activation kernels gone too, a 7-Scenes 5 cm frame went from eleven
+  // kernels and three waits to seven and two (H100: 0.124 -> 0.103 ms in two same-run steps;
+  // docs/benchmarks.md, "twelfth pass"); six kernels since the thirteenth.
   const bool activation_deferred = activates_while_listing;
   const bool pass_counted_on_device =
       activation_deferred && tsdf_detail::defers_block_count(scratch.last_listed_blocks, map.voxels_per_block());

@@ -2,8 +2,8 @@
 // Backend-templated steps of TsdfIntegrator (defined in tsdf_integrator_impl.h, instantiated per
 // backend). Scratch buffers are passed in so steady-state frames allocate nothing.
 #include <array>
-#include <memory>
 #include <cstdint>
+#include <memory>
 #include <type_traits>
 
 #include <Eigen/Geometry>
@@ -19,7 +19,7 @@ struct TsdfScratchBuffers {
   explicit TsdfScratchBuffers(Device device)
       : points(device), colors(device), rays(device), counts(device), offsets(device),
         keys(device), merged_keys(device),
-        block_indices(device), slots(device), is_new(device), point_codes(device), ray_ranks(device), ray_points(device),
+        block_indices(device), slots(device), is_new(device), point_codes(device), ray_scan_scratch(device), ray_points(device),
         merge_table_keys(device), merge_table_bundles(device), merge_tally(device), merge_warps_done(device),
         ray_colors(device), ray_weights(device), block_flags(device), block_ranks(device), keys_alt(device),
         keys32(device), keys32_alt(device), merged_keys32(device), distance_records(device), distance_records_alt(device), color_visits(device), color_visits_alt(device), merged_updates(device), pieces(device), piece_first_voxels(device), piece_voxels(device), piece_offsets(device), run_tile_parts(device), readback(device), box_marks(device), fixed_point_sums(device), record_ranks(device) {}
@@ -37,8 +37,8 @@ struct TsdfScratchBuffers {
   // rays, the bundle table (kept between frames, clean after each), the rays' weights and
   // colours
   Buffer<uint32_t> point_codes;
-  Buffer<uint32_t> ray_ranks;   // the CPU twin's scratch for the scan that lists ray_points
-  Buffer<uint32_t> ray_points;  // each ray's emitting point, then the count of rays
+  Buffer<uint32_t> ray_scan_scratch;  // the CPU twin's scratch for the scan that lists ray_points
+  Buffer<uint32_t> ray_points;        // each ray's emitting point, then the count of rays
   Buffer<uint64_t> merge_table_keys;
   Buffer<tsdf::PointBundle> merge_table_bundles;
   bool merge_table_clean = false;
