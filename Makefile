@@ -56,7 +56,7 @@ DEMO_CMAKE_FLAGS := -DCMAKE_BUILD_TYPE=Release -DCOVOX_WITH_CUDA=$(DEMO_WITH_CUD
 
 DEMO_TARGETS := simulate_flight run_slam evaluate_trajectory
 
-.PHONY: all deps demo-deps configure build test demo release clean
+.PHONY: all deps demo-deps configure build test demo release clean format format-check
 
 all: build
 
@@ -103,3 +103,15 @@ release:
 
 clean:
 	rm -rf $(BUILD_DIR) $(DEMO_BUILD_DIR)
+
+# Every C++ and CUDA source in the repository, formatted by .clang-format (Debian's clang-format).
+FORMAT_SOURCES = $(shell git ls-files '*.h' '*.hpp' '*.cpp' '*.cu' '*.cuh')
+
+format:
+	$(call install_missing,clang-format)
+	clang-format -i $(FORMAT_SOURCES)
+
+# Fails, naming the files, when a source differs from what `make format` would write.
+format-check:
+	$(call install_missing,clang-format)
+	clang-format --dry-run --Werror $(FORMAT_SOURCES)

@@ -15,7 +15,8 @@ const char* kIdentityInformation = "1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 1 0 0 1 0 1";
 std::string valid_graph() {
   return std::string("# a comment\n") + "VERTEX_SE3:QUAT 10 0 0 0 0 0 0 1\n" +
          "VERTEX_SE3:QUAT 20 1 0 0 0 0 0.7071067811865476 0.7071067811865476\n\n" +
-         "EDGE_SE3:QUAT 10 20 1 0 0 0 0 0.7071067811865476 0.7071067811865476 " + kIdentityInformation + "\n";
+         "EDGE_SE3:QUAT 10 20 1 0 0 0 0 0.7071067811865476 0.7071067811865476 " +
+         kIdentityInformation + "\n";
 }
 
 // The message of the covox::Error that parse_g2o throws on `text` ("" when it does not throw).
@@ -38,7 +39,8 @@ TEST(BackendG2o, ReadsVerticesEdgesAndInformation) {
   EXPECT_EQ(g.graph.fixed_vertex, 0);
   EXPECT_NEAR(g.graph.poses[1].rotation[2], 0.7071067811865476, 1e-15);
   // Identity information: the square root is the identity (up to the eigenvector basis sign).
-  Eigen::Map<const Eigen::Matrix<double, 6, 6, Eigen::RowMajor>> s(g.graph.constraints[0].sqrt_information);
+  Eigen::Map<const Eigen::Matrix<double, 6, 6, Eigen::RowMajor>> s(
+      g.graph.constraints[0].sqrt_information);
   EXPECT_LT(((s.transpose() * s) - Eigen::Matrix<double, 6, 6>::Identity()).norm(), 1e-12);
   // The measurement equals T_i^-1 T_j of the vertices: zero cost.
   EXPECT_NEAR(pose_graph_cost(g.graph), 0.0, 1e-20);
@@ -52,9 +54,13 @@ TEST(BackendG2o, FixSetsTheGauge) {
 TEST(BackendG2o, UpperTriangleFillsASymmetricInformation) {
   // Information with off-diagonal terms: S^T S must reproduce it.
   const std::string info = "4 1 0 0 0 0 5 0 0 0 0 6 0 0 0 7 0 0 8 0 9";
-  const G2oGraph g = parse_g2o("VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\nVERTEX_SE3:QUAT 1 1 0 0 0 0 0 1\n"
-                               "EDGE_SE3:QUAT 0 1 1 0 0 0 0 0 1 " + info + "\n", "graph.g2o");
-  Eigen::Map<const Eigen::Matrix<double, 6, 6, Eigen::RowMajor>> s(g.graph.constraints[0].sqrt_information);
+  const G2oGraph g = parse_g2o(
+      "VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\nVERTEX_SE3:QUAT 1 1 0 0 0 0 0 1\n"
+      "EDGE_SE3:QUAT 0 1 1 0 0 0 0 0 1 " +
+          info + "\n",
+      "graph.g2o");
+  Eigen::Map<const Eigen::Matrix<double, 6, 6, Eigen::RowMajor>> s(
+      g.graph.constraints[0].sqrt_information);
   const Eigen::Matrix<double, 6, 6> information = s.transpose() * s;
   EXPECT_NEAR(information(0, 1), 1.0, 1e-12);
   EXPECT_NEAR(information(1, 0), 1.0, 1e-12);
@@ -62,12 +68,15 @@ TEST(BackendG2o, UpperTriangleFillsASymmetricInformation) {
 }
 
 TEST(BackendG2o, ErrorsNameFileAndLine) {
-  EXPECT_NE(error_of(valid_graph() + "VERTEX_SE2 3 0 0 0\n").find("graph.g2o:6: unknown g2o tag 'VERTEX_SE2'"),
+  EXPECT_NE(error_of(valid_graph() + "VERTEX_SE2 3 0 0 0\n")
+                .find("graph.g2o:6: unknown g2o tag 'VERTEX_SE2'"),
             std::string::npos);
-  EXPECT_NE(error_of("VERTEX_SE3:QUAT 0 0 0 0 0 0 1\n").find("graph.g2o:1: VERTEX_SE3:QUAT needs 8 fields"),
+  EXPECT_NE(error_of("VERTEX_SE3:QUAT 0 0 0 0 0 0 1\n")
+                .find("graph.g2o:1: VERTEX_SE3:QUAT needs 8 fields"),
             std::string::npos);
-  EXPECT_NE(error_of("VERTEX_SE3:QUAT 0 0 0 zero 0 0 0 1\n").find("graph.g2o:1: 'zero' is not a number"),
-            std::string::npos);
+  EXPECT_NE(
+      error_of("VERTEX_SE3:QUAT 0 0 0 zero 0 0 0 1\n").find("graph.g2o:1: 'zero' is not a number"),
+      std::string::npos);
   EXPECT_NE(error_of("VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\nVERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\n")
                 .find("graph.g2o:2: vertex id 0 appears twice"),
             std::string::npos);
@@ -75,12 +84,14 @@ TEST(BackendG2o, ErrorsNameFileAndLine) {
                      std::string(kIdentityInformation) + "\n")
                 .find("graph.g2o:2: edge names vertex 7, which has no VERTEX line"),
             std::string::npos);
-  EXPECT_NE(error_of("VERTEX_SE3:QUAT 0 0 0 0 0 0 0 0\n").find("graph.g2o:1: the quaternion has zero"),
-            std::string::npos);
-  EXPECT_NE(error_of("VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\nVERTEX_SE3:QUAT 1 0 0 0 0 0 0 1\n"
-                     "EDGE_SE3:QUAT 0 1 1 0 0 0 0 0 1 -1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 1 0 0 1 0 1\n")
-                .find("graph.g2o:3: constraint 0 -> 1: the information matrix has a negative eigenvalue"),
-            std::string::npos);
+  EXPECT_NE(
+      error_of("VERTEX_SE3:QUAT 0 0 0 0 0 0 0 0\n").find("graph.g2o:1: the quaternion has zero"),
+      std::string::npos);
+  EXPECT_NE(
+      error_of("VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\nVERTEX_SE3:QUAT 1 0 0 0 0 0 0 1\n"
+               "EDGE_SE3:QUAT 0 1 1 0 0 0 0 0 1 -1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 1 0 0 1 0 1\n")
+          .find("graph.g2o:3: constraint 0 -> 1: the information matrix has a negative eigenvalue"),
+      std::string::npos);
   EXPECT_NE(error_of("# nothing\n").find("no VERTEX_SE3:QUAT line"), std::string::npos);
 }
 
@@ -89,7 +100,8 @@ TEST(BackendG2o, MissingFileSaysSo) {
     read_g2o("/nonexistent/graph.g2o");
     FAIL() << "expected an error";
   } catch (const Error& error) {
-    EXPECT_NE(std::string(error.what()).find("/nonexistent/graph.g2o: cannot open"), std::string::npos);
+    EXPECT_NE(std::string(error.what()).find("/nonexistent/graph.g2o: cannot open"),
+              std::string::npos);
   }
 }
 

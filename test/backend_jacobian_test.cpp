@@ -31,7 +31,8 @@ Eigen::Matrix<double, 6, 6> random_information(std::mt19937_64& rng) {
 
 // Largest |analytic - numeric| over both Jacobians of constraint `c`, relative to max(1, |J|).
 template <class Model>
-double jacobian_error(const typename Model::Constraint& c, std::vector<typename Model::Pose> poses) {
+double jacobian_error(const typename Model::Constraint& c,
+                      std::vector<typename Model::Pose> poses) {
   constexpr int D = Model::kDim;
   double f[D], ji[D * D], jj[D * D];
   Model::evaluate(c, poses.data(), f, ji, jj);
@@ -67,7 +68,8 @@ TEST(BackendJacobian, Se3MatchesCentralDifferences) {
   for (int trial = 0; trial < 200; ++trial) {
     // Up to 3 rad of rotation error: exercises the log map far from the identity.
     std::vector<Se3Pose> poses = {random_se3(rng, 3.0), random_se3(rng, 3.0)};
-    const Se3Constraint c = make_se3_constraint(0, 1, random_se3(rng, 3.0), random_information(rng));
+    const Se3Constraint c =
+        make_se3_constraint(0, 1, random_se3(rng, 3.0), random_information(rng));
     ASSERT_LT(jacobian_error<Se3Model>(c, poses), 2e-6) << "trial " << trial;
   }
 }
@@ -77,8 +79,9 @@ TEST(BackendJacobian, Se3AtZeroErrorMatchesCentralDifferences) {
   std::mt19937_64 rng(3);
   std::vector<Se3Pose> poses = {random_se3(rng, 1.0), random_se3(rng, 1.0)};
   const Eigen::Isometry3d z = to_isometry(poses[0]).inverse() * to_isometry(poses[1]);
-  const Se3Constraint c = make_se3_constraint(0, 1, make_se3_pose(z.translation(), Eigen::Quaterniond(z.linear())),
-                                              random_information(rng));
+  const Se3Constraint c =
+      make_se3_constraint(0, 1, make_se3_pose(z.translation(), Eigen::Quaterniond(z.linear())),
+                          random_information(rng));
   EXPECT_LT(jacobian_error<Se3Model>(c, poses), 2e-6);
 }
 
@@ -92,9 +95,12 @@ TEST(BackendJacobian, FourDofMatchesCentralDifferences) {
     for (int k = 0; k < 16; ++k) a(k) = u(rng);
     const Eigen::Matrix4d information = a * a.transpose() + 0.1 * Eigen::Matrix4d::Identity();
     const Pose4Dof z{u(rng), u(rng), u(rng), u(rng)};
-    ASSERT_LT(jacobian_error<FourDofModel>(make_relative_constraint_4dof(0, 1, z, information), poses), 1e-6);
+    ASSERT_LT(
+        jacobian_error<FourDofModel>(make_relative_constraint_4dof(0, 1, z, information), poses),
+        1e-6);
     ASSERT_LT(jacobian_error<FourDofModel>(
-                  make_position_constraint_4dof(1, Eigen::Vector3d(u(rng), u(rng), u(rng)), information.topLeftCorner<3, 3>()),
+                  make_position_constraint_4dof(1, Eigen::Vector3d(u(rng), u(rng), u(rng)),
+                                                information.topLeftCorner<3, 3>()),
                   poses),
               1e-6);
   }
@@ -116,7 +122,8 @@ class BackendEvaluationParity : public DeviceTest {};
 // checks the assembly; the CUDA run checks the GPU against the same reference).
 template <class Graph>
 void expect_matches_host_reference(const Graph& graph, Device device) {
-  using Model = std::conditional_t<std::is_same<Graph, Se3PoseGraph>::value, Se3Model, FourDofModel>;
+  using Model =
+      std::conditional_t<std::is_same<Graph, Se3PoseGraph>::value, Se3Model, FourDofModel>;
   constexpr int D = Model::kDim;
   const PoseGraphEvaluation e = evaluate_pose_graph(graph, device);
   ASSERT_EQ(e.residuals.size(), graph.constraints.size() * D);
@@ -138,13 +145,15 @@ void expect_matches_host_reference(const Graph& graph, Device device) {
     for (int col = 0; col < D; ++col) {
       for (int row = 0; row < D; ++row) {
         if (c.from != graph.fixed_vertex) gradient[c.from * D + col] += ji[row * D + col] * f[row];
-        if (to >= 0 && to != graph.fixed_vertex) gradient[to * D + col] += jj[row * D + col] * f[row];
+        if (to >= 0 && to != graph.fixed_vertex)
+          gradient[to * D + col] += jj[row * D + col] * f[row];
       }
     }
   }
   EXPECT_NEAR(e.cost, cost, 1e-10 * cost);
   for (size_t i = 0; i < gradient.size(); ++i) {
-    EXPECT_NEAR(e.gradient[i], gradient[i], 1e-8 * std::max(1.0, std::abs(gradient[i]))) << "entry " << i;
+    EXPECT_NEAR(e.gradient[i], gradient[i], 1e-8 * std::max(1.0, std::abs(gradient[i])))
+        << "entry " << i;
   }
 }
 

@@ -46,8 +46,8 @@ void check_normal_equations(const PoseGraph<Model>& graph, PcgPreconditioner pre
   for (int64_t c = 0; c < n; ++c) {
     std::fill(x.begin(), x.end(), 0.0);
     x[c] = 1.0;
-    multiply_normal_matrix<D>(CpuBackend{}, stream, w.view(), w.hessian_diag.data(), w.hessian_off.data(), nullptr,
-                              x.data(), y.data());
+    multiply_normal_matrix<D>(CpuBackend{}, stream, w.view(), w.hessian_diag.data(),
+                              w.hessian_off.data(), nullptr, x.data(), y.data());
     for (int64_t r = 0; r < n; ++r) h(r, c) = y[r];
   }
   const Eigen::MatrixXd j = dense_jacobian(graph);
@@ -72,8 +72,8 @@ void check_normal_equations(const PoseGraph<Model>& graph, PcgPreconditioner pre
   const Eigen::VectorXd dense = a.ldlt().solve(-g);
   const Eigen::VectorXd ours = Eigen::Map<const Eigen::VectorXd>(step.data(), n);
   EXPECT_LT((ours - dense).norm(), 1e-8 * dense.norm()) << iterations << " PCG iterations";
-  std::cout << "  " << to_string(preconditioner) << ": " << iterations << " PCG iterations for " << n
-            << " unknowns\n";
+  std::cout << "  " << to_string(preconditioner) << ": " << iterations << " PCG iterations for "
+            << n << " unknowns\n";
 }
 
 TEST(BackendNormalEquations, Se3MatchesDenseWithBothPreconditioners) {

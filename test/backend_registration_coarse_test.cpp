@@ -31,7 +31,8 @@ const HallPair& hall_pair(Device device) {
     hall.shape = testing_support::Shape::kBox;
     hall.center = Eigen::Vector3d(0.7, -0.4, 0.6);
     hall.half_extent = Eigen::Vector3d(6.0, 4.5, 1.5);
-    return HallPair{testing_support::scan_submap_pair(d, hall, Pose4Dof{0.9, -0.6, 0.05, 7.0 * kDegToRad}, 0.1f, 3.0f)};
+    return HallPair{testing_support::scan_submap_pair(
+        d, hall, Pose4Dof{0.9, -0.6, 0.05, 7.0 * kDegToRad}, 0.1f, 3.0f)};
   });
 }
 
@@ -61,18 +62,22 @@ TEST_P(CoarseRegistrationTest, StridedLookupSamplesTheEsdfEveryStrideVoxels) {
     // Coarse corners at voxel indices (k, 8, 4) and (k + 4, 8, 4); the query half way between.
     const double qy = (8 + 0.5) * voxel, qz = (4 + 0.5) * voxel;
     double d0 = 0.0, d1 = 0.0, d = 0.0, g0[3], g1[3], g[3];
-    if (!fine.sample((k + 0.5) * voxel, qy, qz, &d0, g0) || !fine.sample((k + 4.5) * voxel, qy, qz, &d1, g1) ||
+    if (!fine.sample((k + 0.5) * voxel, qy, qz, &d0, g0) ||
+        !fine.sample((k + 4.5) * voxel, qy, qz, &d1, g1) ||
         !coarse.sample((k + 2.5) * voxel, qy, qz, &d, g)) {
       continue;
     }
     EXPECT_NEAR(d, 0.5 * (d0 + d1), 1e-5) << "between voxels x " << k << " and " << k + 4;
-    EXPECT_NEAR(g[0], (d1 - d0) / (4 * voxel), 1e-4) << "between voxels x " << k << " and " << k + 4;
+    EXPECT_NEAR(g[0], (d1 - d0) / (4 * voxel), 1e-4)
+        << "between voxels x " << k << " and " << k + 4;
     ++checked;
   }
   EXPECT_GE(checked, 4);
   RegistrationResidualConfig bad;
   bad.coarse_stride_vox = 0;
-  EXPECT_THROW(evaluate_registration_residuals(*pair.points_i, *pair.map_j, Pose4Dof(), Pose4Dof(), bad), Error);
+  EXPECT_THROW(
+      evaluate_registration_residuals(*pair.points_i, *pair.map_j, Pose4Dof(), Pose4Dof(), bad),
+      Error);
 }
 
 // The property the coarse levels are for: started 2.5 m and 10 degrees off (a revisit after the
@@ -86,10 +91,12 @@ TEST_P(CoarseRegistrationTest, CoarseToFineRecoversARevisitSizedOffset) {
   const Stream stream(device());
   const Pose4Dof truth = pair.true_T_Sj_Si;
   const SymmetricRegistrationPair two_way = pair.symmetric();
-  const Pose4Dof offsets[] = {{2.0, 1.5, 0.0, 10.0 * kDegToRad}, {-1.5, -2.0, 0.1, -10.0 * kDegToRad}};
+  const Pose4Dof offsets[] = {{2.0, 1.5, 0.0, 10.0 * kDegToRad},
+                              {-1.5, -2.0, 0.1, -10.0 * kDegToRad}};
   for (const bool symmetric : {false, true}) {
     for (const Pose4Dof& offset : offsets) {
-      const Pose4Dof initial{truth.x + offset.x, truth.y + offset.y, truth.z + offset.z, truth.yaw + offset.yaw};
+      const Pose4Dof initial{truth.x + offset.x, truth.y + offset.y, truth.z + offset.z,
+                             truth.yaw + offset.yaw};
       double error_m[2] = {0.0, 0.0}, error_deg[2] = {0.0, 0.0};
       bool converged[2] = {false, false};
       for (const int levels : {0, 3}) {
@@ -107,12 +114,14 @@ TEST_P(CoarseRegistrationTest, CoarseToFineRecoversARevisitSizedOffset) {
         error_m[at] = translation_error_m(result.T_Sj_Si, truth);
         error_deg[at] = std::abs(result.T_Sj_Si.yaw - truth.yaw) / kDegToRad;
       }
-      std::printf("[ registration ] %s %s, offset (%.1f, %.1f m, %.0f deg): fine only %.3f m %.2f deg, "
-                  "coarse-to-fine %.3f m %.2f deg\n",
-                  to_string(device()), symmetric ? "symmetric" : "one-way", offset.x, offset.y,
-                  offset.yaw / kDegToRad, error_m[0], error_deg[0], error_m[1], error_deg[1]);
+      std::printf(
+          "[ registration ] %s %s, offset (%.1f, %.1f m, %.0f deg): fine only %.3f m %.2f deg, "
+          "coarse-to-fine %.3f m %.2f deg\n",
+          to_string(device()), symmetric ? "symmetric" : "one-way", offset.x, offset.y,
+          offset.yaw / kDegToRad, error_m[0], error_deg[0], error_m[1], error_deg[1]);
       if (!symmetric) continue;
-      EXPECT_TRUE(error_m[0] > 0.5 || error_deg[0] > 2.0) << "the fine level alone already recovers this offset";
+      EXPECT_TRUE(error_m[0] > 0.5 || error_deg[0] > 2.0)
+          << "the fine level alone already recovers this offset";
       EXPECT_TRUE(converged[1]);
       EXPECT_LT(error_m[1], 0.05);
       EXPECT_LT(error_deg[1], 0.2);
@@ -125,7 +134,8 @@ TEST_P(CoarseRegistrationTest, BadLevelCountIsAnError) {
   const Stream stream(device());
   RegistrationAlignerConfig config;
   config.coarse_levels = -1;
-  EXPECT_THROW(align_submaps(*pair.points_i, *pair.map_j, pair.true_T_Sj_Si, config, stream), Error);
+  EXPECT_THROW(align_submaps(*pair.points_i, *pair.map_j, pair.true_T_Sj_Si, config, stream),
+               Error);
 }
 
 COVOX_INSTANTIATE_ON_ALL_DEVICES(CoarseRegistrationTest);

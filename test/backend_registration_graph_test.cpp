@@ -52,12 +52,15 @@ struct RoomGraph {
 
 // The initial guess: the truth moved by a few centimetres and about a degree (vertex 0 exact).
 std::vector<Pose4Dof> perturbed_guess(const std::vector<Pose4Dof>& truth) {
-  const Pose4Dof perturbation[4] = {
-      {0.0, 0.0, 0.0, 0.0}, {0.06, -0.04, 0.03, 1.5}, {-0.05, 0.06, -0.02, -1.2}, {0.04, 0.05, 0.03, 1.0}};
+  const Pose4Dof perturbation[4] = {{0.0, 0.0, 0.0, 0.0},
+                                    {0.06, -0.04, 0.03, 1.5},
+                                    {-0.05, 0.06, -0.02, -1.2},
+                                    {0.04, 0.05, 0.03, 1.0}};
   std::vector<Pose4Dof> out;
   for (size_t k = 0; k < truth.size(); ++k) {
     out.push_back(Pose4Dof{truth[k].x + perturbation[k].x, truth[k].y + perturbation[k].y,
-                           truth[k].z + perturbation[k].z, truth[k].yaw + perturbation[k].yaw * kDegToRad});
+                           truth[k].z + perturbation[k].z,
+                           truth[k].yaw + perturbation[k].yaw * kDegToRad});
   }
   return out;
 }
@@ -67,7 +70,8 @@ std::vector<Pose4Dof> perturbed_guess(const std::vector<Pose4Dof>& truth) {
 RegistrationPoints points_inside_neighbourhood(const RegistrationPoints& all, const TsdfMap& map_j,
                                                const std::vector<Pose4Dof>& poses_i,
                                                const std::vector<Pose4Dof>& poses_j,
-                                               const RegistrationResidualConfig& config, const Stream& stream) {
+                                               const RegistrationResidualConfig& config,
+                                               const Stream& stream) {
   std::vector<uint8_t> keep(all.points.size(), 1);
   for (const Pose4Dof& pose_i : poses_i) {
     std::vector<Pose4Dof> moved = {pose_i};
@@ -101,14 +105,15 @@ RoomGraph build_room_graph(Device device) {
   const AnalyticScene room = testing_support::registration_room();
   RoomGraph g;
   g.truth = {Pose4Dof{0.0, 0.0, 0.0, 0.0}, Pose4Dof{0.45, -0.3, 0.05, 8.0 * kDegToRad},
-             Pose4Dof{0.95, 0.15, -0.04, 15.0 * kDegToRad}, Pose4Dof{0.4, 0.55, 0.08, -6.0 * kDegToRad}};
+             Pose4Dof{0.95, 0.15, -0.04, 15.0 * kDegToRad},
+             Pose4Dof{0.4, 0.55, 0.08, -6.0 * kDegToRad}};
   const Stream stream(device);
   RegistrationPointsConfig points_config;
   points_config.sampling_ratio = 0.05f;
   for (const Pose4Dof& pose : g.truth) {
     g.maps.push_back(testing_support::scan_room_submap(device, room, pose, 0.1f));
-    g.points.push_back(
-        std::make_unique<RegistrationPoints>(extract_registration_points(*g.maps.back(), points_config, stream)));
+    g.points.push_back(std::make_unique<RegistrationPoints>(
+        extract_registration_points(*g.maps.back(), points_config, stream)));
   }
   const int n = static_cast<int>(g.truth.size());
   const std::vector<Pose4Dof> initial = perturbed_guess(g.truth);
@@ -123,25 +128,27 @@ RoomGraph build_room_graph(Device device) {
       term.residual.loss_scale = 0.05;
       term.residual_sigma = (i + j) % 2 ? 1.0 : 0.5;
       g.points.push_back(std::make_unique<RegistrationPoints>(
-          points_inside_neighbourhood(*g.points[i], *g.maps[j], {g.truth[i], initial[i]}, {g.truth[j], initial[j]},
-                                      term.residual, stream)));
+          points_inside_neighbourhood(*g.points[i], *g.maps[j], {g.truth[i], initial[i]},
+                                      {g.truth[j], initial[j]}, term.residual, stream)));
       term.points_i = g.points.back().get();
       g.terms.push_back(term);
     }
   }
   // Odometry: the true relative pose plus a fixed error (a few cm, a fraction of a degree), so
   // the optimum is not the truth exactly and the registration terms have to pull it back.
-  const double odometry_error[3][4] = {{0.03, -0.02, 0.01, 0.4}, {-0.02, 0.03, -0.01, -0.5}, {0.02, 0.02, 0.0, 0.3}};
+  const double odometry_error[3][4] = {
+      {0.03, -0.02, 0.01, 0.4}, {-0.02, 0.03, -0.01, -0.5}, {0.02, 0.02, 0.0, 0.3}};
   for (int k = 0; k + 1 < n; ++k) {
     const Pose4Dof& a = g.truth[k];
     const Pose4Dof& b = g.truth[k + 1];
     const double c = std::cos(a.yaw), s = std::sin(a.yaw);
     const Pose4Dof relative{c * (b.x - a.x) + s * (b.y - a.y) + odometry_error[k][0],
                             -s * (b.x - a.x) + c * (b.y - a.y) + odometry_error[k][1],
-                            b.z - a.z + odometry_error[k][2], b.yaw - a.yaw + odometry_error[k][3] * kDegToRad};
+                            b.z - a.z + odometry_error[k][2],
+                            b.yaw - a.yaw + odometry_error[k][3] * kDegToRad};
     const Eigen::Vector4d sigma(0.1, 0.1, 0.1, 2.0 * kDegToRad);
-    g.graph.constraints.push_back(
-        make_relative_constraint_4dof(k, k + 1, relative, sigma.cwiseInverse().cwiseAbs2().asDiagonal()));
+    g.graph.constraints.push_back(make_relative_constraint_4dof(
+        k, k + 1, relative, sigma.cwiseInverse().cwiseAbs2().asDiagonal()));
   }
   g.graph.poses = initial;
   g.graph.fixed_vertex = 0;
@@ -150,7 +157,8 @@ RoomGraph build_room_graph(Device device) {
 
 // Built once per device: integration dominates the test time.
 const RoomGraph& room_graph(Device device) {
-  return testing_support::once_per_device<RoomGraph>(device, [](Device d) { return build_room_graph(d); });
+  return testing_support::once_per_device<RoomGraph>(device,
+                                                     [](Device d) { return build_room_graph(d); });
 }
 
 PoseGraphSolverOptions tight_options() { return testing_support::tight_solver_options(1e-12, 200); }
@@ -173,8 +181,8 @@ TEST_P(RegistrationGraphTest, AssembledBlocksMatchHostSums) {
     RegistrationResidualConfig plain = t.residual;
     plain.loss = RobustLoss::kNone;
     const RobustLossParams robust{t.residual.loss, t.residual.loss_scale};
-    const auto residuals = evaluate_registration_residuals(*t.points_i, *t.map_j, g.graph.poses[t.vertex_i],
-                                                           g.graph.poses[t.vertex_j], plain);
+    const auto residuals = evaluate_registration_residuals(
+        *t.points_i, *t.map_j, g.graph.poses[t.vertex_i], g.graph.poses[t.vertex_j], plain);
     for (const RegistrationResidual& r : residuals) {
       if (!r.valid) continue;
       ++used;
@@ -201,10 +209,13 @@ TEST_P(RegistrationGraphTest, AssembledBlocksMatchHostSums) {
   for (int v = 1; v < n; ++v) {  // vertex 0 is fixed: identity block, zero gradient
     for (int r = 0; r < 4; ++r) {
       const double expected_g = gradient[v](r) + constraints_only.gradient[v * 4 + r];
-      EXPECT_NEAR(with_terms.gradient[v * 4 + r], expected_g, 1e-10 * gradient_scale) << "vertex " << v;
+      EXPECT_NEAR(with_terms.gradient[v * 4 + r], expected_g, 1e-10 * gradient_scale)
+          << "vertex " << v;
       for (int c = 0; c < 4; ++c) {
-        const double expected_h = diagonal[v](r, c) + constraints_only.hessian_diagonal_blocks[v * 16 + r * 4 + c];
-        EXPECT_NEAR(with_terms.hessian_diagonal_blocks[v * 16 + r * 4 + c], expected_h, 1e-10 * hessian_scale)
+        const double expected_h =
+            diagonal[v](r, c) + constraints_only.hessian_diagonal_blocks[v * 16 + r * 4 + c];
+        EXPECT_NEAR(with_terms.hessian_diagonal_blocks[v * 16 + r * 4 + c], expected_h,
+                    1e-10 * hessian_scale)
             << "vertex " << v << " entry " << r << "," << c;
       }
     }
@@ -219,16 +230,19 @@ TEST_P(RegistrationGraphTest, AssembledBlocksMatchHostSums) {
 TEST_P(RegistrationGraphTest, SolutionMatchesCeresAndTruth) {
   const RoomGraph& g = room_graph(device());
   PoseGraph4Dof ours = g.graph;
-  const PoseGraphSolverSummary summary = solve_pose_graph(&ours, g.terms, device(), tight_options());
+  const PoseGraphSolverSummary summary =
+      solve_pose_graph(&ours, g.terms, device(), tight_options());
   std::printf("[ registration graph ] %s: %s\n", to_string(device()), summary.report().c_str());
   EXPECT_TRUE(summary.converged()) << summary.report();
   EXPECT_LT(summary.final_cost, 0.5 * summary.initial_cost);
   EXPECT_GT(summary.registration_points_used, 4000);
-  EXPECT_EQ(summary.registration_points_used, summary.registration_points);  // all inside, by construction
+  EXPECT_EQ(summary.registration_points_used,
+            summary.registration_points);  // all inside, by construction
   for (size_t k = 1; k < ours.poses.size(); ++k) {
     const Pose4Dof& p = ours.poses[k];
     const Pose4Dof& t = g.truth[k];
-    const double error_m = std::sqrt(std::pow(p.x - t.x, 2) + std::pow(p.y - t.y, 2) + std::pow(p.z - t.z, 2));
+    const double error_m =
+        std::sqrt(std::pow(p.x - t.x, 2) + std::pow(p.y - t.y, 2) + std::pow(p.z - t.z, 2));
     EXPECT_LT(error_m, 0.02) << "submap " << k;
     EXPECT_LT(std::abs(p.yaw - t.yaw) / kDegToRad, 0.2) << "submap " << k;
   }
@@ -237,10 +251,13 @@ TEST_P(RegistrationGraphTest, SolutionMatchesCeresAndTruth) {
   ceres_oracle::OracleOptions options;
   options.max_iterations = 200;
   const auto oracle = ceres_oracle::solve(&reference, g.terms, options);
-  std::printf("[ registration graph ] ceres: %s (%.3f s)\n", oracle.brief_report.c_str(), oracle.solve_time_s);
+  std::printf("[ registration graph ] ceres: %s (%.3f s)\n", oracle.brief_report.c_str(),
+              oracle.solve_time_s);
   ASSERT_TRUE(oracle.usable);
-  std::printf("[ registration graph ] final cost: ours %.12g, Ceres %.12g (relative difference %.2e)\n",
-              summary.final_cost, oracle.final_cost, relative_difference(summary.final_cost, oracle.final_cost));
+  std::printf(
+      "[ registration graph ] final cost: ours %.12g, Ceres %.12g (relative difference %.2e)\n",
+      summary.final_cost, oracle.final_cost,
+      relative_difference(summary.final_cost, oracle.final_cost));
   EXPECT_LT(relative_difference(summary.initial_cost, oracle.initial_cost), 1e-10);
   EXPECT_LT(relative_difference(summary.final_cost, oracle.final_cost), 1e-6)
       << "ours " << summary.final_cost << ", Ceres " << oracle.final_cost;
@@ -276,7 +293,8 @@ TEST_P(RegistrationGraphTest, BadTermsAreRejectedByName) {
     solve_pose_graph(&graph, terms, device());
     ADD_FAILURE() << "a negative loss scale was accepted";
   } catch (const Error& error) {
-    EXPECT_NE(std::string(error.what()).find("registration term 0"), std::string::npos) << error.what();
+    EXPECT_NE(std::string(error.what()).find("registration term 0"), std::string::npos)
+        << error.what();
   }
   // Terms only (no ordinary constraints) still solve.
   PoseGraph4Dof terms_only = g.graph;
@@ -298,7 +316,8 @@ TEST(RegistrationGraphParityTest, CpuAndCudaAgree) {
   EXPECT_LT(relative_difference(e_gpu.cost, e_cpu.cost), 1e-3);
   double scale = 0.0;
   for (double v : e_cpu.gradient) scale = std::max(scale, std::abs(v));
-  for (size_t k = 0; k < e_cpu.gradient.size(); ++k) EXPECT_NEAR(e_gpu.gradient[k], e_cpu.gradient[k], 1e-2 * scale);
+  for (size_t k = 0; k < e_cpu.gradient.size(); ++k)
+    EXPECT_NEAR(e_gpu.gradient[k], e_cpu.gradient[k], 1e-2 * scale);
   PoseGraph4Dof a = cpu.graph, b = gpu.graph;
   solve_pose_graph(&a, cpu.terms, Device::kCpu, tight_options());
   solve_pose_graph(&b, gpu.terms, Device::kCuda, tight_options());

@@ -27,8 +27,9 @@ struct TwoWayPair : testing_support::ScannedSubmapPair {};
 
 const TwoWayPair& two_way_pair(Device device) {
   return testing_support::once_per_device<TwoWayPair>(device, [](Device d) {
-    return TwoWayPair{testing_support::scan_submap_pair(d, testing_support::registration_room(),
-                                             Pose4Dof{-0.38, 0.31, -0.06, -6.0 * kDegToRad}, 0.1f)};
+    return TwoWayPair{
+        testing_support::scan_submap_pair(d, testing_support::registration_room(),
+                                          Pose4Dof{-0.38, 0.31, -0.06, -6.0 * kDegToRad}, 0.1f)};
   });
 }
 
@@ -50,7 +51,8 @@ TEST(RegistrationInversePose, MatchesTheRigidInverseAndItsDifferences) {
     *plus_fields[axis] += step;
     *minus_fields[axis] -= step;
     const Pose4Dof a = inverse_pose_4dof(plus), b = inverse_pose_4dof(minus);
-    const Eigen::Vector4d numeric = Eigen::Vector4d(a.x - b.x, a.y - b.y, a.z - b.z, a.yaw - b.yaw) / (2.0 * step);
+    const Eigen::Vector4d numeric =
+        Eigen::Vector4d(a.x - b.x, a.y - b.y, a.z - b.z, a.yaw - b.yaw) / (2.0 * step);
     EXPECT_LT((numeric - analytic.col(axis)).norm(), 1e-8) << "column " << axis;
   }
 }
@@ -67,9 +69,10 @@ TEST_P(SymmetricRegistrationTest, GradientIsTheDerivativeOfTheCost) {
   RegistrationResidualConfig config;
   config.loss = RobustLoss::kCauchy;
   config.loss_scale = 0.5;
-  const Pose4Dof at{pair.true_T_Sj_Si.x + 0.05, pair.true_T_Sj_Si.y - 0.04, pair.true_T_Sj_Si.z + 0.03,
-                    pair.true_T_Sj_Si.yaw + 1.5 * kDegToRad};
-  const RegistrationNormalEquations base = symmetric_registration_normal_equations(view, at, config, stream);
+  const Pose4Dof at{pair.true_T_Sj_Si.x + 0.05, pair.true_T_Sj_Si.y - 0.04,
+                    pair.true_T_Sj_Si.z + 0.03, pair.true_T_Sj_Si.yaw + 1.5 * kDegToRad};
+  const RegistrationNormalEquations base =
+      symmetric_registration_normal_equations(view, at, config, stream);
   const RegistrationNormalEquations forward =
       registration_normal_equations(*pair.points_i, *pair.map_j, at, Pose4Dof(), config, stream);
   ASSERT_GT(forward.used_points, 1000);
@@ -81,8 +84,10 @@ TEST_P(SymmetricRegistrationTest, GradientIsTheDerivativeOfTheCost) {
     double* minus_fields[4] = {&minus.x, &minus.y, &minus.z, &minus.yaw};
     *plus_fields[axis] += step;
     *minus_fields[axis] -= step;
-    const RegistrationNormalEquations p = symmetric_registration_normal_equations(view, plus, config, stream);
-    const RegistrationNormalEquations m = symmetric_registration_normal_equations(view, minus, config, stream);
+    const RegistrationNormalEquations p =
+        symmetric_registration_normal_equations(view, plus, config, stream);
+    const RegistrationNormalEquations m =
+        symmetric_registration_normal_equations(view, minus, config, stream);
     ASSERT_EQ(p.used_points, base.used_points);
     ASSERT_EQ(m.used_points, base.used_points);
     const double numeric = (p.cost - m.cost) / (2.0 * step);
@@ -97,18 +102,24 @@ TEST_P(SymmetricRegistrationTest, AlignerRecoversKnownOffset) {
   config.residual.loss = RobustLoss::kHuber;
   config.residual.loss_scale = 0.1;
   const Pose4Dof truth = pair.true_T_Sj_Si;
-  const Pose4Dof offsets[] = {{0.3, -0.3, 0.2, 10.0 * kDegToRad}, {-0.35, 0.2, -0.15, -8.0 * kDegToRad}};
+  const Pose4Dof offsets[] = {{0.3, -0.3, 0.2, 10.0 * kDegToRad},
+                              {-0.35, 0.2, -0.15, -8.0 * kDegToRad}};
   for (const Pose4Dof& offset : offsets) {
-    const Pose4Dof initial{truth.x + offset.x, truth.y + offset.y, truth.z + offset.z, truth.yaw + offset.yaw};
-    const RegistrationResult result = align_submaps_symmetric(pair.symmetric(1.0), initial, config, stream);
-    const double translation_error_m =
-        std::sqrt(std::pow(result.T_Sj_Si.x - truth.x, 2) + std::pow(result.T_Sj_Si.y - truth.y, 2) +
-                  std::pow(result.T_Sj_Si.z - truth.z, 2));
+    const Pose4Dof initial{truth.x + offset.x, truth.y + offset.y, truth.z + offset.z,
+                           truth.yaw + offset.yaw};
+    const RegistrationResult result =
+        align_submaps_symmetric(pair.symmetric(1.0), initial, config, stream);
+    const double translation_error_m = std::sqrt(std::pow(result.T_Sj_Si.x - truth.x, 2) +
+                                                 std::pow(result.T_Sj_Si.y - truth.y, 2) +
+                                                 std::pow(result.T_Sj_Si.z - truth.z, 2));
     const double yaw_error_deg = std::abs(result.T_Sj_Si.yaw - truth.yaw) / kDegToRad;
-    std::printf("[ registration ] %s symmetric, offset (%.2f, %.2f, %.2f m, %.1f deg): error %.4f m, %.4f deg, "
-                "%d iterations, %lld points used\n",
-                to_string(device()), offset.x, offset.y, offset.z, offset.yaw / kDegToRad, translation_error_m,
-                yaw_error_deg, result.iterations, static_cast<long long>(result.used_points));
+    std::printf(
+        "[ registration ] %s symmetric, offset (%.2f, %.2f, %.2f m, %.1f deg): error %.4f m, %.4f "
+        "deg, "
+        "%d iterations, %lld points used\n",
+        to_string(device()), offset.x, offset.y, offset.z, offset.yaw / kDegToRad,
+        translation_error_m, yaw_error_deg, result.iterations,
+        static_cast<long long>(result.used_points));
     EXPECT_TRUE(result.converged);
     EXPECT_LT(translation_error_m, 0.02);
     EXPECT_LT(yaw_error_deg, 0.2);
@@ -124,7 +135,8 @@ TEST_P(SymmetricRegistrationTest, IncompletePairOrBadScaleIsAnError) {
   missing.points_j = nullptr;
   EXPECT_THROW(align_submaps_symmetric(missing, pair.true_T_Sj_Si, config, stream), Error);
   for (const double scale : {0.0, -1.0, std::nan("")}) {
-    EXPECT_THROW(align_submaps_symmetric(pair.symmetric(scale), pair.true_T_Sj_Si, config, stream), Error);
+    EXPECT_THROW(align_submaps_symmetric(pair.symmetric(scale), pair.true_T_Sj_Si, config, stream),
+                 Error);
   }
 }
 

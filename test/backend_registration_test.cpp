@@ -50,7 +50,8 @@ SubmapPair build_submap_pair(Device device) {
 
 // Built once per device: integration dominates the test time.
 const SubmapPair& submap_pair(Device device) {
-  return testing_support::once_per_device<SubmapPair>(device, [](Device d) { return build_submap_pair(d); });
+  return testing_support::once_per_device<SubmapPair>(
+      device, [](Device d) { return build_submap_pair(d); });
 }
 
 RegistrationPointsConfig points_config() {
@@ -64,19 +65,25 @@ class RegistrationTest : public DeviceTest {};
 TEST_P(RegistrationTest, RegistrationPointsAreSampledSurfaceVoxels) {
   const SubmapPair& pair = submap_pair(device());
   const Stream stream(device());
-  const RegistrationPoints all = extract_registration_points(*pair.map_i, [] {
-    RegistrationPointsConfig c;
-    c.sampling_ratio = 1.0f;
-    return c;
-  }(), stream);
+  const RegistrationPoints all = extract_registration_points(
+      *pair.map_i,
+      [] {
+        RegistrationPointsConfig c;
+        c.sampling_ratio = 1.0f;
+        return c;
+      }(),
+      stream);
   EXPECT_EQ(static_cast<int64_t>(all.points.size()), all.surface_voxels);
   ASSERT_GT(all.surface_voxels, 5000);
-  const RegistrationPoints sampled = extract_registration_points(*pair.map_i, points_config(), stream);
+  const RegistrationPoints sampled =
+      extract_registration_points(*pair.map_i, points_config(), stream);
   EXPECT_EQ(sampled.surface_voxels, all.surface_voxels);
-  const double ratio = static_cast<double>(sampled.points.size()) / static_cast<double>(all.surface_voxels);
+  const double ratio =
+      static_cast<double>(sampled.points.size()) / static_cast<double>(all.surface_voxels);
   EXPECT_NEAR(ratio, 0.25, 0.02);
   // Deterministic: the same call gives the same points.
-  const RegistrationPoints again = extract_registration_points(*pair.map_i, points_config(), stream);
+  const RegistrationPoints again =
+      extract_registration_points(*pair.map_i, points_config(), stream);
   const auto a = sampled.points.to_host(stream), b = again.points.to_host(stream);
   ASSERT_EQ(a.size(), b.size());
   for (size_t k = 0; k < a.size(); ++k) {
@@ -99,12 +106,14 @@ TEST_P(RegistrationTest, RegistrationPointsAreSampledSurfaceVoxels) {
 TEST_P(RegistrationTest, JacobiansMatchCentralDifferences) {
   const SubmapPair& pair = submap_pair(device());
   const Stream stream(device());
-  const RegistrationPoints points = extract_registration_points(*pair.map_i, points_config(), stream);
+  const RegistrationPoints points =
+      extract_registration_points(*pair.map_i, points_config(), stream);
   // Off the truth so that residuals and gradients are not all near zero.
-  const Pose4Dof T_W_Si{pair.true_T_Sj_Si.x + 0.04, pair.true_T_Sj_Si.y - 0.03, pair.true_T_Sj_Si.z + 0.02,
-                        pair.true_T_Sj_Si.yaw + 1.0 * kDegToRad};
+  const Pose4Dof T_W_Si{pair.true_T_Sj_Si.x + 0.04, pair.true_T_Sj_Si.y - 0.03,
+                        pair.true_T_Sj_Si.z + 0.02, pair.true_T_Sj_Si.yaw + 1.0 * kDegToRad};
   const Pose4Dof T_W_Sj{0.05, -0.02, 0.01, 0.5 * kDegToRad};
-  for (const RegistrationDistance distance : {RegistrationDistance::kTsdfNearSurface, RegistrationDistance::kEsdf}) {
+  for (const RegistrationDistance distance :
+       {RegistrationDistance::kTsdfNearSurface, RegistrationDistance::kEsdf}) {
     RegistrationResidualConfig config;
     config.distance = distance;
     const auto base = evaluate_registration_residuals(points, *pair.map_j, T_W_Si, T_W_Sj, config);
@@ -125,7 +134,8 @@ TEST_P(RegistrationTest, JacobiansMatchCentralDifferences) {
         for (size_t k = 0; k < base.size(); ++k) {
           if (!base[k].valid || !plus[k].valid || !minus[k].valid) continue;
           const double numeric = (plus[k].residual - minus[k].residual) / (2.0 * step);
-          const double analytic = pose_index == 0 ? base[k].jacobian_i[axis] : base[k].jacobian_j[axis];
+          const double analytic =
+              pose_index == 0 ? base[k].jacobian_i[axis] : base[k].jacobian_j[axis];
           const double error = std::abs(numeric - analytic);
           max_abs_jacobian = std::max(max_abs_jacobian, std::abs(analytic));
           ++checked;
@@ -137,9 +147,11 @@ TEST_P(RegistrationTest, JacobiansMatchCentralDifferences) {
     ASSERT_GT(checked, 8000) << "too few valid points to check";
     EXPECT_GT(max_abs_jacobian, 0.5) << "the Jacobians are all near zero: the check would be empty";
     std::nth_element(errors.begin(), errors.begin() + errors.size() / 2, errors.end());
-    std::printf("[ registration ] %s Jacobians (distance source %d): %lld of %lld entries agree, median error %.2e\n",
-                to_string(device()), static_cast<int>(distance), static_cast<long long>(agreed),
-                static_cast<long long>(checked), errors[errors.size() / 2]);
+    std::printf(
+        "[ registration ] %s Jacobians (distance source %d): %lld of %lld entries agree, median "
+        "error %.2e\n",
+        to_string(device()), static_cast<int>(distance), static_cast<long long>(agreed),
+        static_cast<long long>(checked), errors[errors.size() / 2]);
     EXPECT_LT(errors[errors.size() / 2], 1e-6);
     EXPECT_GE(static_cast<double>(agreed) / checked, 0.98)
         << agreed << " of " << checked << " Jacobian entries agree (distance source "
@@ -150,8 +162,10 @@ TEST_P(RegistrationTest, JacobiansMatchCentralDifferences) {
 TEST_P(RegistrationTest, RobustLossesDownWeightLargeResiduals) {
   const SubmapPair& pair = submap_pair(device());
   const Stream stream(device());
-  const RegistrationPoints points = extract_registration_points(*pair.map_i, points_config(), stream);
-  const Pose4Dof off{pair.true_T_Sj_Si.x + 0.3, pair.true_T_Sj_Si.y, pair.true_T_Sj_Si.z, pair.true_T_Sj_Si.yaw};
+  const RegistrationPoints points =
+      extract_registration_points(*pair.map_i, points_config(), stream);
+  const Pose4Dof off{pair.true_T_Sj_Si.x + 0.3, pair.true_T_Sj_Si.y, pair.true_T_Sj_Si.z,
+                     pair.true_T_Sj_Si.yaw};
   RegistrationResidualConfig plain, huber, cauchy;
   huber.loss = RobustLoss::kHuber;
   cauchy.loss = RobustLoss::kCauchy;
@@ -186,7 +200,8 @@ TEST_P(RegistrationTest, RobustLossesDownWeightLargeResiduals) {
 TEST_P(RegistrationTest, AlignerRecoversKnownOffset) {
   const SubmapPair& pair = submap_pair(device());
   const Stream stream(device());
-  const RegistrationPoints points = extract_registration_points(*pair.map_i, points_config(), stream);
+  const RegistrationPoints points =
+      extract_registration_points(*pair.map_i, points_config(), stream);
   RegistrationAlignerConfig config;
   config.residual.loss = RobustLoss::kHuber;
   config.residual.loss_scale = 0.1;
@@ -195,19 +210,24 @@ TEST_P(RegistrationTest, AlignerRecoversKnownOffset) {
                               {-0.35, 0.2, -0.15, -10.0 * kDegToRad},
                               {0.45, 0.1, 0.0, 5.0 * kDegToRad}};
   for (const Pose4Dof& offset : offsets) {
-    const Pose4Dof initial{truth.x + offset.x, truth.y + offset.y, truth.z + offset.z, truth.yaw + offset.yaw};
+    const Pose4Dof initial{truth.x + offset.x, truth.y + offset.y, truth.z + offset.z,
+                           truth.yaw + offset.yaw};
     const auto start = std::chrono::steady_clock::now();
     const RegistrationResult result = align_submaps(points, *pair.map_j, initial, config, stream);
-    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     const double translation_error_m = std::sqrt(std::pow(result.T_Sj_Si.x - truth.x, 2) +
                                                  std::pow(result.T_Sj_Si.y - truth.y, 2) +
                                                  std::pow(result.T_Sj_Si.z - truth.z, 2));
     const double yaw_error_deg = std::abs(result.T_Sj_Si.yaw - truth.yaw) / kDegToRad;
-    std::printf("[ registration ] %s offset (%.2f, %.2f, %.2f m, %.1f deg): error %.4f m, %.4f deg, %d iterations, "
-                "%lld points used, %lld skipped, cost %.4g -> %.4g, %.3f s\n",
-                to_string(device()), offset.x, offset.y, offset.z, offset.yaw / kDegToRad, translation_error_m,
-                yaw_error_deg, result.iterations, static_cast<long long>(result.used_points),
-                static_cast<long long>(result.skipped_points), result.initial_cost, result.final_cost, seconds);
+    std::printf(
+        "[ registration ] %s offset (%.2f, %.2f, %.2f m, %.1f deg): error %.4f m, %.4f deg, %d "
+        "iterations, "
+        "%lld points used, %lld skipped, cost %.4g -> %.4g, %.3f s\n",
+        to_string(device()), offset.x, offset.y, offset.z, offset.yaw / kDegToRad,
+        translation_error_m, yaw_error_deg, result.iterations,
+        static_cast<long long>(result.used_points), static_cast<long long>(result.skipped_points),
+        result.initial_cost, result.final_cost, seconds);
     EXPECT_TRUE(result.converged);
     EXPECT_LT(translation_error_m, 0.02);
     EXPECT_LT(yaw_error_deg, 0.2);
@@ -221,7 +241,8 @@ TEST_P(RegistrationTest, AlignerRecoversKnownOffset) {
 TEST_P(RegistrationTest, EsdfOnlyAlignmentIsVoxelLimited) {
   const SubmapPair& pair = submap_pair(device());
   const Stream stream(device());
-  const RegistrationPoints points = extract_registration_points(*pair.map_i, points_config(), stream);
+  const RegistrationPoints points =
+      extract_registration_points(*pair.map_i, points_config(), stream);
   RegistrationAlignerConfig config;
   config.residual.distance = RegistrationDistance::kEsdf;
   config.residual.loss = RobustLoss::kHuber;
@@ -229,12 +250,12 @@ TEST_P(RegistrationTest, EsdfOnlyAlignmentIsVoxelLimited) {
   const Pose4Dof truth = pair.true_T_Sj_Si;
   const Pose4Dof initial{truth.x + 0.3, truth.y - 0.3, truth.z + 0.2, truth.yaw + 10.0 * kDegToRad};
   const RegistrationResult result = align_submaps(points, *pair.map_j, initial, config, stream);
-  const double translation_error_m = std::sqrt(std::pow(result.T_Sj_Si.x - truth.x, 2) +
-                                               std::pow(result.T_Sj_Si.y - truth.y, 2) +
-                                               std::pow(result.T_Sj_Si.z - truth.z, 2));
+  const double translation_error_m =
+      std::sqrt(std::pow(result.T_Sj_Si.x - truth.x, 2) + std::pow(result.T_Sj_Si.y - truth.y, 2) +
+                std::pow(result.T_Sj_Si.z - truth.z, 2));
   const double yaw_error_deg = std::abs(result.T_Sj_Si.yaw - truth.yaw) / kDegToRad;
-  std::printf("[ registration ] %s ESDF only: error %.4f m, %.4f deg, %d iterations\n", to_string(device()),
-              translation_error_m, yaw_error_deg, result.iterations);
+  std::printf("[ registration ] %s ESDF only: error %.4f m, %.4f deg, %d iterations\n",
+              to_string(device()), translation_error_m, yaw_error_deg, result.iterations);
   EXPECT_LT(translation_error_m, 0.15);
   EXPECT_LT(yaw_error_deg, 2.0);
 }
@@ -253,7 +274,8 @@ TEST_P(RegistrationTest, OverlapAndPoseGraphConstraint) {
   EXPECT_FALSE(none.overlapping);
 
   // The aligner refuses a guess that puts submap i outside submap j.
-  const RegistrationPoints points = extract_registration_points(*pair.map_i, points_config(), stream);
+  const RegistrationPoints points =
+      extract_registration_points(*pair.map_i, points_config(), stream);
   RegistrationAlignerConfig config;
   EXPECT_THROW(align_submaps(points, *pair.map_j, far_away, config, stream), Error);
 
@@ -282,8 +304,10 @@ TEST(RegistrationParityTest, CpuAndCudaResidualsAgree) {
   const SubmapPair& cpu = submap_pair(Device::kCpu);
   const SubmapPair& gpu = submap_pair(Device::kCuda);
   const Stream cpu_stream(Device::kCpu), gpu_stream(Device::kCuda);
-  const RegistrationPoints points_cpu = extract_registration_points(*cpu.map_i, points_config(), cpu_stream);
-  const RegistrationPoints points_gpu = extract_registration_points(*gpu.map_i, points_config(), gpu_stream);
+  const RegistrationPoints points_cpu =
+      extract_registration_points(*cpu.map_i, points_config(), cpu_stream);
+  const RegistrationPoints points_gpu =
+      extract_registration_points(*gpu.map_i, points_config(), gpu_stream);
   const auto host_cpu = points_cpu.points.to_host(cpu_stream);
   const auto host_gpu = points_gpu.points.to_host(gpu_stream);
   ASSERT_EQ(host_cpu.size(), host_gpu.size());
@@ -293,11 +317,14 @@ TEST(RegistrationParityTest, CpuAndCudaResidualsAgree) {
     ASSERT_EQ(host_cpu[k].position_m.z, host_gpu[k].position_m.z);
     ASSERT_NEAR(host_cpu[k].tsdf_distance_m, host_gpu[k].tsdf_distance_m, 1e-4);
   }
-  const Pose4Dof T_W_Si{cpu.true_T_Sj_Si.x + 0.1, cpu.true_T_Sj_Si.y, cpu.true_T_Sj_Si.z, cpu.true_T_Sj_Si.yaw};
+  const Pose4Dof T_W_Si{cpu.true_T_Sj_Si.x + 0.1, cpu.true_T_Sj_Si.y, cpu.true_T_Sj_Si.z,
+                        cpu.true_T_Sj_Si.yaw};
   RegistrationResidualConfig config;
   config.loss = RobustLoss::kHuber;
-  const auto r_cpu = evaluate_registration_residuals(points_cpu, *cpu.map_j, T_W_Si, Pose4Dof{}, config);
-  const auto r_gpu = evaluate_registration_residuals(points_gpu, *gpu.map_j, T_W_Si, Pose4Dof{}, config);
+  const auto r_cpu =
+      evaluate_registration_residuals(points_cpu, *cpu.map_j, T_W_Si, Pose4Dof{}, config);
+  const auto r_gpu =
+      evaluate_registration_residuals(points_gpu, *gpu.map_j, T_W_Si, Pose4Dof{}, config);
   ASSERT_EQ(r_cpu.size(), r_gpu.size());
   int64_t valid_mismatch = 0;
   for (size_t k = 0; k < r_cpu.size(); ++k) {
@@ -315,8 +342,10 @@ TEST(RegistrationParityTest, CpuAndCudaResidualsAgree) {
   // The maps agree to 1e-4 m (TSDF parity), not bit for bit: observed flags may differ at the
   // very edge of what the sensor saw.
   EXPECT_LE(valid_mismatch, static_cast<int64_t>(r_cpu.size() / 1000 + 1));
-  const auto n_cpu = registration_normal_equations(points_cpu, *cpu.map_j, T_W_Si, Pose4Dof{}, config, cpu_stream);
-  const auto n_gpu = registration_normal_equations(points_gpu, *gpu.map_j, T_W_Si, Pose4Dof{}, config, gpu_stream);
+  const auto n_cpu =
+      registration_normal_equations(points_cpu, *cpu.map_j, T_W_Si, Pose4Dof{}, config, cpu_stream);
+  const auto n_gpu =
+      registration_normal_equations(points_gpu, *gpu.map_j, T_W_Si, Pose4Dof{}, config, gpu_stream);
   EXPECT_NEAR(n_cpu.cost, n_gpu.cost, 1e-3 * std::max(1.0, n_cpu.cost));
   EXPECT_NEAR((n_cpu.hessian_i - n_gpu.hessian_i).norm(), 0.0, 1e-3 * n_cpu.hessian_i.norm());
 }

@@ -26,14 +26,17 @@ using testing_support::DeviceTest;
 using testing_support::relative_difference;
 
 // The comparisons with Ceres are about the optimum, not about stopping early.
-PoseGraphSolverOptions tight_options() { return testing_support::tight_solver_options(1e-10, 1000); }
+PoseGraphSolverOptions tight_options() {
+  return testing_support::tight_solver_options(1e-10, 1000);
+}
 
 #if COVOX_HAVE_CERES
 // Solves `copy` (the same graph as the one `summary` reports on, still at its initial poses) with
 // Ceres: the initial costs must agree to rounding, as both evaluate the same residuals, and the
 // final costs within `final_tolerance`, as both should reach the same optimum.
 template <class Graph>
-void expect_costs_match_ceres(const PoseGraphSolverSummary& summary, Graph* copy, double final_tolerance) {
+void expect_costs_match_ceres(const PoseGraphSolverSummary& summary, Graph* copy,
+                              double final_tolerance) {
   const auto oracle = ceres_oracle::solve(copy);
   SCOPED_TRACE("ceres: " + oracle.brief_report);
   ASSERT_TRUE(oracle.usable);
@@ -44,23 +47,27 @@ void expect_costs_match_ceres(const PoseGraphSolverSummary& summary, Graph* copy
 #endif
 
 // Root mean square position error against the truth and the largest heading error.
-double position_rmse(const std::vector<Pose4Dof>& a, const std::vector<Pose4Dof>& b, double* max_yaw_error) {
+double position_rmse(const std::vector<Pose4Dof>& a, const std::vector<Pose4Dof>& b,
+                     double* max_yaw_error) {
   double sum = 0.0;
   *max_yaw_error = 0.0;
   for (size_t k = 0; k < a.size(); ++k) {
-    sum += std::pow(a[k].x - b[k].x, 2) + std::pow(a[k].y - b[k].y, 2) + std::pow(a[k].z - b[k].z, 2);
+    sum +=
+        std::pow(a[k].x - b[k].x, 2) + std::pow(a[k].y - b[k].y, 2) + std::pow(a[k].z - b[k].z, 2);
     *max_yaw_error = std::max(*max_yaw_error, std::abs(wrap_angle(a[k].yaw - b[k].yaw)));
   }
   return std::sqrt(sum / a.size());
 }
 
-double position_rmse(const std::vector<Se3Pose>& a, const std::vector<Se3Pose>& b, double* max_angle_error) {
+double position_rmse(const std::vector<Se3Pose>& a, const std::vector<Se3Pose>& b,
+                     double* max_angle_error) {
   double sum = 0.0;
   *max_angle_error = 0.0;
   for (size_t k = 0; k < a.size(); ++k) {
     const Eigen::Isometry3d ta = to_isometry(a[k]), tb = to_isometry(b[k]);
     sum += (ta.translation() - tb.translation()).squaredNorm();
-    *max_angle_error = std::max(*max_angle_error, Eigen::AngleAxisd(ta.linear().transpose() * tb.linear()).angle());
+    *max_angle_error = std::max(*max_angle_error,
+                                Eigen::AngleAxisd(ta.linear().transpose() * tb.linear()).angle());
   }
   return std::sqrt(sum / a.size());
 }
@@ -118,12 +125,14 @@ TEST_P(BackendSolver, FixedVertexDoesNotMove) {
 TEST_P(BackendSolver, InvalidGraphIsAClearError) {
   PoseGraph4Dof graph;
   graph.poses.resize(2);
-  graph.constraints = {make_relative_constraint_4dof(0, 5, Pose4Dof{}, Eigen::Matrix4d::Identity())};
+  graph.constraints = {
+      make_relative_constraint_4dof(0, 5, Pose4Dof{}, Eigen::Matrix4d::Identity())};
   try {
     solve_pose_graph(&graph, device());
     FAIL() << "expected an error";
   } catch (const Error& error) {
-    EXPECT_NE(std::string(error.what()).find("constraint 0 (constraint 0 -> 5) names a vertex outside [0, 2)"),
+    EXPECT_NE(std::string(error.what())
+                  .find("constraint 0 (constraint 0 -> 5) names a vertex outside [0, 2)"),
               std::string::npos)
         << error.what();
   }
@@ -176,7 +185,8 @@ class BackendParkingGarage : public DeviceTest {
   // Solves the file with `options` and compares the final cost with Ceres' (tight tolerances,
   // sparse Cholesky: the reference optimum).
   void compare_with_ceres(const PoseGraphSolverOptions& options, double relative_tolerance) {
-    if (!std::filesystem::exists(path())) GTEST_SKIP() << "missing " << path() << " (set COVOX_DATA_DIR)";
+    if (!std::filesystem::exists(path()))
+      GTEST_SKIP() << "missing " << path() << " (set COVOX_DATA_DIR)";
     G2oGraph ours = read_g2o(path());
     ASSERT_EQ(ours.graph.poses.size(), 1661u);
     ASSERT_EQ(ours.graph.constraints.size(), 6275u);

@@ -25,9 +25,12 @@ TEST(BenchmarkReport, JsonHasTheAgreedShapeAndExactValues) {
   EXPECT_NE(json.find("\"benchmark\": \"hash_table\""), std::string::npos) << json;
   EXPECT_NE(json.find("\"device\": \"NVIDIA H100\""), std::string::npos) << json;
   EXPECT_NE(json.find("\"date\": \"2026-11-22T10:00:00Z\""), std::string::npos) << json;
-  EXPECT_NE(json.find("\"command\": \"build/benchmark_hash_table --keys 10\""), std::string::npos) << json;
-  EXPECT_NE(json.find("{\"case\": \"cuda load 0.85\", \"metric\": \"insert\", \"value\": 1234.5, \"unit\": \"Mkeys/s\"}"),
-            std::string::npos) << json;
+  EXPECT_NE(json.find("\"command\": \"build/benchmark_hash_table --keys 10\""), std::string::npos)
+      << json;
+  EXPECT_NE(json.find("{\"case\": \"cuda load 0.85\", \"metric\": \"insert\", \"value\": 1234.5, "
+                      "\"unit\": \"Mkeys/s\"}"),
+            std::string::npos)
+      << json;
   EXPECT_NE(json.find("\"cpu \\\"quoted\\\"\""), std::string::npos) << json;
 }
 
@@ -60,15 +63,18 @@ TEST(BenchmarkReport, TableAlignsTheValueColumn) {
 }
 
 TEST(BenchmarkReport, CpuOnlyReportsDefaultToTheirOwnFile) {
-  EXPECT_EQ(BenchmarkReport("tsdf", "cuda:0 NVIDIA H100; cpu (16 OpenMP threads)", "c").default_json_path(),
+  EXPECT_EQ(BenchmarkReport("tsdf", "cuda:0 NVIDIA H100; cpu (16 OpenMP threads)", "c")
+                .default_json_path(),
             "docs/benchmarks/tsdf.json");
-  const std::string cpu = BenchmarkReport("tsdf", "cpu (2 OpenMP threads)", "c").default_json_path();
+  const std::string cpu =
+      BenchmarkReport("tsdf", "cpu (2 OpenMP threads)", "c").default_json_path();
   EXPECT_EQ(cpu.rfind("docs/benchmarks/tsdf_cpu_", 0), 0u) << cpu;
   EXPECT_EQ(cpu.substr(cpu.size() - 9), "core.json") << cpu;
 }
 
 TEST(BenchmarkReport, WriteJsonCreatesFoldersAndReplacesTheFile) {
-  const std::filesystem::path folder = std::filesystem::temp_directory_path() / "covox_report_test" / "nested";
+  const std::filesystem::path folder =
+      std::filesystem::temp_directory_path() / "covox_report_test" / "nested";
   std::filesystem::remove_all(folder.parent_path());
   const std::string path = (folder / "x.json").string();
   BenchmarkReport first("x", "cpu", "cmd", "2026-01-01T00:00:00Z");
@@ -93,10 +99,11 @@ TEST(CommandLine, ReadsOptionsAndRejectsUnknownOnes) {
   EXPECT_EQ(args.text("--missing", "default"), "default");
   args.finish();
   const char* bad[] = {"tool", "--typo", "1"};
-  EXPECT_EXIT(CommandLine(3, bad, "usage: tool").finish(), ::testing::ExitedWithCode(2), "unknown option '--typo'");
+  EXPECT_EXIT(CommandLine(3, bad, "usage: tool").finish(), ::testing::ExitedWithCode(2),
+              "unknown option '--typo'");
   const char* not_a_number[] = {"tool", "--keys", "many"};
-  EXPECT_EXIT(CommandLine(3, not_a_number, "usage: tool").integer("--keys", 1), ::testing::ExitedWithCode(2),
-              "--keys expects an integer");
+  EXPECT_EXIT(CommandLine(3, not_a_number, "usage: tool").integer("--keys", 1),
+              ::testing::ExitedWithCode(2), "--keys expects an integer");
 }
 
 }  // namespace

@@ -107,7 +107,8 @@ void activate_and_check(BlockHashTable& table, ReferenceMap& reference,
   ASSERT_EQ(table.size(), static_cast<int64_t>(reference.size()));
   std::unordered_set<uint32_t> used_slots;
   for (const auto& entry : reference) {
-    ASSERT_TRUE(used_slots.insert(entry.second).second) << "two live keys share slot " << entry.second;
+    ASSERT_TRUE(used_slots.insert(entry.second).second)
+        << "two live keys share slot " << entry.second;
     ASSERT_LT(entry.second, table.slot_count());
   }
 }
@@ -177,8 +178,10 @@ TEST_P(BlockHashTableTest, EraseAndReinsertCyclesReuseSlots) {
     EXPECT_EQ(erased, static_cast<int64_t>(distinct_erased.size()));
     for (const auto& key : distinct_erased) reference.erase(key);
     expect_table_matches(table, reference);
-    const auto gone = find(table, std::vector<Index3D>(distinct_erased.begin(), distinct_erased.end()));
-    EXPECT_TRUE(std::all_of(gone.begin(), gone.end(), [](uint32_t s) { return s == kInvalidSlot; }));
+    const auto gone =
+        find(table, std::vector<Index3D>(distinct_erased.begin(), distinct_erased.end()));
+    EXPECT_TRUE(
+        std::all_of(gone.begin(), gone.end(), [](uint32_t s) { return s == kInvalidSlot; }));
     // Re-insert everything (mix of present and absent keys).
     activate_and_check(table, reference, universe);
     // Freed slots are reused: the slot range never exceeds the live maximum.
@@ -230,11 +233,9 @@ TEST_P(BlockHashTableTest, FullTableFailsCleanlyAndSaysSo) {
 TEST_P(BlockHashTableTest, RejectsOutOfRangeKeysWithoutWrapping) {
   BlockHashTable table(device());
   const std::vector<Index3D> keys = {
-      Index3D(kMaxBlockIndex, kMinBlockIndex, 0),      // the extremes are valid
-      Index3D(kMaxBlockIndex + 1, 0, 0),                // would wrap onto kMinBlockIndex
-      Index3D(0, kMinBlockIndex - 1, 0),
-      Index3D(0, 0, 1 << 30),
-      Index3D(kMinBlockIndex, 0, 0)};
+      Index3D(kMaxBlockIndex, kMinBlockIndex, 0),  // the extremes are valid
+      Index3D(kMaxBlockIndex + 1, 0, 0),           // would wrap onto kMinBlockIndex
+      Index3D(0, kMinBlockIndex - 1, 0), Index3D(0, 0, 1 << 30), Index3D(kMinBlockIndex, 0, 0)};
   const ActivateOutput output = activate(table, keys);
   EXPECT_EQ(output.result.num_out_of_range, 3);
   EXPECT_EQ(output.result.num_new, 2);
@@ -262,7 +263,8 @@ TEST_P(BlockHashTableTest, ExportListsEveryLiveEntry) {
   const auto host_keys = keys.to_host();
   const auto host_slots = slots.to_host();
   ASSERT_EQ(host_keys.size(), reference.size());
-  for (size_t i = 0; i < host_keys.size(); ++i) EXPECT_EQ(reference.at(host_keys[i]), host_slots[i]);
+  for (size_t i = 0; i < host_keys.size(); ++i)
+    EXPECT_EQ(reference.at(host_keys[i]), host_slots[i]);
 }
 
 TEST(BlockKey, PacksAndUnpacksTheWholeRange) {
@@ -290,8 +292,9 @@ TEST_P(BlockHashTableTest, QueuedActivationMatchesActivate) {
     erase(*table, std::vector<Index3D>(first.begin(), first.begin() + 500));  // slots to reuse
   }
   std::vector<Index3D> keys = random_blocks(6000, 2500, 6);
-  keys.insert(keys.begin() + 10, first.begin() + 100, first.begin() + 1100);  // erased and live keys
-  keys[20] = Index3D(kMaxBlockIndex + 1, 0, 0);                               // rejected
+  keys.insert(keys.begin() + 10, first.begin() + 100,
+              first.begin() + 1100);             // erased and live keys
+  keys[20] = Index3D(kMaxBlockIndex + 1, 0, 0);  // rejected
   const int64_t count = 5200, bound = static_cast<int64_t>(keys.size());
   const std::vector<Index3D> counted(keys.begin(), keys.begin() + count);
   const std::vector<uint32_t> before = find(queued, counted);
@@ -301,13 +304,14 @@ TEST_P(BlockHashTableTest, QueuedActivationMatchesActivate) {
   Buffer<uint32_t> slots(device(), bound), totals(device(), 2);
   Buffer<uint8_t> is_new(device(), bound);
   Stream stream(device());
-  ASSERT_TRUE(queued.activate_queued(keys_device.data(), count_device.data(), bound, slots.data(), is_new.data(),
-                                     totals.data(), stream));
+  ASSERT_TRUE(queued.activate_queued(keys_device.data(), count_device.data(), bound, slots.data(),
+                                     is_new.data(), totals.data(), stream));
   EXPECT_THROW(activate(queued, counted), Error);
   EXPECT_THROW(erase(queued, counted), Error);
   stream.synchronize();
   const std::vector<uint32_t> host_totals = totals.to_host();
-  const ActivateResult result = queued.finish_queued_activation(host_totals[0], host_totals[1], stream);
+  const ActivateResult result =
+      queued.finish_queued_activation(host_totals[0], host_totals[1], stream);
   const ActivateOutput expected = activate(direct, counted);
   EXPECT_EQ(result.num_new, expected.result.num_new);
   EXPECT_EQ(result.num_out_of_range, 1);
@@ -329,7 +333,8 @@ TEST_P(BlockHashTableTest, QueuedActivationMatchesActivate) {
       continue;
     }
     const auto [it, first_time] = new_slots.emplace(keys[i], host_slots[i]);
-    if (!first_time) ASSERT_EQ(host_slots[i], it->second) << "duplicates got different slots, key " << i;
+    if (!first_time)
+      ASSERT_EQ(host_slots[i], it->second) << "duplicates got different slots, key " << i;
     flagged += host_is_new[i];
   }
   EXPECT_EQ(flagged, static_cast<int64_t>(new_slots.size()));
@@ -359,8 +364,8 @@ TEST_P(BlockHashTableTest, QueuedActivationDeclinesWhenTheTableMightGrow) {
   Buffer<uint32_t> slots(device(), keys.size()), totals(device(), 2);
   Stream stream(device());
   // 1000 possible new keys do not fit under 0.75 x 1024: the caller must take activate().
-  EXPECT_FALSE(table.activate_queued(keys_device.data(), count_device.data(), 1000, slots.data(), nullptr,
-                                     totals.data(), stream));
+  EXPECT_FALSE(table.activate_queued(keys_device.data(), count_device.data(), 1000, slots.data(),
+                                     nullptr, totals.data(), stream));
   EXPECT_EQ(table.size(), 0);
   EXPECT_NO_THROW(activate(table, keys));  // nothing was left queued
   EXPECT_EQ(table.size(), 1000);
@@ -387,7 +392,8 @@ TEST(BlockActivatorTest, InKernelActivationMatchesActivate) {
 
   const Stream stream(Device::kCpu);
   BlockActivator activator;
-  ASSERT_TRUE(in_kernel.begin_in_kernel_activation(static_cast<int64_t>(keys.size()), &activator, stream));
+  ASSERT_TRUE(
+      in_kernel.begin_in_kernel_activation(static_cast<int64_t>(keys.size()), &activator, stream));
   EXPECT_THROW(activate(in_kernel, keys), Error);
   std::vector<uint32_t> slots(keys.size());
   std::vector<uint8_t> is_new(keys.size());
@@ -399,7 +405,8 @@ TEST(BlockActivatorTest, InKernelActivationMatchesActivate) {
   }
   uint32_t totals[3];
   activator.hand_over_totals(totals);
-  const ActivateResult result = in_kernel.finish_in_kernel_activation(totals[0], totals[1], totals[2]);
+  const ActivateResult result =
+      in_kernel.finish_in_kernel_activation(totals[0], totals[1], totals[2]);
   const ActivateOutput expected = activate(direct, keys);
   EXPECT_EQ(result.num_new, expected.result.num_new);
   EXPECT_EQ(result.num_out_of_range, 1);
@@ -440,7 +447,8 @@ TEST(BlockActivatorTest, AnAbandonedActivationLeavesTheTableConsistent) {
   const auto keys = random_blocks(600, 600, 9);
   const Stream stream(Device::kCpu);
   BlockActivator activator;
-  ASSERT_TRUE(table.begin_in_kernel_activation(static_cast<int64_t>(keys.size()), &activator, stream));
+  ASSERT_TRUE(
+      table.begin_in_kernel_activation(static_cast<int64_t>(keys.size()), &activator, stream));
   std::vector<uint32_t> slots(300);
   for (size_t i = 0; i < 300; ++i) {
     bool fresh = false;
@@ -455,10 +463,12 @@ TEST(BlockActivatorTest, AnAbandonedActivationLeavesTheTableConsistent) {
   // A queued activation abandoned after its kernels ran: finished from the totals it wrote.
   const std::vector<Index3D> more(keys.begin() + 250, keys.begin() + 400);  // 50 known, 100 new
   auto more_device = Buffer<Index3D>::from_host(Device::kCpu, more);
-  auto count_device = Buffer<uint32_t>::from_host(Device::kCpu, {static_cast<uint32_t>(more.size())});
+  auto count_device =
+      Buffer<uint32_t>::from_host(Device::kCpu, {static_cast<uint32_t>(more.size())});
   Buffer<uint32_t> more_slots(Device::kCpu, more.size()), totals(Device::kCpu, 2);
-  ASSERT_TRUE(table.activate_queued(more_device.data(), count_device.data(), static_cast<int64_t>(more.size()),
-                                    more_slots.data(), nullptr, totals.data(), stream));
+  ASSERT_TRUE(table.activate_queued(more_device.data(), count_device.data(),
+                                    static_cast<int64_t>(more.size()), more_slots.data(), nullptr,
+                                    totals.data(), stream));
   table.abandon_pending_activation(totals.data(), stream);
   EXPECT_EQ(table.size(), 400);
   EXPECT_EQ(table.slot_count(), 400u);
@@ -468,7 +478,8 @@ TEST(BlockActivatorTest, AnAbandonedActivationLeavesTheTableConsistent) {
   EXPECT_EQ(distinct.size(), keys.size());
   for (size_t i = 0; i < 300; ++i) EXPECT_EQ(all.slots[i], slots[i]) << "key " << i;
   const std::vector<uint32_t> queued_slots = more_slots.to_host();
-  for (size_t i = 0; i < more.size(); ++i) EXPECT_EQ(all.slots[250 + i], queued_slots[i]) << "key " << 250 + i;
+  for (size_t i = 0; i < more.size(); ++i)
+    EXPECT_EQ(all.slots[250 + i], queued_slots[i]) << "key " << 250 + i;
 }
 
 TEST(BlockHashTableConfigCheck, RejectsBadParameters) {

@@ -64,8 +64,8 @@ TEST_P(CorePrimitivesTest, ExclusiveScanMatchesStd) {
 TEST_P(CorePrimitivesTest, ScanOfValuesReadsEachOnceAndMatchesStd) {
   const Stream stream(device());
   std::mt19937 random(3);
-  for (const int64_t count : {int64_t(1), int64_t(2047), int64_t(2048), int64_t(2049), int64_t(65 * 2048 + 5),
-                              int64_t(300001)}) {
+  for (const int64_t count : {int64_t(1), int64_t(2047), int64_t(2048), int64_t(2049),
+                              int64_t(65 * 2048 + 5), int64_t(300001)}) {
     std::vector<uint32_t> values(count);
     for (auto& v : values) v = static_cast<uint32_t>(random());
     std::vector<uint32_t> expected(count);
@@ -80,7 +80,8 @@ TEST_P(CorePrimitivesTest, ScanOfValuesReadsEachOnceAndMatchesStd) {
     // The prefixes handed to a functor instead, each once, after its value was read.
     out.fill_bytes(0, stream);
     calls.fill_bytes(0, stream);
-    algorithms::scan_values_once(device(), stream, in.data(), count, out.data(), calls.data(), true);
+    algorithms::scan_values_once(device(), stream, in.data(), count, out.data(), calls.data(),
+                                 true);
     ASSERT_EQ(out.to_host(stream), expected) << count;
     ASSERT_EQ(calls.to_host(stream), std::vector<uint32_t>(count, (1u << 16) + 1u)) << count;
     for (int round = 0; round < 3; ++round) {
@@ -99,7 +100,8 @@ TEST_P(CorePrimitivesTest, PendingReadBackReturnsTheQueuedBytesOneAtATime) {
   auto words = Buffer<uint32_t>::from_host(device(), std::vector<uint32_t>{7u, 11u, 13u}, stream);
   {
     PendingReadBack pending(words.data(), device(), 3 * sizeof(uint32_t), stream);
-    EXPECT_THROW({ PendingReadBack second(words.data(), device(), sizeof(uint32_t), stream); }, Error);
+    EXPECT_THROW({ PendingReadBack second(words.data(), device(), sizeof(uint32_t), stream); },
+                 Error);
     words.fill_bytes(0, stream);  // queued after the copy
     uint32_t host[3] = {0u, 0u, 0u};
     pending.wait(host);
@@ -108,7 +110,9 @@ TEST_P(CorePrimitivesTest, PendingReadBackReturnsTheQueuedBytesOneAtATime) {
     EXPECT_EQ(host[2], 13u);
     EXPECT_THROW(pending.wait(host), Error);
   }
-  EXPECT_THROW({ PendingReadBack too_big(words.data(), device(), PendingReadBack::kMaxBytes + 1, stream); }, Error);
+  EXPECT_THROW(
+      { PendingReadBack too_big(words.data(), device(), PendingReadBack::kMaxBytes + 1, stream); },
+      Error);
   { PendingReadBack dropped(words.data(), device(), sizeof(uint32_t), stream); }
   PendingReadBack again(words.data(), device(), sizeof(uint32_t), stream);
   uint32_t first = 1u;
@@ -145,20 +149,22 @@ TEST_P(CorePrimitivesTest, RadixSortOfLowBitsIsStableAndMatchesStd) {
     const uint64_t limit = key_bits == 64 ? ~uint64_t(0) : (uint64_t(1) << key_bits) - 1;
     std::mt19937_64 random(key_bits);
     std::vector<uint64_t> keys(300001);
-    for (auto& key : keys) key = (random() % 4096) * (limit / 4096) + (random() % 2);  // many equal keys
+    for (auto& key : keys)
+      key = (random() % 4096) * (limit / 4096) + (random() % 2);  // many equal keys
     std::vector<uint32_t> values(keys.size());
     std::iota(values.begin(), values.end(), 0u);
     std::vector<std::pair<uint64_t, uint32_t>> expected;
     for (size_t i = 0; i < keys.size(); ++i) expected.emplace_back(keys[i], values[i]);
-    std::stable_sort(expected.begin(), expected.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    std::stable_sort(expected.begin(), expected.end(),
+                     [](const auto& a, const auto& b) { return a.first < b.first; });
 
     auto keys_device = Buffer<uint64_t>::from_host(device(), keys);
     auto values_device = Buffer<uint32_t>::from_host(device(), values);
     Buffer<uint64_t> keys_alt(device(), keys.size());
     Buffer<uint32_t> values_alt(device(), keys.size());
     const Stream stream(device());
-    algorithms::radix_sort_pairs(device(), stream, keys_device.data(), values_device.data(), keys.size(), key_bits,
-                                 keys_alt.data(), values_alt.data());
+    algorithms::radix_sort_pairs(device(), stream, keys_device.data(), values_device.data(),
+                                 keys.size(), key_bits, keys_alt.data(), values_alt.data());
     const auto sorted_keys = keys_device.to_host(stream);
     const auto sorted_values = values_device.to_host(stream);
     for (size_t i = 0; i < keys.size(); ++i) {
@@ -186,10 +192,9 @@ TEST_P(CorePrimitivesTest, ReduceByKeySumsEachRun) {
   auto values_device = Buffer<float>::from_host(device(), values);
   Buffer<uint64_t> keys_out(device(), keys.size());
   Buffer<float> sums_out(device(), keys.size());
-  const int64_t runs =
-      algorithms::reduce_by_key_sum(device(), Stream(device()), keys_device.data(),
-                                    values_device.data(), keys.size(), keys_out.data(),
-                                    sums_out.data());
+  const int64_t runs = algorithms::reduce_by_key_sum(device(), Stream(device()), keys_device.data(),
+                                                     values_device.data(), keys.size(),
+                                                     keys_out.data(), sums_out.data());
   ASSERT_EQ(runs, static_cast<int64_t>(expected_keys.size()));
   const auto out_keys = keys_out.to_host();
   const auto out_sums = sums_out.to_host();
@@ -240,11 +245,12 @@ TEST_P(CorePrimitivesTest, RunSumsHandEachRunOverOnceWithItsSum) {
     const std::vector<uint64_t> keys = keys_with_runs(all_cases[c]);
     const int64_t count = static_cast<int64_t>(keys.size());
     std::vector<double> values(keys.size());
-    for (size_t i = 0; i < values.size(); ++i) values[i] = static_cast<double>((i * 7919) % 1000);  // exact sums
+    for (size_t i = 0; i < values.size(); ++i)
+      values[i] = static_cast<double>((i * 7919) % 1000);  // exact sums
     // Each run's sum at its first record, over the first `live` records; two calls per run.
     const auto expected_sums_and_calls = [&](int64_t live) {
-      std::pair<std::vector<double>, std::vector<uint32_t>> out{std::vector<double>(keys.size(), -1.0),
-                                                                std::vector<uint32_t>(keys.size(), 0u)};
+      std::pair<std::vector<double>, std::vector<uint32_t>> out{
+          std::vector<double>(keys.size(), -1.0), std::vector<uint32_t>(keys.size(), 0u)};
       for (int64_t i = 0, first = 0; i < live; ++i) {
         if (i == 0 || keys[i] != keys[i - 1]) {
           first = i;
@@ -260,8 +266,8 @@ TEST_P(CorePrimitivesTest, RunSumsHandEachRunOverOnceWithItsSum) {
     auto values_device = Buffer<double>::from_host(device(), values);
     auto sums = Buffer<double>::from_host(device(), std::vector<double>(keys.size(), -1.0));
     auto calls = Buffer<uint32_t>::from_host(device(), std::vector<uint32_t>(keys.size(), 0u));
-    algorithms::sum_runs_at_first(device(), Stream(device()), keys_device.data(), values_device.data(), count,
-                                  sums.data(), calls.data());
+    algorithms::sum_runs_at_first(device(), Stream(device()), keys_device.data(),
+                                  values_device.data(), count, sums.data(), calls.data());
     const auto got = sums.to_host();
     const auto got_calls = calls.to_host();
     for (int64_t i = 0; i < count; ++i) {
@@ -274,16 +280,19 @@ TEST_P(CorePrimitivesTest, RunSumsHandEachRunOverOnceWithItsSum) {
     std::vector<uint64_t> live_keys(keys.begin(), keys.begin() + live);
     live_keys.resize(keys.size(), keys.back() + 1);
     auto live_keys_device = Buffer<uint64_t>::from_host(device(), live_keys);
-    auto live_device = Buffer<uint32_t>::from_host(device(), std::vector<uint32_t>{static_cast<uint32_t>(live)});
+    auto live_device =
+        Buffer<uint32_t>::from_host(device(), std::vector<uint32_t>{static_cast<uint32_t>(live)});
     auto live_sums = Buffer<double>::from_host(device(), std::vector<double>(keys.size(), -1.0));
     auto live_calls = Buffer<uint32_t>::from_host(device(), std::vector<uint32_t>(keys.size(), 0u));
-    algorithms::sum_runs_at_first(device(), Stream(device()), live_keys_device.data(), values_device.data(), count,
-                                  live_sums.data(), live_calls.data(), live_device.data());
+    algorithms::sum_runs_at_first(device(), Stream(device()), live_keys_device.data(),
+                                  values_device.data(), count, live_sums.data(), live_calls.data(),
+                                  live_device.data());
     const auto [expected_live, expected_live_calls] = expected_sums_and_calls(live);
     const auto got_live = live_sums.to_host();
     const auto got_live_calls = live_calls.to_host();
     for (int64_t i = 0; i < count; ++i) {
-      ASSERT_EQ(got_live_calls[i], expected_live_calls[i]) << "case " << c << ", live, record " << i;
+      ASSERT_EQ(got_live_calls[i], expected_live_calls[i])
+          << "case " << c << ", live, record " << i;
       ASSERT_EQ(got_live[i], expected_live[i]) << "case " << c << ", live, record " << i;
     }
   }
@@ -371,9 +380,8 @@ TEST(CorePrimitivesParity, CpuAndCudaAgree) {
     auto weights = Buffer<float>::from_host(device, ones);
     Buffer<uint64_t> run_keys(device, keys.size());
     Buffer<float> run_sums(device, keys.size());
-    const int64_t runs = algorithms::reduce_by_key_sum(device, stream, k.data(), weights.data(),
-                                                       keys.size(), run_keys.data(),
-                                                       run_sums.data());
+    const int64_t runs = algorithms::reduce_by_key_sum(
+        device, stream, k.data(), weights.data(), keys.size(), run_keys.data(), run_sums.data());
     sums[d] = run_sums.to_host();
     sums[d].resize(runs);
     const int64_t unique_count = algorithms::unique(device, stream, k.data(), keys.size());

@@ -32,7 +32,8 @@ std::map<Index3D, ObservedVoxel> observed_voxels(const TsdfMap& map, float min_w
   for (const HostBlock& block : map.snapshot()) {
     for (int k = 0; k < side * side * side; ++k) {
       if (block.tsdf[k].weight < min_weight) continue;
-      const Index3D global(block.index.x * side + k % side, block.index.y * side + (k / side) % side,
+      const Index3D global(block.index.x * side + k % side,
+                           block.index.y * side + (k / side) % side,
                            block.index.z * side + k / (side * side));
       voxels[global] = {block.tsdf[k].distance_m, block.esdf[k]};
     }
@@ -43,7 +44,8 @@ std::map<Index3D, ObservedVoxel> observed_voxels(const TsdfMap& map, float min_w
 // The reference: for every observed voxel, the distance to the nearest site found by checking
 // every voxel within the maximum distance, signed by the TSDF, clamped like the ESDF.
 // Returns the largest absolute difference to the ESDF.
-double max_error_against_brute_force(const TsdfMap& map, const EsdfIntegratorConfig& config, int64_t* checked) {
+double max_error_against_brute_force(const TsdfMap& map, const EsdfIntegratorConfig& config,
+                                     int64_t* checked) {
   const auto voxels = observed_voxels(map, config.min_weight);
   const float site_threshold = config.site_distance_threshold_vox * map.voxel_size_m();
   std::map<Index3D, bool> sites;
@@ -74,8 +76,9 @@ double max_error_against_brute_force(const TsdfMap& map, const EsdfIntegratorCon
 
 std::vector<Eigen::Isometry3d> poses_outside(const ObstacleScene& scene) {
   std::vector<Eigen::Isometry3d> poses;
-  for (const Eigen::Vector3d& p : {Eigen::Vector3d(0.1, 0.05, 0.0), Eigen::Vector3d(-1.5, 1.0, 0.3),
-                                   Eigen::Vector3d(1.6, -1.1, -0.2), Eigen::Vector3d(1.2, 1.3, 0.5)}) {
+  for (const Eigen::Vector3d& p :
+       {Eigen::Vector3d(0.1, 0.05, 0.0), Eigen::Vector3d(-1.5, 1.0, 0.3),
+        Eigen::Vector3d(1.6, -1.1, -0.2), Eigen::Vector3d(1.2, 1.3, 0.5)}) {
     if (scene.inside_obstacle(p)) continue;
     Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
     pose.translation() = p;
@@ -84,9 +87,11 @@ std::vector<Eigen::Isometry3d> poses_outside(const ObstacleScene& scene) {
   return poses;
 }
 
-void integrate_scene(TsdfIntegrator& integrator, TsdfMap& map, const ObstacleScene& scene, int repeats) {
+void integrate_scene(TsdfIntegrator& integrator, TsdfMap& map, const ObstacleScene& scene,
+                     int repeats) {
   for (int r = 0; r < repeats; ++r) {
-    for (const auto& pose : poses_outside(scene)) integrator.integrate(map, scene.lidar(pose, 360, 90), {}, pose);
+    for (const auto& pose : poses_outside(scene))
+      integrator.integrate(map, scene.lidar(pose, 360, 90), {}, pose);
   }
 }
 
@@ -150,13 +155,15 @@ TEST_P(EsdfIntegratorTest, IncrementalUpdatesEqualBatchAfterAddingAndRemovingObj
   EXPECT_GT(added.changed_blocks, 0);
   check_against_batch("after adding objects");
   int sites_with_objects = 0;
-  for (const auto& [index, voxel] : observed_voxels(map, 1e-4f)) sites_with_objects += voxel.esdf.is_site;
+  for (const auto& [index, voxel] : observed_voxels(map, 1e-4f))
+    sites_with_objects += voxel.esdf.is_site;
 
   integrate_scene(tsdf, map, empty_room, 6);  // objects disappear: carving raises distances
   esdf.update(map, stream);
   check_against_batch("after removing objects");
   int sites_without_objects = 0;
-  for (const auto& [index, voxel] : observed_voxels(map, 1e-4f)) sites_without_objects += voxel.esdf.is_site;
+  for (const auto& [index, voxel] : observed_voxels(map, 1e-4f))
+    sites_without_objects += voxel.esdf.is_site;
   EXPECT_LT(sites_without_objects, sites_with_objects);
 
   // Nothing changed: nothing to do.

@@ -40,7 +40,8 @@ class EsdfQueriesTest : public DeviceTest {
     for (const HostBlock& block : map_->snapshot()) {
       for (int k = 0; k < 512; ++k) {
         if (!block.esdf[k].observed) continue;
-        const Index3D v(block.index.x * 8 + k % 8, block.index.y * 8 + (k / 8) % 8, block.index.z * 8 + k / 64);
+        const Index3D v(block.index.x * 8 + k % 8, block.index.y * 8 + (k / 8) % 8,
+                        block.index.z * 8 + k / 64);
         observed_[v] = block.esdf[k].distance_m;
       }
     }
@@ -64,11 +65,13 @@ TEST_P(EsdfQueriesTest, TrilinearSamplesMatchVoxelsAtCentresAndInterpolateBetwee
     }
     if (!all_observed) continue;
     const float f = 0.25f;
-    points.emplace_back((v.x + 0.5f + f) * kVoxel, (v.y + 0.5f + f) * kVoxel, (v.z + 0.5f + f) * kVoxel);
+    points.emplace_back((v.x + 0.5f + f) * kVoxel, (v.y + 0.5f + f) * kVoxel,
+                        (v.z + 0.5f + f) * kVoxel);
     float value = 0.0f;
     Vec3f gradient;
     for (int c = 0; c < 8; ++c) {
-      const float wx = (c & 1) ? f : 1 - f, wy = ((c >> 1) & 1) ? f : 1 - f, wz = ((c >> 2) & 1) ? f : 1 - f;
+      const float wx = (c & 1) ? f : 1 - f, wy = ((c >> 1) & 1) ? f : 1 - f,
+                  wz = ((c >> 2) & 1) ? f : 1 - f;
       value += wx * wy * wz * corner[c];
       gradient.x += ((c & 1) ? 1.0f : -1.0f) * wy * wz * corner[c] / kVoxel;
       gradient.y += (((c >> 1) & 1) ? 1.0f : -1.0f) * wx * wz * corner[c] / kVoxel;

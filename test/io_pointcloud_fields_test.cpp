@@ -41,8 +41,12 @@ std::vector<ReferencePoint> random_points(int count, uint32_t seed) {
   std::uniform_int_distribution<int> intensity(0, 4000);
   std::vector<ReferencePoint> points(count);
   for (ReferencePoint& p : points) {
-    p = {coordinate(random), coordinate(random), coordinate(random), static_cast<uint8_t>(byte(random)),
-         static_cast<uint8_t>(byte(random)), static_cast<uint8_t>(byte(random)),
+    p = {coordinate(random),
+         coordinate(random),
+         coordinate(random),
+         static_cast<uint8_t>(byte(random)),
+         static_cast<uint8_t>(byte(random)),
+         static_cast<uint8_t>(byte(random)),
          static_cast<uint16_t>(intensity(random))};
   }
   return points;
@@ -60,7 +64,8 @@ PointCloudLayout scrambled_layout(uint32_t width, uint32_t height, uint32_t row_
   return layout;
 }
 
-std::vector<uint8_t> encode(const PointCloudLayout& layout, const std::vector<ReferencePoint>& points) {
+std::vector<uint8_t> encode(const PointCloudLayout& layout,
+                            const std::vector<ReferencePoint>& points) {
   std::vector<uint8_t> data(static_cast<size_t>(layout.row_step) * layout.height, 0xAB);
   for (size_t i = 0; i < points.size(); ++i) {
     const size_t row = i / layout.width, column = i % layout.width;
@@ -69,7 +74,8 @@ std::vector<uint8_t> encode(const PointCloudLayout& layout, const std::vector<Re
     put(&data, start, 24, points[i].y);
     put(&data, start, 0, points[i].z);
     put(&data, start, 6, points[i].intensity);
-    const uint32_t packed = (uint32_t{points[i].r} << 16) | (uint32_t{points[i].g} << 8) | points[i].b;
+    const uint32_t packed =
+        (uint32_t{points[i].r} << 16) | (uint32_t{points[i].g} << 8) | points[i].b;
     put(&data, start, 32, packed);
   }
   return data;
@@ -111,7 +117,8 @@ TEST(PointCloudFields, IntensityBecomesGreyWhenThereIsNoColour) {
   EXPECT_TRUE(cloud.has_intensity);
   ASSERT_EQ(cloud.colors.size(), points.size());
   for (size_t i = 0; i < points.size(); ++i) {
-    const int expected = static_cast<int>(std::lround(std::min(255.0, points[i].intensity * 255.0 / 4000.0)));
+    const int expected =
+        static_cast<int>(std::lround(std::min(255.0, points[i].intensity * 255.0 / 4000.0)));
     EXPECT_EQ(cloud.colors[i].r, expected);
     EXPECT_EQ(cloud.colors[i].g, expected);
   }
@@ -133,9 +140,11 @@ TEST(PointCloudFields, MissingXyzIsAClearError) {
       }
     }
     DecodedCloud cloud;
-    const CloudDecodeResult result = decode_point_cloud(layout, data.data(), data.size(), {}, &cloud);
+    const CloudDecodeResult result =
+        decode_point_cloud(layout, data.data(), data.size(), {}, &cloud);
     EXPECT_EQ(result.status, CloudDecodeStatus::kMissingXyz);
-    EXPECT_NE(result.message.find(std::string("'") + missing + "'"), std::string::npos) << result.message;
+    EXPECT_NE(result.message.find(std::string("'") + missing + "'"), std::string::npos)
+        << result.message;
     EXPECT_TRUE(cloud.points_m.empty());
   }
 }
@@ -168,7 +177,8 @@ TEST(PointCloudFields, WrongPointStepRowStepOrShortDataAreClearErrors) {
 
   layout = good;
   layout.is_bigendian = true;
-  EXPECT_EQ(decode_point_cloud(layout, data.data(), data.size(), {}, &cloud).status, CloudDecodeStatus::kBigEndian);
+  EXPECT_EQ(decode_point_cloud(layout, data.data(), data.size(), {}, &cloud).status,
+            CloudDecodeStatus::kBigEndian);
 
   layout = good;
   layout.fields[2].datatype = 8;  // x as FLOAT64 (still inside the point)
@@ -232,14 +242,15 @@ TEST(DepthImagePoints, UnprojectsMillimetresAndMetresWithColour) {
       const uint16_t mm = (u == 1 && v == 2) ? 0 : static_cast<uint16_t>(1000 + 100 * u + 10 * v);
       std::memcpy(depth_data.data() + v * depth.step + 2 * u, &mm, 2);
       uint8_t* pixel = color_data.data() + v * color.step + 3 * u;
-      pixel[0] = static_cast<uint8_t>(u);       // blue
-      pixel[1] = static_cast<uint8_t>(v);       // green
-      pixel[2] = static_cast<uint8_t>(u + v);   // red
+      pixel[0] = static_cast<uint8_t>(u);      // blue
+      pixel[1] = static_cast<uint8_t>(v);      // green
+      pixel[2] = static_cast<uint8_t>(u + v);  // red
     }
   }
   DepthPoints points;
-  const std::string problem = depth_image_to_points(depth, depth_data.data(), depth_data.size(), k, &color,
-                                                    color_data.data(), color_data.size(), {}, &points);
+  const std::string problem =
+      depth_image_to_points(depth, depth_data.data(), depth_data.size(), k, &color,
+                            color_data.data(), color_data.size(), {}, &points);
   ASSERT_EQ(problem, "");
   EXPECT_EQ(points.pixels_used, 20);
   EXPECT_EQ(points.pixels_invalid, 1);
@@ -266,8 +277,8 @@ TEST(DepthImagePoints, UnprojectsMillimetresAndMetresWithColour) {
   values[0] = std::numeric_limits<float>::quiet_NaN();
   DepthToPointsOptions options;
   options.pixel_stride = 2;
-  ASSERT_EQ(depth_image_to_points(metres, reinterpret_cast<const uint8_t*>(values.data()), values.size() * 4, k,
-                                  nullptr, nullptr, 0, options, &points),
+  ASSERT_EQ(depth_image_to_points(metres, reinterpret_cast<const uint8_t*>(values.data()),
+                                  values.size() * 4, k, nullptr, nullptr, 0, options, &points),
             "");
   EXPECT_EQ(points.pixels_used, 3 * 2);
   EXPECT_EQ(points.pixels_invalid, 1);
@@ -283,23 +294,28 @@ TEST(DepthImagePoints, BadImagesAreClearErrors) {
   DepthPoints points;
   ImageLayout bad = depth;
   bad.encoding = "8UC3";
-  EXPECT_NE(depth_image_to_points(bad, data.data(), data.size(), k, nullptr, nullptr, 0, {}, &points)
-                .find("unsupported encoding '8UC3'"),
-            std::string::npos);
+  EXPECT_NE(
+      depth_image_to_points(bad, data.data(), data.size(), k, nullptr, nullptr, 0, {}, &points)
+          .find("unsupported encoding '8UC3'"),
+      std::string::npos);
   bad = depth;
   bad.step = 7;
-  EXPECT_NE(depth_image_to_points(bad, data.data(), data.size(), k, nullptr, nullptr, 0, {}, &points).find("step"),
-            std::string::npos);
-  EXPECT_NE(depth_image_to_points(depth, data.data(), 31, k, nullptr, nullptr, 0, {}, &points).find("bytes"),
+  EXPECT_NE(
+      depth_image_to_points(bad, data.data(), data.size(), k, nullptr, nullptr, 0, {}, &points)
+          .find("step"),
+      std::string::npos);
+  EXPECT_NE(depth_image_to_points(depth, data.data(), 31, k, nullptr, nullptr, 0, {}, &points)
+                .find("bytes"),
             std::string::npos);
   CameraIntrinsics zero;
-  EXPECT_NE(depth_image_to_points(depth, data.data(), data.size(), zero, nullptr, nullptr, 0, {}, &points)
-                .find("intrinsics"),
-            std::string::npos);
+  EXPECT_NE(
+      depth_image_to_points(depth, data.data(), data.size(), zero, nullptr, nullptr, 0, {}, &points)
+          .find("intrinsics"),
+      std::string::npos);
   ImageLayout color{3, 4, 9, "rgb8", false};
   std::vector<uint8_t> color_data(36, 0);
-  EXPECT_NE(depth_image_to_points(depth, data.data(), data.size(), k, &color, color_data.data(), color_data.size(),
-                                  {}, &points)
+  EXPECT_NE(depth_image_to_points(depth, data.data(), data.size(), k, &color, color_data.data(),
+                                  color_data.size(), {}, &points)
                 .find("registered"),
             std::string::npos);
   EXPECT_TRUE(points.points_m.empty());

@@ -44,14 +44,14 @@ namespace {
 namespace fs = std::filesystem;
 
 // The shared-data path of `relative`, or "" after GTEST_SKIP when it is missing.
-#define COVOX_DATA_OR_SKIP(variable, relative)                                                   \
-  const std::string variable = io::data_directory() + "/" + (relative);                         \
-  if (!fs::exists(variable)) {                                                                   \
-    GTEST_SKIP() << "shared data not found at '" << variable                                     \
-                 << "' (set COVOX_DATA_DIR to the folder of ../shared/data/README.md)";          \
+#define COVOX_DATA_OR_SKIP(variable, relative)                                          \
+  const std::string variable = io::data_directory() + "/" + (relative);                 \
+  if (!fs::exists(variable)) {                                                          \
+    GTEST_SKIP() << "shared data not found at '" << variable                            \
+                 << "' (set COVOX_DATA_DIR to the folder of ../shared/data/README.md)"; \
   }
 
-#define COVOX_SKIP_WITHOUT_PNG()                                                                 \
+#define COVOX_SKIP_WITHOUT_PNG() \
   if (!io::png_reader_available()) GTEST_SKIP() << "built without libpng (install libpng-dev)"
 
 // A fresh folder per test, removed afterwards.
@@ -59,8 +59,8 @@ class ScratchFolder {
  public:
   ScratchFolder() {
     const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    path_ = fs::temp_directory_path() /
-            ("covox_io_" + std::string(info->test_suite_name()) + "_" + info->name() + "_" + std::to_string(::getpid()));
+    path_ = fs::temp_directory_path() / ("covox_io_" + std::string(info->test_suite_name()) + "_" +
+                                         info->name() + "_" + std::to_string(::getpid()));
     fs::remove_all(path_);
     fs::create_directories(path_);
   }
@@ -81,10 +81,13 @@ void write_bytes(const std::string& path, const void* data, size_t size) {
   ASSERT_TRUE(file.good()) << path;
 }
 
-void write_text(const std::string& path, const std::string& text) { write_bytes(path, text.data(), text.size()); }
+void write_text(const std::string& path, const std::string& text) {
+  write_bytes(path, text.data(), text.size());
+}
 
 // Runs `action`, expects a covox::Error whose message contains every one of `parts`.
-void expect_error_mentioning(const std::function<void()>& action, const std::vector<std::string>& parts) {
+void expect_error_mentioning(const std::function<void()>& action,
+                             const std::vector<std::string>& parts) {
   try {
     action();
     ADD_FAILURE() << "no covox::Error thrown";
@@ -116,7 +119,8 @@ TEST(IoLidarBin, KittiScanIsDetectedAsXyzFromItsContent) {
   std::vector<double> ranges;
   for (const auto& p : cloud.points_m) ranges.push_back(p.norm());
   const double median_range_m = median(ranges);
-  std::printf("kitti_00/000000.bin: %zu points, median range %.2f m\n", cloud.size(), median_range_m);
+  std::printf("kitti_00/000000.bin: %zu points, median range %.2f m\n", cloud.size(),
+              median_range_m);
   EXPECT_GT(median_range_m, 3.0);
   EXPECT_LT(median_range_m, 60.0);
   // Forcing the wrong layout gives nonsense (that is what the detection protects against).
@@ -146,12 +150,14 @@ TEST(IoLidarBin, KeyframeDumpWithGraphPoses) {
   ASSERT_EQ(keyframes.size(), 5u);
   for (size_t k = 0; k < keyframes.size(); ++k) {
     EXPECT_EQ(keyframes[k].id, static_cast<int>(k));
-    const io::PointCloud cloud = io::read_lidar_bin(folder + "/00000" + std::to_string(k) + "/points.bin");
+    const io::PointCloud cloud =
+        io::read_lidar_bin(folder + "/00000" + std::to_string(k) + "/points.bin");
     EXPECT_GT(cloud.size(), 15000u);
     EXPECT_LT(cloud.size(), 30000u);
     if (k > 0) {
       const double step_m = (keyframes[k].T_world_sensor.translation() -
-                             keyframes[k - 1].T_world_sensor.translation()).norm();
+                             keyframes[k - 1].T_world_sensor.translation())
+                                .norm();
       EXPECT_GT(step_m, 2.0);  // README: keyframes 3-12 m apart
       EXPECT_LT(step_m, 13.0);
     }
@@ -161,7 +167,8 @@ TEST(IoLidarBin, KeyframeDumpWithGraphPoses) {
 TEST(IoLidarBin, WrittenScanWithIntensityDropsNonFinitePoints) {
   ScratchFolder scratch;
   const float nan = std::numeric_limits<float>::quiet_NaN();
-  const std::vector<float> values = {1, 2, 3, 10,  4, 5, 6, 20,  nan, 0, 0, 30,  7, 8, 9, nan,  1, 1, 1, 40};
+  const std::vector<float> values = {1, 2,  3, 10, 4, 5,   6, 20, nan, 0,
+                                     0, 30, 7, 8,  9, nan, 1, 1,  1,   40};
   const std::string path = scratch.file("scan.bin");
   write_bytes(path, values.data(), values.size() * sizeof(float));
   io::ReadStats stats;
@@ -173,7 +180,8 @@ TEST(IoLidarBin, WrittenScanWithIntensityDropsNonFinitePoints) {
 
   write_bytes(path, values.data(), 10);  // not a whole float
   expect_error_mentioning([&] { io::read_lidar_bin(path); }, {path, "truncated"});
-  expect_error_mentioning([&] { io::read_lidar_bin(scratch.file("missing.bin")); }, {"missing.bin"});
+  expect_error_mentioning([&] { io::read_lidar_bin(scratch.file("missing.bin")); },
+                          {"missing.bin"});
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -205,8 +213,10 @@ TEST(IoPoseFiles, SevenScenesRotationsAreReorthonormalisedAndCounted) {
     // What the file said: read again with an "accept anything" repair threshold.
     io::PoseTolerances keep_as_is;
     keep_as_is.reorthonormalize_above_error = 1.0;
-    worst_input_error = std::max(
-        worst_input_error, io::orthonormality_error(io::read_matrix4_pose_file(folder + name, nullptr, keep_as_is).linear()));
+    worst_input_error =
+        std::max(worst_input_error,
+                 io::orthonormality_error(
+                     io::read_matrix4_pose_file(folder + name, nullptr, keep_as_is).linear()));
   }
   std::printf("7-Scenes: %zu of %d poses re-orthonormalised, worst |R^T R - I| in the files %.2e\n",
               stats.reorthonormalized_poses, frames, worst_input_error);
@@ -237,19 +247,23 @@ TEST(IoPoseFiles, RejectsNonFiniteAndDegeneratePosesNamingTheFile) {
   ScratchFolder scratch;
   const std::string bad_value = scratch.file("nan.pose.txt");
   write_text(bad_value, "1 0 0 0\n0 nan 0 0\n0 0 1 0\n0 0 0 1\n");
-  expect_error_mentioning([&] { io::read_matrix4_pose_file(bad_value); }, {bad_value, "non-finite"});
+  expect_error_mentioning([&] { io::read_matrix4_pose_file(bad_value); },
+                          {bad_value, "non-finite"});
 
   const std::string degenerate = scratch.file("zero.pose.txt");
   write_text(degenerate, "0 0 0 1\n0 0 0 2\n0 0 0 3\n0 0 0 1\n");
-  expect_error_mentioning([&] { io::read_matrix4_pose_file(degenerate); }, {degenerate, "determinant"});
+  expect_error_mentioning([&] { io::read_matrix4_pose_file(degenerate); },
+                          {degenerate, "determinant"});
 
   const std::string reflection = scratch.file("mirror.txt");
   write_text(reflection, "1 0 0 0 0 1 0 0 0 0 -1 0\n");
-  expect_error_mentioning([&] { io::read_kitti_pose_file(reflection); }, {reflection + ":1", "reflection"});
+  expect_error_mentioning([&] { io::read_kitti_pose_file(reflection); },
+                          {reflection + ":1", "reflection"});
 
   const std::string scaled = scratch.file("scaled.txt");
   write_text(scaled, "# comment\n1 0 0 0 0 1 0 0 0 0 1 0\n2 0 0 0 0 2 0 0 0 0 2 0\n");
-  expect_error_mentioning([&] { io::read_kitti_pose_file(scaled); }, {scaled + ":3", "orthonormal"});
+  expect_error_mentioning([&] { io::read_kitti_pose_file(scaled); },
+                          {scaled + ":3", "orthonormal"});
 
   const std::string short_line = scratch.file("short.txt");
   write_text(short_line, "1 0 0 0 0 1 0 0 0 0 1\n");
@@ -257,7 +271,8 @@ TEST(IoPoseFiles, RejectsNonFiniteAndDegeneratePosesNamingTheFile) {
 
   const std::string zero_quaternion = scratch.file("graph.txt");
   write_text(zero_quaternion, "v0 1 2 3 0 0 0 0\n");
-  expect_error_mentioning([&] { io::read_keyframe_graph_file(zero_quaternion); }, {zero_quaternion + ":1", "quaternion"});
+  expect_error_mentioning([&] { io::read_keyframe_graph_file(zero_quaternion); },
+                          {zero_quaternion + ":1", "quaternion"});
 
   // Slightly off (as printed by a drifting odometry): repaired and counted, not rejected.
   const std::string slightly_off = scratch.file("slightly_off.txt");
@@ -289,13 +304,15 @@ std::vector<uint8_t> lzf_compress_for_test(const std::vector<uint8_t>& input) {
   };
   size_t i = 0;
   while (i + 2 < input.size()) {
-    const uint32_t key = (uint32_t(input[i]) << 8 ^ uint32_t(input[i + 1]) << 4 ^ input[i + 2]) & 0xffff;
+    const uint32_t key =
+        (uint32_t(input[i]) << 8 ^ uint32_t(input[i + 1]) << 4 ^ input[i + 2]) & 0xffff;
     const int64_t candidate = last_seen[key];
     last_seen[key] = static_cast<int64_t>(i);
     if (candidate >= 0 && i - candidate <= kMaxOffset &&
         std::memcmp(&input[candidate], &input[i], 3) == 0) {
       size_t length = 3;
-      while (length < kMaxLength && i + length < input.size() && input[candidate + length] == input[i + length]) {
+      while (length < kMaxLength && i + length < input.size() &&
+             input[candidate + length] == input[i + length]) {
         ++length;
       }
       flush_literals(i);
@@ -325,7 +342,8 @@ TEST(IoLzf, DecodesLiteralsAndOverlappingReferencesAndRejectsCorruptStreams) {
   EXPECT_EQ(std::string(out.begin(), out.end()), "ababababa");
 
   std::vector<uint8_t> original(5000);
-  for (size_t i = 0; i < original.size(); ++i) original[i] = static_cast<uint8_t>((i * i / 7) % 13 + (i % 3));
+  for (size_t i = 0; i < original.size(); ++i)
+    original[i] = static_cast<uint8_t>((i * i / 7) % 13 + (i % 3));
   const std::vector<uint8_t> compressed = lzf_compress_for_test(original);
   EXPECT_LT(compressed.size(), original.size());
   std::vector<uint8_t> decoded(original.size());
@@ -333,11 +351,15 @@ TEST(IoLzf, DecodesLiteralsAndOverlappingReferencesAndRejectsCorruptStreams) {
   EXPECT_EQ(decoded, original);
 
   const std::vector<uint8_t> before_start = {0, 'a', 1 << 5, 5};  // distance 6 after 1 byte
-  expect_error_mentioning([&] { io::lzf_decompress(before_start.data(), before_start.size(), out.data(), 9, "ctx"); },
-                          {"ctx", "before the start"});
-  expect_error_mentioning([&] { io::lzf_decompress(stream.data(), 2, out.data(), 9, "ctx"); }, {"ctx", "past the end"});
-  expect_error_mentioning([&] { io::lzf_decompress(stream.data(), stream.size(), out.data(), 8, "ctx"); }, {"ctx"});
-  expect_error_mentioning([&] { io::lzf_decompress(stream.data(), 3, out.data(), 9, "ctx"); }, {"ctx", "expected 9"});
+  expect_error_mentioning(
+      [&] { io::lzf_decompress(before_start.data(), before_start.size(), out.data(), 9, "ctx"); },
+      {"ctx", "before the start"});
+  expect_error_mentioning([&] { io::lzf_decompress(stream.data(), 2, out.data(), 9, "ctx"); },
+                          {"ctx", "past the end"});
+  expect_error_mentioning(
+      [&] { io::lzf_decompress(stream.data(), stream.size(), out.data(), 8, "ctx"); }, {"ctx"});
+  expect_error_mentioning([&] { io::lzf_decompress(stream.data(), 3, out.data(), 9, "ctx"); },
+                          {"ctx", "expected 9"});
 }
 
 void expect_same_cloud(const io::PointCloud& a, const io::PointCloud& b) {
@@ -359,7 +381,8 @@ TEST(IoPcd, MulranScanIsBinaryWithIntensity) {
     for (const auto& p : cloud.points_m) ASSERT_LT(p.norm(), 300.0f) << name;
     total += cloud.size();
   }
-  std::printf("MulRan: %zu points in 3 scans, %zu dropped as non-finite\n", total, stats.dropped_non_finite_points);
+  std::printf("MulRan: %zu points in 3 scans, %zu dropped as non-finite\n", total,
+              stats.dropped_non_finite_points);
 }
 
 TEST(IoPcd, PclRoomScanIsBinaryCompressed) {
@@ -371,8 +394,9 @@ TEST(IoPcd, PclRoomScanIsBinaryCompressed) {
   Eigen::AlignedBox3f bounds;
   for (const auto& p : cloud.points_m) bounds.extend(p);
   const Eigen::Vector3f extent_m = bounds.sizes();
-  std::printf("pcl-room scan 1: %zu points (%zu dropped), extent %.2f x %.2f x %.2f m\n", cloud.size(),
-              stats.dropped_non_finite_points, extent_m.x(), extent_m.y(), extent_m.z());
+  std::printf("pcl-room scan 1: %zu points (%zu dropped), extent %.2f x %.2f x %.2f m\n",
+              cloud.size(), stats.dropped_non_finite_points, extent_m.x(), extent_m.y(),
+              extent_m.z());
   EXPECT_GT(extent_m.maxCoeff(), 2.0f);  // a room, not a degenerate decode
   EXPECT_LT(extent_m.maxCoeff(), 50.0f);
 
@@ -383,7 +407,8 @@ TEST(IoPcd, PclRoomScanIsBinaryCompressed) {
   write_bytes(truncated, bytes.data(), bytes.size() / 2);
   expect_error_mentioning([&] { io::read_pcd(truncated); }, {truncated, "truncated"});
   const std::string corrupt = scratch.file("corrupt.pcd");
-  const size_t data_start = std::string(bytes.begin(), bytes.begin() + 1024).find("binary_compressed\n") + 18;
+  const size_t data_start =
+      std::string(bytes.begin(), bytes.begin() + 1024).find("binary_compressed\n") + 18;
   bytes[data_start + 4] ^= 0x40;  // the uncompressed size
   write_bytes(corrupt, bytes.data(), bytes.size());
   expect_error_mentioning([&] { io::read_pcd(corrupt); }, {corrupt, "corrupt"});
@@ -403,7 +428,8 @@ struct TestCloudFile {
 
   TestCloudFile() {
     for (int i = 0; i < kPoints; ++i) {
-      rgb.push_back(static_cast<uint32_t>((i * 37 % 256) << 16 | (i * 11 % 256) << 8 | (255 - i % 256)));
+      rgb.push_back(
+          static_cast<uint32_t>((i * 37 % 256) << 16 | (i * 11 % 256) << 8 | (255 - i % 256)));
       z.push_back(0.25 * (i % 17) - 1.0 + 1e-9 * i);
       x.push_back(i == 57 ? std::numeric_limits<float>::quiet_NaN() : 0.1f * i);
       intensity.push_back(static_cast<uint16_t>(i * 300));
@@ -413,8 +439,8 @@ struct TestCloudFile {
 
   std::string header(const char* encoding) const {
     return "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\n" + header_fields + "WIDTH " +
-           std::to_string(kPoints) + "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " + std::to_string(kPoints) +
-           "\nDATA " + encoding + "\n";
+           std::to_string(kPoints) + "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " +
+           std::to_string(kPoints) + "\nDATA " + encoding + "\n";
   }
 
   std::string ascii() const {
@@ -447,12 +473,24 @@ struct TestCloudFile {
     const uint8_t padding[3] = {0xaa, 0xbb, 0xcc};
     auto append_field = [&](int field, int i) {
       switch (field) {
-        case 0: append(&rgb[i], 4); break;
-        case 1: append(padding, 3); break;
-        case 2: append(&z[i], 8); break;
-        case 3: append(&x[i], 4); break;
-        case 4: append(&intensity[i], 2); break;
-        default: append(&y[i], 4); break;
+        case 0:
+          append(&rgb[i], 4);
+          break;
+        case 1:
+          append(padding, 3);
+          break;
+        case 2:
+          append(&z[i], 8);
+          break;
+        case 3:
+          append(&x[i], 4);
+          break;
+        case 4:
+          append(&intensity[i], 2);
+          break;
+        default:
+          append(&y[i], 4);
+          break;
       }
     };
     if (field_major) {
@@ -480,7 +518,8 @@ struct TestCloudFile {
     std::vector<uint8_t> bytes(text.begin(), text.end());
     const std::vector<uint8_t> raw = data(true);
     const std::vector<uint8_t> compressed = lzf_compress_for_test(raw);
-    const uint32_t sizes[2] = {static_cast<uint32_t>(compressed.size()), static_cast<uint32_t>(raw.size())};
+    const uint32_t sizes[2] = {static_cast<uint32_t>(compressed.size()),
+                               static_cast<uint32_t>(raw.size())};
     const auto* size_bytes = reinterpret_cast<const uint8_t*>(sizes);
     bytes.insert(bytes.end(), size_bytes, size_bytes + sizeof(sizes));
     bytes.insert(bytes.end(), compressed.begin(), compressed.end());
@@ -491,10 +530,12 @@ struct TestCloudFile {
 TEST(IoPcd, SameCloudInAllThreeEncodingsReadsIdentically) {
   ScratchFolder scratch;
   const TestCloudFile source;
-  const std::string ascii = scratch.file("cloud_ascii.pcd"), binary = scratch.file("cloud_binary.pcd"),
+  const std::string ascii = scratch.file("cloud_ascii.pcd"),
+                    binary = scratch.file("cloud_binary.pcd"),
                     compressed = scratch.file("cloud_compressed.pcd");
   write_text(ascii, source.ascii());
-  const std::vector<uint8_t> binary_bytes = source.binary(), compressed_bytes = source.binary_compressed();
+  const std::vector<uint8_t> binary_bytes = source.binary(),
+                             compressed_bytes = source.binary_compressed();
   write_bytes(binary, binary_bytes.data(), binary_bytes.size());
   write_bytes(compressed, compressed_bytes.data(), compressed_bytes.size());
 
@@ -511,10 +552,11 @@ TEST(IoPcd, SameCloudInAllThreeEncodingsReadsIdentically) {
 
   // Spot-check conversions against the source values (point 58 is the 58th kept: 57 was NaN).
   const int i = 58;
-  EXPECT_EQ(from_binary.points_m[57], Eigen::Vector3f(source.x[i], float(source.y[i]), float(source.z[i])));
+  EXPECT_EQ(from_binary.points_m[57],
+            Eigen::Vector3f(source.x[i], float(source.y[i]), float(source.z[i])));
   EXPECT_EQ(from_binary.intensities[57], float(source.intensity[i]));
-  const std::array<uint8_t, 3> expected_color = {uint8_t(source.rgb[i] >> 16), uint8_t(source.rgb[i] >> 8),
-                                                 uint8_t(source.rgb[i])};
+  const std::array<uint8_t, 3> expected_color = {
+      uint8_t(source.rgb[i] >> 16), uint8_t(source.rgb[i] >> 8), uint8_t(source.rgb[i])};
   EXPECT_EQ(from_binary.colors[57], expected_color);
 }
 
@@ -539,9 +581,12 @@ TEST(IoPcd, BrokenFilesFailNamingTheFile) {
   write_text(path, source.header("ascii") + "1 0 0 0 2 3 4\n");  // 8 tokens per point, 7 given
   expect_error_mentioning([&] { io::read_pcd(path); }, {path + ":12", "8 values per point"});
 
-  write_text(path, "VERSION 0.7\nFIELDS normal_x normal_y\nSIZE 4 4\nTYPE F F\nWIDTH 0\nPOINTS 0\nDATA ascii\n");
+  write_text(
+      path,
+      "VERSION 0.7\nFIELDS normal_x normal_y\nSIZE 4 4\nTYPE F F\nWIDTH 0\nPOINTS 0\nDATA ascii\n");
   expect_error_mentioning([&] { io::read_pcd(path); }, {path, "x, y and z"});
-  write_text(path, "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 2\nPOINTS 2\nDATA lzma\n");
+  write_text(path,
+             "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 2\nPOINTS 2\nDATA lzma\n");
   expect_error_mentioning([&] { io::read_pcd(path); }, {path, "lzma"});
 }
 
@@ -550,14 +595,16 @@ TEST(IoPcd, BrokenFilesFailNamingTheFile) {
 
 #if COVOX_HAVE_PNG
 // Writes with libpng's simplified API; 16-bit grey is written as the values given.
-void write_png(const std::string& path, int width, int height, uint32_t format, const void* pixels) {
+void write_png(const std::string& path, int width, int height, uint32_t format,
+               const void* pixels) {
   png_image image;
   std::memset(&image, 0, sizeof(image));
   image.version = PNG_IMAGE_VERSION;
   image.width = width;
   image.height = height;
   image.format = format;
-  ASSERT_TRUE(png_image_write_to_file(&image, path.c_str(), 0, pixels, 0, nullptr)) << image.message;
+  ASSERT_TRUE(png_image_write_to_file(&image, path.c_str(), 0, pixels, 0, nullptr))
+      << image.message;
 }
 #endif
 
@@ -573,7 +620,8 @@ TEST(IoImages, SevenScenesDepthAndColour) {
   }
   EXPECT_GT(valid_mm.size(), depth.pixels.size() / 2);
   const double median_mm = median(valid_mm);
-  std::printf("7-Scenes frame 0: %zu valid depth pixels, median %.0f mm\n", valid_mm.size(), median_mm);
+  std::printf("7-Scenes frame 0: %zu valid depth pixels, median %.0f mm\n", valid_mm.size(),
+              median_mm);
   EXPECT_GT(median_mm, 400.0);  // an indoor Kinect scene: metres, not bytes swapped
   EXPECT_LT(median_mm, 5000.0);
 
@@ -632,7 +680,8 @@ TEST(IoImages, WrittenPngsRoundTrip) {
   const io::ColorImage grey_as_rgb = io::read_color_image(grey_path);
   ASSERT_EQ(grey_as_rgb.rgb.size(), grey.size() * 3);
   EXPECT_EQ(grey_as_rgb.at(2, 3), (std::array<uint8_t, 3>{grey[17], grey[17], grey[17]}));
-  expect_error_mentioning([&] { io::read_png_gray16(grey_path); }, {grey_path, "8-bit grey", "16-bit grey"});
+  expect_error_mentioning([&] { io::read_png_gray16(grey_path); },
+                          {grey_path, "8-bit grey", "16-bit grey"});
 
   const std::vector<uint8_t> bytes = io::read_file_bytes(depth_path);
   const std::string truncated = scratch.file("cut.png");
@@ -721,7 +770,9 @@ TEST(IoRgbdFolder, ThreeDMatchWithIntrinsicsInTheParentFolder) {
   EXPECT_EQ(frame.color.width, frame.depth.width);
   EXPECT_EQ(frame.color.height, frame.depth.height);
   // Frame 116 is far along the sequence: the camera has moved away from frame 0.
-  EXPECT_GT((frame.T_world_camera.translation() - rgbd.read_frame(0, nullptr, false).T_world_camera.translation()).norm(),
+  EXPECT_GT((frame.T_world_camera.translation() -
+             rgbd.read_frame(0, nullptr, false).T_world_camera.translation())
+                .norm(),
             0.05);
 }
 
@@ -759,18 +810,21 @@ TEST(IoRgbdFolder, MissingFilesFailNamingThem) {
   ScratchFolder scratch;
   expect_error_mentioning([&] { io::RgbdFolder::open(scratch.path().string()); },
                           {scratch.path().string(), "neither"});
-  expect_error_mentioning([&] { io::RgbdFolder::open(scratch.file("nope")); }, {"nope", "does not exist"});
+  expect_error_mentioning([&] { io::RgbdFolder::open(scratch.file("nope")); },
+                          {"nope", "does not exist"});
 #if COVOX_HAVE_PNG
   const std::vector<uint16_t> depth(4 * 3, 1000);
   write_png(scratch.file("frame-000007.depth.png"), 4, 3, PNG_FORMAT_LINEAR_Y, depth.data());
-  expect_error_mentioning([&] { io::RgbdFolder::open(scratch.path().string()); }, {"camera-intrinsics.txt"});
+  expect_error_mentioning([&] { io::RgbdFolder::open(scratch.path().string()); },
+                          {"camera-intrinsics.txt"});
   write_text(scratch.file("camera-intrinsics.txt"), "500 0 2\n0 500 1.5\n0 0 1\n");
   const io::RgbdFolder rgbd = io::RgbdFolder::open(scratch.path().string());
   ASSERT_EQ(rgbd.size(), 1u);
   EXPECT_EQ(rgbd.intrinsics().width, 4);
   expect_error_mentioning([&] { rgbd.read_frame(0); }, {"frame-000007.pose.txt"});
   write_text(scratch.file("frame-000007.pose.txt"), "1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n");
-  expect_error_mentioning([&] { rgbd.read_frame(0); }, {"frame-000007.color.png", "no colour image"});
+  expect_error_mentioning([&] { rgbd.read_frame(0); },
+                          {"frame-000007.color.png", "no colour image"});
   io::ReadStats stats;
   const io::RgbdFrame frame = rgbd.read_frame(0, &stats, false);
   EXPECT_EQ(frame.depth.depth_m, std::vector<float>(12, 1.0f));
@@ -788,7 +842,8 @@ TEST(IoPly, WriterOutputReadsBackExactly) {
     mesh.vertices_m.push_back(Vec3f(0.1f * i, std::sin(0.3f * i), -1.5f + 0.01f * i));
     mesh.colors.push_back(Rgb8{uint8_t(i * 8), uint8_t(255 - i), uint8_t(i)});
   }
-  for (uint32_t t = 0; t + 2 < 30; ++t) mesh.triangles.insert(mesh.triangles.end(), {t, t + 1, t + 2});
+  for (uint32_t t = 0; t + 2 < 30; ++t)
+    mesh.triangles.insert(mesh.triangles.end(), {t, t + 1, t + 2});
   const std::string path = scratch.file("mesh.ply");
   io::write_mesh_ply(path, mesh);
   const Mesh read = io::read_mesh_ply(path);
@@ -860,7 +915,10 @@ TEST(IoFileWriting, RegularFileIsReplacedWholeAndAFailedOrThrowingWriteKeepsTheO
   }
   EXPECT_EQ(files, 1u) << "a temporary was left behind";
   expect_error_mentioning(
-      [&] { io::write_file_replacing(scratch.file("no/such/dir/x"), "my_writer", false, [](std::ostream&) {}); },
+      [&] {
+        io::write_file_replacing(scratch.file("no/such/dir/x"), "my_writer", false,
+                                 [](std::ostream&) {});
+      },
       {"my_writer", "no/such/dir/x"});
 }
 
@@ -882,13 +940,18 @@ TEST(IoPly, AsciiWithPolygonsExtraPropertiesAndElements) {
   EXPECT_EQ(mesh.vertices_m[3].z, 0.25f);
   EXPECT_EQ(mesh.triangles, (std::vector<uint32_t>{0, 1, 2, 0, 2, 3, 1, 4, 2}));
 
-  write_text(path, "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\n"
-                   "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 1 1\n3 0 1 2\n");
+  write_text(path,
+             "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float "
+             "y\nproperty float z\n"
+             "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 1 1\n3 "
+             "0 1 2\n");
   expect_error_mentioning([&] { io::read_mesh_ply(path); }, {path, "vertex 2"});
   write_text(path, "ply\nformat binary_big_endian 1.0\nelement vertex 0\nend_header\n");
   expect_error_mentioning([&] { io::read_mesh_ply(path); }, {path, "binary_big_endian"});
-  write_text(path, "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
-                   "end_header\n0 0 0\n1 1\n");
+  write_text(path,
+             "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float "
+             "y\nproperty float z\n"
+             "end_header\n0 0 0\n1 1\n");
   expect_error_mentioning([&] { io::read_mesh_ply(path); }, {path, "truncated"});
   write_text(path, "solid ascii stl\n");
   expect_error_mentioning([&] { io::read_mesh_ply(path); }, {path, "not a PLY"});
@@ -903,7 +966,8 @@ TEST(IoPly, ReplicaGroundTruthMesh) {
   Eigen::AlignedBox3f bounds;
   for (const Vec3f& v : mesh.vertices_m) bounds.extend(Eigen::Vector3f(v.x, v.y, v.z));
   const Eigen::Vector3f extent_m = bounds.sizes();
-  std::printf("Replica office0 mesh: extent %.2f x %.2f x %.2f m\n", extent_m.x(), extent_m.y(), extent_m.z());
+  std::printf("Replica office0 mesh: extent %.2f x %.2f x %.2f m\n", extent_m.x(), extent_m.y(),
+              extent_m.z());
   EXPECT_GT(extent_m.minCoeff(), 2.0f);  // a room
   EXPECT_LT(extent_m.maxCoeff(), 15.0f);
 }

@@ -25,17 +25,20 @@ namespace io {
 namespace rosbag {
 namespace {
 
-Eigen::Isometry3d pose_of(const Eigen::Vector3d& translation, double yaw_rad, double roll_rad = 0.0) {
+Eigen::Isometry3d pose_of(const Eigen::Vector3d& translation, double yaw_rad,
+                          double roll_rad = 0.0) {
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
   pose.linear() = (Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()) *
-                   Eigen::AngleAxisd(roll_rad, Eigen::Vector3d::UnitX())).toRotationMatrix();
+                   Eigen::AngleAxisd(roll_rad, Eigen::Vector3d::UnitX()))
+                      .toRotationMatrix();
   pose.translation() = translation;
   return pose;
 }
 
 std::vector<uint8_t> file_bytes(const std::string& path) {
   std::ifstream file(path, std::ios::binary);
-  return std::vector<uint8_t>(std::istreambuf_iterator<char>(file), std::istreambuf_iterator<char>());
+  return std::vector<uint8_t>(std::istreambuf_iterator<char>(file),
+                              std::istreambuf_iterator<char>());
 }
 
 TEST(RosbagMessages, PointStampedBytesAreTheRos1Layout) {
@@ -83,7 +86,8 @@ TEST(RosbagMessages, TfOdometryAndCloudRoundTrip) {
   ASSERT_EQ(tf_back.transforms.size(), 3u);
   for (int i = 0; i < 3; ++i) {
     EXPECT_EQ(tf_back.transforms[i].child_frame_id, tf.transforms[i].child_frame_id);
-    EXPECT_TRUE(tf_back.transforms[i].T_parent_child.isApprox(tf.transforms[i].T_parent_child, 1e-12));
+    EXPECT_TRUE(
+        tf_back.transforms[i].T_parent_child.isApprox(tf.transforms[i].T_parent_child, 1e-12));
   }
 
   OdometryMessage odometry;
@@ -96,7 +100,8 @@ TEST(RosbagMessages, TfOdometryAndCloudRoundTrip) {
   const std::vector<uint8_t> odometry_bytes = serialize(odometry);
   // Header (4+8+4+4) + child (4+9) + pose (56) + covariance (288) + twist (48) + covariance (288).
   EXPECT_EQ(odometry_bytes.size(), 20u + 13u + 56u + 288u + 48u + 288u);
-  const OdometryMessage odometry_back = parse_odometry(odometry_bytes.data(), odometry_bytes.size(), "odometry");
+  const OdometryMessage odometry_back =
+      parse_odometry(odometry_bytes.data(), odometry_bytes.size(), "odometry");
   EXPECT_TRUE(odometry_back.T_parent_child.isApprox(odometry.T_parent_child, 1e-12));
   EXPECT_EQ(odometry_back.pose_covariance[35], 0.5);
   EXPECT_EQ(odometry_back.twist_covariance[0], 2.0);
@@ -111,7 +116,8 @@ TEST(RosbagMessages, TfOdometryAndCloudRoundTrip) {
   const std::vector<Eigen::Vector3f> points = {{1, 2, 3}, {-4, 5.5f, 6}, {0, 0, 1e3f}};
   const PointCloud2Message cloud = make_point_cloud2(header, points, {10.0f, 20.0f, 30.0f});
   const std::vector<uint8_t> cloud_bytes = serialize(cloud);
-  const PointCloud2Message cloud_back = parse_point_cloud2(cloud_bytes.data(), cloud_bytes.size(), "cloud");
+  const PointCloud2Message cloud_back =
+      parse_point_cloud2(cloud_bytes.data(), cloud_bytes.size(), "cloud");
   EXPECT_EQ(cloud_back.point_step, 16u);
   EXPECT_EQ(cloud_back.fields.size(), 4u);
   const PointCloud extracted = extract_points(cloud_back, "cloud");
@@ -126,7 +132,10 @@ TEST(RosbagMessages, ForeignCloudLayoutsAreReadAndBadOnesAreClearErrors) {
   PointCloud2Message cloud;
   cloud.height = 2;
   cloud.width = 2;
-  cloud.fields = {{"z", 0, kFloat64, 1}, {"x", 8, kFloat32, 1}, {"y", 12, kFloat32, 1}, {"intensity", 16, kUint16, 1}};
+  cloud.fields = {{"z", 0, kFloat64, 1},
+                  {"x", 8, kFloat32, 1},
+                  {"y", 12, kFloat32, 1},
+                  {"intensity", 16, kUint16, 1}};
   cloud.point_step = 24;
   cloud.row_step = 56;
   cloud.data.assign(cloud.height * cloud.row_step, 0);
@@ -252,7 +261,8 @@ TEST(RosbagFile, RoundTripAcrossManyChunks) {
     const BagMessage message = bag.read(clouds[k]);
     EXPECT_EQ(message.connection->topic, "/points");
     EXPECT_NEAR(message.time.to_seconds(), written.cloud_stamps_s[k], 1e-9);
-    const PointCloud2Message cloud = parse_point_cloud2(message.data.data(), message.data.size(), "cloud");
+    const PointCloud2Message cloud =
+        parse_point_cloud2(message.data.data(), message.data.size(), "cloud");
     EXPECT_EQ(cloud.header.seq, k);
     EXPECT_EQ(cloud.width, 50 + k);
     EXPECT_EQ(extract_points(cloud, "cloud").points_m.back().x(), static_cast<float>(k));
@@ -357,7 +367,8 @@ TEST(RosbagTfBuffer, ChainsStaticAndInterpolatedTransformsLikeTf2) {
 TEST(RosbagFile, RosPythonRosbagReadsOurBag) {
   const char* python = "/usr/bin/python3";
   if (std::system((std::string(python) + " -c 'import rosbag' > /dev/null 2>&1").c_str()) != 0) {
-    GTEST_SKIP() << "ROS's python rosbag is not installed (apt install python3-rosbag): skipping the check that "
+    GTEST_SKIP() << "ROS's python rosbag is not installed (apt install python3-rosbag): skipping "
+                    "the check that "
                     "ROS reads our bags";
   }
   const std::string path = ::testing::TempDir() + "/io_rosbag_python.bag";
@@ -371,7 +382,8 @@ TEST(RosbagFile, RosPythonRosbagReadsOurBag) {
               "for topic in sorted(info.topics):\n"
               "    t = info.topics[topic]\n"
               "    print('topic', topic, t.msg_type, t.message_count)\n"
-              "for topic, msg_type, md5 in sorted((c.topic, c.datatype, c.md5sum) for c in bag._connections.values()):\n"
+              "for topic, msg_type, md5 in sorted((c.topic, c.datatype, c.md5sum) for c in "
+              "bag._connections.values()):\n"
               "    print('md5', topic, md5)\n"
               "last = {}\n"
               "for topic, msg, t in bag.read_messages():\n"
@@ -379,24 +391,31 @@ TEST(RosbagFile, RosPythonRosbagReadsOurBag) {
               "c = last['/points']\n"
               "import struct\n"
               "x = struct.unpack_from('<f', bytes(c.data), 0)[0]\n"
-              "print('cloud', c.header.frame_id, c.width, c.point_step, [f.name for f in c.fields], x)\n"
+              "print('cloud', c.header.frame_id, c.width, c.point_step, [f.name for f in "
+              "c.fields], x)\n"
               "f = last['/fix']\n"
               "print('fix', f.header.frame_id, f.point.x, f.point.y, f.point.z)\n"
               "s = last['/tf_static'].transforms[0]\n"
-              "print('static', s.header.frame_id, s.child_frame_id, round(s.transform.rotation.z, 9), s.transform.translation.z)\n"
+              "print('static', s.header.frame_id, s.child_frame_id, round(s.transform.rotation.z, "
+              "9), s.transform.translation.z)\n"
               "o = last['/tf'].transforms[0]\n"
-              "print('tf', o.header.frame_id, o.child_frame_id, o.transform.translation.x, o.header.stamp.to_sec())\n";
+              "print('tf', o.header.frame_id, o.child_frame_id, o.transform.translation.x, "
+              "o.header.stamp.to_sec())\n";
   }
   const std::string output_path = ::testing::TempDir() + "/io_rosbag_check.txt";
-  const int status = std::system((std::string(python) + " " + script_path + " " + path + " > " + output_path + " 2>&1").c_str());
+  const int status = std::system(
+      (std::string(python) + " " + script_path + " " + path + " > " + output_path + " 2>&1")
+          .c_str());
   std::ifstream output_file(output_path);
-  const std::string output((std::istreambuf_iterator<char>(output_file)), std::istreambuf_iterator<char>());
+  const std::string output((std::istreambuf_iterator<char>(output_file)),
+                           std::istreambuf_iterator<char>());
   ASSERT_EQ(status, 0) << output;
   EXPECT_NE(output.find("topic /fix geometry_msgs/PointStamped 10\n"), std::string::npos) << output;
   EXPECT_NE(output.find("topic /points sensor_msgs/PointCloud2 20\n"), std::string::npos) << output;
   EXPECT_NE(output.find("topic /tf tf2_msgs/TFMessage 20\n"), std::string::npos) << output;
   EXPECT_NE(output.find("topic /tf_static tf2_msgs/TFMessage 1\n"), std::string::npos) << output;
-  EXPECT_NE(output.find("md5 /points 1158d486dd51d683ce2f1be655c3c181"), std::string::npos) << output;
+  EXPECT_NE(output.find("md5 /points 1158d486dd51d683ce2f1be655c3c181"), std::string::npos)
+      << output;
   EXPECT_NE(output.find("cloud lidar 69 12 ['x', 'y', 'z'] 19.0"), std::string::npos) << output;
   EXPECT_NE(output.find("fix enu 18.0 -18.0 0.5"), std::string::npos) << output;
   EXPECT_NE(output.find("static imu lidar 1.0 0.1"), std::string::npos) << output;

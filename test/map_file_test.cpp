@@ -26,11 +26,13 @@ std::string temporary_path(const std::string& name) {
 
 std::vector<unsigned char> read_bytes(const std::string& path) {
   std::ifstream file(path, std::ios::binary);
-  return std::vector<unsigned char>((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
+  return std::vector<unsigned char>((std::istreambuf_iterator<char>(file)),
+                                    std::istreambuf_iterator<char>());
 }
 void write_bytes(const std::string& path, const std::vector<unsigned char>& bytes) {
   std::ofstream file(path, std::ios::binary | std::ios::trunc);
-  file.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  file.write(reinterpret_cast<const char*>(bytes.data()),
+             static_cast<std::streamsize>(bytes.size()));
 }
 
 bool same_blocks(const std::vector<HostBlock>& a, const std::vector<HostBlock>& b) {
@@ -39,11 +41,13 @@ bool same_blocks(const std::vector<HostBlock>& a, const std::vector<HostBlock>& 
     if (!(a[i].index == b[i].index)) return false;
     for (size_t k = 0; k < a[i].tsdf.size(); ++k) {
       if (std::memcmp(&a[i].tsdf[k].distance_m, &b[i].tsdf[k].distance_m, 4) ||
-          std::memcmp(&a[i].tsdf[k].weight, &b[i].tsdf[k].weight, 4) || a[i].color[k].r != b[i].color[k].r ||
-          a[i].color[k].g != b[i].color[k].g || a[i].color[k].b != b[i].color[k].b ||
+          std::memcmp(&a[i].tsdf[k].weight, &b[i].tsdf[k].weight, 4) ||
+          a[i].color[k].r != b[i].color[k].r || a[i].color[k].g != b[i].color[k].g ||
+          a[i].color[k].b != b[i].color[k].b ||
           std::memcmp(&a[i].color[k].weight, &b[i].color[k].weight, 4) ||
           std::memcmp(&a[i].esdf[k].distance_m, &b[i].esdf[k].distance_m, 4) ||
-          a[i].esdf[k].observed != b[i].esdf[k].observed || a[i].esdf[k].is_site != b[i].esdf[k].is_site) {
+          a[i].esdf[k].observed != b[i].esdf[k].observed ||
+          a[i].esdf[k].is_site != b[i].esdf[k].is_site) {
         return false;
       }
     }
@@ -61,13 +65,15 @@ class MapFileTest : public DeviceTest {
     for (int s = 0; s < 2; ++s) {
       TsdfMap map(device(), TsdfMapConfig{0.1f, 8, {}});
       const Eigen::Vector3d centre(0.3 * s, 0.1, -0.2);
-      testing_support::fill_tsdf(map, Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(1, 1, 1), 0.4f,
-                                 [&](const Eigen::Vector3d& p) { return (p - centre).norm() - 0.6; });
+      testing_support::fill_tsdf(
+          map, Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(1, 1, 1), 0.4f,
+          [&](const Eigen::Vector3d& p) { return (p - centre).norm() - 0.6; });
       EsdfIntegrator(EsdfIntegratorConfig{}).update(map, Stream(device()));
       io::SubmapRecord record;
       record.id = 10 + s;
       record.T_world_submap.translation() = Eigen::Vector3d(1.5 * s, -2.0, 0.25);
-      record.T_world_submap.linear() = Eigen::AngleAxisd(0.3 * s, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+      record.T_world_submap.linear() =
+          Eigen::AngleAxisd(0.3 * s, Eigen::Vector3d::UnitZ()).toRotationMatrix();
       record.blocks = map.snapshot();
       contents.submaps.push_back(std::move(record));
     }
@@ -99,16 +105,19 @@ TEST_P(MapFileTest, TruncatedCorruptedAndForeignFilesAreRejected) {
   io::save_map_file(path, make_contents());
   const auto good = read_bytes(path);
 
-  auto expect_rejected = [&](const std::vector<unsigned char>& bytes, const char* what, const char* message) {
+  auto expect_rejected = [&](const std::vector<unsigned char>& bytes, const char* what,
+                             const char* message) {
     write_bytes(path, bytes);
     try {
       io::load_map_file(path);
       ADD_FAILURE() << what << " was accepted";
     } catch (const Error& error) {
-      EXPECT_NE(std::string(error.what()).find(message), std::string::npos) << what << ": " << error.what();
+      EXPECT_NE(std::string(error.what()).find(message), std::string::npos)
+          << what << ": " << error.what();
     }
   };
-  expect_rejected(std::vector<unsigned char>(good.begin(), good.begin() + good.size() / 2), "truncated", "checksum");
+  expect_rejected(std::vector<unsigned char>(good.begin(), good.begin() + good.size() / 2),
+                  "truncated", "checksum");
   std::vector<unsigned char> flipped = good;
   flipped[good.size() / 3] ^= 0x10;
   expect_rejected(flipped, "corrupted", "checksum");

@@ -35,7 +35,8 @@ double box_sdf(const Eigen::Vector3d& p) {
 }
 // Distance from a point on the box surface to the nearest of its 12 edges (sharp features).
 double distance_to_box_edge(const Eigen::Vector3d& p) {
-  const Eigen::Vector3d gap = (kBoxHalfExtent - (p - kCentre).cwiseAbs()).cwiseAbs();  // to each face plane
+  const Eigen::Vector3d gap =
+      (kBoxHalfExtent - (p - kCentre).cwiseAbs()).cwiseAbs();  // to each face plane
   // An edge is where two face planes meet: the second-smallest gap bounds the distance to it.
   double g[3] = {gap.x(), gap.y(), gap.z()};
   std::sort(g, g + 3);
@@ -54,8 +55,10 @@ void expect_closed_and_consistent(const Mesh& mesh) {
   int open_edges = 0, inconsistent = 0;
   for (const auto& [edge, count] : directed) {
     const auto reverse = directed.find({edge.second, edge.first});
-    if (reverse == directed.end()) ++open_edges;
-    else if (count != 1 || reverse->second != 1) ++inconsistent;
+    if (reverse == directed.end())
+      ++open_edges;
+    else if (count != 1 || reverse->second != 1)
+      ++inconsistent;
   }
   EXPECT_EQ(open_edges, 0);
   EXPECT_EQ(inconsistent, 0);
@@ -63,7 +66,8 @@ void expect_closed_and_consistent(const Mesh& mesh) {
 
 Mesh mesh_of(Device device, double (*sdf)(const Eigen::Vector3d&)) {
   TsdfMap map(device, TsdfMapConfig{kVoxel, 8, {}});
-  testing_support::fill_tsdf(map, Eigen::Vector3d(-0.7, -0.7, -0.7), Eigen::Vector3d(0.7, 0.7, 0.7), 4 * kVoxel, sdf);
+  testing_support::fill_tsdf(map, Eigen::Vector3d(-0.7, -0.7, -0.7), Eigen::Vector3d(0.7, 0.7, 0.7),
+                             4 * kVoxel, sdf);
   MeshIntegrator integrator;
   return integrator.extract_all(map, Stream(device));
 }
@@ -93,10 +97,12 @@ TEST_P(MeshIntegratorTest, SphereAndBoxVerticesLieOnTheSurfaceAndMeshesAreClosed
     // Normals point out of the solid (towards positive distance).
     int outward = 0;
     for (size_t t = 0; t < mesh.triangle_count(); ++t) {
-      const Vec3f a = mesh.vertices_m[mesh.triangles[3 * t]], b = mesh.vertices_m[mesh.triangles[3 * t + 1]],
+      const Vec3f a = mesh.vertices_m[mesh.triangles[3 * t]],
+                  b = mesh.vertices_m[mesh.triangles[3 * t + 1]],
                   c = mesh.vertices_m[mesh.triangles[3 * t + 2]];
       const Eigen::Vector3d u(b.x - a.x, b.y - a.y, b.z - a.z), w(c.x - a.x, c.y - a.y, c.z - a.z);
-      const Eigen::Vector3d centroid((a.x + b.x + c.x) / 3, (a.y + b.y + c.y) / 3, (a.z + b.z + c.z) / 3);
+      const Eigen::Vector3d centroid((a.x + b.x + c.x) / 3, (a.y + b.y + c.y) / 3,
+                                     (a.z + b.z + c.z) / 3);
       outward += u.cross(w).dot(centroid - kCentre) > 0;
     }
     EXPECT_EQ(outward, static_cast<int>(mesh.triangle_count()));
@@ -113,7 +119,8 @@ Index3D block_of_triangle(const Mesh& mesh, size_t t, int side) {
     centroid += Eigen::Vector3d(v.x, v.y, v.z) / 3.0;
   }
   const Eigen::Vector3d cube = (centroid / kVoxel - Eigen::Vector3d::Constant(0.5)).array().floor();
-  return Index3D(floor_divide(static_cast<int32_t>(cube.x()), side), floor_divide(static_cast<int32_t>(cube.y()), side),
+  return Index3D(floor_divide(static_cast<int32_t>(cube.x()), side),
+                 floor_divide(static_cast<int32_t>(cube.y()), side),
                  floor_divide(static_cast<int32_t>(cube.z()), side));
 }
 
@@ -140,9 +147,11 @@ std::vector<size_t> all_triangles(const Mesh& mesh) {
 
 // Each block mesh of the incremental path holds exactly the triangles of the full (globally
 // welded) extraction whose cubes lie in that block, its vertices are each used, and none repeats.
-void expect_block_meshes_match(const std::map<Index3D, Mesh>& block_meshes, const Mesh& full, int side) {
+void expect_block_meshes_match(const std::map<Index3D, Mesh>& block_meshes, const Mesh& full,
+                               int side) {
   std::map<Index3D, std::vector<size_t>> by_block;
-  for (size_t t = 0; t < full.triangle_count(); ++t) by_block[block_of_triangle(full, t, side)].push_back(t);
+  for (size_t t = 0; t < full.triangle_count(); ++t)
+    by_block[block_of_triangle(full, t, side)].push_back(t);
   ASSERT_EQ(block_meshes.size(), by_block.size());
   for (const auto& [block, triangles] : by_block) {
     const auto it = block_meshes.find(block);
@@ -159,14 +168,15 @@ void expect_block_meshes_match(const std::map<Index3D, Mesh>& block_meshes, cons
     std::vector<std::array<float, 3>> positions;
     for (const Vec3f& v : mesh.vertices_m) positions.push_back({v.x, v.y, v.z});
     std::sort(positions.begin(), positions.end());
-    EXPECT_EQ(std::adjacent_find(positions.begin(), positions.end()), positions.end()) << "a vertex is not welded";
+    EXPECT_EQ(std::adjacent_find(positions.begin(), positions.end()), positions.end())
+        << "a vertex is not welded";
   }
 }
 
 TEST_P(MeshIntegratorTest, IncrementalBlockMeshesMatchTheFullExtraction) {
   TsdfMap map(device(), TsdfMapConfig{kVoxel, 8, {}});
-  testing_support::fill_tsdf(map, Eigen::Vector3d(-0.7, -0.7, -0.7), Eigen::Vector3d(0.7, 0.7, 0.7), 4 * kVoxel,
-                             sphere_sdf);
+  testing_support::fill_tsdf(map, Eigen::Vector3d(-0.7, -0.7, -0.7), Eigen::Vector3d(0.7, 0.7, 0.7),
+                             4 * kVoxel, sphere_sdf);
   MeshIntegrator integrator;
   const Stream stream(device());
   const MeshUpdateStats first = integrator.update(map, stream);
@@ -180,32 +190,34 @@ TEST_P(MeshIntegratorTest, IncrementalBlockMeshesMatchTheFullExtraction) {
   EXPECT_TRUE(integrator.last_updated_blocks(stream).empty());
   // Replace the sphere by the box, then by a smaller sphere, without reading the block meshes in
   // between: the pending updates are replayed in order, and blocks left empty lose their mesh.
-  testing_support::fill_tsdf(map, Eigen::Vector3d(-0.7, -0.7, -0.7), Eigen::Vector3d(0.7, 0.7, 0.7), 4 * kVoxel,
-                             box_sdf);
+  testing_support::fill_tsdf(map, Eigen::Vector3d(-0.7, -0.7, -0.7), Eigen::Vector3d(0.7, 0.7, 0.7),
+                             4 * kVoxel, box_sdf);
   integrator.update(map, stream);
   const Mesh box = integrator.extract_all(map, stream);
   EXPECT_EQ(integrator.combined_block_meshes(stream).triangle_count(), box.triangle_count());
   expect_block_meshes_match(integrator.block_meshes(stream), box, 8);
-  testing_support::fill_tsdf(map, Eigen::Vector3d(-0.7, -0.7, -0.7), Eigen::Vector3d(0.7, 0.7, 0.7), 4 * kVoxel,
-                             sphere_sdf);
+  testing_support::fill_tsdf(map, Eigen::Vector3d(-0.7, -0.7, -0.7), Eigen::Vector3d(0.7, 0.7, 0.7),
+                             4 * kVoxel, sphere_sdf);
   integrator.update(map, stream);
-  testing_support::fill_tsdf(map, Eigen::Vector3d(-0.7, -0.7, -0.7), Eigen::Vector3d(0.7, 0.7, 0.7), 4 * kVoxel,
-                             small_sphere_sdf);
+  testing_support::fill_tsdf(map, Eigen::Vector3d(-0.7, -0.7, -0.7), Eigen::Vector3d(0.7, 0.7, 0.7),
+                             4 * kVoxel, small_sphere_sdf);
   integrator.update(map, stream);
-  expect_block_meshes_match(integrator.block_meshes(stream), integrator.extract_all(map, stream), 8);
+  expect_block_meshes_match(integrator.block_meshes(stream), integrator.extract_all(map, stream),
+                            8);
 }
 
 // The two per-block welds (edge table, sorted keys) number vertices the same way.
 TEST_P(MeshIntegratorTest, WeldTableAndSortedWeldGiveTheSameBlockMeshes) {
   TsdfMap map(device(), TsdfMapConfig{kVoxel, 8, {}});
-  testing_support::fill_tsdf(map, Eigen::Vector3d(-0.7, -0.7, -0.7), Eigen::Vector3d(0.7, 0.7, 0.7), 4 * kVoxel,
-                             box_sdf);
+  testing_support::fill_tsdf(map, Eigen::Vector3d(-0.7, -0.7, -0.7), Eigen::Vector3d(0.7, 0.7, 0.7),
+                             4 * kVoxel, box_sdf);
   const Stream stream(device());
   MeshIntegratorConfig sorted_config;
   sorted_config.max_weld_table_entries = 0;
   MeshIntegrator with_table, with_sort(sorted_config);
   with_table.update(map, stream);
-  testing_support::fill_tsdf(map, Eigen::Vector3d(-0.7, -0.7, -0.7), Eigen::Vector3d(0.7, 0.7, 0.7), 4 * kVoxel,
+  testing_support::fill_tsdf(map, Eigen::Vector3d(-0.7, -0.7, -0.7), Eigen::Vector3d(0.7, 0.7, 0.7),
+                             4 * kVoxel,
                              box_sdf);  // pending again for the second integrator
   with_sort.update(map, stream);
   const auto& a = with_table.block_meshes(stream);
@@ -232,8 +244,10 @@ TEST_P(MeshIntegratorTest, BinaryPlyHoldsEveryVertexAndFace) {
   const std::string bytes((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
   const std::string header_end = "end_header\n";
   const size_t body = bytes.find(header_end) + header_end.size();
-  ASSERT_NE(bytes.find("element vertex " + std::to_string(mesh.vertices_m.size()) + "\n"), std::string::npos);
-  ASSERT_NE(bytes.find("element face " + std::to_string(mesh.triangle_count()) + "\n"), std::string::npos);
+  ASSERT_NE(bytes.find("element vertex " + std::to_string(mesh.vertices_m.size()) + "\n"),
+            std::string::npos);
+  ASSERT_NE(bytes.find("element face " + std::to_string(mesh.triangle_count()) + "\n"),
+            std::string::npos);
   // Body size: 15 bytes per coloured vertex, 13 per triangle.
   ASSERT_EQ(bytes.size() - body, mesh.vertices_m.size() * 15 + mesh.triangle_count() * 13);
   float first[3];
@@ -265,8 +279,8 @@ TEST(MeshIntegratorParity, CpuAndCudaGiveTheSameBlockMeshes) {
   const Device devices[2] = {Device::kCpu, Device::kCuda};
   for (int d = 0; d < 2; ++d) {
     TsdfMap map(devices[d], TsdfMapConfig{kVoxel, 8, {}});
-    testing_support::fill_tsdf(map, Eigen::Vector3d(-0.7, -0.7, -0.7), Eigen::Vector3d(0.7, 0.7, 0.7), 4 * kVoxel,
-                               box_sdf);
+    testing_support::fill_tsdf(map, Eigen::Vector3d(-0.7, -0.7, -0.7),
+                               Eigen::Vector3d(0.7, 0.7, 0.7), 4 * kVoxel, box_sdf);
     MeshIntegrator integrator;
     const Stream stream = Stream::create(devices[d]);
     integrator.update(map, stream);

@@ -54,8 +54,10 @@ struct TinyFlight {
     lidar.columns = 128;
     sim::FlightBagWriter writer(bag_path);
     for (size_t k = 0; k < kScans; ++k) {
-      writer.write_scan(truth[k].stamp_s, truth[k].pose, odometry[k].pose,
-                        sim::simulate_scan(site.world, lidar, truth[k].pose, sim::stream_seed(kSeed, 0x5CA7, k)), {});
+      writer.write_scan(
+          truth[k].stamp_s, truth[k].pose, odometry[k].pose,
+          sim::simulate_scan(site.world, lidar, truth[k].pose, sim::stream_seed(kSeed, 0x5CA7, k)),
+          {});
     }
     writer.close();
   }
@@ -64,7 +66,8 @@ struct TinyFlight {
 class OfflineRunner : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    folder_ = new fs::path(fs::temp_directory_path() / ("covoxslam_offline_runner_" + std::to_string(::getpid())));
+    folder_ = new fs::path(fs::temp_directory_path() /
+                           ("covoxslam_offline_runner_" + std::to_string(::getpid())));
     fs::create_directories(*folder_);
     flight_ = new TinyFlight((*folder_ / "flight.bag").string());
   }
@@ -99,10 +102,12 @@ TEST_F(OfflineRunner, LibraryRunIntegratesEveryScanWithTheBagsOdometry) {
   EXPECT_NEAR(result.input_duration_s, kScans / flight_->flight.scan_rate_hz, 1e-6);
   for (size_t k = 0; k < kScans; ++k) {
     // The runner's odometry of the cloud frame is the simulator's, through the bag's tf tree.
-    const Eigen::Vector3d expected = (flight_->odometry[k].pose * sim::T_os1_sensor_os1_lidar()).translation();
+    const Eigen::Vector3d expected =
+        (flight_->odometry[k].pose * sim::T_os1_sensor_os1_lidar()).translation();
     ASSERT_LT((result.odometry.poses[k].position_m - expected).norm(), 1e-6) << "scan " << k;
   }
-  const SlamRunEvaluation evaluation = evaluate_slam_run(source, result, AlignmentMode::kTranslationYaw, 0.1);
+  const SlamRunEvaluation evaluation =
+      evaluate_slam_run(source, result, AlignmentMode::kTranslationYaw, 0.1);
   ASSERT_TRUE(evaluation.available) << evaluation.problem;
   EXPECT_EQ(evaluation.corrected.aligned.size(), kScans);
 }
@@ -118,7 +123,8 @@ struct ProgramRun {
 };
 
 ProgramRun run_program(const std::string& arguments, const fs::path& log) {
-  const std::string command = run_slam_program().string() + " " + arguments + " > " + log.string() + " 2>&1";
+  const std::string command =
+      run_slam_program().string() + " " + arguments + " > " + log.string() + " 2>&1";
   ProgramRun run;
   const int raw = std::system(command.c_str());
   run.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
@@ -147,9 +153,10 @@ TEST_F(OfflineRunner, ProgramWritesTrajectoryMeshMapAndTimingTable) {
   const fs::path out = folder() / "out";
   fs::create_directories(out);
   const ProgramRun run = run_program(
-      "--bag " + bag() + " --device cpu --quiet --submap-interval-s 0.5 --trajectory " + (out / "slam.tum").string() +
-          " --odometry-trajectory " + (out / "odometry.tum").string() + " --mesh " + (out / "mesh.ply").string() +
-          " --map " + (out / "map.covoxmap").string() + " --json " + (out / "pipeline.json").string(),
+      "--bag " + bag() + " --device cpu --quiet --submap-interval-s 0.5 --trajectory " +
+          (out / "slam.tum").string() + " --odometry-trajectory " +
+          (out / "odometry.tum").string() + " --mesh " + (out / "mesh.ply").string() + " --map " +
+          (out / "map.covoxmap").string() + " --json " + (out / "pipeline.json").string(),
       out / "log.txt");
   ASSERT_EQ(run.status, 0) << run.output;
 
@@ -189,8 +196,9 @@ TEST_F(OfflineRunner, ProgramWritesTrajectoryMeshMapAndTimingTable) {
   EXPECT_GT(blocks, 0u);
 
   // Timing table: every module's row, the total and the map line.
-  for (const char* row : {"module ", "tsdf integrate", "esdf (submap)", "mesh (submap)", "registration",
-                          "backend optimise", "sensor queue wait", "submap queue wait", "total wall", "map: "}) {
+  for (const char* row :
+       {"module ", "tsdf integrate", "esdf (submap)", "mesh (submap)", "registration",
+        "backend optimise", "sensor queue wait", "submap queue wait", "total wall", "map: "}) {
     EXPECT_NE(run.output.find(row), std::string::npos) << "no '" << row << "' in:\n" << run.output;
   }
   EXPECT_NE(run.output.find("covoxslam "), std::string::npos) << "no ATE line in:\n" << run.output;
@@ -204,15 +212,17 @@ TEST_F(OfflineRunner, ProgramNamesAMissingBagOrAWrongTopic) {
   if (!fs::exists(run_slam_program())) GTEST_SKIP() << "run_slam is not built next to the tests";
   const fs::path out = folder() / "bad";
   fs::create_directories(out);
-  const std::string outputs = " --device cpu --quiet --trajectory " + (out / "t.tum").string() + " --mesh " +
-                              (out / "m.ply").string();
+  const std::string outputs = " --device cpu --quiet --trajectory " + (out / "t.tum").string() +
+                              " --mesh " + (out / "m.ply").string();
 
   const std::string missing = (folder() / "no_such.bag").string();
   ProgramRun run = run_program("--bag " + missing + outputs, out / "missing.txt");
   EXPECT_EQ(run.status, 1) << run.output;
-  EXPECT_NE(run.output.find(missing), std::string::npos) << "the error does not name the bag:\n" << run.output;
+  EXPECT_NE(run.output.find(missing), std::string::npos) << "the error does not name the bag:\n"
+                                                         << run.output;
 
-  run = run_program("--bag " + bag() + " --cloud-topic /no/such/points" + outputs, out / "topic.txt");
+  run =
+      run_program("--bag " + bag() + " --cloud-topic /no/such/points" + outputs, out / "topic.txt");
   EXPECT_EQ(run.status, 1) << run.output;
   EXPECT_NE(run.output.find("/no/such/points"), std::string::npos) << run.output;
   // ... and lists the topics the bag does have.
@@ -224,7 +234,8 @@ TEST_F(OfflineRunner, ProgramNamesAMissingBagOrAWrongTopic) {
 }
 
 TEST(OfflineRunnerInputs, FlatYamlReadsTheNodeletParameterFilesAndRejectsNesting) {
-  const std::string path = ::testing::TempDir() + "/offline_runner_test_" + std::to_string(::getpid()) + ".yaml";
+  const std::string path =
+      ::testing::TempDir() + "/offline_runner_test_" + std::to_string(::getpid()) + ".yaml";
   {
     std::ofstream file(path);
     file << "# covoxslam\nvoxel_size_m: 0.1   # metres\n\nodom_frame: \"odom\"\nlabel: 'a # b'\n";
@@ -259,11 +270,13 @@ TEST(OfflineRunnerInputs, RgbdFolderCloudsProjectOntoTheirPixelsAndOdometryDrift
   ASSERT_EQ(source.reference().size(), 40u);
   EXPECT_EQ(source.reference_kind(), ReferenceKind::kGroundTruth);
   EXPECT_GE(source.final_drift_m(), 0.2);
-  const double fx = 585.0, fy = 585.0, cx = 320.0, cy = 240.0;  // the folder's camera-intrinsics.txt
+  const double fx = 585.0, fy = 585.0, cx = 320.0,
+               cy = 240.0;  // the folder's camera-intrinsics.txt
   SourceScan scan;
   ASSERT_TRUE(source.next(&scan));
   // The odometry starts exactly at the reference.
-  EXPECT_LT((scan.T_odom_sensor.translation() - source.reference().poses[0].position_m).norm(), 1e-9);
+  EXPECT_LT((scan.T_odom_sensor.translation() - source.reference().poses[0].position_m).norm(),
+            1e-9);
   ASSERT_GT(scan.points_sensor_m.size(), 1000u);
   EXPECT_EQ(scan.colors.size(), scan.points_sensor_m.size());
   for (const Vec3f& p : scan.points_sensor_m) {
@@ -276,7 +289,8 @@ TEST(OfflineRunnerInputs, RgbdFolderCloudsProjectOntoTheirPixelsAndOdometryDrift
   size_t frames = 1;
   while (source.next(&scan)) ++frames;
   EXPECT_EQ(frames, 40u);
-  const double drift_m = (scan.T_odom_sensor.translation() - source.reference().poses.back().position_m).norm();
+  const double drift_m =
+      (scan.T_odom_sensor.translation() - source.reference().poses.back().position_m).norm();
   EXPECT_NEAR(drift_m, source.final_drift_m(), 1e-9);
 }
 

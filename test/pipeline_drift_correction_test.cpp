@@ -34,7 +34,8 @@ DriftRun run_drifting_lap(const SlamConfig& config, double duration_s, const Dri
   const double period_s = 0.2;  // 5 Hz keeps the test short; the vehicle moves 0.2 m per scan
   for (int k = 0; k * period_s <= duration_s; ++k) {
     const double t = k * period_s;
-    SimulatedScan s = simulate(world, lidar, t, circle_pose(t), drift.at(t), static_cast<uint64_t>(k + 1));
+    SimulatedScan s =
+        simulate(world, lidar, t, circle_pose(t), drift.at(t), static_cast<uint64_t>(k + 1));
     truth.push_back(s.T_world_sensor);
     odometry.push_back(s.scan.T_odom_sensor);
     EXPECT_TRUE(slam.add_scan(std::move(s.scan)));
@@ -42,13 +43,15 @@ DriftRun run_drifting_lap(const SlamConfig& config, double duration_s, const Dri
   slam.finish();
   DriftRun run;
   std::vector<Eigen::Isometry3d> corrected;
-  for (const StampedPose& pose : slam.corrected_trajectory()) corrected.push_back(pose.T_world_sensor);
+  for (const StampedPose& pose : slam.corrected_trajectory())
+    corrected.push_back(pose.T_world_sensor);
   EXPECT_EQ(corrected.size(), truth.size());
   if (corrected.size() != truth.size()) return run;
   run.odometry_rmse_m = position_rmse_m(odometry, truth);
   run.corrected_rmse_m = position_rmse_m(corrected, truth);
   run.odometry_final_error_m = (odometry.back().translation() - truth.back().translation()).norm();
-  run.corrected_final_error_m = (corrected.back().translation() - truth.back().translation()).norm();
+  run.corrected_final_error_m =
+      (corrected.back().translation() - truth.back().translation()).norm();
   run.counters = slam.counters();
   run.submaps = slam.submaps();
   return run;
@@ -65,20 +68,27 @@ TEST(PipelineDriftCorrection, RegistrationPullsTheDriftingTrajectoryBackToTheTru
   const SlamConfig config = yard_config();
   // 1.15 laps of a 6 m circle at 1 m/s: the last submaps see the start again.
   const DriftRun run = run_drifting_lap(config, 43.0, lap_drift());
-  std::printf("[ drift    ] position RMSE: odometry %.3f m, corrected %.3f m; final error: odometry %.3f m, "
-              "corrected %.3f m\n",
-              run.odometry_rmse_m, run.corrected_rmse_m, run.odometry_final_error_m, run.corrected_final_error_m);
+  std::printf(
+      "[ drift    ] position RMSE: odometry %.3f m, corrected %.3f m; final error: odometry %.3f "
+      "m, "
+      "corrected %.3f m\n",
+      run.odometry_rmse_m, run.corrected_rmse_m, run.odometry_final_error_m,
+      run.corrected_final_error_m);
   const RegistrationCounts& r = run.counters.registration;
-  std::printf("[ drift    ] %zu submaps; registrations attempted %lld, accepted %lld, rejected: failed %lld, "
-              "too far %lld, too few points %lld; optimisations %lld\n",
-              run.submaps.size(), static_cast<long long>(r.attempted), static_cast<long long>(r.accepted),
-              static_cast<long long>(r.rejected_failed), static_cast<long long>(r.rejected_too_far),
-              static_cast<long long>(r.rejected_too_few_points), static_cast<long long>(run.counters.optimizations));
+  std::printf(
+      "[ drift    ] %zu submaps; registrations attempted %lld, accepted %lld, rejected: failed "
+      "%lld, "
+      "too far %lld, too few points %lld; optimisations %lld\n",
+      run.submaps.size(), static_cast<long long>(r.attempted), static_cast<long long>(r.accepted),
+      static_cast<long long>(r.rejected_failed), static_cast<long long>(r.rejected_too_far),
+      static_cast<long long>(r.rejected_too_few_points),
+      static_cast<long long>(run.counters.optimizations));
   ASSERT_GE(run.submaps.size(), 9u);
   EXPECT_GT(run.odometry_rmse_m, 1.0);  // the drift is real
   // Every new submap registers at least to its predecessor.
   EXPECT_GE(r.accepted, static_cast<int64_t>(run.submaps.size()) - 1);
-  EXPECT_EQ(r.attempted, r.accepted + r.rejected_failed + r.rejected_too_far + r.rejected_too_few_points + r.rejected_poor_fit);
+  EXPECT_EQ(r.attempted, r.accepted + r.rejected_failed + r.rejected_too_far +
+                             r.rejected_too_few_points + r.rejected_poor_fit);
   EXPECT_LT(run.corrected_rmse_m, 0.35 * run.odometry_rmse_m);
   EXPECT_LT(run.corrected_rmse_m, 0.3);
   EXPECT_LT(run.corrected_final_error_m, 0.3 * run.odometry_final_error_m);
@@ -90,8 +100,10 @@ TEST(PipelineDriftCorrection, JointRegistrationAlsoPullsTheTrajectoryBackToTheTr
   SlamConfig config = yard_config();
   config.registration.mode = RegistrationMode::kJoint;
   const DriftRun run = run_drifting_lap(config, 43.0, lap_drift());
-  std::printf("[ joint    ] position RMSE: odometry %.3f m, corrected %.3f m; %lld pairs as dense terms\n",
-              run.odometry_rmse_m, run.corrected_rmse_m, static_cast<long long>(run.counters.registration.joint_pairs));
+  std::printf(
+      "[ joint    ] position RMSE: odometry %.3f m, corrected %.3f m; %lld pairs as dense terms\n",
+      run.odometry_rmse_m, run.corrected_rmse_m,
+      static_cast<long long>(run.counters.registration.joint_pairs));
   EXPECT_GE(run.counters.registration.joint_pairs, static_cast<int64_t>(run.submaps.size()) - 1);
   EXPECT_EQ(run.counters.registration.accepted, 0);  // no pairwise constraints in this mode
   EXPECT_LT(run.corrected_rmse_m, 0.35 * run.odometry_rmse_m);
@@ -123,7 +135,8 @@ TEST(PipelineDriftCorrection, EachRejectionReasonIsCounted) {
   EXPECT_EQ(counts.accepted, 0);
   // The short last submap (one scan) may also fall short of points; every other pair is too far.
   EXPECT_GE(counts.rejected_too_far, counts.attempted - 2);
-  EXPECT_EQ(counts.rejected_too_far + counts.rejected_too_few_points + counts.rejected_failed + counts.rejected_poor_fit,
+  EXPECT_EQ(counts.rejected_too_far + counts.rejected_too_few_points + counts.rejected_failed +
+                counts.rejected_poor_fit,
             counts.attempted);
   // Too few points: more than a submap has.
   config = yard_config();

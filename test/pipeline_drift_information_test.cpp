@@ -22,7 +22,8 @@ Eigen::Matrix4d wall_and_ground_information() {
   Eigen::Matrix4d information = Eigen::Matrix4d::Zero();
   std::srand(7);
   for (int k = 0; k < 400; ++k) {
-    const Eigen::Vector4d jacobian = Eigen::Vector4d::Random().cwiseProduct(Eigen::Vector4d(1.0, 1.0, 1.0, 10.0));
+    const Eigen::Vector4d jacobian =
+        Eigen::Vector4d::Random().cwiseProduct(Eigen::Vector4d(1.0, 1.0, 1.0, 10.0));
     information += jacobian * jacobian.transpose() / (0.1 * 0.1);
   }
   return information;
@@ -76,7 +77,8 @@ TEST(PipelineDriftInformation, FloorsAreValidatedByName) {
     validate(config);
     FAIL() << "a negative min_sigma_m was accepted";
   } catch (const std::exception& error) {
-    EXPECT_NE(std::string(error.what()).find("registration.min_sigma_m"), std::string::npos) << error.what();
+    EXPECT_NE(std::string(error.what()).find("registration.min_sigma_m"), std::string::npos)
+        << error.what();
   }
   config.min_sigma_m = 0.2;
   config.min_sigma_yaw_rad = std::numeric_limits<double>::quiet_NaN();

@@ -37,7 +37,8 @@ Scan sphere_scan(double stamp_s, const Eigen::Isometry3d& T_odom_sensor) {
   Scan scan;
   scan.stamp_s = stamp_s;
   scan.T_odom_sensor = T_odom_sensor;
-  scan.points_sensor_m = testing_support::simulate_lidar(scene, Eigen::Isometry3d::Identity(), 48, 6, 40.0, 10.0);
+  scan.points_sensor_m =
+      testing_support::simulate_lidar(scene, Eigen::Isometry3d::Identity(), 48, 6, 40.0, 10.0);
   return scan;
 }
 
@@ -49,7 +50,9 @@ Eigen::Isometry3d tilted(const Eigen::Isometry3d& pose, double roll, double pitc
   return result;
 }
 
-double yaw_of(const Eigen::Matrix3d& rotation) { return std::atan2(rotation(1, 0), rotation(0, 0)); }
+double yaw_of(const Eigen::Matrix3d& rotation) {
+  return std::atan2(rotation(1, 0), rotation(0, 0));
+}
 
 // Waits until the frontend has integrated `count` scans. External input refers to scans by stamp,
 // so it must wait for them; the limit is generous because a loaded machine (the GPU suite under
@@ -77,7 +80,8 @@ TEST(PipelineExternalInput, LoopClosureWithAKnownTransformPullsTwoSubmapsTogethe
   const Eigen::Isometry3d jump = pose_4dof(0.3, -0.25, 0.1, 4.0 * kDegToRad);
   for (int k = 0; k < 8; ++k) {
     const double t = 0.25 * k;
-    truth.push_back(tilted(pose_4dof(0.2 * k, 0.05 * k, 1.0, 0.1 * k), 3.0 * kDegToRad, -2.0 * kDegToRad));
+    truth.push_back(
+        tilted(pose_4dof(0.2 * k, 0.05 * k, 1.0, 0.1 * k), 3.0 * kDegToRad, -2.0 * kDegToRad));
     const Eigen::Isometry3d odometry = t < 1.0 ? truth.back() : jump * truth.back();
     ASSERT_TRUE(slam.add_scan(sphere_scan(t, odometry)));
   }
@@ -103,11 +107,14 @@ TEST(PipelineExternalInput, LoopClosureWithAKnownTransformPullsTwoSubmapsTogethe
               (odometry_relative.translation() - closure.T_from_to.translation()).norm(),
               (corrected_relative.translation() - closure.T_from_to.translation()).norm());
   EXPECT_LT((corrected_relative.translation() - closure.T_from_to.translation()).norm(), 2e-3);
-  EXPECT_NEAR(yaw_of((corrected_relative.linear() * closure.T_from_to.linear().transpose())), 0.0, 1e-4);
+  EXPECT_NEAR(yaw_of((corrected_relative.linear() * closure.T_from_to.linear().transpose())), 0.0,
+              1e-4);
   // The second submap moved; the first (the gauge) did not.
   const std::vector<SubmapInfo> submaps = slam.submaps();
   EXPECT_TRUE(submaps[0].T_world_submap.isApprox(submaps[0].T_odom_submap, 1e-9));
-  EXPECT_GT((submaps[1].T_world_submap.translation() - submaps[1].T_odom_submap.translation()).norm(), 0.2);
+  EXPECT_GT(
+      (submaps[1].T_world_submap.translation() - submaps[1].T_odom_submap.translation()).norm(),
+      0.2);
   // T_world_odom is the correction of the latest submap: it undoes the jump.
   EXPECT_LT((slam.T_world_odom() * jump).translation().norm(), 2e-3);
 }
@@ -116,7 +123,8 @@ TEST(PipelineExternalInput, LoopClosuresWaitForTheirSubmapsAndLostOnesAreCounted
   SlamConfig config = sphere_config();
   config.start_threads = false;  // nothing reaches the graph before finish()
   SlamSystem slam(config);
-  for (int k = 0; k < 8; ++k) ASSERT_TRUE(slam.add_scan(sphere_scan(0.25 * k, pose_4dof(0.1 * k, 0, 0, 0))));
+  for (int k = 0; k < 8; ++k)
+    ASSERT_TRUE(slam.add_scan(sphere_scan(0.25 * k, pose_4dof(0.1 * k, 0, 0, 0))));
   // Not integrated yet: the stamps are unknown.
   LoopClosure closure;
   closure.from_stamp_s = 0.0;
@@ -139,7 +147,8 @@ TEST(PipelineExternalInput, AbsolutePositionsPinTheGraphInTheWorld) {
   const Eigen::Isometry3d T_odom_world = pose_4dof(5.0, -3.0, 0.5, 30.0 * kDegToRad);
   std::vector<Eigen::Isometry3d> truth;
   for (int k = 0; k < 16; ++k) {
-    truth.push_back(tilted(pose_4dof(0.3 * k, 0.1 * k * k * 0.05, 1.2, 0.05 * k), 2.0 * kDegToRad, 0.0));
+    truth.push_back(
+        tilted(pose_4dof(0.3 * k, 0.1 * k * k * 0.05, 1.2, 0.05 * k), 2.0 * kDegToRad, 0.0));
     ASSERT_TRUE(slam.add_scan(sphere_scan(0.25 * k, T_odom_world * truth.back())));
   }
   ASSERT_TRUE(wait_for_integrated_scans(slam, 16));
@@ -150,7 +159,8 @@ TEST(PipelineExternalInput, AbsolutePositionsPinTheGraphInTheWorld) {
   }
   slam.finish();
   const SlamCounters counters = slam.counters();
-  std::printf("[ gnss     ] %lld optimisations, last: %s\n", static_cast<long long>(counters.optimizations),
+  std::printf("[ gnss     ] %lld optimisations, last: %s\n",
+              static_cast<long long>(counters.optimizations),
               slam.last_solver_summary().report().c_str());
   EXPECT_EQ(counters.absolute_positions.added, 4);
   const Eigen::Isometry3d correction = slam.T_world_odom();
@@ -163,14 +173,16 @@ TEST(PipelineExternalInput, AbsolutePositionsPinTheGraphInTheWorld) {
   const std::vector<StampedPose> trajectory = slam.corrected_trajectory();
   ASSERT_EQ(trajectory.size(), truth.size());
   for (size_t k = 0; k < truth.size(); ++k) {
-    EXPECT_LT((trajectory[k].T_world_sensor.translation() - truth[k].translation()).norm(), 0.01) << k;
+    EXPECT_LT((trajectory[k].T_world_sensor.translation() - truth[k].translation()).norm(), 0.01)
+        << k;
   }
 }
 
 // Feeds 16 scans, 0.25 s apart, at the true poses truth_at(k) seen through odometry that drifts
 // 4 cm up per scan, and waits until they are integrated; fills `truth` and `odometry`.
 template <class TruthAt>
-void feed_z_drifting_scans(SlamSystem& slam, TruthAt truth_at, std::vector<Eigen::Isometry3d>* truth,
+void feed_z_drifting_scans(SlamSystem& slam, TruthAt truth_at,
+                           std::vector<Eigen::Isometry3d>* truth,
                            std::vector<Eigen::Isometry3d>* odometry) {
   for (int k = 0; k < 16; ++k) {
     truth->push_back(truth_at(k));
@@ -184,19 +196,22 @@ TEST(PipelineExternalInput, HeightsRemoveVerticalDrift) {
   SlamSystem slam(sphere_config());
   std::vector<Eigen::Isometry3d> truth, odometry;
   feed_z_drifting_scans(
-      slam, [](int k) { return pose_4dof(0.3 * k, 0.0, 1.5 + 0.2 * std::sin(0.4 * k), 0.0); }, &truth, &odometry);
+      slam, [](int k) { return pose_4dof(0.3 * k, 0.0, 1.5 + 0.2 * std::sin(0.4 * k), 0.0); },
+      &truth, &odometry);
   ASSERT_FALSE(HasFatalFailure());
-  for (int k = 4; k < 16; k += 4) EXPECT_TRUE(slam.add_height(0.25 * k, truth[k].translation().z(), 1e4));
+  for (int k = 4; k < 16; k += 4)
+    EXPECT_TRUE(slam.add_height(0.25 * k, truth[k].translation().z(), 1e4));
   slam.finish();
   EXPECT_EQ(slam.counters().heights.added, 3);
   const std::vector<StampedPose> trajectory = slam.corrected_trajectory();
   double odometry_error = 0.0, corrected_error = 0.0;
   for (size_t k = 0; k < truth.size(); ++k) {
     odometry_error += std::abs(odometry[k].translation().z() - truth[k].translation().z());
-    corrected_error += std::abs(trajectory[k].T_world_sensor.translation().z() - truth[k].translation().z());
+    corrected_error +=
+        std::abs(trajectory[k].T_world_sensor.translation().z() - truth[k].translation().z());
   }
-  std::printf("[ height   ] mean |z error|: odometry %.3f m, corrected %.3f m\n", odometry_error / truth.size(),
-              corrected_error / truth.size());
+  std::printf("[ height   ] mean |z error|: odometry %.3f m, corrected %.3f m\n",
+              odometry_error / truth.size(), corrected_error / truth.size());
   // The drift inside a submap (up to 12 cm) stays; the submaps' offsets are gone.
   EXPECT_LT(corrected_error, 0.3 * odometry_error);
 }
@@ -215,25 +230,29 @@ TEST(PipelineExternalInput, InterpolatedCorrectionRemovesLinearDriftInsideSubmap
         slam, [](int k) { return pose_4dof(0.3 * k, 0.1 * k, 1.5, 0.05 * k); }, &truth, &odometry);
     ASSERT_FALSE(HasFatalFailure());
     // Submaps start every second (4 scans); very sure heights at their first scans.
-    for (int k = 4; k < 16; k += 4) EXPECT_TRUE(slam.add_height(0.25 * k, truth[k].translation().z(), 1e8));
+    for (int k = 4; k < 16; k += 4)
+      EXPECT_TRUE(slam.add_height(0.25 * k, truth[k].translation().z(), 1e8));
     slam.finish();
     ASSERT_EQ(slam.submaps().size(), 4u);
     const std::vector<StampedPose> trajectory = slam.corrected_trajectory();
     ASSERT_EQ(trajectory.size(), truth.size());
     double max_error_before_last = 0.0, max_error_last = 0.0;
     for (size_t k = 0; k < truth.size(); ++k) {
-      const double error = (trajectory[k].T_world_sensor.translation() - truth[k].translation()).norm();
+      const double error =
+          (trajectory[k].T_world_sensor.translation() - truth[k].translation()).norm();
       // The heading is never changed by a pure z correction.
       EXPECT_NEAR(yaw_of(trajectory[k].T_world_sensor.linear()), 0.05 * k, 1e-9) << k;
       double& worst = k < 12 ? max_error_before_last : max_error_last;
       worst = std::max(worst, error);
     }
-    std::printf("[ interp   ] interpolate %d: max error %.4f m in submaps 0-2, %.4f m in the last\n",
-                interpolate ? 1 : 0, max_error_before_last, max_error_last);
+    std::printf(
+        "[ interp   ] interpolate %d: max error %.4f m in submaps 0-2, %.4f m in the last\n",
+        interpolate ? 1 : 0, max_error_before_last, max_error_last);
     if (interpolate) {
       EXPECT_LT(max_error_before_last, 2e-3);
     } else {
-      EXPECT_GT(max_error_before_last, 0.11);  // scan 3 of a submap: 3 x 4 cm of drift since its start
+      EXPECT_GT(max_error_before_last,
+                0.11);  // scan 3 of a submap: 3 x 4 cm of drift since its start
     }
     // The last submap keeps its own (step) correction either way.
     EXPECT_GT(max_error_last, 0.11);
@@ -243,7 +262,8 @@ TEST(PipelineExternalInput, InterpolatedCorrectionRemovesLinearDriftInsideSubmap
 
 TEST(PipelineExternalInput, BadExternalInputIsRefusedAndCounted) {
   SlamSystem slam(sphere_config());
-  for (int k = 0; k < 8; ++k) ASSERT_TRUE(slam.add_scan(sphere_scan(0.25 * k, pose_4dof(0.1 * k, 0, 0, 0))));
+  for (int k = 0; k < 8; ++k)
+    ASSERT_TRUE(slam.add_scan(sphere_scan(0.25 * k, pose_4dof(0.1 * k, 0, 0, 0))));
   ASSERT_TRUE(wait_for_integrated_scans(slam, 8));
   const double nan = std::numeric_limits<double>::quiet_NaN();
   LoopClosure good;
@@ -263,7 +283,8 @@ TEST(PipelineExternalInput, BadExternalInputIsRefusedAndCounted) {
   EXPECT_FALSE(slam.add_loop_closure(closure));
   closure = good;
   closure.information = Eigen::Matrix<double, 6, 6>::Zero();
-  closure.information(3, 3) = closure.information(4, 4) = 1.0;  // roll and pitch only: nothing in 4-DoF
+  closure.information(3, 3) = closure.information(4, 4) =
+      1.0;  // roll and pitch only: nothing in 4-DoF
   EXPECT_FALSE(slam.add_loop_closure(closure));
   closure = good;
   closure.to_stamp_s = 100.0;  // no scan there
@@ -276,9 +297,12 @@ TEST(PipelineExternalInput, BadExternalInputIsRefusedAndCounted) {
   EXPECT_FALSE(slam.add_loop_closure(closure));
   EXPECT_TRUE(slam.add_loop_closure(good));
 
-  EXPECT_FALSE(slam.add_absolute_position(0.5, Eigen::Vector3d(nan, 0, 0), Eigen::Matrix3d::Identity()));
-  EXPECT_FALSE(slam.add_absolute_position(0.5, Eigen::Vector3d::Zero(), -Eigen::Matrix3d::Identity()));
-  EXPECT_FALSE(slam.add_absolute_position(50.0, Eigen::Vector3d::Zero(), Eigen::Matrix3d::Identity()));
+  EXPECT_FALSE(
+      slam.add_absolute_position(0.5, Eigen::Vector3d(nan, 0, 0), Eigen::Matrix3d::Identity()));
+  EXPECT_FALSE(
+      slam.add_absolute_position(0.5, Eigen::Vector3d::Zero(), -Eigen::Matrix3d::Identity()));
+  EXPECT_FALSE(
+      slam.add_absolute_position(50.0, Eigen::Vector3d::Zero(), Eigen::Matrix3d::Identity()));
   EXPECT_FALSE(slam.add_height(0.5, nan, 1.0));
   EXPECT_FALSE(slam.add_height(0.5, 1.0, 0.0));
   EXPECT_FALSE(slam.add_height(0.5, 1.0, -2.0));
@@ -302,7 +326,8 @@ TEST(PipelineExternalInput, BadExternalInputIsRefusedAndCounted) {
 
 TEST(PipelineExternalInput, ResetEmptiesTheSystemAndMappingStartsAgain) {
   SlamSystem slam(sphere_config());
-  for (int k = 0; k < 12; ++k) ASSERT_TRUE(slam.add_scan(sphere_scan(10.0 + 0.25 * k, pose_4dof(0.1 * k, 0, 0, 0))));
+  for (int k = 0; k < 12; ++k)
+    ASSERT_TRUE(slam.add_scan(sphere_scan(10.0 + 0.25 * k, pose_4dof(0.1 * k, 0, 0, 0))));
   for (int spin = 0; spin < 500 && slam.submaps().size() < 2; ++spin) {
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
@@ -319,7 +344,8 @@ TEST(PipelineExternalInput, ResetEmptiesTheSystemAndMappingStartsAgain) {
   EXPECT_TRUE(slam.T_world_odom().isApprox(Eigen::Isometry3d::Identity()));
   EXPECT_TRUE(slam.running());
   // A new map, with stamps before the old ones (a bag played again).
-  for (int k = 0; k < 6; ++k) ASSERT_TRUE(slam.add_scan(sphere_scan(0.25 * k, pose_4dof(0.0, 0.1 * k, 0, 0))));
+  for (int k = 0; k < 6; ++k)
+    ASSERT_TRUE(slam.add_scan(sphere_scan(0.25 * k, pose_4dof(0.0, 0.1 * k, 0, 0))));
   slam.finish();
   const std::vector<SubmapInfo> submaps = slam.submaps();
   ASSERT_EQ(submaps.size(), 2u);
@@ -343,7 +369,8 @@ TEST(PipelineExternalInput, LoadSubmapsRoundTripsAndNewMappingRegistersToTheLoad
     SlamSystem first(config);
     for (int k = 0; k <= 40; ++k) {
       const double t = 0.2 * k;
-      first.add_scan(simulate(world, lidar, t, circle_pose(t), Eigen::Isometry3d::Identity(), k + 1).scan);
+      first.add_scan(
+          simulate(world, lidar, t, circle_pose(t), Eigen::Isometry3d::Identity(), k + 1).scan);
     }
     first.finish();
     saved = first.submap_snapshots();
@@ -381,7 +408,8 @@ TEST(PipelineExternalInput, LoadSubmapsRoundTripsAndNewMappingRegistersToTheLoad
   const Eigen::Isometry3d T_odom_world = pose_4dof(0.3, -0.25, 0.05, 3.0 * kDegToRad);
   for (int k = 0; k <= 25; ++k) {
     const double t = 100.0 + 0.2 * k;
-    second.add_scan(simulate(world, lidar, t, circle_pose(0.2 * k + 1.0), T_odom_world, 1000 + k).scan);
+    second.add_scan(
+        simulate(world, lidar, t, circle_pose(0.2 * k + 1.0), T_odom_world, 1000 + k).scan);
   }
   second.finish();
   const SlamCounters counters = second.counters();
@@ -389,7 +417,8 @@ TEST(PipelineExternalInput, LoadSubmapsRoundTripsAndNewMappingRegistersToTheLoad
   EXPECT_GE(counters.registration.accepted, 1);
   const std::vector<SubmapInfo> after = second.submaps();
   for (size_t k = 0; k < saved.size(); ++k) {
-    EXPECT_TRUE(after[k].T_world_submap.isApprox(saved[k].T_world_submap, 1e-12)) << "loaded submaps stay fixed";
+    EXPECT_TRUE(after[k].T_world_submap.isApprox(saved[k].T_world_submap, 1e-12))
+        << "loaded submaps stay fixed";
   }
   ASSERT_GT(after.size(), saved.size());
   EXPECT_GT(after[saved.size()].id, saved.back().id);
@@ -418,7 +447,8 @@ TEST(PipelineExternalInput, RevisitSearchRelocalisesFarBeyondTheAlignersBasin) {
     SlamSystem first(config);
     for (int k = 0; k <= 20; ++k) {
       const double t = 0.2 * k;
-      first.add_scan(simulate(world, lidar, t, circle_pose(t), Eigen::Isometry3d::Identity(), k + 1).scan);
+      first.add_scan(
+          simulate(world, lidar, t, circle_pose(t), Eigen::Isometry3d::Identity(), k + 1).scan);
     }
     first.finish();
     saved = first.submap_snapshots();
@@ -428,16 +458,19 @@ TEST(PipelineExternalInput, RevisitSearchRelocalisesFarBeyondTheAlignersBasin) {
   second.load_submaps(saved);
   for (int k = 0; k <= 15; ++k) {
     const double t = 100.0 + 0.2 * k;
-    second.add_scan(simulate(world, lidar, t, circle_pose(0.2 * k + 0.5), T_odom_world, 1000 + k).scan);
+    second.add_scan(
+        simulate(world, lidar, t, circle_pose(0.2 * k + 0.5), T_odom_world, 1000 + k).scan);
   }
   second.finish();
   const RegistrationCounts counts = second.counters().registration;
   const Eigen::Isometry3d correction = second.T_world_odom();
   const Eigen::Isometry3d expected = T_odom_world.inverse();
-  std::printf("[ search   ] %lld of %lld registrations found by the search; relocalised %.3f m, %.3f deg off\n",
-              static_cast<long long>(counts.found_by_search), static_cast<long long>(counts.attempted),
-              (correction.translation() - expected.translation()).norm(),
-              std::abs(yaw_of(correction.linear() * expected.linear().transpose())) / kDegToRad);
+  std::printf(
+      "[ search   ] %lld of %lld registrations found by the search; relocalised %.3f m, %.3f deg "
+      "off\n",
+      static_cast<long long>(counts.found_by_search), static_cast<long long>(counts.attempted),
+      (correction.translation() - expected.translation()).norm(),
+      std::abs(yaw_of(correction.linear() * expected.linear().transpose())) / kDegToRad);
   EXPECT_GE(counts.found_by_search, 1);
   EXPECT_LT((correction.translation() - expected.translation()).norm(), 0.1);
   EXPECT_LT(std::abs(yaw_of(correction.linear() * expected.linear().transpose())), 0.5 * kDegToRad);
@@ -445,7 +478,8 @@ TEST(PipelineExternalInput, RevisitSearchRelocalisesFarBeyondTheAlignersBasin) {
 
 TEST(PipelineExternalInput, LoadSubmapsRefusesBadSnapshotsAndKeepsTheMap) {
   SlamSystem slam(sphere_config());
-  for (int k = 0; k < 6; ++k) ASSERT_TRUE(slam.add_scan(sphere_scan(0.25 * k, pose_4dof(0.1 * k, 0, 0, 0))));
+  for (int k = 0; k < 6; ++k)
+    ASSERT_TRUE(slam.add_scan(sphere_scan(0.25 * k, pose_4dof(0.1 * k, 0, 0, 0))));
   slam.finish();
   std::vector<SubmapSnapshot> snapshots = slam.submap_snapshots();
   ASSERT_EQ(snapshots.size(), 2u);

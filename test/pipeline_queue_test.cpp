@@ -78,7 +78,8 @@ TEST(PipelineQueue, BlockedConsumerWakesOnPushAndOnClose) {
   queue.push(42);
   std::this_thread::sleep_for(std::chrono::milliseconds(20));
   queue.close();
-  ASSERT_EQ(consumer.wait_for(std::chrono::seconds(5)), std::future_status::ready) << "consumer did not wake up";
+  ASSERT_EQ(consumer.wait_for(std::chrono::seconds(5)), std::future_status::ready)
+      << "consumer did not wake up";
   EXPECT_EQ(consumer.get(), (std::vector<int>{42}));
 }
 
@@ -91,7 +92,8 @@ TEST(PipelineQueue, WakeReachesAWaitingConsumerButEntriesComeFirst) {
   });
   std::this_thread::sleep_for(std::chrono::milliseconds(20));
   queue.wake();
-  ASSERT_EQ(woken.wait_for(std::chrono::seconds(5)), std::future_status::ready) << "consumer did not wake up";
+  ASSERT_EQ(woken.wait_for(std::chrono::seconds(5)), std::future_status::ready)
+      << "consumer did not wake up";
   EXPECT_EQ(woken.get(), PopResult::kWoken);
   // Queued entries are handed out before a pending wake-up, which is reported once.
   queue.push(1);

@@ -118,7 +118,8 @@ TEST(SlamParameters, ReadsEveryNamedParameter) {
   EXPECT_FLOAT_EQ(config.esdf.esdf_max_distance_m, 3.0f);
   // Unset parameters keep their defaults.
   EXPECT_EQ(config.submap_queue_size, SlamConfig().submap_queue_size);
-  for (const auto& name : {"voxel_size_m", "sensor_queue_size", "submap_creation_policy", "device"}) {
+  for (const auto& name :
+       {"voxel_size_m", "sensor_queue_size", "submap_creation_policy", "device"}) {
     EXPECT_NE(std::find(slam_parameter_names().begin(), slam_parameter_names().end(), name),
               slam_parameter_names().end());
   }
@@ -139,7 +140,8 @@ TEST(SlamParameters, BadValuesAreReportedByName) {
   expect_error_names({{"device", "tpu"}}, "device");
   expect_error_names({{"odometry_translation_sigma_m", "nan"}}, "odometry_translation_sigma_m");
   // Relations are checked by the library's validate(), which names both parameters.
-  expect_error_names({{"voxel_size_m", "0.5"}, {"truncation_distance_m", "0.3"}}, "truncation_distance_m");
+  expect_error_names({{"voxel_size_m", "0.5"}, {"truncation_distance_m", "0.3"}},
+                     "truncation_distance_m");
   expect_error_names({{"min_ray_length_m", "6"}, {"max_ray_length_m", "5"}}, "max_ray_length_m");
 }
 

@@ -32,7 +32,8 @@ Scan sphere_scan(double stamp_s, double x_m, double yaw = 0.0) {
   scan.stamp_s = stamp_s;
   scan.T_odom_sensor.linear() = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   scan.T_odom_sensor.translation() = Eigen::Vector3d(x_m, 0.0, 0.0);
-  scan.points_sensor_m = testing_support::simulate_lidar(scene, scan.T_odom_sensor, 64, 8, 40.0, 10.0);
+  scan.points_sensor_m =
+      testing_support::simulate_lidar(scene, scan.T_odom_sensor, 64, 8, 40.0, 10.0);
   return scan;
 }
 
@@ -263,7 +264,8 @@ TEST(PipelineSlamSystem, InvalidConfigurationNamesTheParameter) {
     SlamSystem slam(config);
     FAIL() << "expected covox::Error";
   } catch (const Error& error) {
-    EXPECT_NE(std::string(error.what()).find("sensor_queue_size"), std::string::npos) << error.what();
+    EXPECT_NE(std::string(error.what()).find("sensor_queue_size"), std::string::npos)
+        << error.what();
   }
   config = small_config();
   config.odometry_yaw_sigma_rad = -1.0;

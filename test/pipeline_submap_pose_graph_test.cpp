@@ -26,7 +26,8 @@ constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
 
 Eigen::Isometry3d make_pose(double x, double y, double z, double roll, double pitch, double yaw) {
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-  pose.linear() = (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
+  pose.linear() = (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) *
+                   Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
                    Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()))
                       .toRotationMatrix();
   pose.translation() = Eigen::Vector3d(x, y, z);
@@ -35,14 +36,15 @@ Eigen::Isometry3d make_pose(double x, double y, double z, double roll, double pi
 
 // (t, yaw) of T_Sa_Sb as a function of the perturbation d = (dt, dtheta) of T_from_to, in the
 // convention of LoopClosure: (t + dt, Exp(dtheta) R).
-Eigen::Vector4d relative_4dof(const Eigen::Isometry3d& A, const Eigen::Isometry3d& T, const Eigen::Isometry3d& B,
-                              const Eigen::Matrix<double, 6, 1>& d) {
+Eigen::Vector4d relative_4dof(const Eigen::Isometry3d& A, const Eigen::Isometry3d& T,
+                              const Eigen::Isometry3d& B, const Eigen::Matrix<double, 6, 1>& d) {
   Eigen::Isometry3d perturbed = T;
   perturbed.translation() += d.head<3>();
   const Eigen::Vector3d angle_axis = d.tail<3>();
   const double angle = angle_axis.norm();
-  const Eigen::Matrix3d exp =
-      angle > 0.0 ? Eigen::AngleAxisd(angle, angle_axis / angle).toRotationMatrix() : Eigen::Matrix3d::Identity();
+  const Eigen::Matrix3d exp = angle > 0.0
+                                  ? Eigen::AngleAxisd(angle, angle_axis / angle).toRotationMatrix()
+                                  : Eigen::Matrix3d::Identity();
   perturbed.linear() = exp * T.linear();
   const Eigen::Isometry3d relative = A * perturbed * B.inverse();
   const backend::Pose4Dof p = pose_4dof_from_isometry(relative);
@@ -54,13 +56,17 @@ TEST(PipelineSubmapPoseGraph, LoopClosureProjectionMatchesTheNumericMarginalCova
   std::uniform_real_distribution<double> uniform(-1.0, 1.0);
   for (int trial = 0; trial < 5; ++trial) {
     // Gravity-aligned submap frames, tilted sensors: consistent with gravity, as real closures are.
-    const Eigen::Isometry3d W_Sa = make_pose(3 * uniform(rng), 3 * uniform(rng), uniform(rng), 0, 0, 3 * uniform(rng));
-    const Eigen::Isometry3d W_Sb = make_pose(3 * uniform(rng), 3 * uniform(rng), uniform(rng), 0, 0, 3 * uniform(rng));
-    const Eigen::Isometry3d A = make_pose(4 * uniform(rng), 4 * uniform(rng), uniform(rng), 0.1 * uniform(rng),
-                                          0.1 * uniform(rng), 3 * uniform(rng));  // T_Sa_from
-    const Eigen::Isometry3d B = make_pose(4 * uniform(rng), 4 * uniform(rng), uniform(rng), 0.1 * uniform(rng),
-                                          0.1 * uniform(rng), 3 * uniform(rng));  // T_Sb_to
-    const Eigen::Isometry3d T = A.inverse() * W_Sa.inverse() * W_Sb * B;     // T_from_to
+    const Eigen::Isometry3d W_Sa =
+        make_pose(3 * uniform(rng), 3 * uniform(rng), uniform(rng), 0, 0, 3 * uniform(rng));
+    const Eigen::Isometry3d W_Sb =
+        make_pose(3 * uniform(rng), 3 * uniform(rng), uniform(rng), 0, 0, 3 * uniform(rng));
+    const Eigen::Isometry3d A =
+        make_pose(4 * uniform(rng), 4 * uniform(rng), uniform(rng), 0.1 * uniform(rng),
+                  0.1 * uniform(rng), 3 * uniform(rng));  // T_Sa_from
+    const Eigen::Isometry3d B =
+        make_pose(4 * uniform(rng), 4 * uniform(rng), uniform(rng), 0.1 * uniform(rng),
+                  0.1 * uniform(rng), 3 * uniform(rng));                  // T_Sb_to
+    const Eigen::Isometry3d T = A.inverse() * W_Sa.inverse() * W_Sb * B;  // T_from_to
     Matrix6d M = Matrix6d::Random();
     const Matrix6d information = M * M.transpose() + 0.5 * Matrix6d::Identity();
 
@@ -96,11 +102,12 @@ TEST(PipelineSubmapPoseGraph, LoopClosureWithoutRollPitchInformationKeepsTheOthe
   Matrix6d information = Matrix6d::Zero();
   information.diagonal() << 1.0, 2.0, 3.0, 0.0, 0.0, 4.0;
   const Eigen::Isometry3d T = make_pose(1.0, 2.0, 0.5, 0.0, 0.0, 0.3);
-  const RelativeConstraint4Dof projected =
-      project_loop_closure(Eigen::Isometry3d::Identity(), T, Eigen::Isometry3d::Identity(), information);
+  const RelativeConstraint4Dof projected = project_loop_closure(
+      Eigen::Isometry3d::Identity(), T, Eigen::Isometry3d::Identity(), information);
   Eigen::Matrix4d expected = Eigen::Matrix4d::Zero();
   expected.diagonal() << 1.0, 2.0, 3.0, 4.0;
-  EXPECT_LT((projected.information - expected).cwiseAbs().maxCoeff(), 1e-12) << projected.information;
+  EXPECT_LT((projected.information - expected).cwiseAbs().maxCoeff(), 1e-12)
+      << projected.information;
   EXPECT_NEAR(projected.measurement.yaw, 0.3, 1e-12);
 }
 
@@ -141,7 +148,8 @@ backend::Pose4Dof pose(double x, double y, double z, double yaw) {
   return p;
 }
 
-void expect_pose_near(const backend::Pose4Dof& actual, const backend::Pose4Dof& expected, double tolerance) {
+void expect_pose_near(const backend::Pose4Dof& actual, const backend::Pose4Dof& expected,
+                      double tolerance) {
   EXPECT_NEAR(actual.x, expected.x, tolerance);
   EXPECT_NEAR(actual.y, expected.y, tolerance);
   EXPECT_NEAR(actual.z, expected.z, tolerance);
@@ -170,7 +178,8 @@ TEST(PipelineSubmapPoseGraph, LoadedSubmapsShareOneFixedVertexAndConstraintsCarr
   registration.to_submap = 8;
   registration.measurement = pose(2.0, 1.5, -0.1, 0.3);
   registration.information = Eigen::Matrix4d::Identity() * 1e4;
-  registration.information(0, 1) = registration.information(1, 0) = 3e3;  // correlated: rotated with the offset
+  registration.information(0, 1) = registration.information(1, 0) =
+      3e3;  // correlated: rotated with the offset
   graph.add_constraint(registration);
   SubmapConstraint odometry;
   odometry.kind = SubmapConstraintKind::kOdometry;
@@ -244,7 +253,8 @@ GateLoop gate_loop() {
   const int n = 12;
   for (int k = 0; k < n; ++k) {
     const double angle = 2.0 * M_PI * k / n;
-    loop.truth.push_back(pose(10.0 * std::cos(angle), 10.0 * std::sin(angle), 0.1 * k, angle + 0.5 * M_PI));
+    loop.truth.push_back(
+        pose(10.0 * std::cos(angle), 10.0 * std::sin(angle), 0.1 * k, angle + 0.5 * M_PI));
   }
   backend::Pose4Dof chain = loop.truth[0];
   loop.graph.add_submap(0, chain, false);
@@ -279,7 +289,8 @@ GateLoop gate_loop() {
   return loop;
 }
 
-double max_horizontal_error(const SubmapPoseGraph& graph, const std::vector<backend::Pose4Dof>& truth) {
+double max_horizontal_error(const SubmapPoseGraph& graph,
+                            const std::vector<backend::Pose4Dof>& truth) {
   double worst = 0.0;
   for (size_t k = 0; k < truth.size(); ++k) {
     const backend::Pose4Dof& p = graph.nodes()[k].pose;
@@ -299,7 +310,8 @@ TEST(PipelineSubmapPoseGraph, ConsistencyGateMeasuresResidualsInTheFromFrameAndS
   // At the true poses the right constraints have no residual and the wrong one 2 m, whatever the
   // submaps' headings (the measurement is in the frame of `from`; submap 2 faces 150 degrees).
   SubmapPoseGraph at_truth;
-  for (size_t k = 0; k < loop.truth.size(); ++k) at_truth.add_submap(static_cast<int64_t>(k), loop.truth[k], false);
+  for (size_t k = 0; k < loop.truth.size(); ++k)
+    at_truth.add_submap(static_cast<int64_t>(k), loop.truth[k], false);
   for (const SubmapConstraint& c : loop.graph.constraints()) at_truth.add_constraint(c);
   EXPECT_EQ(set_aside_inconsistent_registrations(&at_truth, 1.99), 1);
   for (size_t k = 0; k < at_truth.constraints().size(); ++k) {
@@ -323,7 +335,8 @@ TEST(PipelineSubmapPoseGraph, ConsistencyGateWorstFirstSetsAsideOnlyTheLargestRe
   // At the true poses: the wrong revisit 2 m off, two more registrations 0.8 m and 0.3 m off.
   GateLoop loop = gate_loop();
   SubmapPoseGraph at_truth;
-  for (size_t k = 0; k < loop.truth.size(); ++k) at_truth.add_submap(static_cast<int64_t>(k), loop.truth[k], false);
+  for (size_t k = 0; k < loop.truth.size(); ++k)
+    at_truth.add_submap(static_cast<int64_t>(k), loop.truth[k], false);
   for (const SubmapConstraint& c : loop.graph.constraints()) at_truth.add_constraint(c);
   const size_t off_08 = at_truth.constraints().size(), off_03 = off_08 + 1;
   for (const double offset_m : {0.8, 0.3}) {
@@ -372,14 +385,16 @@ TEST(PipelineSubmapPoseGraph, ConsistencyGateSetsAsideTheWrongRevisitAndTheLoopC
   const double error_without = max_horizontal_error(without.graph, without.truth);
   const double error_oracle = max_horizontal_error(oracle.graph, oracle.truth);
   const double error_with = max_horizontal_error(with.graph, with.truth);
-  std::printf("[ gate     ] max error: all constraints %.3f m, gate %.3f m (%d set aside, %d solves), "
-              "without the wrong revisit %.3f m\n",
-              error_without, error_with, set_aside, rounds + 1, error_oracle);
+  std::printf(
+      "[ gate     ] max error: all constraints %.3f m, gate %.3f m (%d set aside, %d solves), "
+      "without the wrong revisit %.3f m\n",
+      error_without, error_with, set_aside, rounds + 1, error_oracle);
   EXPECT_EQ(set_aside, 1);
   for (size_t k = 0; k < with.graph.constraints().size(); ++k) {
     EXPECT_EQ(with.graph.constraints()[k].active, k != with.wrong_index) << k;
   }
-  // The gate ends at the graph without the wrong revisit, which the wrong revisit pulls further off.
+  // The gate ends at the graph without the wrong revisit, which the wrong revisit pulls further
+  // off.
   for (size_t k = 0; k < with.truth.size(); ++k) {
     expect_pose_near(with.graph.nodes()[k].pose, oracle.graph.nodes()[k].pose, 1e-4);
   }

@@ -14,7 +14,8 @@ namespace covox {
 namespace pipeline {
 namespace {
 
-SubmapStatistics active_submap(int64_t scans, double start_stamp_s, double distance_m, int64_t blocks) {
+SubmapStatistics active_submap(int64_t scans, double start_stamp_s, double distance_m,
+                               int64_t blocks) {
   SubmapStatistics statistics;
   statistics.scans = scans;
   statistics.start_stamp_s = start_stamp_s;
@@ -80,7 +81,8 @@ TEST(PipelineSubmapPolicy, NamesParseAndBadValuesAreNamed) {
 
 TEST(PipelineSubmapPose, GravityAlignmentKeepsPositionAndHeadingOnly) {
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-  pose.linear() = (Eigen::AngleAxisd(0.7, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(0.1, Eigen::Vector3d::UnitY()) *
+  pose.linear() = (Eigen::AngleAxisd(0.7, Eigen::Vector3d::UnitZ()) *
+                   Eigen::AngleAxisd(0.1, Eigen::Vector3d::UnitY()) *
                    Eigen::AngleAxisd(-0.05, Eigen::Vector3d::UnitX()))
                       .toRotationMatrix();
   pose.translation() = Eigen::Vector3d(1.0, -2.0, 3.0);
@@ -89,7 +91,8 @@ TEST(PipelineSubmapPose, GravityAlignmentKeepsPositionAndHeadingOnly) {
   EXPECT_DOUBLE_EQ(pose_4dof.z, 3.0);
   const Eigen::Isometry3d aligned = gravity_aligned(pose);
   EXPECT_TRUE(aligned.translation().isApprox(pose.translation()));
-  EXPECT_NEAR((aligned.linear() * Eigen::Vector3d::UnitZ() - Eigen::Vector3d::UnitZ()).norm(), 0.0, 1e-12);
+  EXPECT_NEAR((aligned.linear() * Eigen::Vector3d::UnitZ() - Eigen::Vector3d::UnitZ()).norm(), 0.0,
+              1e-12);
 }
 
 TEST(PipelineSubmapPose, RelativePoseComposesBackToTheTarget) {
@@ -118,12 +121,17 @@ TEST(PipelineSubmapPose, BlendedCorrectionMovesLinearlyAndTurnsAboutTheVertical)
   EXPECT_TRUE(blend_corrected_pose(C_from, C_to, sensor, 2.0).isApprox(B, 1e-12));
   // A quarter of the way: a quarter of the displacement and of the 0.3 rad turn, tilt unchanged.
   const Eigen::Isometry3d quarter = blend_corrected_pose(C_from, C_to, sensor, 0.25);
-  EXPECT_LT((quarter.translation() - (A.translation() + 0.25 * (B.translation() - A.translation()))).norm(), 1e-12);
-  EXPECT_NEAR(pose_4dof_from_isometry(quarter).yaw, pose_4dof_from_isometry(A).yaw + 0.25 * 0.3, 1e-12);
+  EXPECT_LT((quarter.translation() - (A.translation() + 0.25 * (B.translation() - A.translation())))
+                .norm(),
+            1e-12);
+  EXPECT_NEAR(pose_4dof_from_isometry(quarter).yaw, pose_4dof_from_isometry(A).yaw + 0.25 * 0.3,
+              1e-12);
   const double tilt_a = std::acos((A.linear() * Eigen::Vector3d::UnitZ()).z());
   const double tilt_q = std::acos((quarter.linear() * Eigen::Vector3d::UnitZ()).z());
   EXPECT_NEAR(tilt_q, tilt_a, 1e-12);
-  EXPECT_NEAR((quarter.linear().transpose() * quarter.linear() - Eigen::Matrix3d::Identity()).norm(), 0.0, 1e-12);
+  EXPECT_NEAR(
+      (quarter.linear().transpose() * quarter.linear() - Eigen::Matrix3d::Identity()).norm(), 0.0,
+      1e-12);
   // Corrections at +179 and -179 degrees are 2 degrees apart: half way turns by 1 degree, not 179.
   const double deg = 3.14159265358979323846 / 180.0;
   const Eigen::Isometry3d C_west = to_isometry(backend::Pose4Dof{0.0, 0.0, 0.0, 179.0 * deg});
@@ -166,7 +174,8 @@ TEST(PipelineSubmap, IntegratedScansAreCountedAndFinishingGivesMeshEsdfAndBox) {
   for (int k = 0; k < 3; ++k) {
     Eigen::Isometry3d pose = first;
     pose.translation().x() += 0.2 * k;
-    const std::vector<Vec3f> points = testing_support::simulate_lidar(scene, pose, 64, 16, 60.0, 10.0);
+    const std::vector<Vec3f> points =
+        testing_support::simulate_lidar(scene, pose, 64, 16, 60.0, 10.0);
     Buffer<Vec3f> device_points = Buffer<Vec3f>::from_host(Device::kCpu, points, stream);
     PointCloudView view;
     view.points = device_points.data();
@@ -190,12 +199,14 @@ TEST(PipelineSubmap, IntegratedScansAreCountedAndFinishingGivesMeshEsdfAndBox) {
   const Eigen::AlignedBox3d box = submap.bounding_box_world();
   EXPECT_TRUE(box.contains(Eigen::Vector3d(2.9, 0.0, 0.0)));
   EXPECT_TRUE(box.contains(Eigen::Vector3d(-2.9, 0.0, 0.0)));
-  EXPECT_LT(box.sizes().maxCoeff(), 2 * 3.0 + 4 * map_config.voxel_size_m * map_config.voxels_per_side);
+  EXPECT_LT(box.sizes().maxCoeff(),
+            2 * 3.0 + 4 * map_config.voxel_size_m * map_config.voxels_per_side);
   // Some ESDF voxel got a finite, non-clamped distance.
   bool esdf_written = false;
   for (const HostBlock& block : submap.map().snapshot()) {
     for (const EsdfVoxel& voxel : block.esdf) {
-      if (voxel.observed && std::abs(voxel.distance_m) > 0.1f && std::abs(voxel.distance_m) < 0.9f) esdf_written = true;
+      if (voxel.observed && std::abs(voxel.distance_m) > 0.1f && std::abs(voxel.distance_m) < 0.9f)
+        esdf_written = true;
     }
   }
   EXPECT_TRUE(esdf_written);

@@ -42,8 +42,9 @@ inline sim::World make_yard() {
   wall(0.0, -13.0, 13.0, 0.3);
   wall(13.0, 0.0, 0.3, 13.0);
   wall(-13.0, 0.0, 0.3, 13.0);
-  const double pillars[][3] = {{3.0, 2.0, 0.4}, {-4.0, 5.0, 0.6}, {8.5, -7.0, 0.5}, {-9.0, -3.5, 0.3},
-                               {1.0, -9.5, 0.7}, {6.0, 9.0, 0.35}, {-2.5, -2.0, 0.25}};
+  const double pillars[][3] = {{3.0, 2.0, 0.4},   {-4.0, 5.0, 0.6}, {8.5, -7.0, 0.5},
+                               {-9.0, -3.5, 0.3}, {1.0, -9.5, 0.7}, {6.0, 9.0, 0.35},
+                               {-2.5, -2.0, 0.25}};
   for (const auto& p : pillars) {
     sim::Cylinder cylinder;
     cylinder.base_centre_m = Eigen::Vector3d(p[0], p[1], 0.0);
@@ -51,9 +52,9 @@ inline sim::World make_yard() {
     cylinder.height_m = 2.5 + p[2];
     world.add(cylinder);
   }
-  const double crates[][6] = {{-7.0, 8.0, 0.8, 1.2, 0.6, 0.5},   {9.5, 3.0, 0.5, 0.7, 1.5, 0.5},
-                              {-1.0, 10.0, 1.0, 0.5, 1.0, 1.1},  {4.5, -4.0, 0.6, 0.6, 0.4, 0.3},
-                              {-10.5, 9.5, 1.2, 1.0, 1.2, 0.0},  {-6.0, -9.0, 0.7, 1.5, 0.7, 0.8}};
+  const double crates[][6] = {{-7.0, 8.0, 0.8, 1.2, 0.6, 0.5},  {9.5, 3.0, 0.5, 0.7, 1.5, 0.5},
+                              {-1.0, 10.0, 1.0, 0.5, 1.0, 1.1}, {4.5, -4.0, 0.6, 0.6, 0.4, 0.3},
+                              {-10.5, 9.5, 1.2, 1.0, 1.2, 0.0}, {-6.0, -9.0, 0.7, 1.5, 0.7, 0.8}};
   for (const auto& c : crates) {
     sim::Box box;
     box.centre_m = Eigen::Vector3d(c[0], c[1], c[2]);
@@ -80,7 +81,8 @@ inline sim::LidarConfig small_lidar() {
 inline Eigen::Isometry3d circle_pose(double t_s, double radius_m = 6.0, double speed_m_per_s = 1.0,
                                      double height_m = 1.5) {
   const double angle = speed_m_per_s * t_s / radius_m;
-  return pose_4dof(radius_m * std::cos(angle), radius_m * std::sin(angle), height_m, angle + 0.5 * kPi);
+  return pose_4dof(radius_m * std::cos(angle), radius_m * std::sin(angle), height_m,
+                   angle + 0.5 * kPi);
 }
 
 // Odometry drift as a slowly growing 4-DoF transform of the world: T_odom_sensor(t) =
@@ -90,7 +92,8 @@ struct Drift {
   double yaw_rate_rad_per_s = 0.0;
   Eigen::Vector3d bias_m_per_s = Eigen::Vector3d::Zero();
   Eigen::Isometry3d at(double t_s) const {
-    return pose_4dof(bias_m_per_s.x() * t_s, bias_m_per_s.y() * t_s, bias_m_per_s.z() * t_s, yaw_rate_rad_per_s * t_s);
+    return pose_4dof(bias_m_per_s.x() * t_s, bias_m_per_s.y() * t_s, bias_m_per_s.z() * t_s,
+                     yaw_rate_rad_per_s * t_s);
   }
 };
 
@@ -117,9 +120,9 @@ struct SimulatedScan {
   Eigen::Isometry3d T_world_sensor;  // the truth
 };
 
-inline SimulatedScan simulate(const sim::World& world, const sim::LidarConfig& lidar, double stamp_s,
-                              const Eigen::Isometry3d& T_world_sensor, const Eigen::Isometry3d& T_odom_world,
-                              uint64_t seed) {
+inline SimulatedScan simulate(const sim::World& world, const sim::LidarConfig& lidar,
+                              double stamp_s, const Eigen::Isometry3d& T_world_sensor,
+                              const Eigen::Isometry3d& T_odom_world, uint64_t seed) {
   SimulatedScan out;
   out.T_world_sensor = T_world_sensor;
   out.scan.stamp_s = stamp_s;

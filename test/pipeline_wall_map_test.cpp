@@ -23,7 +23,8 @@ using testing_support::DeviceTest;
 using testing_support::kDegToRad;
 
 // Wall columns along a segment, every `step_m`.
-void add_segment(std::vector<Eigen::Vector2d>* columns, Eigen::Vector2d a, Eigen::Vector2d b, double step_m = 0.1) {
+void add_segment(std::vector<Eigen::Vector2d>* columns, Eigen::Vector2d a, Eigen::Vector2d b,
+                 double step_m = 0.1) {
   const int n = static_cast<int>(std::ceil((b - a).norm() / step_m));
   for (int k = 0; k <= n; ++k) columns->push_back(a + (b - a) * (static_cast<double>(k) / n));
 }
@@ -36,7 +37,8 @@ std::vector<Eigen::Vector2d> yard() {
   add_segment(&columns, {-6.0, -4.0}, {-6.0, 5.0});
   add_segment(&columns, {-6.0, 5.0}, {1.5, 5.0});
   add_segment(&columns, {-2.0, -1.0}, {1.0, 1.5});
-  for (const Eigen::Vector2d& post : {Eigen::Vector2d(3.0, 0.5), Eigen::Vector2d(4.2, 3.1), Eigen::Vector2d(-4.0, 2.0)}) {
+  for (const Eigen::Vector2d& post :
+       {Eigen::Vector2d(3.0, 0.5), Eigen::Vector2d(4.2, 3.1), Eigen::Vector2d(-4.0, 2.0)}) {
     columns.push_back(post);
   }
   return columns;
@@ -54,7 +56,8 @@ TEST(WallMap, DistancesMatchBruteForceAndStopAtTheCap) {
   for (int q = 0; q < 2000; ++q) {
     const double x = coordinate(random), y = coordinate(random);
     double nearest = 1e9;
-    for (const Eigen::Vector2d& c : columns) nearest = std::min(nearest, std::hypot(centre(x) - centre(c.x()), centre(y) - centre(c.y())));
+    for (const Eigen::Vector2d& c : columns)
+      nearest = std::min(nearest, std::hypot(centre(x) - centre(c.x()), centre(y) - centre(c.y())));
     const double expected = nearest <= cap ? nearest : cap;
     ASSERT_NEAR(wall.distance_m(x, y), expected, 1e-6) << x << " " << y;
   }
@@ -74,13 +77,15 @@ TEST(WallMap, SearchRecoversAKnownOffsetFromAPartialView) {
     if (f.x() < 3.0) seen.push_back(f);
   }
   add_segment(&seen, {-3.0, 8.0}, {2.0, 8.0});
-  for (const Eigen::Vector2d& f : seen) moving_columns.push_back(R.inverse() * (f - Eigen::Vector2d(truth.x, truth.y)));
+  for (const Eigen::Vector2d& f : seen)
+    moving_columns.push_back(R.inverse() * (f - Eigen::Vector2d(truth.x, truth.y)));
   const WallMap fixed = WallMap::from_columns(fixed_columns, 0.2, 1.0);
   const WallMap moving = WallMap::from_columns(moving_columns, 0.2, 1.0);
   const WallSearchConfig config;  // +-2.5 m, 0.1 m, +-3 degrees, 0.5 degrees
   const WallMatch match = match_walls(moving, fixed, Pose4Dof{}, config);
-  std::printf("[ walls    ] found (%.2f, %.2f, %.2f deg), score %.1f of %zu columns\n", match.T_fixed_moving.x,
-              match.T_fixed_moving.y, match.T_fixed_moving.yaw / kDegToRad, match.score, moving.columns().size());
+  std::printf("[ walls    ] found (%.2f, %.2f, %.2f deg), score %.1f of %zu columns\n",
+              match.T_fixed_moving.x, match.T_fixed_moving.y, match.T_fixed_moving.yaw / kDegToRad,
+              match.score, moving.columns().size());
   EXPECT_NEAR(match.T_fixed_moving.x, truth.x, 0.1 + 1e-9);
   EXPECT_NEAR(match.T_fixed_moving.y, truth.y, 0.1 + 1e-9);
   EXPECT_NEAR(match.T_fixed_moving.yaw, truth.yaw, 0.5 * kDegToRad + 1e-9);
@@ -98,7 +103,8 @@ class WallMapTest : public DeviceTest {};
 
 TEST_P(WallMapTest, TheRoomsWallsAreItsWallColumns) {
   const testing_support::AnalyticScene room = testing_support::registration_room();
-  const std::unique_ptr<TsdfMap> map = testing_support::scan_room_submap(device(), room, Pose4Dof{}, 0.1f);
+  const std::unique_ptr<TsdfMap> map =
+      testing_support::scan_room_submap(device(), room, Pose4Dof{}, 0.1f);
   const WallMap wall = WallMap::from_map(*map, 1.0, Stream(device()));
   ASSERT_GT(wall.columns().size(), 100u);
   int64_t near_a_wall = 0, far_from_walls = 0;
@@ -114,23 +120,28 @@ TEST_P(WallMapTest, TheRoomsWallsAreItsWallColumns) {
   // is a third of the floor).
   EXPECT_GE(near_a_wall, static_cast<int64_t>(0.85 * wall.columns().size()));
   EXPECT_LE(far_from_walls, static_cast<int64_t>(0.05 * wall.columns().size()));
-  std::printf("[ walls    ] %zu wall columns, %lld within 0.25 m of a wall, %lld further than 0.6 m\n",
-              wall.columns().size(), static_cast<long long>(near_a_wall), static_cast<long long>(far_from_walls));
+  std::printf(
+      "[ walls    ] %zu wall columns, %lld within 0.25 m of a wall, %lld further than 0.6 m\n",
+      wall.columns().size(), static_cast<long long>(near_a_wall),
+      static_cast<long long>(far_from_walls));
 }
 
 TEST_P(WallMapTest, ARevisitStartedFromTheWallsEndsAtTheTruth) {
   const testing_support::AnalyticScene room = testing_support::registration_room();
   const Pose4Dof T_W_Sj{0.0, 0.0, 0.0, 0.0};
   const Pose4Dof T_W_Si{0.6, -0.4, 0.05, 4.0 * kDegToRad};
-  const std::unique_ptr<TsdfMap> map_j = testing_support::scan_room_submap(device(), room, T_W_Sj, 0.1f);
-  const std::unique_ptr<TsdfMap> map_i = testing_support::scan_room_submap(device(), room, T_W_Si, 0.1f);
+  const std::unique_ptr<TsdfMap> map_j =
+      testing_support::scan_room_submap(device(), room, T_W_Sj, 0.1f);
+  const std::unique_ptr<TsdfMap> map_i =
+      testing_support::scan_room_submap(device(), room, T_W_Si, 0.1f);
   SubmapRegistrationConfig config;
   config.revisit_wall_search = true;
   config.wall_search_min_score = 30.0;
   config.max_correction_m = 3.0;
   config.sampling_ratio = 0.25f;
   const Stream stream(device());
-  const std::unique_ptr<SubmapRegistrationPoints> points = prepare_registration_points(*map_i, config, stream);
+  const std::unique_ptr<SubmapRegistrationPoints> points =
+      prepare_registration_points(*map_i, config, stream);
   const std::vector<RegistrationPartner> earlier{RegistrationPartner{0, map_j.get(), T_W_Sj}};
   // The guess is 1.5 m and 2 degrees off the truth (ids 0 and 10: a revisit).
   const Pose4Dof guess{T_W_Si.x - 1.2, T_W_Si.y + 0.9, T_W_Si.z, T_W_Si.yaw - 2.0 * kDegToRad};
@@ -139,8 +150,8 @@ TEST_P(WallMapTest, ARevisitStartedFromTheWallsEndsAtTheTruth) {
       registration_constraints(10, *map_i, *points, guess, earlier, config, stream, &counts);
   ASSERT_EQ(constraints.size(), 1u);
   const Pose4Dof& m = constraints[0].measurement;
-  std::printf("[ walls    ] measured (%.3f, %.3f, %.2f deg), true (%.3f, %.3f, %.2f deg)\n", m.x, m.y,
-              m.yaw / kDegToRad, T_W_Si.x, T_W_Si.y, T_W_Si.yaw / kDegToRad);
+  std::printf("[ walls    ] measured (%.3f, %.3f, %.2f deg), true (%.3f, %.3f, %.2f deg)\n", m.x,
+              m.y, m.yaw / kDegToRad, T_W_Si.x, T_W_Si.y, T_W_Si.yaw / kDegToRad);
   EXPECT_EQ(counts.started_from_walls, 1);
   EXPECT_LT(std::hypot(m.x - T_W_Si.x, m.y - T_W_Si.y), 0.05);
   EXPECT_LT(std::abs(m.yaw - T_W_Si.yaw), 0.5 * kDegToRad);

@@ -72,15 +72,20 @@ void check_replica_surface_accuracy(Device device) {
     const int width = frame.depth.width / kPixelStride, height = frame.depth.height / kPixelStride;
     std::vector<float> depth_m(static_cast<size_t>(width) * height);
     for (int v = 0; v < height; ++v) {
-      for (int u = 0; u < width; ++u) depth_m[v * width + u] = frame.depth.at(v * kPixelStride, u * kPixelStride);
+      for (int u = 0; u < width; ++u)
+        depth_m[v * width + u] = frame.depth.at(v * kPixelStride, u * kPixelStride);
     }
     const Buffer<float> depth_device = Buffer<float>::from_host(device, depth_m);
     DepthImageView image;
     image.depth_m = depth_device.data();
-    image.intrinsics = PinholeIntrinsics{float(frame.intrinsics.fx / kPixelStride), float(frame.intrinsics.fy / kPixelStride),
-                                         float(frame.intrinsics.cx / kPixelStride), float(frame.intrinsics.cy / kPixelStride),
-                                         width, height};
-    const IntegrationStats stats = integrator.integrate_depth(map, image, frame.T_world_camera, stream);
+    image.intrinsics = PinholeIntrinsics{float(frame.intrinsics.fx / kPixelStride),
+                                         float(frame.intrinsics.fy / kPixelStride),
+                                         float(frame.intrinsics.cx / kPixelStride),
+                                         float(frame.intrinsics.cy / kPixelStride),
+                                         width,
+                                         height};
+    const IntegrationStats stats =
+        integrator.integrate_depth(map, image, frame.T_world_camera, stream);
     rays += stats.surface_rays;
   }
 
@@ -102,20 +107,24 @@ void check_replica_surface_accuracy(Device device) {
   }
 
   // Checks of the checker. The grid must agree with brute force over every triangle...
-  for (size_t v = 0; v < reconstructed.vertices_m.size(); v += reconstructed.vertices_m.size() / 100) {
-    const Eigen::Vector3d p(reconstructed.vertices_m[v].x, reconstructed.vertices_m[v].y, reconstructed.vertices_m[v].z);
+  for (size_t v = 0; v < reconstructed.vertices_m.size();
+       v += reconstructed.vertices_m.size() / 100) {
+    const Eigen::Vector3d p(reconstructed.vertices_m[v].x, reconstructed.vertices_m[v].y,
+                            reconstructed.vertices_m[v].z);
     double brute_force_m = std::numeric_limits<double>::infinity();
     for (size_t t = 0; t < truth.triangle_count(); ++t) {
       const Vec3f& a = truth.vertices_m[truth.triangles[3 * t]];
       const Vec3f& b = truth.vertices_m[truth.triangles[3 * t + 1]];
       const Vec3f& c = truth.vertices_m[truth.triangles[3 * t + 2]];
       const Eigen::Vector3d closest = tools::closest_point_on_triangle(
-          p, Eigen::Vector3d(a.x, a.y, a.z), Eigen::Vector3d(b.x, b.y, b.z), Eigen::Vector3d(c.x, c.y, c.z));
+          p, Eigen::Vector3d(a.x, a.y, a.z), Eigen::Vector3d(b.x, b.y, b.z),
+          Eigen::Vector3d(c.x, c.y, c.z));
       brute_force_m = std::min(brute_force_m, (closest - p).norm());
     }
     // Beyond the search radius the grid answers "far" (stored as 1e9), whatever the true distance.
     if (brute_force_m > kFarM) {
-      ASSERT_EQ(distances_m[v], 1e9) << "vertex " << v << " is " << brute_force_m << " m from the truth";
+      ASSERT_EQ(distances_m[v], 1e9)
+          << "vertex " << v << " is " << brute_force_m << " m from the truth";
     } else {
       ASSERT_NEAR(distances_m[v], brute_force_m, 1e-12) << "vertex " << v;
     }
@@ -126,7 +135,8 @@ void check_replica_surface_accuracy(Device device) {
   const Eigen::Vector3d shift = Eigen::Vector3d::Ones().normalized() * (3.0 * kVoxelSizeM);
   for (size_t v = 0; v < reconstructed.vertices_m.size(); v += 10) {
     const Vec3f& p = reconstructed.vertices_m[v];
-    shifted_m.push_back(std::min(1e9, truth_distance.distance_m(Eigen::Vector3d(p.x, p.y, p.z) + shift, kFarM)));
+    shifted_m.push_back(
+        std::min(1e9, truth_distance.distance_m(Eigen::Vector3d(p.x, p.y, p.z) + shift, kFarM)));
   }
   const double shifted_median_m = percentile(shifted_m, 0.5);
   EXPECT_GT(shifted_median_m, kVoxelSizeM);
@@ -134,21 +144,27 @@ void check_replica_surface_accuracy(Device device) {
   for (double d : distances_m) within_voxel += d < kVoxelSizeM;
   const double median_m = percentile(distances_m, 0.5);
   const double p90_m = percentile(distances_m, 0.9);
-  std::printf("Replica office0 (%s): %lld rays, %zu mesh vertices, %zu triangles vs %zu ground-truth triangles: "
-              "distance to truth median %.4f m, 90th percentile %.4f m, %.1f%% within one voxel, %zu beyond 0.5 m "
-              "(mesh shifted by 6 cm: median %.4f m)\n",
-              to_string(device), static_cast<long long>(rays), reconstructed.vertices_m.size(),
-              reconstructed.triangle_count(), truth.triangle_count(), median_m, p90_m,
-              100.0 * within_voxel / distances_m.size(), far, shifted_median_m);
+  std::printf(
+      "Replica office0 (%s): %lld rays, %zu mesh vertices, %zu triangles vs %zu ground-truth "
+      "triangles: "
+      "distance to truth median %.4f m, 90th percentile %.4f m, %.1f%% within one voxel, %zu "
+      "beyond 0.5 m "
+      "(mesh shifted by 6 cm: median %.4f m)\n",
+      to_string(device), static_cast<long long>(rays), reconstructed.vertices_m.size(),
+      reconstructed.triangle_count(), truth.triangle_count(), median_m, p90_m,
+      100.0 * within_voxel / distances_m.size(), far, shifted_median_m);
   EXPECT_LT(median_m, kVoxelSizeM);
   EXPECT_LT(p90_m, 3.0 * kVoxelSizeM);
   EXPECT_LT(far, distances_m.size() / 100);
 }
 
-TEST(ReplicaTsdf, MeshMatchesGroundTruthWithinOneVoxelOnCpu) { check_replica_surface_accuracy(Device::kCpu); }
+TEST(ReplicaTsdf, MeshMatchesGroundTruthWithinOneVoxelOnCpu) {
+  check_replica_surface_accuracy(Device::kCpu);
+}
 
 TEST(ReplicaTsdf, MeshMatchesGroundTruthWithinOneVoxelOnCuda) {
-  if (!cuda_device_available()) GTEST_SKIP() << "no usable GPU on this machine: the CUDA run is on the GPU machine";
+  if (!cuda_device_available())
+    GTEST_SKIP() << "no usable GPU on this machine: the CUDA run is on the GPU machine";
   check_replica_surface_accuracy(Device::kCuda);
 }
 

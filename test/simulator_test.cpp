@@ -39,7 +39,9 @@ Eigen::Isometry3d pose_at(const Eigen::Vector3d& position_m, double yaw_rad = 0.
   return pose;
 }
 
-Eigen::Vector3d to_world(const Eigen::Isometry3d& pose, const Vec3f& p) { return pose * Eigen::Vector3d(p.x, p.y, p.z); }
+Eigen::Vector3d to_world(const Eigen::Isometry3d& pose, const Vec3f& p) {
+  return pose * Eigen::Vector3d(p.x, p.y, p.z);
+}
 
 TEST(Simulator, SameSeedGivesIdenticalScansAndOdometry) {
   const FlightConfig flight;
@@ -71,7 +73,8 @@ TEST(Simulator, SameSeedGivesIdenticalScansAndOdometry) {
   }
   // Another seed changes the noise.
   const Site site = build_site(SiteConfig(), path, 42);
-  const std::vector<Vec3f> other = simulate_scan(site.world, lidar, truth[0].pose, stream_seed(43, 0));
+  const std::vector<Vec3f> other =
+      simulate_scan(site.world, lidar, truth[0].pose, stream_seed(43, 0));
   bool differs = other.size() != runs[0][0].size();
   for (size_t i = 0; !differs && i < other.size(); ++i) differs = other[i].x != runs[0][0][i].x;
   EXPECT_TRUE(differs);
@@ -110,7 +113,8 @@ TEST(Simulator, RangesMatchAnalyticDistancesInsideABoxRoom) {
   const LidarConfig lidar = exact_lidar();
   const Eigen::Isometry3d pose = pose_at(Eigen::Vector3d(0.0, 0.5, 1.2), -0.3);
   const std::vector<Vec3f> points = simulate_scan(world, lidar, pose, 1);
-  ASSERT_EQ(static_cast<int>(points.size()), lidar.columns * lidar.rows);  // a closed room: every beam hits
+  ASSERT_EQ(static_cast<int>(points.size()),
+            lidar.columns * lidar.rows);  // a closed room: every beam hits
   for (const Vec3f& p : points) {
     // Exit distance through the nearest wall, face by face.
     const Eigen::Vector3d direction = pose.linear() * Eigen::Vector3d(p.x, p.y, p.z).normalized();
@@ -118,7 +122,8 @@ TEST(Simulator, RangesMatchAnalyticDistancesInsideABoxRoom) {
     double expected = kNoHit;
     for (int axis = 0; axis < 3; ++axis) {
       if (std::abs(direction[axis]) < 1e-12) continue;
-      const double wall = direction[axis] > 0 ? room.half_extent_m[axis] : -room.half_extent_m[axis];
+      const double wall =
+          direction[axis] > 0 ? room.half_extent_m[axis] : -room.half_extent_m[axis];
       expected = std::min(expected, (wall - origin[axis]) / direction[axis]);
     }
     EXPECT_NEAR(Eigen::Vector3d(p.x, p.y, p.z).norm(), expected, 1e-5 * expected);
@@ -145,7 +150,8 @@ TEST(Simulator, RangesMatchAnalyticDistancesToACylinder) {
     EXPECT_LT(outward.dot((world_point - pose.translation()).head<2>()), 0.0);
   }
   // The beam straight at the axis measures the distance to the axis minus the radius.
-  const double expected = (pole.base_centre_m.head<2>() - pose.translation().head<2>()).norm() - pole.radius_m;
+  const double expected =
+      (pole.base_centre_m.head<2>() - pose.translation().head<2>()).norm() - pole.radius_m;
   const Eigen::Vector3d towards = (pose.inverse() * Eigen::Vector3d(6.0, 1.0, 0.0)).normalized();
   EXPECT_NEAR(world.intersect(pose.translation(), pose.linear() * towards), expected, 1e-9);
 }
@@ -156,13 +162,19 @@ TEST(Simulator, HierarchyFindsTheSameHitsAsTestingEveryPrimitive) {
   Random random(5);
   int hits = 0;
   for (int i = 0; i < 2000; ++i) {
-    const Eigen::Vector3d origin(random.uniform(-60, 60), random.uniform(-40, 40), random.uniform(0.5, 6.0));
-    const Eigen::Vector3d direction = Eigen::Vector3d(random.normal(), random.normal(), random.normal()).normalized();
+    const Eigen::Vector3d origin(random.uniform(-60, 60), random.uniform(-40, 40),
+                                 random.uniform(0.5, 6.0));
+    const Eigen::Vector3d direction =
+        Eigen::Vector3d(random.normal(), random.normal(), random.normal()).normalized();
     double brute = kNoHit;
-    for (const Box& b : site.world.boxes()) brute = std::min(brute, intersect(b, origin, direction));
-    for (const Cylinder& c : site.world.cylinders()) brute = std::min(brute, intersect(c, origin, direction));
-    for (const Sphere& s : site.world.spheres()) brute = std::min(brute, intersect(s, origin, direction));
-    for (const Triangle& t : site.world.triangles()) brute = std::min(brute, intersect(t, origin, direction));
+    for (const Box& b : site.world.boxes())
+      brute = std::min(brute, intersect(b, origin, direction));
+    for (const Cylinder& c : site.world.cylinders())
+      brute = std::min(brute, intersect(c, origin, direction));
+    for (const Sphere& s : site.world.spheres())
+      brute = std::min(brute, intersect(s, origin, direction));
+    for (const Triangle& t : site.world.triangles())
+      brute = std::min(brute, intersect(t, origin, direction));
     const double fast = site.world.intersect(origin, direction);
     if (brute == kNoHit) {
       EXPECT_EQ(fast, kNoHit);
@@ -187,7 +199,8 @@ TEST(Simulator, FlightHasTheRequestedShapeAndOdometryDriftsAtLeastAsConfigured) 
     ASSERT_GT(truth[k].pose.linear()(2, 2), std::cos(15.0 * 3.14159265358979323846 / 180.0)) << k;
   }
   EXPECT_GT((truth[0].pose.linear().transpose() * truth[1].pose.linear())(2, 2), 0.9999);
-  EXPECT_GT((truth.back().pose.linear().transpose() * truth[truth.size() - 2].pose.linear())(2, 2), 0.9999);
+  EXPECT_GT((truth.back().pose.linear().transpose() * truth[truth.size() - 2].pose.linear())(2, 2),
+            0.9999);
   for (double minimum_m : {3.0, 6.0}) {
     DriftConfig drift;
     drift.min_final_drift_m = minimum_m;
@@ -200,9 +213,11 @@ TEST(Simulator, FlightHasTheRequestedShapeAndOdometryDriftsAtLeastAsConfigured) 
     EXPECT_NEAR(truth_up.z(), odometry_up.z(), 1e-9);
   }
   // --drift-scale: 0 gives the truth itself; any factor keeps the least final drift.
-  const std::vector<StampedIsometry> exact = simulate_odometry(truth, DriftConfig().scaled(0.0), 11);
+  const std::vector<StampedIsometry> exact =
+      simulate_odometry(truth, DriftConfig().scaled(0.0), 11);
   ASSERT_EQ(exact.size(), truth.size());
-  for (size_t k = 0; k < truth.size(); k += 100) EXPECT_TRUE(exact[k].pose.isApprox(truth[k].pose, 1e-12)) << k;
+  for (size_t k = 0; k < truth.size(); k += 100)
+    EXPECT_TRUE(exact[k].pose.isApprox(truth[k].pose, 1e-12)) << k;
   EXPECT_LT(final_drift_m(truth, exact), 1e-9);
   EXPECT_GE(final_drift_m(truth, simulate_odometry(truth, DriftConfig().scaled(0.5), 11)), 3.0);
   EXPECT_THROW(DriftConfig().scaled(-1.0), Error);
@@ -222,8 +237,9 @@ std::vector<char> simulated_bag_bytes(const std::string& path, uint64_t seed, si
   {
     FlightBagWriter writer(path);
     for (size_t k = 0; k < scans; ++k) {
-      writer.write_scan(truth[k].stamp_s, truth[k].pose, odometry[k].pose,
-                        simulate_scan(site.world, lidar, truth[k].pose, stream_seed(seed, 0x5CA7, k)), {});
+      writer.write_scan(
+          truth[k].stamp_s, truth[k].pose, odometry[k].pose,
+          simulate_scan(site.world, lidar, truth[k].pose, stream_seed(seed, 0x5CA7, k)), {});
     }
     writer.close();
   }
@@ -279,10 +295,11 @@ TEST(Simulator, FlightBagHasTheArcheLayoutAndReadsBackAsWritten) {
     ASSERT_EQ(scan.points_sensor_m.size(), points[k].size());
     for (size_t i = 0; i < points[k].size(); ++i) {
       // Same point in the world whichever frame it was written in.
-      const Eigen::Vector3d written = odometry[k] * Eigen::Vector3d(points[k][i].x, points[k][i].y, points[k][i].z);
-      const Eigen::Vector3d read = scan.T_odom_sensor * Eigen::Vector3d(scan.points_sensor_m[i].x,
-                                                                        scan.points_sensor_m[i].y,
-                                                                        scan.points_sensor_m[i].z);
+      const Eigen::Vector3d written =
+          odometry[k] * Eigen::Vector3d(points[k][i].x, points[k][i].y, points[k][i].z);
+      const Eigen::Vector3d read =
+          scan.T_odom_sensor * Eigen::Vector3d(scan.points_sensor_m[i].x, scan.points_sensor_m[i].y,
+                                               scan.points_sensor_m[i].z);
       ASSERT_LT((written - read).norm(), 1e-4);
     }
     EXPECT_LT((source.reference().poses[k].position_m - truth[k].translation()).norm(), 1e-12);

@@ -34,8 +34,8 @@ std::vector<ColoredTsdfVoxel> random_voxels(size_t count, uint32_t seed) {
 }
 
 bool same_bits(const ColoredTsdfVoxel& a, const ColoredTsdfVoxel& b) {
-  return std::memcmp(&a.distance_m, &b.distance_m, 4) == 0 && std::memcmp(&a.weight, &b.weight, 4) == 0 &&
-         a.r == b.r && a.g == b.g && a.b == b.b &&
+  return std::memcmp(&a.distance_m, &b.distance_m, 4) == 0 &&
+         std::memcmp(&a.weight, &b.weight, 4) == 0 && a.r == b.r && a.g == b.g && a.b == b.b &&
          std::memcmp(&a.color_weight, &b.color_weight, 4) == 0;
 }
 
@@ -87,8 +87,10 @@ TEST_P(VoxelLayoutTest, SoaAndAosGiveIdenticalResults) {
   std::vector<uint32_t> queries(100000);
   for (auto& q : queries) q = random() % voxel_count;
 
-  const auto soa = run_layout<Layout::kSoA>(device(), initial, update_indices, distances, weights, queries);
-  const auto aos = run_layout<Layout::kAoS>(device(), initial, update_indices, distances, weights, queries);
+  const auto soa =
+      run_layout<Layout::kSoA>(device(), initial, update_indices, distances, weights, queries);
+  const auto aos =
+      run_layout<Layout::kAoS>(device(), initial, update_indices, distances, weights, queries);
   ASSERT_EQ(soa.voxels_after_blend.size(), aos.voxels_after_blend.size());
   for (size_t i = 0; i < voxel_count; ++i) {
     ASSERT_TRUE(same_bits(soa.voxels_after_blend[i], aos.voxels_after_blend[i])) << i;
@@ -143,8 +145,10 @@ TEST(VoxelLayoutParity, CpuAndCudaBlendIdentically) {
   std::iota(indices.begin(), indices.end(), 5000u);
   std::vector<float> distances(indices.size(), 0.1f), weights(indices.size(), 2.0f);
   const std::vector<uint32_t> queries(indices.begin(), indices.end());
-  const auto cpu = run_layout<Layout::kSoA>(Device::kCpu, initial, indices, distances, weights, queries);
-  const auto gpu = run_layout<Layout::kSoA>(Device::kCuda, initial, indices, distances, weights, queries);
+  const auto cpu =
+      run_layout<Layout::kSoA>(Device::kCpu, initial, indices, distances, weights, queries);
+  const auto gpu =
+      run_layout<Layout::kSoA>(Device::kCuda, initial, indices, distances, weights, queries);
   for (size_t i = 0; i < initial.size(); ++i) {
     ASSERT_NEAR(cpu.voxels_after_blend[i].distance_m, gpu.voxels_after_blend[i].distance_m, 1e-6f);
     ASSERT_EQ(cpu.voxels_after_blend[i].weight, gpu.voxels_after_blend[i].weight);

@@ -29,9 +29,11 @@ io::Trajectory reference_loop(int count = 400) {
     const double a = 2.0 * kPi * i / count;
     io::StampedPose pose;
     pose.timestamp_s = 100.0 + t;
-    pose.position_m = Eigen::Vector3d(20.0 * std::sin(a), 10.0 * std::sin(2.0 * a), 2.0 + std::sin(3.0 * a));
-    pose.orientation = Eigen::Quaterniond(Eigen::AngleAxisd(a, Eigen::Vector3d::UnitZ()) *
-                                          Eigen::AngleAxisd(0.1 * std::sin(a), Eigen::Vector3d::UnitX()));
+    pose.position_m =
+        Eigen::Vector3d(20.0 * std::sin(a), 10.0 * std::sin(2.0 * a), 2.0 + std::sin(3.0 * a));
+    pose.orientation =
+        Eigen::Quaterniond(Eigen::AngleAxisd(a, Eigen::Vector3d::UnitZ()) *
+                           Eigen::AngleAxisd(0.1 * std::sin(a), Eigen::Vector3d::UnitX()));
     trajectory.poses.push_back(pose);
   }
   return trajectory;
@@ -74,13 +76,14 @@ TEST(TrajectoryEvaluation, YawAndFullRotationsAreRemovedByTheirAlignments) {
   const io::Trajectory reference = reference_loop();
   const Eigen::Matrix3d yaw = Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   const io::Trajectory yawed = transformed(reference, yaw, Eigen::Vector3d(5.0, -3.0, 0.5));
-  EXPECT_LT(evaluate(reference, yawed, AlignmentMode::kTranslationYaw).absolute_position_m.rmse, 1e-9);
+  EXPECT_LT(evaluate(reference, yawed, AlignmentMode::kTranslationYaw).absolute_position_m.rmse,
+            1e-9);
   EXPECT_GT(evaluate(reference, yawed, AlignmentMode::kTranslation).absolute_position_m.rmse, 1.0);
 
-  const Eigen::Matrix3d tilt =
-      (Eigen::AngleAxisd(0.2, Eigen::Vector3d::UnitX()) * Eigen::AngleAxisd(-0.4, Eigen::Vector3d::UnitY()) *
-       Eigen::AngleAxisd(1.0, Eigen::Vector3d::UnitZ()))
-          .toRotationMatrix();
+  const Eigen::Matrix3d tilt = (Eigen::AngleAxisd(0.2, Eigen::Vector3d::UnitX()) *
+                                Eigen::AngleAxisd(-0.4, Eigen::Vector3d::UnitY()) *
+                                Eigen::AngleAxisd(1.0, Eigen::Vector3d::UnitZ()))
+                                   .toRotationMatrix();
   const io::Trajectory rotated = transformed(reference, tilt, Eigen::Vector3d(1.0, 2.0, 3.0));
   const TrajectoryEvaluation se3 = evaluate(reference, rotated, AlignmentMode::kSe3);
   EXPECT_LT(se3.absolute_position_m.rmse, 1e-9);
@@ -88,15 +91,18 @@ TEST(TrajectoryEvaluation, YawAndFullRotationsAreRemovedByTheirAlignments) {
   EXPECT_LT((se3.alignment.rotation * tilt - Eigen::Matrix3d::Identity()).norm(), 1e-9);
   EXPECT_NEAR(se3.alignment.scale, 1.0, 1e-12);
   // Yaw-only alignment cannot remove a tilt.
-  EXPECT_GT(evaluate(reference, rotated, AlignmentMode::kTranslationYaw).absolute_position_m.rmse, 0.5);
+  EXPECT_GT(evaluate(reference, rotated, AlignmentMode::kTranslationYaw).absolute_position_m.rmse,
+            0.5);
   // After SE(3) alignment, orientations agree too: the rotational RPE vanishes.
   EXPECT_LT(se3.relative.rotation_deg.max, 1e-6);
 }
 
 TEST(TrajectoryEvaluation, ScaleIsRemovedOnlyBySim3) {
   const io::Trajectory reference = reference_loop();
-  const Eigen::Matrix3d rotation = Eigen::AngleAxisd(-0.7, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-  const io::Trajectory scaled = transformed(reference, rotation, Eigen::Vector3d(0.0, 4.0, 0.0), 1.25);
+  const Eigen::Matrix3d rotation =
+      Eigen::AngleAxisd(-0.7, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  const io::Trajectory scaled =
+      transformed(reference, rotation, Eigen::Vector3d(0.0, 4.0, 0.0), 1.25);
   const TrajectoryEvaluation sim3 = evaluate(reference, scaled, AlignmentMode::kSim3);
   EXPECT_LT(sim3.absolute_position_m.rmse, 1e-9);
   EXPECT_NEAR(sim3.alignment.scale, 1.0 / 1.25, 1e-9);
@@ -139,7 +145,8 @@ TEST(TrajectoryEvaluation, RelativePoseErrorOfAKnownPerStepError) {
   }
   AssociationOptions association;
   association.max_time_gap_s = 0.5;
-  const AssociatedTrajectories associated = associate_by_interpolation(reference, estimate, association);
+  const AssociatedTrajectories associated =
+      associate_by_interpolation(reference, estimate, association);
   RelativePoseErrorOptions options;
   options.unit = RelativeDeltaUnit::kFrames;
   options.delta = 1;
@@ -185,7 +192,8 @@ TEST(PngPlot, ChecksumsMatchKnownValuesAndTheFileIsWellFormed) {
   // The image holds the series colour somewhere (the line was drawn).
   bool found = false;
   for (int y = 0; y < image.height_px() && !found; ++y)
-    for (int x = 0; x < image.width_px() && !found; ++x) found = image.pixel(x, y) == series_colour(0);
+    for (int x = 0; x < image.width_px() && !found; ++x)
+      found = image.pixel(x, y) == series_colour(0);
   EXPECT_TRUE(found);
 }
 
@@ -224,7 +232,8 @@ TEST(MeshDistance, MatchesBruteForceWithinTheRadiusAndIsInfiniteBeyond) {
   for (uint32_t t = 0; t < 200; ++t) {
     const Vec3f corner(coordinate(random), coordinate(random), coordinate(random));
     for (int k = 0; k < 3; ++k) {
-      mesh.vertices_m.emplace_back(corner.x + offset(random), corner.y + offset(random), corner.z + offset(random));
+      mesh.vertices_m.emplace_back(corner.x + offset(random), corner.y + offset(random),
+                                   corner.z + offset(random));
       mesh.triangles.push_back(3 * t + k);
     }
   }
@@ -240,7 +249,9 @@ TEST(MeshDistance, MatchesBruteForceWithinTheRadiusAndIsInfiniteBeyond) {
         const Vec3f& v = mesh.vertices_m[mesh.triangles[3 * t + k]];
         return Eigen::Vector3d(v.x, v.y, v.z);
       };
-      brute_force_m = std::min(brute_force_m, (closest_point_on_triangle(p, corner(0), corner(1), corner(2)) - p).norm());
+      brute_force_m =
+          std::min(brute_force_m,
+                   (closest_point_on_triangle(p, corner(0), corner(1), corner(2)) - p).norm());
     }
     const double found_m = distance.distance_m(p, radius_m);
     if (brute_force_m <= radius_m) {
@@ -248,7 +259,8 @@ TEST(MeshDistance, MatchesBruteForceWithinTheRadiusAndIsInfiniteBeyond) {
       ASSERT_NEAR(found_m, brute_force_m, 1e-12) << "query " << q;
     } else {
       ++far;
-      ASSERT_TRUE(std::isinf(found_m)) << "query " << q << ": " << found_m << " m, truly " << brute_force_m << " m";
+      ASSERT_TRUE(std::isinf(found_m))
+          << "query " << q << ": " << found_m << " m, truly " << brute_force_m << " m";
     }
   }
   EXPECT_GT(near, 200);  // both branches were exercised

@@ -11,14 +11,16 @@
 namespace covox {
 namespace {
 
-void expect_round_trip(const Index3D& low, const Index3D& high, int32_t voxels_per_side, int samples) {
+void expect_round_trip(const Index3D& low, const Index3D& high, int32_t voxels_per_side,
+                       int samples) {
   const tsdf::FrameKeyCodec codec = tsdf::make_frame_key_codec(low, high, voxels_per_side);
   std::mt19937 random(7);
   std::uniform_int_distribution<int32_t> x(low.x, high.x), y(low.y, high.y), z(low.z, high.z);
   for (int i = 0; i < samples; ++i) {
     // The box's corners first (the extreme blocks and voxels within them), then random voxels.
-    const Index3D voxel = i < 8 ? Index3D(i & 1 ? high.x : low.x, i & 2 ? high.y : low.y, i & 4 ? high.z : low.z)
-                                : Index3D(x(random), y(random), z(random));
+    const Index3D voxel =
+        i < 8 ? Index3D(i & 1 ? high.x : low.x, i & 2 ? high.y : low.y, i & 4 ? high.z : low.z)
+              : Index3D(x(random), y(random), z(random));
     const uint64_t key = codec.key(voxel);
     ASSERT_LT(key, codec.out_of_range_key) << voxel.x << " " << voxel.y << " " << voxel.z;
     const Index3D back = codec.voxel(key);
@@ -35,7 +37,8 @@ void expect_round_trip(const Index3D& low, const Index3D& high, int32_t voxels_p
 TEST(TsdfFrameKeyCodec, VoxelInvertsKeyForShortKeys) {
   for (const int32_t side : {8, 16}) {
     SCOPED_TRACE(side);
-    const Index3D low(-81, -80, -25), high(80, 83, 22);  // a 16 m LiDAR frame at 0.2 m, around the origin
+    const Index3D low(-81, -80, -25),
+        high(80, 83, 22);  // a 16 m LiDAR frame at 0.2 m, around the origin
     ASSERT_LE(tsdf::make_frame_key_codec(low, high, side).key_bits, 32);
     expect_round_trip(low, high, side, 20000);
   }
@@ -44,7 +47,8 @@ TEST(TsdfFrameKeyCodec, VoxelInvertsKeyForShortKeys) {
 TEST(TsdfFrameKeyCodec, VoxelInvertsKeyForLongKeys) {
   for (const int32_t side : {8, 16}) {
     SCOPED_TRACE(side);
-    const Index3D low(-20000, 5000, -3000), high(26000, 61000, 2500);  // far from the origin, hundreds of metres
+    const Index3D low(-20000, 5000, -3000),
+        high(26000, 61000, 2500);  // far from the origin, hundreds of metres
     ASSERT_GT(tsdf::make_frame_key_codec(low, high, side).key_bits, 32);
     expect_round_trip(low, high, side, 20000);
   }

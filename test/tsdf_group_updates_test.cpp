@@ -40,7 +40,8 @@ void expect_grouping_matches_sorted_sums(int32_t voxels_per_side, int64_t count)
   }
   // Reference: stable sort, then each valid key's records summed left to right.
   std::vector<Record> sorted = records;
-  std::stable_sort(sorted.begin(), sorted.end(), [](const Record& a, const Record& b) { return a.key < b.key; });
+  std::stable_sort(sorted.begin(), sorted.end(),
+                   [](const Record& a, const Record& b) { return a.key < b.key; });
   std::vector<uint32_t> expected_keys;
   std::vector<tsdf::DistanceUpdate> expected_sums;
   uint32_t zero_weight = 0, out_of_range = 0;
@@ -58,15 +59,17 @@ void expect_grouping_matches_sorted_sums(int32_t voxels_per_side, int64_t count)
   }
 
   std::vector<uint32_t> keys(records.size()), keys_alt(records.size()), merged_keys(records.size());
-  std::vector<tsdf::DistanceUpdate> values(records.size()), values_alt(records.size()), merged(records.size());
+  std::vector<tsdf::DistanceUpdate> values(records.size()), values_alt(records.size()),
+      merged(records.size());
   for (size_t i = 0; i < records.size(); ++i) {
     keys[i] = records[i].key;
     values[i] = records[i].update;
   }
   const tsdf::DistanceUpdate* moved = values_alt.data();
   const tsdf::GroupCounts counts = tsdf::group_updates_by_voxel_cpu(
-      codec, keys.data(), values.data(), count, keys_alt.data(), values_alt.data(), merged_keys.data(),
-      merged.data(), [moved](int64_t j) { return moved[j]; }, tsdf::MergeUpdates());
+      codec, keys.data(), values.data(), count, keys_alt.data(), values_alt.data(),
+      merged_keys.data(), merged.data(), [moved](int64_t j) { return moved[j]; },
+      tsdf::MergeUpdates());
 
   ASSERT_EQ(counts.voxels, expected_keys.size());
   EXPECT_EQ(counts.zero_weight, zero_weight);
@@ -83,7 +86,8 @@ void expect_grouping_matches_sorted_sums(int32_t voxels_per_side, int64_t count)
 TEST(TsdfGroupUpdatesCpu, EqualsStableSortAndLeftToRightSums) {
   for (const int32_t side : {8, 16}) {
     for (const int64_t count : {int64_t(1), int64_t(1000), int64_t(200000)}) {
-      SCOPED_TRACE("voxels per side " + std::to_string(side) + ", " + std::to_string(count) + " records");
+      SCOPED_TRACE("voxels per side " + std::to_string(side) + ", " + std::to_string(count) +
+                   " records");
       expect_grouping_matches_sorted_sums(side, count);
     }
   }

@@ -153,7 +153,8 @@ struct AnalyticCase {
 // Every combination, method outermost.
 std::vector<AnalyticCase> analytic_cases() {
   std::vector<AnalyticCase> cases;
-  for (TsdfIntegrationMethod method : {TsdfIntegrationMethod::kMerged, TsdfIntegrationMethod::kSimple}) {
+  for (TsdfIntegrationMethod method :
+       {TsdfIntegrationMethod::kMerged, TsdfIntegrationMethod::kSimple}) {
     for (Shape shape : {Shape::kPlane, Shape::kSphere, Shape::kBox}) {
       for (float voxel_size : {0.05f, 0.1f, 0.2f}) {
         for (double max_incidence : {kBandIncidenceDeg, 90.0}) {
@@ -186,7 +187,8 @@ void expect_matches_scene(const TsdfMap& map, const AnalyticScene& scene, const 
                           const CoverageMinimum& minimum) {
   const BandError error = compare_with_scene(map, scene, 3.0f * c.voxel_size_m);
   SCOPED_TRACE(std::string(to_string(c.method)) + " " + shape_name(c.shape) + " at " +
-               std::to_string(c.voxel_size_m) + " m, incidence up to " + std::to_string(c.max_incidence_deg));
+               std::to_string(c.voxel_size_m) + " m, incidence up to " +
+               std::to_string(c.max_incidence_deg));
   EXPECT_GT(error.band_voxels, minimum.band_voxels);
   if (c.max_incidence_deg < 90.0) {
     EXPECT_LT(error.rmse_voxels, 0.3);
@@ -207,8 +209,10 @@ TEST_P(TsdfIntegratorTest, SimulatedLidarMatchesAnalyticSdf) {
     for (const auto& pose : viewpoints()) {
       // Tilt the spin axis for the ground plane, so that some beams look straight down.
       const Eigen::Isometry3d sensor =
-          c.shape == Shape::kPlane ? pose * Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitX()) : pose;
-      const auto points = testing_support::simulate_lidar(scene, sensor, 720, 64, 90.0, 9.5, c.max_incidence_deg);
+          c.shape == Shape::kPlane ? pose * Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitX())
+                                   : pose;
+      const auto points =
+          testing_support::simulate_lidar(scene, sensor, 720, 64, 90.0, 9.5, c.max_incidence_deg);
       const IntegrationStats stats = integrator.integrate(map, points, {}, sensor);
       ASSERT_EQ(stats.surface_rays, static_cast<int64_t>(points.size()));
     }
@@ -228,11 +232,12 @@ TEST_P(TsdfIntegratorTest, SimulatedDepthCameraMatchesAnalyticSdf) {
     for (const auto& pose : viewpoints_list) {
       // Look down for the plane, sideways into the sphere/room otherwise.
       Eigen::Isometry3d camera = pose;
-      const Eigen::Vector3d turn_axis = c.shape == Shape::kPlane ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
+      const Eigen::Vector3d turn_axis =
+          c.shape == Shape::kPlane ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
       const double turn_angle = c.shape == Shape::kPlane ? M_PI : M_PI / 2;
       camera.linear() = pose.linear() * Eigen::Matrix3d(Eigen::AngleAxisd(turn_angle, turn_axis));
-      const auto depth = testing_support::simulate_depth_mm(scene, camera, width, height, f, f, width / 2.0,
-                                                            height / 2.0, c.max_incidence_deg);
+      const auto depth = testing_support::simulate_depth_mm(
+          scene, camera, width, height, f, f, width / 2.0, height / 2.0, c.max_incidence_deg);
       auto depth_device = Buffer<uint16_t>::from_host(device(), depth);
       // Every other view passes metres instead of raw millimetres (both inputs are supported).
       std::vector<float> depth_metres(depth.size());
@@ -244,7 +249,8 @@ TEST_P(TsdfIntegratorTest, SimulatedDepthCameraMatchesAnalyticSdf) {
       } else {
         image.depth = depth_device.data();
       }
-      image.intrinsics = PinholeIntrinsics{float(f), float(f), width / 2.0f, height / 2.0f, width, height};
+      image.intrinsics =
+          PinholeIntrinsics{float(f), float(f), width / 2.0f, height / 2.0f, width, height};
       image.depth_units_per_m = 1000.0f;
       image.invalid_value = 65535;
       integrator.integrate_depth(map, image, camera, stream);
@@ -325,7 +331,9 @@ void expect_bit_identical_tsdf(const std::vector<HostBlock>& a, const std::vecto
   ASSERT_EQ(a.size(), b.size());
   for (size_t k = 0; k < a.size(); ++k) {
     ASSERT_EQ(a[k].index, b[k].index);
-    ASSERT_EQ(0, std::memcmp(a[k].tsdf.data(), b[k].tsdf.data(), a[k].tsdf.size() * sizeof(TsdfVoxel))) << "block " << k;
+    ASSERT_EQ(0,
+              std::memcmp(a[k].tsdf.data(), b[k].tsdf.data(), a[k].tsdf.size() * sizeof(TsdfVoxel)))
+        << "block " << k;
   }
 }
 
@@ -481,28 +489,37 @@ TEST_P(TsdfIntegratorTest, DepthImagesMatchHostUnprojectedPoints) {
   const int width = 157, height = 117;
   const float fx = 140.0f, fy = 138.0f, cx = 77.5f, cy = 60.25f;
   Eigen::Isometry3d camera = viewpoints()[1];
-  camera.linear() = camera.linear() * Eigen::Matrix3d(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitY()));
-  std::vector<uint16_t> depth = testing_support::simulate_depth_mm(scene, camera, width, height, fx, fy, cx, cy, 80.0);
+  camera.linear() =
+      camera.linear() * Eigen::Matrix3d(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitY()));
+  std::vector<uint16_t> depth =
+      testing_support::simulate_depth_mm(scene, camera, width, height, fx, fy, cx, cy, 80.0);
   for (size_t p = 0; p < depth.size(); p += 7) depth[p] = p % 2 ? 0 : 65535;  // no measurement
   std::vector<float> depth_metres(depth.size());
-  for (size_t p = 0; p < depth.size(); ++p) depth_metres[p] = depth[p] == 65535 ? NAN : depth[p] * 1e-3f;
+  for (size_t p = 0; p < depth.size(); ++p)
+    depth_metres[p] = depth[p] == 65535 ? NAN : depth[p] * 1e-3f;
   std::vector<Rgb8> colours(depth.size());
-  for (size_t p = 0; p < colours.size(); ++p) colours[p] = Rgb8{uint8_t(p), uint8_t(p / 3), uint8_t(p * 5)};
-  for (const TsdfIntegrationMethod method : {TsdfIntegrationMethod::kMerged, TsdfIntegrationMethod::kSimple}) {
+  for (size_t p = 0; p < colours.size(); ++p)
+    colours[p] = Rgb8{uint8_t(p), uint8_t(p / 3), uint8_t(p * 5)};
+  for (const TsdfIntegrationMethod method :
+       {TsdfIntegrationMethod::kMerged, TsdfIntegrationMethod::kSimple}) {
     for (const bool metres : {false, true}) {
       SCOPED_TRACE(std::string(method == TsdfIntegrationMethod::kMerged ? "merged" : "simple") +
                    (metres ? ", metres" : ", raw units"));
-      // The host's points: ((u - cx) z / fx, (v - cy) z / fy, z), the zero point for no measurement.
+      // The host's points: ((u - cx) z / fx, (v - cy) z / fy, z), the zero point for no
+      // measurement.
       std::vector<Vec3f> points(depth.size());
       std::vector<Rgb8> point_colours(depth.size());
       for (int v = 0; v < height; ++v) {
         for (int u = 0; u < width; ++u) {
           const size_t p = static_cast<size_t>(v) * width + u;
-          const float z = metres ? (std::isfinite(depth_metres[p]) && depth_metres[p] > 0.0f ? depth_metres[p] : 0.0f)
-                                 : (depth[p] == 0 || depth[p] == 65535 ? 0.0f : depth[p] * (1.0f / 1000.0f));
+          const float z =
+              metres ? (std::isfinite(depth_metres[p]) && depth_metres[p] > 0.0f ? depth_metres[p]
+                                                                                 : 0.0f)
+                     : (depth[p] == 0 || depth[p] == 65535 ? 0.0f : depth[p] * (1.0f / 1000.0f));
           const size_t place = static_cast<size_t>(tsdf::pixel_tile_order(u, v, width, height));
-          points[place] = z == 0.0f ? Vec3f(0.0f, 0.0f, 0.0f)
-                                    : Vec3f((u - cx) * z * (1.0f / fx), (v - cy) * z * (1.0f / fy), z);
+          points[place] = z == 0.0f
+                              ? Vec3f(0.0f, 0.0f, 0.0f)
+                              : Vec3f((u - cx) * z * (1.0f / fx), (v - cy) * z * (1.0f / fy), z);
           point_colours[place] = colours[p];
         }
       }
@@ -562,10 +579,12 @@ TEST_P(TsdfIntegratorTest, ErasedBlocksComeBackEmpty) {
     TsdfIntegrator integrator(config);
     TsdfMap reused(device(), TsdfMapConfig{0.1f, 8, {}});
     TsdfMap fresh(device(), TsdfMapConfig{0.1f, 8, {}});
-    const std::vector<Vec3f> last = testing_support::simulate_lidar(scene, poses[0], 512, 32, 60.0, 9.5);
+    const std::vector<Vec3f> last =
+        testing_support::simulate_lidar(scene, poses[0], 512, 32, 60.0, 9.5);
     const std::vector<Rgb8> last_colours(last.size(), Rgb8{20, 140, 230});
     for (const auto& pose : poses) {
-      const std::vector<Vec3f> points = testing_support::simulate_lidar(scene, pose, 512, 32, 60.0, 9.5);
+      const std::vector<Vec3f> points =
+          testing_support::simulate_lidar(scene, pose, 512, 32, 60.0, 9.5);
       integrator.integrate(reused, points, std::vector<Rgb8>(points.size(), Rgb8{250, 5, 5}), pose);
     }
     std::vector<Index3D> keys;
@@ -586,9 +605,9 @@ TEST_P(TsdfIntegratorTest, ErasedBlocksComeBackEmpty) {
         const ColorVoxel& x = a[k].color[v];
         const ColorVoxel& y = b[k].color[v];
         ASSERT_TRUE(x.r == y.r && x.g == y.g && x.b == y.b && x.weight == y.weight)
-            << "colour of voxel " << v << " of block " << k << ": " << int(x.r) << " " << int(x.g) << " " << int(x.b)
-            << " weight " << x.weight << " against " << int(y.r) << " " << int(y.g) << " " << int(y.b) << " weight "
-            << y.weight;
+            << "colour of voxel " << v << " of block " << k << ": " << int(x.r) << " " << int(x.g)
+            << " " << int(x.b) << " weight " << x.weight << " against " << int(y.r) << " "
+            << int(y.g) << " " << int(y.b) << " weight " << y.weight;
       }
     }
   }
@@ -600,9 +619,11 @@ TEST_P(TsdfIntegratorTest, ErasedBlocksComeBackEmpty) {
 TEST_P(TsdfIntegratorTest, MergeTableLeavesNoTraceBetweenFrames) {
   const AnalyticScene scene = make_scene(Shape::kBox);
   const auto poses = viewpoints();
-  std::vector<Vec3f> earlier = testing_support::simulate_lidar(scene, poses[1], 1024, 32, 60.0, 9.5);
+  std::vector<Vec3f> earlier =
+      testing_support::simulate_lidar(scene, poses[1], 1024, 32, 60.0, 9.5);
   std::vector<Rgb8> earlier_colours(earlier.size(), Rgb8{200, 10, 30});
-  const std::vector<Vec3f> frame = testing_support::simulate_lidar(scene, poses[0], 512, 32, 60.0, 9.5);
+  const std::vector<Vec3f> frame =
+      testing_support::simulate_lidar(scene, poses[0], 512, 32, 60.0, 9.5);
   TsdfIntegratorConfig config = analytic_config(0.1f);
   ASSERT_EQ(config.method, TsdfIntegrationMethod::kMerged);
   TsdfIntegrator used(config);
@@ -633,9 +654,11 @@ TEST_P(TsdfIntegratorTest, ColourDoesNotChangeDistancesOrWeights) {
     TsdfMap map(device(), TsdfMapConfig{0.1f, 16, {}});
     TsdfIntegrator integrator(config);
     for (const auto& pose : viewpoints()) {
-      const std::vector<Vec3f> points = testing_support::simulate_lidar(scene, pose, 512, 32, 60.0, 9.5);
+      const std::vector<Vec3f> points =
+          testing_support::simulate_lidar(scene, pose, 512, 32, 60.0, 9.5);
       std::vector<Rgb8> colours(points.size());
-      for (size_t i = 0; i < points.size(); ++i) colours[i] = Rgb8{uint8_t(i % 251), uint8_t(i % 13), 200};
+      for (size_t i = 0; i < points.size(); ++i)
+        colours[i] = Rgb8{uint8_t(i % 251), uint8_t(i % 13), 200};
       integrator.integrate(map, points, colours, pose);
     }
     snapshots.push_back(map.snapshot());
@@ -701,26 +724,31 @@ TEST_P(TsdfIntegratorTest, FixedPointSumsMatchEveryVisitSorted) {
     };
     for (const auto& pose : viewpoints()) {
       Eigen::Isometry3d camera = pose;
-      camera.linear() = pose.linear() * Eigen::Matrix3d(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitY()));
-      const auto depth = testing_support::simulate_depth_mm(scene, camera, width, height, f, f, width / 2.0,
-                                                            height / 2.0, 80.0);
+      camera.linear() =
+          pose.linear() * Eigen::Matrix3d(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitY()));
+      const auto depth = testing_support::simulate_depth_mm(scene, camera, width, height, f, f,
+                                                            width / 2.0, height / 2.0, 80.0);
       std::vector<Rgb8> colours(depth.size());
-      for (size_t p = 0; p < colours.size(); ++p) colours[p] = Rgb8{uint8_t(p % 251), uint8_t(p % 13), 200};
+      for (size_t p = 0; p < colours.size(); ++p)
+        colours[p] = Rgb8{uint8_t(p % 251), uint8_t(p % 13), 200};
       auto depth_device = Buffer<uint16_t>::from_host(device(), depth);
       auto colour_device = Buffer<Rgb8>::from_host(device(), colours);
       DepthImageView image;
       image.depth = depth_device.data();
       image.colors = colour_device.data();
-      image.intrinsics = PinholeIntrinsics{float(f), float(f), width / 2.0f, height / 2.0f, width, height};
+      image.intrinsics =
+          PinholeIntrinsics{float(f), float(f), width / 2.0f, height / 2.0f, width, height};
       image.depth_units_per_m = 1000.0f;
       image.invalid_value = 65535;
       add(integrator.integrate_depth(map, image, camera, stream));
       std::vector<Vec3f> points = testing_support::simulate_lidar(scene, pose, 256, 32, 60.0, 7.5);
       // Bad returns, dropped and counted (the merge's tally, which each frame leaves clear).
-      for (int k = 0; k < 5; ++k) points.push_back(Vec3f(std::numeric_limits<float>::quiet_NaN(), 0.0f, 0.0f));
+      for (int k = 0; k < 5; ++k)
+        points.push_back(Vec3f(std::numeric_limits<float>::quiet_NaN(), 0.0f, 0.0f));
       for (int k = 0; k < 3; ++k) points.push_back(Vec3f(0.0f, 0.0f, 0.0f));
       std::vector<Rgb8> lidar_colours(points.size());
-      for (size_t i = 0; i < points.size(); ++i) lidar_colours[i] = Rgb8{uint8_t(i % 7), uint8_t(i % 253), 9};
+      for (size_t i = 0; i < points.size(); ++i)
+        lidar_colours[i] = Rgb8{uint8_t(i % 7), uint8_t(i % 253), 9};
       add(integrator.integrate(map, points, lidar_colours, pose));
     }
     snapshots.push_back(map.snapshot());
@@ -738,9 +766,10 @@ TEST_P(TsdfIntegratorTest, FixedPointSumsMatchEveryVisitSorted) {
   EXPECT_GT(totals[kSmallBudget].records_grouped, 0);
   EXPECT_LT(totals[kSmallBudget].records_grouped, totals[kFreeSpace].records_grouped);
   for (const Sums sums : {kEveryVisit, kFreeSpace, kSmallBudget, kEveryVisitInWarps}) {
-    SCOPED_TRACE(sums == kEveryVisit ? "every visit summed"
-                 : sums == kFreeSpace ? "free space summed"
-                 : sums == kSmallBudget ? "small budget" : "every visit summed, warps merging free space");
+    SCOPED_TRACE(sums == kEveryVisit    ? "every visit summed"
+                 : sums == kFreeSpace   ? "free space summed"
+                 : sums == kSmallBudget ? "small budget"
+                                        : "every visit summed, warps merging free space");
     EXPECT_EQ(totals[sums].voxel_updates, reference.voxel_updates);
     EXPECT_EQ(totals[sums].voxels_updated, reference.voxels_updated);
     EXPECT_EQ(totals[sums].voxels_out_of_range, reference.voxels_out_of_range);
@@ -828,16 +857,18 @@ TEST_P(TsdfIntegratorTest, MergedAndSimpleCountEveryPointAlike) {
   config.max_ray_length_m = 5.0f;
   config.min_ray_length_m = 0.5f;
   config.allow_clear = true;
-  const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
+  const float nan = std::numeric_limits<float>::quiet_NaN(),
+              inf = std::numeric_limits<float>::infinity();
   std::vector<Vec3f> points;
   for (int i = 0; i < 400; ++i) {
     const float a = 0.01f * i;
-    points.push_back(Vec3f(2.0f + 0.001f * (i % 7), 0.3f * std::sin(a), 0.3f * std::cos(a)));  // many per voxel
+    points.push_back(
+        Vec3f(2.0f + 0.001f * (i % 7), 0.3f * std::sin(a), 0.3f * std::cos(a)));  // many per voxel
     if (i % 10 == 0) points.push_back(Vec3f(nan, 1.0f, 0.0f));
     if (i % 11 == 0) points.push_back(Vec3f(inf, 0.0f, 0.0f));
     if (i % 12 == 0) points.push_back(Vec3f(0.0f, 0.0f, 0.0f));
-    if (i % 13 == 0) points.push_back(Vec3f(0.1f, 0.05f * (i % 3), 0.0f));           // too close
-    if (i % 14 == 0) points.push_back(Vec3f(20.0f, 0.5f * std::sin(a), 1.0f));       // clears
+    if (i % 13 == 0) points.push_back(Vec3f(0.1f, 0.05f * (i % 3), 0.0f));      // too close
+    if (i % 14 == 0) points.push_back(Vec3f(20.0f, 0.5f * std::sin(a), 1.0f));  // clears
   }
   IntegrationStats by_method[2];
   for (int m = 0; m < 2; ++m) {
@@ -873,7 +904,8 @@ TEST_P(TsdfIntegratorTest, MergeBoxSizeDoesNotChangeTheMap) {
   const AnalyticScene scene = make_scene(Shape::kSphere);
   const Eigen::Isometry3d pose = viewpoints()[0];
   std::vector<Vec3f> points;  // every return twice, so that bundles form at 2 cm too
-  for (const Vec3f& p : testing_support::simulate_lidar(scene, pose, 256, 16, 60.0, 9.5)) points.insert(points.end(), {p, p});
+  for (const Vec3f& p : testing_support::simulate_lidar(scene, pose, 256, 16, 60.0, 9.5))
+    points.insert(points.end(), {p, p});
   std::vector<std::vector<HostBlock>> snapshots;
   std::vector<IntegrationStats> stats;
   for (float max_ray_length_m : {10.0f, 900.0f}) {  // 0.02 m voxels: 900 m needs > 32-bit keys
@@ -900,13 +932,15 @@ TEST_P(TsdfIntegratorTest, LongKeysAndShortKeysBuildTheSameMap) {
   config.truncation_distance_m = 0.06f;
   config.max_ray_length_m = 50.0f;
   config.use_const_weight = true;
-  const std::vector<Vec3f> rays = {Vec3f(40.0f, 0.3f, 0.2f), Vec3f(-0.2f, 40.0f, 0.1f), Vec3f(0.1f, -0.3f, -40.0f)};
+  const std::vector<Vec3f> rays = {Vec3f(40.0f, 0.3f, 0.2f), Vec3f(-0.2f, 40.0f, 0.1f),
+                                   Vec3f(0.1f, -0.3f, -40.0f)};
   const Eigen::Isometry3d pose = viewpoints()[2];
   TsdfMap together(device(), TsdfMapConfig{0.02f, 8, {}});
   TsdfMap apart(device(), TsdfMapConfig{0.02f, 8, {}});
   const IntegrationStats stats = TsdfIntegrator(config).integrate(together, rays, {}, pose);
   int64_t updates_apart = 0;
-  for (const Vec3f& ray : rays) updates_apart += TsdfIntegrator(config).integrate(apart, {ray}, {}, pose).voxel_updates;
+  for (const Vec3f& ray : rays)
+    updates_apart += TsdfIntegrator(config).integrate(apart, {ray}, {}, pose).voxel_updates;
   EXPECT_EQ(stats.voxel_updates, updates_apart);
   EXPECT_GT(stats.voxel_updates, 3 * 1900);
   const auto voxels_together = observed_voxels(together);
@@ -963,7 +997,8 @@ TEST_P(TsdfIntegratorParity, CpuAndCudaBuildTheSameMap) {
   for (Device device : {Device::kCpu, Device::kCuda}) {
     TsdfMap map(device, TsdfMapConfig{0.05f, 8, {}});
     TsdfIntegratorConfig config = analytic_config(0.05f);
-    if (GetParam() != ParityPaths::kDefaults) config.free_space_sums_min_visits = 0;  // the CPU's too
+    if (GetParam() != ParityPaths::kDefaults)
+      config.free_space_sums_min_visits = 0;  // the CPU's too
     config.sum_band_in_fixed_point = GetParam() != ParityPaths::kFreeSpaceSummed;
     TsdfIntegrator integrator(config);
     for (const auto& pose : viewpoints()) {

@@ -12,28 +12,33 @@ namespace covox {
 namespace {
 
 TEST(TsdfPixelOrder, EveryPixelGetsItsOwnPlace) {
-  for (const auto& size : std::vector<std::pair<int, int>>{{640, 480}, {13, 7}, {1, 1}, {9, 5}, {8, 4}, {3, 11}}) {
+  for (const auto& size :
+       std::vector<std::pair<int, int>>{{640, 480}, {13, 7}, {1, 1}, {9, 5}, {8, 4}, {3, 11}}) {
     const int width = size.first, height = size.second;
     std::vector<int> hits(static_cast<size_t>(width) * height, 0);
     for (int v = 0; v < height; ++v) {
       for (int u = 0; u < width; ++u) {
         const int64_t place = tsdf::pixel_tile_order(u, v, width, height);
         ASSERT_GE(place, 0) << width << "x" << height << " pixel " << u << "," << v;
-        ASSERT_LT(place, static_cast<int64_t>(hits.size())) << width << "x" << height << " pixel " << u << "," << v;
+        ASSERT_LT(place, static_cast<int64_t>(hits.size()))
+            << width << "x" << height << " pixel " << u << "," << v;
         ++hits[static_cast<size_t>(place)];
       }
     }
-    for (size_t k = 0; k < hits.size(); ++k) ASSERT_EQ(hits[k], 1) << width << "x" << height << " place " << k;
+    for (size_t k = 0; k < hits.size(); ++k)
+      ASSERT_EQ(hits[k], 1) << width << "x" << height << " place " << k;
   }
 }
 
 TEST(TsdfPixelOrder, EveryPlaceLeadsBackToItsPixel) {
-  for (const auto& size : std::vector<std::pair<int, int>>{{640, 480}, {13, 7}, {1, 1}, {9, 5}, {8, 4}, {3, 11}, {157, 117}}) {
+  for (const auto& size : std::vector<std::pair<int, int>>{
+           {640, 480}, {13, 7}, {1, 1}, {9, 5}, {8, 4}, {3, 11}, {157, 117}}) {
     const int width = size.first, height = size.second;
     for (int v = 0; v < height; ++v) {
       for (int u = 0; u < width; ++u) {
         const int64_t place = tsdf::pixel_tile_order(u, v, width, height);
-        ASSERT_EQ(tsdf::pixel_at_tile_place(place, width, height), static_cast<int64_t>(v) * width + u)
+        ASSERT_EQ(tsdf::pixel_at_tile_place(place, width, height),
+                  static_cast<int64_t>(v) * width + u)
             << width << "x" << height << " pixel " << u << "," << v << " place " << place;
       }
     }

@@ -22,8 +22,11 @@ std::vector<Index3D> walk_in_pieces(const RaySegment& ray, float inverse_voxel_s
   std::vector<Index3D> voxels;
   for (uint32_t k = 0; k < pieces; ++k) {
     const size_t before = voxels.size();
-    tsdf::traverse_ray_piece(ray, k, pieces, inverse_voxel_size, [&](const Index3D& v) { voxels.push_back(v); });
-    EXPECT_EQ(voxels.size() - before, tsdf::ray_piece_voxel_count(ray, k, pieces, inverse_voxel_size)) << "piece " << k;
+    tsdf::traverse_ray_piece(ray, k, pieces, inverse_voxel_size,
+                             [&](const Index3D& v) { voxels.push_back(v); });
+    EXPECT_EQ(voxels.size() - before,
+              tsdf::ray_piece_voxel_count(ray, k, pieces, inverse_voxel_size))
+        << "piece " << k;
   }
   return voxels;
 }
@@ -53,11 +56,12 @@ void expect_valid_walk(const RaySegment& ray, float voxel_size) {
   // GPU computes piece by piece.
   const uint32_t pieces = tsdf::ray_piece_count(tsdf::ray_voxel_count(ray, inverse));
   uint32_t listed = 0;
-  tsdf::for_each_ray_piece(ray, pieces, inverse, [&](uint32_t k, const Index3D& first, uint32_t count) {
-    EXPECT_EQ(k, listed++);
-    EXPECT_EQ(first, tsdf::ray_cut_voxel(ray, k, pieces, inverse)) << "piece " << k;
-    EXPECT_EQ(count, tsdf::ray_piece_voxel_count(ray, k, pieces, inverse)) << "piece " << k;
-  });
+  tsdf::for_each_ray_piece(
+      ray, pieces, inverse, [&](uint32_t k, const Index3D& first, uint32_t count) {
+        EXPECT_EQ(k, listed++);
+        EXPECT_EQ(first, tsdf::ray_cut_voxel(ray, k, pieces, inverse)) << "piece " << k;
+        EXPECT_EQ(count, tsdf::ray_piece_voxel_count(ray, k, pieces, inverse)) << "piece " << k;
+      });
   EXPECT_EQ(listed, pieces);
 }
 
@@ -87,11 +91,16 @@ TEST(TsdfRayPieces, RandomRaysVisitEveryVoxelOnceAsOnePath) {
 }
 
 TEST(TsdfRayPieces, AxisAlignedDiagonalAndTinyRays) {
-  expect_valid_walk(segment(Vec3f(0.01f, 0.01f, 0.01f), Vec3f(9.99f, 0.01f, 0.01f)), 0.1f);   // along x
-  expect_valid_walk(segment(Vec3f(0.05f, 0.05f, 0.05f), Vec3f(-7.95f, -7.95f, 0.05f)), 0.1f);  // exact diagonal
-  expect_valid_walk(segment(Vec3f(0.0f, 0.0f, 0.0f), Vec3f(4.0f, 4.0f, 4.0f)), 0.2f);         // through corners
-  expect_valid_walk(segment(Vec3f(1.234f, 2.345f, 3.456f), Vec3f(1.2341f, 2.3451f, 3.4561f)), 0.05f);  // one voxel
-  expect_valid_walk(segment(Vec3f(0.0f, 0.0f, 0.0f), Vec3f(0.0f, 0.0f, 50.0f)), 0.02f);      // 2500 voxels up z
+  expect_valid_walk(segment(Vec3f(0.01f, 0.01f, 0.01f), Vec3f(9.99f, 0.01f, 0.01f)),
+                    0.1f);  // along x
+  expect_valid_walk(segment(Vec3f(0.05f, 0.05f, 0.05f), Vec3f(-7.95f, -7.95f, 0.05f)),
+                    0.1f);  // exact diagonal
+  expect_valid_walk(segment(Vec3f(0.0f, 0.0f, 0.0f), Vec3f(4.0f, 4.0f, 4.0f)),
+                    0.2f);  // through corners
+  expect_valid_walk(segment(Vec3f(1.234f, 2.345f, 3.456f), Vec3f(1.2341f, 2.3451f, 3.4561f)),
+                    0.05f);  // one voxel
+  expect_valid_walk(segment(Vec3f(0.0f, 0.0f, 0.0f), Vec3f(0.0f, 0.0f, 50.0f)),
+                    0.02f);  // 2500 voxels up z
 }
 
 }  // namespace

@@ -35,8 +35,10 @@ using namespace covox;
 const char kUsage[] =
     "usage: benchmark_accuracy [options]\n"
     "  --device auto|cpu|cuda   (default auto)\n"
-    "  --cases LIST             comma-separated: sim,7scenes,mulran (default all that are available)\n"
-    "  --bag FILE               simulated flight bag for the sim case (default demo_output/flight_seed1_256col/flight.bag)\n"
+    "  --cases LIST             comma-separated: sim,7scenes,mulran (default all that are "
+    "available)\n"
+    "  --bag FILE               simulated flight bag for the sim case (default "
+    "demo_output/flight_seed1_256col/flight.bag)\n"
     "  --data-dir DIR           shared data (default: COVOX_DATA_DIR or ../shared/data)\n"
     "  --trajectories-dir DIR   also write each case's trajectories as TUM files there\n"
     "  --output FILE            report (default docs/benchmarks/accuracy.json)\n";
@@ -69,11 +71,13 @@ int main(int argc, char** argv) {
     std::vector<CaseRun> runs;
     if (wanted(cases, "sim")) {
       if (std::filesystem::exists(bag_path)) {
-        CaseRun run{"simulated flight", std::make_unique<tools::BagScanSource>(bag_path, tools::BagScanOptions()),
+        CaseRun run{"simulated flight",
+                    std::make_unique<tools::BagScanSource>(bag_path, tools::BagScanOptions()),
                     tools::arche_slam_config(device)};
         runs.push_back(std::move(run));
       } else {
-        std::printf("skipping the simulated flight: no bag '%s' (make demo writes it)\n", bag_path.c_str());
+        std::printf("skipping the simulated flight: no bag '%s' (make demo writes it)\n",
+                    bag_path.c_str());
       }
     }
     const std::string kitchen = data_dir + "/7scenes-redkitchen";
@@ -81,7 +85,9 @@ int main(int argc, char** argv) {
       if (std::filesystem::exists(kitchen)) {
         tools::RgbdScanOptions options;
         options.pixel_stride = 4;
-        runs.push_back({"7-Scenes redkitchen", std::make_unique<tools::RgbdScanSource>(kitchen, options), tools::rgbd_slam_config(device)});
+        runs.push_back({"7-Scenes redkitchen",
+                        std::make_unique<tools::RgbdScanSource>(kitchen, options),
+                        tools::rgbd_slam_config(device)});
       } else {
         std::printf("skipping 7-Scenes: no folder '%s'\n", kitchen.c_str());
       }
@@ -90,7 +96,8 @@ int main(int argc, char** argv) {
     if (wanted(cases, "mulran")) {
       if (std::filesystem::exists(riverside)) {
         runs.push_back({"MulRan Riverside02",
-                        std::make_unique<tools::LidarKeyframeScanSource>(riverside, tools::LidarKeyframeScanOptions()),
+                        std::make_unique<tools::LidarKeyframeScanSource>(
+                            riverside, tools::LidarKeyframeScanOptions()),
                         tools::lidar_keyframe_slam_config(device)});
       } else {
         std::printf("skipping MulRan: no folder '%s'\n", riverside.c_str());
@@ -101,7 +108,8 @@ int main(int argc, char** argv) {
     for (CaseRun& run : runs) {
       std::printf("\n== %s: %s\n", run.name.c_str(), run.source->describe().c_str());
       std::fflush(stdout);
-      const tools::SlamRunResult result = tools::run_slam_system(*run.source, run.config, tools::SlamRunOptions());
+      const tools::SlamRunResult result =
+          tools::run_slam_system(*run.source, run.config, tools::SlamRunOptions());
       tools::print_slam_run(result, stdout);
       // Keyframes 0.76 s apart: the association tolerance must span one keyframe gap.
       const tools::SlamRunEvaluation evaluation =
@@ -112,18 +120,24 @@ int main(int argc, char** argv) {
       // The float setting, rounded back to the decimal it was given as.
       report.add(run.name, "voxel size", std::round(run.config.map.voxel_size_m * 1e6) / 1e6, "m");
       report.add(run.name, "submaps", static_cast<double>(result.submaps.size()), "");
-      report.add(run.name, "registration constraints", static_cast<double>(result.counters.registration.accepted), "");
+      report.add(run.name, "registration constraints",
+                 static_cast<double>(result.counters.registration.accepted), "");
       report.add(run.name, "real-time factor", result.real_time_factor(), "x");
       if (auto* rgbd = dynamic_cast<tools::RgbdScanSource*>(run.source.get())) {
         report.add(run.name, "odometry final drift", rgbd->final_drift_m(), "m");
       }
       if (evaluation.available) {
-        std::printf("%s (translation + yaw alignment, %zu poses): odometry %.3f m, covoxslam %.3f m\n", metric.c_str(),
-                    evaluation.corrected.aligned.size(), evaluation.odometry.absolute_position_m.rmse,
-                    evaluation.corrected.absolute_position_m.rmse);
-        report.add(run.name, metric + " odometry", evaluation.odometry.absolute_position_m.rmse, "m");
-        report.add(run.name, metric + " covoxslam", evaluation.corrected.absolute_position_m.rmse, "m");
-        report.add(run.name, "max error covoxslam", evaluation.corrected.absolute_position_m.max, "m");
+        std::printf(
+            "%s (translation + yaw alignment, %zu poses): odometry %.3f m, covoxslam %.3f m\n",
+            metric.c_str(), evaluation.corrected.aligned.size(),
+            evaluation.odometry.absolute_position_m.rmse,
+            evaluation.corrected.absolute_position_m.rmse);
+        report.add(run.name, metric + " odometry", evaluation.odometry.absolute_position_m.rmse,
+                   "m");
+        report.add(run.name, metric + " covoxslam", evaluation.corrected.absolute_position_m.rmse,
+                   "m");
+        report.add(run.name, "max error covoxslam", evaluation.corrected.absolute_position_m.max,
+                   "m");
       } else {
         std::printf("no evaluation: %s\n", evaluation.problem.c_str());
       }
@@ -131,9 +145,11 @@ int main(int argc, char** argv) {
         std::filesystem::create_directories(trajectories_dir);
         std::string stem = run.name;
         for (char& c : stem) c = std::isalnum(static_cast<unsigned char>(c)) ? c : '_';
-        io::write_tum_trajectory(trajectories_dir + "/" + stem + "_covoxslam.tum", result.corrected);
+        io::write_tum_trajectory(trajectories_dir + "/" + stem + "_covoxslam.tum",
+                                 result.corrected);
         io::write_tum_trajectory(trajectories_dir + "/" + stem + "_odometry.tum", result.odometry);
-        io::write_tum_trajectory(trajectories_dir + "/" + stem + "_reference.tum", run.source->reference());
+        io::write_tum_trajectory(trajectories_dir + "/" + stem + "_reference.tum",
+                                 run.source->reference());
       }
     }
     std::printf("\n");

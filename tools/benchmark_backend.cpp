@@ -59,8 +59,8 @@ struct Options {
   bool skip_garage = false;
   bool skip_registration = false;
   bool relative_graphs = false;
-  std::vector<backend::PcgPreconditioner> preconditioners = {backend::PcgPreconditioner::kBlockJacobi,
-                                                             backend::PcgPreconditioner::kOdometryChain};
+  std::vector<backend::PcgPreconditioner> preconditioners = {
+      backend::PcgPreconditioner::kBlockJacobi, backend::PcgPreconditioner::kOdometryChain};
   tools::RegistrationWorldConfig world;
   backend::RegistrationDistance distance = backend::RegistrationDistance::kTsdfNearSurface;
   backend::PoseGraphSolverOptions solver;  // our solver's settings (defaults unless overridden)
@@ -71,15 +71,19 @@ struct Options {
 };
 
 [[noreturn]] void usage_error(const std::string& message) {
-  std::cerr << "benchmark_backend: " << message << "\n"
-            << "usage: benchmark_backend [--device all|cuda|cpu] [--submaps 50,200,1000] [--repeats 3]\n"
-            << "                         [--ceres-repeats 1] [--ceres-time-limit-s 300] [--data DIR]\n"
-            << "                         [--skip-ceres] [--skip-garage] [--skip-registration] [--relative-graphs]\n"
-            << "                         [--preconditioner block-jacobi|chain|both] [--distinct-submaps 12]\n"
-            << "                         [--lidar-columns 1024] [--points-per-submap 2000]\n"
-            << "                         [--registration-distance tsdf|esdf] [--pcg-tolerance T]\n"
-            << "                         [--pcg-max-iterations N] [--chain-segment 64] [--registration-sigma 0.1]\n"
-            << "                         [--output PATH]\n";
+  std::cerr
+      << "benchmark_backend: " << message << "\n"
+      << "usage: benchmark_backend [--device all|cuda|cpu] [--submaps 50,200,1000] [--repeats 3]\n"
+      << "                         [--ceres-repeats 1] [--ceres-time-limit-s 300] [--data DIR]\n"
+      << "                         [--skip-ceres] [--skip-garage] [--skip-registration] "
+         "[--relative-graphs]\n"
+      << "                         [--preconditioner block-jacobi|chain|both] [--distinct-submaps "
+         "12]\n"
+      << "                         [--lidar-columns 1024] [--points-per-submap 2000]\n"
+      << "                         [--registration-distance tsdf|esdf] [--pcg-tolerance T]\n"
+      << "                         [--pcg-max-iterations N] [--chain-segment 64] "
+         "[--registration-sigma 0.1]\n"
+      << "                         [--output PATH]\n";
   std::exit(2);
 }
 
@@ -87,7 +91,8 @@ int positive_int(const std::string& flag, const std::string& text, int minimum) 
   char* end = nullptr;
   const long value = std::strtol(text.c_str(), &end, 10);
   if (end == text.c_str() || *end != '\0' || value < minimum) {
-    usage_error(flag + " must be an integer >= " + std::to_string(minimum) + ", got '" + text + "'");
+    usage_error(flag + " must be an integer >= " + std::to_string(minimum) + ", got '" + text +
+                "'");
   }
   return static_cast<int>(value);
 }
@@ -106,7 +111,8 @@ Options parse(int argc, char** argv) {
     } else if (arg == "--submaps") {
       o.submaps.clear();
       std::stringstream list(value());
-      for (std::string item; std::getline(list, item, ',');) o.submaps.push_back(positive_int(arg, item, 3));
+      for (std::string item; std::getline(list, item, ',');)
+        o.submaps.push_back(positive_int(arg, item, 3));
     } else if (arg == "--repeats") {
       o.repeats = positive_int(arg, value(), 1);
     } else if (arg == "--ceres-repeats") {
@@ -131,7 +137,8 @@ Options parse(int argc, char** argv) {
       } else if (name == "chain") {
         o.preconditioners = {backend::PcgPreconditioner::kOdometryChain};
       } else if (name == "both") {
-        o.preconditioners = {backend::PcgPreconditioner::kBlockJacobi, backend::PcgPreconditioner::kOdometryChain};
+        o.preconditioners = {backend::PcgPreconditioner::kBlockJacobi,
+                             backend::PcgPreconditioner::kOdometryChain};
       } else {
         usage_error("--preconditioner must be block-jacobi, chain or both, got '" + name + "'");
       }
@@ -181,8 +188,9 @@ double median(std::vector<double> values) {
 
 // Our solver on one device and preconditioner: `solve(graph, options)` solves a fresh copy.
 template <class Graph, class Solve>
-Graph run_ours(const std::string& label, const Graph& initial, backend::PcgPreconditioner preconditioner,
-               const Options& o, Solve solve, tools::BenchmarkReport* report) {
+Graph run_ours(const std::string& label, const Graph& initial,
+               backend::PcgPreconditioner preconditioner, const Options& o, Solve solve,
+               tools::BenchmarkReport* report) {
   std::vector<double> times;
   backend::PoseGraphSolverSummary summary;
   Graph graph;
@@ -226,7 +234,8 @@ Graph run_ceres(const std::string& label, const Graph& initial, const Options& o
     result = solve(&graph, voxgraph_ceres_options(o));
     times.push_back(result.solve_time_s * 1e3);
   }
-  std::cerr << label << ": " << result.brief_report << " (time limit " << o.ceres_time_limit_s << " s)\n";
+  std::cerr << label << ": " << result.brief_report << " (time limit " << o.ceres_time_limit_s
+            << " s)\n";
   report->add(label, "solve time (median)", median(times), "ms");
   report->add(label, "final cost", result.final_cost, "");
   report->add(label, "LM iterations", result.iterations, "");  // Ceres counts iteration 0 too
@@ -235,29 +244,34 @@ Graph run_ceres(const std::string& label, const Graph& initial, const Options& o
 #endif
 
 template <class Graph>
-void run_pose_graph_case(const std::string& name, const Graph& initial, const std::vector<Device>& devices,
-                         const Options& o, tools::BenchmarkReport* report) {
+void run_pose_graph_case(const std::string& name, const Graph& initial,
+                         const std::vector<Device>& devices, const Options& o,
+                         tools::BenchmarkReport* report) {
   for (const Device device : devices) {
     for (const backend::PcgPreconditioner preconditioner : o.preconditioners) {
-      run_ours(name + " " + to_string(device) + " " + backend::to_string(preconditioner), initial, preconditioner, o,
-               [&](Graph* g, const backend::PoseGraphSolverOptions& options) {
-                 return backend::solve_pose_graph(g, device, options);
-               },
-               report);
+      run_ours(
+          name + " " + to_string(device) + " " + backend::to_string(preconditioner), initial,
+          preconditioner, o,
+          [&](Graph* g, const backend::PoseGraphSolverOptions& options) {
+            return backend::solve_pose_graph(g, device, options);
+          },
+          report);
     }
   }
 #if COVOX_HAVE_CERES
   if (!o.skip_ceres) {
-    run_ceres(name + " ceres SPARSE_SCHUR x4", initial, o,
-              [](Graph* g, const backend::ceres_oracle::OracleOptions& options) {
-                return backend::ceres_oracle::solve(g, options);
-              },
-              report);
+    run_ceres(
+        name + " ceres SPARSE_SCHUR x4", initial, o,
+        [](Graph* g, const backend::ceres_oracle::OracleOptions& options) {
+          return backend::ceres_oracle::solve(g, options);
+        },
+        report);
   }
 #endif
 }
 
-void run_registration_cases(const std::vector<Device>& devices, const Options& o, tools::BenchmarkReport* report) {
+void run_registration_cases(const std::vector<Device>& devices, const Options& o,
+                            tools::BenchmarkReport* report) {
   std::map<Device, tools::RegistrationWorld> worlds;
   for (const Device device : devices) {
     worlds.emplace(device, tools::build_registration_world(o.world, device));
@@ -265,8 +279,10 @@ void run_registration_cases(const std::vector<Device>& devices, const Options& o
     int64_t points = 0;
     for (const auto& p : w.points) points += static_cast<int64_t>(p->points.size());
     std::cerr << "registration world on " << to_string(device) << ": " << w.maps.size()
-              << " distinct submaps (period " << w.period_m << " m), " << points / static_cast<int64_t>(w.points.size())
-              << " registration points per submap on average, built in " << w.build_time_s << " s\n";
+              << " distinct submaps (period " << w.period_m << " m), "
+              << points / static_cast<int64_t>(w.points.size())
+              << " registration points per submap on average, built in " << w.build_time_s
+              << " s\n";
   }
   for (const int n : o.submaps) {
     tools::RegistrationGraphOptions graph_options;
@@ -275,36 +291,42 @@ void run_registration_cases(const std::vector<Device>& devices, const Options& o
     graph_options.residual_sigma = o.registration_sigma;
     std::string name;
     for (const Device device : devices) {
-      const tools::RegistrationGraph problem = tools::make_registration_graph(worlds.at(device), graph_options);
+      const tools::RegistrationGraph problem =
+          tools::make_registration_graph(worlds.at(device), graph_options);
       int64_t points = 0;
       for (const auto& t : problem.terms) points += static_cast<int64_t>(t.points_i->points.size());
-      name = "reg n=" + std::to_string(n) + " (" + std::to_string(problem.terms.size()) + " pairs, " +
-             std::to_string(points / 1000) + "k points)";
+      name = "reg n=" + std::to_string(n) + " (" + std::to_string(problem.terms.size()) +
+             " pairs, " + std::to_string(points / 1000) + "k points)";
       if (device == devices.front()) {
-        report->add(name + " initial", "position RMSE", tools::position_rmse_m(problem.graph.poses, problem.truth),
-                    "m");
+        report->add(name + " initial", "position RMSE",
+                    tools::position_rmse_m(problem.graph.poses, problem.truth), "m");
         // Where the truth sits on the objective: a final cost below it means the registration
         // terms' optimum is biased away from the truth (single-scan submaps), not a failed solve.
         backend::PoseGraph4Dof at_truth = problem.graph;
         at_truth.poses = problem.truth;
         report->add(name + " truth", "final cost",
-                    backend::pose_graph_cost(at_truth) + backend::registration_terms_cost(at_truth, problem.terms), "");
+                    backend::pose_graph_cost(at_truth) +
+                        backend::registration_terms_cost(at_truth, problem.terms),
+                    "");
       }
       for (const backend::PcgPreconditioner preconditioner : o.preconditioners) {
-        const std::string label = name + " " + to_string(device) + " " + backend::to_string(preconditioner);
+        const std::string label =
+            name + " " + to_string(device) + " " + backend::to_string(preconditioner);
         const backend::PoseGraph4Dof solved = run_ours(
             label, problem.graph, preconditioner, o,
             [&](backend::PoseGraph4Dof* g, const backend::PoseGraphSolverOptions& options) {
               return backend::solve_pose_graph(g, problem.terms, device, options);
             },
             report);
-        report->add(label, "position RMSE", tools::position_rmse_m(solved.poses, problem.truth), "m");
+        report->add(label, "position RMSE", tools::position_rmse_m(solved.poses, problem.truth),
+                    "m");
       }
     }
 #if COVOX_HAVE_CERES
     if (!o.skip_ceres) {
       // Ceres runs on the host: it reads the first device's world (host copies of device maps).
-      const tools::RegistrationGraph problem = tools::make_registration_graph(worlds.at(devices.front()), graph_options);
+      const tools::RegistrationGraph problem =
+          tools::make_registration_graph(worlds.at(devices.front()), graph_options);
       backend::ceres_oracle::HostRegistrationFields fields;
       const std::string label = name + " ceres SPARSE_SCHUR x4";
       const backend::PoseGraph4Dof solved = run_ceres(
@@ -323,11 +345,14 @@ int run(int argc, char** argv) {
   const Options o = parse(argc, argv);
   const std::vector<Device> devices = devices_of(o.device);
   std::string description;
-  for (const Device d : devices) description += (description.empty() ? "" : "; ") + describe_device(d);
+  for (const Device d : devices)
+    description += (description.empty() ? "" : "; ") + describe_device(d);
 #if COVOX_HAVE_CERES
-  if (!o.skip_ceres) description += "; Ceres " + std::string(CERES_VERSION_STRING) + " SPARSE_SCHUR, 4 threads";
+  if (!o.skip_ceres)
+    description += "; Ceres " + std::string(CERES_VERSION_STRING) + " SPARSE_SCHUR, 4 threads";
 #else
-  std::cerr << "benchmark_backend: built without Ceres: no Ceres rows (run the Ceres part on a machine with it)\n";
+  std::cerr << "benchmark_backend: built without Ceres: no Ceres rows (run the Ceres part on a "
+               "machine with it)\n";
 #endif
   tools::BenchmarkReport report("backend", description, argc, argv);
   if (!o.skip_registration) run_registration_cases(devices, o, &report);
@@ -337,8 +362,8 @@ int run(int argc, char** argv) {
       synthetic.submaps = n;
       synthetic.height_constraints = true;
       const auto problem = backend::make_synthetic_graph_4dof(synthetic);
-      run_pose_graph_case("4dof n=" + std::to_string(n) + " (" + std::to_string(problem.graph.constraints.size()) +
-                              " constraints)",
+      run_pose_graph_case("4dof n=" + std::to_string(n) + " (" +
+                              std::to_string(problem.graph.constraints.size()) + " constraints)",
                           problem.graph, devices, o, &report);
     }
   }

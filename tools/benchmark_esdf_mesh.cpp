@@ -34,9 +34,10 @@ struct Options {
 };
 
 Options parse(int argc, char** argv) {
-  tools::CommandLine args(argc, argv,
-                          "usage: benchmark_esdf_mesh [--data DIR] [--device all|cuda|cpu] [--updates N]"
-                          " [--skip-rgbd]");
+  tools::CommandLine args(
+      argc, argv,
+      "usage: benchmark_esdf_mesh [--data DIR] [--device all|cuda|cpu] [--updates N]"
+      " [--skip-rgbd]");
   Options options;
   options.data = args.text("--data", io::data_directory());
   options.device = args.text("--device", options.device);
@@ -54,8 +55,9 @@ struct Reports {
 // Integrates frame (i mod frame_count) `updates` times; after each, times the incremental ESDF
 // and mesh updates. The first pass over the frames is a warm-up and not recorded.
 template <class IntegrateFrame>
-void run_case(const std::string& name, const Stream& stream, TsdfMap& map, size_t frame_count, int updates,
-              float esdf_max_distance_m, IntegrateFrame&& integrate_frame, const Reports& reports) {
+void run_case(const std::string& name, const Stream& stream, TsdfMap& map, size_t frame_count,
+              int updates, float esdf_max_distance_m, IntegrateFrame&& integrate_frame,
+              const Reports& reports) {
   EsdfIntegratorConfig esdf_config;
   esdf_config.esdf_max_distance_m = esdf_max_distance_m;
   EsdfIntegrator esdf(esdf_config);
@@ -66,8 +68,10 @@ void run_case(const std::string& name, const Stream& stream, TsdfMap& map, size_
     integrate_frame(static_cast<size_t>(i) % frame_count);
     EsdfUpdateStats esdf_stats;
     MeshUpdateStats mesh_stats;
-    const double e = tools::stream_milliseconds(stream, [&] { esdf_stats = esdf.update(map, stream); });
-    const double m = tools::stream_milliseconds(stream, [&] { mesh_stats = mesh.update(map, stream); });
+    const double e =
+        tools::stream_milliseconds(stream, [&] { esdf_stats = esdf.update(map, stream); });
+    const double m =
+        tools::stream_milliseconds(stream, [&] { mesh_stats = mesh.update(map, stream); });
     // What a node that publishes every frame pays on top: the new block meshes copied to the host.
     const double d = tools::stream_milliseconds(stream, [&] { mesh.block_meshes(stream); });
     if (i < warm_up) continue;
@@ -77,18 +81,23 @@ void run_case(const std::string& name, const Stream& stream, TsdfMap& map, size_
     changed_blocks.push_back(static_cast<double>(esdf_stats.changed_blocks));
     meshed_blocks.push_back(static_cast<double>(mesh_stats.blocks_meshed));
   }
-  const double full_esdf_ms = tools::stream_milliseconds(stream, [&] { esdf.update_all(map, stream); });
+  const double full_esdf_ms =
+      tools::stream_milliseconds(stream, [&] { esdf.update_all(map, stream); });
   size_t triangles = 0;
-  const double full_mesh_ms = tools::stream_milliseconds(stream, [&] { triangles = mesh.extract_all(map, stream).triangle_count(); });
+  const double full_mesh_ms = tools::stream_milliseconds(
+      stream, [&] { triangles = mesh.extract_all(map, stream).triangle_count(); });
 
   tools::print_stage_profile(name);
   reports.esdf->add(name, "incremental update (median)", tools::median_of(esdf_ms), "ms/frame");
-  reports.esdf->add(name, "changed blocks per frame (median)", tools::median_of(changed_blocks), "blocks");
+  reports.esdf->add(name, "changed blocks per frame (median)", tools::median_of(changed_blocks),
+                    "blocks");
   reports.esdf->add(name, "full update", full_esdf_ms, "ms");
   reports.esdf->add(name, "map blocks", static_cast<double>(map.block_count()), "blocks");
   reports.mesh->add(name, "incremental update (median)", tools::median_of(mesh_ms), "ms/frame");
-  reports.mesh->add(name, "block meshes to the host (median)", tools::median_of(mesh_download_ms), "ms/frame");
-  reports.mesh->add(name, "blocks meshed per frame (median)", tools::median_of(meshed_blocks), "blocks");
+  reports.mesh->add(name, "block meshes to the host (median)", tools::median_of(mesh_download_ms),
+                    "ms/frame");
+  reports.mesh->add(name, "blocks meshed per frame (median)", tools::median_of(meshed_blocks),
+                    "blocks");
   reports.mesh->add(name, "full extraction (welded)", full_mesh_ms, "ms");
   reports.mesh->add(name, "triangles", static_cast<double>(triangles), "triangles");
 }
@@ -106,9 +115,13 @@ void benchmark_lidar(Device device, const Options& options, const Reports& repor
   config.use_sparsity_compensation_factor = true;
   config.sparsity_compensation_factor = 20.0f;
   TsdfIntegrator integrator(config);
-  run_case(std::string(to_string(device)) + " OS1-64 0.2 m, ESDF 2 m", stream, map, scans.size(), options.updates,
-           2.0f, [&](size_t f) { integrator.integrate(map, scans.view(f), Eigen::Isometry3d::Identity(), stream); },
-           reports);
+  run_case(
+      std::string(to_string(device)) + " OS1-64 0.2 m, ESDF 2 m", stream, map, scans.size(),
+      options.updates, 2.0f,
+      [&](size_t f) {
+        integrator.integrate(map, scans.view(f), Eigen::Isometry3d::Identity(), stream);
+      },
+      reports);
 }
 
 void benchmark_rgbd(Device device, const Options& options, const Reports& reports) {
@@ -122,9 +135,13 @@ void benchmark_rgbd(Device device, const Options& options, const Reports& report
   config.truncation_distance_m = 0.2f;  // 4 voxels, nvblox's default
   config.max_ray_length_m = 5.0f;
   TsdfIntegrator integrator(config);
-  run_case(std::string(to_string(device)) + " 7-Scenes 5 cm, ESDF 2 m", stream, map, frames.size(), options.updates,
-           2.0f, [&](size_t f) { integrator.integrate_depth(map, frames.view(f), frames.T_world_camera[f], stream); },
-           reports);
+  run_case(
+      std::string(to_string(device)) + " 7-Scenes 5 cm, ESDF 2 m", stream, map, frames.size(),
+      options.updates, 2.0f,
+      [&](size_t f) {
+        integrator.integrate_depth(map, frames.view(f), frames.T_world_camera[f], stream);
+      },
+      reports);
 }
 
 }  // namespace

@@ -39,10 +39,11 @@ struct Options {
 };
 
 Options parse(int argc, char** argv) {
-  tools::CommandLine args(argc, argv,
-                          "usage: benchmark_hash_table [--keys N] [--device all|cuda|cpu] [--repeats N]\n"
-                          "       [--load-factors 0.5,0.7,0.85] [--lookup-blocks N] [--lookups N]\n"
-                          "       [--output docs/benchmarks/hash_table.json]");
+  tools::CommandLine args(
+      argc, argv,
+      "usage: benchmark_hash_table [--keys N] [--device all|cuda|cpu] [--repeats N]\n"
+      "       [--load-factors 0.5,0.7,0.85] [--lookup-blocks N] [--lookups N]\n"
+      "       [--output docs/benchmarks/hash_table.json]");
   Options options;
   options.keys = args.positive_integer("--keys", options.keys);
   options.device = args.text("--device", options.device);
@@ -79,7 +80,8 @@ std::vector<Index3D> distinct_keys(int64_t count) {
 template <class Function>
 double median_milliseconds(int repeats, const Stream& stream, Function&& function) {
   std::vector<double> times;
-  for (int r = 0; r < repeats; ++r) times.push_back(tools::stream_milliseconds(stream, [&] { function(r); }));
+  for (int r = 0; r < repeats; ++r)
+    times.push_back(tools::stream_milliseconds(stream, [&] { function(r); }));
   return tools::median_of(times);
 }
 
@@ -110,7 +112,8 @@ void benchmark_table(Device device, const Options& options, const std::vector<In
     for (int r = 0; r < options.repeats; ++r) {
       table.clear();
       table.activate(keys.data(), n, slots.data(), nullptr, stream);
-      erase_times.push_back(tools::stream_milliseconds(stream, [&] { table.erase(keys.data(), n, stream); }));
+      erase_times.push_back(
+          tools::stream_milliseconds(stream, [&] { table.erase(keys.data(), n, stream); }));
     }
     const double erase_ms = tools::median_of(erase_times);
     report->add(name.str(), "insert (activate)", n / (insert_ms * 1e3), "Mkeys/s");
@@ -153,13 +156,14 @@ void benchmark_layout(Device device, const Options& options, const std::string& 
     for (auto* queries : {&random_device, &block_device}) {
       const double ms = median_milliseconds(options.repeats, stream, [&](int) {
         dispatch(device, [&](auto backend) {
-          gather_voxel_distances(backend, stream, storage.view(), queries->data(),
-                                 options.lookups, out.data());
+          gather_voxel_distances(backend, stream, storage.view(), queries->data(), options.lookups,
+                                 out.data());
         });
       });
       const char* pattern = queries == &random_device ? "random voxels" : "block-coherent";
-      report->add(std::string(to_string(device)) + " " + voxel_name + " " + layout_name + " " + pattern,
-                  "lookup time per voxel", ms * 1e6 / options.lookups, "ns");
+      report->add(
+          std::string(to_string(device)) + " " + voxel_name + " " + layout_name + " " + pattern,
+          "lookup time per voxel", ms * 1e6 / options.lookups, "ns");
     }
   };
   VoxelStorage<Voxel, Layout::kSoA> soa(device, static_cast<size_t>(voxel_count));

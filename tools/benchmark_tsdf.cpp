@@ -44,18 +44,22 @@ struct Options {
   bool skip_lidar = false;
   std::string only_case;  // run only the cases whose name contains this (all when empty)
   bool aggregate_free_space_in_warp = false;  // TsdfIntegratorConfig's option, for every case
-  bool runs(const std::string& name) const { return only_case.empty() || name.find(only_case) != std::string::npos; }
+  bool runs(const std::string& name) const {
+    return only_case.empty() || name.find(only_case) != std::string::npos;
+  }
 };
 
 Options parse(int argc, char** argv) {
-  tools::CommandLine args(argc, argv,
-                          "usage: benchmark_tsdf [--data DIR] [--device all|cuda|cpu] [--integrations N]\n"
-                          "       [--output docs/benchmarks/tsdf.json] [--skip-rgbd] [--skip-lidar]\n"
-                          "       [--case TEXT] [--aggregate-free-space-in-warp]");
+  tools::CommandLine args(
+      argc, argv,
+      "usage: benchmark_tsdf [--data DIR] [--device all|cuda|cpu] [--integrations N]\n"
+      "       [--output docs/benchmarks/tsdf.json] [--skip-rgbd] [--skip-lidar]\n"
+      "       [--case TEXT] [--aggregate-free-space-in-warp]");
   Options options;
   options.data = args.text("--data", io::data_directory());
   options.device = args.text("--device", options.device);
-  options.integrations = static_cast<int>(args.positive_integer("--integrations", options.integrations));
+  options.integrations =
+      static_cast<int>(args.positive_integer("--integrations", options.integrations));
   options.output = args.text("--output", "");
   options.skip_rgbd = args.flag("--skip-rgbd");
   options.skip_lidar = args.flag("--skip-lidar");
@@ -89,15 +93,16 @@ Timing time_integrations(const Stream& stream, size_t frame_count, int integrati
   double total_ms = 0.0;
   for (int i = 0; i < integrations; ++i) {
     IntegrationStats stats;
-    const double ms =
-        tools::stream_milliseconds(stream, [&] { stats = integrate_frame(static_cast<size_t>(i) % frame_count); });
+    const double ms = tools::stream_milliseconds(
+        stream, [&] { stats = integrate_frame(static_cast<size_t>(i) % frame_count); });
     times.push_back(ms);
     total_ms += ms;
     updates += stats.voxel_updates;
     rays += stats.rays_cast;
   }
   return Timing{tools::median_of(times), updates / (total_ms * 1e-3), map.block_count(),
-                static_cast<double>(rays) / integrations, static_cast<double>(updates) / integrations};
+                static_cast<double>(rays) / integrations,
+                static_cast<double>(updates) / integrations};
 }
 
 void add_rows(tools::BenchmarkReport* report, const std::string& name, const Timing& t) {
@@ -129,9 +134,10 @@ void benchmark_lidar(Device device, const Options& options, const std::string& l
   config.method = method;
   config.aggregate_free_space_in_warp = options.aggregate_free_space_in_warp;
   TsdfIntegrator integrator(config);
-  const Timing timing = time_integrations(stream, scans.size(), options.integrations, map, [&](size_t f) {
-    return integrator.integrate(map, scans.view(f), Eigen::Isometry3d::Identity(), stream);
-  });
+  const Timing timing =
+      time_integrations(stream, scans.size(), options.integrations, map, [&](size_t f) {
+        return integrator.integrate(map, scans.view(f), Eigen::Isometry3d::Identity(), stream);
+      });
   add_rows(report, name, timing);
 }
 
@@ -139,8 +145,9 @@ void benchmark_lidar(Device device, const Options& options, const std::string& l
 // pixel with free-space carving (voxblox semantics), `carving` off keeps only the band.
 void benchmark_rgbd(Device device, const Options& options, const tools::DeviceRgbdFrames& frames,
                     float voxel_size, bool carving, tools::BenchmarkReport* report) {
-  const std::string name = std::string(to_string(device)) + " 7-Scenes " + std::to_string(int(voxel_size * 100 + 0.5)) +
-                           " cm colour" + (carving ? " carving" : " band only");
+  const std::string name = std::string(to_string(device)) + " 7-Scenes " +
+                           std::to_string(int(voxel_size * 100 + 0.5)) + " cm colour" +
+                           (carving ? " carving" : " band only");
   if (!options.runs(name)) return;
   const Stream stream(device);
   TsdfMapConfig map_config;
@@ -153,9 +160,10 @@ void benchmark_rgbd(Device device, const Options& options, const tools::DeviceRg
   config.voxel_carving_enabled = carving;
   config.aggregate_free_space_in_warp = options.aggregate_free_space_in_warp;
   TsdfIntegrator integrator(config);
-  const Timing timing = time_integrations(stream, frames.size(), options.integrations, map, [&](size_t f) {
-    return integrator.integrate_depth(map, frames.view(f), frames.T_world_camera[f], stream);
-  });
+  const Timing timing =
+      time_integrations(stream, frames.size(), options.integrations, map, [&](size_t f) {
+        return integrator.integrate_depth(map, frames.view(f), frames.T_world_camera[f], stream);
+      });
   add_rows(report, name, timing);
 }
 
@@ -174,15 +182,20 @@ int main(int argc, char** argv) {
         const tools::DeviceScans ouster = tools::load_ouster_scans(options.data, device);
         const tools::DeviceScans kitti = tools::load_kitti_scans(options.data, device);
         const auto merged = TsdfIntegrationMethod::kMerged, simple = TsdfIntegrationMethod::kSimple;
-        benchmark_lidar(device, options, "OS1-64 0.2 m, 16 m rays", ouster, 0.2f, 16.0f, merged, &report);
-        benchmark_lidar(device, options, "OS1-64 0.2 m, 16 m rays", ouster, 0.2f, 16.0f, simple, &report);
-        benchmark_lidar(device, options, "OS1-64 0.1 m, 16 m rays", ouster, 0.1f, 16.0f, merged, &report);
-        benchmark_lidar(device, options, "KITTI HDL-64 0.2 m, 50 m rays", kitti, 0.2f, 50.0f, merged, &report);
+        benchmark_lidar(device, options, "OS1-64 0.2 m, 16 m rays", ouster, 0.2f, 16.0f, merged,
+                        &report);
+        benchmark_lidar(device, options, "OS1-64 0.2 m, 16 m rays", ouster, 0.2f, 16.0f, simple,
+                        &report);
+        benchmark_lidar(device, options, "OS1-64 0.1 m, 16 m rays", ouster, 0.1f, 16.0f, merged,
+                        &report);
+        benchmark_lidar(device, options, "KITTI HDL-64 0.2 m, 50 m rays", kitti, 0.2f, 50.0f,
+                        merged, &report);
       }
       if (!options.skip_rgbd) {
         const tools::DeviceRgbdFrames frames = tools::load_7scenes_frames(options.data, 70, device);
         for (float voxel_size : {0.05f, 0.02f}) {
-          for (bool carving : {true, false}) benchmark_rgbd(device, options, frames, voxel_size, carving, &report);
+          for (bool carving : {true, false})
+            benchmark_rgbd(device, options, frames, voxel_size, carving, &report);
         }
       }
     }

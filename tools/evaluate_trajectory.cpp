@@ -25,10 +25,13 @@ using namespace covox;
 const char kUsage[] =
     "usage: evaluate_trajectory --reference GT.tum --estimate A.tum[,B.tum...] [options]\n"
     "       evaluate_trajectory --mesh RECONSTRUCTION.ply --gt-mesh WORLD.ply [options]\n"
-    "  --labels NAME[,NAME...]   names of the estimates in the table and plot (default: file names)\n"
-    "  --topic T                 trajectory topic of .bag files (default /penguin/piksi_node/enu_pose_fix)\n"
+    "  --labels NAME[,NAME...]   names of the estimates in the table and plot (default: file "
+    "names)\n"
+    "  --topic T                 trajectory topic of .bag files (default "
+    "/penguin/piksi_node/enu_pose_fix)\n"
     "  --align MODE              none | translation | 4dof | se3 | sim3 (default 4dof, as ARCHE)\n"
-    "  --max-time-gap-s S        largest gap to an estimate pose to interpolate across (default 0.1)\n"
+    "  --max-time-gap-s S        largest gap to an estimate pose to interpolate across (default "
+    "0.1)\n"
     "  --rpe-delta D             RPE pair spacing (default 10)\n"
     "  --rpe-unit m|frames       unit of --rpe-delta (default m)\n"
     "  --plot FILE.png           top view and error over time\n"
@@ -76,8 +79,8 @@ void evaluate_trajectories(tools::CommandLine& args, const std::string& referenc
     for (const std::string& path : estimate_paths) labels.push_back(file_stem(path));
   }
   if (labels.size() != estimate_paths.size()) {
-    args.fail("--labels names " + std::to_string(labels.size()) + " estimates but --estimate gives " +
-              std::to_string(estimate_paths.size()));
+    args.fail("--labels names " + std::to_string(labels.size()) +
+              " estimates but --estimate gives " + std::to_string(estimate_paths.size()));
   }
 
   const io::Trajectory reference = read_trajectory(reference_path);
@@ -86,7 +89,8 @@ void evaluate_trajectories(tools::CommandLine& args, const std::string& referenc
   for (const io::StampedPose& pose : reference.poses) {
     figure.top_view_m.back().points.push_back({pose.position_m.x(), pose.position_m.y()});
   }
-  const std::string rpe_unit = options.relative.unit == tools::RelativeDeltaUnit::kFrames ? " frames" : " m";
+  const std::string rpe_unit =
+      options.relative.unit == tools::RelativeDeltaUnit::kFrames ? " frames" : " m";
   std::printf("reference: %s (%zu poses); alignment %s; RPE over %g%s\n", reference_path.c_str(),
               reference.size(), tools::alignment_mode_name(options.alignment).c_str(),
               options.relative.delta, rpe_unit.c_str());
@@ -95,11 +99,12 @@ void evaluate_trajectories(tools::CommandLine& args, const std::string& referenc
   const double start_s = reference.empty() ? 0.0 : reference.poses.front().timestamp_s;
   for (size_t k = 0; k < estimate_paths.size(); ++k) {
     const io::Trajectory estimate = read_trajectory(estimate_paths[k]);
-    const tools::TrajectoryEvaluation evaluation = tools::evaluate_trajectory(reference, estimate, options);
+    const tools::TrajectoryEvaluation evaluation =
+        tools::evaluate_trajectory(reference, estimate, options);
     const tools::ErrorStatistics& ate = evaluation.absolute_position_m;
     const tools::RelativePoseError& rpe = evaluation.relative;
-    std::printf("%-16s %8zu %10.4f %10.4f %10.4f %10.4f %12.4f %12s\n", labels[k].c_str(), ate.count,
-                ate.rmse, ate.mean, ate.median, ate.max, rpe.translation_m.rmse,
+    std::printf("%-16s %8zu %10.4f %10.4f %10.4f %10.4f %12.4f %12s\n", labels[k].c_str(),
+                ate.count, ate.rmse, ate.mean, ate.median, ate.max, rpe.translation_m.rmse,
                 rpe.has_rotation ? std::to_string(rpe.rotation_deg.rmse).c_str() : "-");
     const tools::Rgb colour = tools::series_colour(k);
     tools::PlotSeries top{labels[k], colour, {}};
@@ -107,7 +112,8 @@ void evaluate_trajectories(tools::CommandLine& args, const std::string& referenc
     for (size_t i = 0; i < evaluation.aligned.size(); ++i) {
       const Eigen::Vector3d& p = evaluation.aligned.estimate_positions_m[i];
       top.points.push_back({p.x(), p.y()});
-      error.points.push_back({evaluation.aligned.timestamps_s[i] - start_s, evaluation.position_errors_m[i]});
+      error.points.push_back(
+          {evaluation.aligned.timestamps_s[i] - start_s, evaluation.position_errors_m[i]});
     }
     figure.top_view_m.push_back(std::move(top));
     figure.error_over_time.push_back(std::move(error));
@@ -118,7 +124,8 @@ void evaluate_trajectories(tools::CommandLine& args, const std::string& referenc
   }
 }
 
-void evaluate_mesh(tools::CommandLine& args, const std::string& mesh_path, const std::string& truth_path) {
+void evaluate_mesh(tools::CommandLine& args, const std::string& mesh_path,
+                   const std::string& truth_path) {
   tools::ReconstructionEvaluationOptions options;
   options.thresholds_m = args.numbers("--thresholds-m", {0.1, 0.2, 0.5});
   options.sample_spacing_m = args.number("--sample-spacing-m", 0.1);
@@ -140,8 +147,10 @@ int main(int argc, char** argv) {
     const std::string mesh = args.text("--mesh", "");
     const std::string truth_mesh = args.text("--gt-mesh", "");
     if (!reference.empty() || !estimates.empty()) {
-      if (reference.empty() || estimates.empty()) args.fail("--reference and --estimate go together");
-      if (!mesh.empty() || !truth_mesh.empty()) args.fail("evaluate trajectories or a mesh, not both at once");
+      if (reference.empty() || estimates.empty())
+        args.fail("--reference and --estimate go together");
+      if (!mesh.empty() || !truth_mesh.empty())
+        args.fail("evaluate trajectories or a mesh, not both at once");
       evaluate_trajectories(args, reference, estimates);
     } else if (!mesh.empty() && !truth_mesh.empty()) {
       evaluate_mesh(args, mesh, truth_mesh);

@@ -32,7 +32,8 @@ const char kUsage[] =
     "usage: map_flight [--bag FILE] [options]\n"
     "  --bag FILE             flight bag with the ARCHE layout (default sim_flight/flight.bag)\n"
     "  --poses odometry|truth which poses to fuse the scans at (default odometry)\n"
-    "  --truth FILE.tum       cloud-frame poses for --poses truth (default truth.tum next to the bag)\n"
+    "  --truth FILE.tum       cloud-frame poses for --poses truth (default truth.tum next to the "
+    "bag)\n"
     "  --device auto|cpu|cuda (default auto)\n"
     "  --voxel-size-m S       (default 0.2, voxgraph's ARCHE setting)\n"
     "  --truncation-m T       (default 0.6)\n"
@@ -63,8 +64,9 @@ void draw_progress(size_t done, size_t total, double elapsed_s) {
   const double fraction = total > 0 ? static_cast<double>(done) / total : 1.0;
   const int filled = static_cast<int>(fraction * width);
   const double eta_s = done > 0 ? elapsed_s * (total - done) / done : 0.0;
-  std::fprintf(stderr, "\r[%s%s] %3.0f%% scan %zu/%zu, %.0f s, ETA %.0f s ", std::string(filled, '#').c_str(),
-               std::string(width - filled, '.').c_str(), 100.0 * fraction, done, total, elapsed_s, eta_s);
+  std::fprintf(stderr, "\r[%s%s] %3.0f%% scan %zu/%zu, %.0f s, ETA %.0f s ",
+               std::string(filled, '#').c_str(), std::string(width - filled, '.').c_str(),
+               100.0 * fraction, done, total, elapsed_s, eta_s);
 }
 
 }  // namespace
@@ -74,8 +76,9 @@ int main(int argc, char** argv) {
   const std::string flight_path = args.text("--bag", "sim_flight/flight.bag");
   const std::string pose_source = args.text("--poses", "odometry");
   const size_t slash = flight_path.find_last_of('/');
-  const std::string truth_path =
-      args.text("--truth", (slash == std::string::npos ? std::string() : flight_path.substr(0, slash + 1)) + "truth.tum");
+  const std::string truth_path = args.text(
+      "--truth", (slash == std::string::npos ? std::string() : flight_path.substr(0, slash + 1)) +
+                     "truth.tum");
   const std::string device_text = args.text("--device", "auto");
   const double voxel_size_m = args.number("--voxel-size-m", 0.2);
   const double truncation_m = args.number("--truncation-m", 0.6);
@@ -85,8 +88,10 @@ int main(int argc, char** argv) {
   const int64_t max_scans = args.integer("--max-scans", 0);
   const std::string mesh_path = args.text("--mesh", "map_flight_mesh.ply");
   args.finish();
-  if (pose_source != "odometry" && pose_source != "truth") args.fail("--poses must be odometry or truth");
-  if (esdf_every <= 0 || mesh_every <= 0) args.fail("--esdf-every and --mesh-every must be positive");
+  if (pose_source != "odometry" && pose_source != "truth")
+    args.fail("--poses must be odometry or truth");
+  if (esdf_every <= 0 || mesh_every <= 0)
+    args.fail("--esdf-every and --mesh-every must be positive");
 
   try {
     const Device device = select_device(parse_device_request(device_text));
@@ -139,7 +144,8 @@ int main(int argc, char** argv) {
       }
       timed(&tsdf_timer, stream, [&] { tsdf.integrate(map, scan.points_sensor_m, {}, pose); });
       if ((k + 1) % esdf_every == 0) timed(&esdf_timer, stream, [&] { esdf.update(map, stream); });
-      if ((k + 1) % mesh_every == 0) timed(&mesh_timer, stream, [&] { mesher.update(map, stream); });
+      if ((k + 1) % mesh_every == 0)
+        timed(&mesh_timer, stream, [&] { mesher.update(map, stream); });
       if (k % 10 == 0 || k + 1 == total) {
         draw_progress(k + 1, total, std::chrono::duration<double>(Clock::now() - start).count());
       }
@@ -155,31 +161,38 @@ int main(int argc, char** argv) {
     const size_t scans = odometry.size();
     const double flight_s = reader.duration_s() * scans / std::max<size_t>(1, reader.size());
     std::printf("device: %s\n", describe_device(device).c_str());
-    std::printf("flight: %s, %zu scans (%.1f s), %.0f points/scan, fused at %s poses\n", flight_path.c_str(), scans,
-                flight_s, scans ? double(points) / scans : 0.0, pose_source.c_str());
+    std::printf("flight: %s, %zu scans (%.1f s), %.0f points/scan, fused at %s poses\n",
+                flight_path.c_str(), scans, flight_s, scans ? double(points) / scans : 0.0,
+                pose_source.c_str());
     if (scans_without_truth + reader.dropped() > 0) {
       std::printf("scans skipped: %lld without a truth pose, %lld unreadable or without odometry\n",
-                  static_cast<long long>(scans_without_truth), static_cast<long long>(reader.dropped()));
+                  static_cast<long long>(scans_without_truth),
+                  static_cast<long long>(reader.dropped()));
     }
     std::printf("\n%-16s %8s %10s %12s\n", "module", "calls", "total s", "ms/call");
-    for (const ModuleTimer* t : {&read_timer, &tsdf_timer, &esdf_timer, &mesh_timer, &final_timer}) {
-      std::printf("%-16s %8lld %10.2f %12.2f\n", t->name.c_str(), static_cast<long long>(t->calls), t->seconds,
-                  t->calls ? 1000.0 * t->seconds / t->calls : 0.0);
+    for (const ModuleTimer* t :
+         {&read_timer, &tsdf_timer, &esdf_timer, &mesh_timer, &final_timer}) {
+      std::printf("%-16s %8lld %10.2f %12.2f\n", t->name.c_str(), static_cast<long long>(t->calls),
+                  t->seconds, t->calls ? 1000.0 * t->seconds / t->calls : 0.0);
     }
     std::printf("%-16s %8s %10.2f   (%.2f s per simulated second)\n", "total", "", wall_s,
                 flight_s > 0 ? wall_s / flight_s : 0.0);
     const double voxel_bytes = sizeof(TsdfVoxel) + sizeof(ColorVoxel) + sizeof(EsdfVoxel);
-    std::printf("\nmap: %lld blocks of %d^3 voxels at %.2f m (%.1f MiB of voxels); mesh %zu triangles -> %s\n",
-                static_cast<long long>(map.block_count()), map.voxels_per_side(), voxel_size_m,
-                map.block_count() * map.voxels_per_block() * voxel_bytes / (1024.0 * 1024.0), mesh.triangle_count(),
-                mesh_path.c_str());
+    std::printf(
+        "\nmap: %lld blocks of %d^3 voxels at %.2f m (%.1f MiB of voxels); mesh %zu triangles -> "
+        "%s\n",
+        static_cast<long long>(map.block_count()), map.voxels_per_side(), voxel_size_m,
+        map.block_count() * map.voxels_per_block() * voxel_bytes / (1024.0 * 1024.0),
+        mesh.triangle_count(), mesh_path.c_str());
     if (scans >= 3 && reader.reference().size() >= 3) {
       tools::TrajectoryEvaluationOptions options;
       const io::Trajectory& reference = reader.reference();
       const io::Trajectory& estimate = odometry;
-      for (tools::AlignmentMode mode : {tools::AlignmentMode::kNone, tools::AlignmentMode::kTranslationYaw}) {
+      for (tools::AlignmentMode mode :
+           {tools::AlignmentMode::kNone, tools::AlignmentMode::kTranslationYaw}) {
         options.alignment = mode;
-        const tools::TrajectoryEvaluation evaluation = tools::evaluate_trajectory(reference, estimate, options);
+        const tools::TrajectoryEvaluation evaluation =
+            tools::evaluate_trajectory(reference, estimate, options);
         std::printf("odometry ATE RMSE (alignment %s): %.3f m (max %.3f m)\n",
                     tools::alignment_mode_name(mode).c_str(), evaluation.absolute_position_m.rmse,
                     evaluation.absolute_position_m.max);

@@ -59,7 +59,8 @@ const char* kUsage =
     "  --repeat N             align each accepted pair N more times, each from the last result\n"
     "  --neighbour-gap N      pairs at most N submap ids apart count as neighbours (default 3)\n"
     "  --rows                 print every constraint, not only the summary\n"
-    "  --walls                also the wall match alone (pipeline/wall_map.h) of every overlapping revisit\n";
+    "  --walls                also the wall match alone (pipeline/wall_map.h) of every overlapping "
+    "revisit\n";
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kGoldenAngleRad = 2.399963229728653;
@@ -84,7 +85,8 @@ std::map<int64_t, double> read_submap_stamps(const std::string& path) {
 }
 
 // The true pose at `stamp_s` (trajectory_evaluation's interpolation); throws outside the file.
-Eigen::Isometry3d true_pose_at(const io::Trajectory& truth, double stamp_s, const std::string& path) {
+Eigen::Isometry3d true_pose_at(const io::Trajectory& truth, double stamp_s,
+                               const std::string& path) {
   io::StampedPose stamped;
   if (!tools::interpolate_pose(truth, stamp_s, &stamped)) {
     throw Error(path + " does not cover stamp " + std::to_string(stamp_s));
@@ -116,7 +118,8 @@ struct PairError {
   double along_m = 0.0, length_m = 0.0;
 };
 
-PairError pair_error(int64_t from, int64_t to, const backend::Pose4Dof& found, const backend::Pose4Dof& expected) {
+PairError pair_error(int64_t from, int64_t to, const backend::Pose4Dof& found,
+                     const backend::Pose4Dof& expected) {
   PairError e;
   e.from = from;
   e.to = to;
@@ -124,7 +127,9 @@ PairError pair_error(int64_t from, int64_t to, const backend::Pose4Dof& found, c
   e.vertical_m = found.z - expected.z;
   e.yaw_deg = wrap_angle(found.yaw - expected.yaw) * 180.0 / kPi;
   e.length_m = std::hypot(expected.x, expected.y);
-  if (e.length_m > 1e-6) e.along_m = ((found.x - expected.x) * expected.x + (found.y - expected.y) * expected.y) / e.length_m;
+  if (e.length_m > 1e-6)
+    e.along_m =
+        ((found.x - expected.x) * expected.x + (found.y - expected.y) * expected.y) / e.length_m;
   return e;
 }
 
@@ -140,9 +145,11 @@ void print_group(const char* name, const std::vector<PairError>& errors) {
     yaw.push_back(std::abs(e.yaw_deg));
     over_half_metre += e.horizontal_m > 0.5;
   }
-  std::printf("%-11s %5zu %10.3f %10.3f %10.3f %10.2f %8lld %10.3f %10.2f\n", name, errors.size(), median(horizontal),
-              mean(horizontal), median(vertical), median(yaw), static_cast<long long>(over_half_metre),
-              errors.empty() ? NAN : along_sum / errors.size(), length_sum > 0.0 ? 100.0 * along_sum / length_sum : NAN);
+  std::printf("%-11s %5zu %10.3f %10.3f %10.3f %10.2f %8lld %10.3f %10.2f\n", name, errors.size(),
+              median(horizontal), mean(horizontal), median(vertical), median(yaw),
+              static_cast<long long>(over_half_metre),
+              errors.empty() ? NAN : along_sum / errors.size(),
+              length_sum > 0.0 ? 100.0 * along_sum / length_sum : NAN);
 }
 
 }  // namespace
@@ -161,7 +168,8 @@ int main(int argc, char** argv) {
   const bool rows = args.flag("--rows");
   const bool walls = args.flag("--walls");
   args.finish();
-  if (map_path.empty() || graph_path.empty() || truth_path.empty()) args.fail("--map, --graph and --truth are required");
+  if (map_path.empty() || graph_path.empty() || truth_path.empty())
+    args.fail("--map, --graph and --truth are required");
   if (!(start_offset_m >= 0.0)) args.fail("--start-offset-m must be >= 0");
   if (repeat < 0) args.fail("--repeat must be >= 0");
 
@@ -180,15 +188,18 @@ int main(int argc, char** argv) {
 
     std::vector<pipeline::RegistrationPartner> earlier;
     std::vector<PairError> neighbours, revisits, wall_matches;
-    std::vector<std::unique_ptr<pipeline::WallMapCache>> wall_caches;  // one per submap, as the SLAM system keeps
-    std::vector<std::unique_ptr<pipeline::SubmapRegistrationPoints>> kept_points;  // the same for their points
+    std::vector<std::unique_ptr<pipeline::WallMapCache>>
+        wall_caches;  // one per submap, as the SLAM system keeps
+    std::vector<std::unique_ptr<pipeline::SubmapRegistrationPoints>>
+        kept_points;  // the same for their points
     pipeline::RegistrationCounts counts;
     std::map<int64_t, backend::Pose4Dof> true_pose;
     if (rows) std::printf("from -> to   horizontal_m  vertical_m  yaw_deg  along_m\n");
     for (size_t k = 0; k < contents.submaps.size(); ++k) {
       const int64_t id = contents.submaps[k].id;
       const auto stamp = stamps.find(id);
-      if (stamp == stamps.end()) throw Error("submap " + std::to_string(id) + " is not in " + graph_path);
+      if (stamp == stamps.end())
+        throw Error("submap " + std::to_string(id) + " is not in " + graph_path);
       const backend::Pose4Dof truth_k =
           pipeline::pose_4dof_from_isometry(true_pose_at(truth, stamp->second, truth_path));
       true_pose[id] = truth_k;
@@ -197,27 +208,31 @@ int main(int argc, char** argv) {
       start.x += start_offset_m * std::cos(direction);
       start.y += start_offset_m * std::sin(direction);
       start.yaw = wrap_angle(start.yaw + (k % 2 ? 1.0 : -1.0) * start_yaw_deg * kPi / 180.0);
-      kept_points.push_back(pipeline::prepare_registration_points(*maps[k], config.registration, stream));
+      kept_points.push_back(
+          pipeline::prepare_registration_points(*maps[k], config.registration, stream));
       const std::unique_ptr<pipeline::SubmapRegistrationPoints>& points = kept_points.back();
       wall_caches.push_back(std::make_unique<pipeline::WallMapCache>());
       pipeline::WallMapCache* const own_walls = wall_caches.back().get();
-      const std::vector<pipeline::SubmapConstraint> constraints = pipeline::registration_constraints(
-          id, *maps[k], *points, start, earlier, config.registration, stream, &counts, own_walls);
+      const std::vector<pipeline::SubmapConstraint> constraints =
+          pipeline::registration_constraints(id, *maps[k], *points, start, earlier,
+                                             config.registration, stream, &counts, own_walls);
       if (walls) {
         for (const pipeline::RegistrationPartner* partner :
              pipeline::overlapping_partners(*maps[k], start, earlier, config.registration)) {
           if (id - partner->id < config.registration.revisit_min_id_gap) continue;
           pipeline::WallSearchConfig search;
           search.range_m = config.registration.wall_search_range_m;
-          const pipeline::WallMatch match =
-              pipeline::match_walls(own_walls->get(*maps[k], stream), partner->walls->get(*partner->map, stream),
-                                    pipeline::relative_pose_4dof(partner->pose, start), search);
-          const backend::Pose4Dof expected = pipeline::relative_pose_4dof(true_pose.at(partner->id), truth_k);
+          const pipeline::WallMatch match = pipeline::match_walls(
+              own_walls->get(*maps[k], stream), partner->walls->get(*partner->map, stream),
+              pipeline::relative_pose_4dof(partner->pose, start), search);
+          const backend::Pose4Dof expected =
+              pipeline::relative_pose_4dof(true_pose.at(partner->id), truth_k);
           const PairError e = pair_error(partner->id, id, match.T_fixed_moving, expected);
           wall_matches.push_back(e);
           if (rows) {
-            std::printf("walls %4lld -> %-4lld %11.3f %8.2f score %.1f\n", static_cast<long long>(e.from),
-                        static_cast<long long>(e.to), e.horizontal_m, e.yaw_deg, match.score);
+            std::printf("walls %4lld -> %-4lld %11.3f %8.2f score %.1f\n",
+                        static_cast<long long>(e.from), static_cast<long long>(e.to),
+                        e.horizontal_m, e.yaw_deg, match.score);
           }
         }
       }
@@ -229,26 +244,30 @@ int main(int argc, char** argv) {
           }
           pipeline::RegistrationCounts ignored;
           const std::vector<pipeline::SubmapConstraint> redo = pipeline::registration_constraints(
-              id, *maps[k], *points, pipeline::compose(partner->pose, c.measurement), {*partner}, config.registration,
-              stream, &ignored);
+              id, *maps[k], *points, pipeline::compose(partner->pose, c.measurement), {*partner},
+              config.registration, stream, &ignored);
           if (redo.empty()) break;
           c = redo.front();
         }
-        const backend::Pose4Dof expected = pipeline::relative_pose_4dof(true_pose.at(c.from_submap), truth_k);
+        const backend::Pose4Dof expected =
+            pipeline::relative_pose_4dof(true_pose.at(c.from_submap), truth_k);
         const PairError e = pair_error(c.from_submap, c.to_submap, c.measurement, expected);
         (e.to - e.from <= neighbour_gap ? neighbours : revisits).push_back(e);
         if (rows) {
           std::printf("%4lld -> %-4lld %11.3f %11.3f %8.2f %8.3f\n", static_cast<long long>(e.from),
-                      static_cast<long long>(e.to), e.horizontal_m, e.vertical_m, e.yaw_deg, e.along_m);
+                      static_cast<long long>(e.to), e.horizontal_m, e.vertical_m, e.yaw_deg,
+                      e.along_m);
         }
       }
-      earlier.push_back(pipeline::RegistrationPartner{id, maps[k].get(), truth_k, own_walls, points.get()});
+      earlier.push_back(
+          pipeline::RegistrationPartner{id, maps[k].get(), truth_k, own_walls, points.get()});
     }
-    std::printf("registration from %.2f m / %.1f deg off the truth (%s): %lld attempted, %lld accepted\n",
-                start_offset_m, start_yaw_deg, describe_device(device).c_str(),
-                static_cast<long long>(counts.attempted), static_cast<long long>(counts.accepted));
-    std::printf("%-11s %5s %10s %10s %10s %10s %8s %10s %10s\n", "pairs", "n", "med_xy_m", "mean_xy_m", "med_z_m",
-                "med_yaw_deg", ">0.5m", "along_m", "scale_%");
+    std::printf(
+        "registration from %.2f m / %.1f deg off the truth (%s): %lld attempted, %lld accepted\n",
+        start_offset_m, start_yaw_deg, describe_device(device).c_str(),
+        static_cast<long long>(counts.attempted), static_cast<long long>(counts.accepted));
+    std::printf("%-11s %5s %10s %10s %10s %10s %8s %10s %10s\n", "pairs", "n", "med_xy_m",
+                "mean_xy_m", "med_z_m", "med_yaw_deg", ">0.5m", "along_m", "scale_%");
     print_group("neighbours", neighbours);
     print_group("revisits", revisits);
     std::vector<PairError> all = neighbours;

@@ -41,10 +41,12 @@ const char kUsage[] =
     "  --cloud-topic T             (default /penguin/os1_cloud_node/points)\n"
     "  --odom-frame F              odometry frame in tf (default odom)\n"
     "  --odometry-topic T          take odometry from nav_msgs/Odometry on T instead of tf\n"
-    "  --reference-topic T         PointStamped or Odometry reference (default /penguin/piksi_node/enu_pose_fix)\n"
+    "  --reference-topic T         PointStamped or Odometry reference (default "
+    "/penguin/piksi_node/enu_pose_fix)\n"
     "  --sensor-frame F            frame of the clouds (default: each cloud's frame_id)\n"
     "  --min-range-m R             drop points nearer than R (default 0.5: the drone itself)\n"
-    "  --dataset DIR               RGB-D folder (7-Scenes, 3DMatch, Replica) or LiDAR keyframes (MulRan layout)\n"
+    "  --dataset DIR               RGB-D folder (7-Scenes, 3DMatch, Replica) or LiDAR keyframes "
+    "(MulRan layout)\n"
     "  --pixel-stride N            RGB-D: every N-th pixel (default 2)\n"
     "  --frame-rate-hz F           RGB-D: frame rate for stamps (default 30)\n"
     "  --drift-m D                 RGB-D: least final odometry drift (default 0.3)\n"
@@ -52,10 +54,14 @@ const char kUsage[] =
     "  --max-scans N               stop after N scans (0: all)\n"
     "mapping (defaults from the preset):\n"
     "  --device auto|cpu|cuda      (default auto)\n"
-    "  --preset NAME               arche (bags: 0.2 m voxels, 0.6 m truncation, 16 m rays, LiDAR weighting,\n"
-    "                              5 s submaps), rgbd (RGB-D folders: 4 cm, 12 cm, 4 m, inverse-square\n"
-    "                              weighting, 2 s), lidar-keyframes (keyframe folders: 0.5 m, 1.5 m, 40 m, 8 s)\n"
-    "  --config FILE.yaml          SLAM parameters as the nodelet reads them (e.g. config/arche.yaml),\n"
+    "  --preset NAME               arche (bags: 0.2 m voxels, 0.6 m truncation, 16 m rays, LiDAR "
+    "weighting,\n"
+    "                              5 s submaps), rgbd (RGB-D folders: 4 cm, 12 cm, 4 m, "
+    "inverse-square\n"
+    "                              weighting, 2 s), lidar-keyframes (keyframe folders: 0.5 m, 1.5 "
+    "m, 40 m, 8 s)\n"
+    "  --config FILE.yaml          SLAM parameters as the nodelet reads them (e.g. "
+    "config/arche.yaml),\n"
     "                              applied over the preset; ROS-only parameters in it are ignored\n"
     "  --voxel-size-m S            voxel size\n"
     "  --truncation-m T            truncation distance\n"
@@ -71,14 +77,19 @@ const char kUsage[] =
     "  --odometry-trajectory FILE  odometry trajectory of the same scans (default: not written)\n"
     "  --reference-trajectory FILE the input's reference trajectory (default: not written)\n"
     "  --mesh FILE.ply             combined mesh (default run_slam_mesh.ply)\n"
-    "  --graph FILE.txt            submaps and pose-graph constraints as text (default: not written):\n"
-    "                              'submap ID START_S END_S x y z yaw (corrected) x y z yaw (odometry)',\n"
-    "                              'constraint KIND FROM TO dx dy dz dyaw', the information's diagonal\n"
+    "  --graph FILE.txt            submaps and pose-graph constraints as text (default: not "
+    "written):\n"
+    "                              'submap ID START_S END_S x y z yaw (corrected) x y z yaw "
+    "(odometry)',\n"
+    "                              'constraint KIND FROM TO dx dy dz dyaw', the information's "
+    "diagonal\n"
     "                              and 1 (0: set aside by the consistency gate)\n"
     "  --map FILE                  also save the map (default: not saved)\n"
-    "  --align none|translation|4dof|se3|sim3  ATE alignment (default 4dof: translation + yaw, as ARCHE)\n"
+    "  --align none|translation|4dof|se3|sim3  ATE alignment (default 4dof: translation + yaw, as "
+    "ARCHE)\n"
     "  --max-time-gap-s G          association tolerance (default 0.1)\n"
-    "  --json FILE                 write the results as a benchmark report (e.g. docs/benchmarks/pipeline.json)\n"
+    "  --json FILE                 write the results as a benchmark report (e.g. "
+    "docs/benchmarks/pipeline.json)\n"
     "  --case NAME                 the report's case name (default: the input's file name)\n"
     "  --quiet                     no progress bar\n";
 
@@ -90,20 +101,22 @@ void write_graph(const std::string& path, const tools::SlamRunResult& result) {
     const backend::Pose4Dof world = pipeline::pose_4dof_from_isometry(submap.T_world_submap);
     const backend::Pose4Dof odom = pipeline::pose_4dof_from_isometry(submap.T_odom_submap);
     std::fprintf(file, "submap %lld %.6f %.6f %.6f %.6f %.6f %.8f %.6f %.6f %.6f %.8f\n",
-                 static_cast<long long>(submap.id), submap.statistics.start_stamp_s, submap.statistics.end_stamp_s,
-                 world.x, world.y, world.z, world.yaw, odom.x, odom.y, odom.z, odom.yaw);
+                 static_cast<long long>(submap.id), submap.statistics.start_stamp_s,
+                 submap.statistics.end_stamp_s, world.x, world.y, world.z, world.yaw, odom.x,
+                 odom.y, odom.z, odom.yaw);
   }
   for (const pipeline::SubmapConstraint& c : result.constraints) {
-    std::fprintf(file, "constraint %s %lld %lld %.6f %.6f %.6f %.8f %.6g %.6g %.6g %.6g %d\n", pipeline::to_string(c.kind),
-                 static_cast<long long>(c.from_submap), static_cast<long long>(c.to_submap), c.measurement.x,
-                 c.measurement.y, c.measurement.z, c.measurement.yaw, c.information(0, 0), c.information(1, 1),
+    std::fprintf(file, "constraint %s %lld %lld %.6f %.6f %.6f %.8f %.6g %.6g %.6g %.6g %d\n",
+                 pipeline::to_string(c.kind), static_cast<long long>(c.from_submap),
+                 static_cast<long long>(c.to_submap), c.measurement.x, c.measurement.y,
+                 c.measurement.z, c.measurement.yaw, c.information(0, 0), c.information(1, 1),
                  c.information(2, 2), c.information(3, 3), c.active ? 1 : 0);
   }
   std::fclose(file);
 }
 
-void add_timing_rows(tools::BenchmarkReport* report, const std::string& name, const std::string& module,
-                     const pipeline::ModuleTiming& timing) {
+void add_timing_rows(tools::BenchmarkReport* report, const std::string& name,
+                     const std::string& module, const pipeline::ModuleTiming& timing) {
   report->add(name, module + " total", timing.total_s, "s");
   report->add(name, module + " mean", timing.mean_ms(), "ms");
   report->add(name, module + " calls", static_cast<double>(timing.calls), "");
@@ -123,7 +136,8 @@ int main(int argc, char** argv) {
   bag_options.sensor_frame = args.text("--sensor-frame", bag_options.sensor_frame);
   bag_options.min_range_m = args.number("--min-range-m", 0.5);
   tools::RgbdScanOptions rgbd_options;
-  rgbd_options.pixel_stride = static_cast<int>(args.integer("--pixel-stride", rgbd_options.pixel_stride));
+  rgbd_options.pixel_stride =
+      static_cast<int>(args.integer("--pixel-stride", rgbd_options.pixel_stride));
   rgbd_options.frame_rate_hz = args.number("--frame-rate-hz", rgbd_options.frame_rate_hz);
   rgbd_options.min_final_drift_m = args.number("--drift-m", rgbd_options.min_final_drift_m);
   rgbd_options.drift_seed = static_cast<uint64_t>(args.integer("--drift-seed", 1));
@@ -158,7 +172,8 @@ int main(int argc, char** argv) {
   if (!bag_path.empty() && !dataset_path.empty()) args.fail("give --bag or --dataset, not both");
   if (bag_path.empty() && dataset_path.empty()) bag_path = "sim_flight/flight.bag";
   if (max_scans < 0) args.fail("--max-scans must be >= 0");
-  if (sensor_queue < 1 || submap_queue < 1) args.fail("--sensor-queue and --submap-queue must be at least 1");
+  if (sensor_queue < 1 || submap_queue < 1)
+    args.fail("--sensor-queue and --submap-queue must be at least 1");
 
   try {
     const tools::AlignmentMode alignment = tools::parse_alignment_mode(align_text);
@@ -167,7 +182,8 @@ int main(int argc, char** argv) {
     if (!bag_path.empty()) {
       source = std::make_unique<tools::BagScanSource>(bag_path, bag_options);
     } else {
-      if (max_scans > 0) rgbd_options.max_frames = lidar_options.max_scans = static_cast<size_t>(max_scans);
+      if (max_scans > 0)
+        rgbd_options.max_frames = lidar_options.max_scans = static_cast<size_t>(max_scans);
       source = tools::open_dataset_scan_source(dataset_path, rgbd_options, lidar_options);
     }
     if (preset.empty()) {
@@ -178,11 +194,12 @@ int main(int argc, char** argv) {
     pipeline::SlamConfig config = tools::preset_slam_config(preset, device);
     if (!config_path.empty()) {
       const tools::ConfigFileUse use = tools::apply_slam_config_file(config_path, &config);
-      std::printf("config: %s (%zu SLAM parameters; not for the runner: %s)\n", config_path.c_str(), use.applied,
-                  use.ignored.empty() ? "none" : use.ignored.c_str());
+      std::printf("config: %s (%zu SLAM parameters; not for the runner: %s)\n", config_path.c_str(),
+                  use.applied, use.ignored.empty() ? "none" : use.ignored.c_str());
     }
     if (!std::isnan(voxel_size_m)) config.map.voxel_size_m = static_cast<float>(voxel_size_m);
-    if (!std::isnan(truncation_m)) config.tsdf.truncation_distance_m = static_cast<float>(truncation_m);
+    if (!std::isnan(truncation_m))
+      config.tsdf.truncation_distance_m = static_cast<float>(truncation_m);
     if (!std::isnan(max_ray_m)) config.tsdf.max_ray_length_m = static_cast<float>(max_ray_m);
     config.submaps.policy = pipeline::parse_submap_creation_policy(policy_text);
     if (!std::isnan(interval_s)) config.submaps.interval_s = interval_s;
@@ -195,10 +212,12 @@ int main(int argc, char** argv) {
       const size_t slash = input.find_last_of('/', input.size() > 1 ? input.size() - 2 : 0);
       case_name = slash == std::string::npos ? input : input.substr(slash + 1);
     }
-    std::printf("device: %s\ninput: %s\npreset: %s (%.3f m voxels, %.3f m truncation, %.1f m rays, submaps: %s)\n",
-                describe_device(config.device).c_str(), source->describe().c_str(), preset.c_str(),
-                config.map.voxel_size_m, config.tsdf.truncation_distance_m, config.tsdf.max_ray_length_m,
-                pipeline::to_string(config.submaps.policy));
+    std::printf(
+        "device: %s\ninput: %s\npreset: %s (%.3f m voxels, %.3f m truncation, %.1f m rays, "
+        "submaps: %s)\n",
+        describe_device(config.device).c_str(), source->describe().c_str(), preset.c_str(),
+        config.map.voxel_size_m, config.tsdf.truncation_distance_m, config.tsdf.max_ray_length_m,
+        pipeline::to_string(config.submaps.policy));
     std::fflush(stdout);
 
     tools::SlamRunOptions options;
@@ -209,26 +228,32 @@ int main(int argc, char** argv) {
 
     io::write_tum_trajectory(trajectory_path, result.corrected);
     if (!odometry_path.empty()) io::write_tum_trajectory(odometry_path, result.odometry);
-    if (!reference_path.empty() && !source->reference().empty()) io::write_tum_trajectory(reference_path, source->reference());
+    if (!reference_path.empty() && !source->reference().empty())
+      io::write_tum_trajectory(reference_path, source->reference());
     io::write_mesh_ply(mesh_path, result.mesh);
     if (!graph_path.empty()) write_graph(graph_path, result);
 
     tools::print_slam_run(result, stdout);
     // With COVOX_PROFILE_STAGES=1: where each module's time went, stage by stage.
     if (StageProfiler::enabled()) std::printf("\n%s\n", StageProfiler::report().c_str());
-    std::printf("mesh -> %s\ntrajectory: %zu poses -> %s\n", mesh_path.c_str(), result.corrected.size(),
-                trajectory_path.c_str());
+    std::printf("mesh -> %s\ntrajectory: %zu poses -> %s\n", mesh_path.c_str(),
+                result.corrected.size(), trajectory_path.c_str());
     if (!map_path.empty()) std::printf("map -> %s\n", map_path.c_str());
 
-    const tools::SlamRunEvaluation evaluation = tools::evaluate_slam_run(*source, result, alignment, max_time_gap_s);
+    const tools::SlamRunEvaluation evaluation =
+        tools::evaluate_slam_run(*source, result, alignment, max_time_gap_s);
     const bool truth = source->reference_kind() == tools::ReferenceKind::kGroundTruth;
     if (evaluation.available) {
-      std::printf("\n%s (%s alignment, %zu poses):\n", truth ? "ATE RMSE against the ground truth"
-                                                              : "distance to the reference (another estimate, not truth)",
-                  tools::alignment_mode_name(alignment).c_str(), evaluation.corrected.aligned.size());
-      std::printf("  odometry alone   %.3f m RMSE (max %.3f m)\n", evaluation.odometry.absolute_position_m.rmse,
+      std::printf("\n%s (%s alignment, %zu poses):\n",
+                  truth ? "ATE RMSE against the ground truth"
+                        : "distance to the reference (another estimate, not truth)",
+                  tools::alignment_mode_name(alignment).c_str(),
+                  evaluation.corrected.aligned.size());
+      std::printf("  odometry alone   %.3f m RMSE (max %.3f m)\n",
+                  evaluation.odometry.absolute_position_m.rmse,
                   evaluation.odometry.absolute_position_m.max);
-      std::printf("  covoxslam        %.3f m RMSE (max %.3f m)\n", evaluation.corrected.absolute_position_m.rmse,
+      std::printf("  covoxslam        %.3f m RMSE (max %.3f m)\n",
+                  evaluation.corrected.absolute_position_m.rmse,
                   evaluation.corrected.absolute_position_m.max);
     } else {
       std::printf("\nno trajectory evaluation: %s\n", evaluation.problem.c_str());
@@ -251,12 +276,16 @@ int main(int argc, char** argv) {
       report.add(case_name, "submaps", static_cast<double>(result.submaps.size()), "");
       report.add(case_name, "map blocks", static_cast<double>(result.map_blocks), "");
       report.add(case_name, "map memory", result.map_memory_mb, "MB");
-      report.add(case_name, "scans dropped", static_cast<double>(result.counters.scans_dropped_total() +
-                                                                  result.scans_dropped_by_source), "");
+      report.add(case_name, "scans dropped",
+                 static_cast<double>(result.counters.scans_dropped_total() +
+                                     result.scans_dropped_by_source),
+                 "");
       if (evaluation.available) {
         const std::string metric = truth ? "ATE RMSE " : "distance to reference RMSE ";
-        report.add(case_name, metric + "odometry", evaluation.odometry.absolute_position_m.rmse, "m");
-        report.add(case_name, metric + "covoxslam", evaluation.corrected.absolute_position_m.rmse, "m");
+        report.add(case_name, metric + "odometry", evaluation.odometry.absolute_position_m.rmse,
+                   "m");
+        report.add(case_name, metric + "covoxslam", evaluation.corrected.absolute_position_m.rmse,
+                   "m");
       }
       report.write_json(json_path);
       std::printf("report -> %s\n", json_path.c_str());

@@ -30,7 +30,8 @@ const char kUsage[] =
     "usage: simulate_flight [--output-dir DIR] [options]\n"
     "  --output-dir DIR         where the files go (default sim_flight; created if missing)\n"
     "  --seed N                 world, noise and drift seed (default 1)\n"
-    "  --columns N              LiDAR horizontal resolution (default 1024, OS1-64; 512 or 256 for fast CPU runs)\n"
+    "  --columns N              LiDAR horizontal resolution (default 1024, OS1-64; 512 or 256 for "
+    "fast CPU runs)\n"
     "  --rows N                 LiDAR beams (default 64)\n"
     "  --range-noise-m S        range noise standard deviation (default 0.02)\n"
     "  --dropout P              probability that a beam returns nothing (default 0.01)\n"
@@ -38,7 +39,8 @@ const char kUsage[] =
     "  --path-length-m L        figure-8 length (default 400)\n"
     "  --speed-m-per-s V        flight speed (default 2)\n"
     "  --min-drift-m D          least final odometry drift (default 3)\n"
-    "  --drift-scale F          multiplies every drift rate (default 1; 0: odometry equals the truth,\n"
+    "  --drift-scale F          multiplies every drift rate (default 1; 0: odometry equals the "
+    "truth,\n"
     "                           which isolates the mapping's own error)\n"
     "  --max-scans N            stop after N scans (0: the whole flight)\n";
 
@@ -71,11 +73,13 @@ int main(int argc, char** argv) {
     // folder is fine.
     std::error_code folder_error;
     std::filesystem::create_directories(output_dir, folder_error);
-    if (folder_error) throw Error("cannot create the output folder " + output_dir + ": " + folder_error.message());
+    if (folder_error)
+      throw Error("cannot create the output folder " + output_dir + ": " + folder_error.message());
     const sim::Figure8Path path(flight);
     const sim::Site site = sim::build_site(sim::SiteConfig(), path, seed);
     std::vector<sim::StampedIsometry> truth = sim::simulate_truth(path, flight);
-    std::vector<sim::StampedIsometry> odometry = sim::simulate_odometry(truth, drift.scaled(drift_scale), seed);
+    std::vector<sim::StampedIsometry> odometry =
+        sim::simulate_odometry(truth, drift.scaled(drift_scale), seed);
     if (max_scans > 0 && static_cast<size_t>(max_scans) < truth.size()) {
       truth.resize(max_scans);
       odometry.resize(max_scans);
@@ -103,19 +107,27 @@ int main(int argc, char** argv) {
     }
     writer.close();
     std::fprintf(stderr, "\n");
-    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     double max_drift = 0.0;
     for (size_t k = 0; k < truth.size(); ++k) {
-      max_drift = std::max(max_drift, (truth[k].pose.translation() - odometry[k].pose.translation()).norm());
+      max_drift = std::max(max_drift,
+                           (truth[k].pose.translation() - odometry[k].pose.translation()).norm());
     }
-    std::printf("world: %zu primitives, %zu buildings, ground %.0f x %.0f m\n", site.world.primitive_count(),
-                site.buildings.size(), site.high_m.x() - site.low_m.x(), site.high_m.y() - site.low_m.y());
-    std::printf("flight: %.1f m figure 8 (lobes %.1f x %.1f m) at %.1f m/s, %zu scans of %d x %d beams, %.0f points/scan\n",
-                path.length_m(), 2.0 * path.lobe_half_length_m(), path.lobe_width_m(), flight.speed_m_per_s,
-                truth.size(), lidar.columns, lidar.rows, truth.empty() ? 0.0 : double(total_points) / truth.size());
-    std::printf("odometry drift: final %.2f m, max %.2f m\n", sim::final_drift_m(truth, odometry), max_drift);
-    std::printf("wrote %s/{flight.bag,world.ply,truth.tum,odometry.tum} (%llu bag messages) in %.1f s\n",
-                output_dir.c_str(), static_cast<unsigned long long>(writer.message_count()), seconds);
+    std::printf("world: %zu primitives, %zu buildings, ground %.0f x %.0f m\n",
+                site.world.primitive_count(), site.buildings.size(),
+                site.high_m.x() - site.low_m.x(), site.high_m.y() - site.low_m.y());
+    std::printf(
+        "flight: %.1f m figure 8 (lobes %.1f x %.1f m) at %.1f m/s, %zu scans of %d x %d beams, "
+        "%.0f points/scan\n",
+        path.length_m(), 2.0 * path.lobe_half_length_m(), path.lobe_width_m(), flight.speed_m_per_s,
+        truth.size(), lidar.columns, lidar.rows,
+        truth.empty() ? 0.0 : double(total_points) / truth.size());
+    std::printf("odometry drift: final %.2f m, max %.2f m\n", sim::final_drift_m(truth, odometry),
+                max_drift);
+    std::printf(
+        "wrote %s/{flight.bag,world.ply,truth.tum,odometry.tum} (%llu bag messages) in %.1f s\n",
+        output_dir.c_str(), static_cast<unsigned long long>(writer.message_count()), seconds);
   } catch (const Error& error) {
     std::cerr << "simulate_flight: " << error.what() << std::endl;
     return 1;

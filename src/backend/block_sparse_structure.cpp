@@ -8,8 +8,8 @@ namespace backend {
 namespace {
 
 // Counting sort of (key, value) pairs into CSR form; values keep their input order per key.
-void to_csr(const std::vector<std::pair<int32_t, int32_t>>& pairs, int32_t key_count, std::vector<int32_t>* offsets,
-            std::vector<int32_t>* values) {
+void to_csr(const std::vector<std::pair<int32_t, int32_t>>& pairs, int32_t key_count,
+            std::vector<int32_t>* offsets, std::vector<int32_t>* values) {
   offsets->assign(static_cast<size_t>(key_count) + 1, 0);
   for (const auto& [key, value] : pairs) ++(*offsets)[key + 1];
   for (int32_t k = 0; k < key_count; ++k) (*offsets)[k + 1] += (*offsets)[k];
@@ -20,15 +20,17 @@ void to_csr(const std::vector<std::pair<int32_t, int32_t>>& pairs, int32_t key_c
 
 }  // namespace
 
-BlockSparseStructure build_block_sparse_structure(const std::vector<std::pair<int32_t, int32_t>>& edges,
-                                                  int32_t vertex_count, int32_t fixed_vertex) {
+BlockSparseStructure build_block_sparse_structure(
+    const std::vector<std::pair<int32_t, int32_t>>& edges, int32_t vertex_count,
+    int32_t fixed_vertex) {
   BlockSparseStructure s;
   s.vertex_count = vertex_count;
   s.fixed_vertex = fixed_vertex;
   const auto free_vertex = [&](int32_t v) { return v >= 0 && v != fixed_vertex; };
 
   std::vector<std::pair<int32_t, int32_t>> diag_pairs;
-  std::map<std::pair<int32_t, int32_t>, int32_t> block_of_pair;  // ordered: blocks sorted by (row, col)
+  std::map<std::pair<int32_t, int32_t>, int32_t>
+      block_of_pair;  // ordered: blocks sorted by (row, col)
   for (int32_t k = 0; k < static_cast<int32_t>(edges.size()); ++k) {
     const auto [from, to] = edges[k];
     if (free_vertex(from)) diag_pairs.emplace_back(from, 2 * k);

@@ -13,7 +13,7 @@ namespace covox {
 namespace backend {
 namespace {
 
-constexpr size_t kVertexFields = 8;        // id + 3 + 4
+constexpr size_t kVertexFields = 8;         // id + 3 + 4
 constexpr size_t kEdgeFields = 2 + 7 + 21;  // i j + pose + upper triangle
 
 std::vector<std::string_view> tokens_of(std::string_view line) {
@@ -41,7 +41,8 @@ class LineParser {
     if (!token.empty() && token.front() == '+') token.remove_prefix(1);
     double value = 0.0;
     const auto [end, error] = std::from_chars(token.data(), token.data() + token.size(), value);
-    if (error != std::errc() || end != token.data() + token.size()) fail("'" + std::string(token) + "' is not a number");
+    if (error != std::errc() || end != token.data() + token.size())
+      fail("'" + std::string(token) + "' is not a number");
     return value;
   }
   int64_t integer(std::string_view token) const {
@@ -57,7 +58,8 @@ class LineParser {
     for (int k = 0; k < 7; ++k) v[k] = number(t[first + k]);
     const Eigen::Quaterniond q(v[6], v[3], v[4], v[5]);
     const double norm = q.norm();
-    if (!(norm > 1e-6) || !std::isfinite(norm)) fail("the quaternion has zero or non-finite length");
+    if (!(norm > 1e-6) || !std::isfinite(norm))
+      fail("the quaternion has zero or non-finite length");
     for (int k = 0; k < 3; ++k) {
       if (!std::isfinite(v[k])) fail("the translation is not finite");
     }
@@ -95,18 +97,20 @@ G2oGraph parse_g2o(const std::string& text, const std::string& source_name) {
     const size_t fields = tokens.size() - 1;
     if (tag == "VERTEX_SE3:QUAT") {
       if (fields != kVertexFields) {
-        parse.fail("VERTEX_SE3:QUAT needs " + std::to_string(kVertexFields) + " fields (id x y z qx qy qz qw), found " +
-                   std::to_string(fields));
+        parse.fail("VERTEX_SE3:QUAT needs " + std::to_string(kVertexFields) +
+                   " fields (id x y z qx qy qz qw), found " + std::to_string(fields));
       }
       const int64_t id = parse.integer(tokens[1]);
-      const auto inserted = index_of_id.emplace(id, static_cast<int32_t>(result.graph.poses.size()));
+      const auto inserted =
+          index_of_id.emplace(id, static_cast<int32_t>(result.graph.poses.size()));
       if (!inserted.second) parse.fail("vertex id " + std::to_string(id) + " appears twice");
       result.graph.poses.push_back(parse.pose(tokens, 2));
       result.vertex_ids.push_back(id);
     } else if (tag == "EDGE_SE3:QUAT") {
       if (fields != kEdgeFields) {
         parse.fail("EDGE_SE3:QUAT needs " + std::to_string(kEdgeFields) +
-                   " fields (i j x y z qx qy qz qw and 21 information entries), found " + std::to_string(fields));
+                   " fields (i j x y z qx qy qz qw and 21 information entries), found " +
+                   std::to_string(fields));
       }
       PendingEdge edge;
       edge.line = line_number;
@@ -128,18 +132,24 @@ G2oGraph parse_g2o(const std::string& text, const std::string& source_name) {
                  "' (this reader handles VERTEX_SE3:QUAT, EDGE_SE3:QUAT and FIX)");
     }
   }
-  if (result.graph.poses.empty()) throw Error(source_name + ": no VERTEX_SE3:QUAT line: not an SE(3) g2o graph");
+  if (result.graph.poses.empty())
+    throw Error(source_name + ": no VERTEX_SE3:QUAT line: not an SE(3) g2o graph");
 
   // Edges are resolved after all vertices: g2o files may list them in any order.
   for (const PendingEdge& edge : edges) {
     const LineParser parse(source_name, edge.line);
     const auto from = index_of_id.find(edge.from_id);
     const auto to = index_of_id.find(edge.to_id);
-    if (from == index_of_id.end()) parse.fail("edge names vertex " + std::to_string(edge.from_id) + ", which has no VERTEX line");
-    if (to == index_of_id.end()) parse.fail("edge names vertex " + std::to_string(edge.to_id) + ", which has no VERTEX line");
-    if (from->second == to->second) parse.fail("edge joins vertex " + std::to_string(edge.from_id) + " to itself");
+    if (from == index_of_id.end())
+      parse.fail("edge names vertex " + std::to_string(edge.from_id) +
+                 ", which has no VERTEX line");
+    if (to == index_of_id.end())
+      parse.fail("edge names vertex " + std::to_string(edge.to_id) + ", which has no VERTEX line");
+    if (from->second == to->second)
+      parse.fail("edge joins vertex " + std::to_string(edge.from_id) + " to itself");
     try {
-      result.graph.constraints.push_back(make_se3_constraint(from->second, to->second, edge.measurement, edge.information));
+      result.graph.constraints.push_back(
+          make_se3_constraint(from->second, to->second, edge.measurement, edge.information));
     } catch (const Error& error) {
       parse.fail(error.what());
     }
@@ -148,7 +158,9 @@ G2oGraph parse_g2o(const std::string& text, const std::string& source_name) {
   if (!fixes.empty()) {
     const auto fixed = index_of_id.find(fixes.front().second);
     if (fixed == index_of_id.end()) {
-      LineParser(source_name, fixes.front().first).fail("FIX names vertex " + std::to_string(fixes.front().second) + ", which has no VERTEX line");
+      LineParser(source_name, fixes.front().first)
+          .fail("FIX names vertex " + std::to_string(fixes.front().second) +
+                ", which has no VERTEX line");
     }
     result.graph.fixed_vertex = fixed->second;
   }

@@ -16,13 +16,14 @@ Eigen::MatrixXd sqrt_information(const Eigen::MatrixXd& information, const std::
   if ((information - information.transpose()).cwiseAbs().maxCoeff() > 1e-9 * std::max(scale, 1.0)) {
     throw Error(what + ": the information matrix is not symmetric");
   }
-  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(0.5 * (information + information.transpose()));
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(
+      0.5 * (information + information.transpose()));
   Eigen::VectorXd values = eigen.eigenvalues();
   for (Eigen::Index k = 0; k < values.size(); ++k) {
     // Rounding can push a zero eigenvalue slightly negative; a clearly negative one is an error.
     if (values(k) < -1e-9 * std::max(scale, 1.0)) {
-      throw Error(what + ": the information matrix has a negative eigenvalue (" + std::to_string(values(k)) +
-                  "); it must be positive semi-definite");
+      throw Error(what + ": the information matrix has a negative eigenvalue (" +
+                  std::to_string(values(k)) + "); it must be positive semi-definite");
     }
     values(k) = std::sqrt(std::max(values(k), 0.0));
   }
@@ -43,9 +44,10 @@ Se3Pose make_se3_pose(const Eigen::Vector3d& translation, const Eigen::Quaternio
 
 Eigen::Isometry3d to_isometry(const Se3Pose& pose) {
   Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
-  t.linear() = Eigen::Quaterniond(pose.rotation[3], pose.rotation[0], pose.rotation[1], pose.rotation[2])
-                   .normalized()
-                   .toRotationMatrix();
+  t.linear() =
+      Eigen::Quaterniond(pose.rotation[3], pose.rotation[0], pose.rotation[1], pose.rotation[2])
+          .normalized()
+          .toRotationMatrix();
   t.translation() = Eigen::Vector3d(pose.translation[0], pose.translation[1], pose.translation[2]);
   return t;
 }
@@ -80,11 +82,12 @@ template <class Graph>
 void validate_common(const Graph& graph) {
   const int64_t n = static_cast<int64_t>(graph.poses.size());
   if (graph.fixed_vertex != kNoVertex && (graph.fixed_vertex < 0 || graph.fixed_vertex >= n)) {
-    throw Error("pose graph: fixed_vertex " + std::to_string(graph.fixed_vertex) + " is not a vertex (the graph has " +
-                std::to_string(n) + ")");
+    throw Error("pose graph: fixed_vertex " + std::to_string(graph.fixed_vertex) +
+                " is not a vertex (the graph has " + std::to_string(n) + ")");
   }
   for (int64_t v = 0; v < n; ++v) {
-    if (!finite_pose(graph.poses[v])) throw Error("pose graph: vertex " + std::to_string(v) + " has a non-finite pose");
+    if (!finite_pose(graph.poses[v]))
+      throw Error("pose graph: vertex " + std::to_string(v) + " has a non-finite pose");
   }
   for (size_t k = 0; k < graph.constraints.size(); ++k) {
     const auto& c = graph.constraints[k];
@@ -92,11 +95,13 @@ void validate_common(const Graph& graph) {
     const bool from_ok = c.from >= 0 && c.from < n;
     const bool to_ok = to == kNoVertex || (to >= 0 && to < n);
     if (!from_ok || !to_ok) {
-      throw Error("pose graph: constraint " + std::to_string(k) + " (" + constraint_name(c.from, to) +
-                  ") names a vertex outside [0, " + std::to_string(n) + ")");
+      throw Error("pose graph: constraint " + std::to_string(k) + " (" +
+                  constraint_name(c.from, to) + ") names a vertex outside [0, " +
+                  std::to_string(n) + ")");
     }
-    if (to == c.from) throw Error("pose graph: constraint " + std::to_string(k) + " joins vertex " +
-                                  std::to_string(c.from) + " to itself");
+    if (to == c.from)
+      throw Error("pose graph: constraint " + std::to_string(k) + " joins vertex " +
+                  std::to_string(c.from) + " to itself");
   }
 }
 
@@ -161,8 +166,9 @@ Constraint4Dof make_position_constraint_4dof(int32_t vertex, const Eigen::Vector
   c.measurement.z = position.z();
   Eigen::Matrix4d padded = Eigen::Matrix4d::Zero();
   padded.topLeftCorner<3, 3>() = information;
-  store_row_major<4>(sqrt_information(padded, "position constraint on vertex " + std::to_string(vertex)),
-                     c.sqrt_information);
+  store_row_major<4>(
+      sqrt_information(padded, "position constraint on vertex " + std::to_string(vertex)),
+      c.sqrt_information);
   return c;
 }
 

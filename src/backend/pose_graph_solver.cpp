@@ -9,12 +9,18 @@ namespace backend {
 
 const char* to_string(PoseGraphTermination termination) {
   switch (termination) {
-    case PoseGraphTermination::kFunctionTolerance: return "function tolerance";
-    case PoseGraphTermination::kGradientTolerance: return "gradient tolerance";
-    case PoseGraphTermination::kParameterTolerance: return "parameter tolerance";
-    case PoseGraphTermination::kMaxIterations: return "max iterations";
-    case PoseGraphTermination::kTrustRegionCollapsed: return "trust region collapsed";
-    case PoseGraphTermination::kNoConstraints: return "no constraints";
+    case PoseGraphTermination::kFunctionTolerance:
+      return "function tolerance";
+    case PoseGraphTermination::kGradientTolerance:
+      return "gradient tolerance";
+    case PoseGraphTermination::kParameterTolerance:
+      return "parameter tolerance";
+    case PoseGraphTermination::kMaxIterations:
+      return "max iterations";
+    case PoseGraphTermination::kTrustRegionCollapsed:
+      return "trust region collapsed";
+    case PoseGraphTermination::kNoConstraints:
+      return "no constraints";
   }
   return "unknown";
 }
@@ -25,11 +31,12 @@ const char* to_string(PcgPreconditioner preconditioner) {
 
 std::string PoseGraphSolverSummary::report() const {
   std::ostringstream out;
-  out << "pose graph: cost " << initial_cost << " -> " << final_cost << " in " << iterations << " iterations ("
-      << accepted_steps << " accepted, " << pcg_iterations << " PCG iterations), " << solve_time_s * 1e3
-      << " ms, stopped by " << to_string(termination);
+  out << "pose graph: cost " << initial_cost << " -> " << final_cost << " in " << iterations
+      << " iterations (" << accepted_steps << " accepted, " << pcg_iterations
+      << " PCG iterations), " << solve_time_s * 1e3 << " ms, stopped by " << to_string(termination);
   if (registration_points > 0) {
-    out << "; registration points " << registration_points_used << " of " << registration_points << " used";
+    out << "; registration points " << registration_points_used << " of " << registration_points
+        << " used";
   }
   return out.str();
 }
@@ -37,9 +44,11 @@ std::string PoseGraphSolverSummary::report() const {
 namespace {
 
 template <class Model>
-PoseGraphSolverSummary solve_any(PoseGraph<Model>* graph, Device device, const PoseGraphSolverOptions& options) {
+PoseGraphSolverSummary solve_any(PoseGraph<Model>* graph, Device device,
+                                 const PoseGraphSolverOptions& options) {
   validate_pose_graph(*graph);
-  return dispatch(device, [&](auto backend) { return solve_pose_graph_on(backend, graph, options); });
+  return dispatch(device,
+                  [&](auto backend) { return solve_pose_graph_on(backend, graph, options); });
 }
 
 template <class Model>
@@ -50,23 +59,30 @@ PoseGraphEvaluation evaluate_any(const PoseGraph<Model>& graph, Device device) {
 
 }  // namespace
 
-PoseGraphSolverSummary solve_pose_graph(Se3PoseGraph* graph, Device device, const PoseGraphSolverOptions& options) {
+PoseGraphSolverSummary solve_pose_graph(Se3PoseGraph* graph, Device device,
+                                        const PoseGraphSolverOptions& options) {
   return solve_any(graph, device, options);
 }
-PoseGraphSolverSummary solve_pose_graph(PoseGraph4Dof* graph, Device device, const PoseGraphSolverOptions& options) {
+PoseGraphSolverSummary solve_pose_graph(PoseGraph4Dof* graph, Device device,
+                                        const PoseGraphSolverOptions& options) {
   return solve_any(graph, device, options);
 }
-PoseGraphSolverSummary solve_pose_graph(PoseGraph4Dof* graph, const std::vector<RegistrationTerm>& registration,
+PoseGraphSolverSummary solve_pose_graph(PoseGraph4Dof* graph,
+                                        const std::vector<RegistrationTerm>& registration,
                                         Device device, const PoseGraphSolverOptions& options) {
   validate_pose_graph(*graph);
   validate_registration_terms(registration, static_cast<int32_t>(graph->poses.size()), device);
-  return dispatch(device, [&](auto backend) { return solve_pose_graph_on(backend, graph, registration, options); });
+  return dispatch(device, [&](auto backend) {
+    return solve_pose_graph_on(backend, graph, registration, options);
+  });
 }
-PoseGraphEvaluation evaluate_pose_graph(const PoseGraph4Dof& graph, const std::vector<RegistrationTerm>& registration,
+PoseGraphEvaluation evaluate_pose_graph(const PoseGraph4Dof& graph,
+                                        const std::vector<RegistrationTerm>& registration,
                                         Device device) {
   validate_pose_graph(graph);
   validate_registration_terms(registration, static_cast<int32_t>(graph.poses.size()), device);
-  return dispatch(device, [&](auto backend) { return evaluate_pose_graph_on(backend, graph, registration); });
+  return dispatch(
+      device, [&](auto backend) { return evaluate_pose_graph_on(backend, graph, registration); });
 }
 PoseGraphEvaluation evaluate_pose_graph(const Se3PoseGraph& graph, Device device) {
   return evaluate_any(graph, device);

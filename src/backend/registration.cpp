@@ -17,15 +17,17 @@ namespace backend {
 namespace {
 
 void check_finite_pose(const Pose4Dof& pose, const char* what) {
-  if (!(std::isfinite(pose.x) && std::isfinite(pose.y) && std::isfinite(pose.z) && std::isfinite(pose.yaw))) {
+  if (!(std::isfinite(pose.x) && std::isfinite(pose.y) && std::isfinite(pose.z) &&
+        std::isfinite(pose.yaw))) {
     throw Error(std::string("registration: pose ") + what + " is not finite");
   }
 }
 
 void check_same_device(const RegistrationPoints& points_i, const TsdfMap& map_j) {
   if (points_i.points.device() != map_j.device()) {
-    throw Error(std::string("registration: the points of submap i live on ") + to_string(points_i.points.device()) +
-                " but submap j on " + to_string(map_j.device()) + "; extract them from a map on the same device");
+    throw Error(std::string("registration: the points of submap i live on ") +
+                to_string(points_i.points.device()) + " but submap j on " +
+                to_string(map_j.device()) + "; extract them from a map on the same device");
   }
 }
 
@@ -33,13 +35,15 @@ void check_same_device(const RegistrationPoints& points_i, const TsdfMap& map_j)
 
 void validate_registration_residual_config(const RegistrationResidualConfig& config) {
   if (!(config.tsdf_band_m >= 0.0f) || !std::isfinite(config.tsdf_band_m)) {
-    throw Error("registration: tsdf_band_m must be finite and >= 0, got " + std::to_string(config.tsdf_band_m));
+    throw Error("registration: tsdf_band_m must be finite and >= 0, got " +
+                std::to_string(config.tsdf_band_m));
   }
   if (config.coarse_stride_vox < 1 || config.coarse_stride_vox > 1024) {
     throw Error("registration: coarse_stride_vox must be in [1, 1024], got " +
                 std::to_string(config.coarse_stride_vox));
   }
-  if (config.loss != RobustLoss::kNone && !(config.loss_scale > 0.0 && std::isfinite(config.loss_scale))) {
+  if (config.loss != RobustLoss::kNone &&
+      !(config.loss_scale > 0.0 && std::isfinite(config.loss_scale))) {
     throw Error("registration: a robust loss needs a finite loss_scale > 0, got " +
                 std::to_string(config.loss_scale));
   }
@@ -50,7 +54,8 @@ bool registration_uses_tsdf_target(const RegistrationResidualConfig& config) {
 }
 
 // The kernels read the map; their views are non-const because kernels share one view type.
-RegistrationDistanceLookup make_registration_lookup(const TsdfMap& map, const RegistrationResidualConfig& config) {
+RegistrationDistanceLookup make_registration_lookup(const TsdfMap& map,
+                                                    const RegistrationResidualConfig& config) {
   auto& mutable_map = const_cast<TsdfMap&>(map);
   RegistrationDistanceLookup lookup;
   lookup.esdf = EsdfLookup{BlockVoxelIndexer{map.blocks().device_view(), map.voxels_per_side()},
@@ -62,7 +67,8 @@ RegistrationDistanceLookup make_registration_lookup(const TsdfMap& map, const Re
   return lookup;
 }
 
-RegistrationPoints extract_registration_points(const TsdfMap& map, const RegistrationPointsConfig& config,
+RegistrationPoints extract_registration_points(const TsdfMap& map,
+                                               const RegistrationPointsConfig& config,
                                                const Stream& stream) {
   if (!(config.sampling_ratio > 0.0f && config.sampling_ratio <= 1.0f)) {
     throw Error("extract_registration_points: sampling_ratio must be in (0, 1], got " +
@@ -82,7 +88,8 @@ RegistrationPoints extract_registration_points(const TsdfMap& map, const Registr
   std::vector<uint32_t> host_slots = slots.to_host(stream);
   std::vector<size_t> order(host_indices.size());
   std::iota(order.begin(), order.end(), size_t(0));
-  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return host_indices[a] < host_indices[b]; });
+  std::sort(order.begin(), order.end(),
+            [&](size_t a, size_t b) { return host_indices[a] < host_indices[b]; });
   std::vector<Index3D> sorted_indices(order.size());
   std::vector<uint32_t> sorted_slots(order.size());
   for (size_t k = 0; k < order.size(); ++k) {
@@ -93,9 +100,10 @@ RegistrationPoints extract_registration_points(const TsdfMap& map, const Registr
   auto device_slots = Buffer<uint32_t>::from_host(map.device(), sorted_slots, stream);
   auto& mutable_map = const_cast<TsdfMap&>(map);
   result.surface_voxels = dispatch(map.device(), [&](auto backend) {
-    return registration_collect_points(backend, mutable_map.tsdf().view(), device_indices.data(),
-                                       device_slots.data(), static_cast<int64_t>(sorted_indices.size()),
-                                       map.voxels_per_side(), map.voxel_size_m(), config, &result.points, stream);
+    return registration_collect_points(
+        backend, mutable_map.tsdf().view(), device_indices.data(), device_slots.data(),
+        static_cast<int64_t>(sorted_indices.size()), map.voxels_per_side(), map.voxel_size_m(),
+        config, &result.points, stream);
   });
   return result;
 }
@@ -103,13 +111,15 @@ RegistrationPoints extract_registration_points(const TsdfMap& map, const Registr
 void evaluate_registration_residuals(const RegistrationPoints& points_i, const TsdfMap& map_j,
                                      const Pose4Dof& T_W_Si, const Pose4Dof& T_W_Sj,
                                      const RegistrationResidualConfig& config,
-                                     Buffer<RegistrationResidual>* residuals, const Stream& stream) {
+                                     Buffer<RegistrationResidual>* residuals,
+                                     const Stream& stream) {
   validate_registration_residual_config(config);
   check_finite_pose(T_W_Si, "T_W_Si");
   check_finite_pose(T_W_Sj, "T_W_Sj");
   check_same_device(points_i, map_j);
   if (residuals->device() != map_j.device()) {
-    throw Error("evaluate_registration_residuals: the residual buffer must live on submap j's device");
+    throw Error(
+        "evaluate_registration_residuals: the residual buffer must live on submap j's device");
   }
   const int64_t count = static_cast<int64_t>(points_i.points.size());
   residuals->resize_discard(static_cast<size_t>(count));
@@ -123,10 +133,9 @@ void evaluate_registration_residuals(const RegistrationPoints& points_i, const T
   });
 }
 
-std::vector<RegistrationResidual> evaluate_registration_residuals(const RegistrationPoints& points_i,
-                                                                  const TsdfMap& map_j, const Pose4Dof& T_W_Si,
-                                                                  const Pose4Dof& T_W_Sj,
-                                                                  const RegistrationResidualConfig& config) {
+std::vector<RegistrationResidual> evaluate_registration_residuals(
+    const RegistrationPoints& points_i, const TsdfMap& map_j, const Pose4Dof& T_W_Si,
+    const Pose4Dof& T_W_Sj, const RegistrationResidualConfig& config) {
   const Stream stream(map_j.device());
   Buffer<RegistrationResidual> residuals(map_j.device());
   evaluate_registration_residuals(points_i, map_j, T_W_Si, T_W_Sj, config, &residuals, stream);
@@ -135,10 +144,12 @@ std::vector<RegistrationResidual> evaluate_registration_residuals(const Registra
 
 namespace {
 
-RegistrationNormalEquations normal_equations_into(const RegistrationPoints& points_i, const TsdfMap& map_j,
-                                                  const Pose4Dof& T_W_Si, const Pose4Dof& T_W_Sj,
+RegistrationNormalEquations normal_equations_into(const RegistrationPoints& points_i,
+                                                  const TsdfMap& map_j, const Pose4Dof& T_W_Si,
+                                                  const Pose4Dof& T_W_Sj,
                                                   const RegistrationResidualConfig& config,
-                                                  Buffer<RegistrationResidual>* scratch, const Stream& stream) {
+                                                  Buffer<RegistrationResidual>* scratch,
+                                                  const Stream& stream) {
   evaluate_registration_residuals(points_i, map_j, T_W_Si, T_W_Sj, config, scratch, stream);
   const int64_t count = static_cast<int64_t>(scratch->size());
   const RegistrationSums sums = dispatch(map_j.device(), [&](auto backend) {
@@ -162,10 +173,9 @@ RegistrationNormalEquations normal_equations_into(const RegistrationPoints& poin
 
 }  // namespace
 
-RegistrationNormalEquations registration_normal_equations(const RegistrationPoints& points_i, const TsdfMap& map_j,
-                                                          const Pose4Dof& T_W_Si, const Pose4Dof& T_W_Sj,
-                                                          const RegistrationResidualConfig& config,
-                                                          const Stream& stream) {
+RegistrationNormalEquations registration_normal_equations(
+    const RegistrationPoints& points_i, const TsdfMap& map_j, const Pose4Dof& T_W_Si,
+    const Pose4Dof& T_W_Sj, const RegistrationResidualConfig& config, const Stream& stream) {
   Buffer<RegistrationResidual> scratch(map_j.device());
   return normal_equations_into(points_i, map_j, T_W_Si, T_W_Sj, config, &scratch, stream);
 }
@@ -175,10 +185,12 @@ namespace {
 // The LM over the relative pose T_Sj_Si shared by the one-way and the symmetric aligner;
 // `normal_equations(pose)` returns the sums at a candidate pose.
 template <class NormalEquations>
-RegistrationResult run_aligner(const Pose4Dof& initial_T_Sj_Si, const RegistrationAlignerConfig& config,
+RegistrationResult run_aligner(const Pose4Dof& initial_T_Sj_Si,
+                               const RegistrationAlignerConfig& config,
                                NormalEquations&& normal_equations) {
   if (config.max_iterations < 1) {
-    throw Error("align_submaps: max_iterations must be >= 1, got " + std::to_string(config.max_iterations));
+    throw Error("align_submaps: max_iterations must be >= 1, got " +
+                std::to_string(config.max_iterations));
   }
   Pose4Dof pose = initial_T_Sj_Si;
   RegistrationNormalEquations current = normal_equations(pose);
@@ -186,7 +198,8 @@ RegistrationResult run_aligner(const Pose4Dof& initial_T_Sj_Si, const Registrati
     throw Error("align_submaps: only " + std::to_string(current.used_points) + " of " +
                 std::to_string(current.used_points + current.skipped_points) +
                 " registration points fall inside submap j's observed field (need " +
-                std::to_string(config.min_used_points) + "); the submaps do not overlap at this guess");
+                std::to_string(config.min_used_points) +
+                "); the submaps do not overlap at this guess");
   }
   RegistrationResult result;
   result.initial_cost = current.cost;
@@ -198,8 +211,10 @@ RegistrationResult run_aligner(const Pose4Dof& initial_T_Sj_Si, const Registrati
     for (int k = 0; k < 4; ++k) damped(k, k) += lambda * std::max(current.hessian_i(k, k), 1e-12);
     const Eigen::Vector4d step = damped.ldlt().solve(-current.gradient_i);
     if (!step.allFinite()) {
-      throw Error("align_submaps: the normal equations are singular (the overlap does not constrain all of x, "
-                  "y, z and yaw)");
+      throw Error(
+          "align_submaps: the normal equations are singular (the overlap does not constrain all of "
+          "x, "
+          "y, z and yaw)");
     }
     Pose4Dof candidate = pose;
     candidate.x += step(0);
@@ -239,7 +254,8 @@ RegistrationResult run_aligner(const Pose4Dof& initial_T_Sj_Si, const Registrati
   return result;
 }
 
-RegistrationNormalEquations sum_of(const RegistrationNormalEquations& a, const RegistrationNormalEquations& b) {
+RegistrationNormalEquations sum_of(const RegistrationNormalEquations& a,
+                                   const RegistrationNormalEquations& b) {
   RegistrationNormalEquations sum;
   sum.hessian_i = a.hessian_i + b.hessian_i;
   sum.gradient_i = a.gradient_i + b.gradient_i;
@@ -262,15 +278,18 @@ void check_symmetric_pair(const SymmetricRegistrationPair& pair) {
 // Submap j's points in submap i's field as sums over T_Sj_Si: the points' own pose is then
 // T_Si_Sj = T_Sj_Si^-1 (submap i the reference), and the chain rule through the inverse turns
 // their Jacobian into one with respect to T_Sj_Si.
-RegistrationNormalEquations reverse_normal_equations(const SymmetricRegistrationPair& pair, const Pose4Dof& T_Sj_Si,
+RegistrationNormalEquations reverse_normal_equations(const SymmetricRegistrationPair& pair,
+                                                     const Pose4Dof& T_Sj_Si,
                                                      const RegistrationResidualConfig& config,
-                                                     Buffer<RegistrationResidual>* scratch, const Stream& stream) {
+                                                     Buffer<RegistrationResidual>* scratch,
+                                                     const Stream& stream) {
   const double k = pair.reverse_weight_scale;
   RegistrationResidualConfig reverse_config = config;
   // The loss at scale a of residuals times sqrt(k) is k times the loss at scale a / sqrt(k).
   reverse_config.loss_scale = config.loss_scale / std::sqrt(k);
-  const RegistrationNormalEquations of_inverse = normal_equations_into(
-      *pair.points_j, *pair.map_i, inverse_pose_4dof(T_Sj_Si), Pose4Dof(), reverse_config, scratch, stream);
+  const RegistrationNormalEquations of_inverse =
+      normal_equations_into(*pair.points_j, *pair.map_i, inverse_pose_4dof(T_Sj_Si), Pose4Dof(),
+                            reverse_config, scratch, stream);
   const Eigen::Matrix4d A = inverse_pose_4dof_jacobian(T_Sj_Si);
   RegistrationNormalEquations out = of_inverse;
   out.hessian_i = k * A.transpose() * of_inverse.hessian_i * A;
@@ -283,10 +302,11 @@ RegistrationNormalEquations reverse_normal_equations(const SymmetricRegistration
 // L = coarse_levels ... 1, each level from where the previous ended, then the LM on the fine
 // residual. `sums(pose, residual_config)` returns the normal equations of one level.
 template <class Sums>
-RegistrationResult run_coarse_to_fine(const Pose4Dof& initial_T_Sj_Si, const RegistrationAlignerConfig& config,
-                                      Sums&& sums) {
+RegistrationResult run_coarse_to_fine(const Pose4Dof& initial_T_Sj_Si,
+                                      const RegistrationAlignerConfig& config, Sums&& sums) {
   if (config.coarse_levels < 0 || config.coarse_levels > 10) {
-    throw Error("align_submaps: coarse_levels must be in [0, 10], got " + std::to_string(config.coarse_levels));
+    throw Error("align_submaps: coarse_levels must be in [0, 10], got " +
+                std::to_string(config.coarse_levels));
   }
   Pose4Dof start = initial_T_Sj_Si;
   int coarse_iterations = 0;
@@ -295,8 +315,8 @@ RegistrationResult run_coarse_to_fine(const Pose4Dof& initial_T_Sj_Si, const Reg
     coarse.coarse_levels = 0;
     coarse.residual.coarse_stride_vox = 1 << level;
     try {
-      const RegistrationResult result =
-          run_aligner(start, coarse, [&](const Pose4Dof& pose) { return sums(pose, coarse.residual); });
+      const RegistrationResult result = run_aligner(
+          start, coarse, [&](const Pose4Dof& pose) { return sums(pose, coarse.residual); });
       start = result.T_Sj_Si;
       coarse_iterations += result.iterations;
     } catch (const Error&) {
@@ -313,48 +333,55 @@ RegistrationResult run_coarse_to_fine(const Pose4Dof& initial_T_Sj_Si, const Reg
 }  // namespace
 
 RegistrationResult align_submaps(const RegistrationPoints& points_i, const TsdfMap& map_j,
-                                 const Pose4Dof& initial_T_Sj_Si, const RegistrationAlignerConfig& config,
-                                 const Stream& stream) {
+                                 const Pose4Dof& initial_T_Sj_Si,
+                                 const RegistrationAlignerConfig& config, const Stream& stream) {
   // Submap j is the reference frame: T_W_Sj = identity, so T_W_Si is the relative pose itself.
   Buffer<RegistrationResidual> scratch(map_j.device());
-  return run_coarse_to_fine(initial_T_Sj_Si, config,
-                            [&](const Pose4Dof& T_Sj_Si, const RegistrationResidualConfig& residual) {
-                              return normal_equations_into(points_i, map_j, T_Sj_Si, Pose4Dof(), residual, &scratch,
-                                                           stream);
-                            });
+  return run_coarse_to_fine(
+      initial_T_Sj_Si, config,
+      [&](const Pose4Dof& T_Sj_Si, const RegistrationResidualConfig& residual) {
+        return normal_equations_into(points_i, map_j, T_Sj_Si, Pose4Dof(), residual, &scratch,
+                                     stream);
+      });
 }
 
 namespace {
 // Both directions' sums at T_Sj_Si, in the caller's scratch (reused across LM iterations).
-RegistrationNormalEquations two_way_sums(const SymmetricRegistrationPair& pair, const Pose4Dof& T_Sj_Si,
+RegistrationNormalEquations two_way_sums(const SymmetricRegistrationPair& pair,
+                                         const Pose4Dof& T_Sj_Si,
                                          const RegistrationResidualConfig& config,
                                          Buffer<RegistrationResidual>* scratch,
-                                         Buffer<RegistrationResidual>* reverse_scratch, const Stream& stream) {
-  return sum_of(normal_equations_into(*pair.points_i, *pair.map_j, T_Sj_Si, Pose4Dof(), config, scratch, stream),
+                                         Buffer<RegistrationResidual>* reverse_scratch,
+                                         const Stream& stream) {
+  return sum_of(normal_equations_into(*pair.points_i, *pair.map_j, T_Sj_Si, Pose4Dof(), config,
+                                      scratch, stream),
                 reverse_normal_equations(pair, T_Sj_Si, config, reverse_scratch, stream));
 }
 }  // namespace
 
-RegistrationNormalEquations symmetric_registration_normal_equations(const SymmetricRegistrationPair& pair,
-                                                                    const Pose4Dof& T_Sj_Si,
-                                                                    const RegistrationResidualConfig& config,
-                                                                    const Stream& stream) {
+RegistrationNormalEquations symmetric_registration_normal_equations(
+    const SymmetricRegistrationPair& pair, const Pose4Dof& T_Sj_Si,
+    const RegistrationResidualConfig& config, const Stream& stream) {
   check_symmetric_pair(pair);
   Buffer<RegistrationResidual> scratch(pair.map_j->device()), reverse_scratch(pair.map_i->device());
   return two_way_sums(pair, T_Sj_Si, config, &scratch, &reverse_scratch, stream);
 }
 
-RegistrationResult align_submaps_symmetric(const SymmetricRegistrationPair& pair, const Pose4Dof& initial_T_Sj_Si,
-                                           const RegistrationAlignerConfig& config, const Stream& stream) {
+RegistrationResult align_submaps_symmetric(const SymmetricRegistrationPair& pair,
+                                           const Pose4Dof& initial_T_Sj_Si,
+                                           const RegistrationAlignerConfig& config,
+                                           const Stream& stream) {
   check_symmetric_pair(pair);
   Buffer<RegistrationResidual> scratch(pair.map_j->device()), reverse_scratch(pair.map_i->device());
-  return run_coarse_to_fine(initial_T_Sj_Si, config,
-                            [&](const Pose4Dof& T_Sj_Si, const RegistrationResidualConfig& residual) {
-                              return two_way_sums(pair, T_Sj_Si, residual, &scratch, &reverse_scratch, stream);
-                            });
+  return run_coarse_to_fine(
+      initial_T_Sj_Si, config,
+      [&](const Pose4Dof& T_Sj_Si, const RegistrationResidualConfig& residual) {
+        return two_way_sums(pair, T_Sj_Si, residual, &scratch, &reverse_scratch, stream);
+      });
 }
 
-Constraint4Dof make_registration_constraint(int32_t vertex_j, int32_t vertex_i, const RegistrationResult& result,
+Constraint4Dof make_registration_constraint(int32_t vertex_j, int32_t vertex_i,
+                                            const RegistrationResult& result,
                                             double residual_sigma) {
   if (!(residual_sigma > 0.0 && std::isfinite(residual_sigma))) {
     throw Error("make_registration_constraint: residual_sigma must be finite and > 0, got " +
@@ -372,8 +399,9 @@ SubmapOverlap submap_overlap(const TsdfMap& map_i, const Pose4Dof& T_W_Si, const
   check_finite_pose(T_W_Si, "T_W_Si");
   check_finite_pose(T_W_Sj, "T_W_Sj");
   if (map_i.block_size_m() != map_j.block_size_m()) {
-    throw Error("submap_overlap: the submaps have different block sizes (" + std::to_string(map_i.block_size_m()) +
-                " and " + std::to_string(map_j.block_size_m()) + " m)");
+    throw Error("submap_overlap: the submaps have different block sizes (" +
+                std::to_string(map_i.block_size_m()) + " and " +
+                std::to_string(map_j.block_size_m()) + " m)");
   }
   SubmapOverlap overlap;
   const Stream stream_i(map_i.device()), stream_j(map_j.device());
@@ -387,11 +415,12 @@ SubmapOverlap submap_overlap(const TsdfMap& map_i, const Pose4Dof& T_W_Si, const
   const double block_m = map_i.block_size_m();
   auto to_world = [](const Pose4Dof& pose, const Eigen::Vector3d& p) {
     const double c = std::cos(pose.yaw), s = std::sin(pose.yaw);
-    return Eigen::Vector3d(c * p.x() - s * p.y() + pose.x, s * p.x() + c * p.y() + pose.y, p.z() + pose.z);
+    return Eigen::Vector3d(c * p.x() - s * p.y() + pose.x, s * p.x() + c * p.y() + pose.y,
+                           p.z() + pose.z);
   };
   // World AABB of a submap: the 8 corners of its block-index AABB, transformed.
-  auto world_box = [&](const std::vector<Index3D>& blocks, const Pose4Dof& pose, Eigen::Vector3d* lo,
-                       Eigen::Vector3d* hi) {
+  auto world_box = [&](const std::vector<Index3D>& blocks, const Pose4Dof& pose,
+                       Eigen::Vector3d* lo, Eigen::Vector3d* hi) {
     Eigen::Vector3d block_lo(1e300, 1e300, 1e300), block_hi(-1e300, -1e300, -1e300);
     for (const Index3D& b : blocks) {
       const Eigen::Vector3d corner(b.x * block_m, b.y * block_m, b.z * block_m);
@@ -401,7 +430,8 @@ SubmapOverlap submap_overlap(const TsdfMap& map_i, const Pose4Dof& T_W_Si, const
     *lo = Eigen::Vector3d::Constant(1e300);
     *hi = Eigen::Vector3d::Constant(-1e300);
     for (int c = 0; c < 8; ++c) {
-      const Eigen::Vector3d corner((c & 1) ? block_hi.x() : block_lo.x(), (c & 2) ? block_hi.y() : block_lo.y(),
+      const Eigen::Vector3d corner((c & 1) ? block_hi.x() : block_lo.x(),
+                                   (c & 2) ? block_hi.y() : block_lo.y(),
                                    (c & 4) ? block_hi.z() : block_lo.z());
       const Eigen::Vector3d w = to_world(pose, corner);
       *lo = lo->cwiseMin(w);
@@ -411,7 +441,8 @@ SubmapOverlap submap_overlap(const TsdfMap& map_i, const Pose4Dof& T_W_Si, const
   Eigen::Vector3d lo_i, hi_i, lo_j, hi_j;
   world_box(blocks_i, T_W_Si, &lo_i, &hi_i);
   world_box(blocks_j, T_W_Sj, &lo_j, &hi_j);
-  overlap.bounding_boxes_intersect = (lo_i.array() <= hi_j.array()).all() && (lo_j.array() <= hi_i.array()).all();
+  overlap.bounding_boxes_intersect =
+      (lo_i.array() <= hi_j.array()).all() && (lo_j.array() <= hi_i.array()).all();
   if (!overlap.bounding_boxes_intersect) return overlap;
   // Finer check: block centres of i, moved into frame j, landing in allocated blocks of j.
   // Submaps hold thousands of blocks, not millions: a host set is enough here.
@@ -420,7 +451,8 @@ SubmapOverlap submap_overlap(const TsdfMap& map_i, const Pose4Dof& T_W_Si, const
   for (const Index3D& b : blocks_j) keys_j.insert(pack_block_key(b));
   const double c = std::cos(T_W_Sj.yaw), s = std::sin(T_W_Sj.yaw);
   for (const Index3D& b : blocks_i) {
-    const Eigen::Vector3d centre((b.x + 0.5) * block_m, (b.y + 0.5) * block_m, (b.z + 0.5) * block_m);
+    const Eigen::Vector3d centre((b.x + 0.5) * block_m, (b.y + 0.5) * block_m,
+                                 (b.z + 0.5) * block_m);
     const Eigen::Vector3d w = to_world(T_W_Si, centre);
     const Eigen::Vector3d d(w.x() - T_W_Sj.x, w.y() - T_W_Sj.y, w.z() - T_W_Sj.z);
     const Eigen::Vector3d in_j(c * d.x() + s * d.y(), -s * d.x() + c * d.y(), d.z());

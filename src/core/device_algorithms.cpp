@@ -6,10 +6,8 @@
 namespace covox {
 namespace algorithms {
 
-#define COVOX_DISPATCH_PRIMITIVE(call)                                                  \
-  dispatch(device, [&](auto backend) {                                                  \
-    return Primitives<decltype(backend)>::call;                                         \
-  })
+#define COVOX_DISPATCH_PRIMITIVE(call) \
+  dispatch(device, [&](auto backend) { return Primitives<decltype(backend)>::call; })
 
 void scale_add(Device device, const Stream& stream, float a, const float* x, float* y,
                int64_t count) {
@@ -19,17 +17,18 @@ void exclusive_scan(Device device, const Stream& stream, const uint32_t* in, int
                     uint32_t* out) {
   COVOX_DISPATCH_PRIMITIVE(exclusive_scan(stream, in, count, out));
 }
-void scan_values_once(Device device, const Stream& stream, const uint32_t* in, int64_t count, uint32_t* out,
-                      uint32_t* calls, bool through_functor) {
+void scan_values_once(Device device, const Stream& stream, const uint32_t* in, int64_t count,
+                      uint32_t* out, uint32_t* calls, bool through_functor) {
   COVOX_DISPATCH_PRIMITIVE(scan_values_once(stream, in, count, out, calls, through_functor));
 }
 void sort_by_key(Device device, const Stream& stream, uint64_t* keys, uint32_t* values,
                  int64_t count) {
   COVOX_DISPATCH_PRIMITIVE(sort_by_key(stream, keys, values, count));
 }
-void radix_sort_pairs(Device device, const Stream& stream, uint64_t* keys, uint32_t* values, int64_t count,
-                      int key_bits, uint64_t* keys_alt, uint32_t* values_alt) {
-  COVOX_DISPATCH_PRIMITIVE(radix_sort_pairs(stream, keys, values, count, key_bits, keys_alt, values_alt));
+void radix_sort_pairs(Device device, const Stream& stream, uint64_t* keys, uint32_t* values,
+                      int64_t count, int key_bits, uint64_t* keys_alt, uint32_t* values_alt) {
+  COVOX_DISPATCH_PRIMITIVE(
+      radix_sort_pairs(stream, keys, values, count, key_bits, keys_alt, values_alt));
 }
 int64_t reduce_by_key_sum(Device device, const Stream& stream, const uint64_t* keys,
                           const float* values, int64_t count, uint64_t* keys_out,
@@ -47,8 +46,9 @@ void atomic_histogram(Device device, const Stream& stream, const uint32_t* bins,
                       uint32_t* histogram) {
   COVOX_DISPATCH_PRIMITIVE(atomic_histogram(stream, bins, count, histogram));
 }
-void sum_runs_at_first(Device device, const Stream& stream, const uint64_t* keys, const double* values,
-                       int64_t count, double* sums, uint32_t* calls, const uint32_t* live_count) {
+void sum_runs_at_first(Device device, const Stream& stream, const uint64_t* keys,
+                       const double* values, int64_t count, double* sums, uint32_t* calls,
+                       const uint32_t* live_count) {
   COVOX_DISPATCH_PRIMITIVE(sum_runs_at_first(stream, keys, values, count, sums, calls, live_count));
 }
 void atomic_claim_min(Device device, const Stream& stream, const uint32_t* targets, int64_t count,

@@ -34,8 +34,8 @@ void check(cudaError_t status, const char* what) {
               cudaGetErrorString(status) + ")");
 }
 cudaMemcpyKind copy_kind(Device destination, Device source) {
-  if (destination == Device::kCuda) return source == Device::kCuda ? cudaMemcpyDeviceToDevice
-                                                                   : cudaMemcpyHostToDevice;
+  if (destination == Device::kCuda)
+    return source == Device::kCuda ? cudaMemcpyDeviceToDevice : cudaMemcpyHostToDevice;
   return source == Device::kCuda ? cudaMemcpyDeviceToHost : cudaMemcpyHostToHost;
 }
 
@@ -50,7 +50,8 @@ void* staging_buffer() {
     }
   };
   thread_local Staging staging;
-  if (!staging.data) check(cudaMallocHost(&staging.data, kStagedCopyMaxBytes), "page-locked staging allocation");
+  if (!staging.data)
+    check(cudaMallocHost(&staging.data, kStagedCopyMaxBytes), "page-locked staging allocation");
   return staging.data;
 }
 #endif
@@ -79,15 +80,18 @@ ReadBackSlot& read_back_slot() {
 
 }  // namespace
 
-MappedHostBytes::MappedHostBytes(Device device, size_t bytes) : device_kind_(device), bytes_(bytes) {
+MappedHostBytes::MappedHostBytes(Device device, size_t bytes)
+    : device_kind_(device), bytes_(bytes) {
   if (device == Device::kCpu) {
     host_ = std::calloc(bytes > 0 ? bytes : 1, 1);
-    if (!host_) throw OutOfMemoryError("MappedHostBytes: " + std::to_string(bytes) + " bytes of host memory");
+    if (!host_)
+      throw OutOfMemoryError("MappedHostBytes: " + std::to_string(bytes) + " bytes of host memory");
     device_ = host_;
     return;
   }
 #if COVOX_WITH_CUDA
-  check(cudaHostAlloc(&host_, bytes > 0 ? bytes : 1, cudaHostAllocMapped), "mapped page-locked allocation");
+  check(cudaHostAlloc(&host_, bytes > 0 ? bytes : 1, cudaHostAllocMapped),
+        "mapped page-locked allocation");
   std::memset(host_, 0, bytes);
   const cudaError_t status = cudaHostGetDevicePointer(&device_, host_, 0);
   if (status != cudaSuccess) {
@@ -109,13 +113,16 @@ MappedHostBytes::~MappedHostBytes() {
 #endif
 }
 
-PendingReadBack::PendingReadBack(const void* source, Device source_device, size_t bytes, const Stream& stream)
+PendingReadBack::PendingReadBack(const void* source, Device source_device, size_t bytes,
+                                 const Stream& stream)
     : bytes_(bytes) {
   if (bytes > kMaxBytes) {
-    throw Error("PendingReadBack: " + std::to_string(bytes) + " bytes, at most " + std::to_string(kMaxBytes));
+    throw Error("PendingReadBack: " + std::to_string(bytes) + " bytes, at most " +
+                std::to_string(kMaxBytes));
   }
   ReadBackSlot& slot = read_back_slot();
-  if (slot.pending) throw Error("PendingReadBack: this thread has one pending already; wait for it first");
+  if (slot.pending)
+    throw Error("PendingReadBack: this thread has one pending already; wait for it first");
   slot.from_gpu = source_device == Device::kCuda;
   if (!slot.from_gpu) {
     std::memcpy(slot.host_bytes, source, bytes);
@@ -128,10 +135,13 @@ PendingReadBack::PendingReadBack(const void* source, Device source_device, size_
     check(cudaMallocHost(&pinned, kMaxBytes), "page-locked read-back allocation");
     slot.pinned = static_cast<unsigned char*>(pinned);
   }
-  if (!slot.done) check(cudaEventCreateWithFlags(&slot.done, cudaEventDisableTiming), "read-back event creation");
-  cudaStream_t cuda_stream =
-      stream.device() == Device::kCuda ? static_cast<cudaStream_t>(stream.native_handle()) : nullptr;
-  check(cudaMemcpyAsync(slot.pinned, source, bytes, cudaMemcpyDeviceToHost, cuda_stream), "PendingReadBack copy");
+  if (!slot.done)
+    check(cudaEventCreateWithFlags(&slot.done, cudaEventDisableTiming), "read-back event creation");
+  cudaStream_t cuda_stream = stream.device() == Device::kCuda
+                                 ? static_cast<cudaStream_t>(stream.native_handle())
+                                 : nullptr;
+  check(cudaMemcpyAsync(slot.pinned, source, bytes, cudaMemcpyDeviceToHost, cuda_stream),
+        "PendingReadBack copy");
   check(cudaEventRecord(slot.done, cuda_stream), "PendingReadBack event");
   slot.pending = true;
 #else
@@ -182,7 +192,8 @@ void* allocate_bytes(Device device, size_t bytes) {
     throw NotAvailableError("allocate_bytes: CUDA memory requested in a build without CUDA");
 #endif
   }
-  const size_t rounded = (bytes + kHostAlignmentBytes - 1) / kHostAlignmentBytes * kHostAlignmentBytes;
+  const size_t rounded =
+      (bytes + kHostAlignmentBytes - 1) / kHostAlignmentBytes * kHostAlignmentBytes;
   void* pointer = std::aligned_alloc(kHostAlignmentBytes, rounded);
   if (!pointer) throw OutOfMemoryError("host allocation of " + mebibytes(bytes) + " failed");
   return pointer;
@@ -210,9 +221,11 @@ void copy_bytes(void* destination, Device destination_device, const void* source
   cudaStream_t cuda_stream = stream.device() == Device::kCuda
                                  ? static_cast<cudaStream_t>(stream.native_handle())
                                  : nullptr;
-  if (destination_device == Device::kCpu && source_device == Device::kCuda && bytes <= kStagedCopyMaxBytes) {
+  if (destination_device == Device::kCpu && source_device == Device::kCuda &&
+      bytes <= kStagedCopyMaxBytes) {
     void* staging = staging_buffer();
-    check(cudaMemcpyAsync(staging, source, bytes, cudaMemcpyDeviceToHost, cuda_stream), "copy_bytes");
+    check(cudaMemcpyAsync(staging, source, bytes, cudaMemcpyDeviceToHost, cuda_stream),
+          "copy_bytes");
     check(cudaStreamSynchronize(cuda_stream), "copy_bytes synchronize");
     std::memcpy(destination, staging, bytes);
     return;
@@ -266,9 +279,11 @@ ScanDescriptors single_pass_scan_descriptors(const Stream& stream, int64_t tiles
       free_bytes(Device::kCuda, d.words);
       d.words = nullptr;
       d.capacity = std::max<int64_t>(tiles, std::max<int64_t>(2 * d.capacity, 1024));
-      d.words = static_cast<uint64_t*>(allocate_bytes(Device::kCuda, static_cast<size_t>(d.capacity) * sizeof(uint64_t)));
+      d.words = static_cast<uint64_t*>(
+          allocate_bytes(Device::kCuda, static_cast<size_t>(d.capacity) * sizeof(uint64_t)));
     }
-    set_bytes(d.words, Device::kCuda, 0, static_cast<size_t>(d.capacity) * sizeof(uint64_t), stream);
+    set_bytes(d.words, Device::kCuda, 0, static_cast<size_t>(d.capacity) * sizeof(uint64_t),
+              stream);
     d.last_epoch = 0;
   }
   ++d.last_epoch;  // from 1: zeroed words (epoch 0) are never current

@@ -28,7 +28,8 @@ std::map<std::string, StageTotal>& totals() {
 }
 
 int64_t now_ns() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch())
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::steady_clock::now().time_since_epoch())
       .count();
 }
 
@@ -66,13 +67,15 @@ void StageProfiler::add(const char* algorithm, const char* stage, int64_t nanose
 std::string StageProfiler::report() {
   std::lock_guard<std::mutex> lock(totals_mutex());
   std::multimap<int64_t, std::pair<std::string, StageTotal>> ordered;
-  for (const auto& [name, total] : totals()) ordered.emplace(total.first_seen, std::make_pair(name, total));
+  for (const auto& [name, total] : totals())
+    ordered.emplace(total.first_seen, std::make_pair(name, total));
   std::string out = "stage                                  calls    total ms     mean us\n";
   char line[160];
   for (const auto& entry : ordered) {
     const auto& [name, total] = entry.second;
-    std::snprintf(line, sizeof(line), "%-36s %8lld %11.3f %11.2f\n", name.c_str(), static_cast<long long>(total.calls),
-                  total.nanoseconds * 1e-6, total.calls > 0 ? total.nanoseconds * 1e-3 / total.calls : 0.0);
+    std::snprintf(line, sizeof(line), "%-36s %8lld %11.3f %11.2f\n", name.c_str(),
+                  static_cast<long long>(total.calls), total.nanoseconds * 1e-6,
+                  total.calls > 0 ? total.nanoseconds * 1e-3 / total.calls : 0.0);
     out += line;
   }
   return out;

@@ -14,7 +14,8 @@ struct EsdfIntegrator::Scratch {
 
 EsdfIntegrator::EsdfIntegrator(const EsdfIntegratorConfig& config) : config_(config) {
   if (!(config.esdf_max_distance_m > 0.0f) || !std::isfinite(config.esdf_max_distance_m)) {
-    throw Error("ESDF: esdf_max_distance_m must be positive, got " + std::to_string(config.esdf_max_distance_m));
+    throw Error("ESDF: esdf_max_distance_m must be positive, got " +
+                std::to_string(config.esdf_max_distance_m));
   }
   if (!(config.site_distance_threshold_vox > 0.0f)) {
     throw Error("ESDF: site_distance_threshold_vox must be positive, got " +
@@ -28,8 +29,12 @@ EsdfIntegrator::~EsdfIntegrator() = default;
 EsdfIntegrator::EsdfIntegrator(EsdfIntegrator&&) noexcept = default;
 EsdfIntegrator& EsdfIntegrator::operator=(EsdfIntegrator&&) noexcept = default;
 
-EsdfUpdateStats EsdfIntegrator::update(TsdfMap& map, const Stream& stream) { return run(map, false, stream); }
-EsdfUpdateStats EsdfIntegrator::update_all(TsdfMap& map, const Stream& stream) { return run(map, true, stream); }
+EsdfUpdateStats EsdfIntegrator::update(TsdfMap& map, const Stream& stream) {
+  return run(map, false, stream);
+}
+EsdfUpdateStats EsdfIntegrator::update_all(TsdfMap& map, const Stream& stream) {
+  return run(map, true, stream);
+}
 
 EsdfUpdateStats EsdfIntegrator::run(TsdfMap& map, bool all_blocks, const Stream& stream) {
   if (!scratch_ || scratch_->buffers.squared.device() != map.device()) {

@@ -15,8 +15,8 @@ EsdfLookup make_lookup(const TsdfMap& map) {
                     mutable_map.esdf().view(), map.voxel_size_m()};
 }
 
-std::vector<SlicePoint> collect_slice(const TsdfMap& map, int32_t layer_min, int32_t layer_max, float z_m,
-                                      const Stream& stream) {
+std::vector<SlicePoint> collect_slice(const TsdfMap& map, int32_t layer_min, int32_t layer_max,
+                                      float z_m, const Stream& stream) {
   auto& mutable_map = const_cast<TsdfMap&>(map);
   Buffer<Index3D> block_indices(map.device());
   Buffer<uint32_t> block_slots(map.device());
@@ -24,9 +24,10 @@ std::vector<SlicePoint> collect_slice(const TsdfMap& map, int32_t layer_min, int
   Buffer<uint64_t> columns(map.device());
   Buffer<float> distances(map.device());
   const int64_t count = dispatch(map.device(), [&](auto backend) {
-    return esdf_collect_layer(backend, mutable_map.esdf().view(), block_indices.data(), block_slots.data(),
-                              static_cast<int64_t>(block_indices.size()), map.voxels_per_side(), layer_min,
-                              layer_max, &columns, &distances, stream);
+    return esdf_collect_layer(backend, mutable_map.esdf().view(), block_indices.data(),
+                              block_slots.data(), static_cast<int64_t>(block_indices.size()),
+                              map.voxels_per_side(), layer_min, layer_max, &columns, &distances,
+                              stream);
   });
   auto host_columns = columns.to_host(stream);
   auto host_distances = distances.to_host(stream);
@@ -46,7 +47,9 @@ std::vector<SlicePoint> collect_slice(const TsdfMap& map, int32_t layer_min, int
 void query_esdf(const TsdfMap& map, const Vec3f* points_m, int64_t count, EsdfSample* samples,
                 const Stream& stream) {
   const EsdfLookup lookup = make_lookup(map);
-  dispatch(map.device(), [&](auto backend) { esdf_query_points(backend, lookup, points_m, count, samples, stream); });
+  dispatch(map.device(), [&](auto backend) {
+    esdf_query_points(backend, lookup, points_m, count, samples, stream);
+  });
 }
 
 std::vector<EsdfSample> query_esdf(const TsdfMap& map, const std::vector<Vec3f>& points_m) {
@@ -62,10 +65,11 @@ std::vector<SlicePoint> esdf_slice(const TsdfMap& map, float z_m, const Stream& 
   return collect_slice(map, layer, layer, (layer + 0.5f) * map.voxel_size_m(), stream);
 }
 
-std::vector<SlicePoint> esdf_squashed_slice(const TsdfMap& map, float z_min_m, float z_max_m, const Stream& stream) {
+std::vector<SlicePoint> esdf_squashed_slice(const TsdfMap& map, float z_min_m, float z_max_m,
+                                            const Stream& stream) {
   if (!(z_max_m >= z_min_m)) {
-    throw Error("esdf_squashed_slice: z_max_m (" + std::to_string(z_max_m) + ") is below z_min_m (" +
-                std::to_string(z_min_m) + ")");
+    throw Error("esdf_squashed_slice: z_max_m (" + std::to_string(z_max_m) +
+                ") is below z_min_m (" + std::to_string(z_min_m) + ")");
   }
   const int32_t layer_min = static_cast<int32_t>(std::floor(z_min_m / map.voxel_size_m()));
   const int32_t layer_max = static_cast<int32_t>(std::floor(z_max_m / map.voxel_size_m()));

@@ -19,13 +19,14 @@ MeshIntegrator::MeshIntegrator(MeshIntegrator&&) noexcept = default;
 MeshIntegrator& MeshIntegrator::operator=(MeshIntegrator&&) noexcept = default;
 
 Mesh MeshIntegrator::extract_all(TsdfMap& map, const Stream& stream) {
-  if (!scratch_ || scratch_->buffers.blocks.device() != map.device()) scratch_ = std::make_unique<Scratch>(map.device());
+  if (!scratch_ || scratch_->buffers.blocks.device() != map.device())
+    scratch_ = std::make_unique<Scratch>(map.device());
   MeshScratchBuffers& scratch = scratch_->buffers;
   map.blocks().export_entries(&scratch.blocks, &scratch.counts);
   int64_t vertex_count = 0;
   const int64_t triangles = dispatch(map.device(), [&](auto backend) {
-    return mesh_extract(backend, map, config_.min_weight, MeshWeld::kGlobal, scratch, &vertex_count, stream,
-                        config_.max_weld_table_entries);
+    return mesh_extract(backend, map, config_.min_weight, MeshWeld::kGlobal, scratch, &vertex_count,
+                        stream, config_.max_weld_table_entries);
   });
   Mesh mesh;
   if (triangles == 0) return mesh;
@@ -36,7 +37,8 @@ Mesh MeshIntegrator::extract_all(TsdfMap& map, const Stream& stream) {
 }
 
 MeshUpdateStats MeshIntegrator::update(TsdfMap& map, const Stream& stream) {
-  if (!scratch_ || scratch_->buffers.blocks.device() != map.device()) scratch_ = std::make_unique<Scratch>(map.device());
+  if (!scratch_ || scratch_->buffers.blocks.device() != map.device())
+    scratch_ = std::make_unique<Scratch>(map.device());
   if (!pending_) pending_ = std::make_unique<PendingBlockMeshes>(map.device());
   MeshScratchBuffers& scratch = scratch_->buffers;
   StageProfiler::Scope profile("mesh update", stream);
@@ -45,8 +47,8 @@ MeshUpdateStats MeshIntegrator::update(TsdfMap& map, const Stream& stream) {
   dispatch(map.device(), [&](auto backend) {
     stats.blocks_meshed = mesh_select_blocks(backend, map, scratch, stream);
     profile.mark("select blocks");
-    stats.triangles = mesh_extract(backend, map, config_.min_weight, MeshWeld::kPerBlock, scratch, &vertex_count,
-                                   stream, config_.max_weld_table_entries);
+    stats.triangles = mesh_extract(backend, map, config_.min_weight, MeshWeld::kPerBlock, scratch,
+                                   &vertex_count, stream, config_.max_weld_table_entries);
     profile.mark("extract (per-block weld)");
   });
   pending_->append(scratch, vertex_count, stats.triangles, stream);
@@ -74,7 +76,8 @@ Mesh MeshIntegrator::combined_block_meshes(const Stream& stream) {
   Mesh combined;
   for (const auto& [block, mesh] : block_meshes(stream)) {
     const uint32_t base = static_cast<uint32_t>(combined.vertices_m.size());
-    combined.vertices_m.insert(combined.vertices_m.end(), mesh.vertices_m.begin(), mesh.vertices_m.end());
+    combined.vertices_m.insert(combined.vertices_m.end(), mesh.vertices_m.begin(),
+                               mesh.vertices_m.end());
     combined.colors.insert(combined.colors.end(), mesh.colors.begin(), mesh.colors.end());
     for (uint32_t v : mesh.triangles) combined.triangles.push_back(base + v);
   }

@@ -19,20 +19,26 @@ void require(bool condition, const std::string& message) {
 
 namespace tsdf {
 
-FrameKeyCodec make_frame_key_codec(const Index3D& min_voxel, const Index3D& max_voxel, int32_t voxels_per_side) {
+FrameKeyCodec make_frame_key_codec(const Index3D& min_voxel, const Index3D& max_voxel,
+                                   int32_t voxels_per_side) {
   FrameKeyCodec codec;
   codec.voxels_per_side = voxels_per_side;
-  codec.voxel_bits = bits_for(static_cast<uint64_t>(voxels_per_side) * voxels_per_side * voxels_per_side - 1);
-  const Index3D low(floor_divide(min_voxel.x, voxels_per_side) - 1, floor_divide(min_voxel.y, voxels_per_side) - 1,
+  codec.voxel_bits =
+      bits_for(static_cast<uint64_t>(voxels_per_side) * voxels_per_side * voxels_per_side - 1);
+  const Index3D low(floor_divide(min_voxel.x, voxels_per_side) - 1,
+                    floor_divide(min_voxel.y, voxels_per_side) - 1,
                     floor_divide(min_voxel.z, voxels_per_side) - 1);
-  const Index3D high(floor_divide(max_voxel.x, voxels_per_side) + 1, floor_divide(max_voxel.y, voxels_per_side) + 1,
+  const Index3D high(floor_divide(max_voxel.x, voxels_per_side) + 1,
+                     floor_divide(max_voxel.y, voxels_per_side) + 1,
                      floor_divide(max_voxel.z, voxels_per_side) + 1);
   codec.origin_block = low;
-  const int64_t sx = int64_t(high.x) - low.x + 1, sy = int64_t(high.y) - low.y + 1, sz = int64_t(high.z) - low.z + 1;
+  const int64_t sx = int64_t(high.x) - low.x + 1, sy = int64_t(high.y) - low.y + 1,
+                sz = int64_t(high.z) - low.z + 1;
   const double blocks = double(sx) * double(sy) * double(sz);
   if (!(blocks * double(uint64_t(1) << codec.voxel_bits) < 4.0e18)) {
-    throw Error("TSDF integrator: the frame spans " + std::to_string(sx) + " x " + std::to_string(sy) + " x " +
-                std::to_string(sz) + " blocks, too many for 64-bit update keys; lower max_ray_length_m");
+    throw Error("TSDF integrator: the frame spans " + std::to_string(sx) + " x " +
+                std::to_string(sy) + " x " + std::to_string(sz) +
+                " blocks, too many for 64-bit update keys; lower max_ray_length_m");
   }
   codec.size_x = static_cast<int32_t>(sx);
   codec.size_y = static_cast<int32_t>(sy);
@@ -43,7 +49,8 @@ FrameKeyCodec make_frame_key_codec(const Index3D& min_voxel, const Index3D& max_
   return codec;
 }
 
-MergeKeys make_merge_keys(const Vec3f& origin, float max_ray_length_m, float voxel_size_m, int32_t voxels_per_side) {
+MergeKeys make_merge_keys(const Vec3f& origin, float max_ray_length_m, float voxel_size_m,
+                          int32_t voxels_per_side) {
   // Every surface point lies within max_ray_length_m of the origin (make_ray drops the others);
   // one voxel more on each side absorbs the rounding of the world transform.
   const float inverse_voxel_size = 1.0f / voxel_size_m;
@@ -51,8 +58,8 @@ MergeKeys make_merge_keys(const Vec3f& origin, float max_ray_length_m, float vox
   const Index3D low = voxel_of(origin - reach, inverse_voxel_size);
   const Index3D high = voxel_of(origin + reach, inverse_voxel_size);
   MergeKeys keys;
-  keys.codec = make_frame_key_codec(Index3D(low.x - 1, low.y - 1, low.z - 1), Index3D(high.x + 1, high.y + 1, high.z + 1),
-                                    voxels_per_side);
+  keys.codec = make_frame_key_codec(Index3D(low.x - 1, low.y - 1, low.z - 1),
+                                    Index3D(high.x + 1, high.y + 1, high.z + 1), voxels_per_side);
   return keys;
 }
 
@@ -75,18 +82,23 @@ void validate(const TsdfIntegratorConfig& c, float voxel_size_m) {
           "truncation_distance_m (" + std::to_string(c.truncation_distance_m) +
               ") must be at least one voxel (" + std::to_string(voxel_size_m) + " m)");
   require(c.max_weight > 0.0f, "max_weight must be positive, got " + std::to_string(c.max_weight));
-  require(c.min_ray_length_m >= 0.0f, "min_ray_length_m must be >= 0, got " + std::to_string(c.min_ray_length_m));
+  require(c.min_ray_length_m >= 0.0f,
+          "min_ray_length_m must be >= 0, got " + std::to_string(c.min_ray_length_m));
   require(c.max_ray_length_m > c.min_ray_length_m,
-          "max_ray_length_m (" + std::to_string(c.max_ray_length_m) + ") must exceed min_ray_length_m (" +
-              std::to_string(c.min_ray_length_m) + ")");
-  require(c.method != TsdfIntegrationMethod::kMerged || c.max_ray_length_m <= tsdf::kMaxMergedRange_m,
-          "max_ray_length_m (" + std::to_string(c.max_ray_length_m) + ") must be at most " +
-              std::to_string(tsdf::kMaxMergedRange_m) + " m with the merged method (use simple beyond)");
+          "max_ray_length_m (" + std::to_string(c.max_ray_length_m) +
+              ") must exceed min_ray_length_m (" + std::to_string(c.min_ray_length_m) + ")");
+  require(
+      c.method != TsdfIntegrationMethod::kMerged || c.max_ray_length_m <= tsdf::kMaxMergedRange_m,
+      "max_ray_length_m (" + std::to_string(c.max_ray_length_m) + ") must be at most " +
+          std::to_string(tsdf::kMaxMergedRange_m) +
+          " m with the merged method (use simple beyond)");
   require(!c.use_sparsity_compensation_factor || c.sparsity_compensation_factor > 0.0f,
-          "sparsity_compensation_factor must be positive, got " + std::to_string(c.sparsity_compensation_factor));
-  require(c.fixed_point_sums_max_scratch_mb >= 0 && c.fixed_point_sums_max_scratch_mb <= (1 << 20),
-          "fixed_point_sums_max_scratch_mb must be in [0, 1048576] (0: never sum every visit), got " +
-              std::to_string(c.fixed_point_sums_max_scratch_mb));
+          "sparsity_compensation_factor must be positive, got " +
+              std::to_string(c.sparsity_compensation_factor));
+  require(
+      c.fixed_point_sums_max_scratch_mb >= 0 && c.fixed_point_sums_max_scratch_mb <= (1 << 20),
+      "fixed_point_sums_max_scratch_mb must be in [0, 1048576] (0: never sum every visit), got " +
+          std::to_string(c.fixed_point_sums_max_scratch_mb));
 }
 
 struct TsdfIntegrator::Scratch {
@@ -117,7 +129,8 @@ void log_drops(const IntegrationStats& stats) {
 }  // namespace
 
 IntegrationStats TsdfIntegrator::integrate(TsdfMap& map, const PointCloudView& cloud,
-                                           const Eigen::Isometry3d& T_map_sensor, const Stream& stream) {
+                                           const Eigen::Isometry3d& T_map_sensor,
+                                           const Stream& stream) {
   validate(config_, map.voxel_size_m());
   if (cloud.intensities && !(cloud.intensity_max_value > 0.0f)) {
     throw Error("TSDF integrator: intensity_max_value must be positive");
@@ -127,7 +140,8 @@ IntegrationStats TsdfIntegrator::integrate(TsdfMap& map, const PointCloudView& c
     scratch_ = std::make_unique<Scratch>(map.device());
   }
   const IntegrationStats stats = dispatch(map.device(), [&](auto backend) {
-    return tsdf_integrate_points(backend, config_, map, cloud, T_map_sensor, scratch_->buffers, stream);
+    return tsdf_integrate_points(backend, config_, map, cloud, T_map_sensor, scratch_->buffers,
+                                 stream);
   });
   log_drops(stats);
   return stats;
@@ -146,17 +160,20 @@ IntegrationStats TsdfIntegrator::integrate(TsdfMap& map, const std::vector<Vec3f
   }
   scratch_->buffers.points.copy_from_host(points, stream);
   scratch_->buffers.colors.copy_from_host(colors, stream);
-  PointCloudView view{scratch_->buffers.points.data(), colors.empty() ? nullptr : scratch_->buffers.colors.data(),
+  PointCloudView view{scratch_->buffers.points.data(),
+                      colors.empty() ? nullptr : scratch_->buffers.colors.data(),
                       static_cast<int64_t>(points.size())};
   return integrate(map, view, T_map_sensor, stream);
 }
 
 IntegrationStats TsdfIntegrator::integrate_depth(TsdfMap& map, const DepthImageView& image,
-                                                 const Eigen::Isometry3d& T_map_camera, const Stream& stream) {
+                                                 const Eigen::Isometry3d& T_map_camera,
+                                                 const Stream& stream) {
   const PinholeIntrinsics& k = image.intrinsics;
   if (k.width <= 0 || k.height <= 0 || !(k.fx > 0.0f) || !(k.fy > 0.0f)) {
-    throw Error("TSDF integrator: invalid camera intrinsics (width " + std::to_string(k.width) + ", height " +
-                std::to_string(k.height) + ", fx " + std::to_string(k.fx) + ", fy " + std::to_string(k.fy) + ")");
+    throw Error("TSDF integrator: invalid camera intrinsics (width " + std::to_string(k.width) +
+                ", height " + std::to_string(k.height) + ", fx " + std::to_string(k.fx) + ", fy " +
+                std::to_string(k.fy) + ")");
   }
   if (!image.depth && !image.depth_m) throw Error("TSDF integrator: the depth image has no data");
   if (!image.depth_m && !(image.depth_units_per_m > 0.0f)) {
@@ -181,7 +198,8 @@ IntegrationStats TsdfIntegrator::integrate_depth(TsdfMap& map, const DepthImageV
   points.height = k.height;
   // (the points and colours in tile order: tsdf::pixel_tile_order, tsdf_kernels.h)
   const IntegrationStats stats = dispatch(map.device(), [&](auto backend) {
-    return tsdf_integrate_depth_image(backend, config_, map, points, T_map_camera, scratch_->buffers, stream);
+    return tsdf_integrate_depth_image(backend, config_, map, points, T_map_camera,
+                                      scratch_->buffers, stream);
   });
   log_drops(stats);
   return stats;

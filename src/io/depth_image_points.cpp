@@ -22,7 +22,8 @@ size_t color_pixel_bytes(const std::string& encoding) {
   return 0;
 }
 
-std::string check_image(const char* what, const ImageLayout& image, size_t bytes, size_t pixel_bytes) {
+std::string check_image(const char* what, const ImageLayout& image, size_t bytes,
+                        size_t pixel_bytes) {
   const std::string name(what);
   if (pixel_bytes == 0) return name + " image has unsupported encoding '" + image.encoding + "'";
   if (image.is_bigendian && pixel_bytes > 1 && name == "depth") {
@@ -42,29 +43,32 @@ std::string check_image(const char* what, const ImageLayout& image, size_t bytes
 
 }  // namespace
 
-std::string check_depth_input(const ImageLayout& depth, size_t depth_bytes, const CameraIntrinsics& intrinsics,
-                              const ImageLayout* color, size_t color_bytes) {
+std::string check_depth_input(const ImageLayout& depth, size_t depth_bytes,
+                              const CameraIntrinsics& intrinsics, const ImageLayout* color,
+                              size_t color_bytes) {
   std::string problem = check_image("depth", depth, depth_bytes, depth_pixel_bytes(depth.encoding));
   if (!problem.empty()) return problem;
-  if (!(std::isfinite(intrinsics.fx) && intrinsics.fx > 0.0 && std::isfinite(intrinsics.fy) && intrinsics.fy > 0.0 &&
-        std::isfinite(intrinsics.cx) && std::isfinite(intrinsics.cy))) {
+  if (!(std::isfinite(intrinsics.fx) && intrinsics.fx > 0.0 && std::isfinite(intrinsics.fy) &&
+        intrinsics.fy > 0.0 && std::isfinite(intrinsics.cx) && std::isfinite(intrinsics.cy))) {
     return "camera intrinsics are not usable (fx and fy must be positive, cx and cy finite)";
   }
   if (color) {
     problem = check_image("colour", *color, color_bytes, color_pixel_bytes(color->encoding));
     if (!problem.empty()) return problem;
     if (color->width != depth.width || color->height != depth.height) {
-      return "colour image is " + std::to_string(color->width) + "x" + std::to_string(color->height) +
-             " but the depth image is " + std::to_string(depth.width) + "x" + std::to_string(depth.height) +
+      return "colour image is " + std::to_string(color->width) + "x" +
+             std::to_string(color->height) + " but the depth image is " +
+             std::to_string(depth.width) + "x" + std::to_string(depth.height) +
              " (a registered colour image is required)";
     }
   }
   return "";
 }
 
-std::string depth_image_to_points(const ImageLayout& depth, const uint8_t* depth_data, size_t depth_bytes,
-                                  const CameraIntrinsics& intrinsics, const ImageLayout* color,
-                                  const uint8_t* color_data, size_t color_bytes, const DepthToPointsOptions& options,
+std::string depth_image_to_points(const ImageLayout& depth, const uint8_t* depth_data,
+                                  size_t depth_bytes, const CameraIntrinsics& intrinsics,
+                                  const ImageLayout* color, const uint8_t* color_data,
+                                  size_t color_bytes, const DepthToPointsOptions& options,
                                   DepthPoints* points) {
   *points = DepthPoints{};
   std::string problem = check_depth_input(depth, depth_bytes, intrinsics, color, color_bytes);
@@ -95,7 +99,8 @@ std::string depth_image_to_points(const ImageLayout& depth, const uint8_t* depth
       const float y = static_cast<float>((v - intrinsics.cy) * z_m / intrinsics.fy);
       points->points_m.emplace_back(x, y, z_m);
       if (color) {
-        const uint8_t* pixel = color_data + static_cast<size_t>(v) * color->step + color_bytes_per_pixel * u;
+        const uint8_t* pixel =
+            color_data + static_cast<size_t>(v) * color->step + color_bytes_per_pixel * u;
         if (color_bytes_per_pixel == 1) {
           points->colors.push_back(Rgb8{pixel[0], pixel[0], pixel[0]});
         } else if (bgr) {

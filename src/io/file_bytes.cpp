@@ -31,13 +31,16 @@ Container read_all(const std::string& path) {
   while ((got = std::fread(chunk, 1, sizeof(chunk), file.get())) > 0) {
     contents.insert(contents.end(), chunk, chunk + got);
   }
-  if (std::ferror(file.get())) throw Error("error while reading '" + path + "': " + std::strerror(errno));
+  if (std::ferror(file.get()))
+    throw Error("error while reading '" + path + "': " + std::strerror(errno));
   return contents;
 }
 
 }  // namespace
 
-std::vector<uint8_t> read_file_bytes(const std::string& path) { return read_all<std::vector<uint8_t>>(path); }
+std::vector<uint8_t> read_file_bytes(const std::string& path) {
+  return read_all<std::vector<uint8_t>>(path);
+}
 
 std::string read_text_file(const std::string& path) { return read_all<std::string>(path); }
 
@@ -48,7 +51,8 @@ namespace {
 void write_stream(const std::string& target, std::ios::openmode mode, const std::string& what,
                   const std::function<void(std::ostream&)>& write) {
   std::ofstream file(target, mode);
-  if (!file) throw Error(what + ": cannot open " + target + " for writing: " + std::strerror(errno));
+  if (!file)
+    throw Error(what + ": cannot open " + target + " for writing: " + std::strerror(errno));
   write(file);
   file.flush();
   if (!file) throw Error(what + ": writing " + target + " failed (disk full?)");
@@ -58,7 +62,8 @@ void write_stream(const std::string& target, std::ios::openmode mode, const std:
 
 void write_file_replacing(const std::string& path, const std::string& what, bool binary,
                           const std::function<void(std::ostream&)>& write) {
-  const std::ios::openmode mode = std::ios::trunc | std::ios::out | (binary ? std::ios::binary : std::ios::openmode{});
+  const std::ios::openmode mode =
+      std::ios::trunc | std::ios::out | (binary ? std::ios::binary : std::ios::openmode{});
   struct stat status {};
   if (::stat(path.c_str(), &status) == 0 && !S_ISREG(status.st_mode)) {
     write_stream(path, mode, what, write);  // a device or pipe: nothing to replace

@@ -33,8 +33,8 @@ bool starts_with(const std::vector<uint8_t>& bytes, const uint8_t* signature, si
 
 [[maybe_unused]] void check_size(uint32_t width, uint32_t height, const std::string& path) {
   if (width == 0 || height == 0 || width > kMaxImageSide || height > kMaxImageSide) {
-    throw Error("'" + path + "': image size " + std::to_string(width) + " x " + std::to_string(height) +
-                " is empty or implausibly large: corrupt header");
+    throw Error("'" + path + "': image size " + std::to_string(width) + " x " +
+                std::to_string(height) + " is empty or implausibly large: corrupt header");
   }
 }
 
@@ -97,7 +97,8 @@ bool png_start(PngHandles& handles, PngSource& source, PngTarget target, PngLayo
   layout->bit_depth = png_get_bit_depth(handles.png, handles.info);
   layout->color_type = png_get_color_type(handles.png, handles.info);
   if (target == PngTarget::kGray16) {
-    if (layout->bit_depth != 16 || layout->color_type != PNG_COLOR_TYPE_GRAY) return true;  // caller rejects
+    if (layout->bit_depth != 16 || layout->color_type != PNG_COLOR_TYPE_GRAY)
+      return true;              // caller rejects
     png_set_swap(handles.png);  // PNG stores 16-bit samples big-endian; our hosts are little-endian
   } else {
     if (layout->color_type == PNG_COLOR_TYPE_PALETTE) png_set_palette_to_rgb(handles.png);
@@ -106,7 +107,8 @@ bool png_start(PngHandles& handles, PngSource& source, PngTarget target, PngLayo
     }
     if (layout->bit_depth == 16) png_set_strip_16(handles.png);
     if (layout->color_type & PNG_COLOR_MASK_ALPHA) png_set_strip_alpha(handles.png);
-    if (layout->color_type == PNG_COLOR_TYPE_GRAY || layout->color_type == PNG_COLOR_TYPE_GRAY_ALPHA) {
+    if (layout->color_type == PNG_COLOR_TYPE_GRAY ||
+        layout->color_type == PNG_COLOR_TYPE_GRAY_ALPHA) {
       png_set_gray_to_rgb(handles.png);
     }
   }
@@ -125,12 +127,18 @@ bool png_finish(PngHandles& handles, png_bytep* rows) {
 
 const char* png_color_type_name(int color_type) {
   switch (color_type) {
-    case PNG_COLOR_TYPE_GRAY: return "grey";
-    case PNG_COLOR_TYPE_GRAY_ALPHA: return "grey+alpha";
-    case PNG_COLOR_TYPE_PALETTE: return "palette";
-    case PNG_COLOR_TYPE_RGB: return "RGB";
-    case PNG_COLOR_TYPE_RGB_ALPHA: return "RGBA";
-    default: return "unknown";
+    case PNG_COLOR_TYPE_GRAY:
+      return "grey";
+    case PNG_COLOR_TYPE_GRAY_ALPHA:
+      return "grey+alpha";
+    case PNG_COLOR_TYPE_PALETTE:
+      return "palette";
+    case PNG_COLOR_TYPE_RGB:
+      return "RGB";
+    case PNG_COLOR_TYPE_RGB_ALPHA:
+      return "RGBA";
+    default:
+      return "unknown";
   }
 }
 
@@ -141,26 +149,33 @@ void decode_png(const std::vector<uint8_t>& bytes, const std::string& path, PngT
   source.data = bytes.data();
   source.size = bytes.size();
   PngHandles handles;
-  handles.png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &source, png_record_error, png_ignore_warning);
+  handles.png =
+      png_create_read_struct(PNG_LIBPNG_VER_STRING, &source, png_record_error, png_ignore_warning);
   if (handles.png != nullptr) handles.info = png_create_info_struct(handles.png);
-  if (handles.png == nullptr || handles.info == nullptr) throw Error("'" + path + "': libpng could not start");
+  if (handles.png == nullptr || handles.info == nullptr)
+    throw Error("'" + path + "': libpng could not start");
 
   if (!png_start(handles, source, target, layout)) {
     throw Error("'" + path + "': corrupt PNG (" + source.message + ")");
   }
   check_size(layout->width, layout->height, path);
-  if (target == PngTarget::kGray16 && (layout->bit_depth != 16 || layout->color_type != PNG_COLOR_TYPE_GRAY)) {
+  if (target == PngTarget::kGray16 &&
+      (layout->bit_depth != 16 || layout->color_type != PNG_COLOR_TYPE_GRAY)) {
     throw Error("'" + path + "' is a " + std::to_string(layout->bit_depth) + "-bit " +
-                png_color_type_name(layout->color_type) + " PNG; a depth image must be 16-bit grey");
+                png_color_type_name(layout->color_type) +
+                " PNG; a depth image must be 16-bit grey");
   }
-  const size_t expected_row_bytes = static_cast<size_t>(layout->width) * (target == PngTarget::kGray16 ? 2 : 3);
+  const size_t expected_row_bytes =
+      static_cast<size_t>(layout->width) * (target == PngTarget::kGray16 ? 2 : 3);
   if (layout->row_bytes != expected_row_bytes) {
-    throw Error("'" + path + "': PNG rows decode to " + std::to_string(layout->row_bytes) + " bytes, expected " +
-                std::to_string(expected_row_bytes) + " (unsupported PNG variant)");
+    throw Error("'" + path + "': PNG rows decode to " + std::to_string(layout->row_bytes) +
+                " bytes, expected " + std::to_string(expected_row_bytes) +
+                " (unsupported PNG variant)");
   }
   pixels->resize(expected_row_bytes * layout->height);
   std::vector<png_bytep> rows(layout->height);
-  for (uint32_t row = 0; row < layout->height; ++row) rows[row] = pixels->data() + row * expected_row_bytes;
+  for (uint32_t row = 0; row < layout->height; ++row)
+    rows[row] = pixels->data() + row * expected_row_bytes;
   if (!png_finish(handles, rows.data())) {
     throw Error("'" + path + "': corrupt or truncated PNG (" + source.message + ")");
   }
@@ -205,7 +220,8 @@ struct JpegDecompressor {
 };
 
 // Same discipline as the PNG path: everything with a destructor lives in the caller.
-bool jpeg_start(JpegDecompressor& decompressor, JpegErrorHandler& handler, const std::vector<uint8_t>& bytes) {
+bool jpeg_start(JpegDecompressor& decompressor, JpegErrorHandler& handler,
+                const std::vector<uint8_t>& bytes) {
   decompressor.info.err = jpeg_std_error(&handler.manager);
   handler.manager.error_exit = jpeg_record_error;
   handler.manager.emit_message = jpeg_note_warning;
@@ -213,14 +229,16 @@ bool jpeg_start(JpegDecompressor& decompressor, JpegErrorHandler& handler, const
   jpeg_create_decompress(&decompressor.info);
   decompressor.created = true;
   // const_cast: older libjpeg versions declare the buffer non-const; it is only read.
-  jpeg_mem_src(&decompressor.info, const_cast<unsigned char*>(bytes.data()), static_cast<unsigned long>(bytes.size()));
+  jpeg_mem_src(&decompressor.info, const_cast<unsigned char*>(bytes.data()),
+               static_cast<unsigned long>(bytes.size()));
   jpeg_read_header(&decompressor.info, TRUE);
   decompressor.info.out_color_space = JCS_RGB;  // grey and YCbCr JPEGs alike come out as RGB
   jpeg_start_decompress(&decompressor.info);
   return true;
 }
 
-bool jpeg_read_rows(JpegDecompressor& decompressor, JpegErrorHandler& handler, uint8_t* pixels, size_t row_bytes) {
+bool jpeg_read_rows(JpegDecompressor& decompressor, JpegErrorHandler& handler, uint8_t* pixels,
+                    size_t row_bytes) {
   if (setjmp(handler.jump)) return false;
   while (decompressor.info.output_scanline < decompressor.info.output_height) {
     JSAMPROW row = pixels + decompressor.info.output_scanline * row_bytes;
@@ -246,7 +264,8 @@ ColorImage decode_jpeg(const std::vector<uint8_t>& bytes, const std::string& pat
   image.width = static_cast<int>(info.output_width);
   image.height = static_cast<int>(info.output_height);
   image.rgb.resize(static_cast<size_t>(image.width) * image.height * 3);
-  if (!jpeg_read_rows(decompressor, handler, image.rgb.data(), static_cast<size_t>(image.width) * 3)) {
+  if (!jpeg_read_rows(decompressor, handler, image.rgb.data(),
+                      static_cast<size_t>(image.width) * 3)) {
     throw Error("'" + path + "': corrupt or truncated JPEG (" + handler.message + ")");
   }
   if (handler.truncated) throw Error("'" + path + "': truncated JPEG (" + handler.message + ")");
@@ -255,11 +274,11 @@ ColorImage decode_jpeg(const std::vector<uint8_t>& bytes, const std::string& pat
 
 #endif  // COVOX_HAVE_JPEG
 
-[[noreturn, maybe_unused]] void missing_codec(const char* format, const char* library, const char* package,
-                                const std::string& path) {
-  throw NotAvailableError("cannot read '" + path + "': this build of covoxslam has no " + format + " reader (" +
-                          library + " was not found at configure time; install " + package +
-                          " and re-run cmake)");
+[[noreturn, maybe_unused]] void missing_codec(const char* format, const char* library,
+                                              const char* package, const std::string& path) {
+  throw NotAvailableError("cannot read '" + path + "': this build of covoxslam has no " + format +
+                          " reader (" + library + " was not found at configure time; install " +
+                          package + " and re-run cmake)");
 }
 
 }  // namespace
@@ -328,7 +347,8 @@ ImageSize read_png_size(const std::string& path) {
   // The signature (8 bytes), then the IHDR chunk: length (4), "IHDR" (4), width, height
   // (big-endian uint32 each). PNG requires IHDR to come first.
   constexpr size_t kHeaderBytes = 24;
-  std::unique_ptr<std::FILE, int (*)(std::FILE*)> file(std::fopen(path.c_str(), "rb"), &std::fclose);
+  std::unique_ptr<std::FILE, int (*)(std::FILE*)> file(std::fopen(path.c_str(), "rb"),
+                                                       &std::fclose);
   if (!file) throw Error("cannot open '" + path + "'");
   std::vector<uint8_t> header(kHeaderBytes);
   const size_t got = std::fread(header.data(), 1, kHeaderBytes, file.get());
@@ -337,8 +357,8 @@ ImageSize read_png_size(const std::string& path) {
     throw Error("'" + path + "' is not a PNG file (no PNG signature and IHDR header)");
   }
   auto big_endian = [&](size_t at) {
-    return (uint32_t(header[at]) << 24) | (uint32_t(header[at + 1]) << 16) | (uint32_t(header[at + 2]) << 8) |
-           uint32_t(header[at + 3]);
+    return (uint32_t(header[at]) << 24) | (uint32_t(header[at + 1]) << 16) |
+           (uint32_t(header[at + 2]) << 8) | uint32_t(header[at + 3]);
   };
   const uint32_t width = big_endian(16), height = big_endian(20);
   check_size(width, height, path);

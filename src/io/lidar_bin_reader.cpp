@@ -26,7 +26,8 @@ double median_consecutive_step_m(const std::vector<float>& values, size_t stride
   for (size_t i = 0; i < pair_count; ++i) {
     double squared = 0.0;
     for (size_t axis = 0; axis < 3; ++axis) {
-      const double delta = double(values[(i + 1) * stride + axis]) - double(values[i * stride + axis]);
+      const double delta =
+          double(values[(i + 1) * stride + axis]) - double(values[i * stride + axis]);
       squared += delta * delta;
     }
     if (std::isfinite(squared)) steps.push_back(std::sqrt(squared));
@@ -52,7 +53,8 @@ std::vector<float> read_float32_file(const std::string& path) {
                 " bytes, not a whole number of float32 values: truncated or not a float32 file");
   }
   std::vector<float> values(bytes.size() / sizeof(float));
-  std::memcpy(values.data(), bytes.data(), bytes.size());  // the files and all our hosts are little-endian
+  std::memcpy(values.data(), bytes.data(),
+              bytes.size());  // the files and all our hosts are little-endian
   return values;
 }
 
@@ -71,7 +73,8 @@ BinPointLayout detect_bin_point_layout(const std::vector<float>& values, const s
   const double step_xyzi_m = median_consecutive_step_m(values, 4);
   if (step_xyz_m * kClearStepRatio < step_xyzi_m) return BinPointLayout::kXyz;
   if (step_xyzi_m * kClearStepRatio < step_xyz_m) return BinPointLayout::kXyzIntensity;
-  throw Error("'" + path + "': cannot tell whether points have 3 (x,y,z) or 4 (x,y,z,intensity) floats: the " +
+  throw Error("'" + path +
+              "': cannot tell whether points have 3 (x,y,z) or 4 (x,y,z,intensity) floats: the " +
               "file size fits both and the content does not decide; pass the layout explicitly");
 }
 
@@ -80,8 +83,9 @@ PointCloud read_lidar_bin(const std::string& path, BinPointLayout layout, ReadSt
   if (layout == BinPointLayout::kAutoDetect) layout = detect_bin_point_layout(values, path);
   const size_t stride = static_cast<size_t>(layout);
   if (values.size() % stride != 0) {
-    throw Error("'" + path + "' holds " + std::to_string(values.size()) + " floats, not a multiple of " +
-                std::to_string(stride) + " floats per point: truncated or wrong layout");
+    throw Error("'" + path + "' holds " + std::to_string(values.size()) +
+                " floats, not a multiple of " + std::to_string(stride) +
+                " floats per point: truncated or wrong layout");
   }
   const size_t point_count = values.size() / stride;
   const bool with_intensity = layout == BinPointLayout::kXyzIntensity;
@@ -103,7 +107,8 @@ PointCloud read_lidar_bin(const std::string& path, BinPointLayout layout, ReadSt
     if (with_intensity) cloud.intensities.push_back(point[3]);
   }
   if (dropped > 0) {
-    log_warning("'", path, "': dropped ", dropped, " of ", point_count, " points with NaN/Inf values");
+    log_warning("'", path, "': dropped ", dropped, " of ", point_count,
+                " points with NaN/Inf values");
     if (stats != nullptr) stats->dropped_non_finite_points += dropped;
   }
   return cloud;

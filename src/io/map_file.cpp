@@ -125,8 +125,8 @@ void get_voxels(Reader& r, HostBlock* block, size_t per_block, bool esdf) {
 }  // namespace
 
 void save_map_file(const std::string& path, const MapFileContents& contents) {
-  const size_t per_block = static_cast<size_t>(contents.voxels_per_side) * contents.voxels_per_side *
-                           contents.voxels_per_side;
+  const size_t per_block = static_cast<size_t>(contents.voxels_per_side) *
+                           contents.voxels_per_side * contents.voxels_per_side;
   Writer w;
   for (char c : kMagic) w.put(c);
   w.put(kMapFileVersion);
@@ -142,7 +142,8 @@ void save_map_file(const std::string& path, const MapFileContents& contents) {
     for (const HostBlock& block : submap.blocks) {
       if (block.tsdf.size() != per_block || block.color.size() != per_block ||
           (contents.has_esdf && block.esdf.size() != per_block)) {
-        throw Error("save_map_file: a block of submap " + std::to_string(submap.id) + " has the wrong voxel count");
+        throw Error("save_map_file: a block of submap " + std::to_string(submap.id) +
+                    " has the wrong voxel count");
       }
       w.put(block.index);
       put_voxels(w, block, contents.has_esdf);
@@ -151,14 +152,16 @@ void save_map_file(const std::string& path, const MapFileContents& contents) {
   w.put(fnv1a(w.bytes().data(), w.bytes().size()));
 
   write_file_replacing(path, "save_map_file", /*binary=*/true, [&](std::ostream& file) {
-    file.write(reinterpret_cast<const char*>(w.bytes().data()), static_cast<std::streamsize>(w.bytes().size()));
+    file.write(reinterpret_cast<const char*>(w.bytes().data()),
+               static_cast<std::streamsize>(w.bytes().size()));
   });
 }
 
 MapFileContents load_map_file(const std::string& path) {
   std::ifstream file(path, std::ios::binary);
   if (!file) throw Error("map file " + path + ": cannot open");
-  const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
+  const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(file)),
+                                         std::istreambuf_iterator<char>());
   if (bytes.size() < sizeof(kMagic) || std::memcmp(bytes.data(), kMagic, sizeof(kMagic)) != 0) {
     throw Error("map file " + path + ": not a covoxslam map (wrong magic)");
   }
@@ -168,8 +171,8 @@ MapFileContents load_map_file(const std::string& path) {
   uint32_t version = 0;
   std::memcpy(&version, bytes.data() + sizeof(kMagic), sizeof(version));
   if (version != kMapFileVersion) {
-    throw Error("map file " + path + ": format version " + std::to_string(version) + ", this build reads version " +
-                std::to_string(kMapFileVersion));
+    throw Error("map file " + path + ": format version " + std::to_string(version) +
+                ", this build reads version " + std::to_string(kMapFileVersion));
   }
   const size_t payload = bytes.size() - sizeof(uint64_t);
   uint64_t stored = 0;
@@ -184,11 +187,12 @@ MapFileContents load_map_file(const std::string& path) {
   contents.has_esdf = (r.get<uint32_t>("flags") & kFlagEsdf) != 0;
   contents.voxel_size_m = r.get<float>("voxel size");
   contents.voxels_per_side = r.get<int32_t>("voxels per side");
-  if (!(contents.voxel_size_m > 0.0f) || (contents.voxels_per_side != 8 && contents.voxels_per_side != 16)) {
+  if (!(contents.voxel_size_m > 0.0f) ||
+      (contents.voxels_per_side != 8 && contents.voxels_per_side != 16)) {
     throw Error("map file " + path + ": invalid voxel size or voxels per side");
   }
-  const size_t per_block = static_cast<size_t>(contents.voxels_per_side) * contents.voxels_per_side *
-                           contents.voxels_per_side;
+  const size_t per_block = static_cast<size_t>(contents.voxels_per_side) *
+                           contents.voxels_per_side * contents.voxels_per_side;
   const uint64_t submaps = r.get<uint64_t>("submap count");
   for (uint64_t s = 0; s < submaps; ++s) {
     SubmapRecord submap;
@@ -207,14 +211,16 @@ MapFileContents load_map_file(const std::string& path) {
     }
     contents.submaps.push_back(std::move(submap));
   }
-  if (r.remaining() != 0) throw Error("map file " + path + ": unexpected bytes after the last submap");
+  if (r.remaining() != 0)
+    throw Error("map file " + path + ": unexpected bytes after the last submap");
   return contents;
 }
 
 std::vector<std::unique_ptr<TsdfMap>> make_maps(const MapFileContents& contents, Device device) {
   std::vector<std::unique_ptr<TsdfMap>> maps;
   for (const SubmapRecord& submap : contents.submaps) {
-    auto map = std::make_unique<TsdfMap>(device, TsdfMapConfig{contents.voxel_size_m, contents.voxels_per_side, {}});
+    auto map = std::make_unique<TsdfMap>(
+        device, TsdfMapConfig{contents.voxel_size_m, contents.voxels_per_side, {}});
     map->load_blocks(submap.blocks, Stream(device));
     maps.push_back(std::move(map));
   }

@@ -26,7 +26,8 @@ void write_mesh_ply(const std::string& path, const Mesh& mesh) {
     }
     for (size_t t = 0; t < mesh.triangle_count(); ++t) {
       const unsigned char three = 3;
-      const int32_t indices[3] = {static_cast<int32_t>(mesh.triangles[3 * t]), static_cast<int32_t>(mesh.triangles[3 * t + 1]),
+      const int32_t indices[3] = {static_cast<int32_t>(mesh.triangles[3 * t]),
+                                  static_cast<int32_t>(mesh.triangles[3 * t + 1]),
                                   static_cast<int32_t>(mesh.triangles[3 * t + 2])};
       file.write(reinterpret_cast<const char*>(&three), 1);
       file.write(reinterpret_cast<const char*>(indices), sizeof(indices));

@@ -33,8 +33,9 @@ size_t parse_count(std::string_view token, const std::string& where) {
 
 void require_length(const HeaderLine& line, size_t expected, const std::string& where) {
   if (line.values.size() != expected) {
-    throw Error(where + ": " + std::string(line.keyword) + " has " + std::to_string(line.values.size()) +
-                " entries but FIELDS has " + std::to_string(expected));
+    throw Error(where + ": " + std::string(line.keyword) + " has " +
+                std::to_string(line.values.size()) + " entries but FIELDS has " +
+                std::to_string(expected));
   }
 }
 
@@ -50,16 +51,16 @@ void validate_field(const PcdField& field, const std::string& where) {
   const bool size_ok = field.size_bytes == 1 || field.size_bytes == 2 || field.size_bytes == 4 ||
                        field.size_bytes == 8;
   if (!size_ok) {
-    throw Error(where + ": field '" + field.name + "' has SIZE " + std::to_string(field.size_bytes) +
-                " (supported: 1, 2, 4, 8)");
+    throw Error(where + ": field '" + field.name + "' has SIZE " +
+                std::to_string(field.size_bytes) + " (supported: 1, 2, 4, 8)");
   }
   if (field.type != 'F' && field.type != 'I' && field.type != 'U') {
     throw Error(where + ": field '" + field.name + "' has TYPE '" + std::string(1, field.type) +
                 "' (supported: F, I, U)");
   }
   if (field.type == 'F' && field.size_bytes != 4 && field.size_bytes != 8) {
-    throw Error(where + ": field '" + field.name + "' is a float of " + std::to_string(field.size_bytes) +
-                " bytes (supported: 4, 8)");
+    throw Error(where + ": field '" + field.name + "' is a float of " +
+                std::to_string(field.size_bytes) + " bytes (supported: 4, 8)");
   }
   if (field.count < 1) throw Error(where + ": field '" + field.name + "' has COUNT < 1");
 }
@@ -74,7 +75,8 @@ int PcdHeader::field_index(const std::string& name) const {
 }
 
 PcdHeader parse_pcd_header(const std::vector<uint8_t>& bytes, const std::string& path) {
-  const std::string_view all(reinterpret_cast<const char*>(bytes.data()), std::min(bytes.size(), kMaxHeaderBytes));
+  const std::string_view all(reinterpret_cast<const char*>(bytes.data()),
+                             std::min(bytes.size(), kMaxHeaderBytes));
   std::vector<HeaderLine> lines;
   size_t position = 0;
   int line_number = 0;
@@ -85,7 +87,8 @@ PcdHeader parse_pcd_header(const std::vector<uint8_t>& bytes, const std::string&
     const bool last_line = line_end == std::string_view::npos;
     if (last_line) line_end = all.size();
     ++line_number;
-    const std::vector<std::string_view> tokens = split_whitespace(all.substr(position, line_end - position));
+    const std::vector<std::string_view> tokens =
+        split_whitespace(all.substr(position, line_end - position));
     position = last_line ? all.size() : line_end + 1;
     if (tokens.empty() || tokens.front().front() == '#') continue;
     HeaderLine line;
@@ -96,7 +99,8 @@ PcdHeader parse_pcd_header(const std::vector<uint8_t>& bytes, const std::string&
     lines.push_back(std::move(line));
   }
   if (!found_data_line) {
-    throw Error("'" + path + "': no DATA line in the header: not a PCD file, or the header is truncated");
+    throw Error("'" + path +
+                "': no DATA line in the header: not a PCD file, or the header is truncated");
   }
 
   PcdHeader header;
@@ -110,7 +114,8 @@ PcdHeader parse_pcd_header(const std::vector<uint8_t>& bytes, const std::string&
   for (const HeaderLine& line : lines) {
     const std::string where = path + ":" + std::to_string(line.line_number);
     auto single_value = [&]() -> std::string_view {
-      if (line.values.size() != 1) throw Error(where + ": " + std::string(line.keyword) + " needs one value");
+      if (line.values.size() != 1)
+        throw Error(where + ": " + std::string(line.keyword) + " needs one value");
       return line.values.front();
     };
     if (line.keyword == "FIELDS" || line.keyword == "COLUMNS") {  // COLUMNS: the v0.5 name
@@ -157,8 +162,8 @@ PcdHeader parse_pcd_header(const std::vector<uint8_t>& bytes, const std::string&
     }
     field.type = type_line->values[i].front();
     if (count_line != nullptr) {
-      field.count = static_cast<int>(parse_count(count_line->values[i], path + ":" +
-                                                 std::to_string(count_line->line_number)));
+      field.count = static_cast<int>(
+          parse_count(count_line->values[i], path + ":" + std::to_string(count_line->line_number)));
     }
     validate_field(field, "'" + path + "'");
     field.offset_bytes = header.point_record_bytes;
@@ -173,8 +178,9 @@ PcdHeader parse_pcd_header(const std::vector<uint8_t>& bytes, const std::string&
   const size_t width_times_height = header.width * header.height;
   if (!have_points) header.point_count = width_times_height;
   if (header.point_count != width_times_height) {
-    throw Error("'" + path + "': POINTS is " + std::to_string(header.point_count) + " but WIDTH x HEIGHT is " +
-                std::to_string(header.width) + " x " + std::to_string(header.height));
+    throw Error("'" + path + "': POINTS is " + std::to_string(header.point_count) +
+                " but WIDTH x HEIGHT is " + std::to_string(header.width) + " x " +
+                std::to_string(header.height));
   }
   return header;
 }

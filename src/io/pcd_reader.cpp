@@ -44,7 +44,8 @@ UsedFields find_used_fields(const PcdHeader& header, const std::string& source) 
   }
   // Packed colour is 4 bytes by definition (PCL stores it as the bits of a float or a uint32);
   // any other size is some unrelated field that happens to be called rgb.
-  if (used.color >= 0 && (header.fields[used.color].size_bytes != 4 || header.fields[used.color].count != 1)) {
+  if (used.color >= 0 &&
+      (header.fields[used.color].size_bytes != 4 || header.fields[used.color].count != 1)) {
     log_warning("'", source, "': field '", header.fields[used.color].name,
                 "' is not one 4-byte packed colour; colours are not read");
     used.color = -1;
@@ -80,14 +81,16 @@ class CloudBuilder {
     if (used_.intensity >= 0) cloud_.intensities.push_back(intensity);
     if (used_.color >= 0) {
       const uint32_t bits = values.packed_color;
-      cloud_.colors.push_back({static_cast<uint8_t>((bits >> 16) & 0xff), static_cast<uint8_t>((bits >> 8) & 0xff),
+      cloud_.colors.push_back({static_cast<uint8_t>((bits >> 16) & 0xff),
+                               static_cast<uint8_t>((bits >> 8) & 0xff),
                                static_cast<uint8_t>(bits & 0xff)});
     }
   }
 
   PointCloud finish(const std::string& source, size_t point_count, ReadStats* stats) {
     if (dropped_ > 0) {
-      log_info("'", source, "': dropped ", dropped_, " of ", point_count, " points with NaN/Inf values");
+      log_info("'", source, "': dropped ", dropped_, " of ", point_count,
+               " points with NaN/Inf values");
       if (stats != nullptr) stats->dropped_non_finite_points += dropped_;
     }
     return std::move(cloud_);
@@ -114,17 +117,25 @@ double decode_number(const uint8_t* bytes, const PcdField& field) {
       return field.size_bytes == 4 ? load<float>(bytes) : load<double>(bytes);
     case 'I':
       switch (field.size_bytes) {
-        case 1: return load<int8_t>(bytes);
-        case 2: return load<int16_t>(bytes);
-        case 4: return load<int32_t>(bytes);
-        default: return static_cast<double>(load<int64_t>(bytes));
+        case 1:
+          return load<int8_t>(bytes);
+        case 2:
+          return load<int16_t>(bytes);
+        case 4:
+          return load<int32_t>(bytes);
+        default:
+          return static_cast<double>(load<int64_t>(bytes));
       }
     default:  // 'U' (the header parser allows nothing else)
       switch (field.size_bytes) {
-        case 1: return load<uint8_t>(bytes);
-        case 2: return load<uint16_t>(bytes);
-        case 4: return load<uint32_t>(bytes);
-        default: return static_cast<double>(load<uint64_t>(bytes));
+        case 1:
+          return load<uint8_t>(bytes);
+        case 2:
+          return load<uint16_t>(bytes);
+        case 4:
+          return load<uint32_t>(bytes);
+        default:
+          return static_cast<double>(load<uint64_t>(bytes));
       }
   }
 }
@@ -137,8 +148,8 @@ struct FieldLocation {
   size_t stride_bytes = 0;
 };
 
-PointCloud decode_binary(const uint8_t* data, const PcdHeader& header, const UsedFields& used, bool field_major,
-                         const std::string& source, ReadStats* stats) {
+PointCloud decode_binary(const uint8_t* data, const PcdHeader& header, const UsedFields& used,
+                         bool field_major, const std::string& source, ReadStats* stats) {
   const size_t n = header.point_count;
   auto locate = [&](int index) {
     const PcdField& field = header.fields[index];
@@ -156,10 +167,11 @@ PointCloud decode_binary(const uint8_t* data, const PcdHeader& header, const Use
     values.y = decode_number(data + y.first_byte + i * y.stride_bytes, header.fields[used.y]);
     values.z = decode_number(data + z.first_byte + i * z.stride_bytes, header.fields[used.z]);
     if (used.intensity >= 0) {
-      values.intensity =
-          decode_number(data + intensity.first_byte + i * intensity.stride_bytes, header.fields[used.intensity]);
+      values.intensity = decode_number(data + intensity.first_byte + i * intensity.stride_bytes,
+                                       header.fields[used.intensity]);
     }
-    if (used.color >= 0) values.packed_color = load<uint32_t>(data + color.first_byte + i * color.stride_bytes);
+    if (used.color >= 0)
+      values.packed_color = load<uint32_t>(data + color.first_byte + i * color.stride_bytes);
     builder.add(values);
   }
   return builder.finish(source, n, stats);
@@ -173,20 +185,22 @@ size_t expected_data_bytes(const PcdHeader& header, const std::string& source) {
   return header.point_count * header.point_record_bytes;
 }
 
-PointCloud read_binary(const std::vector<uint8_t>& bytes, const PcdHeader& header, const UsedFields& used,
-                       const std::string& source, ReadStats* stats) {
+PointCloud read_binary(const std::vector<uint8_t>& bytes, const PcdHeader& header,
+                       const UsedFields& used, const std::string& source, ReadStats* stats) {
   const size_t needed = expected_data_bytes(header, source);
   const size_t available = bytes.size() - header.data_offset_bytes;
   if (available < needed) {
-    throw Error("'" + source + "': truncated PCD: " + std::to_string(header.point_count) + " points of " +
-                std::to_string(header.point_record_bytes) + " bytes need " + std::to_string(needed) +
-                " bytes of data, the file has " + std::to_string(available));
+    throw Error("'" + source + "': truncated PCD: " + std::to_string(header.point_count) +
+                " points of " + std::to_string(header.point_record_bytes) + " bytes need " +
+                std::to_string(needed) + " bytes of data, the file has " +
+                std::to_string(available));
   }
   return decode_binary(bytes.data() + header.data_offset_bytes, header, used, false, source, stats);
 }
 
 PointCloud read_binary_compressed(const std::vector<uint8_t>& bytes, const PcdHeader& header,
-                                  const UsedFields& used, const std::string& source, ReadStats* stats) {
+                                  const UsedFields& used, const std::string& source,
+                                  ReadStats* stats) {
   const size_t needed = expected_data_bytes(header, source);
   const size_t available = bytes.size() - header.data_offset_bytes;
   constexpr size_t kSizesBytes = 2 * sizeof(uint32_t);
@@ -200,13 +214,15 @@ PointCloud read_binary_compressed(const std::vector<uint8_t>& bytes, const PcdHe
   const size_t compressed_bytes = load<uint32_t>(sizes);
   const size_t uncompressed_bytes = load<uint32_t>(sizes + sizeof(uint32_t));
   if (uncompressed_bytes != needed) {
-    throw Error("'" + source + "': corrupt PCD: compressed data says it holds " + std::to_string(uncompressed_bytes) +
-                " bytes, but " + std::to_string(header.point_count) + " points of " +
+    throw Error("'" + source + "': corrupt PCD: compressed data says it holds " +
+                std::to_string(uncompressed_bytes) + " bytes, but " +
+                std::to_string(header.point_count) + " points of " +
                 std::to_string(header.point_record_bytes) + " bytes are " + std::to_string(needed));
   }
   if (compressed_bytes > available - kSizesBytes) {
     throw Error("'" + source + "': truncated PCD: " + std::to_string(compressed_bytes) +
-                " bytes of compressed data announced, " + std::to_string(available - kSizesBytes) + " present");
+                " bytes of compressed data announced, " + std::to_string(available - kSizesBytes) +
+                " present");
   }
   // LZF turns at most 3 input bytes into 264 output bytes: a size beyond that is a corrupt
   // header, caught here before allocating it.
@@ -216,7 +232,8 @@ PointCloud read_binary_compressed(const std::vector<uint8_t>& bytes, const PcdHe
                 " compressed bytes cannot hold " + std::to_string(needed) + " bytes of points");
   }
   std::vector<uint8_t> decoded(needed);
-  lzf_decompress(sizes + kSizesBytes, compressed_bytes, decoded.data(), decoded.size(), "'" + source + "'");
+  lzf_decompress(sizes + kSizesBytes, compressed_bytes, decoded.data(), decoded.size(),
+                 "'" + source + "'");
   return decode_binary(decoded.data(), header, used, true, source, stats);
 }
 
@@ -242,8 +259,8 @@ bool parse_packed_color(std::string_view token, const PcdField& field, uint32_t*
   return true;
 }
 
-PointCloud read_ascii(const std::vector<uint8_t>& bytes, const PcdHeader& header, const UsedFields& used,
-                      const std::string& source, ReadStats* stats) {
+PointCloud read_ascii(const std::vector<uint8_t>& bytes, const PcdHeader& header,
+                      const UsedFields& used, const std::string& source, ReadStats* stats) {
   // Token position of each field's first element within a line.
   std::vector<size_t> first_token(header.fields.size());
   size_t tokens_per_point = 0;
@@ -257,25 +274,28 @@ PointCloud read_ascii(const std::vector<uint8_t>& bytes, const PcdHeader& header
 
   const std::string_view all(reinterpret_cast<const char*>(bytes.data()), bytes.size());
   // Every point takes at least two bytes of text: a corrupt POINTS cannot make us reserve more.
-  CloudBuilder builder(used, std::min(header.point_count, (bytes.size() - header.data_offset_bytes) / 2));
+  CloudBuilder builder(used,
+                       std::min(header.point_count, (bytes.size() - header.data_offset_bytes) / 2));
   size_t position = header.data_offset_bytes;
   size_t points_read = 0;
   for (; position < all.size() && points_read < header.point_count; ++line_number) {
     size_t line_end = all.find('\n', position);
     if (line_end == std::string_view::npos) line_end = all.size();
-    const std::vector<std::string_view> tokens = split_whitespace(all.substr(position, line_end - position));
+    const std::vector<std::string_view> tokens =
+        split_whitespace(all.substr(position, line_end - position));
     position = line_end + 1;
     if (tokens.empty()) continue;
     const std::string where = source + ":" + std::to_string(line_number);
     if (tokens.size() != tokens_per_point) {
-      throw Error(where + ": expected " + std::to_string(tokens_per_point) + " values per point, found " +
-                  std::to_string(tokens.size()));
+      throw Error(where + ": expected " + std::to_string(tokens_per_point) +
+                  " values per point, found " + std::to_string(tokens.size()));
     }
     auto number = [&](int field) {
       double value = 0.0;
       const std::string_view token = tokens[first_token[field]];
       if (!parse_double(token, &value)) {
-        throw Error(where + ": '" + std::string(token) + "' is not a number (field " + header.fields[field].name + ")");
+        throw Error(where + ": '" + std::string(token) + "' is not a number (field " +
+                    header.fields[field].name + ")");
       }
       return value;
     };
@@ -284,23 +304,26 @@ PointCloud read_ascii(const std::vector<uint8_t>& bytes, const PcdHeader& header
     values.y = number(used.y);
     values.z = number(used.z);
     if (used.intensity >= 0) values.intensity = number(used.intensity);
-    if (used.color >= 0 &&
-        !parse_packed_color(tokens[first_token[used.color]], header.fields[used.color], &values.packed_color)) {
-      throw Error(where + ": '" + std::string(tokens[first_token[used.color]]) + "' is not a packed colour");
+    if (used.color >= 0 && !parse_packed_color(tokens[first_token[used.color]],
+                                               header.fields[used.color], &values.packed_color)) {
+      throw Error(where + ": '" + std::string(tokens[first_token[used.color]]) +
+                  "' is not a packed colour");
     }
     builder.add(values);
     ++points_read;
   }
   if (points_read != header.point_count) {
-    throw Error("'" + source + "': truncated PCD: header announces " + std::to_string(header.point_count) +
-                " points, the ascii data holds " + std::to_string(points_read));
+    throw Error("'" + source + "': truncated PCD: header announces " +
+                std::to_string(header.point_count) + " points, the ascii data holds " +
+                std::to_string(points_read));
   }
   return builder.finish(source, header.point_count, stats);
 }
 
 }  // namespace
 
-PointCloud parse_pcd(const std::vector<uint8_t>& bytes, const std::string& source_name, ReadStats* stats) {
+PointCloud parse_pcd(const std::vector<uint8_t>& bytes, const std::string& source_name,
+                     ReadStats* stats) {
   const PcdHeader header = parse_pcd_header(bytes, source_name);
   const UsedFields used = find_used_fields(header, source_name);
   switch (header.encoding) {
@@ -314,7 +337,9 @@ PointCloud parse_pcd(const std::vector<uint8_t>& bytes, const std::string& sourc
   throw Error("'" + source_name + "': unknown PCD data encoding");
 }
 
-PointCloud read_pcd(const std::string& path, ReadStats* stats) { return parse_pcd(read_file_bytes(path), path, stats); }
+PointCloud read_pcd(const std::string& path, ReadStats* stats) {
+  return parse_pcd(read_file_bytes(path), path, stats);
+}
 
 }  // namespace io
 }  // namespace covox

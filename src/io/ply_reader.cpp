@@ -19,8 +19,8 @@ enum class PlyType { kInt8, kUint8, kInt16, kUint16, kInt32, kUint32, kFloat32, 
 struct PlyProperty {
   std::string name;
   bool is_list = false;
-  PlyType type = PlyType::kFloat32;        // the value type (of the items, for a list)
-  PlyType count_type = PlyType::kUint8;    // lists only
+  PlyType type = PlyType::kFloat32;      // the value type (of the items, for a list)
+  PlyType count_type = PlyType::kUint8;  // lists only
 };
 
 struct PlyElement {
@@ -40,11 +40,11 @@ struct PlyHeader {
 bool parse_type(std::string_view name, PlyType* type) {
   // Both the classic names and the sized aliases later writers use.
   static const std::pair<std::string_view, PlyType> kNames[] = {
-      {"char", PlyType::kInt8},     {"int8", PlyType::kInt8},       {"uchar", PlyType::kUint8},
-      {"uint8", PlyType::kUint8},   {"short", PlyType::kInt16},     {"int16", PlyType::kInt16},
-      {"ushort", PlyType::kUint16}, {"uint16", PlyType::kUint16},   {"int", PlyType::kInt32},
-      {"int32", PlyType::kInt32},   {"uint", PlyType::kUint32},     {"uint32", PlyType::kUint32},
-      {"float", PlyType::kFloat32}, {"float32", PlyType::kFloat32}, {"double", PlyType::kFloat64},
+      {"char", PlyType::kInt8},      {"int8", PlyType::kInt8},       {"uchar", PlyType::kUint8},
+      {"uint8", PlyType::kUint8},    {"short", PlyType::kInt16},     {"int16", PlyType::kInt16},
+      {"ushort", PlyType::kUint16},  {"uint16", PlyType::kUint16},   {"int", PlyType::kInt32},
+      {"int32", PlyType::kInt32},    {"uint", PlyType::kUint32},     {"uint32", PlyType::kUint32},
+      {"float", PlyType::kFloat32},  {"float32", PlyType::kFloat32}, {"double", PlyType::kFloat64},
       {"float64", PlyType::kFloat64}};
   for (const auto& [text, value] : kNames) {
     if (name == text) {
@@ -57,10 +57,18 @@ bool parse_type(std::string_view name, PlyType* type) {
 
 size_t type_bytes(PlyType type) {
   switch (type) {
-    case PlyType::kInt8: case PlyType::kUint8: return 1;
-    case PlyType::kInt16: case PlyType::kUint16: return 2;
-    case PlyType::kInt32: case PlyType::kUint32: case PlyType::kFloat32: return 4;
-    default: return 8;
+    case PlyType::kInt8:
+    case PlyType::kUint8:
+      return 1;
+    case PlyType::kInt16:
+    case PlyType::kUint16:
+      return 2;
+    case PlyType::kInt32:
+    case PlyType::kUint32:
+    case PlyType::kFloat32:
+      return 4;
+    default:
+      return 8;
   }
 }
 
@@ -81,10 +89,12 @@ PlyHeader parse_header(const std::vector<uint8_t>& bytes, const std::string& pat
       throw Error("'" + path + "': PLY header has no end_header line (truncated file?)");
     }
     ++line_number;
-    const std::vector<std::string_view> tokens = split_whitespace(all.substr(position, line_end - position));
+    const std::vector<std::string_view> tokens =
+        split_whitespace(all.substr(position, line_end - position));
     position = line_end + 1;
     const std::string where = path + ":" + std::to_string(line_number);
-    if (tokens.empty() || tokens[0] == "comment" || tokens[0] == "obj_info" || tokens[0] == "ply") continue;
+    if (tokens.empty() || tokens[0] == "comment" || tokens[0] == "obj_info" || tokens[0] == "ply")
+      continue;
     if (tokens[0] == "end_header") break;
     if (tokens[0] == "format") {
       if (tokens.size() < 2) throw Error(where + ": format line without a format");
@@ -100,7 +110,8 @@ PlyHeader parse_header(const std::vector<uint8_t>& bytes, const std::string& pat
     } else if (tokens[0] == "element") {
       PlyElement element;
       const char* count_end = tokens.size() == 3 ? tokens[2].data() + tokens[2].size() : nullptr;
-      if (tokens.size() != 3 || std::from_chars(tokens[2].data(), count_end, element.count).ptr != count_end) {
+      if (tokens.size() != 3 ||
+          std::from_chars(tokens[2].data(), count_end, element.count).ptr != count_end) {
         throw Error(where + ": expected 'element <name> <count>'");
       }
       element.name = std::string(tokens[1]);
@@ -132,46 +143,62 @@ PlyHeader parse_header(const std::vector<uint8_t>& bytes, const std::string& pat
 // Reads values one at a time from the body, in either encoding.
 class ValueReader {
  public:
-  ValueReader(const std::vector<uint8_t>& bytes, size_t offset, PlyFormat format, const std::string& path)
+  ValueReader(const std::vector<uint8_t>& bytes, size_t offset, PlyFormat format,
+              const std::string& path)
       : bytes_(bytes), position_(offset), format_(format), path_(path) {}
 
-  double next(PlyType type) { return format_ == PlyFormat::kAscii ? next_ascii() : next_binary(type); }
+  double next(PlyType type) {
+    return format_ == PlyFormat::kAscii ? next_ascii() : next_binary(type);
+  }
 
  private:
   template <class T>
   double load() {
     T value;
-    std::memcpy(&value, bytes_.data() + position_, sizeof(T));  // unaligned; hosts are little-endian
+    std::memcpy(&value, bytes_.data() + position_,
+                sizeof(T));  // unaligned; hosts are little-endian
     position_ += sizeof(T);
     return static_cast<double>(value);
   }
 
   double next_binary(PlyType type) {
     if (type_bytes(type) > bytes_.size() - position_) {
-      throw Error("'" + path_ + "': PLY data is truncated (ends at byte " + std::to_string(bytes_.size()) + ")");
+      throw Error("'" + path_ + "': PLY data is truncated (ends at byte " +
+                  std::to_string(bytes_.size()) + ")");
     }
     switch (type) {
-      case PlyType::kInt8: return load<int8_t>();
-      case PlyType::kUint8: return load<uint8_t>();
-      case PlyType::kInt16: return load<int16_t>();
-      case PlyType::kUint16: return load<uint16_t>();
-      case PlyType::kInt32: return load<int32_t>();
-      case PlyType::kUint32: return load<uint32_t>();
-      case PlyType::kFloat32: return load<float>();
-      default: return load<double>();
+      case PlyType::kInt8:
+        return load<int8_t>();
+      case PlyType::kUint8:
+        return load<uint8_t>();
+      case PlyType::kInt16:
+        return load<int16_t>();
+      case PlyType::kUint16:
+        return load<uint16_t>();
+      case PlyType::kInt32:
+        return load<int32_t>();
+      case PlyType::kUint32:
+        return load<uint32_t>();
+      case PlyType::kFloat32:
+        return load<float>();
+      default:
+        return load<double>();
     }
   }
 
   double next_ascii() {
     const std::string_view all(reinterpret_cast<const char*>(bytes_.data()), bytes_.size());
     const size_t begin = all.find_first_not_of(" \t\r\n", position_);
-    if (begin == std::string_view::npos) throw Error("'" + path_ + "': PLY data is truncated (fewer values than the header announces)");
+    if (begin == std::string_view::npos)
+      throw Error("'" + path_ +
+                  "': PLY data is truncated (fewer values than the header announces)");
     size_t end = all.find_first_of(" \t\r\n", begin);
     if (end == std::string_view::npos) end = all.size();
     position_ = end;
     double value = 0.0;
     if (!parse_double(all.substr(begin, end - begin), &value)) {
-      throw Error("'" + path_ + "': '" + std::string(all.substr(begin, end - begin)) + "' in the PLY data is not a number");
+      throw Error("'" + path_ + "': '" + std::string(all.substr(begin, end - begin)) +
+                  "' in the PLY data is not a number");
     }
     return value;
   }
@@ -218,7 +245,8 @@ Mesh read_mesh_ply(const std::string& path) {
       x = property_index(element, {"x"});
       y = property_index(element, {"y"});
       z = property_index(element, {"z"});
-      if (x < 0 || y < 0 || z < 0) throw Error("'" + path + "': PLY vertex element lacks x, y or z");
+      if (x < 0 || y < 0 || z < 0)
+        throw Error("'" + path + "': PLY vertex element lacks x, y or z");
       red = property_index(element, {"red", "r"});
       green = property_index(element, {"green", "g"});
       blue = property_index(element, {"blue", "b"});
@@ -246,7 +274,8 @@ Mesh read_mesh_ply(const std::string& path) {
           continue;
         }
         const double count = reader.next(property.count_type);
-        if (!(count >= 0.0)) throw Error("'" + path + "': negative list length in element " + element.name);
+        if (!(count >= 0.0))
+          throw Error("'" + path + "': negative list length in element " + element.name);
         const bool keep = static_cast<int>(p) == indices;
         if (keep) corners.clear();
         for (size_t item = 0; item < static_cast<size_t>(count); ++item) {
@@ -261,9 +290,11 @@ Mesh read_mesh_ply(const std::string& path) {
         }
       }
       if (is_vertex) {
-        const Vec3f vertex(static_cast<float>(values[x]), static_cast<float>(values[y]), static_cast<float>(values[z]));
+        const Vec3f vertex(static_cast<float>(values[x]), static_cast<float>(values[y]),
+                           static_cast<float>(values[z]));
         if (!vertex.is_finite()) {
-          throw Error("'" + path + "': vertex " + std::to_string(row) + " has a non-finite coordinate");
+          throw Error("'" + path + "': vertex " + std::to_string(row) +
+                      " has a non-finite coordinate");
         }
         mesh.vertices_m.push_back(vertex);
         if (red >= 0) {
@@ -275,7 +306,8 @@ Mesh read_mesh_ply(const std::string& path) {
         // Polygons become a fan around their first corner; degenerate faces (< 3 corners) are
         // skipped, as viewers do.
         for (size_t corner = 2; corner < corners.size(); ++corner) {
-          mesh.triangles.insert(mesh.triangles.end(), {corners[0], corners[corner - 1], corners[corner]});
+          mesh.triangles.insert(mesh.triangles.end(),
+                                {corners[0], corners[corner - 1], corners[corner]});
         }
       }
     }
@@ -283,8 +315,8 @@ Mesh read_mesh_ply(const std::string& path) {
   if (!have_vertices) throw Error("'" + path + "': PLY file has no vertex element");
   for (uint32_t index : mesh.triangles) {
     if (index >= mesh.vertices_m.size()) {
-      throw Error("'" + path + "': face refers to vertex " + std::to_string(index) + " but there are only " +
-                  std::to_string(mesh.vertices_m.size()));
+      throw Error("'" + path + "': face refers to vertex " + std::to_string(index) +
+                  " but there are only " + std::to_string(mesh.vertices_m.size()));
     }
   }
   return mesh;

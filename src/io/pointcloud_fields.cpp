@@ -24,32 +24,44 @@ CloudDecodeResult failure(CloudDecodeStatus status, std::string message) {
 
 const char* to_string(CloudDecodeStatus status) {
   switch (status) {
-    case CloudDecodeStatus::kOk: return "ok";
-    case CloudDecodeStatus::kMissingXyz: return "missing x/y/z field";
-    case CloudDecodeStatus::kXyzNotFloat32: return "x/y/z not FLOAT32";
-    case CloudDecodeStatus::kUnknownFieldType: return "unknown field datatype";
-    case CloudDecodeStatus::kPointStepTooSmall: return "point step too small for its fields";
-    case CloudDecodeStatus::kRowStepTooSmall: return "row step too small for its points";
-    case CloudDecodeStatus::kDataTooShort: return "data shorter than the cloud's size";
-    case CloudDecodeStatus::kBigEndian: return "big-endian data";
+    case CloudDecodeStatus::kOk:
+      return "ok";
+    case CloudDecodeStatus::kMissingXyz:
+      return "missing x/y/z field";
+    case CloudDecodeStatus::kXyzNotFloat32:
+      return "x/y/z not FLOAT32";
+    case CloudDecodeStatus::kUnknownFieldType:
+      return "unknown field datatype";
+    case CloudDecodeStatus::kPointStepTooSmall:
+      return "point step too small for its fields";
+    case CloudDecodeStatus::kRowStepTooSmall:
+      return "row step too small for its points";
+    case CloudDecodeStatus::kDataTooShort:
+      return "data shorter than the cloud's size";
+    case CloudDecodeStatus::kBigEndian:
+      return "big-endian data";
   }
   return "unknown";
 }
 
 CloudDecodeResult check_point_cloud_layout(const PointCloudLayout& layout, size_t data_size) {
   if (layout.is_bigendian) {
-    return failure(CloudDecodeStatus::kBigEndian, "the cloud is big-endian; only little-endian clouds are read");
+    return failure(CloudDecodeStatus::kBigEndian,
+                   "the cloud is big-endian; only little-endian clouds are read");
   }
   for (const char* axis : {"x", "y", "z"}) {
     const PointFieldDescription* field = find_field(layout, axis);
     if (!field) {
-      return failure(CloudDecodeStatus::kMissingXyz,
-                     std::string("the cloud has no '") + axis + "' field (x, y and z FLOAT32 are required)");
+      return failure(
+          CloudDecodeStatus::kMissingXyz,
+          std::string("the cloud has no '") + axis + "' field (x, y and z FLOAT32 are required)");
     }
     if (field->datatype != kFloat32 || field->count != 1) {
       return failure(CloudDecodeStatus::kXyzNotFloat32,
-                     std::string("field '") + axis + "' has datatype " + std::to_string(field->datatype) +
-                         " and count " + std::to_string(field->count) + "; x, y and z must be one FLOAT32 (7) each");
+                     std::string("field '") + axis + "' has datatype " +
+                         std::to_string(field->datatype) + " and count " +
+                         std::to_string(field->count) +
+                         "; x, y and z must be one FLOAT32 (7) each");
     }
   }
   // Every field must lie inside one point: a driver that got its point step wrong would
@@ -57,35 +69,41 @@ CloudDecodeResult check_point_cloud_layout(const PointCloudLayout& layout, size_
   for (const PointFieldDescription& field : layout.fields) {
     const size_t element_size = point_field_type_size(field.datatype);
     if (element_size == 0) {
-      return failure(CloudDecodeStatus::kUnknownFieldType, "field '" + field.name + "' has unknown datatype " +
-                                                               std::to_string(field.datatype));
+      return failure(
+          CloudDecodeStatus::kUnknownFieldType,
+          "field '" + field.name + "' has unknown datatype " + std::to_string(field.datatype));
     }
-    const uint64_t end = static_cast<uint64_t>(field.offset) + element_size * static_cast<uint64_t>(field.count);
+    const uint64_t end =
+        static_cast<uint64_t>(field.offset) + element_size * static_cast<uint64_t>(field.count);
     if (end > layout.point_step) {
       return failure(CloudDecodeStatus::kPointStepTooSmall,
-                     "field '" + field.name + "' ends at byte " + std::to_string(end) + " but the point step is " +
-                         std::to_string(layout.point_step) + " bytes");
+                     "field '" + field.name + "' ends at byte " + std::to_string(end) +
+                         " but the point step is " + std::to_string(layout.point_step) + " bytes");
     }
   }
   const uint64_t row_bytes = static_cast<uint64_t>(layout.width) * layout.point_step;
   if (layout.height > 0 && layout.row_step < row_bytes) {
     return failure(CloudDecodeStatus::kRowStepTooSmall,
-                   "row step " + std::to_string(layout.row_step) + " bytes < width " + std::to_string(layout.width) +
-                       " x point step " + std::to_string(layout.point_step));
+                   "row step " + std::to_string(layout.row_step) + " bytes < width " +
+                       std::to_string(layout.width) + " x point step " +
+                       std::to_string(layout.point_step));
   }
   // The last row needs only its points, not a full row_step (some drivers trim the padding).
-  const uint64_t needed = layout.height == 0 || layout.width == 0
-                              ? 0
-                              : static_cast<uint64_t>(layout.height - 1) * layout.row_step + row_bytes;
+  const uint64_t needed =
+      layout.height == 0 || layout.width == 0
+          ? 0
+          : static_cast<uint64_t>(layout.height - 1) * layout.row_step + row_bytes;
   if (data_size < needed) {
     return failure(CloudDecodeStatus::kDataTooShort, "the cloud has " + std::to_string(data_size) +
-                                                         " data bytes but its size needs " + std::to_string(needed));
+                                                         " data bytes but its size needs " +
+                                                         std::to_string(needed));
   }
   return CloudDecodeResult{};
 }
 
-CloudDecodeResult decode_point_cloud(const PointCloudLayout& layout, const uint8_t* data, size_t data_size,
-                                     const CloudDecodeOptions& options, DecodedCloud* cloud) {
+CloudDecodeResult decode_point_cloud(const PointCloudLayout& layout, const uint8_t* data,
+                                     size_t data_size, const CloudDecodeOptions& options,
+                                     DecodedCloud* cloud) {
   *cloud = DecodedCloud{};
   CloudDecodeResult check = check_point_cloud_layout(layout, data_size);
   if (!check.ok()) return check;
@@ -102,7 +120,8 @@ CloudDecodeResult decode_point_cloud(const PointCloudLayout& layout, const uint8
   }
   const PointFieldDescription* intensity =
       (!rgb && options.use_intensity) ? find_field(layout, "intensity") : nullptr;
-  const double grey_scale = options.intensity_max_value > 0.0f ? 255.0 / options.intensity_max_value : 0.0;
+  const double grey_scale =
+      options.intensity_max_value > 0.0f ? 255.0 / options.intensity_max_value : 0.0;
 
   cloud->has_color = rgb != nullptr;
   cloud->has_intensity = intensity != nullptr;
@@ -127,9 +146,11 @@ CloudDecodeResult decode_point_cloud(const PointCloudLayout& layout, const uint8
         uint32_t packed;
         std::memcpy(&packed, point + rgb->offset, 4);
         cloud->colors.push_back(Rgb8{static_cast<uint8_t>((packed >> 16) & 0xff),
-                                     static_cast<uint8_t>((packed >> 8) & 0xff), static_cast<uint8_t>(packed & 0xff)});
+                                     static_cast<uint8_t>((packed >> 8) & 0xff),
+                                     static_cast<uint8_t>(packed & 0xff)});
       } else if (intensity) {
-        const double value = read_point_field_element(point + intensity->offset, intensity->datatype) * grey_scale;
+        const double value =
+            read_point_field_element(point + intensity->offset, intensity->datatype) * grey_scale;
         const double clamped = std::isfinite(value) ? std::min(255.0, std::max(0.0, value)) : 0.0;
         const uint8_t grey = static_cast<uint8_t>(std::lround(clamped));
         cloud->colors.push_back(Rgb8{grey, grey, grey});

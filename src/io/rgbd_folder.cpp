@@ -24,7 +24,8 @@ constexpr uint16_t kKinectInvalidDepth = 65535;
 
 // "frame-000116.depth.png" -> 116 with prefix "frame-" and suffix ".depth.png"; false when
 // the name does not have that form.
-bool parse_frame_number(const std::string& name, std::string_view prefix, std::string_view suffix, int* number) {
+bool parse_frame_number(const std::string& name, std::string_view prefix, std::string_view suffix,
+                        int* number) {
   if (name.size() <= prefix.size() + suffix.size()) return false;
   if (name.compare(0, prefix.size(), prefix) != 0) return false;
   if (name.compare(name.size() - suffix.size(), suffix.size(), suffix) != 0) return false;
@@ -33,12 +34,14 @@ bool parse_frame_number(const std::string& name, std::string_view prefix, std::s
   return std::from_chars(begin, end, *number).ptr == end && *number >= 0;
 }
 
-std::vector<int> list_frames(const fs::path& folder, std::string_view prefix, std::string_view suffix) {
+std::vector<int> list_frames(const fs::path& folder, std::string_view prefix,
+                             std::string_view suffix) {
   std::vector<int> numbers;
   std::error_code error;
   for (const fs::directory_entry& entry : fs::directory_iterator(folder, error)) {
     int number = 0;
-    if (parse_frame_number(entry.path().filename().string(), prefix, suffix, &number)) numbers.push_back(number);
+    if (parse_frame_number(entry.path().filename().string(), prefix, suffix, &number))
+      numbers.push_back(number);
   }
   std::sort(numbers.begin(), numbers.end());
   return numbers;
@@ -80,23 +83,27 @@ CameraIntrinsics read_camera_matrix_file(const fs::path& file) {
 double json_number(const std::string& text, const std::string& key, const std::string& path) {
   const std::string quoted = "\"" + key + "\"";
   const size_t key_at = text.find(quoted);
-  const size_t colon = key_at == std::string::npos ? key_at : text.find(':', key_at + quoted.size());
+  const size_t colon =
+      key_at == std::string::npos ? key_at : text.find(':', key_at + quoted.size());
   if (colon == std::string::npos) throw Error("'" + path + "': no \"" + key + "\" entry");
   const size_t begin = text.find_first_not_of(" \t\r\n", colon + 1);
   const size_t end = begin == std::string::npos ? begin : text.find_first_of(",} \t\r\n", begin);
   double value = 0.0;
   if (begin == std::string::npos ||
-      !parse_double(std::string_view(text).substr(begin, end == std::string::npos ? end : end - begin), &value)) {
+      !parse_double(
+          std::string_view(text).substr(begin, end == std::string::npos ? end : end - begin),
+          &value)) {
     throw Error("'" + path + "': \"" + key + "\" is not a number");
   }
   return value;
 }
 
 void check_intrinsics(const CameraIntrinsics& intrinsics, const std::string& source) {
-  if (!(intrinsics.fx > 0.0) || !(intrinsics.fy > 0.0) || intrinsics.width <= 0 || intrinsics.height <= 0) {
-    throw Error("'" + source + "': invalid intrinsics (fx " + std::to_string(intrinsics.fx) + ", fy " +
-                std::to_string(intrinsics.fy) + ", " + std::to_string(intrinsics.width) + " x " +
-                std::to_string(intrinsics.height) + " pixels)");
+  if (!(intrinsics.fx > 0.0) || !(intrinsics.fy > 0.0) || intrinsics.width <= 0 ||
+      intrinsics.height <= 0) {
+    throw Error("'" + source + "': invalid intrinsics (fx " + std::to_string(intrinsics.fx) +
+                ", fy " + std::to_string(intrinsics.fy) + ", " + std::to_string(intrinsics.width) +
+                " x " + std::to_string(intrinsics.height) + " pixels)");
   }
 }
 
@@ -107,7 +114,8 @@ RgbdFolder RgbdFolder::open(const std::string& path) {
   // "seq-01/" has an empty file name and "seq-01" as parent: drop the slash so that the
   // parent-folder lookups below see the real parent.
   if (!folder.has_filename() && folder.has_parent_path()) folder = folder.parent_path();
-  if (!fs::is_directory(folder)) throw Error("RGB-D folder '" + path + "' does not exist or is not a folder");
+  if (!fs::is_directory(folder))
+    throw Error("RGB-D folder '" + path + "' does not exist or is not a folder");
 
   RgbdFolder result;
   result.path_ = folder.string();
@@ -119,7 +127,8 @@ RgbdFolder RgbdFolder::open(const std::string& path) {
     result.depth_units_per_m_ = kMillimetresPerMetre;
     const fs::path intrinsics_file = find_here_or_parent(folder, "camera-intrinsics.txt");
     if (intrinsics_file.empty()) {
-      throw Error("RGB-D folder '" + path + "': no camera-intrinsics.txt in it or its parent folder");
+      throw Error("RGB-D folder '" + path +
+                  "': no camera-intrinsics.txt in it or its parent folder");
     }
     result.intrinsics_ = read_camera_matrix_file(intrinsics_file);
     // The intrinsics file has no image size: the first depth image's header gives it.
@@ -151,7 +160,8 @@ RgbdFolder RgbdFolder::open(const std::string& path) {
     // One file for the whole sequence: read once here, each frame picks its line.
     result.replica_trajectory_ = read_matrix4_per_line_trajectory((folder / "traj.txt").string());
   } else {
-    throw Error("RGB-D folder '" + path + "' holds neither 7-Scenes/3DMatch frames (frame-NNNNNN.depth.png) nor " +
+    throw Error("RGB-D folder '" + path +
+                "' holds neither 7-Scenes/3DMatch frames (frame-NNNNNN.depth.png) nor " +
                 "a Replica sequence (results/depthNNNNNN.png)");
   }
   return result;
@@ -159,8 +169,8 @@ RgbdFolder RgbdFolder::open(const std::string& path) {
 
 RgbdFrame RgbdFolder::read_frame(size_t index, ReadStats* stats, bool with_color) const {
   if (index >= frame_numbers_.size()) {
-    throw Error("RGB-D folder '" + path_ + "': frame index " + std::to_string(index) + " is out of range (" +
-                std::to_string(frame_numbers_.size()) + " frames)");
+    throw Error("RGB-D folder '" + path_ + "': frame index " + std::to_string(index) +
+                " is out of range (" + std::to_string(frame_numbers_.size()) + " frames)");
   }
   const int number = frame_numbers_[index];
   const fs::path folder(path_);
@@ -182,17 +192,18 @@ RgbdFrame RgbdFolder::read_frame(size_t index, ReadStats* stats, bool with_color
     depth_file = folder / "results" / ("depth" + six_digits(number) + ".png");
     color_file = folder / "results" / ("frame" + six_digits(number) + ".jpg");
     if (static_cast<size_t>(number) >= replica_trajectory_.size()) {
-      throw Error("'" + (folder / "traj.txt").string() + "' has " + std::to_string(replica_trajectory_.size()) +
-                  " poses, frame " + std::to_string(number) + " has none");
+      throw Error("'" + (folder / "traj.txt").string() + "' has " +
+                  std::to_string(replica_trajectory_.size()) + " poses, frame " +
+                  std::to_string(number) + " has none");
     }
     frame.T_world_camera = replica_trajectory_[number];
   }
 
   const Gray16Image raw = read_png_gray16(depth_file.string());
   if (raw.width != intrinsics_.width || raw.height != intrinsics_.height) {
-    throw Error("'" + depth_file.string() + "' is " + std::to_string(raw.width) + " x " + std::to_string(raw.height) +
-                " pixels, the intrinsics are for " + std::to_string(intrinsics_.width) + " x " +
-                std::to_string(intrinsics_.height));
+    throw Error("'" + depth_file.string() + "' is " + std::to_string(raw.width) + " x " +
+                std::to_string(raw.height) + " pixels, the intrinsics are for " +
+                std::to_string(intrinsics_.width) + " x " + std::to_string(intrinsics_.height));
   }
   frame.depth.width = raw.width;
   frame.depth.height = raw.height;
@@ -212,8 +223,8 @@ RgbdFrame RgbdFolder::read_frame(size_t index, ReadStats* stats, bool with_color
 
   if (with_color) {
     if (!fs::exists(color_file)) {
-      throw Error("RGB-D folder '" + path_ + "': frame " + std::to_string(number) + " has no colour image ('" +
-                  color_file.string() + "')");
+      throw Error("RGB-D folder '" + path_ + "': frame " + std::to_string(number) +
+                  " has no colour image ('" + color_file.string() + "')");
     }
     frame.color = read_color_image(color_file.string());
   }

@@ -41,9 +41,9 @@ Eigen::Matrix3d nearest_rotation(const Eigen::Matrix3d& matrix) {
   return svd.matrixU() * sign_fix * svd.matrixV().transpose();
 }
 
-Eigen::Isometry3d make_rigid_pose(const Eigen::Matrix3d& rotation, const Eigen::Vector3d& translation,
-                                  const std::string& where, ReadStats* stats,
-                                  const PoseTolerances& tolerances) {
+Eigen::Isometry3d make_rigid_pose(const Eigen::Matrix3d& rotation,
+                                  const Eigen::Vector3d& translation, const std::string& where,
+                                  ReadStats* stats, const PoseTolerances& tolerances) {
   if (!rotation.allFinite() || !translation.allFinite()) {
     throw Error(where + ": pose has a non-finite value (NaN or Inf)");
   }
@@ -54,7 +54,8 @@ Eigen::Isometry3d make_rigid_pose(const Eigen::Matrix3d& rotation, const Eigen::
   }
   const double error = orthonormality_error(rotation);
   if (error > tolerances.reject_above_error) {
-    throw Error(where + ": rotation is far from orthonormal (max |R^T R - I| = " + format_number(error) +
+    throw Error(where +
+                ": rotation is far from orthonormal (max |R^T R - I| = " + format_number(error) +
                 ", limit " + format_number(tolerances.reject_above_error) + ")");
   }
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
@@ -68,22 +69,25 @@ Eigen::Isometry3d make_rigid_pose(const Eigen::Matrix3d& rotation, const Eigen::
   return pose;
 }
 
-Eigen::Isometry3d make_rigid_pose(const Eigen::Matrix4d& matrix, const std::string& where, ReadStats* stats,
-                                  const PoseTolerances& tolerances) {
+Eigen::Isometry3d make_rigid_pose(const Eigen::Matrix4d& matrix, const std::string& where,
+                                  ReadStats* stats, const PoseTolerances& tolerances) {
   if (!matrix.allFinite()) throw Error(where + ": pose has a non-finite value (NaN or Inf)");
   const Eigen::RowVector4d bottom_row = matrix.row(3);
-  if ((bottom_row - Eigen::RowVector4d(0.0, 0.0, 0.0, 1.0)).cwiseAbs().maxCoeff() > kBottomRowTolerance) {
+  if ((bottom_row - Eigen::RowVector4d(0.0, 0.0, 0.0, 1.0)).cwiseAbs().maxCoeff() >
+      kBottomRowTolerance) {
     std::ostringstream row_text;
     row_text << bottom_row;
     throw Error(where + ": bottom row of the 4x4 pose is (" + row_text.str() +
                 "), expected (0 0 0 1): not a rigid transform");
   }
-  return make_rigid_pose(matrix.topLeftCorner<3, 3>(), matrix.topRightCorner<3, 1>(), where, stats, tolerances);
+  return make_rigid_pose(matrix.topLeftCorner<3, 3>(), matrix.topRightCorner<3, 1>(), where, stats,
+                         tolerances);
 }
 
-Eigen::Isometry3d make_rigid_pose_from_quaternion(const Eigen::Vector3d& translation, double qx, double qy,
-                                                  double qz, double qw, const std::string& where,
-                                                  ReadStats* stats, const PoseTolerances& tolerances) {
+Eigen::Isometry3d make_rigid_pose_from_quaternion(const Eigen::Vector3d& translation, double qx,
+                                                  double qy, double qz, double qw,
+                                                  const std::string& where, ReadStats* stats,
+                                                  const PoseTolerances& tolerances) {
   Eigen::Quaterniond rotation(qw, qx, qy, qz);
   if (!translation.allFinite() || !rotation.coeffs().allFinite()) {
     throw Error(where + ": pose has a non-finite value (NaN or Inf)");

@@ -53,8 +53,9 @@ void ByteWriter::bytes(const void* data, size_t size) {
 
 void ByteReader::need(size_t size, const char* field) const {
   if (size > size_ - position_) {
-    throw Error(what_ + ": truncated while reading " + field + " (needs " + std::to_string(size) + " bytes at offset " +
-                std::to_string(position_) + ", " + std::to_string(size_ - position_) + " left)");
+    throw Error(what_ + ": truncated while reading " + field + " (needs " + std::to_string(size) +
+                " bytes at offset " + std::to_string(position_) + ", " +
+                std::to_string(size_ - position_) + " left)");
   }
 }
 

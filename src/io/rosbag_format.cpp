@@ -17,8 +17,8 @@ std::string raw_bytes(const T& value) {
 template <class T>
 T value_of(const std::string& bytes, const std::string& name, const std::string& what) {
   if (bytes.size() != sizeof(T)) {
-    throw Error(what + ": record header field '" + name + "' has " + std::to_string(bytes.size()) + " bytes, expected " +
-                std::to_string(sizeof(T)));
+    throw Error(what + ": record header field '" + name + "' has " + std::to_string(bytes.size()) +
+                " bytes, expected " + std::to_string(sizeof(T)));
   }
   T value;
   std::memcpy(&value, bytes.data(), sizeof(T));
@@ -27,9 +27,15 @@ T value_of(const std::string& bytes, const std::string& name, const std::string&
 
 }  // namespace
 
-void RecordHeader::set_u8(const std::string& name, uint8_t value) { fields_[name] = raw_bytes(value); }
-void RecordHeader::set_u32(const std::string& name, uint32_t value) { fields_[name] = raw_bytes(value); }
-void RecordHeader::set_u64(const std::string& name, uint64_t value) { fields_[name] = raw_bytes(value); }
+void RecordHeader::set_u8(const std::string& name, uint8_t value) {
+  fields_[name] = raw_bytes(value);
+}
+void RecordHeader::set_u32(const std::string& name, uint32_t value) {
+  fields_[name] = raw_bytes(value);
+}
+void RecordHeader::set_u64(const std::string& name, uint64_t value) {
+  fields_[name] = raw_bytes(value);
+}
 void RecordHeader::set_time(const std::string& name, const RosTime& value) {
   fields_[name] = raw_bytes(value.sec) + raw_bytes(value.nsec);
 }
@@ -51,7 +57,8 @@ uint64_t RecordHeader::u64(const std::string& name, const std::string& what) con
 }
 RosTime RecordHeader::time(const std::string& name, const std::string& what) const {
   const std::string& bytes = text(name, what);
-  if (bytes.size() != 8) throw Error(what + ": record header field '" + name + "' is not an 8-byte time");
+  if (bytes.size() != 8)
+    throw Error(what + ": record header field '" + name + "' is not an 8-byte time");
   RosTime value;
   std::memcpy(&value.sec, bytes.data(), 4);
   std::memcpy(&value.nsec, bytes.data() + 4, 4);
@@ -76,12 +83,14 @@ RecordHeader RecordHeader::decode(const uint8_t* data, size_t size, const std::s
     const void* equals = std::memchr(field, '=', length);
     if (equals == nullptr) throw Error(what + ": record header field without '='");
     const size_t name_size = static_cast<const char*>(equals) - field;
-    header.fields_[std::string(field, name_size)] = std::string(field + name_size + 1, length - name_size - 1);
+    header.fields_[std::string(field, name_size)] =
+        std::string(field + name_size + 1, length - name_size - 1);
   }
   return header;
 }
 
-void append_record(std::vector<uint8_t>* out, const RecordHeader& header, const uint8_t* data, size_t data_size) {
+void append_record(std::vector<uint8_t>* out, const RecordHeader& header, const uint8_t* data,
+                   size_t data_size) {
   ByteWriter writer(out);
   const size_t length_at = out->size();
   writer.u32(0);  // patched below, once the header's size is known

@@ -12,7 +12,8 @@ namespace {
 
 // The definitions below are the ROS message files without their comments (comments do not enter
 // the MD5 sum and decoders ignore them), each dependency after a line of 80 '=' and "MSG: type".
-#define COVOX_MSG_SEPARATOR "================================================================================\n"
+#define COVOX_MSG_SEPARATOR \
+  "================================================================================\n"
 
 const char kHeaderDefinition[] =
     "MSG: std_msgs/Header\n"
@@ -40,70 +41,69 @@ const char kPointDefinition[] =
     "float64 z\n";
 
 const std::string kPointCloud2Definition = std::string(
-    "Header header\n"
-    "uint32 height\n"
-    "uint32 width\n"
-    "PointField[] fields\n"
-    "bool is_bigendian\n"
-    "uint32 point_step\n"
-    "uint32 row_step\n"
-    "uint8[] data\n"
-    "bool is_dense\n"
-    COVOX_MSG_SEPARATOR) + kHeaderDefinition + COVOX_MSG_SEPARATOR +
-    "MSG: sensor_msgs/PointField\n"
-    "uint8 INT8    = 1\n"
-    "uint8 UINT8   = 2\n"
-    "uint8 INT16   = 3\n"
-    "uint8 UINT16  = 4\n"
-    "uint8 INT32   = 5\n"
-    "uint8 UINT32  = 6\n"
-    "uint8 FLOAT32 = 7\n"
-    "uint8 FLOAT64 = 8\n"
-    "string name\n"
-    "uint32 offset\n"
-    "uint8 datatype\n"
-    "uint32 count\n";
+                                               "Header header\n"
+                                               "uint32 height\n"
+                                               "uint32 width\n"
+                                               "PointField[] fields\n"
+                                               "bool is_bigendian\n"
+                                               "uint32 point_step\n"
+                                               "uint32 row_step\n"
+                                               "uint8[] data\n"
+                                               "bool is_dense\n" COVOX_MSG_SEPARATOR) +
+                                           kHeaderDefinition + COVOX_MSG_SEPARATOR +
+                                           "MSG: sensor_msgs/PointField\n"
+                                           "uint8 INT8    = 1\n"
+                                           "uint8 UINT8   = 2\n"
+                                           "uint8 INT16   = 3\n"
+                                           "uint8 UINT16  = 4\n"
+                                           "uint8 INT32   = 5\n"
+                                           "uint8 UINT32  = 6\n"
+                                           "uint8 FLOAT32 = 7\n"
+                                           "uint8 FLOAT64 = 8\n"
+                                           "string name\n"
+                                           "uint32 offset\n"
+                                           "uint8 datatype\n"
+                                           "uint32 count\n";
 
-const std::string kTfMessageDefinition = std::string(
-    "geometry_msgs/TransformStamped[] transforms\n"
-    COVOX_MSG_SEPARATOR
-    "MSG: geometry_msgs/TransformStamped\n"
-    "Header header\n"
-    "string child_frame_id\n"
-    "Transform transform\n"
-    COVOX_MSG_SEPARATOR) + kHeaderDefinition + COVOX_MSG_SEPARATOR +
+const std::string kTfMessageDefinition =
+    std::string("geometry_msgs/TransformStamped[] transforms\n" COVOX_MSG_SEPARATOR
+                "MSG: geometry_msgs/TransformStamped\n"
+                "Header header\n"
+                "string child_frame_id\n"
+                "Transform transform\n" COVOX_MSG_SEPARATOR) +
+    kHeaderDefinition + COVOX_MSG_SEPARATOR +
     "MSG: geometry_msgs/Transform\n"
     "Vector3 translation\n"
-    "Quaternion rotation\n"
-    COVOX_MSG_SEPARATOR + kVector3Definition + COVOX_MSG_SEPARATOR + kQuaternionDefinition;
+    "Quaternion rotation\n" COVOX_MSG_SEPARATOR +
+    kVector3Definition + COVOX_MSG_SEPARATOR + kQuaternionDefinition;
 
 const std::string kPointStampedDefinition = std::string(
-    "Header header\n"
-    "Point point\n"
-    COVOX_MSG_SEPARATOR) + kHeaderDefinition + COVOX_MSG_SEPARATOR + kPointDefinition;
+                                                "Header header\n"
+                                                "Point point\n" COVOX_MSG_SEPARATOR) +
+                                            kHeaderDefinition + COVOX_MSG_SEPARATOR +
+                                            kPointDefinition;
 
-const std::string kOdometryDefinition = std::string(
-    "Header header\n"
-    "string child_frame_id\n"
-    "geometry_msgs/PoseWithCovariance pose\n"
-    "geometry_msgs/TwistWithCovariance twist\n"
-    COVOX_MSG_SEPARATOR) + kHeaderDefinition + COVOX_MSG_SEPARATOR +
+const std::string kOdometryDefinition =
+    std::string(
+        "Header header\n"
+        "string child_frame_id\n"
+        "geometry_msgs/PoseWithCovariance pose\n"
+        "geometry_msgs/TwistWithCovariance twist\n" COVOX_MSG_SEPARATOR) +
+    kHeaderDefinition + COVOX_MSG_SEPARATOR +
     "MSG: geometry_msgs/PoseWithCovariance\n"
     "Pose pose\n"
-    "float64[36] covariance\n"
-    COVOX_MSG_SEPARATOR
+    "float64[36] covariance\n" COVOX_MSG_SEPARATOR
     "MSG: geometry_msgs/Pose\n"
     "Point position\n"
-    "Quaternion orientation\n"
-    COVOX_MSG_SEPARATOR + kPointDefinition + COVOX_MSG_SEPARATOR + kQuaternionDefinition + COVOX_MSG_SEPARATOR +
+    "Quaternion orientation\n" COVOX_MSG_SEPARATOR +
+    kPointDefinition + COVOX_MSG_SEPARATOR + kQuaternionDefinition + COVOX_MSG_SEPARATOR +
     "MSG: geometry_msgs/TwistWithCovariance\n"
     "Twist twist\n"
-    "float64[36] covariance\n"
-    COVOX_MSG_SEPARATOR
+    "float64[36] covariance\n" COVOX_MSG_SEPARATOR
     "MSG: geometry_msgs/Twist\n"
     "Vector3 linear\n"
-    "Vector3 angular\n"
-    COVOX_MSG_SEPARATOR + kVector3Definition;
+    "Vector3 angular\n" COVOX_MSG_SEPARATOR +
+    kVector3Definition;
 
 #undef COVOX_MSG_SEPARATOR
 
@@ -151,7 +151,8 @@ Eigen::Isometry3d read_rigid(ByteReader& in, const char* field) {
   const Eigen::Quaterniond rotation(q[3], q[0], q[1], q[2]);
   const double norm = rotation.norm();
   if (!translation.allFinite() || !std::isfinite(norm) || std::abs(norm - 1.0) > 1e-3) {
-    throw Error(in.what() + ": " + field + " is not a rigid transform (quaternion norm " + std::to_string(norm) +
+    throw Error(in.what() + ": " + field + " is not a rigid transform (quaternion norm " +
+                std::to_string(norm) +
                 ", translation finite: " + (translation.allFinite() ? "yes" : "no") + ")");
   }
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
@@ -162,8 +163,8 @@ Eigen::Isometry3d read_rigid(ByteReader& in, const char* field) {
 
 void expect_consumed(const ByteReader& in, const char* type) {
   if (in.remaining() != 0) {
-    throw Error(in.what() + ": " + std::to_string(in.remaining()) + " bytes left over after a " + type +
-                " (a message of another type?)");
+    throw Error(in.what() + ": " + std::to_string(in.remaining()) + " bytes left over after a " +
+                type + " (a message of another type?)");
   }
 }
 
@@ -257,7 +258,8 @@ PointCloud2Message parse_point_cloud2(const uint8_t* data, size_t size, const st
   message.width = in.u32("width");
   const uint32_t field_count = in.u32("fields");
   // Each field takes at least 13 bytes: a count beyond that is corruption, not a huge cloud.
-  if (field_count > in.remaining() / 13) throw Error(what + ": implausible PointCloud2 field count " + std::to_string(field_count));
+  if (field_count > in.remaining() / 13)
+    throw Error(what + ": implausible PointCloud2 field count " + std::to_string(field_count));
   message.fields.resize(field_count);
   for (PointField& field : message.fields) {
     field.name = in.string("fields.name");
@@ -281,7 +283,8 @@ TfMessage parse_tf_message(const uint8_t* data, size_t size, const std::string& 
   TfMessage message;
   const uint32_t count = in.u32("transforms");
   // A transform takes at least 76 bytes.
-  if (count > in.remaining() / 76) throw Error(what + ": implausible TFMessage transform count " + std::to_string(count));
+  if (count > in.remaining() / 76)
+    throw Error(what + ": implausible TFMessage transform count " + std::to_string(count));
   message.transforms.resize(count);
   for (TransformStamped& transform : message.transforms) {
     transform.header = read_header(in);
@@ -315,7 +318,8 @@ OdometryMessage parse_odometry(const uint8_t* data, size_t size, const std::stri
   return message;
 }
 
-PointCloud2Message make_point_cloud2(const Header& header, const std::vector<Eigen::Vector3f>& points_m,
+PointCloud2Message make_point_cloud2(const Header& header,
+                                     const std::vector<Eigen::Vector3f>& points_m,
                                      const std::vector<float>& intensities) {
   const bool with_intensity = !intensities.empty();
   if (with_intensity && intensities.size() != points_m.size()) {
@@ -340,7 +344,8 @@ PointCloud2Message make_point_cloud2(const Header& header, const std::vector<Eig
   return cloud;
 }
 
-PointCloud extract_points(const PointCloud2Message& cloud, const std::string& what, ReadStats* stats) {
+PointCloud extract_points(const PointCloud2Message& cloud, const std::string& what,
+                          ReadStats* stats) {
   if (cloud.is_bigendian) throw Error(what + ": big-endian PointCloud2 data is not supported");
   const PointField* xyz[3] = {nullptr, nullptr, nullptr};
   const PointField* intensity = nullptr;
@@ -353,8 +358,9 @@ PointCloud extract_points(const PointCloud2Message& cloud, const std::string& wh
   for (int axis = 0; axis < 3; ++axis) {
     if (xyz[axis] == nullptr) throw Error(what + ": PointCloud2 has no " + "xyz"[axis] + " field");
     if (xyz[axis]->datatype != kFloat32 && xyz[axis]->datatype != kFloat64) {
-      throw Error(what + ": PointCloud2 field '" + xyz[axis]->name + "' is not float32 or float64 (datatype " +
-                  std::to_string(xyz[axis]->datatype) + ")");
+      throw Error(what + ": PointCloud2 field '" + xyz[axis]->name +
+                  "' is not float32 or float64 (datatype " + std::to_string(xyz[axis]->datatype) +
+                  ")");
     }
   }
   if (intensity != nullptr && point_field_type_size(intensity->datatype) == 0) intensity = nullptr;
@@ -362,17 +368,19 @@ PointCloud extract_points(const PointCloud2Message& cloud, const std::string& wh
     if (field == nullptr) continue;
     const uint64_t end = uint64_t(field->offset) + point_field_type_size(field->datatype);
     if (end > cloud.point_step) {
-      throw Error(what + ": PointCloud2 field '" + field->name + "' ends at byte " + std::to_string(end) +
-                  " but point_step is " + std::to_string(cloud.point_step));
+      throw Error(what + ": PointCloud2 field '" + field->name + "' ends at byte " +
+                  std::to_string(end) + " but point_step is " + std::to_string(cloud.point_step));
     }
   }
   if (uint64_t(cloud.width) * cloud.point_step > cloud.row_step) {
-    throw Error(what + ": PointCloud2 row_step " + std::to_string(cloud.row_step) + " is less than width " +
-                std::to_string(cloud.width) + " x point_step " + std::to_string(cloud.point_step));
+    throw Error(what + ": PointCloud2 row_step " + std::to_string(cloud.row_step) +
+                " is less than width " + std::to_string(cloud.width) + " x point_step " +
+                std::to_string(cloud.point_step));
   }
   if (uint64_t(cloud.height) * cloud.row_step > cloud.data.size()) {
-    throw Error(what + ": PointCloud2 data has " + std::to_string(cloud.data.size()) + " bytes, height " +
-                std::to_string(cloud.height) + " x row_step " + std::to_string(cloud.row_step) + " needed");
+    throw Error(what + ": PointCloud2 data has " + std::to_string(cloud.data.size()) +
+                " bytes, height " + std::to_string(cloud.height) + " x row_step " +
+                std::to_string(cloud.row_step) + " needed");
   }
   PointCloud points;
   const size_t count = size_t(cloud.width) * cloud.height;
@@ -384,7 +392,8 @@ PointCloud extract_points(const PointCloud2Message& cloud, const std::string& wh
     for (uint32_t column = 0; column < cloud.width; ++column, point += cloud.point_step) {
       Eigen::Vector3f p;
       for (int axis = 0; axis < 3; ++axis) {
-        p[axis] = static_cast<float>(read_point_field_element(point + xyz[axis]->offset, xyz[axis]->datatype));
+        p[axis] = static_cast<float>(
+            read_point_field_element(point + xyz[axis]->offset, xyz[axis]->datatype));
       }
       if (!p.allFinite()) {
         ++dropped;
@@ -392,7 +401,8 @@ PointCloud extract_points(const PointCloud2Message& cloud, const std::string& wh
       }
       points.points_m.push_back(p);
       if (intensity != nullptr) {
-        points.intensities.push_back(static_cast<float>(read_point_field_element(point + intensity->offset, intensity->datatype)));
+        points.intensities.push_back(static_cast<float>(
+            read_point_field_element(point + intensity->offset, intensity->datatype)));
       }
     }
   }

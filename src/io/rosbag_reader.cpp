@@ -24,22 +24,26 @@ BagReader::BagReader(const std::string& path) : path_(path) {
   if (!file_ || std::memcmp(magic, kBagMagic, kBagMagicSize) != 0) {
     const std::string start(magic, std::find(magic, magic + kBagMagicSize, '\n'));
     if (start.rfind("#ROSBAG", 0) == 0) {
-      throw Error("'" + path + "' is a '" + start + "' bag; only format 2.0 is supported (`rosbag fix` converts)");
+      throw Error("'" + path + "' is a '" + start +
+                  "' bag; only format 2.0 is supported (`rosbag fix` converts)");
     }
     throw Error("'" + path + "' is not a ROS bag (no '#ROSBAG V2.0' at its start)");
   }
   read_index();
 }
 
-uint64_t BagReader::read_record(uint64_t position, std::vector<uint8_t>* header, std::vector<uint8_t>* data) {
+uint64_t BagReader::read_record(uint64_t position, std::vector<uint8_t>* header,
+                                std::vector<uint8_t>* data) {
   const std::string what = "bag '" + path_ + "' at byte " + std::to_string(position);
   auto read_length = [&](uint64_t at, const char* field) {
-    if (at + 4 > file_size_) throw Error(what + ": truncated (" + field + " past the end of the file)");
+    if (at + 4 > file_size_)
+      throw Error(what + ": truncated (" + field + " past the end of the file)");
     file_.seekg(static_cast<std::streamoff>(at));
     uint32_t length = 0;
     file_.read(reinterpret_cast<char*>(&length), 4);
     if (!file_) throw Error(what + ": read failed");
-    if (at + 4 + length > file_size_) throw Error(what + ": truncated (" + field + " runs past the end of the file)");
+    if (at + 4 + length > file_size_)
+      throw Error(what + ": truncated (" + field + " runs past the end of the file)");
     return length;
   };
   const uint32_t header_size = read_length(position, "record header");
@@ -59,8 +63,10 @@ void BagReader::read_index() {
   std::vector<uint8_t> header_bytes, data;
   read_record(kBagMagicSize, &header_bytes, nullptr);
   const std::string what = "bag '" + path_ + "'";
-  const RecordHeader bag_header = RecordHeader::decode(header_bytes.data(), header_bytes.size(), what + " header");
-  if (bag_header.u8("op", what) != kOpBagHeader) throw Error(what + ": the first record is not a bag header");
+  const RecordHeader bag_header =
+      RecordHeader::decode(header_bytes.data(), header_bytes.size(), what + " header");
+  if (bag_header.u8("op", what) != kOpBagHeader)
+    throw Error(what + ": the first record is not a bag header");
   const uint64_t index_position = bag_header.u64("index_pos", what);
   const uint32_t connection_count = bag_header.u32("conn_count", what);
   const uint32_t chunk_count = bag_header.u32("chunk_count", what);
@@ -73,17 +79,22 @@ void BagReader::read_index() {
   for (uint32_t i = 0; i < connection_count; ++i) {
     position = read_record(position, &header_bytes, &data);
     const std::string record_what = what + " connection record";
-    const RecordHeader header = RecordHeader::decode(header_bytes.data(), header_bytes.size(), record_what);
-    if (header.u8("op", record_what) != kOpConnection) throw Error(what + ": expected a connection record in the index");
+    const RecordHeader header =
+        RecordHeader::decode(header_bytes.data(), header_bytes.size(), record_what);
+    if (header.u8("op", record_what) != kOpConnection)
+      throw Error(what + ": expected a connection record in the index");
     const RecordHeader publisher = RecordHeader::decode(data.data(), data.size(), record_what);
     BagConnection connection;
     connection.id = header.u32("conn", record_what);
     connection.topic = header.text("topic", record_what);
     connection.type = publisher.text("type", record_what);
     connection.md5sum = publisher.text("md5sum", record_what);
-    connection.message_definition = publisher.has("message_definition") ? publisher.text("message_definition", record_what) : "";
+    connection.message_definition = publisher.has("message_definition")
+                                        ? publisher.text("message_definition", record_what)
+                                        : "";
     connection.callerid = publisher.has("callerid") ? publisher.text("callerid", record_what) : "";
-    connection.latching = publisher.has("latching") && publisher.text("latching", record_what) == "1";
+    connection.latching =
+        publisher.has("latching") && publisher.text("latching", record_what) == "1";
     connection_slot[connection.id] = connections_.size();
     connections_.push_back(connection);
   }
@@ -96,15 +107,18 @@ void BagReader::read_index() {
   for (uint32_t i = 0; i < chunk_count; ++i) {
     position = read_record(position, &header_bytes, nullptr);
     const std::string record_what = what + " chunk info record";
-    const RecordHeader header = RecordHeader::decode(header_bytes.data(), header_bytes.size(), record_what);
-    if (header.u8("op", record_what) != kOpChunkInfo) throw Error(what + ": expected a chunk info record in the index");
+    const RecordHeader header =
+        RecordHeader::decode(header_bytes.data(), header_bytes.size(), record_what);
+    if (header.u8("op", record_what) != kOpChunkInfo)
+      throw Error(what + ": expected a chunk info record in the index");
     infos.push_back({header.u64("chunk_pos", record_what), header.u32("count", record_what)});
   }
 
   for (const ChunkInfo& info : infos) {
     const std::string chunk_what = what + " chunk at byte " + std::to_string(info.position);
     position = read_record(info.position, &header_bytes, nullptr);
-    const RecordHeader header = RecordHeader::decode(header_bytes.data(), header_bytes.size(), chunk_what);
+    const RecordHeader header =
+        RecordHeader::decode(header_bytes.data(), header_bytes.size(), chunk_what);
     if (header.u8("op", chunk_what) != kOpChunk) throw Error(chunk_what + ": not a chunk record");
     const std::string& compression = header.text("compression", chunk_what);
     if (compression != "none") {
@@ -119,11 +133,15 @@ void BagReader::read_index() {
     // The chunk's index-data records follow it, one per connection it holds.
     for (uint32_t c = 0; c < info.connections; ++c) {
       position = read_record(position, &header_bytes, &data);
-      const RecordHeader index = RecordHeader::decode(header_bytes.data(), header_bytes.size(), chunk_what + " index");
-      if (index.u8("op", chunk_what) != kOpIndexData) throw Error(chunk_what + ": expected an index-data record after it");
-      if (index.u32("ver", chunk_what) != 1) throw Error(chunk_what + ": unsupported index-data version");
+      const RecordHeader index =
+          RecordHeader::decode(header_bytes.data(), header_bytes.size(), chunk_what + " index");
+      if (index.u8("op", chunk_what) != kOpIndexData)
+        throw Error(chunk_what + ": expected an index-data record after it");
+      if (index.u32("ver", chunk_what) != 1)
+        throw Error(chunk_what + ": unsupported index-data version");
       const uint32_t connection = index.u32("conn", chunk_what);
-      if (connection_slot.count(connection) == 0) throw Error(chunk_what + ": index names unknown connection " + std::to_string(connection));
+      if (connection_slot.count(connection) == 0)
+        throw Error(chunk_what + ": index names unknown connection " + std::to_string(connection));
       const uint32_t count = index.u32("count", chunk_what);
       ByteReader in(data.data(), data.size(), chunk_what + " index");
       for (uint32_t m = 0; m < count; ++m) {
@@ -132,7 +150,8 @@ void BagReader::read_index() {
         entry.offset = in.u32("index offset");
         entry.connection = connection;
         entry.chunk = chunk_number;
-        if (entry.offset >= chunk.data_size) throw Error(chunk_what + ": index offset past the chunk's end");
+        if (entry.offset >= chunk.data_size)
+          throw Error(chunk_what + ": index offset past the chunk's end");
         entries_.push_back(entry);
       }
     }
@@ -153,14 +172,17 @@ const BagConnection& BagReader::connection(uint32_t id) const {
 
 uint64_t BagReader::message_count(const std::string& topic) const { return index({topic}).size(); }
 
-RosTime BagReader::start_time() const { return entries_.empty() ? RosTime() : entries_.front().time; }
+RosTime BagReader::start_time() const {
+  return entries_.empty() ? RosTime() : entries_.front().time;
+}
 RosTime BagReader::end_time() const { return entries_.empty() ? RosTime() : entries_.back().time; }
 
 std::vector<IndexEntry> BagReader::index(const std::vector<std::string>& topics) const {
   if (topics.empty()) return entries_;
   std::set<uint32_t> wanted;
   for (const BagConnection& connection : connections_) {
-    if (std::find(topics.begin(), topics.end(), connection.topic) != topics.end()) wanted.insert(connection.id);
+    if (std::find(topics.begin(), topics.end(), connection.topic) != topics.end())
+      wanted.insert(connection.id);
   }
   std::vector<IndexEntry> selected;
   for (const IndexEntry& entry : entries_) {
@@ -170,17 +192,21 @@ std::vector<IndexEntry> BagReader::index(const std::vector<std::string>& topics)
 }
 
 BagMessage BagReader::read(const IndexEntry& entry) {
-  if (entry.chunk >= chunks_.size()) throw Error("bag '" + path_ + "': index entry names chunk " + std::to_string(entry.chunk));
+  if (entry.chunk >= chunks_.size())
+    throw Error("bag '" + path_ + "': index entry names chunk " + std::to_string(entry.chunk));
   const Chunk& chunk = chunks_[entry.chunk];
   const uint64_t position = chunk.data_position + entry.offset;
   std::vector<uint8_t> header_bytes;
   BagMessage message;
   const uint64_t end = read_record(position, &header_bytes, &message.data);
   const std::string what = "bag '" + path_ + "' message at byte " + std::to_string(position);
-  if (end > chunk.data_position + chunk.data_size) throw Error(what + ": runs past the end of its chunk");
+  if (end > chunk.data_position + chunk.data_size)
+    throw Error(what + ": runs past the end of its chunk");
   const RecordHeader header = RecordHeader::decode(header_bytes.data(), header_bytes.size(), what);
-  if (header.u8("op", what) != kOpMessageData) throw Error(what + ": the index points at something else than a message");
-  if (header.u32("conn", what) != entry.connection) throw Error(what + ": connection differs from the index");
+  if (header.u8("op", what) != kOpMessageData)
+    throw Error(what + ": the index points at something else than a message");
+  if (header.u32("conn", what) != entry.connection)
+    throw Error(what + ": connection differs from the index");
   message.time = header.time("time", what);
   message.connection = &connection(entry.connection);
   return message;

@@ -19,8 +19,8 @@ std::string format_stamp(double stamp_s) {
 }  // namespace
 
 void TfBuffer::add(const TransformStamped& transform, bool is_static) {
-  add(transform.header.frame_id, transform.child_frame_id, transform.header.stamp.to_seconds(), transform.T_parent_child,
-      is_static);
+  add(transform.header.frame_id, transform.child_frame_id, transform.header.stamp.to_seconds(),
+      transform.T_parent_child, is_static);
 }
 
 void TfBuffer::add(const std::string& parent, const std::string& child, double stamp_s,
@@ -31,7 +31,8 @@ void TfBuffer::add(const std::string& parent, const std::string& child, double s
   if (parent_id == child_id) throw Error("tf: frame '" + child_id + "' cannot be its own parent");
   Edge& edge = edges_[child_id];
   if (!edge.parent.empty() && edge.parent != parent_id) {
-    throw Error("tf: frame '" + child_id + "' has two parents, '" + edge.parent + "' and '" + parent_id + "'");
+    throw Error("tf: frame '" + child_id + "' has two parents, '" + edge.parent + "' and '" +
+                parent_id + "'");
   }
   edge.parent = parent_id;
   if (is_static) {
@@ -40,8 +41,9 @@ void TfBuffer::add(const std::string& parent, const std::string& child, double s
     return;
   }
   if (edge.is_static) return;  // a static transform is not overridden by a dynamic one
-  const auto after = std::upper_bound(edge.samples.begin(), edge.samples.end(), stamp_s,
-                                      [](double stamp, const Sample& sample) { return stamp < sample.stamp_s; });
+  const auto after =
+      std::upper_bound(edge.samples.begin(), edge.samples.end(), stamp_s,
+                       [](double stamp, const Sample& sample) { return stamp < sample.stamp_s; });
   edge.samples.insert(after, Sample{stamp_s, T_parent_child});
 }
 
@@ -66,9 +68,12 @@ bool TfBuffer::interpolate(const Edge& edge, double stamp_s, Eigen::Isometry3d* 
     *T_parent_child = edge.samples.front().T_parent_child;
     return true;
   }
-  if (edge.samples.empty() || stamp_s < edge.samples.front().stamp_s || stamp_s > edge.samples.back().stamp_s) return false;
-  const auto after = std::lower_bound(edge.samples.begin(), edge.samples.end(), stamp_s,
-                                      [](const Sample& sample, double stamp) { return sample.stamp_s < stamp; });
+  if (edge.samples.empty() || stamp_s < edge.samples.front().stamp_s ||
+      stamp_s > edge.samples.back().stamp_s)
+    return false;
+  const auto after =
+      std::lower_bound(edge.samples.begin(), edge.samples.end(), stamp_s,
+                       [](const Sample& sample, double stamp) { return sample.stamp_s < stamp; });
   if (after->stamp_s == stamp_s || after == edge.samples.begin()) {
     *T_parent_child = after->T_parent_child;
     return true;
@@ -79,7 +84,8 @@ bool TfBuffer::interpolate(const Edge& edge, double stamp_s, Eigen::Isometry3d* 
   const Eigen::Quaterniond qa(a.T_parent_child.linear()), qb(b.T_parent_child.linear());
   T_parent_child->setIdentity();
   T_parent_child->linear() = qa.slerp(t, qb).normalized().toRotationMatrix();
-  T_parent_child->translation() = (1.0 - t) * a.T_parent_child.translation() + t * b.T_parent_child.translation();
+  T_parent_child->translation() =
+      (1.0 - t) * a.T_parent_child.translation() + t * b.T_parent_child.translation();
   return true;
 }
 
@@ -92,18 +98,22 @@ std::vector<std::string> TfBuffer::ancestors(const std::string& frame) const {
   return chain;
 }
 
-bool TfBuffer::transform_to_ancestor(const std::string& frame, const std::string& ancestor, double stamp_s,
-                                     Eigen::Isometry3d* T_ancestor_frame, std::string* reason) const {
+bool TfBuffer::transform_to_ancestor(const std::string& frame, const std::string& ancestor,
+                                     double stamp_s, Eigen::Isometry3d* T_ancestor_frame,
+                                     std::string* reason) const {
   T_ancestor_frame->setIdentity();
   for (std::string current = frame; current != ancestor;) {
     const Edge& edge = edges_.at(current);
     Eigen::Isometry3d T_parent_child;
     if (!interpolate(edge, stamp_s, &T_parent_child)) {
       if (reason) {
-        *reason = "tf: no transform '" + edge.parent + "' -> '" + current + "' at " + format_stamp(stamp_s) +
-                  (edge.samples.empty() ? std::string(" (none received)")
-                                        : " (received from " + format_stamp(edge.samples.front().stamp_s) + " to " +
-                                              format_stamp(edge.samples.back().stamp_s) + "; tf does not extrapolate)");
+        *reason =
+            "tf: no transform '" + edge.parent + "' -> '" + current + "' at " +
+            format_stamp(stamp_s) +
+            (edge.samples.empty()
+                 ? std::string(" (none received)")
+                 : " (received from " + format_stamp(edge.samples.front().stamp_s) + " to " +
+                       format_stamp(edge.samples.back().stamp_s) + "; tf does not extrapolate)");
       }
       return false;
     }
@@ -126,17 +136,22 @@ bool TfBuffer::lookup(const std::string& target, const std::string& source, doub
   const std::vector<std::string> source_chain = ancestors(source_id);
   const std::vector<std::string> target_chain = ancestors(target_id);
   if (source_chain.empty() || target_chain.empty()) {
-    if (reason) *reason = "tf: the frames above '" + (source_chain.empty() ? source_id : target_id) + "' form a loop";
+    if (reason)
+      *reason = "tf: the frames above '" + (source_chain.empty() ? source_id : target_id) +
+                "' form a loop";
     return false;
   }
   // The lowest common ancestor: the first frame of the source's chain that the target's holds.
   // Only the transforms below it are evaluated, as tf2 does: a dynamic transform above it that
   // does not reach the stamp does not matter.
   for (const std::string& ancestor : source_chain) {
-    if (std::find(target_chain.begin(), target_chain.end(), ancestor) == target_chain.end()) continue;
+    if (std::find(target_chain.begin(), target_chain.end(), ancestor) == target_chain.end())
+      continue;
     Eigen::Isometry3d T_ancestor_source, T_ancestor_target;
-    if (!transform_to_ancestor(source_id, ancestor, stamp_s, &T_ancestor_source, reason)) return false;
-    if (!transform_to_ancestor(target_id, ancestor, stamp_s, &T_ancestor_target, reason)) return false;
+    if (!transform_to_ancestor(source_id, ancestor, stamp_s, &T_ancestor_source, reason))
+      return false;
+    if (!transform_to_ancestor(target_id, ancestor, stamp_s, &T_ancestor_target, reason))
+      return false;
     *T_target_source = T_ancestor_target.inverse() * T_ancestor_source;
     return true;
   }

@@ -13,7 +13,8 @@ namespace {
 
 // The bag header record: where the index starts and how many connections and chunks it lists,
 // padded with spaces to kBagHeaderRecordSize bytes so that close() can rewrite it in place.
-std::vector<uint8_t> bag_header_record(uint64_t index_position, uint32_t connections, uint32_t chunks) {
+std::vector<uint8_t> bag_header_record(uint64_t index_position, uint32_t connections,
+                                       uint32_t chunks) {
   RecordHeader header;
   header.set_u8("op", kOpBagHeader);
   header.set_u64("index_pos", index_position);
@@ -31,8 +32,8 @@ std::vector<uint8_t> bag_header_record(uint64_t index_position, uint32_t connect
 // Appends a record whose data is `entries` one after another, each written by `write_entry`
 // (the index-data and chunk-info records are such lists).
 template <class Entries, class WriteEntry>
-void append_record_of_entries(std::vector<uint8_t>* out, const RecordHeader& header, const Entries& entries,
-                              WriteEntry&& write_entry) {
+void append_record_of_entries(std::vector<uint8_t>* out, const RecordHeader& header,
+                              const Entries& entries, WriteEntry&& write_entry) {
   std::vector<uint8_t> data;
   ByteWriter writer(&data);
   for (const auto& entry : entries) write_entry(writer, entry);
@@ -58,7 +59,8 @@ BagWriter::~BagWriter() {
   }
 }
 
-uint32_t BagWriter::add_connection(const std::string& topic, const MessageType& type, bool latching) {
+uint32_t BagWriter::add_connection(const std::string& topic, const MessageType& type,
+                                   bool latching) {
   if (closed_) throw Error("bag '" + path_ + "': add_connection after close");
   Connection connection;
   connection.topic = topic;
@@ -90,15 +92,17 @@ std::vector<uint8_t> BagWriter::connection_record(uint32_t id) const {
   return record;
 }
 
-void BagWriter::write(uint32_t connection_id, const RosTime& time, const std::vector<uint8_t>& serialized) {
+void BagWriter::write(uint32_t connection_id, const RosTime& time,
+                      const std::vector<uint8_t>& serialized) {
   if (closed_) throw Error("bag '" + path_ + "': write after close");
   if (connection_id >= connections_.size()) {
     throw Error("bag '" + path_ + "': unknown connection " + std::to_string(connection_id));
   }
   Connection& connection = connections_[connection_id];
   if (time < connection.last_time) {
-    throw Error("bag '" + path_ + "': time " + std::to_string(time.to_seconds()) + " s on " + connection.topic +
-                " is before the previous message's " + std::to_string(connection.last_time.to_seconds()) + " s");
+    throw Error("bag '" + path_ + "': time " + std::to_string(time.to_seconds()) + " s on " +
+                connection.topic + " is before the previous message's " +
+                std::to_string(connection.last_time.to_seconds()) + " s");
   }
   connection.last_time = time;
   if (!connection.written) {
@@ -140,10 +144,11 @@ void BagWriter::flush_chunk() {
     index_header.set_u32("ver", 1);
     index_header.set_u32("conn", entry.first);
     index_header.set_u32("count", static_cast<uint32_t>(entry.second.size()));
-    append_record_of_entries(&bytes, index_header, entry.second, [](ByteWriter& writer, const IndexEntry& message) {
-      writer.time(message.time);
-      writer.u32(message.offset);
-    });
+    append_record_of_entries(&bytes, index_header, entry.second,
+                             [](ByteWriter& writer, const IndexEntry& message) {
+                               writer.time(message.time);
+                               writer.u32(message.offset);
+                             });
     info.counts[entry.first] = static_cast<uint32_t>(entry.second.size());
   }
   append_to_file(bytes);
@@ -174,16 +179,18 @@ void BagWriter::close() {
     header.set_time("start_time", chunk.start);
     header.set_time("end_time", chunk.end);
     header.set_u32("count", static_cast<uint32_t>(chunk.counts.size()));
-    append_record_of_entries(&bytes, header, chunk.counts, [](ByteWriter& writer, const auto& connection_count) {
-      writer.u32(connection_count.first);   // connection id
-      writer.u32(connection_count.second);  // its messages in the chunk
-    });
+    append_record_of_entries(&bytes, header, chunk.counts,
+                             [](ByteWriter& writer, const auto& connection_count) {
+                               writer.u32(connection_count.first);   // connection id
+                               writer.u32(connection_count.second);  // its messages in the chunk
+                             });
   }
   append_to_file(bytes);
   const std::vector<uint8_t> header =
       bag_header_record(index_position, written_connections, static_cast<uint32_t>(chunks_.size()));
   file_.seekp(static_cast<std::streamoff>(kBagMagicSize));
-  file_.write(reinterpret_cast<const char*>(header.data()), static_cast<std::streamsize>(header.size()));
+  file_.write(reinterpret_cast<const char*>(header.data()),
+              static_cast<std::streamsize>(header.size()));
   file_.close();
   if (!file_) throw Error("writing bag '" + active_path_ + "' failed: " + std::strerror(errno));
   if (std::rename(active_path_.c_str(), path_.c_str()) != 0) {
@@ -193,7 +200,8 @@ void BagWriter::close() {
 }
 
 void BagWriter::append_to_file(const std::vector<uint8_t>& bytes) {
-  file_.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  file_.write(reinterpret_cast<const char*>(bytes.data()),
+              static_cast<std::streamsize>(bytes.size()));
   if (!file_) throw Error("writing bag '" + active_path_ + "' failed: " + std::strerror(errno));
   file_position_ += bytes.size();
 }

@@ -40,7 +40,8 @@ std::vector<TokenLine> split_token_lines(std::string_view text) {
     size_t line_end = text.find('\n', line_begin);
     if (line_end == std::string_view::npos) line_end = text.size();
     ++line_number;
-    std::vector<std::string_view> tokens = split_whitespace(text.substr(line_begin, line_end - line_begin));
+    std::vector<std::string_view> tokens =
+        split_whitespace(text.substr(line_begin, line_end - line_begin));
     line_begin = line_end + 1;
     if (tokens.empty() || tokens.front().front() == '#') continue;
     lines.push_back(TokenLine{line_number, std::move(tokens)});
@@ -56,8 +57,8 @@ std::vector<NumberLine> parse_number_lines(const std::string& text, const std::s
     parsed.values.resize(line.tokens.size());
     for (size_t i = 0; i < line.tokens.size(); ++i) {
       if (!parse_double(line.tokens[i], &parsed.values[i])) {
-        throw Error(path + ":" + std::to_string(line.line_number) + ": '" + std::string(line.tokens[i]) +
-                    "' is not a number");
+        throw Error(path + ":" + std::to_string(line.line_number) + ": '" +
+                    std::string(line.tokens[i]) + "' is not a number");
       }
     }
     lines.push_back(std::move(parsed));

@@ -112,7 +112,8 @@ Trajectory parse_tum_trajectory(std::istream& input, const std::string& source_n
     trajectory.poses.push_back(pose);
     previous_line = line_number;
   }
-  if (input.bad()) throw Error(source_name + ": read error after line " + std::to_string(line_number));
+  if (input.bad())
+    throw Error(source_name + ": read error after line " + std::to_string(line_number));
   return trajectory;
 }
 

@@ -48,23 +48,25 @@ ActivateResult BlockHashTable::activate(const Index3D* keys, int64_t count, uint
   });
 }
 
-bool BlockHashTable::activate_queued(const Index3D* keys, const uint32_t* count_on_device, int64_t count_bound,
-                                     uint32_t* slots_out, uint8_t* is_new_out, uint32_t* totals_out,
-                                     const Stream& stream) {
+bool BlockHashTable::activate_queued(const Index3D* keys, const uint32_t* count_on_device,
+                                     int64_t count_bound, uint32_t* slots_out, uint8_t* is_new_out,
+                                     uint32_t* totals_out, const Stream& stream) {
   return dispatch(state_.device, [&](auto backend) {
-    return hash_table_activate_queued(backend, state_, keys, count_on_device, count_bound, slots_out, is_new_out,
-                                      totals_out, stream);
+    return hash_table_activate_queued(backend, state_, keys, count_on_device, count_bound,
+                                      slots_out, is_new_out, totals_out, stream);
   });
 }
 
-ActivateResult BlockHashTable::finish_queued_activation(uint32_t num_new, uint32_t num_rejected, const Stream& stream) {
+ActivateResult BlockHashTable::finish_queued_activation(uint32_t num_new, uint32_t num_rejected,
+                                                        const Stream& stream) {
   return dispatch(state_.device, [&](auto backend) {
     return hash_table_finish_queued(backend, state_, num_new, num_rejected, stream);
   });
 }
 
 // The same growth check as activate_queued.
-bool BlockHashTable::begin_in_kernel_activation(int64_t count_bound, BlockActivator* activator, const Stream& stream) {
+bool BlockHashTable::begin_in_kernel_activation(int64_t count_bound, BlockActivator* activator,
+                                                const Stream& stream) {
   require_nothing_queued("begin_in_kernel_activation");
   if (count_bound <= 0 || state_.might_grow_for(count_bound)) return false;
   activator->table = state_.view();
@@ -77,7 +79,8 @@ bool BlockHashTable::begin_in_kernel_activation(int64_t count_bound, BlockActiva
   return true;
 }
 
-void BlockHashTable::abandon_pending_activation(const uint32_t* queued_totals, const Stream& stream) noexcept {
+void BlockHashTable::abandon_pending_activation(const uint32_t* queued_totals,
+                                                const Stream& stream) noexcept {
   if (state_.pending_count < 0) return;
   try {
     if (state_.pending_in_kernel) {
@@ -101,20 +104,23 @@ void BlockHashTable::abandon_pending_activation(const uint32_t* queued_totals, c
   }
 }
 
-ActivateResult BlockHashTable::finish_in_kernel_activation(uint32_t num_new, uint32_t num_out_of_range,
+ActivateResult BlockHashTable::finish_in_kernel_activation(uint32_t num_new,
+                                                           uint32_t num_out_of_range,
                                                            uint32_t num_table_full) {
   if (state_.pending_count < 0) {
     throw Error("BlockHashTable::finish_in_kernel_activation: no activation is pending");
   }
   state_.pending_count = -1;
   state_.pending_in_kernel = false;
-  return hash_table_detail::activate_finish_counted(state_, num_new, num_out_of_range, num_table_full);
+  return hash_table_detail::activate_finish_counted(state_, num_new, num_out_of_range,
+                                                    num_table_full);
 }
 
 void BlockHashTable::require_nothing_queued(const char* operation) const {
   if (state_.pending_count >= 0) {
     throw Error(std::string("BlockHashTable::") + operation +
-                ": an activation is pending; finish it first (finish_queued_activation or finish_in_kernel_activation)");
+                ": an activation is pending; finish it first (finish_queued_activation or "
+                "finish_in_kernel_activation)");
   }
 }
 
@@ -168,9 +174,8 @@ void BlockHashTable::clear() {
 void BlockHashTable::export_entries(Buffer<Index3D>* keys, Buffer<uint32_t>* slots) const {
   require_nothing_queued("export_entries");
   auto& state = const_cast<BlockHashTableState&>(state_);  // scratch only
-  dispatch(state_.device, [&](auto backend) {
-    hash_table_export(backend, state, keys, slots, default_stream());
-  });
+  dispatch(state_.device,
+           [&](auto backend) { hash_table_export(backend, state, keys, slots, default_stream()); });
 }
 
 double BlockHashTable::load_factor() const {
@@ -182,8 +187,8 @@ double BlockHashTable::occupancy() const {
 }
 
 namespace hash_table_detail {
-ActivateResult activate_finish_counted(BlockHashTableState& state, int64_t num_new, int64_t num_out_of_range,
-                                       int64_t num_failed_full) {
+ActivateResult activate_finish_counted(BlockHashTableState& state, int64_t num_new,
+                                       int64_t num_out_of_range, int64_t num_failed_full) {
   ActivateResult result;
   const uint32_t reused = static_cast<uint32_t>(std::min<int64_t>(num_new, state.free_count));
   state.free_count -= reused;
@@ -196,13 +201,15 @@ ActivateResult activate_finish_counted(BlockHashTableState& state, int64_t num_n
   state.total_out_of_range += num_out_of_range;
   state.total_failed_full += num_failed_full;
   if (num_out_of_range > 0) {
-    log_warning("BlockHashTable: rejected ", num_out_of_range, " block indices outside the key range [",
-                kMinBlockIndex, ", ", kMaxBlockIndex, "] per axis (", state.total_out_of_range,
+    log_warning("BlockHashTable: rejected ", num_out_of_range,
+                " block indices outside the key range [", kMinBlockIndex, ", ", kMaxBlockIndex,
+                "] per axis (", state.total_out_of_range,
                 " so far); points that far from the map origin are dropped");
   }
   if (num_failed_full > 0) {
-    log_warning("BlockHashTable is full: ", num_failed_full, " keys not inserted (", state.bucket_count(),
-                " buckets, occupancy ", static_cast<double>(state.occupied_count) / state.bucket_count(),
+    log_warning("BlockHashTable is full: ", num_failed_full, " keys not inserted (",
+                state.bucket_count(), " buckets, occupancy ",
+                static_cast<double>(state.occupied_count) / state.bucket_count(),
                 "). Enable allow_growth or raise initial_bucket_count.");
   }
   return result;

@@ -9,8 +9,12 @@
 namespace covox {
 
 TsdfMap::TsdfMap(Device device, const TsdfMapConfig& config)
-    : config_(config), blocks_(device, config.block_table), tsdf_(device), color_(device),
-      esdf_(device), block_changed_(device) {
+    : config_(config),
+      blocks_(device, config.block_table),
+      tsdf_(device),
+      color_(device),
+      esdf_(device),
+      block_changed_(device) {
   if (!(config.voxel_size_m > 0.0f)) {
     throw Error("voxel_size_m must be positive, got " + std::to_string(config.voxel_size_m));
   }
@@ -45,7 +49,8 @@ std::vector<HostBlock> TsdfMap::snapshot() const {
   const auto esdf = esdf_.to_host();
   std::vector<size_t> order(host_keys.size());
   std::iota(order.begin(), order.end(), 0);
-  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return host_keys[a] < host_keys[b]; });
+  std::sort(order.begin(), order.end(),
+            [&](size_t a, size_t b) { return host_keys[a] < host_keys[b]; });
   const size_t per_block = static_cast<size_t>(voxels_per_block());
   std::vector<HostBlock> blocks;
   blocks.reserve(order.size());
@@ -71,7 +76,8 @@ void TsdfMap::load_blocks(const std::vector<HostBlock>& blocks, const Stream& st
   for (const HostBlock& block : blocks) {
     if (block.tsdf.size() != per_block || block.color.size() != per_block ||
         (!block.esdf.empty() && block.esdf.size() != per_block)) {
-      throw Error("TsdfMap::load_blocks: a block does not have " + std::to_string(per_block) + " voxels");
+      throw Error("TsdfMap::load_blocks: a block does not have " + std::to_string(per_block) +
+                  " voxels");
     }
     indices.push_back(block.index);
     tsdf.insert(tsdf.end(), block.tsdf.begin(), block.tsdf.end());
@@ -85,8 +91,8 @@ void TsdfMap::load_blocks(const std::vector<HostBlock>& blocks, const Stream& st
   auto keys = Buffer<Index3D>::from_host(device(), indices, stream);
   Buffer<uint32_t> slots(device(), indices.size());
   blocks_.reserve(static_cast<int64_t>(indices.size()));
-  const ActivateResult result = blocks_.activate(keys.data(), static_cast<int64_t>(indices.size()), slots.data(),
-                                                 nullptr, stream);
+  const ActivateResult result = blocks_.activate(keys.data(), static_cast<int64_t>(indices.size()),
+                                                 slots.data(), nullptr, stream);
   if (!result.ok() || result.num_new != static_cast<int64_t>(indices.size())) {
     clear();
     throw Error("TsdfMap::load_blocks: the blocks are not distinct valid block indices");

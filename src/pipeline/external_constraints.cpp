@@ -28,8 +28,8 @@ std::string information_problem(const Eigen::MatrixXd& information) {
   if ((information - information.transpose()).cwiseAbs().maxCoeff() > 1e-9 * scale) {
     return "the information matrix is not symmetric";
   }
-  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(0.5 * (information + information.transpose()),
-                                                             Eigen::EigenvaluesOnly);
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(
+      0.5 * (information + information.transpose()), Eigen::EigenvaluesOnly);
   // Round-off of a rank-deficient matrix gives eigenvalues of about -1e-16 * scale.
   if (eigen.eigenvalues().minCoeff() < -1e-9 * scale) {
     return "the information matrix is not positive semi-definite (smallest eigenvalue " +
@@ -39,12 +39,15 @@ std::string information_problem(const Eigen::MatrixXd& information) {
 }
 
 std::string loop_closure_problem(const LoopClosure& closure) {
-  if (!std::isfinite(closure.from_stamp_s) || !std::isfinite(closure.to_stamp_s)) return "a stamp is not finite";
-  if (!is_valid_rigid_pose(closure.T_from_to)) return "the transform is not a finite rigid transform";
+  if (!std::isfinite(closure.from_stamp_s) || !std::isfinite(closure.to_stamp_s))
+    return "a stamp is not finite";
+  if (!is_valid_rigid_pose(closure.T_from_to))
+    return "the transform is not a finite rigid transform";
   return information_problem(closure.information);
 }
 
-RelativeConstraint4Dof project_loop_closure(const Eigen::Isometry3d& T_Sa_from, const Eigen::Isometry3d& T_from_to,
+RelativeConstraint4Dof project_loop_closure(const Eigen::Isometry3d& T_Sa_from,
+                                            const Eigen::Isometry3d& T_from_to,
                                             const Eigen::Isometry3d& T_Sb_to,
                                             const Eigen::Matrix<double, 6, 6>& information) {
   const Eigen::Isometry3d T_to_Sb = T_Sb_to.inverse();
@@ -58,7 +61,8 @@ RelativeConstraint4Dof project_loop_closure(const Eigen::Isometry3d& T_Sa_from, 
   K.topLeftCorner<3, 3>() = R_a;
   K.topRightCorner<3, 3>() = -R_a * skew(T_from_to.linear() * T_to_Sb.translation());
   K.bottomRightCorner<3, 3>() = R_a;
-  const Eigen::Matrix<double, 6, 6> K_inverse = K.inverse();  // block triangular with rotations: exact
+  const Eigen::Matrix<double, 6, 6> K_inverse =
+      K.inverse();  // block triangular with rotations: exact
   const Eigen::Matrix<double, 6, 6> information_e = K_inverse.transpose() * information * K_inverse;
 
   // Reorder to wanted (e_t, e_theta_z) and nuisance (e_theta_x, e_theta_y), then marginalise.

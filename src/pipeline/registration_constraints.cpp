@@ -26,69 +26,94 @@ bool positive_finite(double value) { return std::isfinite(value) && value > 0.0;
 }  // namespace
 
 void validate(const SubmapRegistrationConfig& config) {
-  require(std::isfinite(config.sampling_ratio) && config.sampling_ratio > 0.0f && config.sampling_ratio <= 1.0f,
+  require(std::isfinite(config.sampling_ratio) && config.sampling_ratio > 0.0f &&
+              config.sampling_ratio <= 1.0f,
           "sampling_ratio must be in (0, 1], got " + std::to_string(config.sampling_ratio));
-  require(positive_finite(config.robust_loss_scale_m),
-          "robust_loss_scale_m must be positive, got " + std::to_string(config.robust_loss_scale_m));
-  require(positive_finite(config.point_sigma_m), "point_sigma_m must be positive, got " + std::to_string(config.point_sigma_m));
+  require(
+      positive_finite(config.robust_loss_scale_m),
+      "robust_loss_scale_m must be positive, got " + std::to_string(config.robust_loss_scale_m));
+  require(positive_finite(config.point_sigma_m),
+          "point_sigma_m must be positive, got " + std::to_string(config.point_sigma_m));
   require(std::isfinite(config.min_sigma_m) && config.min_sigma_m >= 0.0,
           "min_sigma_m must be >= 0, got " + std::to_string(config.min_sigma_m));
   require(std::isfinite(config.min_sigma_yaw_rad) && config.min_sigma_yaw_rad >= 0.0,
           "min_sigma_yaw_rad must be >= 0, got " + std::to_string(config.min_sigma_yaw_rad));
-  require(config.min_shared_blocks >= 1, "min_shared_blocks must be at least 1, got " + std::to_string(config.min_shared_blocks));
-  require(config.min_points >= 4, "min_points must be at least 4 (four unknowns), got " + std::to_string(config.min_points));
+  require(config.min_shared_blocks >= 1,
+          "min_shared_blocks must be at least 1, got " + std::to_string(config.min_shared_blocks));
+  require(config.min_points >= 4, "min_points must be at least 4 (four unknowns), got " +
+                                      std::to_string(config.min_points));
   require(positive_finite(config.max_correction_m),
           "max_correction_m must be positive, got " + std::to_string(config.max_correction_m));
-  require(positive_finite(config.max_correction_rad) && config.max_correction_rad <= 3.14159265358979323846,
-          "max_correction_rad must be in (0, pi], got " + std::to_string(config.max_correction_rad));
+  require(
+      positive_finite(config.max_correction_rad) &&
+          config.max_correction_rad <= 3.14159265358979323846,
+      "max_correction_rad must be in (0, pi], got " + std::to_string(config.max_correction_rad));
   require(positive_finite(config.inlier_distance_m),
           "inlier_distance_m must be positive, got " + std::to_string(config.inlier_distance_m));
-  require(std::isfinite(config.min_inlier_fraction) && config.min_inlier_fraction >= 0.0 && config.min_inlier_fraction <= 1.0,
-          "min_inlier_fraction must be in [0, 1], got " + std::to_string(config.min_inlier_fraction));
-  require(positive_finite(config.search_step_m), "search_step_m must be positive, got " + std::to_string(config.search_step_m));
+  require(
+      std::isfinite(config.min_inlier_fraction) && config.min_inlier_fraction >= 0.0 &&
+          config.min_inlier_fraction <= 1.0,
+      "min_inlier_fraction must be in [0, 1], got " + std::to_string(config.min_inlier_fraction));
+  require(positive_finite(config.search_step_m),
+          "search_step_m must be positive, got " + std::to_string(config.search_step_m));
   require(positive_finite(config.search_step_rad),
           "search_step_rad must be positive, got " + std::to_string(config.search_step_rad));
   require(std::isfinite(config.search_max_yaw_rad) && config.search_max_yaw_rad >= 0.0,
           "search_max_yaw_rad must be >= 0, got " + std::to_string(config.search_max_yaw_rad));
-  require(config.min_fit_points >= 0, "min_fit_points must be >= 0, got " + std::to_string(config.min_fit_points));
-  require(config.search_candidates >= 1, "search_candidates must be at least 1, got " + std::to_string(config.search_candidates));
-  require(config.search_max_points >= 4, "search_max_points must be at least 4, got " + std::to_string(config.search_max_points));
-  require(config.max_partners >= 0, "max_partners must be >= 0, got " + std::to_string(config.max_partners));
-  require(config.max_iterations >= 1, "max_iterations must be at least 1, got " + std::to_string(config.max_iterations));
-  require(std::isfinite(config.gate_worst_fraction) && config.gate_worst_fraction >= 0.0 &&
-              config.gate_worst_fraction < 1.0,
-          "gate_worst_fraction must be in [0, 1), got " + std::to_string(config.gate_worst_fraction));
+  require(config.min_fit_points >= 0,
+          "min_fit_points must be >= 0, got " + std::to_string(config.min_fit_points));
+  require(config.search_candidates >= 1,
+          "search_candidates must be at least 1, got " + std::to_string(config.search_candidates));
+  require(config.search_max_points >= 4,
+          "search_max_points must be at least 4, got " + std::to_string(config.search_max_points));
+  require(config.max_partners >= 0,
+          "max_partners must be >= 0, got " + std::to_string(config.max_partners));
+  require(config.max_iterations >= 1,
+          "max_iterations must be at least 1, got " + std::to_string(config.max_iterations));
+  require(
+      std::isfinite(config.gate_worst_fraction) && config.gate_worst_fraction >= 0.0 &&
+          config.gate_worst_fraction < 1.0,
+      "gate_worst_fraction must be in [0, 1), got " + std::to_string(config.gate_worst_fraction));
   require(std::isfinite(config.max_graph_residual_m) && config.max_graph_residual_m >= 0.0,
-          "max_graph_residual_m must be >= 0 (metres; 0: off), got " + std::to_string(config.max_graph_residual_m));
-  require(config.revisit_min_id_gap >= 1, "revisit_min_id_gap must be at least 1, got " + std::to_string(config.revisit_min_id_gap));
+          "max_graph_residual_m must be >= 0 (metres; 0: off), got " +
+              std::to_string(config.max_graph_residual_m));
+  require(config.revisit_min_id_gap >= 1, "revisit_min_id_gap must be at least 1, got " +
+                                              std::to_string(config.revisit_min_id_gap));
   require(std::isfinite(config.wall_search_range_m) && config.wall_search_range_m >= 0.0,
           "wall_search_range_m must be >= 0, got " + std::to_string(config.wall_search_range_m));
-  require(std::isfinite(config.wall_search_min_score) && config.wall_search_min_score >= 0.0,
-          "wall_search_min_score must be >= 0, got " + std::to_string(config.wall_search_min_score));
-  require(std::isfinite(config.wall_search_min_jump_m) && config.wall_search_min_jump_m >= 0.0,
-          "wall_search_min_jump_m must be >= 0, got " + std::to_string(config.wall_search_min_jump_m));
+  require(
+      std::isfinite(config.wall_search_min_score) && config.wall_search_min_score >= 0.0,
+      "wall_search_min_score must be >= 0, got " + std::to_string(config.wall_search_min_score));
+  require(
+      std::isfinite(config.wall_search_min_jump_m) && config.wall_search_min_jump_m >= 0.0,
+      "wall_search_min_jump_m must be >= 0, got " + std::to_string(config.wall_search_min_jump_m));
   require(config.coarse_levels >= 0 && config.coarse_levels <= 6,
-          "coarse_levels must be in [0, 6] (coarsest stride 2^6 voxels), got " + std::to_string(config.coarse_levels));
+          "coarse_levels must be in [0, 6] (coarsest stride 2^6 voxels), got " +
+              std::to_string(config.coarse_levels));
 }
 
 Eigen::Matrix4d floored_information(const Eigen::Matrix4d& points_information, double min_sigma_m,
                                     double min_sigma_yaw_rad) {
   if (!(min_sigma_m > 0.0) && !(min_sigma_yaw_rad > 0.0)) return points_information;
-  const Eigen::Vector4d floor_variance(min_sigma_m * min_sigma_m, min_sigma_m * min_sigma_m, min_sigma_m * min_sigma_m,
+  const Eigen::Vector4d floor_variance(min_sigma_m * min_sigma_m, min_sigma_m * min_sigma_m,
+                                       min_sigma_m * min_sigma_m,
                                        min_sigma_yaw_rad * min_sigma_yaw_rad);
   // With information = R R^T, R = V Lambda^(1/2) (its eigenvectors and eigenvalues),
   //   (information^-1 + F)^-1 = R (I + R^T F R)^-1 R^T,
   // which needs no inverse of the information: a free direction (eigenvalue 0) keeps zero
   // information instead of breaking the computation.
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> eigen(0.5 * (points_information + points_information.transpose()));
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> eigen(
+      0.5 * (points_information + points_information.transpose()));
   const Eigen::Vector4d values = eigen.eigenvalues();
   const Eigen::Matrix4d& vectors = eigen.eigenvectors();
   Eigen::Vector4d root = Eigen::Vector4d::Zero();
   for (int k = 0; k < 4; ++k) root(k) = values(k) > 0.0 ? std::sqrt(values(k)) : 0.0;
-  const Eigen::Matrix4d floor_in_basis = vectors.transpose() * floor_variance.asDiagonal() * vectors;
+  const Eigen::Matrix4d floor_in_basis =
+      vectors.transpose() * floor_variance.asDiagonal() * vectors;
   const Eigen::Matrix4d m = root.asDiagonal() * floor_in_basis * root.asDiagonal();
   const Eigen::Matrix4d inner = (Eigen::Matrix4d::Identity() + m).inverse();
-  const Eigen::Matrix4d result = vectors * root.asDiagonal() * inner * root.asDiagonal() * vectors.transpose();
+  const Eigen::Matrix4d result =
+      vectors * root.asDiagonal() * inner * root.asDiagonal() * vectors.transpose();
   return 0.5 * (result + result.transpose());
 }
 
@@ -101,9 +126,12 @@ backend::RobustLoss parse_robust_loss(const std::string& name) {
 
 const char* to_string(backend::RobustLoss loss) {
   switch (loss) {
-    case backend::RobustLoss::kNone: return "none";
-    case backend::RobustLoss::kHuber: return "huber";
-    case backend::RobustLoss::kCauchy: return "cauchy";
+    case backend::RobustLoss::kNone:
+      return "none";
+    case backend::RobustLoss::kHuber:
+      return "huber";
+    case backend::RobustLoss::kCauchy:
+      return "cauchy";
   }
   return "unknown";
 }
@@ -126,8 +154,10 @@ backend::RegistrationDistance parse_registration_distance(const std::string& nam
 
 const char* to_string(backend::RegistrationDistance distance) {
   switch (distance) {
-    case backend::RegistrationDistance::kTsdfNearSurface: return "tsdf";
-    case backend::RegistrationDistance::kEsdf: return "esdf";
+    case backend::RegistrationDistance::kTsdfNearSurface:
+      return "tsdf";
+    case backend::RegistrationDistance::kEsdf:
+      return "esdf";
   }
   return "unknown";
 }
@@ -144,9 +174,8 @@ void RegistrationCounts::add(const RegistrationCounts& other) {
   joint_pairs += other.joint_pairs;
 }
 
-std::unique_ptr<SubmapRegistrationPoints> prepare_registration_points(const TsdfMap& map,
-                                                                     const SubmapRegistrationConfig& config,
-                                                                     const Stream& stream) {
+std::unique_ptr<SubmapRegistrationPoints> prepare_registration_points(
+    const TsdfMap& map, const SubmapRegistrationConfig& config, const Stream& stream) {
   auto result = std::make_unique<SubmapRegistrationPoints>(map.device());
   backend::RegistrationPointsConfig points_config;
   points_config.sampling_ratio = config.sampling_ratio;
@@ -164,14 +193,16 @@ std::unique_ptr<SubmapRegistrationPoints> prepare_registration_points(const Tsdf
   result->mean_weight = host.empty() || !(sum > 0.0) ? 1.0 : sum / static_cast<double>(host.size());
   if (!host.empty()) result->centroid_m = centroid / static_cast<double>(host.size());
   // An even subsample (every k-th point of the sorted order) for the revisit search.
-  const size_t stride = std::max<size_t>(1, (host.size() + static_cast<size_t>(config.search_max_points) - 1) /
-                                                static_cast<size_t>(config.search_max_points));
+  const size_t stride =
+      std::max<size_t>(1, (host.size() + static_cast<size_t>(config.search_max_points) - 1) /
+                              static_cast<size_t>(config.search_max_points));
   std::vector<backend::RegistrationPoint> subsample;
   for (size_t k = 0; k < host.size(); k += stride) {
     subsample.push_back(host[k]);
     result->search_sqrt_weights.push_back(result->sqrt_weights[k]);
   }
-  result->search_points.points = Buffer<backend::RegistrationPoint>::from_host(map.device(), subsample, stream);
+  result->search_points.points =
+      Buffer<backend::RegistrationPoint>::from_host(map.device(), subsample, stream);
   result->search_points.surface_voxels = result->points.surface_voxels;
   return result;
 }
@@ -185,7 +216,9 @@ namespace {
 struct Fit {
   int64_t used = 0;
   int64_t inliers = 0;
-  double fraction() const { return used > 0 ? static_cast<double>(inliers) / static_cast<double>(used) : 0.0; }
+  double fraction() const {
+    return used > 0 ? static_cast<double>(inliers) / static_cast<double>(used) : 0.0;
+  }
 };
 // |horizontal gradient| above this (the surface normal within about 45 degrees of horizontal).
 constexpr double kHorizontalGradient = 0.7;
@@ -194,13 +227,15 @@ Fit evaluate_fit(const backend::RegistrationPoints& points, const std::vector<fl
                  const TsdfMap& map_j, const backend::Pose4Dof& T_Sj_Si,
                  const backend::RegistrationResidualConfig& residual, double inlier_distance_m,
                  Buffer<backend::RegistrationResidual>* scratch, const Stream& stream) {
-  backend::evaluate_registration_residuals(points, map_j, T_Sj_Si, backend::Pose4Dof(), residual, scratch, stream);
+  backend::evaluate_registration_residuals(points, map_j, T_Sj_Si, backend::Pose4Dof(), residual,
+                                           scratch, stream);
   const std::vector<backend::RegistrationResidual> host = scratch->to_host(stream);
   Fit fit;
   for (size_t k = 0; k < host.size(); ++k) {
     if (!host[k].valid || !(sqrt_weights[k] > 0.0f)) continue;
     // Residuals and Jacobians carry sqrt(weight); the tests are in metres.
-    const double horizontal = std::hypot(host[k].jacobian_i[0], host[k].jacobian_i[1]) / sqrt_weights[k];
+    const double horizontal =
+        std::hypot(host[k].jacobian_i[0], host[k].jacobian_i[1]) / sqrt_weights[k];
     if (horizontal < kHorizontalGradient) continue;
     ++fit.used;
     if (std::abs(host[k].residual) <= inlier_distance_m * sqrt_weights[k]) ++fit.inliers;
@@ -218,13 +253,15 @@ struct Attempt {
 
 // One alignment from `start`, judged against the guess `initial`.
 // `reverse`: the symmetric pair (registration.h) when the partner's points are used too, else null.
-Attempt attempt_alignment(const SubmapRegistrationPoints& points, const TsdfMap& map_j, const backend::Pose4Dof& initial,
-                          const backend::Pose4Dof& start, const backend::RegistrationAlignerConfig& aligner,
-                          const SubmapRegistrationConfig& config, const backend::SymmetricRegistrationPair* reverse,
+Attempt attempt_alignment(const SubmapRegistrationPoints& points, const TsdfMap& map_j,
+                          const backend::Pose4Dof& initial, const backend::Pose4Dof& start,
+                          const backend::RegistrationAlignerConfig& aligner,
+                          const SubmapRegistrationConfig& config,
+                          const backend::SymmetricRegistrationPair* reverse,
                           Buffer<backend::RegistrationResidual>* scratch, const Stream& stream) {
   Attempt attempt;
-  const backend::RegistrationNormalEquations at_start =
-      backend::registration_normal_equations(points.points, map_j, start, backend::Pose4Dof(), aligner.residual, stream);
+  const backend::RegistrationNormalEquations at_start = backend::registration_normal_equations(
+      points.points, map_j, start, backend::Pose4Dof(), aligner.residual, stream);
   if (at_start.used_points < config.min_points) {
     attempt.verdict = Verdict::kTooFewPoints;
     return attempt;
@@ -247,7 +284,8 @@ Attempt attempt_alignment(const SubmapRegistrationPoints& points, const TsdfMap&
   }
   const backend::Pose4Dof& found = attempt.result.T_Sj_Si;
   const Eigen::Vector3d moved(found.x - initial.x, found.y - initial.y, found.z - initial.z);
-  const double turned = std::abs(std::remainder(found.yaw - initial.yaw, 2.0 * 3.14159265358979323846));
+  const double turned =
+      std::abs(std::remainder(found.yaw - initial.yaw, 2.0 * 3.14159265358979323846));
   if (!(moved.norm() <= config.max_correction_m) || !(turned <= config.max_correction_rad)) {
     attempt.verdict = Verdict::kTooFar;
     return attempt;
@@ -255,7 +293,8 @@ Attempt attempt_alignment(const SubmapRegistrationPoints& points, const TsdfMap&
   attempt.fit = evaluate_fit(points.points, points.sqrt_weights, map_j, found, aligner.residual,
                              config.inlier_distance_m, scratch, stream);
   // Too few wall-like points to judge x, y and yaw is a poor fit as well.
-  attempt.verdict = attempt.fit.used >= config.min_fit_points && attempt.fit.fraction() >= config.min_inlier_fraction
+  attempt.verdict = attempt.fit.used >= config.min_fit_points &&
+                            attempt.fit.fraction() >= config.min_inlier_fraction
                         ? Verdict::kAccepted
                         : Verdict::kPoorFit;
   return attempt;
@@ -264,11 +303,12 @@ Attempt attempt_alignment(const SubmapRegistrationPoints& points, const TsdfMap&
 // Start poses for the revisit search: the guess moved on a grid of horizontal offsets and yaws
 // (the yaw turns submap i's content about its centroid, so yaw and offset stay independent),
 // the best few by the fit of the subsampled points, at least a grid step apart.
-std::vector<backend::Pose4Dof> search_starts(const SubmapRegistrationPoints& points, const TsdfMap& map_j,
-                                             const backend::Pose4Dof& initial,
+std::vector<backend::Pose4Dof> search_starts(const SubmapRegistrationPoints& points,
+                                             const TsdfMap& map_j, const backend::Pose4Dof& initial,
                                              const backend::RegistrationResidualConfig& residual,
                                              const SubmapRegistrationConfig& config,
-                                             Buffer<backend::RegistrationResidual>* scratch, const Stream& stream) {
+                                             Buffer<backend::RegistrationResidual>* scratch,
+                                             const Stream& stream) {
   struct Scored {
     backend::Pose4Dof pose;
     double dx, dy, dyaw;
@@ -286,7 +326,8 @@ std::vector<backend::Pose4Dof> search_starts(const SubmapRegistrationPoints& poi
     const double dyaw = iy * config.search_step_rad;
     const double c = std::cos(dyaw), s = std::sin(dyaw);
     const Eigen::Vector2d t(initial.x - centre.x(), initial.y - centre.y());
-    const Eigen::Vector2d turned(c * t.x() - s * t.y() + centre.x(), s * t.x() + c * t.y() + centre.y());
+    const Eigen::Vector2d turned(c * t.x() - s * t.y() + centre.x(),
+                                 s * t.x() + c * t.y() + centre.y());
     for (int ix = -steps_xy; ix <= steps_xy; ++ix) {
       for (int jy = -steps_xy; jy <= steps_xy; ++jy) {
         const double dx = ix * config.search_step_m, dy = jy * config.search_step_m;
@@ -295,21 +336,26 @@ std::vector<backend::Pose4Dof> search_starts(const SubmapRegistrationPoints& poi
         candidate.x = turned.x() + dx;
         candidate.y = turned.y() + dy;
         candidate.yaw = initial.yaw + dyaw;
-        const Fit fit = evaluate_fit(points.search_points, points.search_sqrt_weights, map_j, candidate, residual,
-                                     config.inlier_distance_m, scratch, stream);
+        const Fit fit =
+            evaluate_fit(points.search_points, points.search_sqrt_weights, map_j, candidate,
+                         residual, config.inlier_distance_m, scratch, stream);
         scored.push_back(Scored{candidate, dx, dy, dyaw, fit.inliers});
       }
     }
   }
-  std::stable_sort(scored.begin(), scored.end(), [](const Scored& a, const Scored& b) { return a.inliers > b.inliers; });
+  std::stable_sort(scored.begin(), scored.end(),
+                   [](const Scored& a, const Scored& b) { return a.inliers > b.inliers; });
   std::vector<backend::Pose4Dof> starts;
   std::vector<const Scored*> chosen;
   for (const Scored& candidate : scored) {
-    if (static_cast<int>(starts.size()) >= config.search_candidates || candidate.inliers == 0) break;
+    if (static_cast<int>(starts.size()) >= config.search_candidates || candidate.inliers == 0)
+      break;
     bool near_chosen = false;
     for (const Scored* other : chosen) {
-      near_chosen = near_chosen || (std::hypot(candidate.dx - other->dx, candidate.dy - other->dy) <= 1.5 * config.search_step_m &&
-                                    std::abs(candidate.dyaw - other->dyaw) <= 1.5 * config.search_step_rad);
+      near_chosen =
+          near_chosen || (std::hypot(candidate.dx - other->dx, candidate.dy - other->dy) <=
+                              1.5 * config.search_step_m &&
+                          std::abs(candidate.dyaw - other->dyaw) <= 1.5 * config.search_step_rad);
     }
     if (near_chosen) continue;
     chosen.push_back(&candidate);
@@ -320,9 +366,9 @@ std::vector<backend::Pose4Dof> search_starts(const SubmapRegistrationPoints& poi
 
 }  // namespace
 
-std::vector<const RegistrationPartner*> overlapping_partners(const TsdfMap& map, const backend::Pose4Dof& pose,
-                                                             const std::vector<RegistrationPartner>& earlier,
-                                                             const SubmapRegistrationConfig& config) {
+std::vector<const RegistrationPartner*> overlapping_partners(
+    const TsdfMap& map, const backend::Pose4Dof& pose,
+    const std::vector<RegistrationPartner>& earlier, const SubmapRegistrationConfig& config) {
   struct Candidate {
     const RegistrationPartner* partner;
     int64_t shared_blocks;
@@ -333,8 +379,9 @@ std::vector<const RegistrationPartner*> overlapping_partners(const TsdfMap& map,
         backend::submap_overlap(map, pose, *partner.map, partner.pose, config.min_shared_blocks);
     if (overlap.overlapping) candidates.push_back(Candidate{&partner, overlap.shared_blocks});
   }
-  std::stable_sort(candidates.begin(), candidates.end(),
-                   [](const Candidate& a, const Candidate& b) { return a.shared_blocks > b.shared_blocks; });
+  std::stable_sort(
+      candidates.begin(), candidates.end(),
+      [](const Candidate& a, const Candidate& b) { return a.shared_blocks > b.shared_blocks; });
   if (config.max_partners > 0 && candidates.size() > static_cast<size_t>(config.max_partners)) {
     candidates.resize(static_cast<size_t>(config.max_partners));
   }
@@ -343,16 +390,16 @@ std::vector<const RegistrationPartner*> overlapping_partners(const TsdfMap& map,
   return partners;
 }
 
-std::vector<SubmapConstraint> registration_constraints(int64_t id, const TsdfMap& map,
-                                                       const SubmapRegistrationPoints& points,
-                                                       const backend::Pose4Dof& pose,
-                                                       const std::vector<RegistrationPartner>& earlier,
-                                                       const SubmapRegistrationConfig& config, const Stream& stream,
-                                                       RegistrationCounts* counts, WallMapCache* own_walls) {
+std::vector<SubmapConstraint> registration_constraints(
+    int64_t id, const TsdfMap& map, const SubmapRegistrationPoints& points,
+    const backend::Pose4Dof& pose, const std::vector<RegistrationPartner>& earlier,
+    const SubmapRegistrationConfig& config, const Stream& stream, RegistrationCounts* counts,
+    WallMapCache* own_walls) {
   std::vector<SubmapConstraint> constraints;
   if (!config.enabled) return constraints;
 
-  const std::vector<const RegistrationPartner*> partners = overlapping_partners(map, pose, earlier, config);
+  const std::vector<const RegistrationPartner*> partners =
+      overlapping_partners(map, pose, earlier, config);
 
   backend::RegistrationAlignerConfig aligner;
   aligner.residual.distance = config.distance;
@@ -401,23 +448,26 @@ std::vector<SubmapConstraint> registration_constraints(int64_t id, const TsdfMap
       WallMapCache* const walls_j = partner.walls ? partner.walls : &local_partner_walls;
       WallSearchConfig search;
       search.range_m = config.wall_search_range_m;
-      const WallMatch match = match_walls(walls_i->get(map, stream), walls_j->get(*partner.map, stream), initial, search);
-      const double jump_m = std::hypot(match.T_fixed_moving.x - initial.x, match.T_fixed_moving.y - initial.y);
+      const WallMatch match = match_walls(walls_i->get(map, stream),
+                                          walls_j->get(*partner.map, stream), initial, search);
+      const double jump_m =
+          std::hypot(match.T_fixed_moving.x - initial.x, match.T_fixed_moving.y - initial.y);
       if (match.score >= config.wall_search_min_score && jump_m > config.wall_search_min_jump_m) {
         start = match.T_fixed_moving;
         from_walls = true;
-        log_message(LogLevel::kDebug, "SLAM registration: submap ", partner.id, " -> ", id, ": the walls match ",
-                    jump_m, " m from the guess (score ", match.score, ")");
+        log_message(LogLevel::kDebug, "SLAM registration: submap ", partner.id, " -> ", id,
+                    ": the walls match ", jump_m, " m from the guess (score ", match.score, ")");
       }
     }
-    Attempt best = attempt_alignment(points, *partner.map, initial, start, aligner, config, reverse, &scratch, stream);
+    Attempt best = attempt_alignment(points, *partner.map, initial, start, aligner, config, reverse,
+                                     &scratch, stream);
     const Verdict direct_verdict = best.verdict;
     bool from_search = false;
     if (best.verdict != Verdict::kAccepted && config.search_enabled) {
-      for (const backend::Pose4Dof& start :
-           search_starts(points, *partner.map, initial, aligner.residual, config, &scratch, stream)) {
-        Attempt attempt =
-            attempt_alignment(points, *partner.map, initial, start, aligner, config, reverse, &scratch, stream);
+      for (const backend::Pose4Dof& start : search_starts(
+               points, *partner.map, initial, aligner.residual, config, &scratch, stream)) {
+        Attempt attempt = attempt_alignment(points, *partner.map, initial, start, aligner, config,
+                                            reverse, &scratch, stream);
         if (attempt.verdict != Verdict::kAccepted) continue;
         if (best.verdict != Verdict::kAccepted || attempt.fit.fraction() > best.fit.fraction()) {
           best = attempt;
@@ -428,30 +478,41 @@ std::vector<SubmapConstraint> registration_constraints(int64_t id, const TsdfMap
     if (best.verdict != Verdict::kAccepted) {
       // The reason of the alignment from the guess: what a user can act on.
       switch (direct_verdict) {
-        case Verdict::kTooFar: ++counts->rejected_too_far; break;
-        case Verdict::kTooFewPoints: ++counts->rejected_too_few_points; break;
-        case Verdict::kPoorFit: ++counts->rejected_poor_fit; break;
-        default: ++counts->rejected_failed; break;
+        case Verdict::kTooFar:
+          ++counts->rejected_too_far;
+          break;
+        case Verdict::kTooFewPoints:
+          ++counts->rejected_too_few_points;
+          break;
+        case Verdict::kPoorFit:
+          ++counts->rejected_poor_fit;
+          break;
+        default:
+          ++counts->rejected_failed;
+          break;
       }
-      log_message(LogLevel::kDebug, "SLAM registration: no constraint from submap ", partner.id, " to ", id);
+      log_message(LogLevel::kDebug, "SLAM registration: no constraint from submap ", partner.id,
+                  " to ", id);
       continue;
     }
     if (from_search) ++counts->found_by_search;
     if (from_walls && !from_search) ++counts->started_from_walls;
-    log_message(LogLevel::kDebug, "SLAM registration: submap ", partner.id, " -> ", id, ": ", best.fit.inliers, " of ",
-                best.fit.used, " points fit", from_search ? " (found by the revisit search)" : "");
+    log_message(LogLevel::kDebug, "SLAM registration: submap ", partner.id, " -> ", id, ": ",
+                best.fit.inliers, " of ", best.fit.used, " points fit",
+                from_search ? " (found by the revisit search)" : "");
     // The backend's constraint (information = hessian / sigma^2, here sigma in residual units),
     // read back as an information matrix S^T S for the submap-level graph.
-    const backend::Constraint4Dof constraint =
-        backend::make_registration_constraint(0, 1, best.result, config.point_sigma_m * sqrt_mean_weight);
-    const Eigen::Map<const Eigen::Matrix<double, 4, 4, Eigen::RowMajor>> sqrt_information(constraint.sqrt_information);
+    const backend::Constraint4Dof constraint = backend::make_registration_constraint(
+        0, 1, best.result, config.point_sigma_m * sqrt_mean_weight);
+    const Eigen::Map<const Eigen::Matrix<double, 4, 4, Eigen::RowMajor>> sqrt_information(
+        constraint.sqrt_information);
     SubmapConstraint c;
     c.kind = SubmapConstraintKind::kRegistration;
     c.from_submap = partner.id;
     c.to_submap = id;
     c.measurement = constraint.measurement;
-    c.information = floored_information(sqrt_information.transpose() * sqrt_information, config.min_sigma_m,
-                                        config.min_sigma_yaw_rad);
+    c.information = floored_information(sqrt_information.transpose() * sqrt_information,
+                                        config.min_sigma_m, config.min_sigma_yaw_rad);
     constraints.push_back(c);
     ++counts->accepted;
   }

@@ -41,18 +41,25 @@ void validate(const SlamConfig& config) {
   validate(config.submaps);
   require(config.sensor_queue_size >= 1, "sensor_queue_size must be at least 1");
   require(config.submap_queue_size >= 1, "submap_queue_size must be at least 1");
-  require(std::isfinite(config.odometry_translation_sigma_m) && config.odometry_translation_sigma_m > 0.0,
-          "odometry_translation_sigma_m must be positive, got " + std::to_string(config.odometry_translation_sigma_m));
+  require(std::isfinite(config.odometry_translation_sigma_m) &&
+              config.odometry_translation_sigma_m > 0.0,
+          "odometry_translation_sigma_m must be positive, got " +
+              std::to_string(config.odometry_translation_sigma_m));
   require(std::isfinite(config.odometry_yaw_sigma_rad) && config.odometry_yaw_sigma_rad > 0.0,
-          "odometry_yaw_sigma_rad must be positive, got " + std::to_string(config.odometry_yaw_sigma_rad));
+          "odometry_yaw_sigma_rad must be positive, got " +
+              std::to_string(config.odometry_yaw_sigma_rad));
   require(config.optimize_every_n_submaps >= 0,
-          "optimize_every_n_submaps must be >= 0, got " + std::to_string(config.optimize_every_n_submaps));
-  require(std::isfinite(config.external_stamp_tolerance_s) && config.external_stamp_tolerance_s >= 0.0,
-          "external_stamp_tolerance_s must be >= 0, got " + std::to_string(config.external_stamp_tolerance_s));
+          "optimize_every_n_submaps must be >= 0, got " +
+              std::to_string(config.optimize_every_n_submaps));
+  require(
+      std::isfinite(config.external_stamp_tolerance_s) && config.external_stamp_tolerance_s >= 0.0,
+      "external_stamp_tolerance_s must be >= 0, got " +
+          std::to_string(config.external_stamp_tolerance_s));
   validate(config.registration);
   if (config.device == Device::kCuda && !cuda_device_available()) {
-    throw NotAvailableError("SLAM configuration: device cuda was asked for but no usable GPU is available "
-                            "(use device auto or cpu)");
+    throw NotAvailableError(
+        "SLAM configuration: device cuda was asked for but no usable GPU is available "
+        "(use device auto or cpu)");
   }
 }
 
@@ -129,14 +136,15 @@ bool SlamSystem::add_scan(Scan scan) {
       count_after = ++*counter;
     }
     if (should_log_drop(count_after)) {
-      log_warning("SLAM: dropped the scan at ", scan.stamp_s, " s because ", problem, " (", count_after,
-                  " such drops so far)");
+      log_warning("SLAM: dropped the scan at ", scan.stamp_s, " s because ", problem, " (",
+                  count_after, " such drops so far)");
     }
     return false;
   }
 
   std::optional<QueuedScan> dropped;
-  const PushResult result = sensor_queue_.push(QueuedScan{std::move(scan), generation_.load()}, &dropped);
+  const PushResult result =
+      sensor_queue_.push(QueuedScan{std::move(scan), generation_.load()}, &dropped);
   if (result == PushResult::kRejectedClosed) {
     std::lock_guard<std::mutex> lock(state_mutex_);
     ++counters_.scans_rejected_not_running;
@@ -150,8 +158,9 @@ bool SlamSystem::add_scan(Scan scan) {
     }
     if (should_log_drop(count_after)) {
       log_warning("SLAM: the sensor queue (", config_.sensor_queue_size,
-                  " scans) is full: dropped the oldest scan, at ", dropped ? dropped->scan.stamp_s : 0.0, " s (",
-                  count_after, " so far); the frontend is slower than the sensor");
+                  " scans) is full: dropped the oldest scan, at ",
+                  dropped ? dropped->scan.stamp_s : 0.0, " s (", count_after,
+                  " so far); the frontend is slower than the sensor");
     }
   }
   return true;
@@ -203,7 +212,8 @@ void SlamSystem::join_threads() {
   if (backend_thread_.joinable()) backend_thread_.join();
 }
 
-// ---- Frontend ------------------------------------------------------------------------------------
+// ---- Frontend
+// ------------------------------------------------------------------------------------
 
 void SlamSystem::frontend_loop() {
   QueuedScan queued;
@@ -234,7 +244,8 @@ void SlamSystem::frontend_loop() {
         count_after = ++counters_.scans_failed;
       }
       if (should_log_drop(count_after)) {
-        log_error("SLAM frontend: integrating the scan at ", queued.scan.stamp_s, " s failed: ", error.what());
+        log_error("SLAM frontend: integrating the scan at ", queued.scan.stamp_s,
+                  " s failed: ", error.what());
       }
     }
     copy_active_submap_for_slice();
@@ -262,13 +273,15 @@ void SlamSystem::process_scan(const QueuedScan& queued) {
   const Eigen::Vector3d position_m = scan.T_odom_sensor.translation();
   if (active_submap_) {
     const double step_m = (position_m - last_position_odom_m_).norm();
-    if (should_start_new_submap(config_.submaps, active_submap_->statistics(), scan.stamp_s, step_m)) {
+    if (should_start_new_submap(config_.submaps, active_submap_->statistics(), scan.stamp_s,
+                                step_m)) {
       hand_over_active_submap();
     }
   }
   if (!active_submap_) {
     const Eigen::Isometry3d T_odom_submap = gravity_aligned(scan.T_odom_sensor);
-    active_submap_ = std::make_unique<Submap>(next_submap_id_.fetch_add(1), config_.device, config_.map, T_odom_submap);
+    active_submap_ = std::make_unique<Submap>(next_submap_id_.fetch_add(1), config_.device,
+                                              config_.map, T_odom_submap);
     active_generation_ = queued.generation;
     std::lock_guard<std::mutex> lock(state_mutex_);
     ++counters_.submaps_created;
@@ -281,8 +294,8 @@ void SlamSystem::process_scan(const QueuedScan& queued) {
   view.points = points_buffer_.data();
   view.colors = scan.colors.empty() ? nullptr : colors_buffer_.data();
   view.count = static_cast<int64_t>(scan.points_sensor_m.size());
-  const IntegrationStats stats =
-      active_submap_->integrate(tsdf_integrator_, view, scan.T_odom_sensor, scan.stamp_s, frontend_stream_);
+  const IntegrationStats stats = active_submap_->integrate(
+      tsdf_integrator_, view, scan.T_odom_sensor, scan.stamp_s, frontend_stream_);
   // Drained before timing and before the next scan overwrites the upload buffers.
   frontend_stream_.synchronize();
   const double integrate_s = seconds_since(start);
@@ -298,8 +311,8 @@ void SlamSystem::process_scan(const QueuedScan& queued) {
   ++counters_.scans_integrated;
   counters_.points_integrated += stats.points_in;
   counters_.points_dropped_by_integrator += stats.dropped_total();
-  trajectory_.push_back(
-      TrajectoryEntry{scan.stamp_s, active_submap_->id(), scan.T_odom_sensor, active_submap_->T_odom_submap()});
+  trajectory_.push_back(TrajectoryEntry{scan.stamp_s, active_submap_->id(), scan.T_odom_sensor,
+                                        active_submap_->T_odom_submap()});
 }
 
 void SlamSystem::copy_active_submap_for_slice() {
@@ -327,7 +340,8 @@ void SlamSystem::hand_over_active_submap() {
   }
   std::optional<QueuedSubmap> dropped;
   const int64_t id = active_submap_->id();
-  const PushResult result = submap_queue_.push(QueuedSubmap{std::move(active_submap_), active_generation_}, &dropped);
+  const PushResult result =
+      submap_queue_.push(QueuedSubmap{std::move(active_submap_), active_generation_}, &dropped);
   active_submap_.reset();
   if (result == PushResult::kQueued) return;
   if (result == PushResult::kRejectedClosed) {
@@ -339,12 +353,14 @@ void SlamSystem::hand_over_active_submap() {
     std::lock_guard<std::mutex> lock(state_mutex_);
     count_after = ++counters_.submaps_dropped_queue_full;
   }
-  log_warning("SLAM: the submap queue (", config_.submap_queue_size, " submaps) is full: dropped submap ",
-              (dropped && dropped->submap) ? dropped->submap->id() : -1, " to queue submap ", id, " (", count_after,
-              " so far); the backend is slower than the frontend");
+  log_warning("SLAM: the submap queue (", config_.submap_queue_size,
+              " submaps) is full: dropped submap ",
+              (dropped && dropped->submap) ? dropped->submap->id() : -1, " to queue submap ", id,
+              " (", count_after, " so far); the backend is slower than the frontend");
 }
 
-// ---- Backend -------------------------------------------------------------------------------------
+// ---- Backend
+// -------------------------------------------------------------------------------------
 
 void SlamSystem::backend_loop() {
   QueuedSubmap item;
@@ -384,7 +400,8 @@ bool SlamSystem::process_submap(QueuedSubmap item) {
   try {
     times = submap->finish(esdf_integrator_, mesh_integrator_, backend_stream_);
     const auto start = Clock::now();
-    if (config_.registration.enabled) points = prepare_registration_points(submap->map(), config_.registration, backend_stream_);
+    if (config_.registration.enabled)
+      points = prepare_registration_points(submap->map(), config_.registration, backend_stream_);
     points_s = seconds_since(start);
   } catch (const std::exception& error) {
     std::lock_guard<std::mutex> lock(state_mutex_);
@@ -446,20 +463,24 @@ void SlamSystem::add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
         link.information = Eigen::Matrix4d::Identity() * 1e-6;
       } else {
         link.kind = SubmapConstraintKind::kOdometry;
-        link.measurement = relative_pose_4dof(previous.submap->odometry_pose(), submap->odometry_pose());
+        link.measurement =
+            relative_pose_4dof(previous.submap->odometry_pose(), submap->odometry_pose());
         const double translation_information =
             1.0 / (config_.odometry_translation_sigma_m * config_.odometry_translation_sigma_m);
         link.information = Eigen::Matrix4d::Zero();
-        link.information(0, 0) = link.information(1, 1) = link.information(2, 2) = translation_information;
-        link.information(3, 3) = 1.0 / (config_.odometry_yaw_sigma_rad * config_.odometry_yaw_sigma_rad);
+        link.information(0, 0) = link.information(1, 1) = link.information(2, 2) =
+            translation_information;
+        link.information(3, 3) =
+            1.0 / (config_.odometry_yaw_sigma_rad * config_.odometry_yaw_sigma_rad);
         // The previous corrected pose composed with the odometry step, so a new submap starts
         // consistent with the correction found so far rather than at raw odometry.
         guess = compose(previous.submap->pose(), link.measurement);
       }
     }
     for (const GraphSubmap& earlier : graph_submaps_) {
-      const RegistrationPartner partner{earlier.submap->id(), &earlier.submap->map(), earlier.submap->pose(),
-                                        earlier.walls.get(), earlier.registration_points.get()};
+      const RegistrationPartner partner{earlier.submap->id(), &earlier.submap->map(),
+                                        earlier.submap->pose(), earlier.walls.get(),
+                                        earlier.registration_points.get()};
       // kJoint: pairs with mapped submaps become dense terms; loaded ones stay pairwise.
       if (joint && !earlier.loaded) {
         joint_partners.push_back(partner);
@@ -477,8 +498,9 @@ void SlamSystem::add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
   std::vector<int64_t> joint_pair_partners;
   auto walls = std::make_unique<WallMapCache>();
   if (points) {
-    registrations = registration_constraints(submap->id(), submap->map(), *points, guess, partners,
-                                             config_.registration, backend_stream_, &counts, walls.get());
+    registrations =
+        registration_constraints(submap->id(), submap->map(), *points, guess, partners,
+                                 config_.registration, backend_stream_, &counts, walls.get());
     if (config_.registration.enabled) {
       for (const RegistrationPartner* partner :
            overlapping_partners(submap->map(), guess, joint_partners, config_.registration)) {
@@ -494,10 +516,12 @@ void SlamSystem::add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
     if (link.kind == SubmapConstraintKind::kOdometry) ++counters_.odometry_constraints;
   }
   for (const SubmapConstraint& c : registrations) pose_graph_.add_constraint(c);
-  for (int64_t partner : joint_pair_partners) joint_pairs_.push_back(JointPair{submap->id(), partner});
+  for (int64_t partner : joint_pair_partners)
+    joint_pairs_.push_back(JointPair{submap->id(), partner});
   counts.joint_pairs += static_cast<int64_t>(joint_pair_partners.size());
   counters_.registration.add(counts);
-  graph_submaps_.push_back(GraphSubmap{std::move(submap), std::move(points), false, std::move(walls)});
+  graph_submaps_.push_back(
+      GraphSubmap{std::move(submap), std::move(points), false, std::move(walls)});
 }
 
 int SlamSystem::integrate_pending_constraints_locked(bool final) {
@@ -520,7 +544,8 @@ int SlamSystem::integrate_pending_constraints_locked(bool final) {
                       (!c.is_absolute() && !to_in && c.to_submap <= last_id);
     if (lost) {
       ++counts.dropped_submap_lost;
-      log_warning("SLAM backend: dropped a ", to_string(c.kind), " constraint: its submap never reached the graph");
+      log_warning("SLAM backend: dropped a ", to_string(c.kind),
+                  " constraint: its submap never reached the graph");
     } else {
       still_waiting.push_back(c);
     }
@@ -541,7 +566,8 @@ void SlamSystem::optimize_locked() {
     std::lock_guard<std::mutex> lock(state_mutex_);
     const std::vector<SubmapConstraint>& constraints = pose_graph_.constraints();
     for (size_t k = 0; k < constraints.size(); ++k) {
-      if (constraints[k].kind == SubmapConstraintKind::kRegistration) pose_graph_.set_active(k, true);
+      if (constraints[k].kind == SubmapConstraintKind::kRegistration)
+        pose_graph_.set_active(k, true);
     }
   }
   // Each round sets aside at least one constraint, so the rounds end; the cap bounds the time.
@@ -582,7 +608,8 @@ bool SlamSystem::solve_graph_locked() {
         log_error("SLAM backend: building the pose graph failed: ", error.what());
         return false;
       }
-      for (const SubmapConstraint& c : pose_graph_.constraints()) has_absolute = has_absolute || c.is_absolute();
+      for (const SubmapConstraint& c : pose_graph_.constraints())
+        has_absolute = has_absolute || c.is_absolute();
     }
     if (graph.graph.poses.size() < 2) return true;  // one (fixed) vertex: nothing to solve
     const std::vector<backend::Pose4Dof> before = graph.graph.poses;
@@ -591,8 +618,10 @@ bool SlamSystem::solve_graph_locked() {
     const auto start = Clock::now();
     backend::PoseGraphSolverSummary summary;
     try {
-      summary = terms.empty() ? backend::solve_pose_graph(&graph.graph, config_.device, config_.solver)
-                              : backend::solve_pose_graph(&graph.graph, terms, config_.device, config_.solver);
+      summary =
+          terms.empty()
+              ? backend::solve_pose_graph(&graph.graph, config_.device, config_.solver)
+              : backend::solve_pose_graph(&graph.graph, terms, config_.device, config_.solver);
     } catch (const std::exception& error) {
       std::lock_guard<std::mutex> lock(state_mutex_);
       ++counters_.optimizations_failed;
@@ -602,7 +631,8 @@ bool SlamSystem::solve_graph_locked() {
     const double solve_s = seconds_since(start);
     double max_yaw_change = 0.0;
     for (size_t k = 0; k < before.size(); ++k) {
-      const double change = std::remainder(graph.graph.poses[k].yaw - before[k].yaw, 2.0 * 3.14159265358979323846);
+      const double change =
+          std::remainder(graph.graph.poses[k].yaw - before[k].yaw, 2.0 * 3.14159265358979323846);
       max_yaw_change = std::max(max_yaw_change, std::abs(change));
     }
     {
@@ -611,14 +641,16 @@ bool SlamSystem::solve_graph_locked() {
       ++counters_.optimizations;
       last_summary_ = summary;
       pose_graph_.apply_solution(graph);
-      for (size_t k = 0; k < graph_submaps_.size(); ++k) graph_submaps_[k].submap->set_pose(pose_graph_.nodes()[k].pose);
+      for (size_t k = 0; k < graph_submaps_.size(); ++k)
+        graph_submaps_[k].submap->set_pose(pose_graph_.nodes()[k].pose);
     }
     if (!has_absolute || max_yaw_change < 1e-6) break;
   }
   return true;
 }
 
-std::vector<backend::RegistrationTerm> SlamSystem::joint_terms_locked(const SubmapPoseGraph::BackendGraph& graph) const {
+std::vector<backend::RegistrationTerm> SlamSystem::joint_terms_locked(
+    const SubmapPoseGraph::BackendGraph& graph) const {
   std::vector<backend::RegistrationTerm> terms;
   for (const JointPair& pair : joint_pairs_) {
     const int64_t index_i = pose_graph_.index_of(pair.points_submap);
@@ -645,13 +677,15 @@ std::vector<backend::RegistrationTerm> SlamSystem::joint_terms_locked(const Subm
   return terms;
 }
 
-// ---- Accessors -----------------------------------------------------------------------------------
+// ---- Accessors
+// -----------------------------------------------------------------------------------
 
 Eigen::Isometry3d SlamSystem::correction_for_locked(int64_t submap_id) const {
   // graph_submaps_ is in id order (the queues preserve order); the latest submap at or before
   // `submap_id` carries the correction that applies to its scans.
-  auto after = std::upper_bound(graph_submaps_.begin(), graph_submaps_.end(), submap_id,
-                                [](int64_t id, const GraphSubmap& s) { return id < s.submap->id(); });
+  auto after =
+      std::upper_bound(graph_submaps_.begin(), graph_submaps_.end(), submap_id,
+                       [](int64_t id, const GraphSubmap& s) { return id < s.submap->id(); });
   if (after == graph_submaps_.begin()) return Eigen::Isometry3d::Identity();
   const Submap& reference = *(after - 1)->submap;
   return reference.T_world_submap() * reference.T_odom_submap().inverse();
@@ -684,19 +718,22 @@ std::vector<StampedPose> SlamSystem::corrected_trajectory() const {
     const Eigen::Isometry3d correction = correction_for_locked(entry.submap_id);
     if (config_.interpolate_trajectory_correction) {
       // The scan's own submap in the graph and the one after it (graph_submaps_ is in id order).
-      auto after = std::upper_bound(graph_submaps_.begin(), graph_submaps_.end(), entry.submap_id,
-                                    [](int64_t id, const GraphSubmap& s) { return id < s.submap->id(); });
+      auto after =
+          std::upper_bound(graph_submaps_.begin(), graph_submaps_.end(), entry.submap_id,
+                           [](int64_t id, const GraphSubmap& s) { return id < s.submap->id(); });
       if (after != graph_submaps_.begin() && after != graph_submaps_.end()) {
         const Submap& own = *(after - 1)->submap;
         const Submap& next = *after->submap;
         const double start_s = own.statistics().start_stamp_s;
         const double next_start_s = next.statistics().start_stamp_s;
-        if (own.id() == entry.submap_id && !(after - 1)->loaded && !after->loaded && next.statistics().scans > 0 &&
-            next_start_s > start_s) {
-          const Eigen::Isometry3d next_correction = next.T_world_submap() * next.T_odom_submap().inverse();
+        if (own.id() == entry.submap_id && !(after - 1)->loaded && !after->loaded &&
+            next.statistics().scans > 0 && next_start_s > start_s) {
+          const Eigen::Isometry3d next_correction =
+              next.T_world_submap() * next.T_odom_submap().inverse();
           const double alpha = (entry.stamp_s - start_s) / (next_start_s - start_s);
-          trajectory.push_back(
-              StampedPose{entry.stamp_s, blend_corrected_pose(correction, next_correction, entry.T_odom_sensor, alpha)});
+          trajectory.push_back(StampedPose{
+              entry.stamp_s,
+              blend_corrected_pose(correction, next_correction, entry.T_odom_sensor, alpha)});
           continue;
         }
       }
@@ -735,7 +772,8 @@ std::vector<SubmapSnapshot> SlamSystem::submap_snapshots() const {
   snapshots.reserve(graph_submaps_.size());
   for (const GraphSubmap& entry : graph_submaps_) {
     const Submap& submap = *entry.submap;
-    snapshots.push_back(SubmapSnapshot{submap.id(), submap.T_world_submap(), submap.map().snapshot()});
+    snapshots.push_back(
+        SubmapSnapshot{submap.id(), submap.T_world_submap(), submap.map().snapshot()});
   }
   return snapshots;
 }

@@ -22,23 +22,28 @@ bool should_log_refusal(int64_t count_after) { return count_after == 1 || count_
 const SlamSystem::TrajectoryEntry* SlamSystem::scan_near_locked(double stamp_s) const {
   if (!std::isfinite(stamp_s) || trajectory_.empty()) return nullptr;
   // Stamps increase along trajectory_ (add_scan refuses others; reset() clears it).
-  auto after = std::lower_bound(trajectory_.begin(), trajectory_.end(), stamp_s,
-                                [](const TrajectoryEntry& entry, double value) { return entry.stamp_s < value; });
+  auto after = std::lower_bound(
+      trajectory_.begin(), trajectory_.end(), stamp_s,
+      [](const TrajectoryEntry& entry, double value) { return entry.stamp_s < value; });
   const TrajectoryEntry* best = nullptr;
   double best_gap = config_.external_stamp_tolerance_s;
   if (after != trajectory_.end() && std::abs(after->stamp_s - stamp_s) <= best_gap) {
     best = &*after;
     best_gap = std::abs(after->stamp_s - stamp_s);
   }
-  if (after != trajectory_.begin() && std::abs((after - 1)->stamp_s - stamp_s) <= best_gap) best = &*(after - 1);
+  if (after != trajectory_.begin() && std::abs((after - 1)->stamp_s - stamp_s) <= best_gap)
+    best = &*(after - 1);
   return best;
 }
 
 ExternalConstraintCounters& SlamSystem::external_counters_locked(SubmapConstraintKind kind) {
   switch (kind) {
-    case SubmapConstraintKind::kAbsolutePosition: return counters_.absolute_positions;
-    case SubmapConstraintKind::kHeight: return counters_.heights;
-    default: return counters_.loop_closures;
+    case SubmapConstraintKind::kAbsolutePosition:
+      return counters_.absolute_positions;
+    case SubmapConstraintKind::kHeight:
+      return counters_.heights;
+    default:
+      return counters_.loop_closures;
   }
 }
 
@@ -63,7 +68,8 @@ bool SlamSystem::add_loop_closure(const LoopClosure& closure) {
     const TrajectoryEntry* to = scan_near_locked(closure.to_stamp_s);
     if (!from || !to) {
       refuse_locked(&counts.rejected_unknown_stamp, "a loop closure",
-                    "no integrated scan within " + std::to_string(config_.external_stamp_tolerance_s) + " s of " +
+                    "no integrated scan within " +
+                        std::to_string(config_.external_stamp_tolerance_s) + " s of " +
                         (from ? "to_stamp " + std::to_string(closure.to_stamp_s)
                               : "from_stamp " + std::to_string(closure.from_stamp_s)));
       return false;
@@ -79,8 +85,9 @@ bool SlamSystem::add_loop_closure(const LoopClosure& closure) {
                              to->T_odom_submap.inverse() * to->T_odom_sensor, closure.information);
     const std::string projected_problem = information_problem(projected.information);
     if (!projected_problem.empty() || !projected.information.allFinite()) {
-      refuse_locked(&counts.rejected_bad_input, "a loop closure",
-                    "its information says nothing about x, y, z or yaw (" + projected_problem + ")");
+      refuse_locked(
+          &counts.rejected_bad_input, "a loop closure",
+          "its information says nothing about x, y, z or yaw (" + projected_problem + ")");
       return false;
     }
     SubmapConstraint constraint;
@@ -116,7 +123,8 @@ bool SlamSystem::add_absolute_position(double stamp_s, const Eigen::Vector3d& po
     const TrajectoryEntry* scan = scan_near_locked(stamp_s);
     if (!scan) {
       refuse_locked(&counts.rejected_unknown_stamp, "an absolute position",
-                    "no integrated scan within " + std::to_string(config_.external_stamp_tolerance_s) + " s of " +
+                    "no integrated scan within " +
+                        std::to_string(config_.external_stamp_tolerance_s) + " s of " +
                         std::to_string(stamp_s));
       return false;
     }
@@ -150,7 +158,8 @@ bool SlamSystem::add_height(double stamp_s, double height_m, double information_
     const TrajectoryEntry* scan = scan_near_locked(stamp_s);
     if (!scan) {
       refuse_locked(&counts.rejected_unknown_stamp, "a height",
-                    "no integrated scan within " + std::to_string(config_.external_stamp_tolerance_s) + " s of " +
+                    "no integrated scan within " +
+                        std::to_string(config_.external_stamp_tolerance_s) + " s of " +
                         std::to_string(stamp_s));
       return false;
     }
@@ -221,9 +230,12 @@ void SlamSystem::load_submaps(std::vector<SubmapSnapshot> submaps) {
     const SubmapSnapshot& snapshot = submaps[k];
     const std::string name = "load_submaps: submap " + std::to_string(snapshot.id);
     if (k > 0 && submaps[k - 1].id == snapshot.id) throw Error(name + " appears twice");
-    if (!is_valid_rigid_pose(snapshot.T_world_submap)) throw Error(name + ": the pose is not a finite rigid transform");
-    if (!snapshot.T_world_submap.linear().isApprox(gravity_aligned(snapshot.T_world_submap).linear(), 1e-6)) {
-      throw Error(name + ": the pose has roll or pitch (submap poses are gravity aligned: x, y, z, yaw)");
+    if (!is_valid_rigid_pose(snapshot.T_world_submap))
+      throw Error(name + ": the pose is not a finite rigid transform");
+    if (!snapshot.T_world_submap.linear().isApprox(
+            gravity_aligned(snapshot.T_world_submap).linear(), 1e-6)) {
+      throw Error(name +
+                  ": the pose has roll or pitch (submap poses are gravity aligned: x, y, z, yaw)");
     }
   }
   // The heavy part (voxels to the device, ESDF, mesh, registration points) before anything is
@@ -234,7 +246,8 @@ void SlamSystem::load_submaps(std::vector<SubmapSnapshot> submaps) {
   std::vector<GraphSubmap> loaded;
   loaded.reserve(submaps.size());
   for (SubmapSnapshot& snapshot : submaps) {
-    auto submap = std::make_unique<Submap>(snapshot.id, config_.device, config_.map, snapshot.T_world_submap);
+    auto submap =
+        std::make_unique<Submap>(snapshot.id, config_.device, config_.map, snapshot.T_world_submap);
     try {
       submap->map().load_blocks(snapshot.blocks, stream);
     } catch (const std::exception& error) {
@@ -243,11 +256,13 @@ void SlamSystem::load_submaps(std::vector<SubmapSnapshot> submaps) {
     snapshot.blocks.clear();
     submap->finish(esdf, mesher, stream);
     std::unique_ptr<SubmapRegistrationPoints> points;
-    if (config_.registration.enabled) points = prepare_registration_points(submap->map(), config_.registration, stream);
+    if (config_.registration.enabled)
+      points = prepare_registration_points(submap->map(), config_.registration, stream);
     loaded.push_back(GraphSubmap{std::move(submap), std::move(points), true});
   }
 
-  // New submaps (even one the frontend starts before the reset below) get ids after the loaded ones, so the graph stays in id order.
+  // New submaps (even one the frontend starts before the reset below) get ids after the loaded
+  // ones, so the graph stays in id order.
   if (!submaps.empty()) {
     const int64_t first_free = submaps.back().id + 1;
     int64_t current = next_submap_id_.load();

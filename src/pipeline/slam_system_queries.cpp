@@ -16,13 +16,14 @@ namespace {
 // The ESDF slice of one submap at world height `height_m`, moved into the world frame. Submap
 // frames are gravity aligned (x, y, z, yaw), so a horizontal world plane is a horizontal plane of
 // the submap at height_m - t_z.
-std::vector<SlicePoint> world_slice_of(const TsdfMap& map, const Eigen::Isometry3d& T_world_submap, double height_m,
-                                       const Stream& stream) {
+std::vector<SlicePoint> world_slice_of(const TsdfMap& map, const Eigen::Isometry3d& T_world_submap,
+                                       double height_m, const Stream& stream) {
   const float z_submap_m = static_cast<float>(height_m - T_world_submap.translation().z());
   std::vector<SlicePoint> slice = esdf_slice(map, z_submap_m, stream);
   const Eigen::Isometry3f T = T_world_submap.cast<float>();
   for (SlicePoint& point : slice) {
-    const Eigen::Vector3f world = T * Eigen::Vector3f(point.position_m.x, point.position_m.y, point.position_m.z);
+    const Eigen::Vector3f world =
+        T * Eigen::Vector3f(point.position_m.x, point.position_m.y, point.position_m.z);
     point.position_m = Vec3f(world.x(), world.y(), static_cast<float>(height_m));
   }
   return slice;
@@ -30,7 +31,8 @@ std::vector<SlicePoint> world_slice_of(const TsdfMap& map, const Eigen::Isometry
 
 }  // namespace
 
-bool SlamSystem::submap_mesh(int64_t id, Mesh* mesh_submap, Eigen::Isometry3d* T_world_submap) const {
+bool SlamSystem::submap_mesh(int64_t id, Mesh* mesh_submap,
+                             Eigen::Isometry3d* T_world_submap) const {
   std::lock_guard<std::mutex> lock(state_mutex_);
   for (const GraphSubmap& entry : graph_submaps_) {
     if (entry.submap && entry.submap->id() == id) {
@@ -61,13 +63,15 @@ std::vector<SlicePoint> SlamSystem::esdf_slice_world(double height_m) {
   std::unordered_map<uint64_t, SlicePoint> cells;
   const Stream stream = Stream::create(config_.device);
   for (const auto& [submap, T_world_submap] : submaps) {
-    for (const SlicePoint& point : world_slice_of(submap->map(), T_world_submap, height_m, stream)) {
+    for (const SlicePoint& point :
+         world_slice_of(submap->map(), T_world_submap, height_m, stream)) {
       const uint64_t key = key_of(point.position_m);
       auto it = cells.find(key);
       if (it == cells.end()) {
         // Reported at the cell centre, so overlapping submaps give one point per cell.
         SlicePoint centred = point;
-        const double i = std::floor(point.position_m.x / cell_m), j = std::floor(point.position_m.y / cell_m);
+        const double i = std::floor(point.position_m.x / cell_m),
+                     j = std::floor(point.position_m.y / cell_m);
         centred.position_m.x = static_cast<float>((i + 0.5) * cell_m);
         centred.position_m.y = static_cast<float>((j + 0.5) * cell_m);
         cells.emplace(key, centred);
@@ -89,7 +93,8 @@ std::vector<SlicePoint> SlamSystem::esdf_slice_newest_submap(double height_m, in
   {
     std::lock_guard<std::mutex> lock(state_mutex_);
     for (const GraphSubmap& entry : graph_submaps_) {
-      if (entry.submap && (!newest || entry.submap->id() > newest->id())) newest = entry.submap.get();
+      if (entry.submap && (!newest || entry.submap->id() > newest->id()))
+        newest = entry.submap.get();
     }
     if (newest) T_world_submap = newest->T_world_submap();
   }
@@ -120,7 +125,8 @@ std::vector<SlicePoint> SlamSystem::esdf_slice_active_submap(double height_m, in
   // covers the layer's own thickness.
   const double z_submap_m = height_m - T_world_submap.translation().z();
   const double reach_m = config_.esdf.esdf_max_distance_m + config_.map.voxel_size_m;
-  const double block_m = static_cast<double>(config_.map.voxel_size_m) * config_.map.voxels_per_side;
+  const double block_m =
+      static_cast<double>(config_.map.voxel_size_m) * config_.map.voxels_per_side;
   std::vector<HostBlock> slab;
   for (const HostBlock& block : copy->blocks) {
     const double bottom_m = block.index.z * block_m;

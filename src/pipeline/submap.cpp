@@ -62,11 +62,13 @@ backend::Pose4Dof relative_pose_4dof(const backend::Pose4Dof& from, const backen
 bool is_valid_rigid_pose(const Eigen::Isometry3d& pose) {
   if (!pose.matrix().allFinite()) return false;
   const Eigen::Matrix3d rotation = pose.linear();
-  const double orthonormality_error = (rotation.transpose() * rotation - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+  const double orthonormality_error =
+      (rotation.transpose() * rotation - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
   return orthonormality_error < 1e-3 && rotation.determinant() > 0.0;
 }
 
-Eigen::Isometry3d blend_corrected_pose(const Eigen::Isometry3d& C_from, const Eigen::Isometry3d& C_to,
+Eigen::Isometry3d blend_corrected_pose(const Eigen::Isometry3d& C_from,
+                                       const Eigen::Isometry3d& C_to,
                                        const Eigen::Isometry3d& T_odom_sensor, double alpha) {
   const double a = std::min(1.0, std::max(0.0, alpha));
   const Eigen::Isometry3d from = C_from * T_odom_sensor;
@@ -77,7 +79,8 @@ Eigen::Isometry3d blend_corrected_pose(const Eigen::Isometry3d& C_from, const Ei
   const Eigen::Matrix3d turn = to.linear() * from.linear().transpose();
   const double yaw = std::atan2(turn(1, 0), turn(0, 0));
   Eigen::Isometry3d result = Eigen::Isometry3d::Identity();
-  result.linear() = Eigen::AngleAxisd(a * yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix() * from.linear();
+  result.linear() =
+      Eigen::AngleAxisd(a * yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix() * from.linear();
   result.translation() = (1.0 - a) * from.translation() + a * to.translation();
   return result;
 }
@@ -86,14 +89,18 @@ SubmapCreationPolicy parse_submap_creation_policy(const std::string& name) {
   if (name == "blocks") return SubmapCreationPolicy::kBlockCount;
   if (name == "time") return SubmapCreationPolicy::kTimeInterval;
   if (name == "distance") return SubmapCreationPolicy::kDistanceTravelled;
-  throw Error("submap policy: unknown submap_creation_policy '" + name + "' (expected blocks, time or distance)");
+  throw Error("submap policy: unknown submap_creation_policy '" + name +
+              "' (expected blocks, time or distance)");
 }
 
 const char* to_string(SubmapCreationPolicy policy) {
   switch (policy) {
-    case SubmapCreationPolicy::kBlockCount: return "blocks";
-    case SubmapCreationPolicy::kTimeInterval: return "time";
-    case SubmapCreationPolicy::kDistanceTravelled: return "distance";
+    case SubmapCreationPolicy::kBlockCount:
+      return "blocks";
+    case SubmapCreationPolicy::kTimeInterval:
+      return "time";
+    case SubmapCreationPolicy::kDistanceTravelled:
+      return "distance";
   }
   return "unknown";
 }
@@ -102,7 +109,8 @@ void validate(const SubmapPolicyConfig& config) {
   switch (config.policy) {
     case SubmapCreationPolicy::kBlockCount:
       if (config.max_blocks < 1) {
-        throw Error("submap policy: max_blocks must be at least 1, got " + std::to_string(config.max_blocks));
+        throw Error("submap policy: max_blocks must be at least 1, got " +
+                    std::to_string(config.max_blocks));
       }
       break;
     case SubmapCreationPolicy::kTimeInterval:
@@ -120,8 +128,8 @@ void validate(const SubmapPolicyConfig& config) {
   }
 }
 
-bool should_start_new_submap(const SubmapPolicyConfig& config, const SubmapStatistics& active, double stamp_s,
-                             double step_m) {
+bool should_start_new_submap(const SubmapPolicyConfig& config, const SubmapStatistics& active,
+                             double stamp_s, double step_m) {
   if (active.scans == 0) return false;
   switch (config.policy) {
     case SubmapCreationPolicy::kBlockCount:
@@ -134,22 +142,27 @@ bool should_start_new_submap(const SubmapPolicyConfig& config, const SubmapStati
   return false;
 }
 
-Submap::Submap(int64_t id, Device device, const TsdfMapConfig& map_config, const Eigen::Isometry3d& T_odom_submap)
+Submap::Submap(int64_t id, Device device, const TsdfMapConfig& map_config,
+               const Eigen::Isometry3d& T_odom_submap)
     : id_(id),
       map_(device, map_config),
       odometry_pose_(pose_4dof_from_isometry(T_odom_submap)),
       pose_(odometry_pose_) {
   if (!is_valid_rigid_pose(T_odom_submap)) {
-    throw Error("submap " + std::to_string(id) + ": the initial pose is not a finite rigid transform");
+    throw Error("submap " + std::to_string(id) +
+                ": the initial pose is not a finite rigid transform");
   }
 }
 
 IntegrationStats Submap::integrate(TsdfIntegrator& integrator, const PointCloudView& cloud,
-                                   const Eigen::Isometry3d& T_odom_sensor, double stamp_s, const Stream& stream) {
+                                   const Eigen::Isometry3d& T_odom_sensor, double stamp_s,
+                                   const Stream& stream) {
   if (finished_) {
-    throw Error("submap " + std::to_string(id_) + ": cannot integrate a scan into a finished submap");
+    throw Error("submap " + std::to_string(id_) +
+                ": cannot integrate a scan into a finished submap");
   }
-  const IntegrationStats stats = integrator.integrate(map_, cloud, submap_from_odometry(T_odom_sensor), stream);
+  const IntegrationStats stats =
+      integrator.integrate(map_, cloud, submap_from_odometry(T_odom_sensor), stream);
   const Eigen::Vector3d position_m = T_odom_sensor.translation();
   if (statistics_.scans == 0) {
     statistics_.start_stamp_s = stamp_s;
@@ -165,7 +178,8 @@ IntegrationStats Submap::integrate(TsdfIntegrator& integrator, const PointCloudV
   return stats;
 }
 
-SubmapFinishTimes Submap::finish(EsdfIntegrator& esdf, MeshIntegrator& mesher, const Stream& stream) {
+SubmapFinishTimes Submap::finish(EsdfIntegrator& esdf, MeshIntegrator& mesher,
+                                 const Stream& stream) {
   SubmapFinishTimes times;
   if (finished_) return times;
 
@@ -203,7 +217,8 @@ Eigen::AlignedBox3d Submap::bounding_box_world() const {
   if (bounding_box_submap_.isEmpty()) return box;
   const Eigen::Isometry3d T_world_submap = this->T_world_submap();
   for (int corner = 0; corner < 8; ++corner) {
-    box.extend(T_world_submap * bounding_box_submap_.corner(static_cast<Eigen::AlignedBox3d::CornerType>(corner)));
+    box.extend(T_world_submap *
+               bounding_box_submap_.corner(static_cast<Eigen::AlignedBox3d::CornerType>(corner)));
   }
   return box;
 }

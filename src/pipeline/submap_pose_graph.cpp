@@ -15,19 +15,26 @@ namespace {
 double wrap_to_pi(double angle) { return std::atan2(std::sin(angle), std::cos(angle)); }
 
 bool finite_pose(const backend::Pose4Dof& pose) {
-  return std::isfinite(pose.x) && std::isfinite(pose.y) && std::isfinite(pose.z) && std::isfinite(pose.yaw);
+  return std::isfinite(pose.x) && std::isfinite(pose.y) && std::isfinite(pose.z) &&
+         std::isfinite(pose.yaw);
 }
 
 }  // namespace
 
 const char* to_string(SubmapConstraintKind kind) {
   switch (kind) {
-    case SubmapConstraintKind::kOdometry: return "odometry";
-    case SubmapConstraintKind::kRegistration: return "registration";
-    case SubmapConstraintKind::kLoopClosure: return "loop closure";
-    case SubmapConstraintKind::kAbsolutePosition: return "absolute position";
-    case SubmapConstraintKind::kHeight: return "height";
-    case SubmapConstraintKind::kGaugeAnchor: return "gauge anchor";
+    case SubmapConstraintKind::kOdometry:
+      return "odometry";
+    case SubmapConstraintKind::kRegistration:
+      return "registration";
+    case SubmapConstraintKind::kLoopClosure:
+      return "loop closure";
+    case SubmapConstraintKind::kAbsolutePosition:
+      return "absolute position";
+    case SubmapConstraintKind::kHeight:
+      return "height";
+    case SubmapConstraintKind::kGaugeAnchor:
+      return "gauge anchor";
   }
   return "unknown";
 }
@@ -43,10 +50,11 @@ backend::Pose4Dof compose(const backend::Pose4Dof& a, const backend::Pose4Dof& b
 }
 
 void SubmapPoseGraph::add_submap(int64_t id, const backend::Pose4Dof& pose, bool loaded) {
-  if (!finite_pose(pose)) throw Error("submap pose graph: the pose of submap " + std::to_string(id) + " is not finite");
+  if (!finite_pose(pose))
+    throw Error("submap pose graph: the pose of submap " + std::to_string(id) + " is not finite");
   if (!nodes_.empty() && id <= nodes_.back().id) {
-    throw Error("submap pose graph: submap ids must increase, got " + std::to_string(id) + " after " +
-                std::to_string(nodes_.back().id));
+    throw Error("submap pose graph: submap ids must increase, got " + std::to_string(id) +
+                " after " + std::to_string(nodes_.back().id));
   }
   if (loaded && !nodes_.empty() && !nodes_.back().loaded) {
     throw Error("submap pose graph: loaded submap " + std::to_string(id) + " after a mapped one");
@@ -55,16 +63,19 @@ void SubmapPoseGraph::add_submap(int64_t id, const backend::Pose4Dof& pose, bool
 }
 
 int64_t SubmapPoseGraph::index_of(int64_t id) const {
-  auto it = std::lower_bound(nodes_.begin(), nodes_.end(), id,
-                             [](const SubmapPoseGraphNode& node, int64_t value) { return node.id < value; });
+  auto it = std::lower_bound(
+      nodes_.begin(), nodes_.end(), id,
+      [](const SubmapPoseGraphNode& node, int64_t value) { return node.id < value; });
   if (it == nodes_.end() || it->id != id) return -1;
   return static_cast<int64_t>(it - nodes_.begin());
 }
 
 void SubmapPoseGraph::add_constraint(const SubmapConstraint& constraint) {
-  const std::string what = std::string("submap pose graph: ") + to_string(constraint.kind) + " constraint";
+  const std::string what =
+      std::string("submap pose graph: ") + to_string(constraint.kind) + " constraint";
   const int64_t from = index_of(constraint.from_submap);
-  if (from < 0) throw Error(what + " names unknown submap " + std::to_string(constraint.from_submap));
+  if (from < 0)
+    throw Error(what + " names unknown submap " + std::to_string(constraint.from_submap));
   if (!constraint.information.allFinite() || !finite_pose(constraint.measurement) ||
       !constraint.lever_arm_m.allFinite()) {
     throw Error(what + " has a non-finite measurement or information");
@@ -72,7 +83,8 @@ void SubmapPoseGraph::add_constraint(const SubmapConstraint& constraint) {
   if (!constraint.is_absolute()) {
     const int64_t to = index_of(constraint.to_submap);
     if (to < 0) throw Error(what + " names unknown submap " + std::to_string(constraint.to_submap));
-    if (to == from) throw Error(what + " joins submap " + std::to_string(constraint.from_submap) + " to itself");
+    if (to == from)
+      throw Error(what + " joins submap " + std::to_string(constraint.from_submap) + " to itself");
     if (nodes_[static_cast<size_t>(to)].loaded) {
       throw Error(what + " ends in loaded submap " + std::to_string(constraint.to_submap) +
                   " (relative constraints must start at the loaded map)");
@@ -89,7 +101,8 @@ void SubmapPoseGraph::set_active(size_t index, bool active) {
   constraints_[index].active = active;
 }
 
-int set_aside_inconsistent_registrations(SubmapPoseGraph* graph, double max_residual_m, double worst_fraction) {
+int set_aside_inconsistent_registrations(SubmapPoseGraph* graph, double max_residual_m,
+                                         double worst_fraction) {
   const std::vector<SubmapConstraint>& constraints = graph->constraints();
   const std::vector<SubmapPoseGraphNode>& nodes = graph->nodes();
   std::vector<double> residual_m(constraints.size(), -1.0);  // -1: not judged
@@ -104,7 +117,8 @@ int set_aside_inconsistent_registrations(SubmapPoseGraph* graph, double max_resi
     const backend::Pose4Dof& b = nodes[static_cast<size_t>(to)].pose;
     const double cs = std::cos(a.yaw), sn = std::sin(a.yaw);
     const double dx = b.x - a.x, dy = b.y - a.y;
-    residual_m[k] = std::hypot(cs * dx + sn * dy - c.measurement.x, -sn * dx + cs * dy - c.measurement.y);
+    residual_m[k] =
+        std::hypot(cs * dx + sn * dy - c.measurement.x, -sn * dx + cs * dy - c.measurement.y);
     worst_m = std::max(worst_m, residual_m[k]);
   }
   const double cut_m = std::max(max_residual_m, worst_fraction * worst_m);
@@ -160,19 +174,23 @@ SubmapPoseGraph::BackendGraph SubmapPoseGraph::to_backend_graph() const {
     if (c.is_absolute()) {
       // The sensor's lever arm in the vertex frame, then moved with the vertex's current yaw.
       const double co = std::cos(offset_a.yaw), so = std::sin(offset_a.yaw);
-      const Eigen::Vector3d lever_in_vertex(offset_a.x + co * c.lever_arm_m.x() - so * c.lever_arm_m.y(),
-                                            offset_a.y + so * c.lever_arm_m.x() + co * c.lever_arm_m.y(),
-                                            offset_a.z + c.lever_arm_m.z());
+      const Eigen::Vector3d lever_in_vertex(
+          offset_a.x + co * c.lever_arm_m.x() - so * c.lever_arm_m.y(),
+          offset_a.y + so * c.lever_arm_m.x() + co * c.lever_arm_m.y(),
+          offset_a.z + c.lever_arm_m.z());
       const double yaw = out.graph.poses[static_cast<size_t>(vertex_a)].yaw;
       const double cv = std::cos(yaw), sv = std::sin(yaw);
-      const Eigen::Vector3d origin(c.measurement.x - (cv * lever_in_vertex.x() - sv * lever_in_vertex.y()),
-                                   c.measurement.y - (sv * lever_in_vertex.x() + cv * lever_in_vertex.y()),
-                                   c.measurement.z - lever_in_vertex.z());
+      const Eigen::Vector3d origin(
+          c.measurement.x - (cv * lever_in_vertex.x() - sv * lever_in_vertex.y()),
+          c.measurement.y - (sv * lever_in_vertex.x() + cv * lever_in_vertex.y()),
+          c.measurement.z - lever_in_vertex.z());
       if (c.kind == SubmapConstraintKind::kHeight) {
-        out.graph.constraints.push_back(backend::make_height_constraint_4dof(vertex_a, origin.z(), c.information(2, 2)));
+        out.graph.constraints.push_back(
+            backend::make_height_constraint_4dof(vertex_a, origin.z(), c.information(2, 2)));
       } else {
         const Eigen::Matrix3d information = c.information.topLeftCorner<3, 3>();
-        out.graph.constraints.push_back(backend::make_position_constraint_4dof(vertex_a, origin, information));
+        out.graph.constraints.push_back(
+            backend::make_position_constraint_4dof(vertex_a, origin, information));
         if (information.topLeftCorner<2, 2>().trace() > 0.0) horizontally_pinned.insert(vertex_a);
       }
       continue;
@@ -181,11 +199,12 @@ SubmapPoseGraph::BackendGraph SubmapPoseGraph::to_backend_graph() const {
     const int32_t vertex_b = out.vertex_of_node[b];
     if (vertex_a == vertex_b) continue;  // both in the loaded map: rigid already
     Eigen::Matrix4d rotation = Eigen::Matrix4d::Identity();
-    rotation.topLeftCorner<2, 2>() << std::cos(offset_a.yaw), -std::sin(offset_a.yaw), std::sin(offset_a.yaw),
-        std::cos(offset_a.yaw);
+    rotation.topLeftCorner<2, 2>() << std::cos(offset_a.yaw), -std::sin(offset_a.yaw),
+        std::sin(offset_a.yaw), std::cos(offset_a.yaw);
     const Eigen::Matrix4d information = rotation * c.information * rotation.transpose();
-    out.graph.constraints.push_back(backend::make_relative_constraint_4dof(
-        vertex_a, vertex_b, compose(offset_a, c.measurement), 0.5 * (information + information.transpose())));
+    out.graph.constraints.push_back(
+        backend::make_relative_constraint_4dof(vertex_a, vertex_b, compose(offset_a, c.measurement),
+                                               0.5 * (information + information.transpose())));
   }
   if (loaded_vertex != backend::kNoVertex) {
     out.graph.fixed_vertex = loaded_vertex;
@@ -197,11 +216,13 @@ SubmapPoseGraph::BackendGraph SubmapPoseGraph::to_backend_graph() const {
 
 void SubmapPoseGraph::apply_solution(const BackendGraph& solved) {
   if (solved.vertex_of_node.size() != nodes_.size()) {
-    throw Error("submap pose graph: the solution is for " + std::to_string(solved.vertex_of_node.size()) +
-                " submaps, the graph has " + std::to_string(nodes_.size()));
+    throw Error("submap pose graph: the solution is for " +
+                std::to_string(solved.vertex_of_node.size()) + " submaps, the graph has " +
+                std::to_string(nodes_.size()));
   }
   for (size_t k = 0; k < nodes_.size(); ++k) {
-    const backend::Pose4Dof& vertex = solved.graph.poses[static_cast<size_t>(solved.vertex_of_node[k])];
+    const backend::Pose4Dof& vertex =
+        solved.graph.poses[static_cast<size_t>(solved.vertex_of_node[k])];
     nodes_[k].pose = compose(vertex, solved.offset_of_node[k]);
   }
 }

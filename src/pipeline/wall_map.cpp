@@ -17,11 +17,14 @@ namespace {
 // A surface voxel's distance gradient within about 25 degrees of horizontal (cos 25 = 0.906).
 constexpr double kWallHorizontalFraction = 0.9;
 
-int32_t cell_of(double coordinate_m, double cell_m) { return static_cast<int32_t>(std::floor(coordinate_m / cell_m)); }
+int32_t cell_of(double coordinate_m, double cell_m) {
+  return static_cast<int32_t>(std::floor(coordinate_m / cell_m));
+}
 
 }  // namespace
 
-WallMap WallMap::from_columns(const std::vector<Eigen::Vector2d>& columns_m, double cell_m, double cap_m) {
+WallMap WallMap::from_columns(const std::vector<Eigen::Vector2d>& columns_m, double cell_m,
+                              double cap_m) {
   if (!(cell_m > 0.0) || !(cap_m > 0.0) || !std::isfinite(cell_m) || !std::isfinite(cap_m)) {
     throw Error("wall map: cell_m and cap_m must be finite and > 0");
   }
@@ -48,13 +51,15 @@ WallMap WallMap::from_columns(const std::vector<Eigen::Vector2d>& columns_m, dou
   wall.origin_y_ = min_y - r;
   wall.size_x_ = max_x - min_x + 1 + 2 * r;
   wall.size_y_ = max_y - min_y + 1 + 2 * r;
-  wall.distance_.assign(static_cast<size_t>(wall.size_x_) * wall.size_y_, static_cast<float>(cap_m));
+  wall.distance_.assign(static_cast<size_t>(wall.size_x_) * wall.size_y_,
+                        static_cast<float>(cap_m));
   for (const auto& [x, y] : cells) {
     for (int32_t dy = -r; dy <= r; ++dy) {
       for (int32_t dx = -r; dx <= r; ++dx) {
         const double d = cell_m * std::hypot(dx, dy);
         if (d > cap_m) continue;
-        const size_t index = static_cast<size_t>(y - wall.origin_y_ + dy) * wall.size_x_ + (x - wall.origin_x_ + dx);
+        const size_t index =
+            static_cast<size_t>(y - wall.origin_y_ + dy) * wall.size_x_ + (x - wall.origin_x_ + dx);
         wall.distance_[index] = std::min(wall.distance_[index], static_cast<float>(d));
       }
     }
@@ -77,14 +82,16 @@ WallMap WallMap::from_map(const TsdfMap& map, double cap_m, const Stream& stream
   backend::RegistrationResidualConfig gradient_config;
   gradient_config.tsdf_band_m = 2.5f * map.voxel_size_m();
   Buffer<backend::RegistrationResidual> residuals(map.device());
-  backend::evaluate_registration_residuals(points, map, backend::Pose4Dof(), backend::Pose4Dof(), gradient_config,
-                                           &residuals, stream);
+  backend::evaluate_registration_residuals(points, map, backend::Pose4Dof(), backend::Pose4Dof(),
+                                           gradient_config, &residuals, stream);
   const std::vector<backend::RegistrationResidual> at_home = residuals.to_host(stream);
   std::vector<Eigen::Vector2d> columns;
   for (size_t k = 0; k < host.size(); ++k) {
     const backend::RegistrationResidual& r = at_home[k];
     const double horizontal = std::hypot(r.jacobian_i[0], r.jacobian_i[1]);
-    if (!r.valid || !(horizontal > kWallHorizontalFraction * std::hypot(horizontal, r.jacobian_i[2]))) continue;
+    if (!r.valid ||
+        !(horizontal > kWallHorizontalFraction * std::hypot(horizontal, r.jacobian_i[2])))
+      continue;
     columns.emplace_back(host[k].position_m.x, host[k].position_m.y);
   }
   return from_columns(columns, map.voxel_size_m(), cap_m);
@@ -111,10 +118,12 @@ WallMatch match_walls(const WallMap& moving, const WallMap& fixed, const backend
   }
   const std::vector<Eigen::Vector2d>& all = moving.columns();
   std::vector<Eigen::Vector2d> columns;
-  const size_t stride = std::max<size_t>(1, (all.size() + config.max_columns - 1) / config.max_columns);
+  const size_t stride =
+      std::max<size_t>(1, (all.size() + config.max_columns - 1) / config.max_columns);
   for (size_t k = 0; k < all.size(); k += stride) columns.push_back(all[k]);
   const int32_t n = static_cast<int32_t>(std::floor(config.range_m / config.step_m + 1e-9));
-  const int32_t m = static_cast<int32_t>(std::floor(config.yaw_range_rad / config.yaw_step_rad + 1e-9));
+  const int32_t m =
+      static_cast<int32_t>(std::floor(config.yaw_range_rad / config.yaw_step_rad + 1e-9));
   const int32_t yaws = 2 * m + 1, side = 2 * n + 1;
   const double inverse_two_sigma2 = 1.0 / (2.0 * config.sigma_m * config.sigma_m);
   const double cutoff_m = 3.0 * config.sigma_m;
@@ -127,7 +136,8 @@ WallMatch match_walls(const WallMap& moving, const WallMap& fixed, const backend
     const double c = std::cos(yaw), s = std::sin(yaw);
     std::vector<Eigen::Vector2d> turned(columns.size());
     for (size_t k = 0; k < columns.size(); ++k) {
-      turned[k] = Eigen::Vector2d(c * columns[k].x() - s * columns[k].y(), s * columns[k].x() + c * columns[k].y());
+      turned[k] = Eigen::Vector2d(c * columns[k].x() - s * columns[k].y(),
+                                  s * columns[k].x() + c * columns[k].y());
     }
     for (int64_t cell = 0; cell < int64_t(side) * side; ++cell) {
       const double tx = guess.x + (cell % side - n) * config.step_m;

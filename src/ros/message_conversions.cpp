@@ -15,13 +15,15 @@ io::PointCloudLayout point_cloud_layout(const sensor_msgs::PointCloud2& cloud) {
   layout.row_step = cloud.row_step;
   layout.is_bigendian = cloud.is_bigendian;
   for (const sensor_msgs::PointField& field : cloud.fields) {
-    layout.fields.push_back(io::PointFieldDescription{field.name, field.offset, field.datatype, field.count});
+    layout.fields.push_back(
+        io::PointFieldDescription{field.name, field.offset, field.datatype, field.count});
   }
   return layout;
 }
 
 io::ImageLayout image_layout(const sensor_msgs::Image& image) {
-  return io::ImageLayout{image.width, image.height, image.step, image.encoding, image.is_bigendian != 0};
+  return io::ImageLayout{image.width, image.height, image.step, image.encoding,
+                         image.is_bigendian != 0};
 }
 
 io::CameraIntrinsics camera_intrinsics(const sensor_msgs::CameraInfo& info) {
@@ -37,11 +39,14 @@ io::CameraIntrinsics camera_intrinsics(const sensor_msgs::CameraInfo& info) {
 
 Eigen::Isometry3d to_isometry(const geometry_msgs::Transform& transform) {
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-  const Eigen::Quaterniond q(transform.rotation.w, transform.rotation.x, transform.rotation.y, transform.rotation.z);
+  const Eigen::Quaterniond q(transform.rotation.w, transform.rotation.x, transform.rotation.y,
+                             transform.rotation.z);
   // A zero or non-finite quaternion stays non-finite here, so the pipeline's rigidity check
   // rejects it (counted) instead of a normalisation inventing a rotation.
-  pose.linear() = q.norm() > 0.0 ? q.normalized().toRotationMatrix() : Eigen::Matrix3d::Constant(NAN);
-  pose.translation() = Eigen::Vector3d(transform.translation.x, transform.translation.y, transform.translation.z);
+  pose.linear() =
+      q.norm() > 0.0 ? q.normalized().toRotationMatrix() : Eigen::Matrix3d::Constant(NAN);
+  pose.translation() =
+      Eigen::Vector3d(transform.translation.x, transform.translation.y, transform.translation.z);
   return pose;
 }
 
@@ -68,8 +73,9 @@ geometry_msgs::Pose to_pose_msg(const Eigen::Isometry3d& pose) {
   return msg;
 }
 
-visualization_msgs::Marker mesh_marker(const Mesh& mesh, const Eigen::Isometry3d& pose, const std::string& frame,
-                                       const ros::Time& stamp, const std::string& ns, int id) {
+visualization_msgs::Marker mesh_marker(const Mesh& mesh, const Eigen::Isometry3d& pose,
+                                       const std::string& frame, const ros::Time& stamp,
+                                       const std::string& ns, int id) {
   visualization_msgs::Marker marker;
   marker.header.frame_id = frame;
   marker.header.stamp = stamp;
@@ -125,8 +131,9 @@ std_msgs::ColorRGBA rgba(float r, float g, float b, float a = 1.0f) {
   return color;
 }
 
-visualization_msgs::Marker line_list(const std::string& frame, const ros::Time& stamp, const std::string& ns, int id,
-                                     double width_m, const std_msgs::ColorRGBA& color) {
+visualization_msgs::Marker line_list(const std::string& frame, const ros::Time& stamp,
+                                     const std::string& ns, int id, double width_m,
+                                     const std_msgs::ColorRGBA& color) {
   visualization_msgs::Marker marker;
   marker.header.frame_id = frame;
   marker.header.stamp = stamp;
@@ -142,8 +149,9 @@ visualization_msgs::Marker line_list(const std::string& frame, const ros::Time& 
 
 }  // namespace
 
-visualization_msgs::MarkerArray bounding_box_markers(const std::vector<pipeline::SubmapInfo>& submaps,
-                                                    const std::string& frame, const ros::Time& stamp) {
+visualization_msgs::MarkerArray bounding_box_markers(
+    const std::vector<pipeline::SubmapInfo>& submaps, const std::string& frame,
+    const ros::Time& stamp) {
   visualization_msgs::MarkerArray array;
   // The whole set is replaced each time: boxes of removed submaps go with the DELETEALL.
   visualization_msgs::Marker clear;
@@ -156,10 +164,12 @@ visualization_msgs::MarkerArray bounding_box_markers(const std::vector<pipeline:
     const Eigen::AlignedBox3d& box = submap.bounding_box_world;
     if (box.isEmpty()) continue;
     visualization_msgs::Marker marker =
-        line_list(frame, stamp, "submap_bounding_boxes", static_cast<int>(submap.id), 0.05, rgba(0.2f, 0.6f, 1.0f));
+        line_list(frame, stamp, "submap_bounding_boxes", static_cast<int>(submap.id), 0.05,
+                  rgba(0.2f, 0.6f, 1.0f));
     const Eigen::Vector3d lo = box.min(), hi = box.max();
     auto corner = [&](int i) {
-      return Eigen::Vector3d((i & 1) ? hi.x() : lo.x(), (i & 2) ? hi.y() : lo.y(), (i & 4) ? hi.z() : lo.z());
+      return Eigen::Vector3d((i & 1) ? hi.x() : lo.x(), (i & 2) ? hi.y() : lo.y(),
+                             (i & 4) ? hi.z() : lo.z());
     };
     // The 12 edges join corners differing in exactly one bit.
     for (int a = 0; a < 8; ++a) {
@@ -175,9 +185,10 @@ visualization_msgs::MarkerArray bounding_box_markers(const std::vector<pipeline:
   return array;
 }
 
-visualization_msgs::MarkerArray pose_graph_markers(const std::vector<pipeline::SubmapInfo>& submaps,
-                                                   const std::vector<pipeline::SubmapConstraint>& constraints,
-                                                   const std::string& frame, const ros::Time& stamp) {
+visualization_msgs::MarkerArray pose_graph_markers(
+    const std::vector<pipeline::SubmapInfo>& submaps,
+    const std::vector<pipeline::SubmapConstraint>& constraints, const std::string& frame,
+    const ros::Time& stamp) {
   visualization_msgs::MarkerArray array;
   std::map<int64_t, Eigen::Vector3d> origin_of;
   visualization_msgs::Marker nodes;
@@ -199,10 +210,14 @@ visualization_msgs::MarkerArray pose_graph_markers(const std::vector<pipeline::S
     pipeline::SubmapConstraintKind kind;
     const char* ns;
     std_msgs::ColorRGBA color;
-  } kinds[] = {{pipeline::SubmapConstraintKind::kOdometry, "pose_graph_odometry", rgba(0.2f, 0.9f, 0.2f)},
-               {pipeline::SubmapConstraintKind::kRegistration, "pose_graph_registration", rgba(1.0f, 0.8f, 0.0f)},
-               {pipeline::SubmapConstraintKind::kLoopClosure, "pose_graph_loop_closure", rgba(1.0f, 0.1f, 0.1f)},
-               {pipeline::SubmapConstraintKind::kGaugeAnchor, "pose_graph_gauge_anchor", rgba(0.5f, 0.5f, 0.5f, 0.5f)}};
+  } kinds[] = {
+      {pipeline::SubmapConstraintKind::kOdometry, "pose_graph_odometry", rgba(0.2f, 0.9f, 0.2f)},
+      {pipeline::SubmapConstraintKind::kRegistration, "pose_graph_registration",
+       rgba(1.0f, 0.8f, 0.0f)},
+      {pipeline::SubmapConstraintKind::kLoopClosure, "pose_graph_loop_closure",
+       rgba(1.0f, 0.1f, 0.1f)},
+      {pipeline::SubmapConstraintKind::kGaugeAnchor, "pose_graph_gauge_anchor",
+       rgba(0.5f, 0.5f, 0.5f, 0.5f)}};
   int id = 0;
   for (const auto& kind : kinds) {
     visualization_msgs::Marker edges = line_list(frame, stamp, kind.ns, id++, 0.08, kind.color);
@@ -242,7 +257,8 @@ sensor_msgs::PointCloud2 slice_cloud(const std::vector<SlicePoint>& slice, const
   cloud.data.resize(cloud.row_step);
   uint8_t* out = cloud.data.data();
   for (const SlicePoint& point : slice) {
-    const float values[4] = {point.position_m.x, point.position_m.y, point.position_m.z, point.distance_m};
+    const float values[4] = {point.position_m.x, point.position_m.y, point.position_m.z,
+                             point.distance_m};
     std::memcpy(out, values, sizeof(values));
     out += sizeof(values);
   }

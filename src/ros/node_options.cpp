@@ -29,26 +29,31 @@ void read_flag(const RosParameterSource& source, const std::string& name, bool* 
 }
 
 // A number that must be positive (or >= 0 with allow_zero).
-void read_amount(const RosParameterSource& source, const std::string& name, double* amount, bool allow_zero = false) {
+void read_amount(const RosParameterSource& source, const std::string& name, double* amount,
+                 bool allow_zero = false) {
   double value = 0.0;
   if (!source.get_number(name, &value)) return;
   if (!std::isfinite(value) || value < 0.0 || (!allow_zero && value == 0.0)) {
-    bad(name, std::string(allow_zero ? "must be >= 0" : "must be positive") + ", got " + std::to_string(value));
+    bad(name, std::string(allow_zero ? "must be >= 0" : "must be positive") + ", got " +
+                  std::to_string(value));
   }
   *amount = value;
 }
 
-void read_count(const RosParameterSource& source, const std::string& name, int* count, int minimum) {
+void read_count(const RosParameterSource& source, const std::string& name, int* count,
+                int minimum) {
   int64_t value = 0;
   if (!source.get_integer(name, &value)) return;
   if (value < minimum || value > 1000000) {
-    bad(name, "must be in [" + std::to_string(minimum) + ", 1000000], got " + std::to_string(value));
+    bad(name,
+        "must be in [" + std::to_string(minimum) + ", 1000000], got " + std::to_string(value));
   }
   *count = static_cast<int>(value);
 }
 
 // [x, y, z, qx, qy, qz, qw] or a row-major 4x4 matrix (voxgraph's T_base_link_sensor).
-Eigen::Isometry3d read_transform(const ros::NodeHandle& node, const std::string& name, const Eigen::Isometry3d& fallback) {
+Eigen::Isometry3d read_transform(const ros::NodeHandle& node, const std::string& name,
+                                 const Eigen::Isometry3d& fallback) {
   if (!node.hasParam(name)) return fallback;
   std::vector<double> values;
   if (!node.getParam(name, values)) bad(name, "expected a list of 7 or 16 numbers");
@@ -58,7 +63,8 @@ Eigen::Isometry3d read_transform(const ros::NodeHandle& node, const std::string&
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   if (values.size() == 7) {
     const Eigen::Quaterniond q(values[6], values[3], values[4], values[5]);
-    if (std::abs(q.norm() - 1.0) > 1e-3) bad(name, "the quaternion (qx, qy, qz, qw) is not of unit length");
+    if (std::abs(q.norm() - 1.0) > 1e-3)
+      bad(name, "the quaternion (qx, qy, qz, qw) is not of unit length");
     T.linear() = q.normalized().toRotationMatrix();
     T.translation() = Eigen::Vector3d(values[0], values[1], values[2]);
     return T;
@@ -69,8 +75,9 @@ Eigen::Isometry3d read_transform(const ros::NodeHandle& node, const std::string&
       for (int c = 0; c < 4; ++c) M(r, c) = values[4 * r + c];
     }
     const Eigen::Matrix3d R = M.topLeftCorner<3, 3>();
-    if ((R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-3 || R.determinant() < 0.0 ||
-        M.row(3).cwiseAbs().sum() - std::abs(M(3, 3)) > 1e-9 || std::abs(M(3, 3) - 1.0) > 1e-9) {
+    if ((R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-3 ||
+        R.determinant() < 0.0 || M.row(3).cwiseAbs().sum() - std::abs(M(3, 3)) > 1e-9 ||
+        std::abs(M(3, 3) - 1.0) > 1e-9) {
       bad(name, "the 4x4 matrix is not a rigid transform");
     }
     T.matrix() = M;
@@ -83,13 +90,33 @@ Eigen::Isometry3d read_transform(const ros::NodeHandle& node, const std::string&
 }  // namespace
 
 const std::vector<std::string>& node_option_names() {
-  static const std::vector<std::string> names = {
-      "mission_frame", "odom_frame", "base_frame", "use_tf_for_odometry", "use_tf_for_extrinsic", "T_base_sensor",
-      "tf_wait_timeout_s", "max_pending_clouds", "odometry_buffer_s", "odometry_max_gap_s", "use_color",
-      "use_intensity", "intensity_max_value", "use_depth_images", "use_color_images", "depth_pixel_stride",
-      "depth_max_m", "publish_tf", "tf_publish_period_s", "visualization_period_s", "diagnostics_period_s",
-      "publish_esdf_slices", "esdf_slice_height_m", "active_submap_esdf_slice_period_s", "publish_combined_mesh", "publish_separated_mesh",
-      "drop_log_interval_s"};
+  static const std::vector<std::string> names = {"mission_frame",
+                                                 "odom_frame",
+                                                 "base_frame",
+                                                 "use_tf_for_odometry",
+                                                 "use_tf_for_extrinsic",
+                                                 "T_base_sensor",
+                                                 "tf_wait_timeout_s",
+                                                 "max_pending_clouds",
+                                                 "odometry_buffer_s",
+                                                 "odometry_max_gap_s",
+                                                 "use_color",
+                                                 "use_intensity",
+                                                 "intensity_max_value",
+                                                 "use_depth_images",
+                                                 "use_color_images",
+                                                 "depth_pixel_stride",
+                                                 "depth_max_m",
+                                                 "publish_tf",
+                                                 "tf_publish_period_s",
+                                                 "visualization_period_s",
+                                                 "diagnostics_period_s",
+                                                 "publish_esdf_slices",
+                                                 "esdf_slice_height_m",
+                                                 "active_submap_esdf_slice_period_s",
+                                                 "publish_combined_mesh",
+                                                 "publish_separated_mesh",
+                                                 "drop_log_interval_s"};
   return names;
 }
 
@@ -128,7 +155,8 @@ NodeOptions read_node_options(const ros::NodeHandle& node) {
     if (!std::isfinite(height)) bad("esdf_slice_height_m", "must be a finite height in metres");
     options.esdf_slice_height_m = height;
   }
-  read_amount(source, "active_submap_esdf_slice_period_s", &options.active_submap_esdf_slice_period_s, true);
+  read_amount(source, "active_submap_esdf_slice_period_s",
+              &options.active_submap_esdf_slice_period_s, true);
   read_flag(source, "publish_combined_mesh", &options.publish_combined_mesh);
   read_flag(source, "publish_separated_mesh", &options.publish_separated_mesh);
   read_amount(source, "drop_log_interval_s", &options.drop_log_interval_s, true);

@@ -6,7 +6,8 @@ namespace covox {
 namespace ros_layer {
 
 namespace {
-[[noreturn]] void wrong_type(const ros::NodeHandle& node, const std::string& name, const char* expected) {
+[[noreturn]] void wrong_type(const ros::NodeHandle& node, const std::string& name,
+                             const char* expected) {
   throw Error("parameter '" + node.resolveName(name) + "': expected " + expected);
 }
 }  // namespace

@@ -24,10 +24,18 @@ namespace {
 void forward_library_log_to_ros() {
   set_log_sink([](LogLevel level, const std::string& line) {
     switch (level) {
-      case LogLevel::kDebug: ROS_DEBUG_STREAM("covoxslam: " << line); break;
-      case LogLevel::kInfo: ROS_INFO_STREAM("covoxslam: " << line); break;
-      case LogLevel::kWarning: ROS_WARN_STREAM("covoxslam: " << line); break;
-      case LogLevel::kError: ROS_ERROR_STREAM("covoxslam: " << line); break;
+      case LogLevel::kDebug:
+        ROS_DEBUG_STREAM("covoxslam: " << line);
+        break;
+      case LogLevel::kInfo:
+        ROS_INFO_STREAM("covoxslam: " << line);
+        break;
+      case LogLevel::kWarning:
+        ROS_WARN_STREAM("covoxslam: " << line);
+        break;
+      case LogLevel::kError:
+        ROS_ERROR_STREAM("covoxslam: " << line);
+        break;
     }
   });
 }
@@ -36,7 +44,8 @@ void forward_library_log_to_ros() {
 void warn_about_unknown_parameters(const ros::NodeHandle& private_node) {
   std::vector<std::string> all;
   if (!ros::param::getParamNames(all)) return;
-  std::set<std::string> known(pipeline::slam_parameter_names().begin(), pipeline::slam_parameter_names().end());
+  std::set<std::string> known(pipeline::slam_parameter_names().begin(),
+                              pipeline::slam_parameter_names().end());
   known.insert(node_option_names().begin(), node_option_names().end());
   const std::string prefix = private_node.getNamespace() + "/";
   for (const std::string& name : all) {
@@ -44,7 +53,8 @@ void warn_about_unknown_parameters(const ros::NodeHandle& private_node) {
     const std::string relative = name.substr(prefix.size());
     if (relative.find('/') != std::string::npos) continue;  // a sub-namespace (e.g. a plugin's)
     if (!known.count(relative)) {
-      ROS_WARN_STREAM("covoxslam: unknown parameter '" << name << "' is ignored (misspelt? see config/covoxslam.yaml)");
+      ROS_WARN_STREAM("covoxslam: unknown parameter '"
+                      << name << "' is ignored (misspelt? see config/covoxslam.yaml)");
     }
   }
 }
@@ -57,7 +67,8 @@ SlamNode::SlamNode(ros::NodeHandle node, ros::NodeHandle private_node)
       output_node_(private_node),
       options_(read_node_options(private_node)),
       tf_buffer_(ros::Duration(std::max(10.0, options_.odometry_buffer_s))),
-      odometry_buffer_(pipeline::StampedPoseBufferConfig{options_.odometry_buffer_s, options_.odometry_max_gap_s}),
+      odometry_buffer_(pipeline::StampedPoseBufferConfig{options_.odometry_buffer_s,
+                                                         options_.odometry_max_gap_s}),
       drops_(options_.drop_log_interval_s) {
   forward_library_log_to_ros();
   warn_about_unknown_parameters(private_node_);
@@ -65,11 +76,11 @@ SlamNode::SlamNode(ros::NodeHandle node, ros::NodeHandle private_node)
   config.device = select_device(DeviceRequest::kAuto);
   pipeline::read_slam_config(RosParameterSource(private_node_), &config);
   slam_ = std::make_unique<pipeline::SlamSystem>(config);
-  ROS_INFO_STREAM("covoxslam: mapping on " << describe_device(config.device) << ", voxel "
-                                           << config.map.voxel_size_m << " m, submaps by "
-                                           << pipeline::to_string(config.submaps.policy) << "; frames "
-                                           << options_.mission_frame << " -> " << options_.odom_frame << " -> "
-                                           << options_.base_frame);
+  ROS_INFO_STREAM("covoxslam: mapping on "
+                  << describe_device(config.device) << ", voxel " << config.map.voxel_size_m
+                  << " m, submaps by " << pipeline::to_string(config.submaps.policy) << "; frames "
+                  << options_.mission_frame << " -> " << options_.odom_frame << " -> "
+                  << options_.base_frame);
 
   tf_listener_ = std::make_unique<tf2_ros::TransformListener>(tf_buffer_, node_);
 
@@ -78,61 +89,76 @@ SlamNode::SlamNode(ros::NodeHandle node, ros::NodeHandle private_node)
   if (!options_.use_tf_for_odometry) {
     odometry_subscriber_ = node_.subscribe("odometry", 200, &SlamNode::odometry_callback, this);
   }
-  loop_closure_subscriber_ = node_.subscribe("loop_closure_input", 100, &SlamNode::loop_closure_callback, this);
+  loop_closure_subscriber_ =
+      node_.subscribe("loop_closure_input", 100, &SlamNode::loop_closure_callback, this);
   if (options_.use_depth_images) {
-    depth_subscriber_ = std::make_unique<message_filters::Subscriber<sensor_msgs::Image>>(node_, "depth/image", 5);
-    info_subscriber_ =
-        std::make_unique<message_filters::Subscriber<sensor_msgs::CameraInfo>>(node_, "depth/camera_info", 5);
+    depth_subscriber_ =
+        std::make_unique<message_filters::Subscriber<sensor_msgs::Image>>(node_, "depth/image", 5);
+    info_subscriber_ = std::make_unique<message_filters::Subscriber<sensor_msgs::CameraInfo>>(
+        node_, "depth/camera_info", 5);
     if (options_.use_color_images) {
-      color_subscriber_ = std::make_unique<message_filters::Subscriber<sensor_msgs::Image>>(node_, "color/image", 5);
+      color_subscriber_ = std::make_unique<message_filters::Subscriber<sensor_msgs::Image>>(
+          node_, "color/image", 5);
       depth_color_sync_ = std::make_unique<message_filters::Synchronizer<DepthColorPolicy>>(
           DepthColorPolicy(10), *depth_subscriber_, *info_subscriber_, *color_subscriber_);
       depth_color_sync_->registerCallback(&SlamNode::depth_color_callback, this);
     } else {
-      depth_sync_ = std::make_unique<message_filters::Synchronizer<DepthPolicy>>(DepthPolicy(10), *depth_subscriber_,
-                                                                               *info_subscriber_);
+      depth_sync_ = std::make_unique<message_filters::Synchronizer<DepthPolicy>>(
+          DepthPolicy(10), *depth_subscriber_, *info_subscriber_);
       depth_sync_->registerCallback(&SlamNode::depth_callback, this);
     }
   }
   // Clouds waiting for tf are retried (and timed out) even when no new cloud arrives.
   // Wall timers: with simulated time (rosbag play --clock) the clock stops when the bag ends,
   // and waiting, publishing and diagnostics must go on.
-  pending_timer_ = node_.createWallTimer(ros::WallDuration(0.02), [this](const ros::WallTimerEvent&) {
-    std::lock_guard<std::mutex> lock(input_mutex_);
-    process_pending_locked();
-  });
+  pending_timer_ =
+      node_.createWallTimer(ros::WallDuration(0.02), [this](const ros::WallTimerEvent&) {
+        std::lock_guard<std::mutex> lock(input_mutex_);
+        process_pending_locked();
+      });
 
   // Output: publishers, timers and services on the second queue.
   output_node_.setCallbackQueue(&output_queue_);
   path_publisher_ = output_node_.advertise<nav_msgs::Path>("pose_history", 1, true);
   submap_poses_publisher_ = output_node_.advertise<covoxslam::SubmapPoses>("submap_poses", 1, true);
-  combined_mesh_publisher_ = output_node_.advertise<visualization_msgs::Marker>("combined_mesh", 1, true);
-  separated_mesh_publisher_ = output_node_.advertise<visualization_msgs::MarkerArray>("separated_mesh", 10, true);
-  bounding_boxes_publisher_ = output_node_.advertise<visualization_msgs::MarkerArray>("submap_bounding_boxes", 1, true);
-  pose_graph_publisher_ = output_node_.advertise<visualization_msgs::MarkerArray>("pose_graph", 1, true);
+  combined_mesh_publisher_ =
+      output_node_.advertise<visualization_msgs::Marker>("combined_mesh", 1, true);
+  separated_mesh_publisher_ =
+      output_node_.advertise<visualization_msgs::MarkerArray>("separated_mesh", 10, true);
+  bounding_boxes_publisher_ =
+      output_node_.advertise<visualization_msgs::MarkerArray>("submap_bounding_boxes", 1, true);
+  pose_graph_publisher_ =
+      output_node_.advertise<visualization_msgs::MarkerArray>("pose_graph", 1, true);
   esdf_slice_publisher_ = output_node_.advertise<sensor_msgs::PointCloud2>("esdf_slice", 1, true);
-  submap_esdf_slice_publisher_ = output_node_.advertise<sensor_msgs::PointCloud2>("submap_esdf_slice", 1, true);
+  submap_esdf_slice_publisher_ =
+      output_node_.advertise<sensor_msgs::PointCloud2>("submap_esdf_slice", 1, true);
   active_submap_esdf_slice_publisher_ =
       output_node_.advertise<sensor_msgs::PointCloud2>("active_submap_esdf_slice", 1, true);
-  diagnostics_publisher_ = output_node_.advertise<diagnostic_msgs::DiagnosticArray>("diagnostics", 1, true);
+  diagnostics_publisher_ =
+      output_node_.advertise<diagnostic_msgs::DiagnosticArray>("diagnostics", 1, true);
   if (options_.publish_tf) {
-    tf_timer_ = output_node_.createWallTimer(ros::WallDuration(options_.tf_publish_period_s), &SlamNode::publish_tf, this);
+    tf_timer_ = output_node_.createWallTimer(ros::WallDuration(options_.tf_publish_period_s),
+                                             &SlamNode::publish_tf, this);
   }
-  visualization_timer_ = output_node_.createWallTimer(ros::WallDuration(options_.visualization_period_s),
-                                                  &SlamNode::publish_visualization, this);
-  diagnostics_timer_ = output_node_.createWallTimer(ros::WallDuration(options_.diagnostics_period_s),
-                                                &SlamNode::publish_diagnostics, this);
+  visualization_timer_ = output_node_.createWallTimer(
+      ros::WallDuration(options_.visualization_period_s), &SlamNode::publish_visualization, this);
+  diagnostics_timer_ = output_node_.createWallTimer(
+      ros::WallDuration(options_.diagnostics_period_s), &SlamNode::publish_diagnostics, this);
   if (options_.publish_esdf_slices && options_.active_submap_esdf_slice_period_s > 0.0) {
-    active_slice_timer_ = output_node_.createWallTimer(ros::WallDuration(options_.active_submap_esdf_slice_period_s),
-                                                   &SlamNode::publish_active_submap_slice, this);
+    active_slice_timer_ =
+        output_node_.createWallTimer(ros::WallDuration(options_.active_submap_esdf_slice_period_s),
+                                     &SlamNode::publish_active_submap_slice, this);
   }
   services_.push_back(output_node_.advertiseService("save_map", &SlamNode::save_map, this));
   services_.push_back(output_node_.advertiseService("load_map", &SlamNode::load_map, this));
-  services_.push_back(output_node_.advertiseService("save_trajectory", &SlamNode::save_trajectory, this));
+  services_.push_back(
+      output_node_.advertiseService("save_trajectory", &SlamNode::save_trajectory, this));
   services_.push_back(output_node_.advertiseService("save_mesh", &SlamNode::save_mesh, this));
-  services_.push_back(output_node_.advertiseService("generate_mesh", &SlamNode::generate_mesh, this));
+  services_.push_back(
+      output_node_.advertiseService("generate_mesh", &SlamNode::generate_mesh, this));
   services_.push_back(output_node_.advertiseService("finish_map", &SlamNode::finish_map, this));
-  services_.push_back(output_node_.advertiseService("optimize_pose_graph", &SlamNode::optimize_pose_graph, this));
+  services_.push_back(
+      output_node_.advertiseService("optimize_pose_graph", &SlamNode::optimize_pose_graph, this));
   services_.push_back(output_node_.advertiseService("reset", &SlamNode::reset, this));
   output_spinner_ = std::make_unique<ros::AsyncSpinner>(1, &output_queue_);
   output_spinner_->start();

@@ -15,7 +15,8 @@ namespace {
 
 bool same_pose(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
   // 1 mm / about 0.06 degrees: below what rviz shows, above solver noise.
-  return (a.translation() - b.translation()).norm() < 1e-3 && (a.linear() - b.linear()).cwiseAbs().maxCoeff() < 1e-3;
+  return (a.translation() - b.translation()).norm() < 1e-3 &&
+         (a.linear() - b.linear()).cwiseAbs().maxCoeff() < 1e-3;
 }
 
 diagnostic_msgs::KeyValue entry(const std::string& key, const std::string& value) {
@@ -25,7 +26,8 @@ diagnostic_msgs::KeyValue entry(const std::string& key, const std::string& value
   return pair;
 }
 
-void add_timing(diagnostic_msgs::DiagnosticStatus* status, const std::string& name, const pipeline::ModuleTiming& t) {
+void add_timing(diagnostic_msgs::DiagnosticStatus* status, const std::string& name,
+                const pipeline::ModuleTiming& t) {
   status->values.push_back(entry(name + "_calls", std::to_string(t.calls)));
   status->values.push_back(entry(name + "_mean_ms", std::to_string(t.mean_ms())));
   status->values.push_back(entry(name + "_max_ms", std::to_string(1000.0 * t.max_s)));
@@ -61,7 +63,8 @@ void SlamNode::clear_published_markers() {
   combined_mesh_publisher_.publish(clear);
   bounding_boxes_publisher_.publish(clear_array);
   // The latched active-submap slice showed the discarded map.
-  active_submap_esdf_slice_publisher_.publish(slice_cloud({}, options_.mission_frame, clear.header.stamp));
+  active_submap_esdf_slice_publisher_.publish(
+      slice_cloud({}, options_.mission_frame, clear.header.stamp));
   published_submaps_.clear();
   published_trajectory_size_ = static_cast<size_t>(-1);  // publish the (empty) path again
   map_changed_ = true;
@@ -79,7 +82,8 @@ void SlamNode::publish_map(bool force) {
   std::vector<const pipeline::SubmapInfo*> changed;
   for (const pipeline::SubmapInfo& submap : submaps) {
     auto it = published_submaps_.find(submap.id);
-    if (force || it == published_submaps_.end() || !same_pose(it->second.T_world_submap, submap.T_world_submap) ||
+    if (force || it == published_submaps_.end() ||
+        !same_pose(it->second.T_world_submap, submap.T_world_submap) ||
         it->second.mesh_triangles != submap.mesh_triangles) {
       changed.push_back(&submap);
     }
@@ -88,7 +92,8 @@ void SlamNode::publish_map(bool force) {
   std::vector<int64_t> removed;
   for (const auto& published : published_submaps_) {
     bool present = false;
-    for (const pipeline::SubmapInfo& submap : submaps) present = present || submap.id == published.first;
+    for (const pipeline::SubmapInfo& submap : submaps)
+      present = present || submap.id == published.first;
     if (!present) removed.push_back(published.first);
   }
   const bool graph_changed = force || map_changed_ || !changed.empty() || !removed.empty();
@@ -145,27 +150,31 @@ void SlamNode::publish_map(bool force) {
       Eigen::Isometry3d T_world_submap;
       if (!slam_->submap_mesh(submap->id, &mesh, &T_world_submap)) continue;
       // The vertices stay in the submap frame; a moved submap only changes the marker's pose.
-      markers.markers.push_back(mesh_marker(mesh, T_world_submap, frame, stamp, "submap_mesh", static_cast<int>(submap->id)));
+      markers.markers.push_back(mesh_marker(mesh, T_world_submap, frame, stamp, "submap_mesh",
+                                            static_cast<int>(submap->id)));
     }
     if (!markers.markers.empty()) separated_mesh_publisher_.publish(markers);
   }
   for (int64_t id : removed) published_submaps_.erase(id);
   for (const pipeline::SubmapInfo* submap : changed) {
-    published_submaps_[submap->id] = PublishedSubmap{submap->T_world_submap, submap->mesh_triangles};
+    published_submaps_[submap->id] =
+        PublishedSubmap{submap->T_world_submap, submap->mesh_triangles};
   }
 
-  if (options_.publish_combined_mesh && combined_mesh_publisher_.getNumSubscribers() + (force ? 1 : 0) > 0) {
-    combined_mesh_publisher_.publish(
-        mesh_marker(slam_->combined_mesh(), Eigen::Isometry3d::Identity(), frame, stamp, "combined_mesh", 0));
+  if (options_.publish_combined_mesh &&
+      combined_mesh_publisher_.getNumSubscribers() + (force ? 1 : 0) > 0) {
+    combined_mesh_publisher_.publish(mesh_marker(
+        slam_->combined_mesh(), Eigen::Isometry3d::Identity(), frame, stamp, "combined_mesh", 0));
   }
   bounding_boxes_publisher_.publish(bounding_box_markers(submaps, frame, stamp));
   pose_graph_publisher_.publish(pose_graph_markers(submaps, slam_->constraints(), frame, stamp));
 
   if (options_.publish_esdf_slices) {
-    esdf_slice_publisher_.publish(slice_cloud(slam_->esdf_slice_world(options_.esdf_slice_height_m), frame, stamp));
+    esdf_slice_publisher_.publish(
+        slice_cloud(slam_->esdf_slice_world(options_.esdf_slice_height_m), frame, stamp));
     int64_t newest_id = -1;
-    submap_esdf_slice_publisher_.publish(
-        slice_cloud(slam_->esdf_slice_newest_submap(options_.esdf_slice_height_m, &newest_id), frame, stamp));
+    submap_esdf_slice_publisher_.publish(slice_cloud(
+        slam_->esdf_slice_newest_submap(options_.esdf_slice_height_m, &newest_id), frame, stamp));
   }
 }
 
@@ -177,13 +186,15 @@ void SlamNode::publish_active_submap_slice(const ros::WallTimerEvent&) {
   try {
     slice = slam_->esdf_slice_active_submap(options_.esdf_slice_height_m, &active_id);
   } catch (const std::exception& error) {
-    ROS_ERROR_STREAM_THROTTLE(10.0, "covoxslam: the active submap's ESDF slice failed: " << error.what());
+    ROS_ERROR_STREAM_THROTTLE(10.0,
+                              "covoxslam: the active submap's ESDF slice failed: " << error.what());
     return;
   }
   // Before the first copy (or with no active submap) nothing is published: the latched slice
   // stays the last real one.
   if (active_id < 0) return;
-  active_submap_esdf_slice_publisher_.publish(slice_cloud(slice, options_.mission_frame, ros::Time::now()));
+  active_submap_esdf_slice_publisher_.publish(
+      slice_cloud(slice, options_.mission_frame, ros::Time::now()));
 }
 
 void SlamNode::publish_diagnostics(const ros::WallTimerEvent&) {
@@ -242,7 +253,8 @@ void SlamNode::publish_diagnostics(const ros::WallTimerEvent&) {
                 {"optimizations", counters.optimizations},
                 {"optimizations_failed", counters.optimizations_failed},
                 {"resets", counters.resets}};
-  for (const auto& value : values) status.values.push_back(entry(value.key, std::to_string(value.value)));
+  for (const auto& value : values)
+    status.values.push_back(entry(value.key, std::to_string(value.value)));
   add_timing(&status, "tsdf", timings.tsdf);
   add_timing(&status, "esdf", timings.esdf);
   add_timing(&status, "mesh", timings.mesh);
@@ -252,10 +264,12 @@ void SlamNode::publish_diagnostics(const ros::WallTimerEvent&) {
   add_timing(&status, "submap_queue_wait", timings.submap_queue_wait);
 
   // WARN while inputs are being dropped (since the previous report), OK otherwise.
-  const int64_t dropped_total = node_drops + counters.scans_dropped_total() + counters.submaps_dropped_queue_full;
+  const int64_t dropped_total =
+      node_drops + counters.scans_dropped_total() + counters.submaps_dropped_queue_full;
   if (dropped_total > last_dropped_total_) {
     status.level = diagnostic_msgs::DiagnosticStatus::WARN;
-    status.message = std::to_string(dropped_total - last_dropped_total_) + " inputs dropped since the last report";
+    status.message = std::to_string(dropped_total - last_dropped_total_) +
+                     " inputs dropped since the last report";
   } else {
     status.level = diagnostic_msgs::DiagnosticStatus::OK;
     status.message = "mapping";

@@ -37,7 +37,8 @@ std::string require_path(const std::string& path) {
 
 }  // namespace
 
-bool SlamNode::save_map(covoxslam::FilePath::Request& request, covoxslam::FilePath::Response& response) {
+bool SlamNode::save_map(covoxslam::FilePath::Request& request,
+                        covoxslam::FilePath::Response& response) {
   return answer("save_map", response, [&] {
     const std::string path = require_path(request.file_path);
     io::MapFileContents contents;
@@ -54,25 +55,30 @@ bool SlamNode::save_map(covoxslam::FilePath::Request& request, covoxslam::FilePa
       contents.submaps.push_back(std::move(record));
     }
     io::save_map_file(path, contents);
-    return "saved " + std::to_string(contents.submaps.size()) + " submaps (" + std::to_string(blocks) +
-           " blocks) to " + path;
+    return "saved " + std::to_string(contents.submaps.size()) + " submaps (" +
+           std::to_string(blocks) + " blocks) to " + path;
   });
 }
 
-bool SlamNode::load_map(covoxslam::FilePath::Request& request, covoxslam::FilePath::Response& response) {
+bool SlamNode::load_map(covoxslam::FilePath::Request& request,
+                        covoxslam::FilePath::Response& response) {
   return answer("load_map", response, [&] {
     const std::string path = require_path(request.file_path);
     io::MapFileContents contents = io::load_map_file(path);
     if (contents.voxel_size_m != slam_->config().map.voxel_size_m ||
         contents.voxels_per_side != slam_->config().map.voxels_per_side) {
-      throw Error("the map in " + path + " has voxel size " + std::to_string(contents.voxel_size_m) + " m and " +
-                  std::to_string(contents.voxels_per_side) + " voxels per side, the running system " +
+      throw Error("the map in " + path + " has voxel size " +
+                  std::to_string(contents.voxel_size_m) + " m and " +
+                  std::to_string(contents.voxels_per_side) +
+                  " voxels per side, the running system " +
                   std::to_string(slam_->config().map.voxel_size_m) + " m and " +
-                  std::to_string(slam_->config().map.voxels_per_side) + " (set voxel_size_m / voxels_per_side)");
+                  std::to_string(slam_->config().map.voxels_per_side) +
+                  " (set voxel_size_m / voxels_per_side)");
     }
     std::vector<pipeline::SubmapSnapshot> submaps;
     for (io::SubmapRecord& record : contents.submaps) {
-      submaps.push_back(pipeline::SubmapSnapshot{record.id, record.T_world_submap, std::move(record.blocks)});
+      submaps.push_back(
+          pipeline::SubmapSnapshot{record.id, record.T_world_submap, std::move(record.blocks)});
     }
     const size_t count = submaps.size();
     {
@@ -87,7 +93,8 @@ bool SlamNode::load_map(covoxslam::FilePath::Request& request, covoxslam::FilePa
   });
 }
 
-bool SlamNode::save_trajectory(covoxslam::FilePath::Request& request, covoxslam::FilePath::Response& response) {
+bool SlamNode::save_trajectory(covoxslam::FilePath::Request& request,
+                               covoxslam::FilePath::Response& response) {
   return answer("save_trajectory", response, [&] {
     const std::string path = require_path(request.file_path);
     io::Trajectory trajectory;
@@ -103,7 +110,8 @@ bool SlamNode::save_trajectory(covoxslam::FilePath::Request& request, covoxslam:
   });
 }
 
-bool SlamNode::save_mesh(covoxslam::FilePath::Request& request, covoxslam::FilePath::Response& response) {
+bool SlamNode::save_mesh(covoxslam::FilePath::Request& request,
+                         covoxslam::FilePath::Response& response) {
   return answer("save_mesh", response, [&] {
     const std::string path = require_path(request.file_path);
     const Mesh mesh = slam_->combined_mesh();
@@ -131,12 +139,14 @@ bool SlamNode::finish_map(std_srvs::Trigger::Request&, std_srvs::Trigger::Respon
     publish_map(true);
     const pipeline::SlamCounters counters = slam_->counters();
     return "finished: " + std::to_string(counters.scans_integrated) + " scans in " +
-           std::to_string(slam_->submaps().size()) + " submaps, " + std::to_string(counters.optimizations) +
+           std::to_string(slam_->submaps().size()) + " submaps, " +
+           std::to_string(counters.optimizations) +
            " optimisations; later clouds are refused until reset";
   });
 }
 
-bool SlamNode::optimize_pose_graph(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& response) {
+bool SlamNode::optimize_pose_graph(std_srvs::Trigger::Request&,
+                                   std_srvs::Trigger::Response& response) {
   return answer("optimize_pose_graph", response, [&] {
     slam_->request_optimization();
     return std::string("optimisation requested");

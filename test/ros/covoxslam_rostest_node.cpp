@@ -54,8 +54,8 @@ namespace fs = std::filesystem;
 // An axis-aligned room (the sensor is inside) and a pillar (the sensor is outside).
 const Eigen::Vector3d kRoomMin(-6.0, -5.0, 0.0), kRoomMax(6.0, 5.0, 3.0);
 const Eigen::Vector3d kPillarMin(1.0, 1.0, 0.0), kPillarMax(2.0, 2.0, 3.0);
-constexpr double kStart_s = 100.0;     // bag time of the first message
-constexpr int kClouds = 12;            // valid clouds, at 2 Hz
+constexpr double kStart_s = 100.0;  // bag time of the first message
+constexpr int kClouds = 12;         // valid clouds, at 2 Hz
 constexpr double kCloudPeriod_s = 0.5;
 constexpr int kRings = 24, kColumns = 240;
 
@@ -78,8 +78,10 @@ Eigen::Isometry3d base_to_lidar() {
 double cast_ray(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction) {
   double t_room = std::numeric_limits<double>::infinity();
   for (int axis = 0; axis < 3; ++axis) {
-    if (direction[axis] > 1e-12) t_room = std::min(t_room, (kRoomMax[axis] - origin[axis]) / direction[axis]);
-    if (direction[axis] < -1e-12) t_room = std::min(t_room, (kRoomMin[axis] - origin[axis]) / direction[axis]);
+    if (direction[axis] > 1e-12)
+      t_room = std::min(t_room, (kRoomMax[axis] - origin[axis]) / direction[axis]);
+    if (direction[axis] < -1e-12)
+      t_room = std::min(t_room, (kRoomMin[axis] - origin[axis]) / direction[axis]);
   }
   double t_enter = 0.0, t_exit = std::numeric_limits<double>::infinity();
   for (int axis = 0; axis < 3; ++axis) {
@@ -100,8 +102,10 @@ double cast_ray(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction)
 // Distance from a point inside the room (outside the pillar) to the nearest surface.
 double scene_distance(const Eigen::Vector3d& p) {
   double d = std::numeric_limits<double>::infinity();
-  for (int axis = 0; axis < 3; ++axis) d = std::min({d, p[axis] - kRoomMin[axis], kRoomMax[axis] - p[axis]});
-  const Eigen::Vector3d outside = (kPillarMin - p).cwiseMax(p - kPillarMax).cwiseMax(Eigen::Vector3d::Zero());
+  for (int axis = 0; axis < 3; ++axis)
+    d = std::min({d, p[axis] - kRoomMin[axis], kRoomMax[axis] - p[axis]});
+  const Eigen::Vector3d outside =
+      (kPillarMin - p).cwiseMax(p - kPillarMax).cwiseMax(Eigen::Vector3d::Zero());
   return std::min(d, outside.norm());
 }
 
@@ -120,8 +124,10 @@ sensor_msgs::PointCloud2 make_cloud(double t_s, const std::string& frame, bool d
     const char* name;
     uint32_t offset;
     uint8_t type;
-  } fields[] = {{"intensity", 0, sensor_msgs::PointField::FLOAT32}, {"z", 4, sensor_msgs::PointField::FLOAT32},
-                {"y", 8, sensor_msgs::PointField::FLOAT32},         {"x", 12, sensor_msgs::PointField::FLOAT32},
+  } fields[] = {{"intensity", 0, sensor_msgs::PointField::FLOAT32},
+                {"z", 4, sensor_msgs::PointField::FLOAT32},
+                {"y", 8, sensor_msgs::PointField::FLOAT32},
+                {"x", 12, sensor_msgs::PointField::FLOAT32},
                 {"ring", 16, sensor_msgs::PointField::UINT16}};
   for (const auto& f : fields) {
     if (drop_z_field && std::string(f.name) == "z") continue;
@@ -139,15 +145,18 @@ sensor_msgs::PointCloud2 make_cloud(double t_s, const std::string& frame, bool d
     for (int column = 0; column < kColumns; ++column) {
       const double azimuth = 2.0 * M_PI * column / kColumns;
       const Eigen::Vector3d direction_lidar(std::cos(elevation) * std::cos(azimuth),
-                                            std::cos(elevation) * std::sin(azimuth), std::sin(elevation));
+                                            std::cos(elevation) * std::sin(azimuth),
+                                            std::sin(elevation));
       const Eigen::Vector3d direction_world = T_world_lidar.linear() * direction_lidar;
       const double range = cast_ray(T_world_lidar.translation(), direction_world);
       Eigen::Vector3f point = (range * direction_lidar).cast<float>();
       // Every 37th return is missing, as NaN (what organised drivers publish).
-      if ((ring * kColumns + column) % 37 == 0) point.setConstant(std::numeric_limits<float>::quiet_NaN());
+      if ((ring * kColumns + column) % 37 == 0)
+        point.setConstant(std::numeric_limits<float>::quiet_NaN());
       const float intensity = static_cast<float>(20.0 * range);
       const uint16_t ring_index = static_cast<uint16_t>(ring);
-      uint8_t* at = cloud.data.data() + static_cast<size_t>(ring) * cloud.row_step + column * cloud.point_step;
+      uint8_t* at = cloud.data.data() + static_cast<size_t>(ring) * cloud.row_step +
+                    column * cloud.point_step;
       std::memcpy(at + 0, &intensity, 4);
       std::memcpy(at + 4, &point.z(), 4);
       std::memcpy(at + 8, &point.y(), 4);
@@ -199,7 +208,8 @@ void make_depth_images(double t_s, sensor_msgs::Image* depth, sensor_msgs::Image
   color->data.assign(color->step * kDepthHeight, 0);
   for (int v = 0; v < kDepthHeight; ++v) {
     for (int u = 0; u < kDepthWidth; ++u) {
-      const Eigen::Vector3d ray((u - kDepthWidth / 2.0) / kFocal_px, (v - kDepthHeight / 2.0) / kFocal_px, 1.0);
+      const Eigen::Vector3d ray((u - kDepthWidth / 2.0) / kFocal_px,
+                                (v - kDepthHeight / 2.0) / kFocal_px, 1.0);
       const Eigen::Vector3d direction_world = T_world_camera.linear() * ray.normalized();
       const double range = cast_ray(T_world_camera.translation(), direction_world);
       const double z_m = range * ray.normalized().z();  // depth is along the optical axis
@@ -286,8 +296,10 @@ void write_bag(const std::string& path) {
       continue;
     }
     bag.write("/synthetic/points", ros::Time(t), make_cloud(t, "lidar", false));
-    if (k == 3) bag.write("/synthetic/points", ros::Time(t + 0.2), make_cloud(t + 0.2, "lidar", true));
-    if (k == 6) bag.write("/synthetic/points", ros::Time(t + 0.2), make_cloud(t + 0.2, "nowhere", false));
+    if (k == 3)
+      bag.write("/synthetic/points", ros::Time(t + 0.2), make_cloud(t + 0.2, "lidar", true));
+    if (k == 6)
+      bag.write("/synthetic/points", ros::Time(t + 0.2), make_cloud(t + 0.2, "nowhere", false));
   }
   bag.close();
 }
@@ -304,7 +316,8 @@ struct Latest {
   sensor_msgs::PointCloud2 active_esdf_slice;
   std::map<int, visualization_msgs::Marker> boxes;
   std::map<std::string, std::string> diagnostics;
-  int path_messages = 0, submap_messages = 0, mesh_messages = 0, slice_messages = 0, diagnostics_messages = 0;
+  int path_messages = 0, submap_messages = 0, mesh_messages = 0, slice_messages = 0,
+      diagnostics_messages = 0;
 };
 
 Latest latest;
@@ -356,7 +369,8 @@ bool call_file(const std::string& name, const std::string& path, std::string* me
 int compare_slice_with_room(const sensor_msgs::PointCloud2& slice, int* good) {
   *good = 0;
   if (slice.point_step != 16u || slice.fields.size() != 4u || slice.fields[3].name != "intensity") {
-    ADD_FAILURE() << "slice layout: point step " << slice.point_step << ", " << slice.fields.size() << " fields";
+    ADD_FAILURE() << "slice layout: point step " << slice.point_step << ", " << slice.fields.size()
+                  << " fields";
     return 0;
   }
   int checked = 0;
@@ -365,8 +379,10 @@ int compare_slice_with_room(const sensor_msgs::PointCloud2& slice, int* good) {
     std::memcpy(v, slice.data.data() + 16 * i, 16);
     EXPECT_NEAR(v[2], 1.0, 1e-4);
     const Eigen::Vector3d p(v[0], v[1], v[2]);
-    const bool inside_room = (p.array() > kRoomMin.array()).all() && (p.array() < kRoomMax.array()).all();
-    const bool in_pillar = (p.array() > kPillarMin.array()).all() && (p.array() < kPillarMax.array()).all();
+    const bool inside_room =
+        (p.array() > kRoomMin.array()).all() && (p.array() < kRoomMax.array()).all();
+    const bool in_pillar =
+        (p.array() > kPillarMin.array()).all() && (p.array() < kPillarMax.array()).all();
     if (!inside_room || in_pillar) continue;
     const double truth = std::min(scene_distance(p), 2.0);  // esdf_max_distance_m
     // A depth camera sees a wedge: far from a wall, the nearest true surface may be one it
@@ -409,8 +425,10 @@ TEST_F(CovoxSlamNodeletTest, MapsABagAndServesTheMap) {
     std::lock_guard<std::mutex> lock(latest.mutex);
     for (const auto& marker : m->markers) {
       if (marker.action == visualization_msgs::Marker::DELETEALL) latest.separated_meshes.clear();
-      if (marker.action == visualization_msgs::Marker::DELETE) latest.separated_meshes.erase(marker.id);
-      if (marker.action == visualization_msgs::Marker::ADD) latest.separated_meshes[marker.id] = marker;
+      if (marker.action == visualization_msgs::Marker::DELETE)
+        latest.separated_meshes.erase(marker.id);
+      if (marker.action == visualization_msgs::Marker::ADD)
+        latest.separated_meshes[marker.id] = marker;
     }
   };
   auto on_slice = [](const sensor_msgs::PointCloud2::ConstPtr& m) {
@@ -427,15 +445,19 @@ TEST_F(CovoxSlamNodeletTest, MapsABagAndServesTheMap) {
   };
   ros::Subscriber s1 = node.subscribe<nav_msgs::Path>(ns("pose_history"), 5, +on_path);
   ros::Subscriber s2 = node.subscribe<covoxslam::SubmapPoses>(ns("submap_poses"), 5, +on_submaps);
-  ros::Subscriber s3 = node.subscribe<visualization_msgs::Marker>(ns("combined_mesh"), 5, +on_combined);
-  ros::Subscriber s4 = node.subscribe<visualization_msgs::MarkerArray>(ns("separated_mesh"), 50, +on_separated);
+  ros::Subscriber s3 =
+      node.subscribe<visualization_msgs::Marker>(ns("combined_mesh"), 5, +on_combined);
+  ros::Subscriber s4 =
+      node.subscribe<visualization_msgs::MarkerArray>(ns("separated_mesh"), 50, +on_separated);
   ros::Subscriber s5 = node.subscribe<sensor_msgs::PointCloud2>(ns("esdf_slice"), 5, +on_slice);
-  ros::Subscriber s6 = node.subscribe<diagnostic_msgs::DiagnosticArray>(ns("diagnostics"), 5, +on_diagnostics);
+  ros::Subscriber s6 =
+      node.subscribe<diagnostic_msgs::DiagnosticArray>(ns("diagnostics"), 5, +on_diagnostics);
   auto on_active_slice = [](const sensor_msgs::PointCloud2::ConstPtr& m) {
     std::lock_guard<std::mutex> lock(latest.mutex);
     latest.active_esdf_slice = *m;
   };
-  ros::Subscriber s7 = node.subscribe<sensor_msgs::PointCloud2>(ns("active_submap_esdf_slice"), 5, +on_active_slice);
+  ros::Subscriber s7 =
+      node.subscribe<sensor_msgs::PointCloud2>(ns("active_submap_esdf_slice"), 5, +on_active_slice);
   auto on_boxes = [](const visualization_msgs::MarkerArray::ConstPtr& m) {
     std::lock_guard<std::mutex> lock(latest.mutex);
     for (const auto& marker : m->markers) {
@@ -443,7 +465,8 @@ TEST_F(CovoxSlamNodeletTest, MapsABagAndServesTheMap) {
       if (marker.action == visualization_msgs::Marker::ADD) latest.boxes[marker.id] = marker;
     }
   };
-  ros::Subscriber s8 = node.subscribe<visualization_msgs::MarkerArray>(ns("submap_bounding_boxes"), 5, +on_boxes);
+  ros::Subscriber s8 =
+      node.subscribe<visualization_msgs::MarkerArray>(ns("submap_bounding_boxes"), 5, +on_boxes);
   tf2_ros::Buffer tf_buffer;
   tf2_ros::TransformListener tf_listener(tf_buffer);
 
@@ -453,7 +476,8 @@ TEST_F(CovoxSlamNodeletTest, MapsABagAndServesTheMap) {
   // Play the bag into the nodelet. -d: wait after advertising so the nodelet is connected.
   const std::string bag_path = (folder_ / "synthetic.bag").string();
   write_bag(bag_path);
-  const std::string play = "rosbag play --clock -q -d 2 " + bag_path + " > " + (folder_ / "play.log").string() + " 2>&1";
+  const std::string play =
+      "rosbag play --clock -q -d 2 " + bag_path + " > " + (folder_ / "play.log").string() + " 2>&1";
   const int play_status = std::system(play.c_str());
   std::string play_log;
   {
@@ -465,24 +489,32 @@ TEST_F(CovoxSlamNodeletTest, MapsABagAndServesTheMap) {
   // The bad clouds are counted: one without z, one in a frame tf does not know (after the
   // tf wait timeout). Every valid cloud reached the SLAM system.
   const int64_t bad_clouds = depth_images() ? 0 : 1;
-  EXPECT_TRUE(wait_for([&] { return diagnostic_value("clouds_dropped_bad_layout") == bad_clouds &&
-                                   diagnostic_value("clouds_dropped_unknown_frame") == bad_clouds &&
-                                   diagnostic_value("images_dropped_bad") == 0 &&
-                                   diagnostic_value("scans_added") == kClouds; }, 20.0))
-      << "rosbag play said: " << play_log << "\nclouds received " << diagnostic_value("clouds_received")
-      << ", bad layout " << diagnostic_value("clouds_dropped_bad_layout") << ", unknown frame "
-      << diagnostic_value("clouds_dropped_unknown_frame") << ", scans added " << diagnostic_value("scans_added");
+  EXPECT_TRUE(wait_for(
+      [&] {
+        return diagnostic_value("clouds_dropped_bad_layout") == bad_clouds &&
+               diagnostic_value("clouds_dropped_unknown_frame") == bad_clouds &&
+               diagnostic_value("images_dropped_bad") == 0 &&
+               diagnostic_value("scans_added") == kClouds;
+      },
+      20.0))
+      << "rosbag play said: " << play_log << "\nclouds received "
+      << diagnostic_value("clouds_received") << ", bad layout "
+      << diagnostic_value("clouds_dropped_bad_layout") << ", unknown frame "
+      << diagnostic_value("clouds_dropped_unknown_frame") << ", scans added "
+      << diagnostic_value("scans_added");
 
   // A loop closure between scans of the first and the last submap, with the true relative
   // sensor pose: it waits for its submaps and enters the pose graph.
   {
-    ros::Publisher loop_closures = node.advertise<covoxslam::LoopClosure>("/loop_closure_input", 1, true);
-    const double from_s = kStart_s + 0.1 + kCloudPeriod_s * 1, to_s = kStart_s + 0.1 + kCloudPeriod_s * 10;
+    ros::Publisher loop_closures =
+        node.advertise<covoxslam::LoopClosure>("/loop_closure_input", 1, true);
+    const double from_s = kStart_s + 0.1 + kCloudPeriod_s * 1,
+                 to_s = kStart_s + 0.1 + kCloudPeriod_s * 10;
     covoxslam::LoopClosure closure;
     closure.from_timestamp.fromSec(from_s);
     closure.to_timestamp.fromSec(to_s);
-    const Eigen::Isometry3d T_from_to =
-        (base_pose_at(from_s) * base_to_sensor()).inverse() * (base_pose_at(to_s) * base_to_sensor());
+    const Eigen::Isometry3d T_from_to = (base_pose_at(from_s) * base_to_sensor()).inverse() *
+                                        (base_pose_at(to_s) * base_to_sensor());
     closure.transform = tf2::eigenToTransform(T_from_to).transform;
     for (int i = 0; i < 6; ++i) closure.information[7 * i] = 100.0;
     loop_closures.publish(closure);
@@ -499,7 +531,8 @@ TEST_F(CovoxSlamNodeletTest, MapsABagAndServesTheMap) {
     int good = 0;
     const int checked = compare_slice_with_room(latest.active_esdf_slice, &good);
     EXPECT_GT(checked, depth_images() ? 10 : 30);
-    EXPECT_GT(good, 0.9 * checked) << good << " of " << checked << " active slice distances within 0.3 m";
+    EXPECT_GT(good, 0.9 * checked)
+        << good << " of " << checked << " active slice distances within 0.3 m";
   }
 
   std::string message;
@@ -545,7 +578,8 @@ TEST_F(CovoxSlamNodeletTest, MapsABagAndServesTheMap) {
   {
     std::lock_guard<std::mutex> lock(latest.mutex);
     for (const auto& submap : latest.submaps.submaps) {
-      ASSERT_TRUE(latest.boxes.count(static_cast<int>(submap.id))) << "no box for submap " << submap.id;
+      ASSERT_TRUE(latest.boxes.count(static_cast<int>(submap.id)))
+          << "no box for submap " << submap.id;
       const visualization_msgs::Marker& box = latest.boxes[static_cast<int>(submap.id)];
       EXPECT_EQ(box.type, visualization_msgs::Marker::LINE_LIST);
       ASSERT_EQ(box.points.size(), 24u);
@@ -555,8 +589,10 @@ TEST_F(CovoxSlamNodeletTest, MapsABagAndServesTheMap) {
         hi = hi.cwiseMax(Eigen::Vector3d(p.x, p.y, p.z));
       }
       // The submap's first sensor pose sees its own surroundings: its origin lies in its box.
-      const Eigen::Vector3d origin(submap.pose.position.x, submap.pose.position.y, submap.pose.position.z);
-      EXPECT_TRUE((origin.array() >= lo.array() - 1e-6).all() && (origin.array() <= hi.array() + 1e-6).all())
+      const Eigen::Vector3d origin(submap.pose.position.x, submap.pose.position.y,
+                                   submap.pose.position.z);
+      EXPECT_TRUE((origin.array() >= lo.array() - 1e-6).all() &&
+                  (origin.array() <= hi.array() + 1e-6).all())
           << "submap " << submap.id << " origin outside its box";
     }
   }
@@ -570,13 +606,17 @@ TEST_F(CovoxSlamNodeletTest, MapsABagAndServesTheMap) {
     for (const auto& marker : latest.separated_meshes) points += marker.second.points.size();
     return points;
   };
-  if (!wait_for([&] { return !latest.combined_mesh.points.empty() &&
-                             latest.separated_meshes.size() == submap_count &&
-                             separated_points_now() == latest.combined_mesh.points.size(); }, 10.0)) {
+  if (!wait_for(
+          [&] {
+            return !latest.combined_mesh.points.empty() &&
+                   latest.separated_meshes.size() == submap_count &&
+                   separated_points_now() == latest.combined_mesh.points.size();
+          },
+          10.0)) {
     std::lock_guard<std::mutex> lock(latest.mutex);
-    FAIL() << "no consistent meshes: combined " << latest.combined_mesh.points.size() << " points, separated "
-           << separated_points_now() << " points in " << latest.separated_meshes.size() << " markers for "
-           << submap_count << " submaps";
+    FAIL() << "no consistent meshes: combined " << latest.combined_mesh.points.size()
+           << " points, separated " << separated_points_now() << " points in "
+           << latest.separated_meshes.size() << " markers for " << submap_count << " submaps";
   }
   {
     std::lock_guard<std::mutex> lock(latest.mutex);
@@ -589,7 +629,8 @@ TEST_F(CovoxSlamNodeletTest, MapsABagAndServesTheMap) {
       // Negative outside the room: a vertex just behind a wall is still on it.
       if (std::abs(scene_distance(Eigen::Vector3d(p.x, p.y, p.z))) > 0.25) ++far;
     }
-    EXPECT_LT(far, static_cast<int>(latest.combined_mesh.points.size() / 20)) << far << " vertices off the surfaces";
+    EXPECT_LT(far, static_cast<int>(latest.combined_mesh.points.size() / 20))
+        << far << " vertices off the surfaces";
   }
 
   // ESDF slice at 1.0 m: distances match the room's analytic distance where both are well inside.
@@ -599,12 +640,14 @@ TEST_F(CovoxSlamNodeletTest, MapsABagAndServesTheMap) {
     int good = 0;
     const int checked = compare_slice_with_room(latest.esdf_slice, &good);
     EXPECT_GT(checked, depth_images() ? 30 : 100);
-    EXPECT_GT(good, 0.9 * checked) << good << " of " << checked << " slice distances within 0.3 m of the truth";
+    EXPECT_GT(good, 0.9 * checked)
+        << good << " of " << checked << " slice distances within 0.3 m of the truth";
   }
 
   // tf: mission -> odom is published (near identity: the odometry here is exact).
   geometry_msgs::TransformStamped correction;
-  ASSERT_NO_THROW(correction = tf_buffer.lookupTransform("mission", "odom", ros::Time(0), ros::Duration(5.0)));
+  ASSERT_NO_THROW(
+      correction = tf_buffer.lookupTransform("mission", "odom", ros::Time(0), ros::Duration(5.0)));
   EXPECT_NEAR(correction.transform.translation.x, 0.0, 0.3);
   EXPECT_NEAR(correction.transform.translation.y, 0.0, 0.3);
 
@@ -639,7 +682,8 @@ TEST_F(CovoxSlamNodeletTest, MapsABagAndServesTheMap) {
 
   // Reset empties the map; loading the saved map brings the submaps and their meshes back.
   ASSERT_TRUE(call_trigger("reset", &message)) << message;
-  EXPECT_TRUE(wait_for([] { return latest.submaps.submaps.empty() && latest.separated_meshes.empty(); }, 10.0));
+  EXPECT_TRUE(wait_for(
+      [] { return latest.submaps.submaps.empty() && latest.separated_meshes.empty(); }, 10.0));
   ASSERT_TRUE(call_file("load_map", map_path, &message)) << message;
   EXPECT_TRUE(wait_for([&] { return latest.submaps.submaps.size() == submap_count; }, 10.0))
       << latest.submaps.submaps.size() << " submaps after loading, " << submap_count << " saved";
@@ -667,7 +711,8 @@ std::string run_and_capture(const std::string& command, int* status) {
 }
 
 TEST(CovoxSlamNodeStartup, BadParametersStopTheNodeWithTheirName) {
-  if (odometry_as_topic() || depth_images()) GTEST_SKIP() << "checked once, in covoxslam_nodelet.test";
+  if (odometry_as_topic() || depth_images())
+    GTEST_SKIP() << "checked once, in covoxslam_nodelet.test";
   const struct {
     const char* argument;
     const char* name;
@@ -680,9 +725,10 @@ TEST(CovoxSlamNodeStartup, BadParametersStopTheNodeWithTheirName) {
   for (const auto& bad : cases) {
     int status = 0;
     // A fresh node name each time, so the parameters do not mix.
-    const std::string output = run_and_capture(std::string(COVOXSLAM_NODE_PATH) + " __name:=bad_parameters_" +
-                                                   std::to_string(index++) + " " + bad.argument,
-                                               &status);
+    const std::string output =
+        run_and_capture(std::string(COVOXSLAM_NODE_PATH) + " __name:=bad_parameters_" +
+                            std::to_string(index++) + " " + bad.argument,
+                        &status);
     EXPECT_NE(status, 0) << bad.argument << ": the node did not fail:\n" << output;
     EXPECT_NE(output.find(std::string("parameter")), std::string::npos) << output;
     EXPECT_NE(output.find(bad.name), std::string::npos) << bad.argument << ":\n" << output;

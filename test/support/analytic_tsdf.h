@@ -17,7 +17,8 @@ namespace testing_support {
 
 // Allocates every block overlapping [min, max] (metres) and sets each voxel's distance to
 // sdf(centre) (clamped to +-truncation), weight 1 and colour by position.
-inline void fill_tsdf(TsdfMap& map, const Eigen::Vector3d& min, const Eigen::Vector3d& max, float truncation_m,
+inline void fill_tsdf(TsdfMap& map, const Eigen::Vector3d& min, const Eigen::Vector3d& max,
+                      float truncation_m,
                       const std::function<double(const Eigen::Vector3d&)>& sdf) {
   const double block = map.block_size_m();
   std::vector<Index3D> blocks;

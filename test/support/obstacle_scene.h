@@ -29,20 +29,25 @@ struct ObstacleScene {
   static ObstacleScene random(uint32_t seed, int spheres, int boxes) {
     ObstacleScene scene;
     std::mt19937 random(seed);
-    std::uniform_real_distribution<double> x(-2.2, 2.2), y(-1.8, 1.8), z(-1.0, 1.0), size(0.15, 0.45);
-    for (int i = 0; i < spheres; ++i) scene.spheres.push_back({{x(random), y(random), z(random)}, size(random)});
+    std::uniform_real_distribution<double> x(-2.2, 2.2), y(-1.8, 1.8), z(-1.0, 1.0),
+        size(0.15, 0.45);
+    for (int i = 0; i < spheres; ++i)
+      scene.spheres.push_back({{x(random), y(random), z(random)}, size(random)});
     for (int i = 0; i < boxes; ++i) {
-      scene.boxes.push_back({{x(random), y(random), z(random)}, {size(random), size(random), size(random)}});
+      scene.boxes.push_back(
+          {{x(random), y(random), z(random)}, {size(random), size(random), size(random)}});
     }
     return scene;
   }
 
   // Ray entry distance into a solid box (slab method), or infinity.
   static double enter_box(const Box& box, const Eigen::Vector3d& o, const Eigen::Vector3d& d) {
-    double t_near = -std::numeric_limits<double>::infinity(), t_far = std::numeric_limits<double>::infinity();
+    double t_near = -std::numeric_limits<double>::infinity(),
+           t_far = std::numeric_limits<double>::infinity();
     for (int a = 0; a < 3; ++a) {
       if (std::abs(d[a]) < 1e-12) {
-        if (std::abs(o[a] - box.center[a]) > box.half_extent[a]) return std::numeric_limits<double>::infinity();
+        if (std::abs(o[a] - box.center[a]) > box.half_extent[a])
+          return std::numeric_limits<double>::infinity();
         continue;
       }
       double t1 = (box.center[a] - box.half_extent[a] - o[a]) / d[a];
@@ -86,8 +91,8 @@ struct ObstacleScene {
       const double elevation = (-0.5 + (r + 0.5) / rows) * pi * 0.9;
       for (int c = 0; c < columns; ++c) {
         const double azimuth = 2.0 * pi * c / columns;
-        const Eigen::Vector3d ds(std::cos(elevation) * std::cos(azimuth), std::cos(elevation) * std::sin(azimuth),
-                                 std::sin(elevation));
+        const Eigen::Vector3d ds(std::cos(elevation) * std::cos(azimuth),
+                                 std::cos(elevation) * std::sin(azimuth), std::sin(elevation));
         const double t = intersect(T_world_sensor.translation(), T_world_sensor.linear() * ds);
         if (!std::isfinite(t)) continue;
         const Eigen::Vector3d p = ds * t;

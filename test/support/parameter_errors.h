@@ -12,7 +12,8 @@ namespace covox {
 namespace testing_support {
 
 // Reads `values` into a default SlamConfig and expects a covox::Error whose message names `name`.
-inline void expect_error_names(const std::map<std::string, std::string>& values, const std::string& name) {
+inline void expect_error_names(const std::map<std::string, std::string>& values,
+                               const std::string& name) {
   pipeline::SlamConfig config;
   try {
     pipeline::read_slam_config(pipeline::TextParameterSource(values), &config);

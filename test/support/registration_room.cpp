@@ -22,8 +22,9 @@ AnalyticScene registration_room() {
   return room;
 }
 
-std::unique_ptr<TsdfMap> scan_room_submap(Device device, const AnalyticScene& room, const backend::Pose4Dof& T_W_S,
-                                          float voxel_size_m, float esdf_max_distance_m) {
+std::unique_ptr<TsdfMap> scan_room_submap(Device device, const AnalyticScene& room,
+                                          const backend::Pose4Dof& T_W_S, float voxel_size_m,
+                                          float esdf_max_distance_m) {
   auto map = std::make_unique<TsdfMap>(device, TsdfMapConfig{voxel_size_m, 8, {}});
   TsdfIntegratorConfig tsdf_config;
   tsdf_config.truncation_distance_m = 0.3f;
@@ -38,17 +39,21 @@ std::unique_ptr<TsdfMap> scan_room_submap(Device device, const AnalyticScene& ro
   return map;
 }
 
-ScannedSubmapPair scan_submap_pair(Device device, const AnalyticScene& scene, const backend::Pose4Dof& true_T_Sj_Si,
-                                   float voxel_size_m, float esdf_max_distance_m) {
+ScannedSubmapPair scan_submap_pair(Device device, const AnalyticScene& scene,
+                                   const backend::Pose4Dof& true_T_Sj_Si, float voxel_size_m,
+                                   float esdf_max_distance_m) {
   ScannedSubmapPair pair;
   pair.true_T_Sj_Si = true_T_Sj_Si;
-  pair.map_j = scan_room_submap(device, scene, backend::Pose4Dof{}, voxel_size_m, esdf_max_distance_m);
+  pair.map_j =
+      scan_room_submap(device, scene, backend::Pose4Dof{}, voxel_size_m, esdf_max_distance_m);
   pair.map_i = scan_room_submap(device, scene, true_T_Sj_Si, voxel_size_m, esdf_max_distance_m);
   backend::RegistrationPointsConfig config;
   config.sampling_ratio = 0.25f;
   const Stream stream(device);
-  pair.points_i = std::make_unique<backend::RegistrationPoints>(extract_registration_points(*pair.map_i, config, stream));
-  pair.points_j = std::make_unique<backend::RegistrationPoints>(extract_registration_points(*pair.map_j, config, stream));
+  pair.points_i = std::make_unique<backend::RegistrationPoints>(
+      extract_registration_points(*pair.map_i, config, stream));
+  pair.points_j = std::make_unique<backend::RegistrationPoints>(
+      extract_registration_points(*pair.map_j, config, stream));
   return pair;
 }
 

@@ -6,7 +6,8 @@
 namespace covox {
 namespace testing_support {
 
-backend::PoseGraphSolverOptions tight_solver_options(double pcg_relative_tolerance, int pcg_max_iterations) {
+backend::PoseGraphSolverOptions tight_solver_options(double pcg_relative_tolerance,
+                                                     int pcg_max_iterations) {
   backend::PoseGraphSolverOptions options;
   options.max_iterations = 200;
   options.function_tolerance = 1e-12;
@@ -17,7 +18,9 @@ backend::PoseGraphSolverOptions tight_solver_options(double pcg_relative_toleran
   return options;
 }
 
-double relative_difference(double a, double b) { return std::abs(a - b) / std::max(std::abs(b), 1e-300); }
+double relative_difference(double a, double b) {
+  return std::abs(a - b) / std::max(std::abs(b), 1e-300);
+}
 
 }  // namespace testing_support
 }  // namespace covox

@@ -35,15 +35,15 @@ inline bool require_gpu_or_skip_message(std::string* message) {
 }  // namespace testing_support
 }  // namespace covox
 
-#define COVOX_INSTANTIATE_ON_ALL_DEVICES(Suite)                                         \
-  INSTANTIATE_TEST_SUITE_P(AllDevices, Suite,                                           \
+#define COVOX_INSTANTIATE_ON_ALL_DEVICES(Suite)                                          \
+  INSTANTIATE_TEST_SUITE_P(AllDevices, Suite,                                            \
                            ::testing::Values(covox::Device::kCpu, covox::Device::kCuda), \
                            covox::testing_support::device_test_name)
 
-#define COVOX_SKIP_WITHOUT_GPU()                                                 \
-  do {                                                                           \
-    std::string skip_message;                                                    \
-    if (!covox::testing_support::require_gpu_or_skip_message(&skip_message)) {   \
-      GTEST_SKIP() << skip_message;                                              \
-    }                                                                            \
+#define COVOX_SKIP_WITHOUT_GPU()                                               \
+  do {                                                                         \
+    std::string skip_message;                                                  \
+    if (!covox::testing_support::require_gpu_or_skip_message(&skip_message)) { \
+      GTEST_SKIP() << skip_message;                                            \
+    }                                                                          \
   } while (0)

@@ -14,7 +14,9 @@ namespace rb = io::rosbag;
 namespace {
 
 // tf2_msgs/TFMessage and the older tf/tfMessage have the same layout and MD5 sum.
-bool is_tf_type(const std::string& type) { return type == "tf2_msgs/TFMessage" || type == "tf/tfMessage"; }
+bool is_tf_type(const std::string& type) {
+  return type == "tf2_msgs/TFMessage" || type == "tf/tfMessage";
+}
 
 std::string topic_list(const rb::BagReader& bag) {
   std::ostringstream list;
@@ -40,7 +42,8 @@ io::Trajectory read_bag_trajectory(rb::BagReader& bag, const std::string& topic)
   if (!positions_only && type != rb::odometry_type().name) {
     throw Error("bag '" + bag.path() + "': trajectory topic '" + topic + "' is " +
                 (type.empty() ? std::string("missing") : "a " + type) +
-                "; geometry_msgs/PointStamped or nav_msgs/Odometry expected. Its topics:" + topic_list(bag));
+                "; geometry_msgs/PointStamped or nav_msgs/Odometry expected. Its topics:" +
+                topic_list(bag));
   }
   io::Trajectory trajectory;
   trajectory.has_orientations = !positions_only;
@@ -49,17 +52,20 @@ io::Trajectory read_bag_trajectory(rb::BagReader& bag, const std::string& topic)
     const rb::BagMessage message = bag.read(entry);
     io::StampedPose pose;
     if (positions_only) {
-      const rb::PointStampedMessage fix = rb::parse_point_stamped(message.data.data(), message.data.size(), what);
+      const rb::PointStampedMessage fix =
+          rb::parse_point_stamped(message.data.data(), message.data.size(), what);
       pose.timestamp_s = fix.header.stamp.to_seconds();
       pose.position_m = fix.point;
     } else {
-      const rb::OdometryMessage odometry = rb::parse_odometry(message.data.data(), message.data.size(), what);
+      const rb::OdometryMessage odometry =
+          rb::parse_odometry(message.data.data(), message.data.size(), what);
       pose.timestamp_s = odometry.header.stamp.to_seconds();
       pose.position_m = odometry.T_parent_child.translation();
       pose.orientation = Eigen::Quaterniond(odometry.T_parent_child.linear());
     }
     // Evaluation needs strictly increasing stamps: a repeated or out-of-order pose is left out.
-    if (!trajectory.poses.empty() && pose.timestamp_s <= trajectory.poses.back().timestamp_s) continue;
+    if (!trajectory.poses.empty() && pose.timestamp_s <= trajectory.poses.back().timestamp_s)
+      continue;
     if (!pose.position_m.allFinite()) continue;
     trajectory.poses.push_back(pose);
   }
@@ -70,8 +76,8 @@ BagScanSource::BagScanSource(const std::string& path, const BagScanOptions& opti
     : path_(path), options_(options), bag_(path) {
   const std::string cloud_type = topic_type(bag_, options_.cloud_topic);
   if (cloud_type.empty()) {
-    throw Error("bag '" + path + "' has no topic '" + options_.cloud_topic + "' (--cloud-topic); its topics:" +
-                topic_list(bag_));
+    throw Error("bag '" + path + "' has no topic '" + options_.cloud_topic +
+                "' (--cloud-topic); its topics:" + topic_list(bag_));
   }
   if (cloud_type != rb::point_cloud2_type().name) {
     throw Error("bag '" + path + "': topic '" + options_.cloud_topic + "' is a " + cloud_type +
@@ -82,8 +88,9 @@ BagScanSource::BagScanSource(const std::string& path, const BagScanOptions& opti
     const rb::BagMessage message = bag_.read(entry);
     if (!is_tf_type(message.connection->type)) continue;
     const bool is_static = message.connection->topic == "/tf_static";
-    const rb::TfMessage tf = rb::parse_tf_message(message.data.data(), message.data.size(),
-                                                  "bag '" + path + "' " + message.connection->topic);
+    const rb::TfMessage tf =
+        rb::parse_tf_message(message.data.data(), message.data.size(),
+                             "bag '" + path + "' " + message.connection->topic);
     for (const rb::TransformStamped& transform : tf.transforms) tf_.add(transform, is_static);
   }
 
@@ -91,13 +98,14 @@ BagScanSource::BagScanSource(const std::string& path, const BagScanOptions& opti
     const std::string type = topic_type(bag_, options_.odometry_topic);
     if (type != rb::odometry_type().name) {
       throw Error("bag '" + path + "': odometry topic '" + options_.odometry_topic + "' is " +
-                  (type.empty() ? std::string("missing") : "a " + type) + ", expected nav_msgs/Odometry; its topics:" +
-                  topic_list(bag_));
+                  (type.empty() ? std::string("missing") : "a " + type) +
+                  ", expected nav_msgs/Odometry; its topics:" + topic_list(bag_));
     }
     for (const rb::IndexEntry& entry : bag_.index({options_.odometry_topic})) {
       const rb::BagMessage message = bag_.read(entry);
-      const rb::OdometryMessage odometry = rb::parse_odometry(message.data.data(), message.data.size(),
-                                                              "bag '" + path + "' " + options_.odometry_topic);
+      const rb::OdometryMessage odometry =
+          rb::parse_odometry(message.data.data(), message.data.size(),
+                             "bag '" + path + "' " + options_.odometry_topic);
       tf_.add(odometry.header.frame_id, odometry.child_frame_id, odometry.header.stamp.to_seconds(),
               odometry.T_parent_child, /*is_static=*/false);
     }
@@ -114,11 +122,14 @@ BagScanSource::BagScanSource(const std::string& path, const BagScanOptions& opti
 bool BagScanSource::next(SourceScan* scan) {
   while (next_cloud_ < clouds_.size()) {
     const rb::IndexEntry entry = clouds_[next_cloud_++];
-    const std::string what = "bag '" + path_ + "' " + options_.cloud_topic + " at " + std::to_string(entry.time.to_seconds()) + " s";
+    const std::string what = "bag '" + path_ + "' " + options_.cloud_topic + " at " +
+                             std::to_string(entry.time.to_seconds()) + " s";
     try {
       const rb::BagMessage message = bag_.read(entry);
-      const rb::PointCloud2Message cloud = rb::parse_point_cloud2(message.data.data(), message.data.size(), what);
-      const std::string frame = options_.sensor_frame.empty() ? cloud.header.frame_id : options_.sensor_frame;
+      const rb::PointCloud2Message cloud =
+          rb::parse_point_cloud2(message.data.data(), message.data.size(), what);
+      const std::string frame =
+          options_.sensor_frame.empty() ? cloud.header.frame_id : options_.sensor_frame;
       const double stamp_s = cloud.header.stamp.to_seconds();
       std::string reason;
       Eigen::Isometry3d T_odom_sensor;
@@ -134,7 +145,8 @@ bool BagScanSource::next(SourceScan* scan) {
       scan->colors.clear();
       scan->points_sensor_m.clear();
       scan->points_sensor_m.reserve(points.size());
-      const float min_range_squared = static_cast<float>(options_.min_range_m * options_.min_range_m);
+      const float min_range_squared =
+          static_cast<float>(options_.min_range_m * options_.min_range_m);
       for (const Eigen::Vector3f& p : points.points_m) {
         if (p.squaredNorm() < min_range_squared) continue;
         scan->points_sensor_m.emplace_back(p.x(), p.y(), p.z());
@@ -149,13 +161,16 @@ bool BagScanSource::next(SourceScan* scan) {
 
 std::string BagScanSource::describe() const {
   std::ostringstream text;
-  text << "bag " << path_ << ", " << clouds_.size() << " clouds on " << options_.cloud_topic << ", odometry "
-       << (options_.odometry_topic.empty() ? "tf from '" + options_.odom_frame + "'" : "topic " + options_.odometry_topic)
+  text << "bag " << path_ << ", " << clouds_.size() << " clouds on " << options_.cloud_topic
+       << ", odometry "
+       << (options_.odometry_topic.empty() ? "tf from '" + options_.odom_frame + "'"
+                                           : "topic " + options_.odometry_topic)
        << ", " << tf_.dynamic_sample_count() << " dynamic tf samples";
   if (reference_kind_ != ReferenceKind::kNone) {
     text << ", reference " << options_.reference_topic << " (" << reference_.size() << " poses)";
   }
-  if (dropped_non_finite_points_ > 0) text << ", " << dropped_non_finite_points_ << " non-finite points dropped so far";
+  if (dropped_non_finite_points_ > 0)
+    text << ", " << dropped_non_finite_points_ << " non-finite points dropped so far";
   return text.str();
 }
 

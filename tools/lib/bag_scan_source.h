@@ -23,7 +23,7 @@ namespace tools {
 struct BagScanOptions {
   std::string cloud_topic = "/penguin/os1_cloud_node/points";
   std::string odom_frame = "odom";
-  std::string odometry_topic;  // empty: odometry from tf
+  std::string odometry_topic;                                        // empty: odometry from tf
   std::string reference_topic = "/penguin/piksi_node/enu_pose_fix";  // empty or absent: none
   // The cloud's frame; empty: the frame_id each cloud carries.
   std::string sensor_frame;

@@ -45,7 +45,8 @@ DepthImageView DeviceRgbdFrames::view(size_t i) const {
 
 DeviceScans load_ouster_scans(const std::string& data_directory, Device device) {
   const std::string folder = data_directory + "/lidar-scans/newer_06/";
-  return load_scans({folder + "deskewed_00.bin", folder + "deskewed_01.bin", folder + "deskewed_02.bin"}, device);
+  return load_scans(
+      {folder + "deskewed_00.bin", folder + "deskewed_01.bin", folder + "deskewed_02.bin"}, device);
 }
 
 DeviceScans load_kitti_scans(const std::string& data_directory, Device device) {
@@ -58,8 +59,12 @@ DeviceRgbdFrames load_7scenes_frames(const std::string& data_directory, size_t c
   const io::RgbdFolder folder = io::RgbdFolder::open(data_directory + "/7scenes-redkitchen");
   DeviceRgbdFrames frames;
   const io::CameraIntrinsics& k = folder.intrinsics();
-  frames.intrinsics = PinholeIntrinsics{static_cast<float>(k.fx), static_cast<float>(k.fy), static_cast<float>(k.cx),
-                                        static_cast<float>(k.cy), k.width, k.height};
+  frames.intrinsics = PinholeIntrinsics{static_cast<float>(k.fx),
+                                        static_cast<float>(k.fy),
+                                        static_cast<float>(k.cx),
+                                        static_cast<float>(k.cy),
+                                        k.width,
+                                        k.height};
   io::ReadStats stats;
   for (size_t f = 0; f < std::min(count, folder.size()); ++f) {
     const io::RgbdFrame frame = folder.read_frame(f, &stats, with_color);
@@ -67,11 +72,13 @@ DeviceRgbdFrames load_7scenes_frames(const std::string& data_directory, size_t c
     std::vector<Rgb8> rgb;
     if (with_color && !frame.color.empty()) {
       if (frame.color.width != frame.depth.width || frame.color.height != frame.depth.height) {
-        throw Error("7-Scenes frame " + std::to_string(f) + ": colour and depth images differ in size");
+        throw Error("7-Scenes frame " + std::to_string(f) +
+                    ": colour and depth images differ in size");
       }
       rgb.resize(static_cast<size_t>(frame.color.width) * frame.color.height);
       for (size_t p = 0; p < rgb.size(); ++p) {
-        rgb[p] = Rgb8{frame.color.rgb[3 * p], frame.color.rgb[3 * p + 1], frame.color.rgb[3 * p + 2]};
+        rgb[p] =
+            Rgb8{frame.color.rgb[3 * p], frame.color.rgb[3 * p + 1], frame.color.rgb[3 * p + 2]};
       }
     }
     frames.color.push_back(Buffer<Rgb8>::from_host(device, rgb));

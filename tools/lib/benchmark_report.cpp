@@ -74,13 +74,27 @@ std::string json_string(const std::string& text) {
   out += '"';
   for (unsigned char c : text) {
     switch (c) {
-      case '"': out += "\\\""; break;
-      case '\\': out += "\\\\"; break;
-      case '\b': out += "\\b"; break;
-      case '\f': out += "\\f"; break;
-      case '\n': out += "\\n"; break;
-      case '\r': out += "\\r"; break;
-      case '\t': out += "\\t"; break;
+      case '"':
+        out += "\\\"";
+        break;
+      case '\\':
+        out += "\\\\";
+        break;
+      case '\b':
+        out += "\\b";
+        break;
+      case '\f':
+        out += "\\f";
+        break;
+      case '\n':
+        out += "\\n";
+        break;
+      case '\r':
+        out += "\\r";
+        break;
+      case '\t':
+        out += "\\t";
+        break;
       default:
         if (c < 0x20) {
           char escaped[8];
@@ -162,7 +176,8 @@ void BenchmarkReport::add(const std::string& case_name, const std::string& metri
 
 std::string BenchmarkReport::default_json_path() const {
   if (device_.rfind("cpu", 0) == 0) {
-    return "docs/benchmarks/" + benchmark_ + "_cpu_" + std::to_string(std::thread::hardware_concurrency()) + "core.json";
+    return "docs/benchmarks/" + benchmark_ + "_cpu_" +
+           std::to_string(std::thread::hardware_concurrency()) + "core.json";
   }
   return "docs/benchmarks/" + benchmark_ + ".json";
 }
@@ -211,8 +226,8 @@ std::string BenchmarkReport::to_json() const {
   for (size_t i = 0; i < rows_.size(); ++i) {
     const BenchmarkRow& row = rows_[i];
     out += i == 0 ? "\n" : ",\n";
-    out += "    {\"case\": " + json_string(row.case_name) + ", \"metric\": " +
-           json_string(row.metric) + ", \"value\": " + json_number(row.value) +
+    out += "    {\"case\": " + json_string(row.case_name) +
+           ", \"metric\": " + json_string(row.metric) + ", \"value\": " + json_number(row.value) +
            ", \"unit\": " + json_string(row.unit) + "}";
   }
   out += rows_.empty() ? "]\n" : "\n  ]\n";
@@ -235,9 +250,10 @@ void BenchmarkReport::write_json(const std::string& path) const {
   // Through a temporary in the same folder and a rename (io::write_file_replacing), so a reader
   // never sees half a report.
   const std::string text = to_json();
-  io::write_file_replacing(target.string(), "BenchmarkReport", /*binary=*/true, [&](std::ostream& file) {
-    file.write(text.data(), static_cast<std::streamsize>(text.size()));
-  });
+  io::write_file_replacing(target.string(), "BenchmarkReport", /*binary=*/true,
+                           [&](std::ostream& file) {
+                             file.write(text.data(), static_cast<std::streamsize>(text.size()));
+                           });
 }
 
 }  // namespace tools

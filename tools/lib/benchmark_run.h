@@ -29,13 +29,15 @@ double stream_milliseconds(const Stream& stream, Work&& work) {
   const auto start = std::chrono::steady_clock::now();
   work();
   stream.synchronize();
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+      .count();
 }
 
 // Prints every report's table, then writes each report's JSON and says where ("wrote A and B").
 // `json_path` names the file of a single report (empty: its default path); with several reports
 // it must be empty (each goes to its default path).
-void publish_reports(const std::vector<const BenchmarkReport*>& reports, const std::string& json_path = std::string());
+void publish_reports(const std::vector<const BenchmarkReport*>& reports,
+                     const std::string& json_path = std::string());
 
 // main()'s exit code for a benchmark: 0 when `body` returns; when it throws, prints
 // "<tool_name>: <what>" to stderr and returns 1.

@@ -59,7 +59,8 @@ double CommandLine::number(const std::string& name, double fallback) {
   return parsed;
 }
 
-std::vector<double> CommandLine::numbers(const std::string& name, const std::vector<double>& fallback) {
+std::vector<double> CommandLine::numbers(const std::string& name,
+                                         const std::vector<double>& fallback) {
   const std::string* value = find_value(name);
   if (!value) return fallback;
   std::vector<double> parsed;
@@ -67,7 +68,8 @@ std::vector<double> CommandLine::numbers(const std::string& name, const std::vec
   for (std::string item; std::getline(list, item, ',');) {
     char* end = nullptr;
     parsed.push_back(std::strtod(item.c_str(), &end));
-    if (item.empty() || *end != '\0') fail(name + " expects comma-separated numbers, got '" + *value + "'");
+    if (item.empty() || *end != '\0')
+      fail(name + " expects comma-separated numbers, got '" + *value + "'");
   }
   return parsed;
 }
@@ -97,7 +99,8 @@ std::vector<Device> benchmark_devices(const std::string& request) {
   if (request != "all") return {select_device(parse_device_request(request))};
   std::vector<Device> devices = available_devices();
   // GPU first: its figures are the headline, and the CPU runs are the slow part.
-  std::stable_partition(devices.begin(), devices.end(), [](Device d) { return d == Device::kCuda; });
+  std::stable_partition(devices.begin(), devices.end(),
+                        [](Device d) { return d == Device::kCuda; });
   return devices;
 }
 

@@ -37,11 +37,13 @@ std::vector<Eigen::Isometry3d> read_reference_poses(const io::RgbdFolder& folder
   std::vector<Eigen::Isometry3d> poses;
   if (folder.layout() == io::RgbdFolderLayout::kSevenScenes) {
     for (int number : folder.frame_numbers()) {
-      poses.push_back(io::read_matrix4_pose_file((fs::path(folder.path()) / ("frame-" + six_digits(number) + ".pose.txt")).string()));
+      poses.push_back(io::read_matrix4_pose_file(
+          (fs::path(folder.path()) / ("frame-" + six_digits(number) + ".pose.txt")).string()));
     }
   } else {
     const std::string trajectory_path = (fs::path(folder.path()) / "traj.txt").string();
-    const std::vector<Eigen::Isometry3d> all = io::read_matrix4_per_line_trajectory(trajectory_path);
+    const std::vector<Eigen::Isometry3d> all =
+        io::read_matrix4_per_line_trajectory(trajectory_path);
     for (int number : folder.frame_numbers()) {
       if (number < 0 || static_cast<size_t>(number) >= all.size()) {
         throw Error("'" + trajectory_path + "' has no pose for frame " + std::to_string(number));
@@ -76,7 +78,8 @@ RgbdScanSource::RgbdScanSource(const std::string& path, const RgbdScanOptions& o
   drift.translation_random_walk_m_per_sqrt_s = 0.01;
   drift.yaw_random_walk_deg_per_sqrt_s = 0.1;
   drift.min_final_drift_m = options_.min_final_drift_m;
-  const std::vector<sim::StampedIsometry> odometry = sim::simulate_odometry(truth, drift, options_.drift_seed);
+  const std::vector<sim::StampedIsometry> odometry =
+      sim::simulate_odometry(truth, drift, options_.drift_seed);
   for (const sim::StampedIsometry& pose : odometry) {
     stamps_s_.push_back(pose.stamp_s);
     odometry_.push_back(pose.pose);
@@ -102,7 +105,8 @@ bool RgbdScanSource::next(SourceScan* scan) {
       if (!(depth_m > 0.0f)) continue;
       if (options_.max_depth_m > 0.0 && depth_m > options_.max_depth_m) continue;
       scan->points_sensor_m.emplace_back(static_cast<float>((column - k.cx) * depth_m / k.fx),
-                                         static_cast<float>((row - k.cy) * depth_m / k.fy), depth_m);
+                                         static_cast<float>((row - k.cy) * depth_m / k.fy),
+                                         depth_m);
       if (with_color) {
         const std::array<uint8_t, 3> rgb = frame.color.at(row, column);
         scan->colors.push_back(Rgb8{rgb[0], rgb[1], rgb[2]});
@@ -114,25 +118,28 @@ bool RgbdScanSource::next(SourceScan* scan) {
 
 std::string RgbdScanSource::describe() const {
   std::ostringstream text;
-  text << "RGB-D folder " << folder_.path() << ", " << odometry_.size() << " frames at " << options_.frame_rate_hz
-       << " Hz, every " << options_.pixel_stride << (options_.pixel_stride == 1 ? "" : "th")
+  text << "RGB-D folder " << folder_.path() << ", " << odometry_.size() << " frames at "
+       << options_.frame_rate_hz << " Hz, every " << options_.pixel_stride
+       << (options_.pixel_stride == 1 ? "" : "th")
        << " pixel in both directions; odometry = reference poses with a drift of " << final_drift_m_
        << " m at the end (seed " << options_.drift_seed << ")";
   return text.str();
 }
 
-LidarKeyframeScanSource::LidarKeyframeScanSource(const std::string& path, const LidarKeyframeScanOptions& options)
+LidarKeyframeScanSource::LidarKeyframeScanSource(const std::string& path,
+                                                 const LidarKeyframeScanOptions& options)
     : path_(path), options_(options) {
   const fs::path folder(path);
-  const std::vector<Eigen::Isometry3d> odometry = io::read_kitti_pose_file((folder / "odom_poses.txt").string());
+  const std::vector<Eigen::Isometry3d> odometry =
+      io::read_kitti_pose_file((folder / "odom_poses.txt").string());
   const std::string times_path = (folder / "times.txt").string();
   std::ifstream times(times_path);
   if (!times) throw Error("cannot open '" + times_path + "'");
   double stamp_s;
   while (times >> stamp_s) stamps_s_.push_back(stamp_s);
   if (stamps_s_.size() != odometry.size()) {
-    throw Error("'" + times_path + "' has " + std::to_string(stamps_s_.size()) + " stamps, odom_poses.txt " +
-                std::to_string(odometry.size()) + " poses");
+    throw Error("'" + times_path + "' has " + std::to_string(stamps_s_.size()) +
+                " stamps, odom_poses.txt " + std::to_string(odometry.size()) + " poses");
   }
   size_t count = odometry.size();
   if (options_.max_scans > 0 && options_.max_scans < count) count = options_.max_scans;
@@ -141,7 +148,8 @@ LidarKeyframeScanSource::LidarKeyframeScanSource(const std::string& path, const 
   const std::string reference_path = (folder / "optimized_poses.txt").string();
   if (fs::exists(reference_path)) {
     const std::vector<Eigen::Isometry3d> reference = io::read_kitti_pose_file(reference_path);
-    for (size_t i = 0; i < std::min(count, reference.size()); ++i) reference_.poses.push_back(to_stamped(stamps_s_[i], reference[i]));
+    for (size_t i = 0; i < std::min(count, reference.size()); ++i)
+      reference_.poses.push_back(to_stamped(stamps_s_[i], reference[i]));
     reference_.has_orientations = true;
     reference_kind_ = ReferenceKind::kOtherEstimate;
   }
@@ -150,16 +158,19 @@ LidarKeyframeScanSource::LidarKeyframeScanSource(const std::string& path, const 
 bool LidarKeyframeScanSource::next(SourceScan* scan) {
   while (next_scan_ < odometry_.size()) {
     const size_t index = next_scan_++;
-    const std::string cloud_path = (fs::path(path_) / "Scans" / (six_digits(static_cast<int>(index)) + ".pcd")).string();
+    const std::string cloud_path =
+        (fs::path(path_) / "Scans" / (six_digits(static_cast<int>(index)) + ".pcd")).string();
     try {
       const io::PointCloud cloud = io::read_pcd(cloud_path);
       scan->stamp_s = stamps_s_[index];
       scan->T_odom_sensor = odometry_[index];
       scan->points_sensor_m.clear();
       scan->colors.clear();
-      const float min_range_squared = static_cast<float>(options_.min_range_m * options_.min_range_m);
+      const float min_range_squared =
+          static_cast<float>(options_.min_range_m * options_.min_range_m);
       for (const Eigen::Vector3f& p : cloud.points_m) {
-        if (p.squaredNorm() >= min_range_squared) scan->points_sensor_m.emplace_back(p.x(), p.y(), p.z());
+        if (p.squaredNorm() >= min_range_squared)
+          scan->points_sensor_m.emplace_back(p.x(), p.y(), p.z());
       }
       return true;
     } catch (const Error& error) {
@@ -171,8 +182,10 @@ bool LidarKeyframeScanSource::next(SourceScan* scan) {
 
 std::string LidarKeyframeScanSource::describe() const {
   std::ostringstream text;
-  text << "LiDAR keyframes " << path_ << ", " << odometry_.size() << " scans, odometry odom_poses.txt";
-  if (reference_kind_ == ReferenceKind::kOtherEstimate) text << ", reference optimized_poses.txt (not ground truth)";
+  text << "LiDAR keyframes " << path_ << ", " << odometry_.size()
+       << " scans, odometry odom_poses.txt";
+  if (reference_kind_ == ReferenceKind::kOtherEstimate)
+    text << ", reference optimized_poses.txt (not ground truth)";
   return text.str();
 }
 
@@ -180,8 +193,9 @@ double LidarKeyframeScanSource::duration_s() const {
   return stamps_s_.size() < 2 ? 0.0 : stamps_s_.back() - stamps_s_.front();
 }
 
-std::unique_ptr<ScanSource> open_dataset_scan_source(const std::string& path, const RgbdScanOptions& rgbd_options,
-                                                     const LidarKeyframeScanOptions& lidar_options) {
+std::unique_ptr<ScanSource> open_dataset_scan_source(
+    const std::string& path, const RgbdScanOptions& rgbd_options,
+    const LidarKeyframeScanOptions& lidar_options) {
   const fs::path folder(path);
   if (!fs::is_directory(folder)) throw Error("dataset folder '" + path + "' does not exist");
   if (fs::exists(folder / "odom_poses.txt") && fs::is_directory(folder / "Scans")) {
@@ -191,7 +205,8 @@ std::unique_ptr<ScanSource> open_dataset_scan_source(const std::string& path, co
   try {
     return std::make_unique<RgbdScanSource>(path, rgbd_options);
   } catch (const Error& error) {
-    throw Error(std::string(error.what()) + "; nor LiDAR keyframes (Scans/*.pcd with odom_poses.txt)");
+    throw Error(std::string(error.what()) +
+                "; nor LiDAR keyframes (Scans/*.pcd with odom_poses.txt)");
   }
 }
 

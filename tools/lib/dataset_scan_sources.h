@@ -75,7 +75,8 @@ class LidarKeyframeScanSource : public ScanSource {
 
 // Opens `path` as whichever dataset layout it holds (RGB-D folder or LiDAR keyframes); throws
 // covox::Error naming the folder and the layouts looked for otherwise.
-std::unique_ptr<ScanSource> open_dataset_scan_source(const std::string& path, const RgbdScanOptions& rgbd_options,
+std::unique_ptr<ScanSource> open_dataset_scan_source(const std::string& path,
+                                                     const RgbdScanOptions& rgbd_options,
                                                      const LidarKeyframeScanOptions& lidar_options);
 
 }  // namespace tools

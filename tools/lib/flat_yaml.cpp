@@ -41,8 +41,10 @@ std::map<std::string, std::string> read_flat_yaml(const std::string& path) {
     if (colon == std::string::npos) throw Error(where + ": expected `name: value`");
     const std::string name = trim(line.substr(0, colon));
     std::string value = trim(line.substr(colon + 1));
-    if (value.empty()) throw Error(where + ": '" + name + "' has no value (nested YAML is not supported)");
-    if (value.size() >= 2 && (value.front() == '"' || value.front() == '\'') && value.back() == value.front()) {
+    if (value.empty())
+      throw Error(where + ": '" + name + "' has no value (nested YAML is not supported)");
+    if (value.size() >= 2 && (value.front() == '"' || value.front() == '\'') &&
+        value.back() == value.front()) {
       value = value.substr(1, value.size() - 2);
     }
     if (!values.emplace(name, value).second) throw Error(where + ": '" + name + "' is given twice");

@@ -47,7 +47,8 @@ Eigen::Vector3d closest_point_on_triangle(const Eigen::Vector3d& p, const Eigen:
 
 MeshDistance::MeshDistance(const Mesh& mesh, double cell_size_m) : cell_m_(cell_size_m) {
   if (!(cell_size_m > 0.0) || !std::isfinite(cell_size_m)) {
-    throw Error("mesh distance: the cell size must be positive and finite, got " + std::to_string(cell_size_m));
+    throw Error("mesh distance: the cell size must be positive and finite, got " +
+                std::to_string(cell_size_m));
   }
   const bool point_set = mesh.triangles.empty();
   const size_t count = point_set ? mesh.vertices_m.size() : mesh.triangle_count();
@@ -60,7 +61,8 @@ MeshDistance::MeshDistance(const Mesh& mesh, double cell_size_m) : cell_m_(cell_
       for (size_t k = 0; k < 3; ++k) {
         if (mesh.triangles[3 * t + k] >= mesh.vertices_m.size()) {
           throw Error("mesh distance: triangle " + std::to_string(t) + " refers to vertex " +
-                      std::to_string(mesh.triangles[3 * t + k]) + " of " + std::to_string(mesh.vertices_m.size()));
+                      std::to_string(mesh.triangles[3 * t + k]) + " of " +
+                      std::to_string(mesh.vertices_m.size()));
         }
       }
       triangles_.push_back({to_eigen(mesh.vertices_m[mesh.triangles[3 * t]]),
@@ -82,9 +84,12 @@ MeshDistance::MeshDistance(const Mesh& mesh, double cell_size_m) : cell_m_(cell_
     for (int z = low.z(); z <= high.z(); ++z) {
       for (int y = low.y(); y <= high.y(); ++y) {
         for (int x = low.x(); x <= high.x(); ++x) {
-          const Eigen::Vector3d centre = (Eigen::Vector3d(x, y, z) + Eigen::Vector3d::Constant(0.5)) * cell_m_;
-          const Eigen::Vector3d closest = closest_point_on_triangle(centre, triangle.a, triangle.b, triangle.c);
-          if ((closest - centre).norm() <= half_diagonal_m) cells_[key(x, y, z)].push_back(static_cast<uint32_t>(t));
+          const Eigen::Vector3d centre =
+              (Eigen::Vector3d(x, y, z) + Eigen::Vector3d::Constant(0.5)) * cell_m_;
+          const Eigen::Vector3d closest =
+              closest_point_on_triangle(centre, triangle.a, triangle.b, triangle.c);
+          if ((closest - centre).norm() <= half_diagonal_m)
+            cells_[key(x, y, z)].push_back(static_cast<uint32_t>(t));
         }
       }
     }
@@ -111,7 +116,8 @@ double MeshDistance::distance_m(const Eigen::Vector3d& p, double max_distance_m)
     if (cell == cells_.end()) return;
     for (uint32_t t : cell->second) {
       const Triangle& triangle = triangles_[t];
-      best_m = std::min(best_m, (closest_point_on_triangle(p, triangle.a, triangle.b, triangle.c) - p).norm());
+      best_m = std::min(
+          best_m, (closest_point_on_triangle(p, triangle.a, triangle.b, triangle.c) - p).norm());
     }
   };
   for (int shell = 0; shell <= last_shell; ++shell) {

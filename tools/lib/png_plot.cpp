@@ -83,7 +83,8 @@ constexpr int kGlyphAdvance = 6;  // 5 columns and one of spacing
 constexpr int kGlyphHeight = 7;
 
 void append_u32_big_endian(std::vector<uint8_t>* bytes, uint32_t value) {
-  for (int shift = 24; shift >= 0; shift -= 8) bytes->push_back(static_cast<uint8_t>(value >> shift));
+  for (int shift = 24; shift >= 0; shift -= 8)
+    bytes->push_back(static_cast<uint8_t>(value >> shift));
 }
 
 void append_chunk(std::vector<uint8_t>* png, const char type[4], const std::vector<uint8_t>& data) {
@@ -232,8 +233,8 @@ void pad(Range* range, double fraction) {
 
 Rgb series_colour(size_t index) {
   // Okabe-Ito palette: distinguishable with the common colour-vision deficiencies.
-  static const Rgb kPalette[] = {{0, 114, 178},  {213, 94, 0},   {0, 158, 115}, {204, 121, 167},
-                                 {230, 159, 0},  {86, 180, 233}, {0, 0, 0},     {240, 228, 66}};
+  static const Rgb kPalette[] = {{0, 114, 178}, {213, 94, 0},   {0, 158, 115}, {204, 121, 167},
+                                 {230, 159, 0}, {86, 180, 233}, {0, 0, 0},     {240, 228, 66}};
   return kPalette[index % (sizeof(kPalette) / sizeof(kPalette[0]))];
 }
 
@@ -277,8 +278,10 @@ void RgbImage::draw_line(int x0, int y0, int x1, int y1, Rgb colour, int thickne
   const int half = (thickness_px - 1) / 2;
   int error = dx + dy;
   while (true) {
-    if (thickness_px <= 1) set_pixel(x0, y0, colour);
-    else fill_rect(x0 - half, y0 - half, thickness_px, thickness_px, colour);
+    if (thickness_px <= 1)
+      set_pixel(x0, y0, colour);
+    else
+      fill_rect(x0 - half, y0 - half, thickness_px, thickness_px, colour);
     if (x0 == x1 && y0 == y1) break;
     const int doubled = 2 * error;
     if (doubled >= dy) {
@@ -381,7 +384,8 @@ void write_png(const std::string& path, const RgbImage& image) {
   const std::vector<uint8_t> bytes = encode_png(image);
   std::ofstream file(path, std::ios::binary | std::ios::trunc);
   if (!file) throw Error("cannot open '" + path + "' for writing the PNG plot");
-  file.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  file.write(reinterpret_cast<const char*>(bytes.data()),
+             static_cast<std::streamsize>(bytes.size()));
   if (!file) throw Error("writing the PNG plot '" + path + "' failed (disk full?)");
 }
 
@@ -397,8 +401,8 @@ RgbImage render_trajectory_figure(const TrajectoryFigure& figure, int width_px) 
   const double aspect = std::clamp(y.span() / x.span(), 0.3, 1.5);
   const int top_height = static_cast<int>(panel_width * aspect);
   const int error_height = std::max(150, width_px / 4);
-  const int height_px = title_space + top_height + label_space + title_space + error_height +
-                        label_space + 10;
+  const int height_px =
+      title_space + top_height + label_space + title_space + error_height + label_space + 10;
   RgbImage image(width_px, height_px, kWhite);
 
   Panel top;

@@ -18,7 +18,9 @@ struct Rgb {
   uint8_t b = 0;
 };
 
-inline bool operator==(const Rgb& a, const Rgb& b) { return a.r == b.r && a.g == b.g && a.b == b.b; }
+inline bool operator==(const Rgb& a, const Rgb& b) {
+  return a.r == b.r && a.g == b.g && a.b == b.b;
+}
 
 // Distinct, colour-blind-friendly colours for series 0, 1, 2, ... (cycling).
 Rgb series_colour(size_t index);
@@ -77,8 +79,8 @@ struct PlotSeries {
 };
 
 struct TrajectoryFigure {
-  std::vector<PlotSeries> top_view_m;         // x, y in metres
-  std::vector<PlotSeries> error_over_time;    // time in s, error in m
+  std::vector<PlotSeries> top_view_m;       // x, y in metres
+  std::vector<PlotSeries> error_over_time;  // time in s, error in m
   std::string top_view_title = "TOP VIEW X-Y (M)";
   std::string error_title = "POSITION ERROR (M) OVER TIME (S)";
 };

@@ -26,9 +26,9 @@ namespace tools {
 
 struct RegistrationWorldConfig {
   int distinct_submaps = 12;
-  double spacing_m = 4.0;        // between consecutive submaps
+  double spacing_m = 4.0;  // between consecutive submaps
   float voxel_size_m = 0.2f;
-  int lidar_columns = 1024;      // OS1-64-like sensor, 64 rows
+  int lidar_columns = 1024;  // OS1-64-like sensor, 64 rows
   double max_range_m = 25.0;
   int points_per_submap = 2000;  // registration points (sampling_ratio chosen per submap)
   uint64_t seed = 7;
@@ -48,13 +48,13 @@ RegistrationWorld build_registration_world(const RegistrationWorldConfig& config
 
 struct RegistrationGraphOptions {
   int submaps = 50;
-  int neighbours_ahead = 2;              // terms k -> k + d for d = 1..neighbours_ahead, and k + 1 -> k
-  double odometry_sigma_m = 0.04;        // noise of the odometry between consecutive submaps
+  int neighbours_ahead = 2;        // terms k -> k + d for d = 1..neighbours_ahead, and k + 1 -> k
+  double odometry_sigma_m = 0.04;  // noise of the odometry between consecutive submaps
   double odometry_sigma_rad = 0.005;
   backend::RegistrationDistance distance = backend::RegistrationDistance::kTsdfNearSurface;
   backend::RobustLoss loss = backend::RobustLoss::kHuber;
-  double loss_scale = 1.0;        // in units of residual_sigma
-  double residual_sigma = 1.0;    // registration residual noise (RegistrationTerm::residual_sigma)
+  double loss_scale = 1.0;      // in units of residual_sigma
+  double residual_sigma = 1.0;  // registration residual noise (RegistrationTerm::residual_sigma)
   uint64_t seed = 11;
 };
 
@@ -64,10 +64,12 @@ struct RegistrationGraph {
   std::vector<backend::Pose4Dof> truth;
 };
 
-RegistrationGraph make_registration_graph(const RegistrationWorld& world, const RegistrationGraphOptions& options);
+RegistrationGraph make_registration_graph(const RegistrationWorld& world,
+                                          const RegistrationGraphOptions& options);
 
 // Root mean square position error (m) of `poses` against `truth`.
-double position_rmse_m(const std::vector<backend::Pose4Dof>& poses, const std::vector<backend::Pose4Dof>& truth);
+double position_rmse_m(const std::vector<backend::Pose4Dof>& poses,
+                       const std::vector<backend::Pose4Dof>& truth);
 
 }  // namespace tools
 }  // namespace covox

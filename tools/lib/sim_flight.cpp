@@ -36,8 +36,8 @@ Eigen::Matrix3d yaw_rotation(double yaw_rad) {
   return Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix();
 }
 
-std::vector<StampedIsometry> drifted(const std::vector<StampedIsometry>& truth, const DriftConfig& config,
-                                     uint64_t seed, double scale) {
+std::vector<StampedIsometry> drifted(const std::vector<StampedIsometry>& truth,
+                                     const DriftConfig& config, uint64_t seed, double scale) {
   Random random(stream_seed(seed, 0x0D0D0D));
   std::vector<StampedIsometry> odometry(truth.size());
   if (truth.empty()) return odometry;
@@ -51,12 +51,15 @@ std::vector<StampedIsometry> drifted(const std::vector<StampedIsometry>& truth, 
     // Drift increments of this step (all scaled together so the shape of the drift is kept).
     Eigen::Vector3d translation_step = config.bias_velocity_m_per_s * dt;
     for (int axis = 0; axis < 3; ++axis) {
-      translation_step[axis] += config.translation_random_walk_m_per_sqrt_s * root_dt * random.normal();
+      translation_step[axis] +=
+          config.translation_random_walk_m_per_sqrt_s * root_dt * random.normal();
     }
     const double yaw_step = (config.yaw_bias_deg_per_s * dt +
-                             config.yaw_random_walk_deg_per_sqrt_s * root_dt * random.normal()) * deg;
+                             config.yaw_random_walk_deg_per_sqrt_s * root_dt * random.normal()) *
+                            deg;
     // The true displacement, seen through the odometry's yaw error, plus the translation drift.
-    const Eigen::Vector3d displacement = truth[k].pose.translation() - truth[k - 1].pose.translation();
+    const Eigen::Vector3d displacement =
+        truth[k].pose.translation() - truth[k - 1].pose.translation();
     position_m += yaw_rotation(yaw_error_rad) * displacement + scale * translation_step;
     yaw_error_rad += scale * yaw_step;
     odometry[k].stamp_s = truth[k].stamp_s;
@@ -68,14 +71,16 @@ std::vector<StampedIsometry> drifted(const std::vector<StampedIsometry>& truth, 
 
 }  // namespace
 
-Figure8Path::Figure8Path(const FlightConfig& config) : config_(config), a_(config.lobe_half_length_m) {
-  if (!(config.lobe_half_length_m > 0.0) || !(config.path_length_m > 0.0) || !(config.speed_m_per_s > 0.0) ||
-      !(config.scan_rate_hz > 0.0)) {
+Figure8Path::Figure8Path(const FlightConfig& config)
+    : config_(config), a_(config.lobe_half_length_m) {
+  if (!(config.lobe_half_length_m > 0.0) || !(config.path_length_m > 0.0) ||
+      !(config.speed_m_per_s > 0.0) || !(config.scan_rate_hz > 0.0)) {
     throw Error("flight: lobe half length, path length, speed and scan rate must be positive");
   }
   // The length grows with B: bisect for the B that gives the requested length.
   double low = 0.05 * a_, high = 3.0 * a_;
-  if (lemniscate_length(a_, low) > config.path_length_m || lemniscate_length(a_, high) < config.path_length_m) {
+  if (lemniscate_length(a_, low) > config.path_length_m ||
+      lemniscate_length(a_, high) < config.path_length_m) {
     throw Error("flight: a figure 8 of half length " + std::to_string(a_) + " m cannot be " +
                 std::to_string(config.path_length_m) + " m long; change the lobe half length");
   }
@@ -89,7 +94,8 @@ Figure8Path::Figure8Path(const FlightConfig& config) : config_(config), a_(confi
   Eigen::Vector2d previous(0.0, 0.0);
   for (int i = 0; i <= kPathSamples; ++i) {
     theta_[i] = 2.0 * kPi * i / kPathSamples;
-    const Eigen::Vector2d p(a_ * std::sin(theta_[i]), b_ * std::sin(theta_[i]) * std::cos(theta_[i]));
+    const Eigen::Vector2d p(a_ * std::sin(theta_[i]),
+                            b_ * std::sin(theta_[i]) * std::cos(theta_[i]));
     arc_length_[i] = i == 0 ? 0.0 : arc_length_[i - 1] + (p - previous).norm();
     previous = p;
   }
@@ -101,7 +107,8 @@ double Figure8Path::theta_at(double distance_m) const {
       std::lower_bound(arc_length_.begin(), arc_length_.end(), distance_m) - arc_length_.begin(),
       arc_length_.size() - 1);
   if (after == 0) return theta_[0];
-  const double fraction = (distance_m - arc_length_[after - 1]) / (arc_length_[after] - arc_length_[after - 1]);
+  const double fraction =
+      (distance_m - arc_length_[after - 1]) / (arc_length_[after] - arc_length_[after - 1]);
   return theta_[after - 1] + fraction * (theta_[after] - theta_[after - 1]);
 }
 
@@ -118,7 +125,8 @@ Eigen::Vector2d Figure8Path::direction(double distance_m) const {
 double Figure8Path::altitude_m(double distance_m) const {
   const double d = (position_m(distance_m) - passage_centre_m()).norm();
   const double blend = smoothstep((d - config_.indoor_radius_m) / config_.altitude_transition_m);
-  return config_.indoor_altitude_m + blend * (config_.cruise_altitude_m - config_.indoor_altitude_m);
+  return config_.indoor_altitude_m +
+         blend * (config_.cruise_altitude_m - config_.indoor_altitude_m);
 }
 
 double Figure8Path::passage_x_at_m(double y_m) const {
@@ -196,7 +204,8 @@ std::vector<StampedIsometry> simulate_odometry(const std::vector<StampedIsometry
   return odometry;
 }
 
-double final_drift_m(const std::vector<StampedIsometry>& truth, const std::vector<StampedIsometry>& odometry) {
+double final_drift_m(const std::vector<StampedIsometry>& truth,
+                     const std::vector<StampedIsometry>& odometry) {
   if (truth.empty() || odometry.size() != truth.size()) return 0.0;
   return (truth.back().pose.translation() - odometry.back().pose.translation()).norm();
 }

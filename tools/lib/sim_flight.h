@@ -23,7 +23,8 @@ struct FlightConfig {
   double path_length_m = 400.0;
   double speed_m_per_s = 2.0;
   double scan_rate_hz = 10.0;
-  double lobe_half_length_m = 55.0;  // A: the figure 8 spans x in [-A, A]; B follows from the length
+  double lobe_half_length_m =
+      55.0;  // A: the figure 8 spans x in [-A, A]; B follows from the length
   double cruise_altitude_m = 3.5;
   double indoor_altitude_m = 1.6;
   // The altitude is indoor within this horizontal distance of the passage centre, cruise beyond
@@ -88,7 +89,8 @@ std::vector<StampedIsometry> simulate_odometry(const std::vector<StampedIsometry
                                                const DriftConfig& config, uint64_t seed);
 
 // Distance between the last odometry and truth positions.
-double final_drift_m(const std::vector<StampedIsometry>& truth, const std::vector<StampedIsometry>& odometry);
+double final_drift_m(const std::vector<StampedIsometry>& truth,
+                     const std::vector<StampedIsometry>& odometry);
 
 // A flight's poses as an io::Trajectory with orientations, for TUM files and trajectory
 // evaluation.

@@ -22,14 +22,17 @@ Eigen::Isometry3d T_os1_sensor_os1_lidar() {
 
 FlightBagWriter::FlightBagWriter(const std::string& path, const ArcheBagLayout& layout)
     : layout_(layout), bag_(path) {
-  tf_static_connection_ = bag_.add_connection("/tf_static", rb::tf_message_type(), /*latching=*/true);
+  tf_static_connection_ =
+      bag_.add_connection("/tf_static", rb::tf_message_type(), /*latching=*/true);
   tf_connection_ = bag_.add_connection("/tf", rb::tf_message_type());
   cloud_connection_ = bag_.add_connection(layout_.cloud_topic, rb::point_cloud2_type());
   truth_connection_ = bag_.add_connection(layout_.ground_truth_topic, rb::point_stamped_type());
 }
 
-void FlightBagWriter::write_scan(double stamp_s, const Eigen::Isometry3d& truth, const Eigen::Isometry3d& odometry,
-                                 const std::vector<Vec3f>& points_sensor_m, const std::vector<float>& intensities) {
+void FlightBagWriter::write_scan(double stamp_s, const Eigen::Isometry3d& truth,
+                                 const Eigen::Isometry3d& odometry,
+                                 const std::vector<Vec3f>& points_sensor_m,
+                                 const std::vector<float>& intensities) {
   const rb::RosTime stamp = rb::RosTime::from_seconds(stamp_s);
   if (!static_written_) {
     // Stamped with the first scan: rosbag play publishes it latched before anything else.
@@ -62,13 +65,15 @@ void FlightBagWriter::write_scan(double stamp_s, const Eigen::Isometry3d& truth,
   const Eigen::Isometry3f T_lidar_sensor = T_os1_sensor_os1_lidar().inverse().cast<float>();
   std::vector<Eigen::Vector3f> points_lidar_m(points_sensor_m.size());
   for (size_t i = 0; i < points_sensor_m.size(); ++i) {
-    points_lidar_m[i] = T_lidar_sensor * Eigen::Vector3f(points_sensor_m[i].x, points_sensor_m[i].y, points_sensor_m[i].z);
+    points_lidar_m[i] = T_lidar_sensor * Eigen::Vector3f(points_sensor_m[i].x, points_sensor_m[i].y,
+                                                         points_sensor_m[i].z);
   }
   rb::Header cloud_header;
   cloud_header.seq = sequence_;
   cloud_header.stamp = stamp;
   cloud_header.frame_id = layout_.lidar_frame;
-  bag_.write(cloud_connection_, stamp, rb::serialize(rb::make_point_cloud2(cloud_header, points_lidar_m, intensities)));
+  bag_.write(cloud_connection_, stamp,
+             rb::serialize(rb::make_point_cloud2(cloud_header, points_lidar_m, intensities)));
 
   rb::PointStampedMessage fix;
   fix.header.seq = sequence_;

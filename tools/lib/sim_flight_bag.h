@@ -56,7 +56,8 @@ class FlightBagWriter {
  private:
   ArcheBagLayout layout_;
   io::rosbag::BagWriter bag_;
-  uint32_t cloud_connection_ = 0, tf_connection_ = 0, tf_static_connection_ = 0, truth_connection_ = 0;
+  uint32_t cloud_connection_ = 0, tf_connection_ = 0, tf_static_connection_ = 0,
+           truth_connection_ = 0;
   bool static_written_ = false;
   uint32_t sequence_ = 0;
 };

@@ -21,7 +21,7 @@ struct LidarConfig {
   double vertical_fov_deg = 33.2;  // OS1-64: +-16.6 degrees
   double min_range_m = 0.3;
   double max_range_m = 120.0;
-  double range_noise_m = 0.02;       // standard deviation along the beam
+  double range_noise_m = 0.02;        // standard deviation along the beam
   double dropout_probability = 0.01;  // per beam, independent of the hit
 };
 

@@ -27,7 +27,8 @@ ReconstructionEvaluation evaluate_reconstruction(const Mesh& reconstruction, con
   if (!(options.sample_spacing_m > 0.0)) {
     throw Error("reconstruction evaluation: sample spacing must be positive");
   }
-  if (truth.triangles.empty()) throw Error("reconstruction evaluation: the ground-truth mesh has no triangles");
+  if (truth.triangles.empty())
+    throw Error("reconstruction evaluation: the ground-truth mesh has no triangles");
   ReconstructionEvaluation result;
   result.thresholds_m = options.thresholds_m;
   const double radius = *std::max_element(options.thresholds_m.begin(), options.thresholds_m.end());
@@ -47,7 +48,8 @@ ReconstructionEvaluation evaluate_reconstruction(const Mesh& reconstruction, con
     for (size_t k = 0; k < levels; ++k) {
       if (d <= options.thresholds_m[k]) result.accuracy_fraction[k] += 1.0;
     }
-    d = std::min(d, radius);  // "beyond the search" (infinity) enters the mean and median as the radius
+    d = std::min(
+        d, radius);  // "beyond the search" (infinity) enters the mean and median as the radius
     sum += d;
   }
   if (!distances.empty()) {
@@ -82,7 +84,7 @@ ReconstructionEvaluation evaluate_reconstruction(const Mesh& reconstruction, con
     };
     for (int i = 0; i < k; ++i) {
       for (int j = 0; i + j < k; ++j) {
-        sample((i + 1.0 / 3.0) / k, (j + 1.0 / 3.0) / k);                    // upright sub-triangle
+        sample((i + 1.0 / 3.0) / k, (j + 1.0 / 3.0) / k);  // upright sub-triangle
         if (i + j < k - 1) sample((i + 2.0 / 3.0) / k, (j + 2.0 / 3.0) / k);  // inverted one
       }
     }
@@ -94,15 +96,18 @@ ReconstructionEvaluation evaluate_reconstruction(const Mesh& reconstruction, con
   return result;
 }
 
-void print_reconstruction_evaluation(std::ostream& output, const ReconstructionEvaluation& evaluation) {
-  const double cap = *std::max_element(evaluation.thresholds_m.begin(), evaluation.thresholds_m.end());
+void print_reconstruction_evaluation(std::ostream& output,
+                                     const ReconstructionEvaluation& evaluation) {
+  const double cap =
+      *std::max_element(evaluation.thresholds_m.begin(), evaluation.thresholds_m.end());
   output << "reconstruction: " << evaluation.reconstructed_points << " vertices; truth "
          << std::fixed << std::setprecision(1) << evaluation.truth_area_m2 << " m^2 in "
          << evaluation.truth_samples << " samples\n";
   output << std::setprecision(4) << "accuracy: mean " << evaluation.accuracy_mean_m << " m, median "
          << evaluation.accuracy_median_m << " m (distances capped at " << cap << " m)\n";
   output << std::setw(14) << "threshold m" << std::setw(12) << "accuracy" << std::setw(14)
-         << "completeness" << "\n";
+         << "completeness"
+         << "\n";
   for (size_t k = 0; k < evaluation.thresholds_m.size(); ++k) {
     output << std::setw(14) << evaluation.thresholds_m[k] << std::setw(11)
            << 100.0 * evaluation.accuracy_fraction[k] << "%" << std::setw(13)

@@ -42,7 +42,8 @@ struct ReconstructionEvaluation {
 ReconstructionEvaluation evaluate_reconstruction(const Mesh& reconstruction, const Mesh& truth,
                                                  const ReconstructionEvaluationOptions& options);
 
-void print_reconstruction_evaluation(std::ostream& output, const ReconstructionEvaluation& evaluation);
+void print_reconstruction_evaluation(std::ostream& output,
+                                     const ReconstructionEvaluation& evaluation);
 
 }  // namespace tools
 }  // namespace covox

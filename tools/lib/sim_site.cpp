@@ -35,12 +35,14 @@ double smoothstep(double x) {
 
 // Distance from a point to a footprint (0 inside).
 double distance_to(const Footprint& footprint, const Eigen::Vector2d& p) {
-  const Eigen::Vector2d outside = (footprint.low_m - p).cwiseMax(p - footprint.high_m).cwiseMax(0.0);
+  const Eigen::Vector2d outside =
+      (footprint.low_m - p).cwiseMax(p - footprint.high_m).cwiseMax(0.0);
   return outside.norm();
 }
 
 Footprint grown(const Footprint& footprint, double margin_m) {
-  return Footprint{footprint.low_m - Eigen::Vector2d::Constant(margin_m), footprint.high_m + Eigen::Vector2d::Constant(margin_m)};
+  return Footprint{footprint.low_m - Eigen::Vector2d::Constant(margin_m),
+                   footprint.high_m + Eigen::Vector2d::Constant(margin_m)};
 }
 
 bool overlaps(const Footprint& a, const Footprint& b) {
@@ -49,22 +51,25 @@ bool overlaps(const Footprint& a, const Footprint& b) {
 
 // A straight wall from `start` to `end` (horizontal, on the ground), with doorways cut out: solid
 // pieces between the doors, and lintels above them.
-void add_wall(World* world, const Eigen::Vector2d& start, const Eigen::Vector2d& end, double height_m,
-              std::vector<Door> doors) {
+void add_wall(World* world, const Eigen::Vector2d& start, const Eigen::Vector2d& end,
+              double height_m, std::vector<Door> doors) {
   const Eigen::Vector2d along = end - start;
   const double length = along.norm();
   const Eigen::Vector2d unit = along / length;
   Box piece;
-  piece.rotation = Eigen::AngleAxisd(std::atan2(unit.y(), unit.x()), Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  piece.rotation = Eigen::AngleAxisd(std::atan2(unit.y(), unit.x()), Eigen::Vector3d::UnitZ())
+                       .toRotationMatrix();
   piece.colour = kWall;
   const auto add_piece = [&](double from_m, double to_m, double z_low, double z_high) {
     if (to_m - from_m < 1e-3 || z_high - z_low < 1e-3) return;
     const Eigen::Vector2d middle = start + unit * (0.5 * (from_m + to_m));
     piece.centre_m = Eigen::Vector3d(middle.x(), middle.y(), 0.5 * (z_low + z_high));
-    piece.half_extent_m = Eigen::Vector3d(0.5 * (to_m - from_m), 0.5 * kWallThickness_m, 0.5 * (z_high - z_low));
+    piece.half_extent_m =
+        Eigen::Vector3d(0.5 * (to_m - from_m), 0.5 * kWallThickness_m, 0.5 * (z_high - z_low));
     world->add(piece);
   };
-  std::sort(doors.begin(), doors.end(), [](const Door& a, const Door& b) { return a.centre_m < b.centre_m; });
+  std::sort(doors.begin(), doors.end(),
+            [](const Door& a, const Door& b) { return a.centre_m < b.centre_m; });
   double solid_from = 0.0;
   for (const Door& door : doors) {
     const double door_from = std::clamp(door.centre_m - 0.5 * door.width_m, 0.0, length);
@@ -86,7 +91,8 @@ void add_roof(World* world, const Footprint& footprint, double height_m) {
   world->add(roof);
 }
 
-void add_furniture(World* world, const Eigen::Vector2d& centre, const Eigen::Vector3d& size_m, double yaw_rad) {
+void add_furniture(World* world, const Eigen::Vector2d& centre, const Eigen::Vector3d& size_m,
+                   double yaw_rad) {
   Box box;
   box.centre_m = Eigen::Vector3d(centre.x(), centre.y(), 0.5 * size_m.z());
   box.half_extent_m = 0.5 * size_m;
@@ -142,13 +148,16 @@ void add_building(World* world, const Footprint& footprint, double height_m, Ran
   // Partition across the longer side, with a door, making two rooms.
   if (size.x() >= size.y()) {
     const double x = low.x() + size.x() * random->uniform(0.35, 0.65);
-    add_wall(world, {x, low.y()}, {x, high.y()}, height_m, {{random->uniform(1.0, size.y() - 1.0), 0.9}});
+    add_wall(world, {x, low.y()}, {x, high.y()}, height_m,
+             {{random->uniform(1.0, size.y() - 1.0), 0.9}});
   } else {
     const double y = low.y() + size.y() * random->uniform(0.35, 0.65);
-    add_wall(world, {low.x(), y}, {high.x(), y}, height_m, {{random->uniform(1.0, size.x() - 1.0), 0.9}});
+    add_wall(world, {low.x(), y}, {high.x(), y}, height_m,
+             {{random->uniform(1.0, size.x() - 1.0), 0.9}});
   }
   add_roof(world, footprint, height_m);
-  const Eigen::Vector2d table = low + Eigen::Vector2d(random->uniform(1.5, size.x() - 1.5), random->uniform(1.5, size.y() - 1.5));
+  const Eigen::Vector2d table = low + Eigen::Vector2d(random->uniform(1.5, size.x() - 1.5),
+                                                      random->uniform(1.5, size.y() - 1.5));
   add_furniture(world, table, {1.2, 0.8, 0.75}, random->uniform(0.0, kPi));
 }
 
@@ -174,24 +183,29 @@ class Ground {
       const double wavelength = i < 3 ? random->uniform(15.0, 40.0) : random->uniform(4.0, 7.0);
       const double angle = random->uniform(0.0, 2.0 * kPi);
       const double k = 2.0 * kPi / wavelength;
-      waves.push_back({k * std::cos(angle), k * std::sin(angle), random->uniform(0.0, 2.0 * kPi), i < 3 ? 0.3 : 0.1});
+      waves.push_back({k * std::cos(angle), k * std::sin(angle), random->uniform(0.0, 2.0 * kPi),
+                       i < 3 ? 0.3 : 0.1});
     }
     heights_.resize(static_cast<size_t>(columns_) * rows_);
     for (int j = 0; j < rows_; ++j) {
       for (int i = 0; i < columns_; ++i) {
         const Eigen::Vector2d p = vertex_xy(i, j);
         double h = 0.0;
-        for (const Wave& wave : waves) h += wave.amplitude * std::sin(wave.kx * p.x() + wave.ky * p.y() + wave.phase);
+        for (const Wave& wave : waves)
+          h += wave.amplitude * std::sin(wave.kx * p.x() + wave.ky * p.y() + wave.phase);
         // Flat at and around buildings so that their floors meet the ground.
         double nearest = 1e9;
-        for (const Footprint& building : buildings) nearest = std::min(nearest, distance_to(grown(building, 1.0), p));
+        for (const Footprint& building : buildings)
+          nearest = std::min(nearest, distance_to(grown(building, 1.0), p));
         // The wave amplitudes add up to 1, so the ground stays within +-ground_amplitude_m.
         heights_[j * columns_ + i] = config.ground_amplitude_m * h * smoothstep(nearest / 6.0);
       }
     }
   }
 
-  Eigen::Vector2d vertex_xy(int i, int j) const { return low_ + Eigen::Vector2d(i * cell_, j * cell_); }
+  Eigen::Vector2d vertex_xy(int i, int j) const {
+    return low_ + Eigen::Vector2d(i * cell_, j * cell_);
+  }
   Eigen::Vector3d vertex(int i, int j) const {
     const Eigen::Vector2d p = vertex_xy(i, j);
     return Eigen::Vector3d(p.x(), p.y(), heights_[j * columns_ + i]);
@@ -200,7 +214,8 @@ class Ground {
   double lowest_near(const Eigen::Vector2d& p) const {
     const int i = std::clamp(static_cast<int>((p.x() - low_.x()) / cell_), 0, columns_ - 2);
     const int j = std::clamp(static_cast<int>((p.y() - low_.y()) / cell_), 0, rows_ - 2);
-    return std::min({vertex(i, j).z(), vertex(i + 1, j).z(), vertex(i, j + 1).z(), vertex(i + 1, j + 1).z()});
+    return std::min(
+        {vertex(i, j).z(), vertex(i + 1, j).z(), vertex(i, j + 1).z(), vertex(i + 1, j + 1).z()});
   }
   void add_to(World* world) const {
     for (int j = 0; j + 1 < rows_; ++j) {
@@ -251,8 +266,10 @@ Site build_site(const SiteConfig& config, const Figure8Path& path, uint64_t seed
     const Footprint footprint{low, low + size};
     if ((footprint.high_m.array() > site.high_m.array() - 5.0).any()) continue;
     bool clear = true;
-    for (const Eigen::Vector2d& q : path_xy) clear = clear && distance_to(footprint, q) > config.path_clearance_m + 2.0;
-    for (const Footprint& other : site.buildings) clear = clear && !overlaps(grown(other, 4.0), footprint);
+    for (const Eigen::Vector2d& q : path_xy)
+      clear = clear && distance_to(footprint, q) > config.path_clearance_m + 2.0;
+    for (const Footprint& other : site.buildings)
+      clear = clear && !overlaps(grown(other, 4.0), footprint);
     if (!clear) continue;
     add_building(&site.world, footprint, random.uniform(3.0, 7.0), &random);
     site.buildings.push_back(footprint);
@@ -269,7 +286,8 @@ Site build_site(const SiteConfig& config, const Figure8Path& path, uint64_t seed
       const Eigen::Vector2d p = random_point(3.0);
       if (path_distance(p) < config.path_clearance_m + radius_m) continue;
       bool clear = true;
-      for (const Footprint& building : site.buildings) clear = clear && distance_to(building, p) > radius_m + 1.5;
+      for (const Footprint& building : site.buildings)
+        clear = clear && distance_to(building, p) > radius_m + 1.5;
       for (const auto& [q, r] : placed) clear = clear && (p - q).norm() > radius_m + r + 1.0;
       if (!clear) continue;
       placed.push_back({p, radius_m});
@@ -289,11 +307,14 @@ Site build_site(const SiteConfig& config, const Figure8Path& path, uint64_t seed
       const Eigen::Vector2d xy = spot + r * Eigen::Vector2d(std::cos(angle), std::sin(angle));
       Box piece;
       const bool slab = random.uniform() < 0.3;  // broken concrete slabs among the blocks
-      piece.half_extent_m = slab ? Eigen::Vector3d(random.uniform(0.6, 1.1), random.uniform(0.4, 0.8), 0.08)
-                                 : Eigen::Vector3d(random.uniform(0.15, 0.6), random.uniform(0.15, 0.6), random.uniform(0.15, 0.5));
+      piece.half_extent_m =
+          slab ? Eigen::Vector3d(random.uniform(0.6, 1.1), random.uniform(0.4, 0.8), 0.08)
+               : Eigen::Vector3d(random.uniform(0.15, 0.6), random.uniform(0.15, 0.6),
+                                 random.uniform(0.15, 0.5));
       piece.rotation = random_rotation(&random);
       // Higher in the middle of the pile.
-      piece.centre_m = Eigen::Vector3d(xy.x(), xy.y(), ground.lowest_near(xy) + random.uniform(0.0, 1.0) * (1.0 - r / radius));
+      piece.centre_m = Eigen::Vector3d(
+          xy.x(), xy.y(), ground.lowest_near(xy) + random.uniform(0.0, 1.0) * (1.0 - r / radius));
       piece.colour = kRubble;
       site.world.add(piece);
     }
@@ -301,15 +322,18 @@ Site build_site(const SiteConfig& config, const Figure8Path& path, uint64_t seed
   for (int i = 0; i < config.poles; ++i) {
     if (!find_spot(0.5, &spot)) break;
     const double base = ground.lowest_near(spot) - 0.3;
-    site.world.add(Cylinder{Eigen::Vector3d(spot.x(), spot.y(), base), random.uniform(0.08, 0.15), random.uniform(4.0, 8.0), kPole});
+    site.world.add(Cylinder{Eigen::Vector3d(spot.x(), spot.y(), base), random.uniform(0.08, 0.15),
+                            random.uniform(4.0, 8.0), kPole});
   }
   for (int i = 0; i < config.trees; ++i) {
     const double crown = random.uniform(1.2, 2.2);
     if (!find_spot(crown, &spot)) break;
     const double base = ground.lowest_near(spot) - 0.3;
     const double trunk = random.uniform(2.5, 4.0);
-    site.world.add(Cylinder{Eigen::Vector3d(spot.x(), spot.y(), base), random.uniform(0.15, 0.25), trunk + 0.3, kTrunk});
-    site.world.add(Sphere{Eigen::Vector3d(spot.x(), spot.y(), base + 0.3 + trunk + 0.6 * crown), crown, kCrown});
+    site.world.add(Cylinder{Eigen::Vector3d(spot.x(), spot.y(), base), random.uniform(0.15, 0.25),
+                            trunk + 0.3, kTrunk});
+    site.world.add(Sphere{Eigen::Vector3d(spot.x(), spot.y(), base + 0.3 + trunk + 0.6 * crown),
+                          crown, kCrown});
   }
   site.world.build();
   return site;

@@ -21,7 +21,7 @@ struct SiteConfig {
   int trees = 14;
   double ground_amplitude_m = 0.5;
   double ground_cell_m = 2.0;
-  double margin_m = 25.0;       // ground beyond the path's bounding box
+  double margin_m = 25.0;         // ground beyond the path's bounding box
   double path_clearance_m = 3.0;  // obstacles keep this far from the path (plus their own size)
 };
 

@@ -16,8 +16,9 @@ constexpr int kLeafSize = 4;
 
 // Ray against an axis-aligned box given by its corners: the entry distance (clamped at 0), or
 // kNoHit when the ray misses it or it lies entirely beyond `limit`.
-double slab_entry(const Eigen::Vector3d& low, const Eigen::Vector3d& high, const Eigen::Vector3d& origin,
-                  const Eigen::Vector3d& inverse_direction, double limit) {
+double slab_entry(const Eigen::Vector3d& low, const Eigen::Vector3d& high,
+                  const Eigen::Vector3d& origin, const Eigen::Vector3d& inverse_direction,
+                  double limit) {
   double t_near = 0.0, t_far = limit;
   for (int axis = 0; axis < 3; ++axis) {
     double t1 = (low[axis] - origin[axis]) * inverse_direction[axis];
@@ -47,15 +48,16 @@ void append_triangle(Mesh* mesh, const Eigen::Vector3d& a, const Eigen::Vector3d
   }
 }
 
-void append_quad(Mesh* mesh, const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
-                 const Eigen::Vector3d& d, const SurfaceColour& colour) {
+void append_quad(Mesh* mesh, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                 const Eigen::Vector3d& c, const Eigen::Vector3d& d, const SurfaceColour& colour) {
   append_triangle(mesh, a, b, c, colour);
   append_triangle(mesh, a, c, d, colour);
 }
 
 }  // namespace
 
-double intersect(const Plane& plane, const Eigen::Vector3d& origin, const Eigen::Vector3d& direction) {
+double intersect(const Plane& plane, const Eigen::Vector3d& origin,
+                 const Eigen::Vector3d& direction) {
   const double denominator = direction.dot(plane.normal);
   if (std::abs(denominator) < 1e-15) return kNoHit;
   const double t = (plane.point_m - origin).dot(plane.normal) / denominator;
@@ -83,7 +85,8 @@ double intersect(const Box& box, const Eigen::Vector3d& origin, const Eigen::Vec
   return t_near > kMinHitDistance_m ? t_near : t_far;
 }
 
-double intersect(const Cylinder& cylinder, const Eigen::Vector3d& origin, const Eigen::Vector3d& direction) {
+double intersect(const Cylinder& cylinder, const Eigen::Vector3d& origin,
+                 const Eigen::Vector3d& direction) {
   const double ox = origin.x() - cylinder.base_centre_m.x();
   const double oy = origin.y() - cylinder.base_centre_m.y();
   const double z_low = cylinder.base_centre_m.z(), z_high = z_low + cylinder.height_m;
@@ -115,7 +118,8 @@ double intersect(const Cylinder& cylinder, const Eigen::Vector3d& origin, const 
   return best;
 }
 
-double intersect(const Sphere& sphere, const Eigen::Vector3d& origin, const Eigen::Vector3d& direction) {
+double intersect(const Sphere& sphere, const Eigen::Vector3d& origin,
+                 const Eigen::Vector3d& direction) {
   const Eigen::Vector3d oc = origin - sphere.centre_m;
   const double b = oc.dot(direction);
   const double c = oc.squaredNorm() - sphere.radius_m * sphere.radius_m;
@@ -127,7 +131,8 @@ double intersect(const Sphere& sphere, const Eigen::Vector3d& origin, const Eige
   return kNoHit;
 }
 
-double intersect(const Triangle& triangle, const Eigen::Vector3d& origin, const Eigen::Vector3d& direction) {
+double intersect(const Triangle& triangle, const Eigen::Vector3d& origin,
+                 const Eigen::Vector3d& direction) {
   // Moeller-Trumbore: barycentric coordinates and distance from one 3x3 solve by Cramer's rule.
   const Eigen::Vector3d edge1 = triangle.b_m - triangle.a_m, edge2 = triangle.c_m - triangle.a_m;
   const Eigen::Vector3d p = direction.cross(edge2);
@@ -144,7 +149,8 @@ double intersect(const Triangle& triangle, const Eigen::Vector3d& origin, const 
   return t > kMinHitDistance_m ? t : kNoHit;
 }
 
-void World::bounds_of(const Reference& reference, Eigen::Vector3d* low, Eigen::Vector3d* high) const {
+void World::bounds_of(const Reference& reference, Eigen::Vector3d* low,
+                      Eigen::Vector3d* high) const {
   switch (reference.kind) {
     case Kind::kBox: {
       const Box& box = boxes_[reference.index];
@@ -178,10 +184,14 @@ void World::bounds_of(const Reference& reference, Eigen::Vector3d* low, Eigen::V
 double World::intersect_reference(const Reference& reference, const Eigen::Vector3d& origin,
                                   const Eigen::Vector3d& direction) const {
   switch (reference.kind) {
-    case Kind::kBox: return sim::intersect(boxes_[reference.index], origin, direction);
-    case Kind::kCylinder: return sim::intersect(cylinders_[reference.index], origin, direction);
-    case Kind::kSphere: return sim::intersect(spheres_[reference.index], origin, direction);
-    case Kind::kTriangle: return sim::intersect(triangles_[reference.index], origin, direction);
+    case Kind::kBox:
+      return sim::intersect(boxes_[reference.index], origin, direction);
+    case Kind::kCylinder:
+      return sim::intersect(cylinders_[reference.index], origin, direction);
+    case Kind::kSphere:
+      return sim::intersect(spheres_[reference.index], origin, direction);
+    case Kind::kTriangle:
+      return sim::intersect(triangles_[reference.index], origin, direction);
   }
   return kNoHit;
 }
@@ -230,9 +240,10 @@ void World::build() {
     int axis = 0;
     (centre_high - centre_low).maxCoeff(&axis);
     const uint32_t half = task.count / 2;
-    std::nth_element(items.begin() + task.first, items.begin() + task.first + half,
-                     items.begin() + task.first + task.count,
-                     [axis](const BuildItem& a, const BuildItem& b) { return a.centre[axis] < b.centre[axis]; });
+    std::nth_element(
+        items.begin() + task.first, items.begin() + task.first + half,
+        items.begin() + task.first + task.count,
+        [axis](const BuildItem& a, const BuildItem& b) { return a.centre[axis] < b.centre[axis]; });
     const uint32_t left = static_cast<uint32_t>(nodes_.size());
     nodes_.emplace_back();
     nodes_.emplace_back();
@@ -251,7 +262,8 @@ double World::intersect(const Eigen::Vector3d& origin, const Eigen::Vector3d& di
                         double max_range_m) const {
   if (!built_) throw Error("sim::World::intersect: call build() after adding primitives");
   double best = max_range_m;
-  for (const Plane& plane : planes_) best = std::min(best, sim::intersect(plane, origin, direction));
+  for (const Plane& plane : planes_)
+    best = std::min(best, sim::intersect(plane, origin, direction));
   if (!nodes_.empty()) {
     const Eigen::Vector3d inverse_direction = direction.cwiseInverse();
     uint32_t stack[64];
@@ -278,7 +290,8 @@ Mesh World::to_mesh(int segments) const {
   Mesh mesh;
   for (const Plane& plane : planes_) {
     // Any two unit vectors spanning the plane, ordered so the quad faces along the normal.
-    const Eigen::Vector3d helper = std::abs(plane.normal.z()) < 0.9 ? Eigen::Vector3d::UnitZ() : Eigen::Vector3d::UnitX();
+    const Eigen::Vector3d helper =
+        std::abs(plane.normal.z()) < 0.9 ? Eigen::Vector3d::UnitZ() : Eigen::Vector3d::UnitX();
     const Eigen::Vector3d u = plane.normal.cross(helper).normalized() * plane.mesh_half_size_m;
     const Eigen::Vector3d v = plane.normal.cross(u);
     const Eigen::Vector3d& c = plane.point_m;
@@ -296,8 +309,12 @@ Mesh World::to_mesh(int segments) const {
           return Eigen::Vector3d(box.centre_m + box.rotation * local);
         };
         // Counter-clockwise seen from outside: e_u x e_v = e_axis, reversed on the negative face.
-        if (sign > 0) append_quad(&mesh, corner(-1, -1), corner(1, -1), corner(1, 1), corner(-1, 1), box.colour);
-        else append_quad(&mesh, corner(-1, 1), corner(1, 1), corner(1, -1), corner(-1, -1), box.colour);
+        if (sign > 0)
+          append_quad(&mesh, corner(-1, -1), corner(1, -1), corner(1, 1), corner(-1, 1),
+                      box.colour);
+        else
+          append_quad(&mesh, corner(-1, 1), corner(1, 1), corner(1, -1), corner(-1, -1),
+                      box.colour);
       }
     }
   }
@@ -306,8 +323,10 @@ Mesh World::to_mesh(int segments) const {
     const Eigen::Vector3d top = bottom + Eigen::Vector3d(0.0, 0.0, cylinder.height_m);
     for (int i = 0; i < segments; ++i) {
       const double a0 = 2.0 * kPi * i / segments, a1 = 2.0 * kPi * (i + 1) / segments;
-      const Eigen::Vector3d r0(cylinder.radius_m * std::cos(a0), cylinder.radius_m * std::sin(a0), 0.0);
-      const Eigen::Vector3d r1(cylinder.radius_m * std::cos(a1), cylinder.radius_m * std::sin(a1), 0.0);
+      const Eigen::Vector3d r0(cylinder.radius_m * std::cos(a0), cylinder.radius_m * std::sin(a0),
+                               0.0);
+      const Eigen::Vector3d r1(cylinder.radius_m * std::cos(a1), cylinder.radius_m * std::sin(a1),
+                               0.0);
       append_quad(&mesh, bottom + r0, bottom + r1, top + r1, top + r0, cylinder.colour);
       append_triangle(&mesh, top, top + r0, top + r1, cylinder.colour);
       append_triangle(&mesh, bottom, bottom + r1, bottom + r0, cylinder.colour);
@@ -317,15 +336,20 @@ Mesh World::to_mesh(int segments) const {
     const int rings = std::max(3, segments / 2);
     const auto point = [&](int ring, int i) {
       const double polar = kPi * ring / rings, azimuth = 2.0 * kPi * i / segments;
-      return Eigen::Vector3d(sphere.centre_m + sphere.radius_m * Eigen::Vector3d(std::sin(polar) * std::cos(azimuth),
-                                                                                 std::sin(polar) * std::sin(azimuth),
-                                                                                 std::cos(polar)));
+      return Eigen::Vector3d(sphere.centre_m +
+                             sphere.radius_m * Eigen::Vector3d(std::sin(polar) * std::cos(azimuth),
+                                                               std::sin(polar) * std::sin(azimuth),
+                                                               std::cos(polar)));
     };
     for (int ring = 0; ring < rings; ++ring) {
       for (int i = 0; i < segments; ++i) {
         // e_polar x e_azimuth = e_radial: outward. The pole rows each lose one degenerate triangle.
-        if (ring + 1 < rings) append_triangle(&mesh, point(ring, i), point(ring + 1, i), point(ring + 1, i + 1), sphere.colour);
-        if (ring > 0) append_triangle(&mesh, point(ring, i), point(ring + 1, i + 1), point(ring, i + 1), sphere.colour);
+        if (ring + 1 < rings)
+          append_triangle(&mesh, point(ring, i), point(ring + 1, i), point(ring + 1, i + 1),
+                          sphere.colour);
+        if (ring > 0)
+          append_triangle(&mesh, point(ring, i), point(ring + 1, i + 1), point(ring, i + 1),
+                          sphere.colour);
       }
     }
   }

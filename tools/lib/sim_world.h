@@ -26,7 +26,7 @@ struct SurfaceColour {
 struct Plane {
   Eigen::Vector3d point_m = Eigen::Vector3d::Zero();
   Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  // unit
-  double mesh_half_size_m = 50.0;                       // extent of its square in the mesh only
+  double mesh_half_size_m = 50.0;                     // extent of its square in the mesh only
   SurfaceColour colour;
 };
 
@@ -59,19 +59,38 @@ struct Triangle {
 
 // Distance along a unit ray to each primitive's surface (the nearest crossing in front of the
 // origin, outside or inside), or kNoHit.
-double intersect(const Plane& plane, const Eigen::Vector3d& origin, const Eigen::Vector3d& direction);
+double intersect(const Plane& plane, const Eigen::Vector3d& origin,
+                 const Eigen::Vector3d& direction);
 double intersect(const Box& box, const Eigen::Vector3d& origin, const Eigen::Vector3d& direction);
-double intersect(const Cylinder& cylinder, const Eigen::Vector3d& origin, const Eigen::Vector3d& direction);
-double intersect(const Sphere& sphere, const Eigen::Vector3d& origin, const Eigen::Vector3d& direction);
-double intersect(const Triangle& triangle, const Eigen::Vector3d& origin, const Eigen::Vector3d& direction);
+double intersect(const Cylinder& cylinder, const Eigen::Vector3d& origin,
+                 const Eigen::Vector3d& direction);
+double intersect(const Sphere& sphere, const Eigen::Vector3d& origin,
+                 const Eigen::Vector3d& direction);
+double intersect(const Triangle& triangle, const Eigen::Vector3d& origin,
+                 const Eigen::Vector3d& direction);
 
 class World {
  public:
-  void add(const Plane& plane) { planes_.push_back(plane); built_ = false; }
-  void add(const Box& box) { boxes_.push_back(box); built_ = false; }
-  void add(const Cylinder& cylinder) { cylinders_.push_back(cylinder); built_ = false; }
-  void add(const Sphere& sphere) { spheres_.push_back(sphere); built_ = false; }
-  void add(const Triangle& triangle) { triangles_.push_back(triangle); built_ = false; }
+  void add(const Plane& plane) {
+    planes_.push_back(plane);
+    built_ = false;
+  }
+  void add(const Box& box) {
+    boxes_.push_back(box);
+    built_ = false;
+  }
+  void add(const Cylinder& cylinder) {
+    cylinders_.push_back(cylinder);
+    built_ = false;
+  }
+  void add(const Sphere& sphere) {
+    spheres_.push_back(sphere);
+    built_ = false;
+  }
+  void add(const Triangle& triangle) {
+    triangles_.push_back(triangle);
+    built_ = false;
+  }
 
   // Builds the hierarchy; call after the last add() and before intersect() from several threads.
   void build();

@@ -18,7 +18,9 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-double seconds_since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
+double seconds_since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
 
 void draw_progress(size_t done, size_t total, double elapsed_s, const pipeline::SlamSystem& slam) {
   const int width = 40;
@@ -26,8 +28,9 @@ void draw_progress(size_t done, size_t total, double elapsed_s, const pipeline::
   const int filled = static_cast<int>(fraction * width);
   const double eta_s = done > 0 ? elapsed_s * (total - std::min(done, total)) / done : 0.0;
   std::fprintf(stderr, "\r[%s%s] %3.0f%% scan %zu/%zu, %.0f s, ETA %.0f s, queues %zu/%zu ",
-               std::string(filled, '#').c_str(), std::string(width - filled, '.').c_str(), 100.0 * fraction, done,
-               total, elapsed_s, eta_s, slam.sensor_queue_length(), slam.submap_queue_length());
+               std::string(filled, '#').c_str(), std::string(width - filled, '.').c_str(),
+               100.0 * fraction, done, total, elapsed_s, eta_s, slam.sensor_queue_length(),
+               slam.submap_queue_length());
 }
 
 io::StampedPose to_stamped(double stamp_s, const Eigen::Isometry3d& pose) {
@@ -39,8 +42,9 @@ io::StampedPose to_stamped(double stamp_s, const Eigen::Isometry3d& pose) {
 }
 
 void print_timing(FILE* out, const char* name, const pipeline::ModuleTiming& timing) {
-  std::fprintf(out, "%-20s %8lld %10.2f %10.2f %10.2f\n", name, static_cast<long long>(timing.calls), timing.total_s,
-               timing.mean_ms(), 1000.0 * timing.max_s);
+  std::fprintf(out, "%-20s %8lld %10.2f %10.2f %10.2f\n", name,
+               static_cast<long long>(timing.calls), timing.total_s, timing.mean_ms(),
+               1000.0 * timing.max_s);
 }
 
 }  // namespace
@@ -169,9 +173,11 @@ pipeline::SlamConfig preset_slam_config(const std::string& preset, Device device
   throw Error("unknown preset '" + preset + "' (arche, rgbd or lidar-keyframes)");
 }
 
-SlamRunResult run_slam_system(ScanSource& source, const pipeline::SlamConfig& config, const SlamRunOptions& options) {
+SlamRunResult run_slam_system(ScanSource& source, const pipeline::SlamConfig& config,
+                              const SlamRunOptions& options) {
   SlamRunResult result;
-  const size_t total = options.max_scans > 0 ? std::min(options.max_scans, source.size()) : source.size();
+  const size_t total =
+      options.max_scans > 0 ? std::min(options.max_scans, source.size()) : source.size();
   pipeline::SlamSystem slam(config);
   const auto start = Clock::now();
   SourceScan scan;
@@ -188,7 +194,8 @@ SlamRunResult run_slam_system(ScanSource& source, const pipeline::SlamConfig& co
     // frontend may be closing right now.
     const auto throttle_start = Clock::now();
     const size_t submap_limit = std::max<size_t>(1, config.submap_queue_size - 1);
-    while (slam.sensor_queue_length() >= config.sensor_queue_size || slam.submap_queue_length() >= submap_limit) {
+    while (slam.sensor_queue_length() >= config.sensor_queue_size ||
+           slam.submap_queue_length() >= submap_limit) {
       std::this_thread::sleep_for(std::chrono::microseconds(200));
     }
     result.throttle_s += seconds_since(throttle_start);
@@ -224,11 +231,13 @@ SlamRunResult run_slam_system(ScanSource& source, const pipeline::SlamConfig& co
   result.timings = slam.timings();
   result.submaps = slam.submaps();
   result.constraints = slam.constraints();
-  const size_t voxels_per_block = static_cast<size_t>(config.map.voxels_per_side) * config.map.voxels_per_side *
-                                  config.map.voxels_per_side;
-  for (const pipeline::SubmapInfo& submap : result.submaps) result.map_blocks += submap.statistics.blocks;
+  const size_t voxels_per_block = static_cast<size_t>(config.map.voxels_per_side) *
+                                  config.map.voxels_per_side * config.map.voxels_per_side;
+  for (const pipeline::SubmapInfo& submap : result.submaps)
+    result.map_blocks += submap.statistics.blocks;
   result.map_memory_mb = double(result.map_blocks) * voxels_per_block *
-                         (sizeof(TsdfVoxel) + sizeof(ColorVoxel) + sizeof(EsdfVoxel)) / (1024.0 * 1024.0);
+                         (sizeof(TsdfVoxel) + sizeof(ColorVoxel) + sizeof(EsdfVoxel)) /
+                         (1024.0 * 1024.0);
 
   if (!options.map_path.empty()) {
     io::MapFileContents contents;
@@ -247,8 +256,8 @@ SlamRunResult run_slam_system(ScanSource& source, const pipeline::SlamConfig& co
   return result;
 }
 
-SlamRunEvaluation evaluate_slam_run(const ScanSource& source, const SlamRunResult& result, AlignmentMode alignment,
-                                    double max_time_gap_s) {
+SlamRunEvaluation evaluate_slam_run(const ScanSource& source, const SlamRunResult& result,
+                                    AlignmentMode alignment, double max_time_gap_s) {
   SlamRunEvaluation evaluation;
   if (source.reference_kind() == ReferenceKind::kNone || source.reference().size() < 3) {
     evaluation.problem = "the input has no reference trajectory";
@@ -269,28 +278,43 @@ SlamRunEvaluation evaluate_slam_run(const ScanSource& source, const SlamRunResul
 
 void print_slam_run(const SlamRunResult& result, FILE* out) {
   const pipeline::SlamCounters& c = result.counters;
-  std::fprintf(out, "submaps: %lld created, %zu in the pose graph, %lld odometry constraints, registration %lld "
-               "accepted of %lld attempted, %lld optimisations\n",
-               static_cast<long long>(c.submaps_created), result.submaps.size(),
-               static_cast<long long>(c.odometry_constraints), static_cast<long long>(c.registration.accepted),
-               static_cast<long long>(c.registration.attempted), static_cast<long long>(c.optimizations));
-  std::fprintf(out, "registration: %lld attempted, %lld accepted, rejected: %lld failed, %lld too far, %lld too few "
-               "points; %lld revisits started from the walls; %lld set aside by the consistency gate at the end\n",
-               static_cast<long long>(c.registration.attempted), static_cast<long long>(c.registration.accepted),
-               static_cast<long long>(c.registration.rejected_failed), static_cast<long long>(c.registration.rejected_too_far),
+  std::fprintf(
+      out,
+      "submaps: %lld created, %zu in the pose graph, %lld odometry constraints, registration %lld "
+      "accepted of %lld attempted, %lld optimisations\n",
+      static_cast<long long>(c.submaps_created), result.submaps.size(),
+      static_cast<long long>(c.odometry_constraints),
+      static_cast<long long>(c.registration.accepted),
+      static_cast<long long>(c.registration.attempted), static_cast<long long>(c.optimizations));
+  std::fprintf(out,
+               "registration: %lld attempted, %lld accepted, rejected: %lld failed, %lld too far, "
+               "%lld too few "
+               "points; %lld revisits started from the walls; %lld set aside by the consistency "
+               "gate at the end\n",
+               static_cast<long long>(c.registration.attempted),
+               static_cast<long long>(c.registration.accepted),
+               static_cast<long long>(c.registration.rejected_failed),
+               static_cast<long long>(c.registration.rejected_too_far),
                static_cast<long long>(c.registration.rejected_too_few_points),
                static_cast<long long>(c.registration.started_from_walls),
                static_cast<long long>(c.registrations_set_aside));
-  std::fprintf(out, "scans: %zu given, %lld integrated, %lld dropped by the pipeline (queue full %lld, invalid pose "
-               "%lld, empty %lld, bad stamp %lld, failed %lld), %lld dropped while reading; submaps dropped %lld\n",
+  std::fprintf(out,
+               "scans: %zu given, %lld integrated, %lld dropped by the pipeline (queue full %lld, "
+               "invalid pose "
+               "%lld, empty %lld, bad stamp %lld, failed %lld), %lld dropped while reading; "
+               "submaps dropped %lld\n",
                result.scans_given, static_cast<long long>(c.scans_integrated),
-               static_cast<long long>(c.scans_dropped_total()), static_cast<long long>(c.scans_dropped_queue_full),
-               static_cast<long long>(c.scans_dropped_invalid_pose), static_cast<long long>(c.scans_dropped_empty_cloud),
-               static_cast<long long>(c.scans_dropped_bad_stamp), static_cast<long long>(c.scans_failed),
+               static_cast<long long>(c.scans_dropped_total()),
+               static_cast<long long>(c.scans_dropped_queue_full),
+               static_cast<long long>(c.scans_dropped_invalid_pose),
+               static_cast<long long>(c.scans_dropped_empty_cloud),
+               static_cast<long long>(c.scans_dropped_bad_stamp),
+               static_cast<long long>(c.scans_failed),
                static_cast<long long>(result.scans_dropped_by_source),
                static_cast<long long>(c.submaps_dropped_queue_full));
   const pipeline::SlamTimings& t = result.timings;
-  std::fprintf(out, "\n%-20s %8s %10s %10s %10s\n", "module", "calls", "total s", "mean ms", "max ms");
+  std::fprintf(out, "\n%-20s %8s %10s %10s %10s\n", "module", "calls", "total s", "mean ms",
+               "max ms");
   print_timing(out, "tsdf integrate", t.tsdf);
   print_timing(out, "esdf (submap)", t.esdf);
   print_timing(out, "mesh (submap)", t.mesh);
@@ -298,13 +322,17 @@ void print_slam_run(const SlamRunResult& result, FILE* out) {
   print_timing(out, "backend optimise", t.backend);
   print_timing(out, "sensor queue wait", t.sensor_queue_wait);
   print_timing(out, "submap queue wait", t.submap_queue_wait);
-  std::fprintf(out, "%-20s %8s %10.2f   (reading and decoding the input)\n", "read input", "", result.read_s);
-  std::fprintf(out, "%-20s %8s %10.2f   (input held back while a queue was full)\n", "throttle", "", result.throttle_s);
-  std::fprintf(out, "%-20s %8s %10.2f   (flush and final optimisation)\n", "finish", "", result.finish_s);
-  std::fprintf(out, "%-20s %8s %10.2f   (%.1f s of input: %.2f x real time)\n", "total wall", "", result.wall_s,
-               result.input_duration_s, result.real_time_factor());
+  std::fprintf(out, "%-20s %8s %10.2f   (reading and decoding the input)\n", "read input", "",
+               result.read_s);
+  std::fprintf(out, "%-20s %8s %10.2f   (input held back while a queue was full)\n", "throttle", "",
+               result.throttle_s);
+  std::fprintf(out, "%-20s %8s %10.2f   (flush and final optimisation)\n", "finish", "",
+               result.finish_s);
+  std::fprintf(out, "%-20s %8s %10.2f   (%.1f s of input: %.2f x real time)\n", "total wall", "",
+               result.wall_s, result.input_duration_s, result.real_time_factor());
   std::fprintf(out, "\nmap: %zu submaps, %zu TSDF blocks (%.1f MB of voxels), mesh %zu triangles\n",
-               result.submaps.size(), result.map_blocks, result.map_memory_mb, result.mesh.triangle_count());
+               result.submaps.size(), result.map_blocks, result.map_memory_mb,
+               result.mesh.triangle_count());
 }
 
 ConfigFileUse apply_slam_config_file(const std::string& path, pipeline::SlamConfig* config) {

@@ -46,7 +46,8 @@ struct SlamRunResult {
 
 // Runs `source` through a SlamSystem built from `config`. Throws covox::Error for a bad
 // configuration or an input the source cannot read at all.
-SlamRunResult run_slam_system(ScanSource& source, const pipeline::SlamConfig& config, const SlamRunOptions& options);
+SlamRunResult run_slam_system(ScanSource& source, const pipeline::SlamConfig& config,
+                              const SlamRunOptions& options);
 
 // The trajectories against the source's reference (both evaluated the same way).
 struct SlamRunEvaluation {
@@ -55,8 +56,8 @@ struct SlamRunEvaluation {
   TrajectoryEvaluation odometry;
   TrajectoryEvaluation corrected;
 };
-SlamRunEvaluation evaluate_slam_run(const ScanSource& source, const SlamRunResult& result, AlignmentMode alignment,
-                                    double max_time_gap_s);
+SlamRunEvaluation evaluate_slam_run(const ScanSource& source, const SlamRunResult& result,
+                                    AlignmentMode alignment, double max_time_gap_s);
 
 // The per-module timing table and the counters, as the runner prints them.
 void print_slam_run(const SlamRunResult& result, FILE* out);

@@ -78,8 +78,9 @@ SimilarityTransform align_umeyama(const std::vector<Eigen::Vector3d>& source,
   cross_covariance /= count;
   source_variance /= count;
   if (source_variance <= 0.0) {
-    throw Error("trajectory alignment: all estimate positions are identical; se3/sim3 alignment "
-                "needs motion (use --align translation or none)");
+    throw Error(
+        "trajectory alignment: all estimate positions are identical; se3/sim3 alignment "
+        "needs motion (use --align translation or none)");
   }
   Eigen::JacobiSVD<Eigen::Matrix3d> svd(cross_covariance,
                                         Eigen::ComputeFullU | Eigen::ComputeFullV);
@@ -143,8 +144,7 @@ AssociatedTrajectories associate_by_interpolation(const io::Trajectory& referenc
     } else {
       const io::StampedPose& before = estimate.poses[after - 1];
       const io::StampedPose& next = estimate.poses[after];
-      const double nearest_gap_s =
-          std::min(stamp - before.timestamp_s, next.timestamp_s - stamp);
+      const double nearest_gap_s = std::min(stamp - before.timestamp_s, next.timestamp_s - stamp);
       if (nearest_gap_s > options.max_time_gap_s) {
         ++associated.skipped_time_gap;
         continue;
@@ -171,11 +171,16 @@ AlignmentMode parse_alignment_mode(const std::string& text) {
 
 std::string alignment_mode_name(AlignmentMode mode) {
   switch (mode) {
-    case AlignmentMode::kNone: return "none";
-    case AlignmentMode::kTranslation: return "translation";
-    case AlignmentMode::kTranslationYaw: return "4dof";
-    case AlignmentMode::kSe3: return "se3";
-    case AlignmentMode::kSim3: return "sim3";
+    case AlignmentMode::kNone:
+      return "none";
+    case AlignmentMode::kTranslation:
+      return "translation";
+    case AlignmentMode::kTranslationYaw:
+      return "4dof";
+    case AlignmentMode::kSe3:
+      return "se3";
+    case AlignmentMode::kSim3:
+      return "sim3";
   }
   return "unknown";
 }
@@ -183,10 +188,13 @@ std::string alignment_mode_name(AlignmentMode mode) {
 size_t minimum_points_for_alignment(AlignmentMode mode) {
   switch (mode) {
     case AlignmentMode::kNone:
-    case AlignmentMode::kTranslation: return 1;
-    case AlignmentMode::kTranslationYaw: return 2;
+    case AlignmentMode::kTranslation:
+      return 1;
+    case AlignmentMode::kTranslationYaw:
+      return 2;
     case AlignmentMode::kSe3:
-    case AlignmentMode::kSim3: return 3;
+    case AlignmentMode::kSim3:
+      return 3;
   }
   return 3;
 }
@@ -205,15 +213,19 @@ SimilarityTransform estimate_alignment(const std::vector<Eigen::Vector3d>& sourc
                 std::to_string(source_m.size()));
   }
   switch (mode) {
-    case AlignmentMode::kNone: return SimilarityTransform();
+    case AlignmentMode::kNone:
+      return SimilarityTransform();
     case AlignmentMode::kTranslation: {
       SimilarityTransform transform;
       transform.translation_m = centroid(target_m) - centroid(source_m);
       return transform;
     }
-    case AlignmentMode::kTranslationYaw: return align_translation_yaw(source_m, target_m);
-    case AlignmentMode::kSe3: return align_umeyama(source_m, target_m, false);
-    case AlignmentMode::kSim3: return align_umeyama(source_m, target_m, true);
+    case AlignmentMode::kTranslationYaw:
+      return align_translation_yaw(source_m, target_m);
+    case AlignmentMode::kSe3:
+      return align_umeyama(source_m, target_m, false);
+    case AlignmentMode::kSim3:
+      return align_umeyama(source_m, target_m, true);
   }
   return SimilarityTransform();
 }
@@ -252,7 +264,8 @@ RelativeDeltaUnit parse_relative_delta_unit(const std::string& text) {
 RelativePoseError compute_relative_pose_error(const AssociatedTrajectories& associated,
                                               const RelativePoseErrorOptions& options) {
   if (!(options.delta > 0.0)) {
-    throw Error("relative pose error: delta must be positive, got " + std::to_string(options.delta));
+    throw Error("relative pose error: delta must be positive, got " +
+                std::to_string(options.delta));
   }
   const bool in_frames = options.unit == RelativeDeltaUnit::kFrames;
   if (in_frames && options.delta != std::floor(options.delta)) {
@@ -321,9 +334,8 @@ TrajectoryEvaluation evaluate_trajectory(const io::Trajectory& reference,
                 ". Check that both files use the same clock, or raise the max time gap.");
   }
 
-  evaluation.alignment =
-      estimate_alignment(aligned.estimate_positions_m, aligned.reference_positions_m,
-                         options.alignment);
+  evaluation.alignment = estimate_alignment(aligned.estimate_positions_m,
+                                            aligned.reference_positions_m, options.alignment);
   const Eigen::Quaterniond alignment_rotation(evaluation.alignment.rotation);
   for (size_t i = 0; i < aligned.size(); ++i) {
     aligned.estimate_positions_m[i] = evaluation.alignment.apply(aligned.estimate_positions_m[i]);

@@ -43,8 +43,9 @@ struct BlockSparseStructure {
 
 // `edges[k]` = (from, to) of constraint k; to = -1 for unary constraints. Terms that touch the
 // fixed vertex are left out (its update is zero by construction).
-BlockSparseStructure build_block_sparse_structure(const std::vector<std::pair<int32_t, int32_t>>& edges,
-                                                  int32_t vertex_count, int32_t fixed_vertex);
+BlockSparseStructure build_block_sparse_structure(
+    const std::vector<std::pair<int32_t, int32_t>>& edges, int32_t vertex_count,
+    int32_t fixed_vertex);
 
 }  // namespace backend
 }  // namespace covox

@@ -28,7 +28,8 @@ struct Se3Residual {
     const Eigen::Map<const Eigen::Matrix<T, 3, 1>> ti(t_i), tj(t_j);
     const double* zq = constraint.measurement.rotation;
     const Eigen::Quaternion<T> qz{T{zq[3]}, T{zq[0]}, T{zq[1]}, T{zq[2]}};
-    const Eigen::Matrix<T, 3, 1> tz(T(constraint.measurement.translation[0]), T(constraint.measurement.translation[1]),
+    const Eigen::Matrix<T, 3, 1> tz(T(constraint.measurement.translation[0]),
+                                    T(constraint.measurement.translation[1]),
                                     T(constraint.measurement.translation[2]));
     const Eigen::Quaternion<T> qe = qz.conjugate() * qi.conjugate() * qj;
     T r[6];
@@ -38,7 +39,8 @@ struct Se3Residual {
     for (int k = 0; k < 3; ++k) r[k] = te(k);
     for (int row = 0; row < 6; ++row) {
       out[row] = T(0.0);
-      for (int col = 0; col < 6; ++col) out[row] += T(constraint.sqrt_information[row * 6 + col]) * r[col];
+      for (int col = 0; col < 6; ++col)
+        out[row] += T(constraint.sqrt_information[row * 6 + col]) * r[col];
     }
     return true;
   }
@@ -72,7 +74,8 @@ struct Relative4DofResidual {
   void whiten(const T* r, T* out) const {
     for (int row = 0; row < 4; ++row) {
       out[row] = T(0.0);
-      for (int col = 0; col < 4; ++col) out[row] += T(constraint.sqrt_information[row * 4 + col]) * r[col];
+      for (int col = 0; col < 4; ++col)
+        out[row] += T(constraint.sqrt_information[row * 4 + col]) * r[col];
     }
   }
   Constraint4Dof constraint;
@@ -132,7 +135,8 @@ inline OracleResult finish(ceres::Problem* problem, const OracleOptions& o,
   result.iterations = static_cast<int>(summary.iterations.size());
   result.usable = summary.IsSolutionUsable();
   result.brief_report = summary.BriefReport();
-  result.solve_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  result.solve_time_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;
 }
 
@@ -143,16 +147,20 @@ inline OracleResult solve(Se3PoseGraph* graph, const OracleOptions& o = OracleOp
   for (const Se3Constraint& c : graph->constraints) {
     Se3Pose& pi = graph->poses[c.from];
     Se3Pose& pj = graph->poses[c.to];
-    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<Se3Residual, 6, 4, 3, 4, 3>(new Se3Residual(c)),
-                             nullptr, pi.rotation, pi.translation, pj.rotation, pj.translation);
+    problem.AddResidualBlock(
+        new ceres::AutoDiffCostFunction<Se3Residual, 6, 4, 3, 4, 3>(new Se3Residual(c)), nullptr,
+        pi.rotation, pi.translation, pj.rotation, pj.translation);
   }
   for (Se3Pose& p : graph->poses) {
-    if (problem.HasParameterBlock(p.rotation)) problem.SetManifold(p.rotation, new ceres::EigenQuaternionManifold);
+    if (problem.HasParameterBlock(p.rotation))
+      problem.SetManifold(p.rotation, new ceres::EigenQuaternionManifold);
   }
   if (graph->fixed_vertex >= 0) {
     Se3Pose& fixed = graph->poses[graph->fixed_vertex];
-    if (problem.HasParameterBlock(fixed.rotation)) problem.SetParameterBlockConstant(fixed.rotation);
-    if (problem.HasParameterBlock(fixed.translation)) problem.SetParameterBlockConstant(fixed.translation);
+    if (problem.HasParameterBlock(fixed.rotation))
+      problem.SetParameterBlockConstant(fixed.rotation);
+    if (problem.HasParameterBlock(fixed.translation))
+      problem.SetParameterBlockConstant(fixed.translation);
   }
   return finish(&problem, o, start);
 }
@@ -164,18 +172,21 @@ inline void add_constraints_4dof(PoseGraph4Dof* graph, ceres::Problem* problem_p
   for (const Constraint4Dof& c : graph->constraints) {
     double* pi = &graph->poses[c.from].x;
     if (c.kind == Constraint4DofKind::kAbsolutePosition) {
-      problem.AddResidualBlock(new ceres::AutoDiffCostFunction<Absolute4DofResidual, 4, 4>(new Absolute4DofResidual(c)),
-                               nullptr, pi);
+      problem.AddResidualBlock(
+          new ceres::AutoDiffCostFunction<Absolute4DofResidual, 4, 4>(new Absolute4DofResidual(c)),
+          nullptr, pi);
     } else {
       double* pj = &graph->poses[c.to].x;
-      problem.AddResidualBlock(new ceres::AutoDiffCostFunction<Relative4DofResidual, 4, 4, 4>(new Relative4DofResidual(c)),
+      problem.AddResidualBlock(new ceres::AutoDiffCostFunction<Relative4DofResidual, 4, 4, 4>(
+                                   new Relative4DofResidual(c)),
                                nullptr, pi, pj);
     }
   }
 }
 
 inline void hold_fixed_vertex_4dof(PoseGraph4Dof* graph, ceres::Problem* problem) {
-  if (graph->fixed_vertex >= 0 && problem->HasParameterBlock(&graph->poses[graph->fixed_vertex].x)) {
+  if (graph->fixed_vertex >= 0 &&
+      problem->HasParameterBlock(&graph->poses[graph->fixed_vertex].x)) {
     problem->SetParameterBlockConstant(&graph->poses[graph->fixed_vertex].x);
   }
 }

@@ -34,7 +34,8 @@ namespace ceres_oracle {
 
 class RegistrationPairCost : public ceres::CostFunction {
  public:
-  RegistrationPairCost(std::vector<RegistrationPoint> points, const RegistrationDistanceLookup& lookup,
+  RegistrationPairCost(std::vector<RegistrationPoint> points,
+                       const RegistrationDistanceLookup& lookup,
                        const RegistrationResidualConfig& config, double residual_sigma)
       : points_(std::move(points)),
         lookup_(lookup),
@@ -46,13 +47,14 @@ class RegistrationPairCost : public ceres::CostFunction {
     mutable_parameter_block_sizes()->push_back(4);
   }
 
-  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
     const Pose4Dof pi{parameters[0][0], parameters[0][1], parameters[0][2], parameters[0][3]};
     const Pose4Dof pj{parameters[1][0], parameters[1][1], parameters[1][2], parameters[1][3]};
     const RegistrationPairGeometry geometry = registration_pair_geometry(pi, pj);
     for (size_t k = 0; k < points_.size(); ++k) {
-      const RegistrationResidual r =
-          registration_scaled_residual(points_[k], lookup_, geometry, robust_, tsdf_target_, inverse_sigma_);
+      const RegistrationResidual r = registration_scaled_residual(
+          points_[k], lookup_, geometry, robust_, tsdf_target_, inverse_sigma_);
       double s = 0.0, ds_dr = 0.0;
       if (r.valid) {
         const double rho = 2.0 * r.cost;
@@ -63,8 +65,10 @@ class RegistrationPairCost : public ceres::CostFunction {
       residuals[k] = s;
       if (jacobians == nullptr) continue;
       for (int a = 0; a < 4; ++a) {
-        if (jacobians[0] != nullptr) jacobians[0][k * 4 + a] = r.valid ? ds_dr * r.jacobian_i[a] : 0.0;
-        if (jacobians[1] != nullptr) jacobians[1][k * 4 + a] = r.valid ? ds_dr * r.jacobian_j[a] : 0.0;
+        if (jacobians[0] != nullptr)
+          jacobians[0][k * 4 + a] = r.valid ? ds_dr * r.jacobian_i[a] : 0.0;
+        if (jacobians[1] != nullptr)
+          jacobians[1][k * 4 + a] = r.valid ? ds_dr * r.jacobian_j[a] : 0.0;
       }
     }
     return true;
@@ -97,7 +101,8 @@ class HostRegistrationFields {
 // Solves `graph` (constraints and registration terms) in place with Ceres. `fields` keeps the
 // host copies of device maps across calls (benchmarks repeat solves); may be null.
 inline OracleResult solve(PoseGraph4Dof* graph, const std::vector<RegistrationTerm>& terms,
-                          const OracleOptions& o = OracleOptions(), HostRegistrationFields* fields = nullptr) {
+                          const OracleOptions& o = OracleOptions(),
+                          HostRegistrationFields* fields = nullptr) {
   HostRegistrationFields local_fields;
   HostRegistrationFields& host_fields = fields ? *fields : local_fields;
   for (const RegistrationTerm& t : terms) host_fields.host_map(t.map_j);  // copies are not timed
@@ -108,9 +113,11 @@ inline OracleResult solve(PoseGraph4Dof* graph, const std::vector<RegistrationTe
     const Stream stream(t.points_i->points.device());
     std::vector<RegistrationPoint> points = t.points_i->points.to_host(stream);
     if (points.empty()) continue;
-    const RegistrationDistanceLookup lookup = make_registration_lookup(host_fields.host_map(t.map_j), t.residual);
-    problem.AddResidualBlock(new RegistrationPairCost(std::move(points), lookup, t.residual, t.residual_sigma), nullptr,
-                             &graph->poses[t.vertex_i].x, &graph->poses[t.vertex_j].x);
+    const RegistrationDistanceLookup lookup =
+        make_registration_lookup(host_fields.host_map(t.map_j), t.residual);
+    problem.AddResidualBlock(
+        new RegistrationPairCost(std::move(points), lookup, t.residual, t.residual_sigma), nullptr,
+        &graph->poses[t.vertex_i].x, &graph->poses[t.vertex_j].x);
   }
   hold_fixed_vertex_4dof(graph, &problem);
   return finish(&problem, o, start);

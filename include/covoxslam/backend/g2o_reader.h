@@ -16,7 +16,7 @@ namespace covox {
 namespace backend {
 
 struct G2oGraph {
-  Se3PoseGraph graph;              // fixed_vertex: the FIX'ed vertex, else the first one
+  Se3PoseGraph graph;               // fixed_vertex: the FIX'ed vertex, else the first one
   std::vector<int64_t> vertex_ids;  // the file's id of each pose index
 };
 

@@ -12,8 +12,9 @@ namespace backend {
 
 // Residuals f, Jacobians and the cost 0.5 |f|^2 of every constraint.
 template <class Model, class Backend>
-void evaluate_constraints(Backend backend, const Stream& stream, const typename Model::Constraint* constraints,
-                          int64_t count, const typename Model::Pose* poses, double* residuals, double* jac_from,
+void evaluate_constraints(Backend backend, const Stream& stream,
+                          const typename Model::Constraint* constraints, int64_t count,
+                          const typename Model::Pose* poses, double* residuals, double* jac_from,
                           double* jac_to, double* costs) {
   constexpr int D = Model::kDim;
   parallel_for(backend, stream, count, [=] COVOX_HD(int64_t k) {
@@ -27,9 +28,11 @@ void evaluate_constraints(Backend backend, const Stream& stream, const typename 
 
 // The cost of every constraint only (trial steps that may be rejected need no Jacobians).
 template <class Model, class Backend>
-void constraint_costs(Backend backend, const Stream& stream, const typename Model::Constraint* constraints,
-                      int64_t count, const typename Model::Pose* poses, double* costs) {
-  parallel_for(backend, stream, count, [=] COVOX_HD(int64_t k) { costs[k] = Model::cost(constraints[k], poses); });
+void constraint_costs(Backend backend, const Stream& stream,
+                      const typename Model::Constraint* constraints, int64_t count,
+                      const typename Model::Pose* poses, double* costs) {
+  parallel_for(backend, stream, count,
+               [=] COVOX_HD(int64_t k) { costs[k] = Model::cost(constraints[k], poses); });
 }
 
 // The device copies of BlockSparseStructure's arrays.
@@ -59,8 +62,9 @@ COVOX_HD_INLINE const double* registration_term_sums(const StructureView& s, int
 // Diagonal blocks and gradient g = J^T f. One thread per matrix entry: a sum over that vertex's
 // terms in list order, so both backends add in the same order.
 template <int D, class Backend>
-void assemble_diagonal_and_gradient(Backend backend, const Stream& stream, StructureView s, const double* jac_from,
-                                    const double* jac_to, const double* residuals, double* hessian_diag,
+void assemble_diagonal_and_gradient(Backend backend, const Stream& stream, StructureView s,
+                                    const double* jac_from, const double* jac_to,
+                                    const double* residuals, double* hessian_diag,
                                     double* gradient) {
   constexpr int DD = D * D;
   parallel_for(backend, stream, static_cast<int64_t>(s.vertex_count) * DD, [=] COVOX_HD(int64_t t) {
@@ -107,8 +111,8 @@ void assemble_diagonal_and_gradient(Backend backend, const Stream& stream, Struc
 
 // Off-diagonal blocks H(row, col) = sum Jrow^T Jcol.
 template <int D, class Backend>
-void assemble_off_diagonal(Backend backend, const Stream& stream, StructureView s, const double* jac_from,
-                           const double* jac_to, double* hessian_off) {
+void assemble_off_diagonal(Backend backend, const Stream& stream, StructureView s,
+                           const double* jac_from, const double* jac_to, double* hessian_off) {
   constexpr int DD = D * D;
   parallel_for(backend, stream, s.off_block_count * DD, [=] COVOX_HD(int64_t t) {
     const int64_t b = t / DD;
@@ -182,9 +186,9 @@ COVOX_HD_INLINE void invert_diagonal(const double* matrix, double* inverse) {
 // LM damping as in Ceres: lambda_i = clamp(H_ii, min_diagonal, max_diagonal) / radius, and the
 // block-Jacobi preconditioner: the inverse of each damped diagonal block.
 template <int D, class Backend>
-void damping_and_preconditioner(Backend backend, const Stream& stream, int32_t vertex_count, const double* hessian_diag,
-                                double radius, double min_diagonal, double max_diagonal, double* damping,
-                                double* preconditioner) {
+void damping_and_preconditioner(Backend backend, const Stream& stream, int32_t vertex_count,
+                                const double* hessian_diag, double radius, double min_diagonal,
+                                double max_diagonal, double* damping, double* preconditioner) {
   constexpr int DD = D * D;
   parallel_for(backend, stream, vertex_count, [=] COVOX_HD(int64_t v) {
     const double* h = hessian_diag + v * DD;
@@ -210,16 +214,19 @@ struct ChainSegment {
 COVOX_HD_INLINE int32_t chain_segment_count(int32_t vertex_count, int32_t segment_vertices) {
   return (vertex_count + segment_vertices - 1) / segment_vertices;
 }
-COVOX_HD_INLINE ChainSegment chain_segment(int64_t segment, int32_t vertex_count, int32_t segment_vertices) {
+COVOX_HD_INLINE ChainSegment chain_segment(int64_t segment, int32_t vertex_count,
+                                           int32_t segment_vertices) {
   const int32_t begin = static_cast<int32_t>(segment) * segment_vertices;
-  const int32_t end = begin + segment_vertices < vertex_count ? begin + segment_vertices : vertex_count;
+  const int32_t end =
+      begin + segment_vertices < vertex_count ? begin + segment_vertices : vertex_count;
   return ChainSegment{begin, end};
 }
 
 // The off-diagonal block (v - 1, v) of H that the chain keeps inside `segment`, or null where v
 // starts the segment (links between segments are dropped) or no constraint joins v - 1 and v.
 template <int D>
-COVOX_HD_INLINE const double* chain_block_before(int32_t v, const ChainSegment& segment, const int32_t* chain_blocks,
+COVOX_HD_INLINE const double* chain_block_before(int32_t v, const ChainSegment& segment,
+                                                 const int32_t* chain_blocks,
                                                  const double* hessian_off) {
   const int32_t previous = v > segment.begin ? chain_blocks[v - 1] : -1;
   return previous >= 0 ? hessian_off + static_cast<int64_t>(previous) * D * D : nullptr;
@@ -238,9 +245,10 @@ COVOX_HD_INLINE const double* chain_block_before(int32_t v, const ChainSegment& 
 // chain. `chain_blocks[v]` is the off-diagonal block (v, v + 1) or -1; `schur_inverse` receives
 // S_v^-1 with S_v = M_vv - B_{v-1}^T S_{v-1}^-1 B_{v-1}.
 template <int D, class Backend>
-void factorize_chain(Backend backend, const Stream& stream, int32_t vertex_count, int32_t segment_vertices,
-                     const double* hessian_diag, const double* hessian_off, const double* damping,
-                     const int32_t* chain_blocks, double* schur_inverse) {
+void factorize_chain(Backend backend, const Stream& stream, int32_t vertex_count,
+                     int32_t segment_vertices, const double* hessian_diag,
+                     const double* hessian_off, const double* damping, const int32_t* chain_blocks,
+                     double* schur_inverse) {
   constexpr int DD = D * D;
   const int32_t segments = chain_segment_count(vertex_count, segment_vertices);
   parallel_for(backend, stream, segments, [=] COVOX_HD(int64_t segment) {
@@ -277,8 +285,9 @@ void factorize_chain(Backend backend, const Stream& stream, int32_t vertex_count
 
 // y = M^-1 x for the chain preconditioner (forward and backward block substitution per segment).
 template <int D, class Backend>
-void apply_chain_preconditioner(Backend backend, const Stream& stream, int32_t vertex_count, int32_t segment_vertices,
-                                const double* hessian_off, const int32_t* chain_blocks, const double* schur_inverse,
+void apply_chain_preconditioner(Backend backend, const Stream& stream, int32_t vertex_count,
+                                int32_t segment_vertices, const double* hessian_off,
+                                const int32_t* chain_blocks, const double* schur_inverse,
                                 const double* x, double* y) {
   constexpr int DD = D * D;
   const int32_t segments = chain_segment_count(vertex_count, segment_vertices);
@@ -326,8 +335,9 @@ void apply_chain_preconditioner(Backend backend, const Stream& stream, int32_t v
 
 // y = (H + diag(damping)) x, one thread per row; `damping` may be null (undamped H).
 template <int D, class Backend>
-void multiply_normal_matrix(Backend backend, const Stream& stream, StructureView s, const double* hessian_diag,
-                            const double* hessian_off, const double* damping, const double* x, double* y) {
+void multiply_normal_matrix(Backend backend, const Stream& stream, StructureView s,
+                            const double* hessian_diag, const double* hessian_off,
+                            const double* damping, const double* x, double* y) {
   constexpr int DD = D * D;
   parallel_for(backend, stream, static_cast<int64_t>(s.vertex_count) * D, [=] COVOX_HD(int64_t t) {
     const int64_t v = t / D;
@@ -352,8 +362,8 @@ void multiply_normal_matrix(Backend backend, const Stream& stream, StructureView
 
 // y = M^-1 x with the block-diagonal preconditioner.
 template <int D, class Backend>
-void apply_preconditioner(Backend backend, const Stream& stream, int32_t vertex_count, const double* preconditioner,
-                          const double* x, double* y) {
+void apply_preconditioner(Backend backend, const Stream& stream, int32_t vertex_count,
+                          const double* preconditioner, const double* x, double* y) {
   constexpr int DD = D * D;
   parallel_for(backend, stream, static_cast<int64_t>(vertex_count) * D, [=] COVOX_HD(int64_t t) {
     const int64_t v = t / D;
@@ -367,36 +377,42 @@ void apply_preconditioner(Backend backend, const Stream& stream, int32_t vertex_
 }
 
 template <class Model, class Backend>
-void plus_poses(Backend backend, const Stream& stream, int32_t vertex_count, const typename Model::Pose* poses,
-                const double* delta, typename Model::Pose* out) {
-  parallel_for(backend, stream, vertex_count,
-               [=] COVOX_HD(int64_t v) { out[v] = Model::plus(poses[v], delta + v * Model::kDim); });
+void plus_poses(Backend backend, const Stream& stream, int32_t vertex_count,
+                const typename Model::Pose* poses, const double* delta, typename Model::Pose* out) {
+  parallel_for(backend, stream, vertex_count, [=] COVOX_HD(int64_t v) {
+    out[v] = Model::plus(poses[v], delta + v * Model::kDim);
+  });
 }
 
 // Vector helpers over `count` doubles; `indices` holds 0, 1, ..., count - 1 (a device iota that
 // lets transform_reduce read two arrays at once).
 template <class Backend>
-double dot(Backend backend, const Stream& stream, const int64_t* indices, int64_t count, const double* x,
-           const double* y) {
+double dot(Backend backend, const Stream& stream, const int64_t* indices, int64_t count,
+           const double* x, const double* y) {
   return transform_reduce(
-      backend, stream, indices, count, [=] COVOX_HD(int64_t i) { return x[i] * y[i]; }, 0.0, thrust::plus<double>());
+      backend, stream, indices, count, [=] COVOX_HD(int64_t i) { return x[i] * y[i]; }, 0.0,
+      thrust::plus<double>());
 }
 
 template <class Backend>
-double max_abs(Backend backend, const Stream& stream, const int64_t* indices, int64_t count, const double* x) {
+double max_abs(Backend backend, const Stream& stream, const int64_t* indices, int64_t count,
+               const double* x) {
   return transform_reduce(
-      backend, stream, indices, count, [=] COVOX_HD(int64_t i) { return x[i] < 0.0 ? -x[i] : x[i]; }, 0.0,
+      backend, stream, indices, count,
+      [=] COVOX_HD(int64_t i) { return x[i] < 0.0 ? -x[i] : x[i]; }, 0.0,
       thrust::maximum<double>());
 }
 
 // y += a * x.
 template <class Backend>
-void axpy(Backend backend, const Stream& stream, int64_t count, double a, const double* x, double* y) {
+void axpy(Backend backend, const Stream& stream, int64_t count, double a, const double* x,
+          double* y) {
   parallel_for(backend, stream, count, [=] COVOX_HD(int64_t i) { y[i] += a * x[i]; });
 }
 // y = x + a * y (the CG direction update).
 template <class Backend>
-void xpay(Backend backend, const Stream& stream, int64_t count, const double* x, double a, double* y) {
+void xpay(Backend backend, const Stream& stream, int64_t count, const double* x, double a,
+          double* y) {
   parallel_for(backend, stream, count, [=] COVOX_HD(int64_t i) { y[i] = x[i] + a * y[i]; });
 }
 

@@ -29,7 +29,8 @@ namespace backend {
 
 // f = S r, J <- S J for a D-dimensional residual (S row-major).
 template <int D>
-COVOX_HD_INLINE void whiten(const double* sqrt_information, double* residual, double* jac_i, double* jac_j) {
+COVOX_HD_INLINE void whiten(const double* sqrt_information, double* residual, double* jac_i,
+                            double* jac_j) {
   using Square = Eigen::Matrix<double, D, D, Eigen::RowMajor>;
   using Vector = Eigen::Matrix<double, D, 1>;
   const Eigen::Map<const Square> s(sqrt_information);
@@ -61,12 +62,14 @@ struct Se3Model {
   using Constraint = Se3Constraint;
 
   // The unwhitened residual r only (the cost path does not need Jacobians).
-  COVOX_HD static void raw_residual(const Constraint& c, const Pose& pi, const Pose& pj, double* r) {
+  COVOX_HD static void raw_residual(const Constraint& c, const Pose& pi, const Pose& pj,
+                                    double* r) {
     const Matrix3d ri = quaternion_to_rotation(pi.rotation);
     const Matrix3d rz = quaternion_to_rotation(c.measurement.rotation);
     const Vector3d d(pj.translation[0] - pi.translation[0], pj.translation[1] - pi.translation[1],
                      pj.translation[2] - pi.translation[2]);
-    const Vector3d tz(c.measurement.translation[0], c.measurement.translation[1], c.measurement.translation[2]);
+    const Vector3d tz(c.measurement.translation[0], c.measurement.translation[1],
+                      c.measurement.translation[2]);
     const Vector3d t_error = rz.transpose() * (ri.transpose() * d - tz);
     const Vector3d rotation_error = rotation_error_vector(c, pi, pj);
     for (int k = 0; k < 3; ++k) {
@@ -75,7 +78,8 @@ struct Se3Model {
     }
   }
 
-  COVOX_HD static void evaluate(const Constraint& c, const Pose* poses, double* f, double* jac_i, double* jac_j) {
+  COVOX_HD static void evaluate(const Constraint& c, const Pose* poses, double* f, double* jac_i,
+                                double* jac_j) {
     const Pose& pi = poses[c.from];
     const Pose& pj = poses[c.to];
     const Matrix3d ri = quaternion_to_rotation(pi.rotation);
@@ -83,7 +87,8 @@ struct Se3Model {
     const Matrix3d rz = quaternion_to_rotation(c.measurement.rotation);
     const Vector3d d(pj.translation[0] - pi.translation[0], pj.translation[1] - pi.translation[1],
                      pj.translation[2] - pi.translation[2]);
-    const Vector3d tz(c.measurement.translation[0], c.measurement.translation[1], c.measurement.translation[2]);
+    const Vector3d tz(c.measurement.translation[0], c.measurement.translation[1],
+                      c.measurement.translation[2]);
     const Vector3d a = ri.transpose() * d;  // p_j in frame i
     const Vector3d t_error = rz.transpose() * (a - tz);
     const Vector3d phi = rotation_error_vector(c, pi, pj);
@@ -135,7 +140,8 @@ struct Se3Model {
 
  private:
   // log(R(E)) through quaternions: q_E = q_z^* q_i^* q_j.
-  COVOX_HD static Vector3d rotation_error_vector(const Constraint& c, const Pose& pi, const Pose& pj) {
+  COVOX_HD static Vector3d rotation_error_vector(const Constraint& c, const Pose& pi,
+                                                 const Pose& pj) {
     double zc[4], ic[4], tmp[4], qe[4];
     quaternion_conjugate(c.measurement.rotation, zc);
     quaternion_conjugate(pi.rotation, ic);
@@ -168,7 +174,8 @@ struct FourDofModel {
     r[3] = wrap_angle(pj.yaw - pi.yaw - c.measurement.yaw);
   }
 
-  COVOX_HD static void evaluate(const Constraint& c, const Pose* poses, double* f, double* jac_i, double* jac_j) {
+  COVOX_HD static void evaluate(const Constraint& c, const Pose* poses, double* f, double* jac_i,
+                                double* jac_j) {
     raw_residual(c, poses, f);
     for (int k = 0; k < 16; ++k) {
       jac_i[k] = 0.0;

@@ -54,18 +54,24 @@ struct PoseGraphSolverOptions {
   int chain_segment_vertices = 64;
 };
 
-enum class PoseGraphTermination { kFunctionTolerance, kGradientTolerance, kParameterTolerance, kMaxIterations,
-                                  kTrustRegionCollapsed, kNoConstraints };
+enum class PoseGraphTermination {
+  kFunctionTolerance,
+  kGradientTolerance,
+  kParameterTolerance,
+  kMaxIterations,
+  kTrustRegionCollapsed,
+  kNoConstraints
+};
 const char* to_string(PoseGraphTermination termination);
 
 struct PoseGraphSolverSummary {
   double initial_cost = 0.0;
   double final_cost = 0.0;
-  int iterations = 0;        // LM iterations (linear solves)
+  int iterations = 0;  // LM iterations (linear solves)
   int accepted_steps = 0;
   int64_t pcg_iterations = 0;  // summed over all LM iterations
   PoseGraphTermination termination = PoseGraphTermination::kMaxIterations;
-  double solve_time_s = 0.0;  // upload, solve and download
+  double solve_time_s = 0.0;             // upload, solve and download
   int64_t registration_points = 0;       // points of all registration terms
   int64_t registration_points_used = 0;  // of those, inside their field at the solution
   bool converged() const {
@@ -77,34 +83,37 @@ struct PoseGraphSolverSummary {
 
 // Solves in place (graph->poses). Throws covox::Error when the graph is invalid (see
 // validate_pose_graph).
-PoseGraphSolverSummary solve_pose_graph(Se3PoseGraph* graph, Device device,
-                                        const PoseGraphSolverOptions& options = PoseGraphSolverOptions());
-PoseGraphSolverSummary solve_pose_graph(PoseGraph4Dof* graph, Device device,
-                                        const PoseGraphSolverOptions& options = PoseGraphSolverOptions());
+PoseGraphSolverSummary solve_pose_graph(
+    Se3PoseGraph* graph, Device device,
+    const PoseGraphSolverOptions& options = PoseGraphSolverOptions());
+PoseGraphSolverSummary solve_pose_graph(
+    PoseGraph4Dof* graph, Device device,
+    const PoseGraphSolverOptions& options = PoseGraphSolverOptions());
 
 // The 4-DoF graph with dense registration terms (registration_terms.h) next to its constraints.
 // The terms' points and maps must live on `device`. Throws covox::Error when the graph or a term
 // is invalid (validate_pose_graph, validate_registration_terms).
-PoseGraphSolverSummary solve_pose_graph(PoseGraph4Dof* graph, const std::vector<RegistrationTerm>& registration,
-                                        Device device,
-                                        const PoseGraphSolverOptions& options = PoseGraphSolverOptions());
+PoseGraphSolverSummary solve_pose_graph(
+    PoseGraph4Dof* graph, const std::vector<RegistrationTerm>& registration, Device device,
+    const PoseGraphSolverOptions& options = PoseGraphSolverOptions());
 
 // One evaluation at the current poses, read back to the host: for tests (CPU/GPU parity,
 // Jacobians against numeric differences) and diagnostics.
 struct PoseGraphEvaluation {
-  int dimension = 0;              // D
+  int dimension = 0;  // D
   double cost = 0.0;
-  std::vector<double> residuals;  // D per constraint (whitened)
+  std::vector<double> residuals;       // D per constraint (whitened)
   std::vector<double> jacobians_from;  // D x D row-major per constraint (whitened)
   std::vector<double> jacobians_to;
-  std::vector<double> gradient;        // J^T f, D per vertex (zero at the fixed vertex)
+  std::vector<double> gradient;                 // J^T f, D per vertex (zero at the fixed vertex)
   std::vector<double> hessian_diagonal_blocks;  // D x D per vertex (identity at the fixed vertex)
 };
 PoseGraphEvaluation evaluate_pose_graph(const Se3PoseGraph& graph, Device device);
 PoseGraphEvaluation evaluate_pose_graph(const PoseGraph4Dof& graph, Device device);
 // With registration terms: the cost, gradient and diagonal blocks include them (residuals and
 // Jacobians are those of the constraints only).
-PoseGraphEvaluation evaluate_pose_graph(const PoseGraph4Dof& graph, const std::vector<RegistrationTerm>& registration,
+PoseGraphEvaluation evaluate_pose_graph(const PoseGraph4Dof& graph,
+                                        const std::vector<RegistrationTerm>& registration,
                                         Device device);
 
 }  // namespace backend

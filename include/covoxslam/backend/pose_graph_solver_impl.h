@@ -49,7 +49,8 @@ class PoseGraphWorkspace {
         throw Error("pose graph: registration terms need the 4-DoF model");
       }
     }
-    const BlockSparseStructure s = build_block_sparse_structure(edges, vertex_count_, graph.fixed_vertex);
+    const BlockSparseStructure s =
+        build_block_sparse_structure(edges, vertex_count_, graph.fixed_vertex);
     off_block_count_ = s.off_block_count();
 
     poses = Buffer<Pose>::from_host(device, graph.poses, stream);
@@ -65,7 +66,8 @@ class PoseGraphWorkspace {
     gradient = Buffer<double>(device, n * D);
     damping = Buffer<double>(device, n * D);
     preconditioner = Buffer<double>(device, n * DD);
-    for (Buffer<double>* v : {&step, &cg_r, &cg_z, &cg_p, &cg_q}) *v = Buffer<double>(device, n * D);
+    for (Buffer<double>* v : {&step, &cg_r, &cg_z, &cg_p, &cg_q})
+      *v = Buffer<double>(device, n * D);
     std::vector<int64_t> iota(n * D);
     for (size_t i = 0; i < iota.size(); ++i) iota[i] = static_cast<int64_t>(i);
     indices = Buffer<int64_t>::from_host(device, iota, stream);
@@ -77,10 +79,12 @@ class PoseGraphWorkspace {
     row_entries = Buffer<int32_t>::from_host(device, s.row_entries, stream);
     row_columns = Buffer<int32_t>::from_host(device, s.row_columns, stream);
     chain_blocks = Buffer<int32_t>::from_host(device, s.chain_blocks, stream);
-    view_ = StructureView{vertex_count_,       s.fixed_vertex,     off_block_count_,   diag_offsets.data(),
-                          diag_terms.data(),   off_offsets.data(), off_terms.data(),   row_offsets.data(),
-                          row_entries.data(),  row_columns.data(), constraint_count_,
-                          registration_ ? registration_->term_sums() : nullptr};
+    view_ = StructureView{vertex_count_,      s.fixed_vertex,
+                          off_block_count_,   diag_offsets.data(),
+                          diag_terms.data(),  off_offsets.data(),
+                          off_terms.data(),   row_offsets.data(),
+                          row_entries.data(), row_columns.data(),
+                          constraint_count_,  registration_ ? registration_->term_sums() : nullptr};
   }
 
   const StructureView& view() const { return view_; }
@@ -88,8 +92,9 @@ class PoseGraphWorkspace {
 
   // Residuals, Jacobians (and the registration terms' sums) and the cost at `poses`.
   double evaluate() {
-    evaluate_constraints<Model>(Backend{}, stream_, constraints.data(), constraint_count_, poses.data(),
-                                residuals.data(), jac_from.data(), jac_to.data(), costs.data());
+    evaluate_constraints<Model>(Backend{}, stream_, constraints.data(), constraint_count_,
+                                poses.data(), residuals.data(), jac_from.data(), jac_to.data(),
+                                costs.data());
     double cost = sum_costs();
     if constexpr (kHasRegistration) {
       if (registration_) cost += registration_->evaluate(poses.data());
@@ -97,42 +102,52 @@ class PoseGraphWorkspace {
     return cost;
   }
   double cost_at_candidate() {
-    constraint_costs<Model>(Backend{}, stream_, constraints.data(), constraint_count_, candidate.data(),
-                            costs.data());
+    constraint_costs<Model>(Backend{}, stream_, constraints.data(), constraint_count_,
+                            candidate.data(), costs.data());
     double cost = sum_costs();
     if constexpr (kHasRegistration) {
       if (registration_) cost += registration_->cost(candidate.data());
     }
     return cost;
   }
-  bool has_terms() const { return constraint_count_ > 0 || (registration_ && registration_->term_count() > 0); }
-  int64_t registration_points() const { return registration_ ? registration_->point_count() : 0; }
-  int64_t registration_points_used() const { return registration_ ? registration_->used_points() : 0; }
-  void assemble() {
-    assemble_diagonal_and_gradient<D>(Backend{}, stream_, view_, jac_from.data(), jac_to.data(), residuals.data(),
-                                      hessian_diag.data(), gradient.data());
-    assemble_off_diagonal<D>(Backend{}, stream_, view_, jac_from.data(), jac_to.data(), hessian_off.data());
+  bool has_terms() const {
+    return constraint_count_ > 0 || (registration_ && registration_->term_count() > 0);
   }
-  double max_abs_gradient() { return max_abs(Backend{}, stream_, indices.data(), unknowns(), gradient.data()); }
+  int64_t registration_points() const { return registration_ ? registration_->point_count() : 0; }
+  int64_t registration_points_used() const {
+    return registration_ ? registration_->used_points() : 0;
+  }
+  void assemble() {
+    assemble_diagonal_and_gradient<D>(Backend{}, stream_, view_, jac_from.data(), jac_to.data(),
+                                      residuals.data(), hessian_diag.data(), gradient.data());
+    assemble_off_diagonal<D>(Backend{}, stream_, view_, jac_from.data(), jac_to.data(),
+                             hessian_off.data());
+  }
+  double max_abs_gradient() {
+    return max_abs(Backend{}, stream_, indices.data(), unknowns(), gradient.data());
+  }
 
   // Solves (H + damping) step = -g with block-Jacobi PCG; returns the iterations used.
   int solve_damped(double radius, const PoseGraphSolverOptions& options) {
     const int64_t n = unknowns();
     const Backend b{};
-    damping_and_preconditioner<D>(b, stream_, vertex_count_, hessian_diag.data(), radius, options.min_diagonal,
-                                  options.max_diagonal, damping.data(), preconditioner.data());
+    damping_and_preconditioner<D>(b, stream_, vertex_count_, hessian_diag.data(), radius,
+                                  options.min_diagonal, options.max_diagonal, damping.data(),
+                                  preconditioner.data());
     const bool chain = options.preconditioner == PcgPreconditioner::kOdometryChain;
-    const int32_t segment = options.chain_segment_vertices > 0
-                                ? std::min<int32_t>(options.chain_segment_vertices, std::max<int32_t>(vertex_count_, 1))
-                                : std::max<int32_t>(vertex_count_, 1);
+    const int32_t segment =
+        options.chain_segment_vertices > 0
+            ? std::min<int32_t>(options.chain_segment_vertices, std::max<int32_t>(vertex_count_, 1))
+            : std::max<int32_t>(vertex_count_, 1);
     if (chain) {
-      factorize_chain<D>(b, stream_, vertex_count_, segment, hessian_diag.data(), hessian_off.data(), damping.data(),
-                         chain_blocks.data(), preconditioner.data());
+      factorize_chain<D>(b, stream_, vertex_count_, segment, hessian_diag.data(),
+                         hessian_off.data(), damping.data(), chain_blocks.data(),
+                         preconditioner.data());
     }
     const auto precondition = [&](const double* in, double* out) {
       if (chain) {
-        apply_chain_preconditioner<D>(b, stream_, vertex_count_, segment, hessian_off.data(), chain_blocks.data(),
-                                      preconditioner.data(), in, out);
+        apply_chain_preconditioner<D>(b, stream_, vertex_count_, segment, hessian_off.data(),
+                                      chain_blocks.data(), preconditioner.data(), in, out);
       } else {
         apply_preconditioner<D>(b, stream_, vertex_count_, preconditioner.data(), in, out);
       }
@@ -153,8 +168,8 @@ class PoseGraphWorkspace {
     int iteration = 0;
     while (iteration < options.pcg_max_iterations) {
       ++iteration;
-      multiply_normal_matrix<D>(b, stream_, view_, hessian_diag.data(), hessian_off.data(), damping.data(),
-                                cg_p.data(), cg_q.data());
+      multiply_normal_matrix<D>(b, stream_, view_, hessian_diag.data(), hessian_off.data(),
+                                damping.data(), cg_p.data(), cg_q.data());
       const double pq = dot(b, stream_, indices.data(), n, cg_p.data(), cg_q.data());
       if (!(pq > 0.0)) break;  // no further descent direction (rounding at convergence)
       const double alpha = rz / pq;
@@ -173,20 +188,24 @@ class PoseGraphWorkspace {
   // The decrease of the undamped quadratic model: -(g.step + 0.5 step.H.step).
   double model_decrease() {
     const int64_t n = unknowns();
-    multiply_normal_matrix<D>(Backend{}, stream_, view_, hessian_diag.data(), hessian_off.data(), nullptr,
-                              step.data(), cg_q.data());
+    multiply_normal_matrix<D>(Backend{}, stream_, view_, hessian_diag.data(), hessian_off.data(),
+                              nullptr, step.data(), cg_q.data());
     const double g_step = dot(Backend{}, stream_, indices.data(), n, gradient.data(), step.data());
     const double step_h_step = dot(Backend{}, stream_, indices.data(), n, step.data(), cg_q.data());
     return -(g_step + 0.5 * step_h_step);
   }
-  double step_norm() { return std::sqrt(dot(Backend{}, stream_, indices.data(), unknowns(), step.data(), step.data())); }
+  double step_norm() {
+    return std::sqrt(dot(Backend{}, stream_, indices.data(), unknowns(), step.data(), step.data()));
+  }
   double pose_norm() {
     return std::sqrt(transform_reduce(
-        Backend{}, stream_, poses.data(), vertex_count_, [] COVOX_HD(const Pose& p) { return Model::squared_norm(p); },
-        0.0, thrust::plus<double>()));
+        Backend{}, stream_, poses.data(), vertex_count_,
+        [] COVOX_HD(const Pose& p) { return Model::squared_norm(p); }, 0.0,
+        thrust::plus<double>()));
   }
   void make_candidate() {
-    plus_poses<Model>(Backend{}, stream_, vertex_count_, poses.data(), step.data(), candidate.data());
+    plus_poses<Model>(Backend{}, stream_, vertex_count_, poses.data(), step.data(),
+                      candidate.data());
   }
   void accept_candidate() { std::swap(poses, candidate); }
 
@@ -196,7 +215,8 @@ class PoseGraphWorkspace {
   Buffer<double> hessian_diag, hessian_off, gradient, damping, preconditioner;
   Buffer<double> step, cg_r, cg_z, cg_p, cg_q;
   Buffer<int64_t> indices;
-  Buffer<int32_t> diag_offsets, diag_terms, off_offsets, off_terms, row_offsets, row_entries, row_columns;
+  Buffer<int32_t> diag_offsets, diag_terms, off_offsets, off_terms, row_offsets, row_entries,
+      row_columns;
   Buffer<int32_t> chain_blocks;
 
  private:
@@ -213,9 +233,9 @@ class PoseGraphWorkspace {
 };
 
 template <class Backend, class Model>
-PoseGraphSolverSummary solve_pose_graph_with_terms(PoseGraph<Model>* graph,
-                                                   const std::vector<RegistrationTerm>& registration,
-                                                   const PoseGraphSolverOptions& options) {
+PoseGraphSolverSummary solve_pose_graph_with_terms(
+    PoseGraph<Model>* graph, const std::vector<RegistrationTerm>& registration,
+    const PoseGraphSolverOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   PoseGraphSolverSummary summary;
   const Stream stream(Backend::kDevice);
@@ -257,7 +277,8 @@ PoseGraphSolverSummary solve_pose_graph_with_terms(PoseGraph<Model>* graph,
       ++summary.accepted_steps;
       const double new_cost = w.evaluate();  // also refreshes the Jacobians at the new poses
       const double t = 2.0 * rho - 1.0;
-      radius = std::min(options.max_trust_region_radius, radius / std::max(1.0 / 3.0, 1.0 - t * t * t));
+      radius =
+          std::min(options.max_trust_region_radius, radius / std::max(1.0 / 3.0, 1.0 - t * t * t));
       decrease_factor = 2.0;
       need_assembly = true;
       const double old_cost = cost;
@@ -277,26 +298,29 @@ PoseGraphSolverSummary solve_pose_graph_with_terms(PoseGraph<Model>* graph,
   }
   summary.final_cost = cost;
   graph->poses = w.poses.to_host(stream);
-  summary.solve_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  summary.solve_time_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   // After the clock: a diagnostic read-back, not part of the solve.
   summary.registration_points_used = w.registration_points_used();
   return summary;
 }
 
 template <class Backend, class Model>
-PoseGraphSolverSummary solve_pose_graph_on(Backend, PoseGraph<Model>* graph, const PoseGraphSolverOptions& options) {
+PoseGraphSolverSummary solve_pose_graph_on(Backend, PoseGraph<Model>* graph,
+                                           const PoseGraphSolverOptions& options) {
   return solve_pose_graph_with_terms<Backend, Model>(graph, {}, options);
 }
 
 template <class Backend>
-PoseGraphSolverSummary solve_pose_graph_on(Backend, PoseGraph4Dof* graph, const std::vector<RegistrationTerm>& terms,
+PoseGraphSolverSummary solve_pose_graph_on(Backend, PoseGraph4Dof* graph,
+                                           const std::vector<RegistrationTerm>& terms,
                                            const PoseGraphSolverOptions& options) {
   return solve_pose_graph_with_terms<Backend, FourDofModel>(graph, terms, options);
 }
 
 template <class Backend, class Model>
-PoseGraphEvaluation evaluate_pose_graph_with_terms(const PoseGraph<Model>& graph,
-                                                   const std::vector<RegistrationTerm>& registration) {
+PoseGraphEvaluation evaluate_pose_graph_with_terms(
+    const PoseGraph<Model>& graph, const std::vector<RegistrationTerm>& registration) {
   const Stream stream(Backend::kDevice);
   PoseGraphWorkspace<Backend, Model> w(graph, stream, registration);
   PoseGraphEvaluation out;
@@ -322,18 +346,19 @@ PoseGraphEvaluation evaluate_pose_graph_on(Backend, const PoseGraph4Dof& graph,
   return evaluate_pose_graph_with_terms<Backend, FourDofModel>(graph, terms);
 }
 
-#define COVOX_INSTANTIATE_POSE_GRAPH_SOLVER(Backend, Model)                                                  \
-  template PoseGraphSolverSummary solve_pose_graph_on<Backend, Model>(Backend, PoseGraph<Model>*,            \
-                                                                      const PoseGraphSolverOptions&);        \
-  template PoseGraphEvaluation evaluate_pose_graph_on<Backend, Model>(Backend, const PoseGraph<Model>&);
+#define COVOX_INSTANTIATE_POSE_GRAPH_SOLVER(Backend, Model)                    \
+  template PoseGraphSolverSummary solve_pose_graph_on<Backend, Model>(         \
+      Backend, PoseGraph<Model>*, const PoseGraphSolverOptions&);              \
+  template PoseGraphEvaluation evaluate_pose_graph_on<Backend, Model>(Backend, \
+                                                                      const PoseGraph<Model>&);
 
 // The 4-DoF entry points with registration terms, once per backend.
-#define COVOX_INSTANTIATE_POSE_GRAPH_REGISTRATION(Backend)                                                   \
-  template PoseGraphSolverSummary solve_pose_graph_on<Backend>(Backend, PoseGraph4Dof*,                      \
-                                                               const std::vector<RegistrationTerm>&,         \
-                                                               const PoseGraphSolverOptions&);               \
-  template PoseGraphEvaluation evaluate_pose_graph_on<Backend>(Backend, const PoseGraph4Dof&,                \
-                                                               const std::vector<RegistrationTerm>&);
+#define COVOX_INSTANTIATE_POSE_GRAPH_REGISTRATION(Backend)           \
+  template PoseGraphSolverSummary solve_pose_graph_on<Backend>(      \
+      Backend, PoseGraph4Dof*, const std::vector<RegistrationTerm>&, \
+      const PoseGraphSolverOptions&);                                \
+  template PoseGraphEvaluation evaluate_pose_graph_on<Backend>(      \
+      Backend, const PoseGraph4Dof&, const std::vector<RegistrationTerm>&);
 
 }  // namespace backend
 }  // namespace covox

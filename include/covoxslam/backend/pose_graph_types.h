@@ -27,9 +27,9 @@ struct Pose4Dof {
 constexpr int32_t kNoVertex = -1;
 
 struct Se3Constraint {
-  int32_t from = 0;  // i
-  int32_t to = 0;    // j
-  Se3Pose measurement;  // Z_ij, the measured T_i^-1 T_j
+  int32_t from = 0;                  // i
+  int32_t to = 0;                    // j
+  Se3Pose measurement;               // Z_ij, the measured T_i^-1 T_j
   double sqrt_information[36] = {};  // 6x6 row-major
 };
 

@@ -34,9 +34,9 @@ namespace backend {
 
 // One registration point in its submap's frame (device memory: trivially copyable).
 struct RegistrationPoint {
-  Vec3f position_m;        // voxel centre
+  Vec3f position_m;              // voxel centre
   float tsdf_distance_m = 0.0f;  // the voxel's TSDF distance (target of kTsdfNearSurface)
-  float weight = 0.0f;     // the voxel's TSDF weight
+  float weight = 0.0f;           // the voxel's TSDF weight
 };
 
 struct RegistrationPointsConfig {
@@ -56,7 +56,8 @@ struct RegistrationPoints {
 };
 
 // Throws covox::Error on a bad configuration.
-RegistrationPoints extract_registration_points(const TsdfMap& map, const RegistrationPointsConfig& config,
+RegistrationPoints extract_registration_points(const TsdfMap& map,
+                                               const RegistrationPointsConfig& config,
                                                const Stream& stream);
 
 enum class RobustLoss { kNone, kHuber, kCauchy };
@@ -103,32 +104,30 @@ void evaluate_registration_residuals(const RegistrationPoints& points_i, const T
                                      const RegistrationResidualConfig& config,
                                      Buffer<RegistrationResidual>* residuals, const Stream& stream);
 // Host convenience (tests).
-std::vector<RegistrationResidual> evaluate_registration_residuals(const RegistrationPoints& points_i,
-                                                                  const TsdfMap& map_j, const Pose4Dof& T_W_Si,
-                                                                  const Pose4Dof& T_W_Sj,
-                                                                  const RegistrationResidualConfig& config);
+std::vector<RegistrationResidual> evaluate_registration_residuals(
+    const RegistrationPoints& points_i, const TsdfMap& map_j, const Pose4Dof& T_W_Si,
+    const Pose4Dof& T_W_Sj, const RegistrationResidualConfig& config);
 
 // Sums over the valid points, reduced on the device: the IRLS normal equations of pose i
 // (pose j held fixed).
 struct RegistrationNormalEquations {
-  Eigen::Matrix4d hessian_i = Eigen::Matrix4d::Zero();  // sum rho' J_i^T J_i
-  Eigen::Vector4d gradient_i = Eigen::Vector4d::Zero(); // sum rho' J_i^T r
-  double cost = 0.0;                                    // sum 0.5 rho(r^2)
+  Eigen::Matrix4d hessian_i = Eigen::Matrix4d::Zero();   // sum rho' J_i^T J_i
+  Eigen::Vector4d gradient_i = Eigen::Vector4d::Zero();  // sum rho' J_i^T r
+  double cost = 0.0;                                     // sum 0.5 rho(r^2)
   int64_t used_points = 0;
-  int64_t skipped_points = 0;                           // outside submap j's observed field
+  int64_t skipped_points = 0;  // outside submap j's observed field
 };
-RegistrationNormalEquations registration_normal_equations(const RegistrationPoints& points_i, const TsdfMap& map_j,
-                                                          const Pose4Dof& T_W_Si, const Pose4Dof& T_W_Sj,
-                                                          const RegistrationResidualConfig& config,
-                                                          const Stream& stream);
+RegistrationNormalEquations registration_normal_equations(
+    const RegistrationPoints& points_i, const TsdfMap& map_j, const Pose4Dof& T_W_Si,
+    const Pose4Dof& T_W_Sj, const RegistrationResidualConfig& config, const Stream& stream);
 
 struct RegistrationAlignerConfig {
   RegistrationResidualConfig residual;
   int max_iterations = 60;
-  double initial_lambda = 1e-3;        // LM damping relative to diag(H)
+  double initial_lambda = 1e-3;           // LM damping relative to diag(H)
   double translation_tolerance_m = 1e-5;  // converged when a step moves less than both
   double yaw_tolerance_rad = 1e-6;
-  int64_t min_used_points = 50;        // fewer valid points: no overlap, fail
+  int64_t min_used_points = 50;  // fewer valid points: no overlap, fail
   // Coarse-to-fine: before the alignment with `residual`, align on the ESDF sampled every
   // 2^coarse_levels voxels, then every 2^(coarse_levels - 1), ..., 2 voxels (coarse_stride_vox of
   // registration.h), each level starting where the coarser one ended. 0: the fine level only.
@@ -150,8 +149,8 @@ struct RegistrationResult {
 // Aligns submap i (its registration points) to submap j, starting at initial_T_Sj_Si.
 // Throws covox::Error when fewer than min_used_points points overlap submap j's field.
 RegistrationResult align_submaps(const RegistrationPoints& points_i, const TsdfMap& map_j,
-                                 const Pose4Dof& initial_T_Sj_Si, const RegistrationAlignerConfig& config,
-                                 const Stream& stream);
+                                 const Pose4Dof& initial_T_Sj_Si,
+                                 const RegistrationAlignerConfig& config, const Stream& stream);
 
 // Symmetric registration: besides submap i's points in submap j's field (above), submap j's
 // points in submap i's field, both in one Levenberg-Marquardt over T_Sj_Si. Each direction has
@@ -169,19 +168,20 @@ struct SymmetricRegistrationPair {
   double reverse_weight_scale = 1.0;
 };
 // Sums over the relative pose T_Sj_Si of both directions (used_points counts both).
-RegistrationNormalEquations symmetric_registration_normal_equations(const SymmetricRegistrationPair& pair,
-                                                                    const Pose4Dof& T_Sj_Si,
-                                                                    const RegistrationResidualConfig& config,
-                                                                    const Stream& stream);
+RegistrationNormalEquations symmetric_registration_normal_equations(
+    const SymmetricRegistrationPair& pair, const Pose4Dof& T_Sj_Si,
+    const RegistrationResidualConfig& config, const Stream& stream);
 // As align_submaps, with both directions (min_used_points counts both). Throws covox::Error on a
 // missing member or a bad reverse_weight_scale.
-RegistrationResult align_submaps_symmetric(const SymmetricRegistrationPair& pair, const Pose4Dof& initial_T_Sj_Si,
-                                           const RegistrationAlignerConfig& config, const Stream& stream);
-
+RegistrationResult align_submaps_symmetric(const SymmetricRegistrationPair& pair,
+                                           const Pose4Dof& initial_T_Sj_Si,
+                                           const RegistrationAlignerConfig& config,
+                                           const Stream& stream);
 
 // A relative 4-DoF constraint from j to i (measurement T_Sj_Si) for the pose-graph solver;
 // information = hessian / residual_sigma^2 (the residual's noise in residual units).
-Constraint4Dof make_registration_constraint(int32_t vertex_j, int32_t vertex_i, const RegistrationResult& result,
+Constraint4Dof make_registration_constraint(int32_t vertex_j, int32_t vertex_i,
+                                            const RegistrationResult& result,
                                             double residual_sigma);
 
 // Overlap of two submaps: their block bounding boxes (transformed into the world) intersect, and

@@ -12,8 +12,9 @@ namespace backend {
 
 template <class Backend>
 int64_t registration_collect_points(Backend backend, VoxelView<TsdfVoxel, Layout::kSoA> tsdf,
-                                    const Index3D* block_indices, const uint32_t* block_slots, int64_t block_count,
-                                    int32_t side, float voxel_size_m, const RegistrationPointsConfig& config,
+                                    const Index3D* block_indices, const uint32_t* block_slots,
+                                    int64_t block_count, int32_t side, float voxel_size_m,
+                                    const RegistrationPointsConfig& config,
                                     Buffer<RegistrationPoint>* points, const Stream& stream) {
   const int64_t per_block = static_cast<int64_t>(side) * side * side;
   const int64_t total = block_count * per_block;
@@ -43,7 +44,8 @@ int64_t registration_collect_points(Backend backend, VoxelView<TsdfVoxel, Layout
     const Index3D v = global_voxel(block_indices[b], k, side);
     sampled[i] = registration_sample_uniform(v.x, v.y, v.z, seed) < ratio ? 1 : 0;
   });
-  const int64_t surface_count = reduce(backend, stream, surface_flags, total, int64_t(0), thrust::plus<int64_t>());
+  const int64_t surface_count =
+      reduce(backend, stream, surface_flags, total, int64_t(0), thrust::plus<int64_t>());
   const int64_t last_flag = offsets.element(static_cast<size_t>(total - 1), stream);
   exclusive_scan(backend, stream, sampled, total, sampled);
   const int64_t kept = offsets.element(static_cast<size_t>(total - 1), stream) + last_flag;
@@ -58,7 +60,8 @@ int64_t registration_collect_points(Backend backend, VoxelView<TsdfVoxel, Layout
     const Index3D v = global_voxel(block_indices[b], k, side);
     const TsdfVoxel voxel = tsdf.load(static_cast<int64_t>(block_slots[b]) * per_block + k);
     RegistrationPoint p;
-    p.position_m = Vec3f((v.x + 0.5f) * voxel_size_m, (v.y + 0.5f) * voxel_size_m, (v.z + 0.5f) * voxel_size_m);
+    p.position_m = Vec3f((v.x + 0.5f) * voxel_size_m, (v.y + 0.5f) * voxel_size_m,
+                         (v.z + 0.5f) * voxel_size_m);
     p.tsdf_distance_m = voxel.distance_m;
     p.weight = voxel.weight;
     out[sampled[i]] = p;
@@ -79,21 +82,21 @@ void registration_evaluate(Backend backend, const RegistrationPoint* points, int
 }
 
 template <class Backend>
-RegistrationSums registration_reduce(Backend backend, const RegistrationResidual* residuals, int64_t count,
-                                     const Stream& stream) {
-  return transform_reduce(backend, stream, residuals, count, RegistrationSumsOfResidual{}, RegistrationSums{},
-                          AddRegistrationSums{});
+RegistrationSums registration_reduce(Backend backend, const RegistrationResidual* residuals,
+                                     int64_t count, const Stream& stream) {
+  return transform_reduce(backend, stream, residuals, count, RegistrationSumsOfResidual{},
+                          RegistrationSums{}, AddRegistrationSums{});
 }
 
-#define COVOX_INSTANTIATE_REGISTRATION(Backend)                                                              \
-  template int64_t registration_collect_points<Backend>(                                                     \
-      Backend, VoxelView<TsdfVoxel, Layout::kSoA>, const Index3D*, const uint32_t*, int64_t, int32_t, float, \
-      const RegistrationPointsConfig&, Buffer<RegistrationPoint>*, const Stream&);                           \
-  template void registration_evaluate<Backend>(Backend, const RegistrationPoint*, int64_t,                   \
-                                               RegistrationDistanceLookup, RegistrationPairGeometry,         \
-                                               RobustLossParams, bool, RegistrationResidual*, const Stream&); \
-  template RegistrationSums registration_reduce<Backend>(Backend, const RegistrationResidual*, int64_t,      \
-                                                         const Stream&);
+#define COVOX_INSTANTIATE_REGISTRATION(Backend)                                                    \
+  template int64_t registration_collect_points<Backend>(                                           \
+      Backend, VoxelView<TsdfVoxel, Layout::kSoA>, const Index3D*, const uint32_t*, int64_t,       \
+      int32_t, float, const RegistrationPointsConfig&, Buffer<RegistrationPoint>*, const Stream&); \
+  template void registration_evaluate<Backend>(                                                    \
+      Backend, const RegistrationPoint*, int64_t, RegistrationDistanceLookup,                      \
+      RegistrationPairGeometry, RobustLossParams, bool, RegistrationResidual*, const Stream&);     \
+  template RegistrationSums registration_reduce<Backend>(Backend, const RegistrationResidual*,     \
+                                                         int64_t, const Stream&);
 
 }  // namespace backend
 }  // namespace covox

@@ -18,7 +18,7 @@ struct RegistrationDistanceLookup {
   VoxelView<TsdfVoxel, Layout::kSoA> tsdf;
   float tsdf_band_m = 0.0f;  // 0: ESDF only (voxgraph)
   float min_tsdf_weight = 1e-4f;
-  int32_t stride_vox = 1;    // corners every this many voxels (coarse levels: ESDF only, band 0)
+  int32_t stride_vox = 1;  // corners every this many voxels (coarse levels: ESDF only, band 0)
 
   COVOX_HD_INLINE bool corner(const Index3D& v, double* distance_m) const {
     if (tsdf_band_m > 0.0f) {
@@ -38,29 +38,35 @@ struct RegistrationDistanceLookup {
 
   // Trilinear distance and gradient (d distance / d q, frame j). Interpolated in double, unlike
   // EsdfLookup::sample, so that central differences in the Jacobian test are not float noise.
-  COVOX_HD_INLINE bool sample(double qx, double qy, double qz, double* distance_m, double* gradient) const {
+  COVOX_HD_INLINE bool sample(double qx, double qy, double qz, double* distance_m,
+                              double* gradient) const {
     // The corners are voxel centres (k + 0.5) voxel with k a multiple of the stride, so a cell
     // spans stride voxels and the gradient divides by its size.
     const double stride = static_cast<double>(stride_vox);
     const double voxel = esdf.voxel_size * stride;
-    const double gx = (qx / esdf.voxel_size - 0.5) / stride, gy = (qy / esdf.voxel_size - 0.5) / stride,
+    const double gx = (qx / esdf.voxel_size - 0.5) / stride,
+                 gy = (qy / esdf.voxel_size - 0.5) / stride,
                  gz = (qz / esdf.voxel_size - 0.5) / stride;
     const double bx = floor(gx), by = floor(gy), bz = floor(gz);
     // Beyond the voxel index range int32 would wrap onto other voxels: treat as unobserved.
-    if (!(fabs(bx) < 1e9 / stride && fabs(by) < 1e9 / stride && fabs(bz) < 1e9 / stride)) return false;
-    const Index3D base(static_cast<int32_t>(bx), static_cast<int32_t>(by), static_cast<int32_t>(bz));
+    if (!(fabs(bx) < 1e9 / stride && fabs(by) < 1e9 / stride && fabs(bz) < 1e9 / stride))
+      return false;
+    const Index3D base(static_cast<int32_t>(bx), static_cast<int32_t>(by),
+                       static_cast<int32_t>(bz));
     const double fx = gx - bx, fy = gy - by, fz = gz - bz;
     double d[8];
     for (int c = 0; c < 8; ++c) {
       const Index3D cell = base + Index3D(c & 1, (c >> 1) & 1, (c >> 2) & 1);
-      if (!corner(Index3D(cell.x * stride_vox, cell.y * stride_vox, cell.z * stride_vox), &d[c])) return false;
+      if (!corner(Index3D(cell.x * stride_vox, cell.y * stride_vox, cell.z * stride_vox), &d[c]))
+        return false;
     }
     const double x00 = d[0] + fx * (d[1] - d[0]), x10 = d[2] + fx * (d[3] - d[2]);
     const double x01 = d[4] + fx * (d[5] - d[4]), x11 = d[6] + fx * (d[7] - d[6]);
     const double y0 = x00 + fy * (x10 - x00), y1 = x01 + fy * (x11 - x01);
     *distance_m = y0 + fz * (y1 - y0);
     gradient[0] = ((1 - fz) * ((1 - fy) * (d[1] - d[0]) + fy * (d[3] - d[2])) +
-                   fz * ((1 - fy) * (d[5] - d[4]) + fy * (d[7] - d[6]))) / voxel;
+                   fz * ((1 - fy) * (d[5] - d[4]) + fy * (d[7] - d[6]))) /
+                  voxel;
     gradient[1] = ((1 - fz) * (x10 - x00) + fz * (x11 - x01)) / voxel;
     gradient[2] = (y1 - y0) / voxel;
     return true;
@@ -78,7 +84,8 @@ struct RegistrationPairGeometry {
 
 // Composes the pair's geometry from the two world poses (in double; device code too, so that the
 // pose graph can recompute it for every pair at every LM iterate).
-COVOX_HD_INLINE RegistrationPairGeometry registration_pair_geometry(const Pose4Dof& T_W_Si, const Pose4Dof& T_W_Sj) {
+COVOX_HD_INLINE RegistrationPairGeometry registration_pair_geometry(const Pose4Dof& T_W_Si,
+                                                                    const Pose4Dof& T_W_Sj) {
   RegistrationPairGeometry pair;
   pair.cos_ji = cos(T_W_Si.yaw - T_W_Sj.yaw);
   pair.sin_ji = sin(T_W_Si.yaw - T_W_Sj.yaw);
@@ -126,7 +133,8 @@ struct RobustLossParams {
 COVOX_HD_INLINE RegistrationResidual registration_residual(const RegistrationPoint& point,
                                                            const RegistrationDistanceLookup& lookup,
                                                            const RegistrationPairGeometry& pair,
-                                                           const RobustLossParams& robust, bool tsdf_target) {
+                                                           const RobustLossParams& robust,
+                                                           bool tsdf_target) {
   RegistrationResidual out;
   const double px = point.position_m.x, py = point.position_m.y, pz = point.position_m.z;
   // R_ji p, then q in frame j.
@@ -175,7 +183,8 @@ struct RegistrationSumsOfResidual {
     if (!r.valid) return s;
     int k = 0;
     for (int row = 0; row < 4; ++row) {
-      for (int col = row; col < 4; ++col) s.hessian[k++] = r.robust_weight * r.jacobian_i[row] * r.jacobian_i[col];
+      for (int col = row; col < 4; ++col)
+        s.hessian[k++] = r.robust_weight * r.jacobian_i[row] * r.jacobian_i[col];
       s.gradient[row] = r.robust_weight * r.jacobian_i[row] * r.residual;
     }
     s.cost = r.cost;
@@ -185,7 +194,8 @@ struct RegistrationSumsOfResidual {
 };
 
 struct AddRegistrationSums {
-  COVOX_HD_INLINE RegistrationSums operator()(const RegistrationSums& a, const RegistrationSums& b) const {
+  COVOX_HD_INLINE RegistrationSums operator()(const RegistrationSums& a,
+                                              const RegistrationSums& b) const {
     RegistrationSums s;
     for (int k = 0; k < 10; ++k) s.hessian[k] = a.hessian[k] + b.hessian[k];
     for (int k = 0; k < 4; ++k) s.gradient[k] = a.gradient[k] + b.gradient[k];
@@ -199,7 +209,8 @@ struct AddRegistrationSums {
 // (registration.cpp). Throws covox::Error on a bad configuration.
 void validate_registration_residual_config(const RegistrationResidualConfig& config);
 // The lookup of map_j's field for kernels on map_j's device (tsdf_band_m from `config`).
-RegistrationDistanceLookup make_registration_lookup(const TsdfMap& map_j, const RegistrationResidualConfig& config);
+RegistrationDistanceLookup make_registration_lookup(const TsdfMap& map_j,
+                                                    const RegistrationResidualConfig& config);
 
 // A deterministic uniform number in [0, 1) per voxel (and seed): the sampling decision.
 COVOX_HD_INLINE double registration_sample_uniform(int32_t x, int32_t y, int32_t z, uint32_t seed) {
@@ -220,8 +231,9 @@ COVOX_HD_INLINE double registration_sample_uniform(int32_t x, int32_t y, int32_t
 // number of surface voxels before sampling.
 template <class Backend>
 int64_t registration_collect_points(Backend backend, VoxelView<TsdfVoxel, Layout::kSoA> tsdf,
-                                    const Index3D* block_indices, const uint32_t* block_slots, int64_t block_count,
-                                    int32_t side, float voxel_size_m, const RegistrationPointsConfig& config,
+                                    const Index3D* block_indices, const uint32_t* block_slots,
+                                    int64_t block_count, int32_t side, float voxel_size_m,
+                                    const RegistrationPointsConfig& config,
                                     Buffer<RegistrationPoint>* points, const Stream& stream);
 
 template <class Backend>
@@ -231,8 +243,8 @@ void registration_evaluate(Backend backend, const RegistrationPoint* points, int
                            const Stream& stream);
 
 template <class Backend>
-RegistrationSums registration_reduce(Backend backend, const RegistrationResidual* residuals, int64_t count,
-                                     const Stream& stream);
+RegistrationSums registration_reduce(Backend backend, const RegistrationResidual* residuals,
+                                     int64_t count, const Stream& stream);
 
 }  // namespace backend
 }  // namespace covox

@@ -20,8 +20,8 @@ namespace covox {
 namespace backend {
 
 struct RegistrationTerm {
-  int32_t vertex_i = 0;                        // the points' submap
-  int32_t vertex_j = 0;                        // the field's submap
+  int32_t vertex_i = 0;                          // the points' submap
+  int32_t vertex_j = 0;                          // the field's submap
   const RegistrationPoints* points_i = nullptr;  // not owned; on the solver's device
   const TsdfMap* map_j = nullptr;                // not owned; on the solver's device; ESDF computed
   RegistrationResidualConfig residual;
@@ -34,11 +34,13 @@ struct RegistrationTerm {
 // Throws covox::Error naming the term when a vertex is out of range, i == j, a pointer is null,
 // the points or the map live on another device than `device`, the residual config is invalid, or
 // residual_sigma is not finite and positive.
-void validate_registration_terms(const std::vector<RegistrationTerm>& terms, int32_t vertex_count, Device device);
+void validate_registration_terms(const std::vector<RegistrationTerm>& terms, int32_t vertex_count,
+                                 Device device);
 
 // Host reference of the terms' cost at `graph.poses` (one evaluate_registration_residuals call per
 // term, summed on the host): for tests and tools.
-double registration_terms_cost(const PoseGraph4Dof& graph, const std::vector<RegistrationTerm>& terms);
+double registration_terms_cost(const PoseGraph4Dof& graph,
+                               const std::vector<RegistrationTerm>& terms);
 
 }  // namespace backend
 }  // namespace covox

@@ -53,8 +53,9 @@ constexpr int kRegistrationUsedOffset = 56;
 
 // The geometry of every term at `poses`.
 template <class Backend>
-void registration_terms_geometry(Backend backend, const Stream& stream, const RegistrationTermView* terms,
-                                 int64_t term_count, const Pose4Dof* poses, RegistrationPairGeometry* geometry) {
+void registration_terms_geometry(Backend backend, const Stream& stream,
+                                 const RegistrationTermView* terms, int64_t term_count,
+                                 const Pose4Dof* poses, RegistrationPairGeometry* geometry) {
   parallel_for(backend, stream, term_count, [=] COVOX_HD(int64_t t) {
     geometry[t] = registration_pair_geometry(poses[terms[t].vertex_i], poses[terms[t].vertex_j]);
   });
@@ -62,12 +63,12 @@ void registration_terms_geometry(Backend backend, const Stream& stream, const Re
 
 // One point's residual scaled by 1 / sigma, then its robust loss (the term's residual; also what
 // the Ceres oracle evaluates).
-COVOX_HD_INLINE RegistrationResidual registration_scaled_residual(const RegistrationPoint& point,
-                                                                  const RegistrationDistanceLookup& lookup,
-                                                                  const RegistrationPairGeometry& geometry,
-                                                                  const RobustLossParams& robust, bool tsdf_target,
-                                                                  double inverse_sigma) {
-  RegistrationResidual r = registration_residual(point, lookup, geometry, RobustLossParams{}, tsdf_target);
+COVOX_HD_INLINE RegistrationResidual registration_scaled_residual(
+    const RegistrationPoint& point, const RegistrationDistanceLookup& lookup,
+    const RegistrationPairGeometry& geometry, const RobustLossParams& robust, bool tsdf_target,
+    double inverse_sigma) {
+  RegistrationResidual r =
+      registration_residual(point, lookup, geometry, RobustLossParams{}, tsdf_target);
   if (!r.valid) return r;
   r.residual *= inverse_sigma;
   for (int k = 0; k < 4; ++k) {
@@ -81,10 +82,9 @@ COVOX_HD_INLINE RegistrationResidual registration_scaled_residual(const Registra
   return r;
 }
 
-COVOX_HD_INLINE RegistrationResidual registration_term_residual(const RegistrationPoint& point,
-                                                                const RegistrationTermView& term,
-                                                                const RegistrationDistanceLookup* fields,
-                                                                const RegistrationPairGeometry& geometry) {
+COVOX_HD_INLINE RegistrationResidual registration_term_residual(
+    const RegistrationPoint& point, const RegistrationTermView& term,
+    const RegistrationDistanceLookup* fields, const RegistrationPairGeometry& geometry) {
   RegistrationDistanceLookup lookup = fields[term.field];
   lookup.tsdf_band_m = term.tsdf_band_m;
   lookup.min_tsdf_weight = term.min_tsdf_weight;
@@ -95,13 +95,16 @@ COVOX_HD_INLINE RegistrationResidual registration_term_residual(const Registrati
 // Every point of every term in one launch: its residual, Jacobians and cost (0 when invalid).
 // `out` may be null (trial steps need only the costs).
 template <class Backend>
-void registration_terms_evaluate(Backend backend, const Stream& stream, const RegistrationPoint* points,
-                                 const int32_t* point_term, int64_t point_count, const RegistrationTermView* terms,
-                                 const RegistrationDistanceLookup* fields, const RegistrationPairGeometry* geometry,
+void registration_terms_evaluate(Backend backend, const Stream& stream,
+                                 const RegistrationPoint* points, const int32_t* point_term,
+                                 int64_t point_count, const RegistrationTermView* terms,
+                                 const RegistrationDistanceLookup* fields,
+                                 const RegistrationPairGeometry* geometry,
                                  RegistrationPointTerm* out, double* costs) {
   parallel_for(backend, stream, point_count, [=] COVOX_HD(int64_t p) {
     const int32_t t = point_term[p];
-    const RegistrationResidual r = registration_term_residual(points[p], terms[t], fields, geometry[t]);
+    const RegistrationResidual r =
+        registration_term_residual(points[p], terms[t], fields, geometry[t]);
     costs[p] = r.valid ? r.cost : 0.0;
     if (out == nullptr) return;
     RegistrationPointTerm o;
@@ -121,8 +124,10 @@ void registration_terms_evaluate(Backend backend, const Stream& stream, const Re
 // Level 1: one thread per (chunk, group) sums its chunk's points in order. Groups split the 57
 // sums so that a thread keeps at most 16 accumulators: 0 H_ii, 1 H_ij, 2 H_jj, 3 g_i, g_j, used.
 template <class Backend>
-void registration_terms_reduce_chunks(Backend backend, const Stream& stream, const RegistrationPointTerm* point_terms,
-                                      const int64_t* chunk_offsets, int64_t chunk_count, double* chunk_sums) {
+void registration_terms_reduce_chunks(Backend backend, const Stream& stream,
+                                      const RegistrationPointTerm* point_terms,
+                                      const int64_t* chunk_offsets, int64_t chunk_count,
+                                      double* chunk_sums) {
   parallel_for(backend, stream, chunk_count * 4, [=] COVOX_HD(int64_t task) {
     const int64_t chunk = task / 4;
     const int group = static_cast<int>(task % 4);
@@ -157,8 +162,9 @@ void registration_terms_reduce_chunks(Backend backend, const Stream& stream, con
 
 // Level 2: one thread per (term, entry) sums the term's chunks in order.
 template <class Backend>
-void registration_terms_reduce_terms(Backend backend, const Stream& stream, const double* chunk_sums,
-                                     const int64_t* term_chunk_offsets, int64_t term_count, double* term_sums) {
+void registration_terms_reduce_terms(Backend backend, const Stream& stream,
+                                     const double* chunk_sums, const int64_t* term_chunk_offsets,
+                                     int64_t term_count, double* term_sums) {
   parallel_for(backend, stream, term_count * kRegistrationSumStride, [=] COVOX_HD(int64_t task) {
     const int64_t term = task / kRegistrationSumStride;
     const int entry = static_cast<int>(task % kRegistrationSumStride);

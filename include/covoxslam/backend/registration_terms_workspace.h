@@ -17,7 +17,8 @@ namespace backend {
 template <class Backend>
 class RegistrationTermsWorkspace {
  public:
-  RegistrationTermsWorkspace(const std::vector<RegistrationTerm>& terms, const Stream& stream) : stream_(stream) {
+  RegistrationTermsWorkspace(const std::vector<RegistrationTerm>& terms, const Stream& stream)
+      : stream_(stream) {
     const Device device = Backend::kDevice;
     term_count_ = static_cast<int64_t>(terms.size());
     // One lookup per distinct map: a kernel reaches every submap's field through this array.
@@ -43,7 +44,8 @@ class RegistrationTermsWorkspace {
       views.push_back(view);
       const int64_t n = static_cast<int64_t>(term.points_i->points.size());
       for (int64_t begin = 0; begin < n; begin += kRegistrationChunkPoints) {
-        chunk_offsets.push_back(point_offsets.back() + std::min(n, begin + kRegistrationChunkPoints));
+        chunk_offsets.push_back(point_offsets.back() +
+                                std::min(n, begin + kRegistrationChunkPoints));
       }
       term_chunk_offsets.push_back(static_cast<int64_t>(chunk_offsets.size()) - 1);
       point_offsets.push_back(point_offsets.back() + n);
@@ -62,14 +64,15 @@ class RegistrationTermsWorkspace {
                 static_cast<int32_t>(t));
       const auto& source = terms[t].points_i->points;
       if (source.size() > 0) {
-        copy_bytes(points_.data() + point_offsets[t], device, source.data(), source.device(), source.size_bytes(),
-                   stream);
+        copy_bytes(points_.data() + point_offsets[t], device, source.data(), source.device(),
+                   source.size_bytes(), stream);
       }
     }
     point_term_ = Buffer<int32_t>::from_host(device, point_term, stream);
     point_terms_ = Buffer<RegistrationPointTerm>(device, static_cast<size_t>(point_count_));
     point_costs_ = Buffer<double>(device, static_cast<size_t>(point_count_));
-    chunk_sums_ = Buffer<double>(device, static_cast<size_t>(chunk_count_) * kRegistrationSumStride);
+    chunk_sums_ =
+        Buffer<double>(device, static_cast<size_t>(chunk_count_) * kRegistrationSumStride);
     term_sums_ = Buffer<double>(device, static_cast<size_t>(term_count_) * kRegistrationSumStride);
     stream.synchronize();
   }
@@ -84,12 +87,13 @@ class RegistrationTermsWorkspace {
     if (term_count_ == 0) return 0.0;
     const Backend b{};
     registration_terms_geometry(b, stream_, terms_.data(), term_count_, poses, geometry_.data());
-    registration_terms_evaluate(b, stream_, points_.data(), point_term_.data(), point_count_, terms_.data(),
-                                fields_.data(), geometry_.data(), point_terms_.data(), point_costs_.data());
-    registration_terms_reduce_chunks(b, stream_, point_terms_.data(), chunk_offsets_.data(), chunk_count_,
-                                     chunk_sums_.data());
-    registration_terms_reduce_terms(b, stream_, chunk_sums_.data(), term_chunk_offsets_.data(), term_count_,
-                                    term_sums_.data());
+    registration_terms_evaluate(b, stream_, points_.data(), point_term_.data(), point_count_,
+                                terms_.data(), fields_.data(), geometry_.data(),
+                                point_terms_.data(), point_costs_.data());
+    registration_terms_reduce_chunks(b, stream_, point_terms_.data(), chunk_offsets_.data(),
+                                     chunk_count_, chunk_sums_.data());
+    registration_terms_reduce_terms(b, stream_, chunk_sums_.data(), term_chunk_offsets_.data(),
+                                    term_count_, term_sums_.data());
     return sum_costs();
   }
 
@@ -98,9 +102,9 @@ class RegistrationTermsWorkspace {
     if (term_count_ == 0) return 0.0;
     const Backend b{};
     registration_terms_geometry(b, stream_, terms_.data(), term_count_, poses, geometry_.data());
-    registration_terms_evaluate(b, stream_, points_.data(), point_term_.data(), point_count_, terms_.data(),
-                                fields_.data(), geometry_.data(), static_cast<RegistrationPointTerm*>(nullptr),
-                                point_costs_.data());
+    registration_terms_evaluate(b, stream_, points_.data(), point_term_.data(), point_count_,
+                                terms_.data(), fields_.data(), geometry_.data(),
+                                static_cast<RegistrationPointTerm*>(nullptr), point_costs_.data());
     return sum_costs();
   }
 
@@ -109,13 +113,15 @@ class RegistrationTermsWorkspace {
     if (term_count_ == 0) return 0;
     const std::vector<double> sums = term_sums_.to_host(stream_);
     double used = 0.0;
-    for (int64_t t = 0; t < term_count_; ++t) used += sums[t * kRegistrationSumStride + kRegistrationUsedOffset];
+    for (int64_t t = 0; t < term_count_; ++t)
+      used += sums[t * kRegistrationSumStride + kRegistrationUsedOffset];
     return static_cast<int64_t>(used);
   }
 
  private:
   double sum_costs() {
-    return reduce(Backend{}, stream_, point_costs_.data(), point_count_, 0.0, thrust::plus<double>());
+    return reduce(Backend{}, stream_, point_costs_.data(), point_count_, 0.0,
+                  thrust::plus<double>());
   }
 
   const Stream& stream_;

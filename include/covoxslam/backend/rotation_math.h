@@ -22,7 +22,7 @@ COVOX_HD_INLINE Matrix3d quaternion_to_rotation(const double* q) {
   const double x = q[0], y = q[1], z = q[2], w = q[3];
   Matrix3d r;
   r << 1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - z * w), 2.0 * (x * z + y * w),  //
-      2.0 * (x * y + z * w), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - x * w),    //
+      2.0 * (x * y + z * w), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - x * w),   //
       2.0 * (x * z - y * w), 2.0 * (y * z + x * w), 1.0 - 2.0 * (x * x + y * y);
   return r;
 }
@@ -76,8 +76,8 @@ COVOX_HD_INLINE Matrix3d right_jacobian_inverse(const Vector3d& phi) {
   const double a_sq = phi.squaredNorm();
   const double a = sqrt(a_sq);
   // 1/a^2 - cot(a/2) / (2a): well conditioned up to a = pi, a series near 0.
-  const double c = a < 1e-4 ? 1.0 / 12.0 + a_sq / 720.0
-                            : 1.0 / a_sq - cos(0.5 * a) / (2.0 * a * sin(0.5 * a));
+  const double c =
+      a < 1e-4 ? 1.0 / 12.0 + a_sq / 720.0 : 1.0 / a_sq - cos(0.5 * a) / (2.0 * a * sin(0.5 * a));
   const Matrix3d k = skew(phi);
   return Matrix3d::Identity() + 0.5 * k + c * (k * k);
 }

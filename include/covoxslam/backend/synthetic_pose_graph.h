@@ -18,8 +18,8 @@ struct SyntheticGraphOptions {
   double step_m = 2.0;                // distance between consecutive submaps
   double translation_sigma_m = 0.05;  // measurement noise
   double rotation_sigma_rad = 0.01;
-  double loop_radius_m = 6.0;     // non-consecutive pairs closer than this get a constraint ...
-  int max_loops_per_submap = 4;   // ... at most this many per submap
+  double loop_radius_m = 6.0;    // non-consecutive pairs closer than this get a constraint ...
+  int max_loops_per_submap = 4;  // ... at most this many per submap
   double initial_translation_perturbation_m = 0.5;  // initial guess noise (uniform per axis)
   double initial_rotation_perturbation_rad = 0.05;
   int absolute_position_every = 0;  // 4-DoF: a GNSS-like constraint every n submaps (0: none)

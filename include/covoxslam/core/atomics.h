@@ -57,7 +57,8 @@ template <class T, class Better>
 inline T host_atomic_extreme(T* address, T value, Better better) {
   T current = __atomic_load_n(address, __ATOMIC_RELAXED);
   while (better(value, current) &&
-         !__atomic_compare_exchange_n(address, &current, value, true, __ATOMIC_ACQ_REL, __ATOMIC_RELAXED)) {
+         !__atomic_compare_exchange_n(address, &current, value, true, __ATOMIC_ACQ_REL,
+                                      __ATOMIC_RELAXED)) {
   }
   return current;
 }

@@ -16,7 +16,9 @@ class Buffer {
   static_assert(std::is_trivially_copyable<T>::value, "Buffer<T> needs a trivially copyable T");
 
  public:
-  explicit Buffer(Device device = Device::kCpu, size_t size = 0) : device_(device) { allocate(size); }
+  explicit Buffer(Device device = Device::kCpu, size_t size = 0) : device_(device) {
+    allocate(size);
+  }
   static Buffer from_host(Device device, const std::vector<T>& values,
                           const Stream& stream = Stream()) {
     Buffer buffer(device, values.size());

@@ -20,15 +20,15 @@ void exclusive_scan(Device device, const Stream& stream, const uint32_t* in, int
 // increments calls[i] (atomically): a test can check each value was read exactly once. With
 // `through_functor` the prefixes go out through a functor (scan_output), which stores them and
 // adds 2^16 to calls[i].
-void scan_values_once(Device device, const Stream& stream, const uint32_t* in, int64_t count, uint32_t* out,
-                      uint32_t* calls, bool through_functor = false);
+void scan_values_once(Device device, const Stream& stream, const uint32_t* in, int64_t count,
+                      uint32_t* out, uint32_t* calls, bool through_functor = false);
 // Stable sort of keys, values permuted along.
 void sort_by_key(Device device, const Stream& stream, uint64_t* keys, uint32_t* values,
                  int64_t count);
 // Stable sort by the low key_bits bits of the keys (see radix_sort.h); *_alt are scratch arrays
 // of `count` elements.
-void radix_sort_pairs(Device device, const Stream& stream, uint64_t* keys, uint32_t* values, int64_t count,
-                      int key_bits, uint64_t* keys_alt, uint32_t* values_alt);
+void radix_sort_pairs(Device device, const Stream& stream, uint64_t* keys, uint32_t* values,
+                      int64_t count, int key_bits, uint64_t* keys_alt, uint32_t* values_alt);
 // Sums each run of equal consecutive keys; returns the number of runs.
 int64_t reduce_by_key_sum(Device device, const Stream& stream, const uint64_t* keys,
                           const float* values, int64_t count, uint64_t* keys_out,
@@ -38,8 +38,9 @@ int64_t reduce_by_key_sum(Device device, const Stream& stream, const uint64_t* k
 // incremented (atomically), so a test can check every run was handed over exactly once per call
 // (calls == 2) with the right sum; other entries are untouched. With `live_count` (memory of the
 // device), only the first *live_count records count.
-void sum_runs_at_first(Device device, const Stream& stream, const uint64_t* keys, const double* values,
-                       int64_t count, double* sums, uint32_t* calls, const uint32_t* live_count = nullptr);
+void sum_runs_at_first(Device device, const Stream& stream, const uint64_t* keys,
+                       const double* values, int64_t count, double* sums, uint32_t* calls,
+                       const uint32_t* live_count = nullptr);
 // Removes consecutive duplicates in place; returns the new count.
 int64_t unique(Device device, const Stream& stream, uint64_t* data, int64_t count);
 double reduce_sum(Device device, const Stream& stream, const double* data, int64_t count);

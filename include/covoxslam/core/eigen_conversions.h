@@ -12,9 +12,9 @@ inline Transform3f to_transform3f(const Eigen::Isometry3d& pose) {
   for (int r = 0; r < 3; ++r) {
     for (int c = 0; c < 3; ++c) transform.rotation[3 * r + c] = static_cast<float>(rotation(r, c));
   }
-  transform.translation = Vec3f(static_cast<float>(pose.translation().x()),
-                                static_cast<float>(pose.translation().y()),
-                                static_cast<float>(pose.translation().z()));
+  transform.translation =
+      Vec3f(static_cast<float>(pose.translation().x()), static_cast<float>(pose.translation().y()),
+            static_cast<float>(pose.translation().z()));
   return transform;
 }
 

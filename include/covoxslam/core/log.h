@@ -30,8 +30,17 @@ void log_message(LogLevel level, const Parts&... parts) {
   detail::append_all(stream, parts...);
   log_line(level, stream.str());
 }
-template <class... Parts> void log_info(const Parts&... parts) { log_message(LogLevel::kInfo, parts...); }
-template <class... Parts> void log_warning(const Parts&... parts) { log_message(LogLevel::kWarning, parts...); }
-template <class... Parts> void log_error(const Parts&... parts) { log_message(LogLevel::kError, parts...); }
+template <class... Parts>
+void log_info(const Parts&... parts) {
+  log_message(LogLevel::kInfo, parts...);
+}
+template <class... Parts>
+void log_warning(const Parts&... parts) {
+  log_message(LogLevel::kWarning, parts...);
+}
+template <class... Parts>
+void log_error(const Parts&... parts) {
+  log_message(LogLevel::kError, parts...);
+}
 
 }  // namespace covox

@@ -75,7 +75,8 @@ void parallel_for(CudaBackend, const Stream& stream, int64_t count, const Functo
   constexpr int kThreadsPerBlock = 256;
   const int64_t blocks = (count + kThreadsPerBlock - 1) / kThreadsPerBlock;
   detail::parallel_for_kernel<<<static_cast<unsigned>(blocks), kThreadsPerBlock, 0,
-                                static_cast<cudaStream_t>(stream.native_handle())>>>(count, functor);
+                                static_cast<cudaStream_t>(stream.native_handle())>>>(count,
+                                                                                     functor);
   cuda_check(cudaGetLastError(), "parallel_for kernel launch");
 }
 #endif
@@ -92,7 +93,8 @@ void exclusive_scan(CpuBackend backend, const Stream& stream, const T* in, int64
 // single_pass_scan.h for the GPU version). Here the values are written to `out` and scanned there;
 // for a functor `out` (scan_output), to a temporary array first, then handed to it.
 template <int kItems = kScanItemsPerThread, class ValueOf, class Output>
-void exclusive_scan_of(CpuBackend backend, const Stream& stream, int64_t count, const ValueOf& value_of, Output out) {
+void exclusive_scan_of(CpuBackend backend, const Stream& stream, int64_t count,
+                       const ValueOf& value_of, Output out) {
   if (count <= 0) return;
   if constexpr (std::is_pointer<Output>::value) {
     parallel_for(backend, stream, count, [&](int64_t i) { out[i] = value_of(i); });
@@ -101,7 +103,8 @@ void exclusive_scan_of(CpuBackend backend, const Stream& stream, int64_t count, 
     std::vector<uint32_t> prefixes(static_cast<size_t>(count));
     uint32_t* scanned = prefixes.data();
     parallel_for(backend, stream, count, [&](int64_t i) { scanned[i] = value_of(i); });
-    thrust::exclusive_scan(execution_policy(backend, stream), scanned, scanned + count, scanned, 0u);
+    thrust::exclusive_scan(execution_policy(backend, stream), scanned, scanned + count, scanned,
+                           0u);
     parallel_for(backend, stream, count, [&](int64_t i) { scan_output(out, i, scanned[i]); });
   }
 }
@@ -110,8 +113,8 @@ void exclusive_scan_of(CpuBackend backend, const Stream& stream, int64_t count, 
 // fresh 80 MB one per 20 M-key hash table activation cost the CPU twin 10-15 % of its insert
 // rate in page faults). The GPU's scan needs none (the overload below ignores it).
 template <int kItems = kScanItemsPerThread, class ValueOf, class Output>
-void exclusive_scan_of(CpuBackend backend, const Stream& stream, int64_t count, const ValueOf& value_of, Output out,
-                       uint32_t* scratch) {
+void exclusive_scan_of(CpuBackend backend, const Stream& stream, int64_t count,
+                       const ValueOf& value_of, Output out, uint32_t* scratch) {
   if (count <= 0) return;
   parallel_for(backend, stream, count, [&](int64_t i) { scratch[i] = value_of(i); });
   thrust::exclusive_scan(execution_policy(backend, stream), scratch, scratch + count, scratch, 0u);
@@ -119,8 +122,8 @@ void exclusive_scan_of(CpuBackend backend, const Stream& stream, int64_t count, 
 }
 #if defined(__CUDACC__)
 template <int kItems = kScanItemsPerThread, class ValueOf, class Output>
-void exclusive_scan_of(CudaBackend backend, const Stream& stream, int64_t count, const ValueOf& value_of, Output out,
-                       uint32_t*) {
+void exclusive_scan_of(CudaBackend backend, const Stream& stream, int64_t count,
+                       const ValueOf& value_of, Output out, uint32_t*) {
   exclusive_scan_of<kItems>(backend, stream, count, value_of, out);
 }
 #endif
@@ -139,8 +142,9 @@ void exclusive_scan(CudaBackend backend, const Stream& stream, const T* in, int6
                "exclusive_scan (sizing)");
     CudaTemporaryAllocator allocator{stream.native_handle()};
     char* temporary = allocator.allocate(static_cast<std::ptrdiff_t>(temporary_bytes));
-    cuda_check(cub::DeviceScan::ExclusiveSum(temporary, temporary_bytes, in, out, count, cuda_stream),
-               "exclusive_scan");
+    cuda_check(
+        cub::DeviceScan::ExclusiveSum(temporary, temporary_bytes, in, out, count, cuda_stream),
+        "exclusive_scan");
     allocator.deallocate(temporary, temporary_bytes);
   }
 }
@@ -168,9 +172,10 @@ void sort_by_key(Backend backend, const Stream& stream, Key* keys, Value* values
 // the keys into one chunk per thread at run boundaries, counts each chunk's runs, and reduces
 // every run left to right in its chunk (deterministic, in input order). CUDA: Thrust's
 // reduce_by_key (a segmented scan).
-template <class KeyIterator, class ValueIterator, class Key, class Value, class Equal, class ReduceOp>
-int64_t reduce_runs(CpuBackend, const Stream&, KeyIterator keys, ValueIterator values, int64_t count, Key* keys_out,
-                    Value* values_out, Equal equal, ReduceOp op) {
+template <class KeyIterator, class ValueIterator, class Key, class Value, class Equal,
+          class ReduceOp>
+int64_t reduce_runs(CpuBackend, const Stream&, KeyIterator keys, ValueIterator values,
+                    int64_t count, Key* keys_out, Value* values_out, Equal equal, ReduceOp op) {
   if (count <= 0) return 0;
   const int threads = omp_get_max_threads();
   std::vector<int64_t> begins(static_cast<size_t>(threads) + 1, count);
@@ -185,7 +190,8 @@ int64_t reduce_runs(CpuBackend, const Stream&, KeyIterator keys, ValueIterator v
   {
     const int t = omp_get_thread_num();
     int64_t runs = 0;
-    for (int64_t i = begins[t]; i < begins[t + 1]; ++i) runs += (i == begins[t] || !equal(keys[i - 1], keys[i]));
+    for (int64_t i = begins[t]; i < begins[t + 1]; ++i)
+      runs += (i == begins[t] || !equal(keys[i - 1], keys[i]));
     first_run[t + 1] = runs;
 #pragma omp barrier
 #pragma omp single
@@ -203,12 +209,14 @@ int64_t reduce_runs(CpuBackend, const Stream&, KeyIterator keys, ValueIterator v
   return first_run[threads];
 }
 #if defined(__CUDACC__)
-template <class KeyIterator, class ValueIterator, class Key, class Value, class Equal, class ReduceOp>
-int64_t reduce_runs(CudaBackend backend, const Stream& stream, KeyIterator keys, ValueIterator values, int64_t count,
-                    Key* keys_out, Value* values_out, Equal equal, ReduceOp op) {
+template <class KeyIterator, class ValueIterator, class Key, class Value, class Equal,
+          class ReduceOp>
+int64_t reduce_runs(CudaBackend backend, const Stream& stream, KeyIterator keys,
+                    ValueIterator values, int64_t count, Key* keys_out, Value* values_out,
+                    Equal equal, ReduceOp op) {
   if (count <= 0) return 0;
-  auto ends = thrust::reduce_by_key(execution_policy(backend, stream), keys, keys + count, values, keys_out,
-                                    values_out, equal, op);
+  auto ends = thrust::reduce_by_key(execution_policy(backend, stream), keys, keys + count, values,
+                                    keys_out, values_out, equal, op);
   return static_cast<int64_t>(ends.first - keys_out);
 }
 #endif
@@ -217,15 +225,16 @@ int64_t reduce_runs(CudaBackend backend, const Stream& stream, KeyIterator keys,
 template <class Backend, class Key, class Value, class ReduceOp>
 int64_t reduce_by_key(Backend backend, const Stream& stream, const Key* keys, const Value* values,
                       int64_t count, Key* keys_out, Value* values_out, ReduceOp op) {
-  return reduce_runs(backend, stream, keys, values, count, keys_out, values_out, thrust::equal_to<Key>(), op);
+  return reduce_runs(backend, stream, keys, values, count, keys_out, values_out,
+                     thrust::equal_to<Key>(), op);
 }
 
 // Removes consecutive duplicates in place; returns the new count.
 template <class Backend, class T>
 int64_t unique(Backend backend, const Stream& stream, T* data, int64_t count) {
   if (count <= 0) return 0;
-  return static_cast<int64_t>(thrust::unique(execution_policy(backend, stream), data, data + count) -
-                              data);
+  return static_cast<int64_t>(
+      thrust::unique(execution_policy(backend, stream), data, data + count) - data);
 }
 
 template <class Backend, class T, class ReduceOp>
@@ -240,28 +249,31 @@ template <class InputIterator, class Result, class Transform, class ReduceOp>
 Result transform_reduce(CpuBackend backend, const Stream& stream, InputIterator data, int64_t count,
                         Transform transform, Result init, ReduceOp op) {
   if (count <= 0) return init;
-  return thrust::transform_reduce(execution_policy(backend, stream), data, data + count, transform, init, op);
+  return thrust::transform_reduce(execution_policy(backend, stream), data, data + count, transform,
+                                  init, op);
 }
 #if defined(__CUDACC__)
 // CUB directly, result through a device temporary and one small copy: Thrust's version adds
 // about 15 us of fixed cost per call on the H100, a lot next to a 0.5 ms frame.
 template <class InputIterator, class Result, class Transform, class ReduceOp>
-Result transform_reduce(CudaBackend, const Stream& stream, InputIterator data, int64_t count, Transform transform,
-                        Result init, ReduceOp op) {
+Result transform_reduce(CudaBackend, const Stream& stream, InputIterator data, int64_t count,
+                        Transform transform, Result init, ReduceOp op) {
   if (count <= 0) return init;
   const auto cuda_stream = static_cast<cudaStream_t>(stream.native_handle());
   size_t temporary_bytes = 0;
-  cuda_check(cub::DeviceReduce::TransformReduce(nullptr, temporary_bytes, data, static_cast<Result*>(nullptr),
-                                                static_cast<int>(count), op, transform, init, cuda_stream),
+  cuda_check(cub::DeviceReduce::TransformReduce(
+                 nullptr, temporary_bytes, data, static_cast<Result*>(nullptr),
+                 static_cast<int>(count), op, transform, init, cuda_stream),
              "transform_reduce (sizing)");
   // The result sits (aligned) in front of CUB's scratch: one allocation from the cache.
   const size_t result_bytes = (sizeof(Result) + 255) / 256 * 256;
   CudaTemporaryAllocator allocator{stream.native_handle()};
   char* temporary = allocator.allocate(static_cast<std::ptrdiff_t>(result_bytes + temporary_bytes));
   Result* result = reinterpret_cast<Result*>(temporary);
-  cuda_check(cub::DeviceReduce::TransformReduce(temporary + result_bytes, temporary_bytes, data, result,
-                                                static_cast<int>(count), op, transform, init, cuda_stream),
-             "transform_reduce");
+  cuda_check(
+      cub::DeviceReduce::TransformReduce(temporary + result_bytes, temporary_bytes, data, result,
+                                         static_cast<int>(count), op, transform, init, cuda_stream),
+      "transform_reduce");
   Result host;
   copy_bytes(&host, Device::kCpu, result, Device::kCuda, sizeof(Result), stream);  // staged, waits
   allocator.deallocate(temporary, result_bytes + temporary_bytes);

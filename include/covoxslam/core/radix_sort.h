@@ -36,12 +36,13 @@
 namespace covox {
 
 template <class Key, class Value>
-void radix_sort_pairs_swapping(CpuBackend, const Stream&, Key*& keys, Value*& values, int64_t count, int key_bits,
-                               Key*& keys_alt, Value*& values_alt) {
+void radix_sort_pairs_swapping(CpuBackend, const Stream&, Key*& keys, Value*& values, int64_t count,
+                               int key_bits, Key*& keys_alt, Value*& values_alt) {
   if (count <= 1 || key_bits <= 0) return;
   constexpr int kDigitBits = 8;
   constexpr int kDigits = 1 << kDigitBits;
-  const int passes = (std::min(key_bits, static_cast<int>(8 * sizeof(Key))) + kDigitBits - 1) / kDigitBits;
+  const int passes =
+      (std::min(key_bits, static_cast<int>(8 * sizeof(Key))) + kDigitBits - 1) / kDigitBits;
   const int max_threads = omp_get_max_threads();
   std::vector<int64_t> offsets(static_cast<size_t>(max_threads) * kDigits);
   Key* source_keys = keys;
@@ -90,21 +91,21 @@ void radix_sort_pairs_swapping(CpuBackend, const Stream&, Key*& keys, Value*& va
 
 #if defined(__CUDACC__)
 template <class Key, class Value>
-void radix_sort_pairs_swapping(CudaBackend, const Stream& stream, Key*& keys, Value*& values, int64_t count,
-                               int key_bits, Key*& keys_alt, Value*& values_alt) {
+void radix_sort_pairs_swapping(CudaBackend, const Stream& stream, Key*& keys, Value*& values,
+                               int64_t count, int key_bits, Key*& keys_alt, Value*& values_alt) {
   if (count <= 1 || key_bits <= 0) return;
   const auto cuda_stream = static_cast<cudaStream_t>(stream.native_handle());
   cub::DoubleBuffer<Key> key_buffers(keys, keys_alt);
   cub::DoubleBuffer<Value> value_buffers(values, values_alt);
   const int end_bit = std::min(key_bits, static_cast<int>(8 * sizeof(Key)));
   size_t temporary_bytes = 0;
-  cuda_check(cub::DeviceRadixSort::SortPairs(nullptr, temporary_bytes, key_buffers, value_buffers, count, 0, end_bit,
-                                             cuda_stream),
+  cuda_check(cub::DeviceRadixSort::SortPairs(nullptr, temporary_bytes, key_buffers, value_buffers,
+                                             count, 0, end_bit, cuda_stream),
              "radix sort (sizing)");
   CudaTemporaryAllocator allocator{stream.native_handle()};
   char* temporary = allocator.allocate(static_cast<std::ptrdiff_t>(temporary_bytes));
-  cuda_check(cub::DeviceRadixSort::SortPairs(temporary, temporary_bytes, key_buffers, value_buffers, count, 0, end_bit,
-                                             cuda_stream),
+  cuda_check(cub::DeviceRadixSort::SortPairs(temporary, temporary_bytes, key_buffers, value_buffers,
+                                             count, 0, end_bit, cuda_stream),
              "radix sort");
   allocator.deallocate(temporary, temporary_bytes);
   if (key_buffers.Current() != keys) {
@@ -116,14 +117,15 @@ void radix_sort_pairs_swapping(CudaBackend, const Stream& stream, Key*& keys, Va
 
 // The sorted pairs back in `keys` / `values` (a copy after an odd number of passes).
 template <class Backend>
-void radix_sort_pairs(Backend backend, const Stream& stream, uint64_t* keys, uint32_t* values, int64_t count,
-                      int key_bits, uint64_t* keys_alt, uint32_t* values_alt) {
+void radix_sort_pairs(Backend backend, const Stream& stream, uint64_t* keys, uint32_t* values,
+                      int64_t count, int key_bits, uint64_t* keys_alt, uint32_t* values_alt) {
   uint64_t* sorted_keys = keys;
   uint32_t* sorted_values = values;
-  radix_sort_pairs_swapping(backend, stream, sorted_keys, sorted_values, count, key_bits, keys_alt, values_alt);
+  radix_sort_pairs_swapping(backend, stream, sorted_keys, sorted_values, count, key_bits, keys_alt,
+                            values_alt);
   if (sorted_keys != keys) {
-    copy_bytes(keys, Backend::kDevice, sorted_keys, Backend::kDevice, static_cast<size_t>(count) * sizeof(uint64_t),
-               stream);
+    copy_bytes(keys, Backend::kDevice, sorted_keys, Backend::kDevice,
+               static_cast<size_t>(count) * sizeof(uint64_t), stream);
     copy_bytes(values, Backend::kDevice, sorted_values, Backend::kDevice,
                static_cast<size_t>(count) * sizeof(uint32_t), stream);
   }

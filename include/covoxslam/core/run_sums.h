@@ -72,7 +72,8 @@ template <class Op>
 struct JoinRunParts {
   Op op;
   template <class SumT>
-  COVOX_HD_INLINE RunPart<SumT> operator()(const RunPart<SumT>& left, const RunPart<SumT>& right) const {
+  COVOX_HD_INLINE RunPart<SumT> operator()(const RunPart<SumT>& left,
+                                           const RunPart<SumT>& right) const {
     return right.first != kNoRun ? right : RunPart<SumT>{op(left.sum, right.sum), left.first};
   }
 };
@@ -105,9 +106,9 @@ TileParts<SumT> carve_tile_parts(Buffer<uint64_t>& scratch, int64_t tiles) {
 // added, handed over (to `hand_over`) or left in the tile's parts where the run ends or the tile
 // does. The same step on both backends, after each has built `part` its own way.
 template <class KeyT, class SumT, class HandOver>
-COVOX_HD_INLINE void close_record(const KeyT* keys, int64_t count, int64_t j, int64_t tile, int64_t tile_end,
-                                  const RunPart<SumT>& part, const HandOver& hand_over,
-                                  const TileParts<SumT>& parts) {
+COVOX_HD_INLINE void close_record(const KeyT* keys, int64_t count, int64_t j, int64_t tile,
+                                  int64_t tile_end, const RunPart<SumT>& part,
+                                  const HandOver& hand_over, const TileParts<SumT>& parts) {
   const bool ends = j + 1 >= count || keys[j + 1] != keys[j];
   if (ends) {
     if (part.first != kNoRun) {
@@ -127,8 +128,9 @@ COVOX_HD_INLINE void close_record(const KeyT* keys, int64_t count, int64_t j, in
 // The records there are: all `count_bound`, or the first *live_count (memory of the backend's
 // device) when given.
 COVOX_HD_INLINE int64_t live_records(int64_t count_bound, const uint32_t* live_count) {
-  return live_count && static_cast<int64_t>(*live_count) < count_bound ? static_cast<int64_t>(*live_count)
-                                                                         : count_bound;
+  return live_count && static_cast<int64_t>(*live_count) < count_bound
+             ? static_cast<int64_t>(*live_count)
+             : count_bound;
 }
 
 template <class KeyT>
@@ -138,8 +140,9 @@ COVOX_HD_INLINE bool starts_run(const KeyT* keys, int64_t j) {
 
 // The CPU's tile: its records left to right.
 template <class KeyT, class SumT, class Term, class Op, class Consume>
-void sum_tile_in_order(const KeyT* keys, int64_t count, int64_t tile, const Term& term, const Op& op,
-                       const Consume& consume, const TileParts<SumT>& parts, uint32_t* run_count) {
+void sum_tile_in_order(const KeyT* keys, int64_t count, int64_t tile, const Term& term,
+                       const Op& op, const Consume& consume, const TileParts<SumT>& parts,
+                       uint32_t* run_count) {
   const int64_t begin = tile * kRunSumTile;
   const int64_t end = begin + kRunSumTile < count ? begin + kRunSumTile : count;
   RunPart<SumT> part{SumT{}, kNoRun};
@@ -148,7 +151,8 @@ void sum_tile_in_order(const KeyT* keys, int64_t count, int64_t tile, const Term
     const SumT value = term(j);
     const bool start = starts_run(keys, j);
     starts += start ? 1u : 0u;
-    part = start ? RunPart<SumT>{value, static_cast<uint32_t>(j)} : RunPart<SumT>{op(part.sum, value), part.first};
+    part = start ? RunPart<SumT>{value, static_cast<uint32_t>(j)}
+                 : RunPart<SumT>{op(part.sum, value), part.first};
     close_record(keys, count, j, tile, end, part, consume, parts);
   }
   if (run_count && starts) atomic_add(run_count, starts);
@@ -157,10 +161,11 @@ void sum_tile_in_order(const KeyT* keys, int64_t count, int64_t tile, const Term
 #if defined(__CUDACC__)
 template <class KeyT, class SumT, class Term, class Op, class Consume>
 __global__ void __launch_bounds__(kRunSumThreads, kRunSumBlocksPerSm)
-    sum_tiles_kernel(const KeyT* keys, int64_t count_bound, const uint32_t* live_count, Term term, Op op,
-                     Consume consume, TileParts<SumT> parts, uint32_t* run_count) {
+    sum_tiles_kernel(const KeyT* keys, int64_t count_bound, const uint32_t* live_count, Term term,
+                     Op op, Consume consume, TileParts<SumT> parts, uint32_t* run_count) {
   const int64_t count = live_records(count_bound, live_count);
-  if (static_cast<int64_t>(blockIdx.x) * kRunSumTile >= count) return;  // a tile past the live records
+  if (static_cast<int64_t>(blockIdx.x) * kRunSumTile >= count)
+    return;  // a tile past the live records
   using Part = RunPart<SumT>;
   using BlockScan = cub::BlockScan<Part, kRunSumThreads>;
   // The runs that end in the tile, handed to `consume` one per thread after the scan: a thread
@@ -194,7 +199,8 @@ __global__ void __launch_bounds__(kRunSumThreads, kRunSumBlocksPerSm)
     if (j >= tile_end) continue;
     values[k] = term(j);
     starts[k] = starts_run(keys, j);
-    own = starts[k] ? Part{values[k], static_cast<uint32_t>(j)} : Part{op(own.sum, values[k]), own.first};
+    own = starts[k] ? Part{values[k], static_cast<uint32_t>(j)}
+                    : Part{op(own.sum, values[k]), own.first};
   }
   if (run_count) {  // one atomic per warp (every thread of the block is here)
     uint32_t own_starts = 0;
@@ -219,7 +225,8 @@ __global__ void __launch_bounds__(kRunSumThreads, kRunSumBlocksPerSm)
   for (int k = 0; k < kRunSumItems; ++k) {
     const int64_t j = first + k;
     if (j >= tile_end) break;
-    part = starts[k] ? Part{values[k], static_cast<uint32_t>(j)} : Part{op(part.sum, values[k]), part.first};
+    part = starts[k] ? Part{values[k], static_cast<uint32_t>(j)}
+                     : Part{op(part.sum, values[k]), part.first};
     close_record(keys, count, j, tile, tile_end, part, list_run, parts);
   }
   __syncthreads();
@@ -231,21 +238,22 @@ __global__ void __launch_bounds__(kRunSumThreads, kRunSumBlocksPerSm)
 
 template <class KeyT, class SumT, class Term, class Op, class Consume>
 void sum_tiles(CpuBackend backend, const Stream& stream, const KeyT* keys, int64_t count_bound,
-               const uint32_t* live_count, int64_t tiles, const Term& term, const Op& op, const Consume& consume,
-               const TileParts<SumT>& parts, uint32_t* run_count) {
+               const uint32_t* live_count, int64_t tiles, const Term& term, const Op& op,
+               const Consume& consume, const TileParts<SumT>& parts, uint32_t* run_count) {
   const int64_t count = live_records(count_bound, live_count);
   parallel_for(backend, stream, tiles, [&](int64_t tile) {
-    if (tile * kRunSumTile < count) sum_tile_in_order(keys, count, tile, term, op, consume, parts, run_count);
+    if (tile * kRunSumTile < count)
+      sum_tile_in_order(keys, count, tile, term, op, consume, parts, run_count);
   });
 }
 #if defined(__CUDACC__)
 template <class KeyT, class SumT, class Term, class Op, class Consume>
-void sum_tiles(CudaBackend, const Stream& stream, const KeyT* keys, int64_t count_bound, const uint32_t* live_count,
-               int64_t tiles, const Term& term, const Op& op, const Consume& consume, const TileParts<SumT>& parts,
-               uint32_t* run_count) {
+void sum_tiles(CudaBackend, const Stream& stream, const KeyT* keys, int64_t count_bound,
+               const uint32_t* live_count, int64_t tiles, const Term& term, const Op& op,
+               const Consume& consume, const TileParts<SumT>& parts, uint32_t* run_count) {
   sum_tiles_kernel<<<static_cast<unsigned>(tiles), kRunSumThreads, 0,
-                     static_cast<cudaStream_t>(stream.native_handle())>>>(keys, count_bound, live_count, term, op,
-                                                                          consume, parts, run_count);
+                     static_cast<cudaStream_t>(stream.native_handle())>>>(
+      keys, count_bound, live_count, term, op, consume, parts, run_count);
   cuda_check(cudaGetLastError(), "consume_run_sums: tile kernel launch");
 }
 #endif
@@ -258,13 +266,15 @@ void sum_tiles(CudaBackend, const Stream& stream, const KeyT* keys, int64_t coun
 // says how many of the `count` records are there (known on the device only: the rest are
 // ignored, and the tiles past them return at once).
 template <class SumT, class Backend, class KeyT, class Term, class Op, class Consume>
-void consume_run_sums(Backend backend, const Stream& stream, const KeyT* keys, int64_t count, const Term& term,
-                      const Op& op, const Consume& consume, Buffer<uint64_t>& scratch, uint32_t* run_count = nullptr,
+void consume_run_sums(Backend backend, const Stream& stream, const KeyT* keys, int64_t count,
+                      const Term& term, const Op& op, const Consume& consume,
+                      Buffer<uint64_t>& scratch, uint32_t* run_count = nullptr,
                       const uint32_t* live_count = nullptr) {
   using namespace run_sums_detail;
   if (count <= 0) return;
   if (count >= static_cast<int64_t>(kNoRun)) {
-    throw Error("consume_run_sums: " + std::to_string(count) + " records, at most 2^32 - 2 fit its 32-bit record indices");
+    throw Error("consume_run_sums: " + std::to_string(count) +
+                " records, at most 2^32 - 2 fit its 32-bit record indices");
   }
   const int64_t tiles = (count + kRunSumTile - 1) / kRunSumTile;
   const TileParts<SumT> parts = carve_tile_parts<SumT>(scratch, tiles);

@@ -1,7 +1,8 @@
 #pragma once
 // Exclusive prefix sums of 32-bit values given by a functor, in one kernel launch on the GPU:
 //
-//   exclusive_scan_of(backend, stream, count, value_of, out)   out[i] = value_of(0) + ... + value_of(i - 1)
+//   exclusive_scan_of(backend, stream, count, value_of, out)   out[i] = value_of(0) + ... +
+//   value_of(i - 1)
 //
 // value_of(i) is called exactly once for each i in [0, count) (so it may also write something of
 // its own, such as the piece table beside the piece sizes), and `out` may be the array value_of
@@ -78,7 +79,8 @@ __device__ __forceinline__ uint64_t await(const uint64_t* word, uint32_t epoch) 
   uint64_t seen;
   do {
     seen = *reinterpret_cast<const volatile uint64_t*>(word);
-  } while (static_cast<uint32_t>(seen >> 32 & kEpochMask) != (epoch & kEpochMask) || (seen >> 62) == 0u);
+  } while (static_cast<uint32_t>(seen >> 32 & kEpochMask) != (epoch & kEpochMask) ||
+           (seen >> 62) == 0u);
   return seen;
 }
 
@@ -88,8 +90,8 @@ __device__ __forceinline__ uint64_t await(const uint64_t* word, uint32_t epoch) 
 // its inclusive prefix. Tile 0 needs no descriptors (null when there is one tile only). Its
 // predecessors' sums are read nearest first, one warp looking back 32 tiles at a time, until one
 // of them has published its inclusive prefix.
-__device__ __forceinline__ uint32_t look_back_tile_prefix(uint64_t* descriptors, uint32_t epoch, int64_t tile,
-                                                          uint32_t tile_sum) {
+__device__ __forceinline__ uint32_t look_back_tile_prefix(uint64_t* descriptors, uint32_t epoch,
+                                                          int64_t tile, uint32_t tile_sum) {
   const int lane = static_cast<int>(threadIdx.x & 31u);
   uint32_t prefix = 0;
   if (tile == 0) {
@@ -106,7 +108,8 @@ __device__ __forceinline__ uint32_t look_back_tile_prefix(uint64_t* descriptors,
     const int nearest = stops ? __ffs(static_cast<int>(stops)) - 1 : 32;
     uint32_t value = lane <= nearest ? static_cast<uint32_t>(seen) : 0u;
 #pragma unroll
-    for (int offset = 16; offset > 0; offset >>= 1) value += __shfl_down_sync(0xFFFFFFFFu, value, offset);
+    for (int offset = 16; offset > 0; offset >>= 1)
+      value += __shfl_down_sync(0xFFFFFFFFu, value, offset);
     prefix += __shfl_sync(0xFFFFFFFFu, value, 0);
     if (stops) break;
     window_end -= 32;
@@ -116,8 +119,9 @@ __device__ __forceinline__ uint32_t look_back_tile_prefix(uint64_t* descriptors,
 }
 
 template <int kItems, class ValueOf, class Output>
-__global__ void __launch_bounds__(kThreads) single_pass_scan_kernel(int64_t count, ValueOf value_of, Output out,
-                                                                     uint64_t* descriptors, uint32_t epoch) {
+__global__ void __launch_bounds__(kThreads)
+    single_pass_scan_kernel(int64_t count, ValueOf value_of, Output out, uint64_t* descriptors,
+                            uint32_t epoch) {
   constexpr int64_t kTile = int64_t(kThreads) * kItems;
   using BlockScan = cub::BlockScan<uint32_t, kThreads>;
   __shared__ typename BlockScan::TempStorage scan_storage;
@@ -166,17 +170,19 @@ __global__ void __launch_bounds__(kThreads) single_pass_scan_kernel(int64_t coun
 }  // namespace single_pass_scan_detail
 
 template <int kItems = kScanItemsPerThread, class ValueOf, class Output>
-void exclusive_scan_of(CudaBackend, const Stream& stream, int64_t count, const ValueOf& value_of, Output out) {
+void exclusive_scan_of(CudaBackend, const Stream& stream, int64_t count, const ValueOf& value_of,
+                       Output out) {
   using namespace single_pass_scan_detail;
   constexpr int64_t kTile = int64_t(kThreads) * kItems;
   if (count <= 0) return;
   const int64_t tiles = (count + kTile - 1) / kTile;
   if (tiles > 0x7FFFFFFF) throw Error("exclusive_scan_of: too many values for one launch");
   // One tile needs no descriptors (and no registry lookup).
-  const ScanDescriptors descriptors = tiles > 1 ? single_pass_scan_descriptors(stream, tiles) : ScanDescriptors{};
+  const ScanDescriptors descriptors =
+      tiles > 1 ? single_pass_scan_descriptors(stream, tiles) : ScanDescriptors{};
   single_pass_scan_kernel<kItems><<<static_cast<unsigned>(tiles), kThreads, 0,
-                            static_cast<cudaStream_t>(stream.native_handle())>>>(count, value_of, out, descriptors.words,
-                                                                                 descriptors.epoch);
+                                    static_cast<cudaStream_t>(stream.native_handle())>>>(
+      count, value_of, out, descriptors.words, descriptors.epoch);
   cuda_check(cudaGetLastError(), "exclusive_scan_of kernel launch");
 }
 #endif

@@ -203,7 +203,9 @@ class VoxelStorage<Voxel, Layout::kAoS, FieldList<Members...>> {
   }
   void set_zero(const Stream& stream = Stream()) { voxels_.fill_bytes(0, stream); }
   View view() { return View{voxels_.data(), static_cast<int64_t>(voxels_.size())}; }
-  std::vector<Voxel> to_host(const Stream& stream = Stream()) const { return voxels_.to_host(stream); }
+  std::vector<Voxel> to_host(const Stream& stream = Stream()) const {
+    return voxels_.to_host(stream);
+  }
   void copy_from_host(const std::vector<Voxel>& voxels, const Stream& stream = Stream()) {
     voxels_.copy_from_host(voxels, stream);
   }

@@ -12,8 +12,10 @@ COVOX_HD_INLINE int64_t lower_bound_index(const T* data, int64_t count, const T&
   int64_t low = 0, high = count;
   while (low < high) {
     const int64_t middle = low + (high - low) / 2;
-    if (data[middle] < value) low = middle + 1;
-    else high = middle;
+    if (data[middle] < value)
+      low = middle + 1;
+    else
+      high = middle;
   }
   return low;
 }

@@ -20,7 +20,8 @@ template <class RawMemory>
 class TemporaryCache {
  public:
   static TemporaryCache& instance() {
-    static TemporaryCache* cache = new TemporaryCache();  // never destroyed: outlives static buffers
+    static TemporaryCache* cache =
+        new TemporaryCache();  // never destroyed: outlives static buffers
     return *cache;
   }
 
@@ -77,8 +78,12 @@ template <class RawMemory>
 struct TemporaryAllocator {
   using value_type = char;
   const void* stream = nullptr;
-  char* allocate(std::ptrdiff_t bytes) { return TemporaryCache<RawMemory>::instance().allocate(stream, bytes); }
-  void deallocate(char* pointer, size_t) { TemporaryCache<RawMemory>::instance().deallocate(pointer); }
+  char* allocate(std::ptrdiff_t bytes) {
+    return TemporaryCache<RawMemory>::instance().allocate(stream, bytes);
+  }
+  void deallocate(char* pointer, size_t) {
+    TemporaryCache<RawMemory>::instance().deallocate(pointer);
+  }
 };
 
 }  // namespace covox

@@ -27,15 +27,21 @@ __device__ __forceinline__ T warp_fold(uint32_t lanes, T value, Op op) {
 }
 struct FoldAdd {
   template <class T>
-  __device__ T operator()(T a, T b) const { return a + b; }
+  __device__ T operator()(T a, T b) const {
+    return a + b;
+  }
 };
 struct FoldMin {
   template <class T>
-  __device__ T operator()(T a, T b) const { return a < b ? a : b; }
+  __device__ T operator()(T a, T b) const {
+    return a < b ? a : b;
+  }
 };
 struct FoldMax {
   template <class T>
-  __device__ T operator()(T a, T b) const { return a > b ? a : b; }
+  __device__ T operator()(T a, T b) const {
+    return a > b ? a : b;
+  }
 };
 #endif
 }  // namespace detail
@@ -108,7 +114,7 @@ COVOX_HD_INLINE T warp_broadcast(uint32_t lanes, T value, int source) {
 #define COVOX_WARP_REDUCE_32(intrinsic, fold) return detail::warp_fold(lanes, value, fold{})
 #else
 #define COVOX_WARP_REDUCE_32(intrinsic, fold) \
-  (void)lanes;                                 \
+  (void)lanes;                                \
   return value
 #endif
 template <class T>
@@ -121,7 +127,9 @@ COVOX_HD_INLINE T warp_max(uint32_t lanes, T value) {
   static_assert(sizeof(T) == 4, "warp_max: 32-bit values");
   COVOX_WARP_REDUCE_32(__reduce_max_sync, detail::FoldMax);
 }
-COVOX_HD_INLINE uint32_t warp_sum(uint32_t lanes, uint32_t value) { COVOX_WARP_REDUCE_32(__reduce_add_sync, detail::FoldAdd); }
+COVOX_HD_INLINE uint32_t warp_sum(uint32_t lanes, uint32_t value) {
+  COVOX_WARP_REDUCE_32(__reduce_add_sync, detail::FoldAdd);
+}
 #undef COVOX_WARP_REDUCE_32
 
 // 64-bit sums (modulo 2^64, so signed values sum right in two's complement): the hardware sums
@@ -165,7 +173,8 @@ COVOX_HD_INLINE int64_t warp_sum_clustered(uint32_t lanes, int64_t value) {
   const int high = static_cast<int>(difference >> 16);  // floor: difference = high * 2^16 + low
   const uint32_t low_sum = __reduce_add_sync(lanes, low);
   const int high_sum = __reduce_add_sync(lanes, high);
-  return reference * __popc(lanes) + static_cast<int64_t>(high_sum) * 65536 + static_cast<int64_t>(low_sum);
+  return reference * __popc(lanes) + static_cast<int64_t>(high_sum) * 65536 +
+         static_cast<int64_t>(low_sum);
 #else
   return static_cast<int64_t>(warp_sum(lanes, static_cast<uint64_t>(value)));
 #endif

@@ -64,11 +64,15 @@ class EsdfIntegrator {
 // Pieces shared by the backend instantiations.
 struct EsdfScratchBuffers {
   explicit EsdfScratchBuffers(Device device)
-      : block_indices(device), block_slots(device), squared(device), squared_tmp(device),
-        envelope_sites(device), envelope_bounds(device) {}
+      : block_indices(device),
+        block_slots(device),
+        squared(device),
+        squared_tmp(device),
+        envelope_sites(device),
+        envelope_bounds(device) {}
   Buffer<Index3D> block_indices;
   Buffer<uint32_t> block_slots;
-  Buffer<int32_t> squared;       // squared distance in voxels^2 over the window
+  Buffer<int32_t> squared;  // squared distance in voxels^2 over the window
   Buffer<int32_t> squared_tmp;
   Buffer<int32_t> envelope_sites;
   Buffer<double> envelope_bounds;

@@ -57,11 +57,13 @@ struct VoxelBox {
   int32_t lo[3];
   int32_t hi[3];
   COVOX_HD_INLINE bool contains(const Index3D& v) const {
-    return v.x >= lo[0] && v.x <= hi[0] && v.y >= lo[1] && v.y <= hi[1] && v.z >= lo[2] && v.z <= hi[2];
+    return v.x >= lo[0] && v.x <= hi[0] && v.y >= lo[1] && v.y <= hi[1] && v.z >= lo[2] &&
+           v.z <= hi[2];
   }
   // Index of voxel v in a dense array over the box, x fastest.
   COVOX_HD_INLINE int64_t offset_of(const Index3D& v) const {
-    const int64_t size_x = static_cast<int64_t>(hi[0]) - lo[0] + 1, size_y = static_cast<int64_t>(hi[1]) - lo[1] + 1;
+    const int64_t size_x = static_cast<int64_t>(hi[0]) - lo[0] + 1,
+                  size_y = static_cast<int64_t>(hi[1]) - lo[1] + 1;
     return (v.x - lo[0]) + size_x * ((v.y - lo[1]) + size_y * (v.z - lo[2]));
   }
   int64_t size(int axis) const { return static_cast<int64_t>(hi[axis]) - lo[axis] + 1; }
@@ -72,8 +74,9 @@ struct VoxelBox {
 // out[q] = min_p (q - p)^2 + f[p]. Entries equal to kFar take no part. `sites` and `bounds` are
 // this line's scratch (n and n + 1 entries, stride `scratch_stride` apart so that neighbouring
 // lines interleave and GPU threads read them coalesced).
-COVOX_HD_INLINE void lower_envelope(const int32_t* f, int64_t f_stride, int32_t* out, int64_t out_stride,
-                                    int32_t n, int32_t* sites, double* bounds, int64_t scratch_stride) {
+COVOX_HD_INLINE void lower_envelope(const int32_t* f, int64_t f_stride, int32_t* out,
+                                    int64_t out_stride, int32_t n, int32_t* sites, double* bounds,
+                                    int64_t scratch_stride) {
   int32_t k = -1;
   for (int32_t q = 0; q < n; ++q) {
     const int32_t fq = f[q * f_stride];
@@ -127,12 +130,14 @@ EsdfUpdateStats esdf_update(Backend backend, const EsdfIntegratorConfig& config,
 
   const auto policy = execution_policy(backend, stream);
   const BlockBounds changed_bounds = thrust::transform_reduce(
-      policy, thrust::counting_iterator<int64_t>(0), thrust::counting_iterator<int64_t>(block_count),
+      policy, thrust::counting_iterator<int64_t>(0),
+      thrust::counting_iterator<int64_t>(block_count),
       BoundsOfBlock{block_indices, block_slots, changed, all_blocks}, BlockBounds{}, MergeBounds{});
   stats.changed_blocks = changed_bounds.count;
   if (changed_bounds.count == 0) return stats;
   const BlockBounds all_bounds = thrust::transform_reduce(
-      policy, thrust::counting_iterator<int64_t>(0), thrust::counting_iterator<int64_t>(block_count),
+      policy, thrust::counting_iterator<int64_t>(0),
+      thrust::counting_iterator<int64_t>(block_count),
       BoundsOfBlock{block_indices, block_slots, changed, true}, BlockBounds{}, MergeBounds{});
 
   // Voxel boxes: write region = changed blocks + halo; window = write region + halo, both
@@ -150,12 +155,15 @@ EsdfUpdateStats esdf_update(Backend backend, const EsdfIntegratorConfig& config,
   }
   const int64_t volume = window.volume();
   if (volume > config.max_window_voxels) {
-    throw Error("ESDF: the update window has " + std::to_string(volume) + " voxels, more than max_window_voxels (" +
-                std::to_string(config.max_window_voxels) + "); update more often, or use larger voxels or a "
+    throw Error("ESDF: the update window has " + std::to_string(volume) +
+                " voxels, more than max_window_voxels (" +
+                std::to_string(config.max_window_voxels) +
+                "); update more often, or use larger voxels or a "
                 "smaller esdf_max_distance_m");
   }
   stats.window_voxels = volume;
-  const int32_t wx = static_cast<int32_t>(window.size(0)), wy = static_cast<int32_t>(window.size(1)),
+  const int32_t wx = static_cast<int32_t>(window.size(0)),
+                wy = static_cast<int32_t>(window.size(1)),
                 wz = static_cast<int32_t>(window.size(2));
   scratch.squared.resize_discard(volume);
   scratch.squared_tmp.resize_discard(volume);
@@ -177,7 +185,8 @@ EsdfUpdateStats esdf_update(Backend backend, const EsdfIntegratorConfig& config,
     const Index3D v = global_voxel(block_indices[b], k, side);
     if (!window.contains(v)) return;
     const TsdfVoxel voxel = tsdf.load(static_cast<int64_t>(block_slots[b]) * voxels_per_block + k);
-    if (voxel.weight >= min_weight && fabsf(voxel.distance_m) <= site_threshold) squared[window.offset_of(v)] = 0;
+    if (voxel.weight >= min_weight && fabsf(voxel.distance_m) <= site_threshold)
+      squared[window.offset_of(v)] = 0;
   });
 
   // x: distance to the nearest site in the row (two sweeps), squared.
@@ -240,8 +249,8 @@ EsdfUpdateStats esdf_update(Backend backend, const EsdfIntegratorConfig& config,
   return stats;
 }
 
-#define COVOX_INSTANTIATE_ESDF_INTEGRATOR(Backend)                                                    \
-  template EsdfUpdateStats esdf_update<Backend>(Backend, const EsdfIntegratorConfig&, TsdfMap&, bool, \
-                                                EsdfScratchBuffers&, const Stream&);
+#define COVOX_INSTANTIATE_ESDF_INTEGRATOR(Backend)                                              \
+  template EsdfUpdateStats esdf_update<Backend>(Backend, const EsdfIntegratorConfig&, TsdfMap&, \
+                                                bool, EsdfScratchBuffers&, const Stream&);
 
 }  // namespace covox

@@ -9,19 +9,21 @@
 namespace covox {
 
 template <class Backend>
-void esdf_query_points(Backend backend, EsdfLookup lookup, const Vec3f* points, int64_t count, EsdfSample* out,
-                       const Stream& stream) {
-  parallel_for(backend, stream, count, [=] COVOX_HD(int64_t i) { out[i] = lookup.sample(points[i]); });
+void esdf_query_points(Backend backend, EsdfLookup lookup, const Vec3f* points, int64_t count,
+                       EsdfSample* out, const Stream& stream) {
+  parallel_for(backend, stream, count,
+               [=] COVOX_HD(int64_t i) { out[i] = lookup.sample(points[i]); });
   stream.synchronize();
 }
 
 // Per voxel of every block: a slice point if the voxel is observed and its layer is in
 // [layer_min, layer_max]; the (x, y) column key for squashing.
 template <class Backend>
-int64_t esdf_collect_layer(Backend backend, VoxelView<EsdfVoxel, Layout::kSoA> esdf, const Index3D* block_indices,
-                           const uint32_t* block_slots, int64_t block_count, int32_t side,
-                           int32_t layer_min, int32_t layer_max, Buffer<uint64_t>* column_keys,
-                           Buffer<float>* distances, const Stream& stream) {
+int64_t esdf_collect_layer(Backend backend, VoxelView<EsdfVoxel, Layout::kSoA> esdf,
+                           const Index3D* block_indices, const uint32_t* block_slots,
+                           int64_t block_count, int32_t side, int32_t layer_min, int32_t layer_max,
+                           Buffer<uint64_t>* column_keys, Buffer<float>* distances,
+                           const Stream& stream) {
   const int64_t per_block = static_cast<int64_t>(side) * side * side;
   const int64_t total = block_count * per_block;
   column_keys->resize_discard(total);
@@ -41,19 +43,19 @@ int64_t esdf_collect_layer(Backend backend, VoxelView<EsdfVoxel, Layout::kSoA> e
   sort_by_key(backend, stream, keys, values, total);
   Buffer<uint64_t> unique_keys(column_keys->device(), total);
   Buffer<float> minima(column_keys->device(), total);
-  const int64_t runs = reduce_by_key(backend, stream, keys, values, total, unique_keys.data(), minima.data(),
-                                     thrust::minimum<float>());
+  const int64_t runs = reduce_by_key(backend, stream, keys, values, total, unique_keys.data(),
+                                     minima.data(), thrust::minimum<float>());
   *column_keys = std::move(unique_keys);
   *distances = std::move(minima);
   const bool has_unused = runs > 0 && column_keys->element(runs - 1, stream) == ~uint64_t(0);
   return runs - (has_unused ? 1 : 0);
 }
 
-#define COVOX_INSTANTIATE_ESDF_QUERIES(Backend)                                                             \
-  template void esdf_query_points<Backend>(Backend, EsdfLookup, const Vec3f*, int64_t, EsdfSample*,        \
-                                           const Stream&);                                                 \
-  template int64_t esdf_collect_layer<Backend>(Backend, VoxelView<EsdfVoxel, Layout::kSoA>, const Index3D*, \
-                                               const uint32_t*, int64_t, int32_t, int32_t, int32_t,         \
-                                               Buffer<uint64_t>*, Buffer<float>*, const Stream&);
+#define COVOX_INSTANTIATE_ESDF_QUERIES(Backend)                                              \
+  template void esdf_query_points<Backend>(Backend, EsdfLookup, const Vec3f*, int64_t,       \
+                                           EsdfSample*, const Stream&);                      \
+  template int64_t esdf_collect_layer<Backend>(                                              \
+      Backend, VoxelView<EsdfVoxel, Layout::kSoA>, const Index3D*, const uint32_t*, int64_t, \
+      int32_t, int32_t, int32_t, Buffer<uint64_t>*, Buffer<float>*, const Stream&);
 
 }  // namespace covox

@@ -28,7 +28,8 @@ struct EsdfLookup {
   COVOX_HD_INLINE EsdfSample sample(const Vec3f& p) const {
     EsdfSample out;
     // Voxel centres sit at (i + 0.5) * voxel_size: interpolate between the 8 around p.
-    const float gx = p.x / voxel_size - 0.5f, gy = p.y / voxel_size - 0.5f, gz = p.z / voxel_size - 0.5f;
+    const float gx = p.x / voxel_size - 0.5f, gy = p.y / voxel_size - 0.5f,
+                gz = p.z / voxel_size - 0.5f;
     const Index3D base(static_cast<int32_t>(floorf(gx)), static_cast<int32_t>(floorf(gy)),
                        static_cast<int32_t>(floorf(gz)));
     const float fx = gx - base.x, fy = gy - base.y, fz = gz - base.z;
@@ -63,13 +64,14 @@ inline void esdf_column_of_key(uint64_t key, int32_t* x, int32_t* y) {
 }
 
 template <class Backend>
-void esdf_query_points(Backend backend, EsdfLookup lookup, const Vec3f* points, int64_t count, EsdfSample* out,
-                       const Stream& stream);
+void esdf_query_points(Backend backend, EsdfLookup lookup, const Vec3f* points, int64_t count,
+                       EsdfSample* out, const Stream& stream);
 
 template <class Backend>
-int64_t esdf_collect_layer(Backend backend, VoxelView<EsdfVoxel, Layout::kSoA> esdf, const Index3D* block_indices,
-                           const uint32_t* block_slots, int64_t block_count, int32_t side,
-                           int32_t layer_min, int32_t layer_max, Buffer<uint64_t>* column_keys,
-                           Buffer<float>* distances, const Stream& stream);
+int64_t esdf_collect_layer(Backend backend, VoxelView<EsdfVoxel, Layout::kSoA> esdf,
+                           const Index3D* block_indices, const uint32_t* block_slots,
+                           int64_t block_count, int32_t side, int32_t layer_min, int32_t layer_max,
+                           Buffer<uint64_t>* column_keys, Buffer<float>* distances,
+                           const Stream& stream);
 
 }  // namespace covox

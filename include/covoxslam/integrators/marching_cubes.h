@@ -20,9 +20,12 @@ COVOX_HD_INLINE int edge_start(int e) {
   // axis x: corners 0,2,4,6; y: 0,1,4,5; z: 0,1,2,3
   const int m = e & 3;
   switch (e >> 2) {
-    case 0: return m * 2;
-    case 1: return (m & 1) | ((m & 2) << 1);
-    default: return m;
+    case 0:
+      return m * 2;
+    case 1:
+      return (m & 1) | ((m & 2) << 1);
+    default:
+      return m;
   }
 }
 COVOX_HD_INLINE int edge_axis(int e) { return e >> 2; }
@@ -34,16 +37,20 @@ COVOX_HD_INLINE int edge_between(int a, int b) {
   const int axis = bit == 1 ? 0 : (bit == 2 ? 1 : 2);
   // Index m of the start corner among the four starts of this axis.
   int m = 0;
-  if (axis == 0) m = low >> 1;
-  else if (axis == 1) m = (low & 1) | ((low >> 2) << 1);
-  else m = low & 3;
+  if (axis == 0)
+    m = low >> 1;
+  else if (axis == 1)
+    m = (low & 1) | ((low >> 2) << 1);
+  else
+    m = low & 3;
   return axis * 4 + m;
 }
 
 // Corners of each face in cyclic order.
 COVOX_HD_INLINE int face_corner(int face, int k) {
   // x=0: 0,2,6,4  x=1: 1,3,7,5  y=0: 0,1,5,4  y=1: 2,3,7,6  z=0: 0,1,3,2  z=1: 4,5,7,6
-  const int table[6][4] = {{0, 2, 6, 4}, {1, 3, 7, 5}, {0, 1, 5, 4}, {2, 3, 7, 6}, {0, 1, 3, 2}, {4, 5, 7, 6}};
+  const int table[6][4] = {{0, 2, 6, 4}, {1, 3, 7, 5}, {0, 1, 5, 4},
+                           {2, 3, 7, 6}, {0, 1, 3, 2}, {4, 5, 7, 6}};
   return table[face][k];
 }
 
@@ -79,13 +86,15 @@ COVOX_HD_INLINE int polygonize(const float* values, Emit&& emit) {
     }
     int crossing_edges[4];
     for (int k = 0; k < 4; ++k) {
-      if (in[k] != in[(k + 1) & 3]) crossing_edges[crossings++] = edge_between(corner[k], corner[(k + 1) & 3]);
+      if (in[k] != in[(k + 1) & 3])
+        crossing_edges[crossings++] = edge_between(corner[k], corner[(k + 1) & 3]);
     }
     if (crossings == 2) {
       link(crossing_edges[0], crossing_edges[1]);
     } else if (crossings == 4) {
       // Alternating corners: crossing_edges[k] lies between corner k and k + 1.
-      const float centre = 0.25f * (values[corner[0]] + values[corner[1]] + values[corner[2]] + values[corner[3]]);
+      const float centre =
+          0.25f * (values[corner[0]] + values[corner[1]] + values[corner[2]] + values[corner[3]]);
       if (inside(centre) == in[0]) {
         // corners 0 and 2 are joined through the centre: cut off corners 1 and 3
         link(crossing_edges[0], crossing_edges[1]);
@@ -98,7 +107,8 @@ COVOX_HD_INLINE int polygonize(const float* values, Emit&& emit) {
     }
   }
   // Walk the loops and fan-triangulate each.
-  bool visited[12] = {false, false, false, false, false, false, false, false, false, false, false, false};
+  bool visited[12] = {false, false, false, false, false, false,
+                      false, false, false, false, false, false};
   int triangles = 0;
   for (int start = 0; start < 12; ++start) {
     if (partner[start][0] < 0 || visited[start]) continue;
@@ -130,18 +140,23 @@ COVOX_HD_INLINE Vec3f centre_gradient(const float* v) {
 // Position of edge e's crossing in cube units (corner 0 at the origin).
 COVOX_HD_INLINE Vec3f crossing_point(const float* values, int e) {
   const int a = edge_start(e);
-  Vec3f p(static_cast<float>(a & 1), static_cast<float>((a >> 1) & 1), static_cast<float>((a >> 2) & 1));
+  Vec3f p(static_cast<float>(a & 1), static_cast<float>((a >> 1) & 1),
+          static_cast<float>((a >> 2) & 1));
   const float t = crossing_fraction(values, e);
   const int axis = edge_axis(e);
-  if (axis == 0) p.x += t;
-  else if (axis == 1) p.y += t;
-  else p.z += t;
+  if (axis == 0)
+    p.x += t;
+  else if (axis == 1)
+    p.y += t;
+  else
+    p.z += t;
   return p;
 }
 
 // True when triangle (a, b, c) should be flipped so that its normal points to free space.
 COVOX_HD_INLINE bool needs_flip(const float* values, int a, int b, int c) {
-  const Vec3f pa = crossing_point(values, a), pb = crossing_point(values, b), pc = crossing_point(values, c);
+  const Vec3f pa = crossing_point(values, a), pb = crossing_point(values, b),
+              pc = crossing_point(values, c);
   const Vec3f u = pb - pa, w = pc - pa;
   const Vec3f normal(u.y * w.z - u.z * w.y, u.z * w.x - u.x * w.z, u.x * w.y - u.y * w.x);
   return normal.dot(centre_gradient(values)) < 0.0f;

@@ -80,10 +80,26 @@ class MeshIntegrator {
 // each input block's first vertex and first triangle (block count + 1 entries).
 struct MeshScratchBuffers {
   explicit MeshScratchBuffers(Device device)
-      : blocks(device), slots(device), counts(device), offsets(device), keys(device), order(device),
-        positions(device), colors(device), flags(device), vertex_ids(device), vertices(device),
-        vertex_colors(device), triangles(device), keys_alt(device), order_alt(device), neighbours(device),
-        block_first_vertex(device), block_first_triangle(device), weld_table(device), affected(device) {}
+      : blocks(device),
+        slots(device),
+        counts(device),
+        offsets(device),
+        keys(device),
+        order(device),
+        positions(device),
+        colors(device),
+        flags(device),
+        vertex_ids(device),
+        vertices(device),
+        vertex_colors(device),
+        triangles(device),
+        keys_alt(device),
+        order_alt(device),
+        neighbours(device),
+        block_first_vertex(device),
+        block_first_triangle(device),
+        weld_table(device),
+        affected(device) {}
   Buffer<Index3D> blocks;
   Buffer<uint32_t> slots;
   Buffer<uint32_t> counts;
@@ -114,13 +130,15 @@ struct MeshScratchBuffers {
 // arrays), and by sorting the corners' block-local edge keys beyond: same result, the table
 // needs no sort.
 template <class Backend>
-int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshWeld weld, MeshScratchBuffers& scratch,
-                     int64_t* vertex_count, const Stream& stream, int64_t max_weld_table_entries);
+int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshWeld weld,
+                     MeshScratchBuffers& scratch, int64_t* vertex_count, const Stream& stream,
+                     int64_t max_weld_table_entries);
 
 // Writes to scratch.blocks, in hash-table bucket order, the blocks whose meshes are out of date:
 // those with kMeshPending set and the allocated blocks just below them; clears their
 // kMeshPending bits on the device. Returns how many.
 template <class Backend>
-int64_t mesh_select_blocks(Backend backend, TsdfMap& map, MeshScratchBuffers& scratch, const Stream& stream);
+int64_t mesh_select_blocks(Backend backend, TsdfMap& map, MeshScratchBuffers& scratch,
+                           const Stream& stream);
 
 }  // namespace covox

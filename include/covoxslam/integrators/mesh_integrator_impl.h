@@ -27,7 +27,9 @@ COVOX_HD_INLINE uint64_t edge_key(const Index3D& start, int axis) {
 // the next block) and its axis. Fits in bits_for(3 (side + 1)^3 - 1) bits: 12 for side 8.
 COVOX_HD_INLINE uint32_t local_edge_key(int32_t x, int32_t y, int32_t z, int axis, int32_t side) {
   const uint32_t n = static_cast<uint32_t>(side) + 1u;
-  return ((static_cast<uint32_t>(z) * n + static_cast<uint32_t>(y)) * n + static_cast<uint32_t>(x)) * 3u +
+  return ((static_cast<uint32_t>(z) * n + static_cast<uint32_t>(y)) * n +
+          static_cast<uint32_t>(x)) *
+             3u +
          static_cast<uint32_t>(axis);
 }
 inline int local_edge_bits(int32_t side) {
@@ -45,7 +47,8 @@ struct CubeReader {
 
   // Corner values and colours of the cube whose first corner is voxel `local` of the input's
   // block `block`; false when a corner is unallocated or unobserved.
-  COVOX_HD_INLINE bool read(int64_t block, const Index3D& local, float* values, Rgb8* colors) const {
+  COVOX_HD_INLINE bool read(int64_t block, const Index3D& local, float* values,
+                            Rgb8* colors) const {
     const BlockNeighbourSlots& around = neighbours[block];
     const int64_t per_block = static_cast<int64_t>(side) * side * side;
     for (int c = 0; c < 8; ++c) {
@@ -56,7 +59,8 @@ struct CubeReader {
       if (z == side) z = 0, which |= 4;
       const uint32_t slot = around.slots[which];
       if (slot == kInvalidSlot) return false;
-      const int64_t index = static_cast<int64_t>(slot) * per_block + x + side * (y + static_cast<int64_t>(side) * z);
+      const int64_t index =
+          static_cast<int64_t>(slot) * per_block + x + side * (y + static_cast<int64_t>(side) * z);
       const TsdfVoxel voxel = tsdf.load(index);
       if (voxel.weight < min_weight) return false;
       values[c] = voxel.distance_m;
@@ -76,14 +80,16 @@ inline MeshOutputs size_outputs(MeshScratchBuffers& scratch, int64_t vertices, i
   scratch.vertices.resize_discard(vertices);
   scratch.vertex_colors.resize_discard(vertices);
   scratch.triangles.resize_discard(corners);
-  return MeshOutputs{scratch.vertices.data(), scratch.vertex_colors.data(), scratch.triangles.data()};
+  return MeshOutputs{scratch.vertices.data(), scratch.vertex_colors.data(),
+                     scratch.triangles.data()};
 }
 
 // Each input block's first vertex (first_vertex(b), b in [0, blocks]) and first triangle (that of
 // its first cube) for the per-block weld.
 template <class Backend, class FirstVertex>
-void write_block_ranges(Backend backend, const Stream& stream, MeshScratchBuffers& scratch, int64_t block_count,
-                        int64_t per_block, const uint32_t* triangle_offsets, FirstVertex first_vertex) {
+void write_block_ranges(Backend backend, const Stream& stream, MeshScratchBuffers& scratch,
+                        int64_t block_count, int64_t per_block, const uint32_t* triangle_offsets,
+                        FirstVertex first_vertex) {
   uint32_t* block_first_vertex = scratch.block_first_vertex.data();
   uint32_t* block_first_triangle = scratch.block_first_triangle.data();
   parallel_for(backend, stream, block_count + 1, [=] COVOX_HD(int64_t b) {
@@ -113,7 +119,8 @@ struct SortedFirstVertex {
 }  // namespace mesh_detail
 
 template <class Backend>
-void mesh_find_neighbour_slots(Backend backend, TsdfMap& map, MeshScratchBuffers& scratch, const Stream& stream) {
+void mesh_find_neighbour_slots(Backend backend, TsdfMap& map, MeshScratchBuffers& scratch,
+                               const Stream& stream) {
   const int64_t block_count = static_cast<int64_t>(scratch.blocks.size());
   scratch.neighbours.resize_discard(block_count);
   const Index3D* blocks = scratch.blocks.data();
@@ -121,13 +128,15 @@ void mesh_find_neighbour_slots(Backend backend, TsdfMap& map, MeshScratchBuffers
   const BlockHashTableView table = map.blocks().device_view();
   parallel_for(backend, stream, 8 * block_count, [=] COVOX_HD(int64_t i) {
     const int c = static_cast<int>(i % 8);
-    neighbours[i / 8].slots[c] = table.slot_of(blocks[i / 8] + Index3D(c & 1, (c >> 1) & 1, (c >> 2) & 1));
+    neighbours[i / 8].slots[c] =
+        table.slot_of(blocks[i / 8] + Index3D(c & 1, (c >> 1) & 1, (c >> 2) & 1));
   });
 }
 
 template <class Backend>
-int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshWeld weld, MeshScratchBuffers& scratch,
-                     int64_t* vertex_count, const Stream& stream, int64_t max_weld_table_entries) {
+int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshWeld weld,
+                     MeshScratchBuffers& scratch, int64_t* vertex_count, const Stream& stream,
+                     int64_t max_weld_table_entries) {
   using namespace mesh_detail;
   *vertex_count = 0;
   const int64_t block_count = static_cast<int64_t>(scratch.blocks.size());
@@ -143,7 +152,8 @@ int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshWeld w
   }
   if (cubes == 0) return 0;
   mesh_find_neighbour_slots(backend, map, scratch, stream);
-  const CubeReader reader{scratch.neighbours.data(), side, map.tsdf().view(), map.color().view(), min_weight};
+  const CubeReader reader{scratch.neighbours.data(), side, map.tsdf().view(), map.color().view(),
+                          min_weight};
   const Index3D* blocks = scratch.blocks.data();
 
   // 1. triangles per cube
@@ -204,16 +214,18 @@ int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshWeld w
       }
       const int edges[3] = {a, b, c};
       for (int k = 0; k < 3; ++k) {
-        const int e = edges[k], start = marching_cubes::edge_start(e), end = marching_cubes::edge_end(e);
+        const int e = edges[k], start = marching_cubes::edge_start(e),
+                  end = marching_cubes::edge_end(e);
         const int64_t slot = 3 * t + k;
         const Index3D offset(start & 1, (start >> 1) & 1, (start >> 2) & 1);
         const int axis = marching_cubes::edge_axis(e);
         if (!per_block_weld) {
           keys[slot] = edge_key(origin + offset, axis);
         } else {
-          const uint32_t local_edge =
-              local_edge_key(local.x + offset.x, local.y + offset.y, local.z + offset.z, axis, side);
-          if (table) {  // the table entry, claimed by the smallest corner (what a stable sort keeps first)
+          const uint32_t local_edge = local_edge_key(local.x + offset.x, local.y + offset.y,
+                                                     local.z + offset.z, axis, side);
+          if (table) {  // the table entry, claimed by the smallest corner (what a stable sort keeps
+                        // first)
             keys[slot] = static_cast<uint64_t>(block) * edges_per_block + local_edge;
             atomic_min(&table[keys[slot]], static_cast<uint32_t>(slot));
           } else {
@@ -222,8 +234,9 @@ int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshWeld w
         }
         order[slot] = static_cast<uint32_t>(slot);
         const Vec3f p = marching_cubes::crossing_point(values, e);
-        positions[slot] = Vec3f((origin.x + 0.5f + p.x) * voxel_size, (origin.y + 0.5f + p.y) * voxel_size,
-                                (origin.z + 0.5f + p.z) * voxel_size);
+        positions[slot] =
+            Vec3f((origin.x + 0.5f + p.x) * voxel_size, (origin.y + 0.5f + p.y) * voxel_size,
+                  (origin.z + 0.5f + p.z) * voxel_size);
         const float f = marching_cubes::crossing_fraction(values, e);
         const Rgb8 ca = colors[start], cb = colors[end];
         corner_colors[slot] = Rgb8{static_cast<uint8_t>(ca.r + f * (cb.r - ca.r) + 0.5f),
@@ -246,7 +259,8 @@ int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshWeld w
     exclusive_scan(backend, stream, claimed, table_entries + 1, scratch.vertex_ids.data());
     const int64_t vertices = scratch.vertex_ids.element(table_entries, stream);
     const uint32_t* ids = scratch.vertex_ids.data();
-    write_block_ranges(backend, stream, scratch, block_count, per_block, offsets, TableFirstVertex{ids, edges_per_block});
+    write_block_ranges(backend, stream, scratch, block_count, per_block, offsets,
+                       TableFirstVertex{ids, edges_per_block});
     const uint32_t* block_first_vertex = scratch.block_first_vertex.data();
     const MeshOutputs out = size_outputs(scratch, vertices, corners);
     parallel_for(backend, stream, table_entries, [=] COVOX_HD(int64_t e) {
@@ -269,7 +283,8 @@ int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshWeld w
     uint64_t* keys_alt = scratch.keys_alt.data();
     uint32_t* order_alt = scratch.order_alt.data();
     radix_sort_pairs_swapping(backend, stream, keys, order, corners,
-                              bits_for(static_cast<uint64_t>(block_count)) + edge_bits, keys_alt, order_alt);
+                              bits_for(static_cast<uint64_t>(block_count)) + edge_bits, keys_alt,
+                              order_alt);
   } else {
     sort_by_key(backend, stream, keys, order, corners);
   }
@@ -296,14 +311,16 @@ int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshWeld w
       out.vertices[id] = positions[order[j]];
       out.colors[id] = corner_colors[order[j]];
     }
-    out.triangles[order[j]] = block_first_vertex ? id - block_first_vertex[keys[j] >> edge_bits] : id;
+    out.triangles[order[j]] =
+        block_first_vertex ? id - block_first_vertex[keys[j] >> edge_bits] : id;
   });
   *vertex_count = vertices;
   return triangle_count;
 }
 
 template <class Backend>
-int64_t mesh_select_blocks(Backend backend, TsdfMap& map, MeshScratchBuffers& scratch, const Stream& stream) {
+int64_t mesh_select_blocks(Backend backend, TsdfMap& map, MeshScratchBuffers& scratch,
+                           const Stream& stream) {
   const BlockHashTableView table = map.blocks().device_view();
   const int64_t buckets = static_cast<int64_t>(table.bucket_count);
   const int64_t slot_count = map.blocks().slot_count();
@@ -337,7 +354,8 @@ int64_t mesh_select_blocks(Backend backend, TsdfMap& map, MeshScratchBuffers& sc
   scratch.vertex_ids.resize_discard(buckets + 1);
   uint32_t* flags = scratch.flags.data();
   parallel_for(backend, stream, buckets + 1, [=] COVOX_HD(int64_t b) {
-    flags[b] = b < buckets && is_live_block_key(table.keys[b]) && affected[table.slots[b]] > 0 ? 1u : 0u;
+    flags[b] =
+        b < buckets && is_live_block_key(table.keys[b]) && affected[table.slots[b]] > 0 ? 1u : 0u;
   });
   exclusive_scan(backend, stream, flags, buckets + 1, scratch.vertex_ids.data());
   const int64_t selected = scratch.vertex_ids.element(buckets, stream);
@@ -350,9 +368,10 @@ int64_t mesh_select_blocks(Backend backend, TsdfMap& map, MeshScratchBuffers& sc
   return selected;
 }
 
-#define COVOX_INSTANTIATE_MESH_INTEGRATOR(Backend)                                                             \
-  template int64_t mesh_extract<Backend>(Backend, TsdfMap&, float, MeshWeld, MeshScratchBuffers&, int64_t*, \
-                                         const Stream&, int64_t);                                              \
-  template int64_t mesh_select_blocks<Backend>(Backend, TsdfMap&, MeshScratchBuffers&, const Stream&);
+#define COVOX_INSTANTIATE_MESH_INTEGRATOR(Backend)                                                \
+  template int64_t mesh_extract<Backend>(Backend, TsdfMap&, float, MeshWeld, MeshScratchBuffers&, \
+                                         int64_t*, const Stream&, int64_t);                       \
+  template int64_t mesh_select_blocks<Backend>(Backend, TsdfMap&, MeshScratchBuffers&,            \
+                                               const Stream&);
 
 }  // namespace covox

@@ -35,7 +35,7 @@ class PendingBlockMeshes {
   };
   Buffer<Vec3f> vertices_;
   Buffer<Rgb8> colors_;
-  Buffer<uint32_t> triangles_;     // 3 per triangle, local to the triangle's block
+  Buffer<uint32_t> triangles_;  // 3 per triangle, local to the triangle's block
   Buffer<Index3D> blocks_;
   Buffer<uint32_t> first_vertex_;  // block count + 1 per update, relative to the update
   Buffer<uint32_t> first_triangle_;

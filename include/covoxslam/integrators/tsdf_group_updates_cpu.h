@@ -26,7 +26,8 @@ namespace tsdf {
 constexpr int64_t kMaxDenseGroupingBlocks = int64_t(1) << 16;
 
 inline bool dense_grouping_fits(const FrameKeyCodec& codec) {
-  return static_cast<int64_t>(codec.size_x) * codec.size_y * codec.size_z <= kMaxDenseGroupingBlocks;
+  return static_cast<int64_t>(codec.size_x) * codec.size_y * codec.size_z <=
+         kMaxDenseGroupingBlocks;
 }
 
 // What the grouping found; the GPU path leaves the same figures in its read-back buffer.
@@ -42,9 +43,10 @@ struct GroupCounts {
 // by the caller over keys_alt / values_alt), and combine(a, b) adds two. Writes the distinct
 // voxels' keys ascending to merged_keys and their sums to merged.
 template <class KeyT, class ValueT, class SumT, class UpdateOf, class Combine>
-GroupCounts group_updates_by_voxel_cpu(const FrameKeyCodec& codec, const KeyT* keys, const ValueT* values,
-                                       int64_t count, KeyT* keys_alt, ValueT* values_alt, KeyT* merged_keys,
-                                       SumT* merged, const UpdateOf& update_of, const Combine& combine) {
+GroupCounts group_updates_by_voxel_cpu(const FrameKeyCodec& codec, const KeyT* keys,
+                                       const ValueT* values, int64_t count, KeyT* keys_alt,
+                                       ValueT* values_alt, KeyT* merged_keys, SumT* merged,
+                                       const UpdateOf& update_of, const Combine& combine) {
   const int64_t blocks = static_cast<int64_t>(codec.size_x) * codec.size_y * codec.size_z;
   const int64_t buckets = blocks + 1;  // the last one holds every record to drop
   const int voxel_bits = codec.voxel_bits;
@@ -97,7 +99,8 @@ GroupCounts group_updates_by_voxel_cpu(const FrameKeyCodec& codec, const KeyT* k
 #pragma omp for schedule(dynamic, 16)
     for (int64_t b = 0; b < blocks; ++b) {
       int64_t distinct = 0;
-      for (int64_t j = bucket_begin[static_cast<size_t>(b)]; j < bucket_begin[static_cast<size_t>(b) + 1]; ++j) {
+      for (int64_t j = bucket_begin[static_cast<size_t>(b)];
+           j < bucket_begin[static_cast<size_t>(b) + 1]; ++j) {
         const uint64_t local = static_cast<uint64_t>(keys_alt[j]) & local_mask;
         const uint64_t bit = uint64_t(1) << (local & 63);
         uint64_t& word = seen[local >> 6];
@@ -108,15 +111,17 @@ GroupCounts group_updates_by_voxel_cpu(const FrameKeyCodec& codec, const KeyT* k
       first_voxel[static_cast<size_t>(b) + 1] = distinct;
     }
   }
-  for (int64_t b = 0; b < blocks; ++b) first_voxel[static_cast<size_t>(b) + 1] += first_voxel[static_cast<size_t>(b)];
-  // 3. each block's records summed in order into its voxels, read out in voxel (= key) order
+  for (int64_t b = 0; b < blocks; ++b)
+    first_voxel[static_cast<size_t>(b) + 1] += first_voxel[static_cast<size_t>(b)];
+    // 3. each block's records summed in order into its voxels, read out in voxel (= key) order
 #pragma omp parallel num_threads(max_threads)
   {
     std::vector<uint64_t> seen(static_cast<size_t>(words), 0);
     std::vector<SumT> sums(static_cast<size_t>(voxels_per_block));
 #pragma omp for schedule(dynamic, 16)
     for (int64_t b = 0; b < blocks; ++b) {
-      const int64_t begin = bucket_begin[static_cast<size_t>(b)], end = bucket_begin[static_cast<size_t>(b) + 1];
+      const int64_t begin = bucket_begin[static_cast<size_t>(b)],
+                    end = bucket_begin[static_cast<size_t>(b) + 1];
       if (begin == end) continue;
       for (int64_t j = begin; j < end; ++j) {
         const uint64_t local = static_cast<uint64_t>(keys_alt[j]) & local_mask;
@@ -149,7 +154,8 @@ GroupCounts group_updates_by_voxel_cpu(const FrameKeyCodec& codec, const KeyT* k
       ++counts.out_of_range;
     }
   }
-  counts.runs = counts.voxels + (counts.zero_weight > 0 ? 1u : 0u) + (counts.out_of_range > 0 ? 1u : 0u);
+  counts.runs =
+      counts.voxels + (counts.zero_weight > 0 ? 1u : 0u) + (counts.out_of_range > 0 ? 1u : 0u);
   return counts;
 }
 

@@ -78,13 +78,13 @@ struct IntegrationStats {
   int64_t dropped_zero = 0;
   int64_t dropped_too_close = 0;
   int64_t dropped_too_far = 0;
-  int64_t rays_cast = 0;                // surface + clearing rays after merging points per voxel
-  int64_t voxel_updates = 0;            // before merging
-  int64_t voxels_updated = 0;           // distinct voxels written
-  int64_t voxels_out_of_range = 0;      // voxels dropped: block outside the map's key range
-  int64_t blocks_allocated = 0;         // new blocks this call
-  int64_t records_grouped = 0;          // visit records grouped by voxel (sorted) and reduced: every
-                                        // visit, or with free-space sums the band's (a bound on them)
+  int64_t rays_cast = 0;            // surface + clearing rays after merging points per voxel
+  int64_t voxel_updates = 0;        // before merging
+  int64_t voxels_updated = 0;       // distinct voxels written
+  int64_t voxels_out_of_range = 0;  // voxels dropped: block outside the map's key range
+  int64_t blocks_allocated = 0;     // new blocks this call
+  int64_t records_grouped = 0;      // visit records grouped by voxel (sorted) and reduced: every
+                                    // visit, or with free-space sums the band's (a bound on them)
 
   int64_t dropped_total() const {
     return dropped_non_finite + dropped_zero + dropped_too_close + dropped_too_far;
@@ -95,7 +95,7 @@ struct IntegrationStats {
 // Without colours, an intensity channel (LiDAR) is fused as grey: intensity / intensity_max_value.
 struct PointCloudView {
   const Vec3f* points = nullptr;
-  const Rgb8* colors = nullptr;        // optional
+  const Rgb8* colors = nullptr;  // optional
   int64_t count = 0;
   const float* intensities = nullptr;  // optional, used when colors is null
   float intensity_max_value = 255.0f;  // intensity shown as white
@@ -133,7 +133,8 @@ class TsdfIntegrator {
                              const Eigen::Isometry3d& T_map_sensor, const Stream& stream);
   // Host-memory convenience: uploads, then integrates.
   IntegrationStats integrate(TsdfMap& map, const std::vector<Vec3f>& points,
-                             const std::vector<Rgb8>& colors, const Eigen::Isometry3d& T_map_sensor);
+                             const std::vector<Rgb8>& colors,
+                             const Eigen::Isometry3d& T_map_sensor);
   // Unprojects a depth image on the device (its points and colours in tiles of 8 x 4 pixels:
   // tsdf::pixel_tile_order), then integrates the points.
   IntegrationStats integrate_depth(TsdfMap& map, const DepthImageView& image,

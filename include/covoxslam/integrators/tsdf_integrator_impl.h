@@ -45,13 +45,15 @@ struct RayTally {
 };
 // The tally of one ray that stands for `points` input points (a merged bundle's count; 1 without
 // merging).
-COVOX_HD_INLINE RayTally tally_ray(const tsdf::RaySegment& ray, int64_t points, float inverse_voxel_size) {
+COVOX_HD_INLINE RayTally tally_ray(const tsdf::RaySegment& ray, int64_t points,
+                                   float inverse_voxel_size) {
   RayTally tally;
   // (each kind by a constant index: an index by ray.kind put the tally in local memory on the GPU)
   for (int k = 0; k < 6; ++k) tally.kinds[k] = ray.kind == k ? points : 0;
   tally.cast = ray.kind <= tsdf::kClearingRay ? 1 : 0;
   tally.voxels = tsdf::ray_voxel_count(ray, inverse_voxel_size);
-  tally.most_pieces = static_cast<int32_t>(tsdf::ray_piece_count(static_cast<uint32_t>(tally.voxels)));
+  tally.most_pieces =
+      static_cast<int32_t>(tsdf::ray_piece_count(static_cast<uint32_t>(tally.voxels)));
   if (ray.kind <= tsdf::kClearingRay) {  // a segment's voxels lie in the box of its end voxels
     const Index3D a = tsdf::voxel_of(ray.start, inverse_voxel_size);
     const Index3D b = tsdf::voxel_of(ray.end, inverse_voxel_size);
@@ -97,7 +99,8 @@ struct ArrayTerm {
 // A voxel's free-space sum (fixed point, tsdf_kernels.h) added to its band visits' sum.
 template <class SumT>
 COVOX_HD_INLINE void add_free_space_sum(SumT& sum, uint64_t units, float truncation) {
-  const tsdf::DistanceUpdate free = tsdf::free_space_update(tsdf::weight_of_units(units), truncation);
+  const tsdf::DistanceUpdate free =
+      tsdf::free_space_update(tsdf::weight_of_units(units), truncation);
   sum.weighted_distance += free.weighted_distance;
   sum.weight += free.weight;
 }
@@ -107,16 +110,19 @@ COVOX_HD_INLINE void add_free_space_sum(SumT& sum, uint64_t units, float truncat
 template <class ColorView>
 COVOX_HD_INLINE void blend_color(const ColorView&, int64_t, const tsdf::DistanceUpdate&, float) {}
 template <class ColorView>
-COVOX_HD_INLINE void blend_color(const ColorView& color_view, int64_t index, const tsdf::VoxelUpdate& update,
-                                 float max_weight) {
+COVOX_HD_INLINE void blend_color(const ColorView& color_view, int64_t index,
+                                 const tsdf::VoxelUpdate& update, float max_weight) {
   if (update.color_weight <= 0.0f) return;
   ColorVoxel color = color_view.load(index);
   const float color_combined = color.weight + update.color_weight;
   const float old_part = color.weight / color_combined;
   const float inverse_new = 1.0f / color_combined;
-  color.r = static_cast<uint8_t>(fminf(255.0f, color.r * old_part + update.weighted_r * inverse_new + 0.5f));
-  color.g = static_cast<uint8_t>(fminf(255.0f, color.g * old_part + update.weighted_g * inverse_new + 0.5f));
-  color.b = static_cast<uint8_t>(fminf(255.0f, color.b * old_part + update.weighted_b * inverse_new + 0.5f));
+  color.r = static_cast<uint8_t>(
+      fminf(255.0f, color.r * old_part + update.weighted_r * inverse_new + 0.5f));
+  color.g = static_cast<uint8_t>(
+      fminf(255.0f, color.g * old_part + update.weighted_g * inverse_new + 0.5f));
+  color.b = static_cast<uint8_t>(
+      fminf(255.0f, color.b * old_part + update.weighted_b * inverse_new + 0.5f));
   color.weight = color_combined < max_weight ? color_combined : max_weight;
   color_view.store(index, color);
 }
@@ -134,7 +140,8 @@ struct VoxelMerge {
     TsdfVoxel voxel = tsdf_view.load(index);
     const float combined = voxel.weight + update.weight;
     float distance = (voxel.distance_m * voxel.weight + update.weighted_distance) / combined;
-    distance = distance > truncation ? truncation : (distance < -truncation ? -truncation : distance);
+    distance =
+        distance > truncation ? truncation : (distance < -truncation ? -truncation : distance);
     voxel.distance_m = distance;
     voxel.weight = combined < max_weight ? combined : max_weight;
     tsdf_view.store(index, voxel);
@@ -145,12 +152,13 @@ struct VoxelMerge {
 // The frame's figures that step 4 and step 5 leave on the device (scratch.readback), by word.
 constexpr int kFrameCountWords = 13;
 constexpr int kZeroWeightFirstWord = 1;  // 1 + the first zero-weight record (sorted last); 0: none
-constexpr int kOutOfRangeFirstWord = 2;  // 1 + the first record outside the box (before them); 0: none
-constexpr int kBlockCountWord = 4;       // the frame's distinct blocks
-constexpr int kActivationWords = 5;      // the activation's totals: new blocks, rejected ones
-constexpr int kTableFullWord = 12;       // the in-kernel activation's blocks that found the table full
-                                         // (counted among the rejected by a queued activation)
-constexpr int kRunCountWord = 7;         // runs of equal keys that step 5 summed
+constexpr int kOutOfRangeFirstWord =
+    2;                               // 1 + the first record outside the box (before them); 0: none
+constexpr int kBlockCountWord = 4;   // the frame's distinct blocks
+constexpr int kActivationWords = 5;  // the activation's totals: new blocks, rejected ones
+constexpr int kTableFullWord = 12;   // the in-kernel activation's blocks that found the table full
+                                     // (counted among the rejected by a queued activation)
+constexpr int kRunCountWord = 7;     // runs of equal keys that step 5 summed
 // With free-space sums: the voxels that had only free-space visits (with every visit summed: every
 // voxel the pass wrote), and those of them in blocks the hash table rejected; the summed visits
 // outside the box; the band records kept.
@@ -168,7 +176,8 @@ struct FrameCounts {
 // One copy, one wait.
 inline FrameCounts read_frame_counts(const TsdfScratchBuffers& scratch, const Stream& stream) {
   uint32_t words[kFrameCountWords];
-  copy_bytes(words, Device::kCpu, scratch.readback.data(), scratch.readback.device(), sizeof(words), stream);
+  copy_bytes(words, Device::kCpu, scratch.readback.data(), scratch.readback.device(), sizeof(words),
+             stream);
   FrameCounts counts;
   counts.zero_weight_first = words[kZeroWeightFirstWord];
   counts.out_of_range_first = words[kOutOfRangeFirstWord];
@@ -196,7 +205,8 @@ COVOX_HD_INLINE void start_frame_counts(uint32_t* words, uint32_t blocks) {
 }
 // Step 5's consumer at the run of a dropped kind: each kind is one key, so one run and one call.
 COVOX_HD_INLINE void note_dropped_run(uint32_t* words, bool zero_weight, int64_t first) {
-  words[zero_weight ? kZeroWeightFirstWord : kOutOfRangeFirstWord] = static_cast<uint32_t>(first + 1);
+  words[zero_weight ? kZeroWeightFirstWord : kOutOfRangeFirstWord] =
+      static_cast<uint32_t>(first + 1);
 }
 // The kept voxels and the records outside the box, from the runs and where the dropped ones start.
 struct DroppedRecords {
@@ -253,7 +263,8 @@ inline bool defers_block_count(int64_t last_listed_blocks, int64_t voxels_per_bl
 // frame to frame, so the pass starts 1.5 times as many threads as the last frame's cells
 // (`last_cells`, negative when unknown: then at most 2^20) and the loop covers any more.
 inline int64_t counted_pass_threads(int64_t bound, int64_t extra, int64_t last_cells) {
-  const int64_t wanted = last_cells >= 0 ? extra + last_cells + last_cells / 2 + 1024 : int64_t(1) << 20;
+  const int64_t wanted =
+      last_cells >= 0 ? extra + last_cells + last_cells / 2 + 1024 : int64_t(1) << 20;
   return std::max<int64_t>(1, std::min(bound, wanted));
 }
 
@@ -269,7 +280,8 @@ struct RecordSlots {
   const uint32_t* block_ranks;  // sorted records: the rank of each record's block
   const uint32_t* block_flags;  //   and whether the record starts it
   COVOX_HD_INLINE uint32_t slot_of(int64_t j, uint64_t key) const {
-    return box_ranks ? slots[box_ranks[codec.block_part(key)]] : slots[block_ranks[j] + block_flags[j] - 1];
+    return box_ranks ? slots[box_ranks[codec.block_part(key)]]
+                     : slots[block_ranks[j] + block_flags[j] - 1];
   }
 };
 
@@ -278,7 +290,8 @@ struct RecordSlots {
 // costs no more than listing the sorted records' blocks.
 constexpr int64_t kAlwaysMarkedBoxBlocks = int64_t(1) << 16;
 inline bool marks_blocks(int64_t box_blocks, int64_t total_updates) {
-  return box_blocks <= std::max<int64_t>(kAlwaysMarkedBoxBlocks, total_updates) && box_blocks < (int64_t(1) << 31);
+  return box_blocks <= std::max<int64_t>(kAlwaysMarkedBoxBlocks, total_updates) &&
+         box_blocks < (int64_t(1) << 31);
 }
 
 // The traverse's block marks for a box of `box_blocks` blocks, all clear (and one past them, for
@@ -296,8 +309,10 @@ T* clean_frame_scratch(Buffer<T>& buffer, bool& clean, size_t needed, const Stre
   clean = false;
   return buffer.data();
 }
-inline uint32_t* clean_box_marks(TsdfScratchBuffers& scratch, int64_t box_blocks, const Stream& stream) {
-  return clean_frame_scratch(scratch.box_marks, scratch.box_marks_clean, static_cast<size_t>(box_blocks) + 1, stream);
+inline uint32_t* clean_box_marks(TsdfScratchBuffers& scratch, int64_t box_blocks,
+                                 const Stream& stream) {
+  return clean_frame_scratch(scratch.box_marks, scratch.box_marks_clean,
+                             static_cast<size_t>(box_blocks) + 1, stream);
 }
 
 // Free-space sums (tsdf_traverse.h, PieceTraversal::free_space_sums): a frame's free-space visits
@@ -313,13 +328,14 @@ inline uint32_t* clean_box_marks(TsdfScratchBuffers& scratch, int64_t box_blocks
 // The CPU twin groups the records in dense per-block arrays, which merges a voxel's visits about
 // as cheaply: there the sums' atomics and pass cost more than they save (2-core CPU, OS1-64 at
 // 0.2 m: 30 -> 36 ms per scan), so it uses them only when the threshold is 0 (the tests).
-inline bool uses_free_space_sums(const TsdfIntegratorConfig& config, Device backend, bool marks_blocks,
-                                 uint64_t box_cells, int64_t band_bound, int64_t total_updates) {
+inline bool uses_free_space_sums(const TsdfIntegratorConfig& config, Device backend,
+                                 bool marks_blocks, uint64_t box_cells, int64_t band_bound,
+                                 int64_t total_updates) {
   const bool wanted = backend == Device::kCpu ? config.free_space_sums_min_visits == 0
                                               : total_updates >= config.free_space_sums_min_visits;
   const uint64_t budget = static_cast<uint64_t>(config.fixed_point_sums_max_scratch_mb) << 20;
-  return config.sum_free_space_in_fixed_point && wanted && marks_blocks && box_cells <= budget / sizeof(uint64_t) &&
-         4 * band_bound <= total_updates;
+  return config.sum_free_space_in_fixed_point && wanted && marks_blocks &&
+         box_cells <= budget / sizeof(uint64_t) && 4 * band_bound <= total_updates;
 }
 
 // Every visit summed in fixed point (tsdf::VoxelSumCells: the weight, the band's distance offset
@@ -335,20 +351,22 @@ inline bool uses_free_space_sums(const TsdfIntegratorConfig& config, Device back
 // config.free_space_sums_min_visits is 0 (the tests: its dense grouping merges a block's visits
 // about as cheaply, and the large boxes' scratch misses the CPU's caches: 2-core CPU, OS1-64 0.2 m
 // 0.93, 0.1 m 1.24-1.37, KITTI 1.01-1.12 with it).
-inline bool sums_every_visit(const TsdfIntegratorConfig& config, Device backend, bool marks_blocks, uint64_t box_cells,
-                             int cell_words) {
+inline bool sums_every_visit(const TsdfIntegratorConfig& config, Device backend, bool marks_blocks,
+                             uint64_t box_cells, int cell_words) {
   const bool wanted = backend != Device::kCpu || config.free_space_sums_min_visits == 0;
   const uint64_t budget = static_cast<uint64_t>(config.fixed_point_sums_max_scratch_mb) << 20;
-  return config.sum_free_space_in_fixed_point && config.sum_band_in_fixed_point && wanted && marks_blocks &&
+  return config.sum_free_space_in_fixed_point && config.sum_band_in_fixed_point && wanted &&
+         marks_blocks &&
          box_cells <= budget / (sizeof(uint64_t) * static_cast<uint64_t>(cell_words));
 }
 
 // Whether a frame whose tally gave this box sums every visit (sums_every_visit).
-inline bool frame_sums_every_visit(const TsdfIntegratorConfig& config, Device backend, const tsdf::FrameKeyCodec& codec,
-                                   int64_t total_updates, bool colored) {
+inline bool frame_sums_every_visit(const TsdfIntegratorConfig& config, Device backend,
+                                   const tsdf::FrameKeyCodec& codec, int64_t total_updates,
+                                   bool colored) {
   const int64_t box_blocks = static_cast<int64_t>(codec.size_x) * codec.size_y * codec.size_z;
-  return sums_every_visit(config, backend, marks_blocks(box_blocks, total_updates), codec.out_of_range_key,
-                          colored ? tsdf::kSumCellWords : 2);
+  return sums_every_visit(config, backend, marks_blocks(box_blocks, total_updates),
+                          codec.out_of_range_key, colored ? tsdf::kSumCellWords : 2);
 }
 // Clears the merge's tally (tsdf_merge_rays) for the next frame. A frame does it at its end,
 // where the host has queued everything and waits for the GPU anyway: right after the tally's
@@ -357,13 +375,16 @@ inline bool frame_sums_every_visit(const TsdfIntegratorConfig& config, Device ba
 // A frame whose last kernel is the pass over the listed blocks' cells has that kernel do it (one
 // launch fewer): merge_tally_to_reset() hands it the stripes, or null when there is nothing to do.
 inline tsdf::MergeTallyStripe* merge_tally_to_reset(TsdfScratchBuffers& scratch) {
-  return scratch.merge_tally.size() != 1 || scratch.merge_tally_clean ? nullptr : scratch.merge_tally.data()->stripes;
+  return scratch.merge_tally.size() != 1 || scratch.merge_tally_clean
+             ? nullptr
+             : scratch.merge_tally.data()->stripes;
 }
 template <class Backend>
 void reset_merge_tally(Backend backend, TsdfScratchBuffers& scratch, const Stream& stream) {
   tsdf::MergeTallyStripe* stripes = merge_tally_to_reset(scratch);
   if (!stripes) return;
-  parallel_for(backend, stream, tsdf::kMergeTallyStripes, [=] COVOX_HD(int64_t k) { stripes[k].reset(); });
+  parallel_for(backend, stream, tsdf::kMergeTallyStripes,
+               [=] COVOX_HD(int64_t k) { stripes[k].reset(); });
   scratch.merge_tally_clean = true;
 }
 
@@ -371,17 +392,24 @@ void reset_merge_tally(Backend backend, TsdfScratchBuffers& scratch, const Strea
 // A frame frees the slots it used (tsdf_merge_rays), so the table is cleared only when it grows
 // or when the last frame did not get that far (an exception between its kernels).
 template <class Backend>
-tsdf::MergeTable clean_merge_table(Backend backend, TsdfScratchBuffers& scratch, int64_t n, const Stream& stream) {
+tsdf::MergeTable clean_merge_table(Backend backend, TsdfScratchBuffers& scratch, int64_t n,
+                                   const Stream& stream) {
   int log2_capacity = 10;
   while ((int64_t(1) << log2_capacity) < 2 * n) ++log2_capacity;
   const int64_t capacity = int64_t(1) << log2_capacity;
-  if (log2_capacity > 31) throw Error("TSDF integrator: " + std::to_string(n) + " points in one frame are too many to merge");
-  if (static_cast<int64_t>(scratch.merge_table_keys.size()) < capacity || !scratch.merge_table_clean) {
-    const int64_t size = std::max<int64_t>(capacity, static_cast<int64_t>(scratch.merge_table_keys.size()));
+  if (log2_capacity > 31)
+    throw Error("TSDF integrator: " + std::to_string(n) +
+                " points in one frame are too many to merge");
+  if (static_cast<int64_t>(scratch.merge_table_keys.size()) < capacity ||
+      !scratch.merge_table_clean) {
+    const int64_t size =
+        std::max<int64_t>(capacity, static_cast<int64_t>(scratch.merge_table_keys.size()));
     scratch.merge_table_keys.resize_discard(size);
     scratch.merge_table_bundles.resize_discard(size);
-    const tsdf::MergeTable all{scratch.merge_table_keys.data(), scratch.merge_table_bundles.data(), 0u, 0};
-    parallel_for(backend, stream, size, [=] COVOX_HD(int64_t slot) { all.free_slot(static_cast<uint32_t>(slot)); });
+    const tsdf::MergeTable all{scratch.merge_table_keys.data(), scratch.merge_table_bundles.data(),
+                               0u, 0};
+    parallel_for(backend, stream, size,
+                 [=] COVOX_HD(int64_t slot) { all.free_slot(static_cast<uint32_t>(slot)); });
   }
   scratch.merge_table_clean = false;  // until the frame's last merge kernel has freed its slots
   return tsdf::MergeTable{scratch.merge_table_keys.data(), scratch.merge_table_bundles.data(),
@@ -401,8 +429,9 @@ tsdf::MergeTable clean_merge_table(Backend backend, TsdfScratchBuffers& scratch,
 // given, to cloud.points / colors (scratch.points / scratch.colors) for the kernel after it.
 template <class Backend>
 tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters& ray_parameters,
-                                      const tsdf::MergeKeys& merge_keys, const PointCloudView& cloud,
-                                      const Rgb8* colors, const float* intensities, float grey_per_intensity,
+                                      const tsdf::MergeKeys& merge_keys,
+                                      const PointCloudView& cloud, const Rgb8* colors,
+                                      const float* intensities, float grey_per_intensity,
                                       TsdfScratchBuffers& scratch, const Stream& stream,
                                       const tsdf::DepthImagePoints* depth_image = nullptr) {
   StageProfiler::Scope profile("tsdf merge", stream);
@@ -426,12 +455,15 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
   Vec3f* image_points = reads_image ? scratch.points.data() : nullptr;
   Rgb8* image_colors = reads_image && colors ? scratch.colors.data() : nullptr;
   if (reads_image && (cloud.points != image_points || (colors && colors != image_colors))) {
-    throw Error("TSDF integrator: a depth image read in place must name the scratch points and colours (internal error)");
+    throw Error(
+        "TSDF integrator: a depth image read in place must name the scratch points and colours "
+        "(internal error)");
   }
   // Points of one voxel lie within 2^31 merge units of each other (per axis) when the voxel's
   // diagonal is under about 1.8 m (voxels under 1 m): their coordinates sum in two warp reductions
   // each instead of four (warp_sum_clustered).
-  const bool clustered = ray_parameters.voxel_size_m * 1.7320508f * tsdf::kMergeUnitsPerMetre < 2.0e9f;
+  const bool clustered =
+      ray_parameters.voxel_size_m * 1.7320508f * tsdf::kMergeUnitsPerMetre < 2.0e9f;
   // Every point: its ray, its bundle (claimed or found in the table), its sums added. A warp's
   // points of one bundle add their sums together, one atomic per field (warp_reduce.h): a 5 cm
   // voxel holds about 80 pixels of a depth image, whose atomics would otherwise queue up. Each
@@ -453,7 +485,8 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
       color = tsdf::color_of(colors, intensities, grey_per_intensity, i);
     }
     uint64_t key = 0;
-    uint32_t code = merge_keys.classify(tsdf::make_ray(ray_parameters, point), inverse_voxel_size, &key);
+    uint32_t code =
+        merge_keys.classify(tsdf::make_ray(ray_parameters, point), inverse_voxel_size, &key);
     if (code != 0u) key = tsdf::kFreeMergeKey;  // no bundle
     // The warp's points of one bundle (equal keys) reduce among themselves, all bundles at once.
     const uint32_t peers = warp_match(lanes, key);
@@ -469,7 +502,8 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
       sums.y = sum_units(point.y);
       sums.z = sum_units(point.z);
       if (has_color) {
-        const uint32_t red_green = warp_sum(peers, static_cast<uint32_t>(color.r) | (static_cast<uint32_t>(color.g) << 16));
+        const uint32_t red_green = warp_sum(
+            peers, static_cast<uint32_t>(color.r) | (static_cast<uint32_t>(color.g) << 16));
         sums.r = red_green & 0xFFFFu;
         sums.g = red_green >> 16;
         sums.b = warp_sum(peers, static_cast<uint32_t>(color.b));
@@ -489,7 +523,8 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
     for (uint32_t k = 0; k < 4; ++k) {
       const uint32_t dropped = warp_sum(lanes, code == tsdf::kDroppedPointCode + k ? 1u : 0u);
       if (dropped != 0u && warp_lane() == warp_first_lane(lanes)) {
-        atomic_add(&stripes[tsdf::merge_tally_stripe(i)].kinds[tsdf::kDroppedNonFinite + k], static_cast<uint64_t>(dropped));
+        atomic_add(&stripes[tsdf::merge_tally_stripe(i)].kinds[tsdf::kDroppedNonFinite + k],
+                   static_cast<uint64_t>(dropped));
       }
     }
   });
@@ -506,7 +541,8 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
   const auto emits_ray = [=] COVOX_HD(int64_t i) -> uint32_t {
     if (i == n) return 0u;
     const uint32_t code = codes[i];
-    return code == tsdf::kAlonePoint || (tsdf::is_bundle_slot(code) && bundles[code].first == static_cast<uint32_t>(i))
+    return code == tsdf::kAlonePoint ||
+                   (tsdf::is_bundle_slot(code) && bundles[code].first == static_cast<uint32_t>(i))
                ? 1u
                : 0u;
   };
@@ -517,8 +553,10 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
       ray_points[rank] = static_cast<uint32_t>(i);
     }
   };
-  scratch.ray_scan_scratch.resize_discard(Backend::kDevice == Device::kCpu ? n + 1 : 0);  // the CPU twin's only
-  exclusive_scan_of<2>(backend, stream, n + 1, emits_ray, list_emitting_point, scratch.ray_scan_scratch.data());
+  scratch.ray_scan_scratch.resize_discard(
+      Backend::kDevice == Device::kCpu ? n + 1 : 0);  // the CPU twin's only
+  exclusive_scan_of<2>(backend, stream, n + 1, emits_ray, list_emitting_point,
+                       scratch.ray_scan_scratch.data());
   profile.mark("rank");
   scratch.rays.resize_discard(n);
   scratch.ray_weights.resize_discard(n);
@@ -532,8 +570,8 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
   // clean again) and, on the GPU, the ray added to the tally, per warp; thread m == count writes
   // the piece counts' end, and the threads past it leave. On the CPU twin a "warp" is one call,
   // so the tally's atomics would be one per ray and counter, on lines both cores write: the rays
-  // are tallied by a reduction afterwards instead (2-core CPU, OS1-64 scan: this step 3.0 -> 0.6-0.9
-  // ms, the reduction 0.2-0.3 ms; the whole merge 4.5 -> 2.5 ms).
+  // are tallied by a reduction afterwards instead (2-core CPU, OS1-64 scan: this step 3.0 ->
+  // 0.6-0.9 ms, the reduction 0.2-0.3 ms; the whole merge 4.5 -> 2.5 ms).
   constexpr bool kTallyWithAtomics = Backend::kDevice != Device::kCpu;
   // The hand-off of the tally (GPU; tsdf::MergeTallySummary): the warps done, the summary, the
   // frame's stamp.
@@ -542,7 +580,8 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
   const uint32_t sequence = ++scratch.merge_sequence;
   if constexpr (kTallyWithAtomics) {
     if (!scratch.merge_summary) {
-      scratch.merge_summary = std::make_unique<MappedHostBytes>(Backend::kDevice, sizeof(tsdf::MergeTallySummary));
+      scratch.merge_summary =
+          std::make_unique<MappedHostBytes>(Backend::kDevice, sizeof(tsdf::MergeTallySummary));
     }
     summary = static_cast<tsdf::MergeTallySummary*>(scratch.merge_summary->device_data());
     if (scratch.merge_warps_done.size() != 1) {
@@ -556,7 +595,7 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
     if (m > ray_total) return;
     const uint32_t lanes = warp_lanes();
     const bool emits = m < ray_total;
-    tsdf_detail::RayTally own;  // this thread's ray, if it has one
+    tsdf_detail::RayTally own;              // this thread's ray, if it has one
     if (m == ray_total) ray_pieces[m] = 0;  // the end of the counts
     if (emits) {
       const int64_t i = static_cast<int64_t>(ray_points[m]);
@@ -585,27 +624,33 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
       own = tsdf_detail::tally_ray(ray, count, inverse_voxel_size);
       own.rays = 1;
       ray_pieces[m] = static_cast<uint32_t>(own.most_pieces);
-      if (ray.kind > tsdf::kClearingRay) {  // rare: a bundle's mean point dropped (closer than min_ray_length_m)
-        atomic_add(&stripes[tsdf::merge_tally_stripe(m)].kinds[ray.kind], static_cast<uint64_t>(count));
+      if (ray.kind > tsdf::kClearingRay) {  // rare: a bundle's mean point dropped (closer than
+                                            // min_ray_length_m)
+        atomic_add(&stripes[tsdf::merge_tally_stripe(m)].kinds[ray.kind],
+                   static_cast<uint64_t>(count));
       }
     }
     // The warp's rays summed, then one atomic per counter (a warp's counts fit in 32 bits).
     if (!kTallyWithAtomics) return;
     const bool leader = warp_lane() == warp_first_lane(lanes);
     if (warp_ballot(lanes, emits) != 0u) {
-      const auto sum32 = [lanes](int64_t value) { return warp_sum(lanes, static_cast<uint32_t>(value)); };
+      const auto sum32 = [lanes](int64_t value) {
+        return warp_sum(lanes, static_cast<uint32_t>(value));
+      };
       const uint32_t surface_points = sum32(own.kinds[tsdf::kSurfaceRay]);
       const uint32_t clearing_rays = sum32(own.kinds[tsdf::kClearingRay]);
       const uint32_t rays = sum32(own.rays);
       const uint32_t cast = sum32(own.cast);
       const uint32_t visits = sum32(own.voxels);
       const int32_t most_pieces = warp_max(lanes, own.most_pieces);
-      const int32_t box[6] = {warp_min(lanes, own.low[0]),  warp_min(lanes, own.low[1]),  warp_min(lanes, own.low[2]),
-                              warp_max(lanes, own.high[0]), warp_max(lanes, own.high[1]), warp_max(lanes, own.high[2])};
+      const int32_t box[6] = {warp_min(lanes, own.low[0]),  warp_min(lanes, own.low[1]),
+                              warp_min(lanes, own.low[2]),  warp_max(lanes, own.high[0]),
+                              warp_max(lanes, own.high[1]), warp_max(lanes, own.high[2])};
       if (leader) {
         tsdf::MergeTallyStripe& stripe = stripes[tsdf::merge_tally_stripe(m)];
         atomic_add(&stripe.kinds[tsdf::kSurfaceRay], static_cast<uint64_t>(surface_points));
-        if (clearing_rays != 0u) atomic_add(&stripe.kinds[tsdf::kClearingRay], static_cast<uint64_t>(clearing_rays));
+        if (clearing_rays != 0u)
+          atomic_add(&stripe.kinds[tsdf::kClearingRay], static_cast<uint64_t>(clearing_rays));
         atomic_add(&stripe.cast, static_cast<uint64_t>(cast));
         atomic_add(&stripe.rays, static_cast<uint64_t>(rays));
         atomic_add(&stripe.voxels, static_cast<uint64_t>(visits));
@@ -625,7 +670,7 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
     }
     done = warp_broadcast(lanes, done, warp_first_lane(lanes));
     if (done != ray_total / 32u) return;  // (ray_total + 1 threads: ray_total / 32 + 1 warps)
-    device_fence();  // the other warps' atomics before the stripes' reads
+    device_fence();                       // the other warps' atomics before the stripes' reads
     const tsdf::MergeTallyStripe sum = tsdf::sum_merge_tally_stripes(stripes, lanes);
     if (!leader) return;
     summary->sum = sum;
@@ -640,7 +685,8 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
   int stripe_count = tsdf::kMergeTallyStripes;
   if constexpr (kTallyWithAtomics) {
     stream.synchronize();
-    const auto* written = static_cast<const tsdf::MergeTallySummary*>(scratch.merge_summary->host_data());
+    const auto* written =
+        static_cast<const tsdf::MergeTallySummary*>(scratch.merge_summary->host_data());
     if (written->sequence != sequence) {
       scratch.merge_warps_done.fill_bytes(0, stream);
       throw Error("TSDF integrator: the merge's tally of frame " + std::to_string(sequence) +
@@ -674,8 +720,10 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
         backend, stream, thrust::make_counting_iterator<int64_t>(0), ray_count,
         [=](int64_t m) {
           const tsdf::RaySegment& ray = merged_rays[m];
-          tsdf_detail::RayTally own = tsdf_detail::tally_ray(ray, static_cast<int64_t>(weights[m]), inverse_voxel_size);
-          if (ray.kind > tsdf::kClearingRay) own.kinds[ray.kind] = 0;  // counted by the kernel's atomic
+          tsdf_detail::RayTally own =
+              tsdf_detail::tally_ray(ray, static_cast<int64_t>(weights[m]), inverse_voxel_size);
+          if (ray.kind > tsdf::kClearingRay)
+            own.kinds[ray.kind] = 0;  // counted by the kernel's atomic
           own.rays = 1;
           return own;
         },
@@ -693,8 +741,9 @@ tsdf_detail::RayTally tsdf_merge_rays(Backend backend, const tsdf::RayParameters
 // summed as it is; tsdf::ColorVisit with colour, whose update (a tsdf::VoxelUpdate, with the
 // ray's colour) is computed from its ray and voxel as the sum reads it.
 template <class KeyT, class ValueT, class Backend>
-void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, const tsdf::FrameUpdates& frame,
-                       int64_t ray_count, TsdfMap& map, TsdfScratchBuffers& scratch, IntegrationStats& stats,
+void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config,
+                       const tsdf::FrameUpdates& frame, int64_t ray_count, TsdfMap& map,
+                       TsdfScratchBuffers& scratch, IntegrationStats& stats,
                        StageProfiler::Scope& profile, const Stream& stream) {
   constexpr bool kColored = std::is_same<ValueT, tsdf::ColorVisit>::value;
   using SumT = std::conditional_t<kColored, tsdf::VoxelUpdate, tsdf::DistanceUpdate>;
@@ -707,7 +756,8 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   // not too large (almost always): the blocks are then listed and allocated before the sort.
   const int64_t box_blocks = static_cast<int64_t>(codec.size_x) * codec.size_y * codec.size_z;
   const bool mark_blocks = tsdf_detail::marks_blocks(box_blocks, total_updates);
-  uint32_t* box_marks = mark_blocks ? tsdf_detail::clean_box_marks(scratch, box_blocks, stream) : nullptr;
+  uint32_t* box_marks =
+      mark_blocks ? tsdf_detail::clean_box_marks(scratch, box_blocks, stream) : nullptr;
   // Every visit summed per voxel in fixed point when the box's cells fit (tsdf_detail::
   // sums_every_visit), else the free-space visits only when that pays (tsdf_detail::
   // uses_free_space_sums): the band's visits are then at most band_bound records.
@@ -715,27 +765,34 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   const int cell_words = kColored ? tsdf::kSumCellWords : 2;
   // (decided once, in tsdf_integrate_points: such a frame comes with its ray groups)
   const bool sum_every_visit = frame.walks_ray_groups;
-  const int64_t band_bound =
-      std::min<int64_t>(total_updates, ray_count * tsdf::band_visits_per_ray_bound(truncation, frame.voxel_size));
+  const int64_t band_bound = std::min<int64_t>(
+      total_updates, ray_count * tsdf::band_visits_per_ray_bound(truncation, frame.voxel_size));
   uint64_t* free_space_sums = nullptr;
   uint64_t* free_out_of_range = nullptr;  // the word past the box's cells: visits summed outside it
   tsdf::VoxelSumCells sum_cells;
   if (sum_every_visit) {
-    sum_cells.words = tsdf_detail::clean_frame_scratch(scratch.fixed_point_sums, scratch.fixed_point_sums_clean,
-                                                       box_cells * cell_words + 1, stream);
+    sum_cells.words =
+        tsdf_detail::clean_frame_scratch(scratch.fixed_point_sums, scratch.fixed_point_sums_clean,
+                                         box_cells * cell_words + 1, stream);
     sum_cells.stride = cell_words;
     sum_cells.truncation = truncation;
     sum_cells.aggregate_in_warp = config.aggregate_free_space_in_warp;
     free_out_of_range = sum_cells.words + box_cells * cell_words;
-  } else if (tsdf_detail::uses_free_space_sums(config, Backend::kDevice, mark_blocks, box_cells, band_bound,
-                                               total_updates)) {
-    free_space_sums =
-        tsdf_detail::clean_frame_scratch(scratch.fixed_point_sums, scratch.fixed_point_sums_clean, box_cells + 1, stream);
+  } else if (tsdf_detail::uses_free_space_sums(config, Backend::kDevice, mark_blocks, box_cells,
+                                               band_bound, total_updates)) {
+    free_space_sums = tsdf_detail::clean_frame_scratch(
+        scratch.fixed_point_sums, scratch.fixed_point_sums_clean, box_cells + 1, stream);
     free_out_of_range = free_space_sums + box_cells;
   }
-  const tsdf::PieceTraversal<KeyT, ValueT> traversal{frame,      zero_weight_key, scratch.piece_offsets.data(),
-                                                     truncation, box_marks,       free_space_sums,
-                                                     free_out_of_range, true,     sum_cells};
+  const tsdf::PieceTraversal<KeyT, ValueT> traversal{frame,
+                                                     zero_weight_key,
+                                                     scratch.piece_offsets.data(),
+                                                     truncation,
+                                                     box_marks,
+                                                     free_space_sums,
+                                                     free_out_of_range,
+                                                     true,
+                                                     sum_cells};
   // The records (none when every visit is summed). Keys are 32-bit when the frame's box allows
   // (almost always): half the key bytes through the traverse's writes, every radix pass and the
   // reduction.
@@ -757,8 +814,9 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   // bound the host knows without a read-back.
   tsdf::BandRecords<KeyT, ValueT> band;
   if (free_space_sums) {
-    band = tsdf::BandRecords<KeyT, ValueT>{keys_alt, values_alt, band_bound,
-                                           counts_on_device + tsdf_detail::kBandRecordsWord, nullptr};
+    band =
+        tsdf::BandRecords<KeyT, ValueT>{keys_alt, values_alt, band_bound,
+                                        counts_on_device + tsdf_detail::kBandRecordsWord, nullptr};
     if constexpr (std::is_same<Backend, CpuBackend>::value) {
       scratch.record_ranks.resize_discard(total_updates + 1);
       band.ranks = scratch.record_ranks.data();
@@ -786,7 +844,7 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   //    moves. Its merged records are runs of one, and none is dropped.
   stats.records_grouped = record_count;
   const KeyT* record_keys = keys;
-  SumT* merged_updates = nullptr;        // the CPU twin's merged records' sums
+  SumT* merged_updates = nullptr;  // the CPU twin's merged records' sums
   tsdf::GroupCounts grouping;
   bool grouped = false;
   if constexpr (std::is_same<Backend, CpuBackend>::value) {
@@ -796,9 +854,11 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
       if constexpr (kColored) {
         scratch.merged_updates.resize_discard(record_count);
         merged_updates = scratch.merged_updates.data();
-        const tsdf::VoxelUpdateOfRecord<KeyT> update_of{frame, keys_alt, values_alt, out_of_range_key, truncation};
-        grouping = tsdf::group_updates_by_voxel_cpu(codec, keys, values, record_count, keys_alt, values_alt,
-                                                    merged_keys, merged_updates, update_of, tsdf::MergeUpdates());
+        const tsdf::VoxelUpdateOfRecord<KeyT> update_of{frame, keys_alt, values_alt,
+                                                        out_of_range_key, truncation};
+        grouping = tsdf::group_updates_by_voxel_cpu(codec, keys, values, record_count, keys_alt,
+                                                    values_alt, merged_keys, merged_updates,
+                                                    update_of, tsdf::MergeUpdates());
       } else {
         merged_updates = values;  // free once the records have moved
         const ValueT* moved = values_alt;
@@ -835,20 +895,21 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   tsdf_detail::FrameCounts counts;
   const auto activate_listed_blocks = [&] {
     if (Backend::kDevice != Device::kCpu) {
-      queued = map.blocks().activate_queued(block_indices, counts_on_device + tsdf_detail::kBlockCountWord, block_bound,
-                                            slots, scratch.is_new.data(),
-                                            counts_on_device + tsdf_detail::kActivationWords, stream);
+      queued = map.blocks().activate_queued(
+          block_indices, counts_on_device + tsdf_detail::kBlockCountWord, block_bound, slots,
+          scratch.is_new.data(), counts_on_device + tsdf_detail::kActivationWords, stream);
     }
     if (!queued) {
       counts = tsdf_detail::read_frame_counts(scratch, stream);
-      activation = map.blocks().activate(block_indices, counts.blocks, slots, scratch.is_new.data(), stream);
+      activation =
+          map.blocks().activate(block_indices, counts.blocks, slots, scratch.is_new.data(), stream);
     }
   };
   std::optional<PendingReadBack> activation_totals;
   BlockActivator activator;
   bool activates_while_listing = false;
-  const tsdf_detail::PendingActivationGuard activation_guard(map.blocks(),
-                                                             counts_on_device + tsdf_detail::kActivationWords, stream);
+  const tsdf_detail::PendingActivationGuard activation_guard(
+      map.blocks(), counts_on_device + tsdf_detail::kActivationWords, stream);
   const uint32_t* box_ranks = nullptr;
   if (mark_blocks) {
     scratch.block_ranks.resize_discard(box_blocks + 1);
@@ -865,7 +926,9 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
     const BlockActivator listing_activator = activator;
     const bool activate_here = activates_while_listing;
     uint8_t* listed_is_new = scratch.is_new.data();
-    const auto is_marked = [=] COVOX_HD(int64_t b) -> uint32_t { return box_marks[b] != 0u ? 1u : 0u; };
+    const auto is_marked = [=] COVOX_HD(int64_t b) -> uint32_t {
+      return box_marks[b] != 0u ? 1u : 0u;
+    };
     const auto list_marked = [=] COVOX_HD(int64_t b, uint32_t rank) {
       marked_ranks[b] = rank;
       if (b == box_blocks) {
@@ -900,7 +963,8 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
     // 3. group by voxel: a stable sort keeps each voxel's records in ray order, so the float
     //    sums are the same every run. Records to drop (outside the key range, zero weight) sort
     //    last, one run per kind.
-    radix_sort_pairs_swapping(backend, stream, keys, values, record_count, codec.key_bits, keys_alt, values_alt);
+    radix_sort_pairs_swapping(backend, stream, keys, values, record_count, codec.key_bits, keys_alt,
+                              values_alt);
     record_keys = keys;  // the sort may have swapped the buffers
     profile.mark("3 sort records");
   }
@@ -913,7 +977,10 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
     block_ranks = ranks;
     parallel_for(backend, stream, record_count + 1, [=] COVOX_HD(int64_t v) {
       const bool kept = v < record_count && record_keys[v] < out_of_range_key;
-      flags[v] = kept && (v == 0 || codec.block_part(record_keys[v]) != codec.block_part(record_keys[v - 1])) ? 1u : 0u;
+      flags[v] = kept && (v == 0 ||
+                          codec.block_part(record_keys[v]) != codec.block_part(record_keys[v - 1]))
+                     ? 1u
+                     : 0u;
     });
     exclusive_scan(backend, stream, static_cast<const uint32_t*>(flags), record_count + 1, ranks);
     parallel_for(backend, stream, record_count + 1, [=] COVOX_HD(int64_t v) {
@@ -935,7 +1002,8 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   // docs/benchmarks.md, "twelfth pass"); six kernels since the thirteenth.
   const bool activation_deferred = activates_while_listing;
   const bool pass_counted_on_device =
-      activation_deferred && tsdf_detail::defers_block_count(scratch.last_listed_blocks, map.voxels_per_block());
+      activation_deferred &&
+      tsdf_detail::defers_block_count(scratch.last_listed_blocks, map.voxels_per_block());
   if (activation_deferred) {
     if (!pass_counted_on_device) counts = tsdf_detail::read_frame_counts(scratch, stream);
   } else if (activation_totals) {
@@ -945,14 +1013,16 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
     activation = map.blocks().finish_queued_activation(totals[1], totals[2], stream);
   } else if (queued) {  // listed after the sort: its totals come back now
     counts = tsdf_detail::read_frame_counts(scratch, stream);
-    activation = map.blocks().finish_queued_activation(counts.new_blocks, counts.rejected_blocks, stream);
+    activation =
+        map.blocks().finish_queued_activation(counts.new_blocks, counts.rejected_blocks, stream);
   }
   stats.blocks_allocated = activation.num_new;
   profile.mark("4b hash activate");
   map.ensure_pool_capacity(stream);
   // The slots below this one have voxels in the pool (with the activation deferred, new ones past
   // it wait for the second pass).
-  const uint32_t pool_slots = static_cast<uint32_t>(std::min<int64_t>(map.pool_slots(), kInvalidSlot));
+  const uint32_t pool_slots =
+      static_cast<uint32_t>(std::min<int64_t>(map.pool_slots(), kInvalidSlot));
   profile.mark("4c pool capacity");
 
   // Clear new blocks: a new block may reuse the slot of an erased one. (The voxel writes below
@@ -963,15 +1033,18 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   auto esdf_view = map.esdf().view();
   const uint8_t* is_new = scratch.is_new.data();
   const int64_t voxels_per_block = map.voxels_per_block();
-  if (activation.num_new > 0 && !sum_every_visit) {  // (with every visit summed, the pass clears them)
-    parallel_for(backend, stream, int64_t(counts.blocks) * voxels_per_block, [=] COVOX_HD(int64_t i) {
-      const int64_t b = i / voxels_per_block;
-      if (!is_new[b] || slots[b] == kInvalidSlot) return;
-      const int64_t index = static_cast<int64_t>(slots[b]) * voxels_per_block + i % voxels_per_block;
-      tsdf_view.store(index, TsdfVoxel{});
-      color_view.store(index, ColorVoxel{});
-      esdf_view.store(index, EsdfVoxel{});
-    });
+  if (activation.num_new > 0 &&
+      !sum_every_visit) {  // (with every visit summed, the pass clears them)
+    parallel_for(backend, stream, int64_t(counts.blocks) * voxels_per_block,
+                 [=] COVOX_HD(int64_t i) {
+                   const int64_t b = i / voxels_per_block;
+                   if (!is_new[b] || slots[b] == kInvalidSlot) return;
+                   const int64_t index =
+                       static_cast<int64_t>(slots[b]) * voxels_per_block + i % voxels_per_block;
+                   tsdf_view.store(index, TsdfVoxel{});
+                   color_view.store(index, ColorVoxel{});
+                   esdf_view.store(index, EsdfVoxel{});
+                 });
   }
   profile.mark("4d clear new blocks");
 
@@ -1001,24 +1074,30 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
       block_changed[slot] = kAllPending;  // once per block: its first voxel
     }
     if (update.weight <= 0.0f) return;
-    merge_into_voxel(static_cast<int64_t>(slot) * voxels_per_block + codec.voxel_in_block(key), update);
+    merge_into_voxel(static_cast<int64_t>(slot) * voxels_per_block + codec.voxel_in_block(key),
+                     update);
   };
   uint32_t* runs_counted = counts_on_device + tsdf_detail::kRunCountWord;
   // With free-space sums the sorted records are the band's, then zero-weight fill up to the bound:
   // only the band's are read (a fill of 100 k records, one run, cost a serial walk over its tiles).
-  const uint32_t* live_records = band.keys ? counts_on_device + tsdf_detail::kBandRecordsWord : nullptr;
+  const uint32_t* live_records =
+      band.keys ? counts_on_device + tsdf_detail::kBandRecordsWord : nullptr;
   if (sum_every_visit) {
     // no records: the pass below writes every voxel
   } else if (grouped) {  // one record per voxel, none dropped
-    consume_run_sums<SumT>(backend, stream, record_keys, record_count, tsdf_detail::ArrayTerm<SumT>{merged_updates},
-                           tsdf::MergeUpdates(), write_voxel, scratch.run_tile_parts, runs_counted);
+    consume_run_sums<SumT>(backend, stream, record_keys, record_count,
+                           tsdf_detail::ArrayTerm<SumT>{merged_updates}, tsdf::MergeUpdates(),
+                           write_voxel, scratch.run_tile_parts, runs_counted);
   } else if constexpr (kColored) {
-    const tsdf::VoxelUpdateOfRecord<KeyT> update_of{frame, keys, values, out_of_range_key, truncation};
-    consume_run_sums<SumT>(backend, stream, record_keys, record_count, update_of, tsdf::MergeUpdates(), write_voxel,
-                           scratch.run_tile_parts, runs_counted, live_records);
+    const tsdf::VoxelUpdateOfRecord<KeyT> update_of{frame, keys, values, out_of_range_key,
+                                                    truncation};
+    consume_run_sums<SumT>(backend, stream, record_keys, record_count, update_of,
+                           tsdf::MergeUpdates(), write_voxel, scratch.run_tile_parts, runs_counted,
+                           live_records);
   } else {
-    consume_run_sums<SumT>(backend, stream, record_keys, record_count, tsdf_detail::ArrayTerm<SumT>{values},
-                           tsdf::MergeUpdates(), write_voxel, scratch.run_tile_parts, runs_counted, live_records);
+    consume_run_sums<SumT>(backend, stream, record_keys, record_count,
+                           tsdf_detail::ArrayTerm<SumT>{values}, tsdf::MergeUpdates(), write_voxel,
+                           scratch.run_tile_parts, runs_counted, live_records);
   }
   // The voxels with free-space visits only (with every visit summed: every voxel): every cell of
   // the listed blocks read (and cleared), a new block's voxels cleared first when every visit is
@@ -1029,29 +1108,34 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   // count on the device, `blocks` then only its bound (a grid-stride loop covers the count).
   const int32_t voxels_per_side = codec.voxels_per_side;
   const int voxel_bits = codec.voxel_bits;
-  const auto write_listed_cells = [&](bool first_pass, int64_t blocks, const uint32_t* device_blocks,
-                                      uint32_t slot_begin, uint32_t slot_end) {
+  const auto write_listed_cells = [&](bool first_pass, int64_t blocks,
+                                      const uint32_t* device_blocks, uint32_t slot_begin,
+                                      uint32_t slot_end) {
     // (the pools' views taken now: the second pass runs after they grew)
     const auto tsdf_view = map.tsdf().view();
     const auto color_view = map.color().view();
     const auto esdf_view = map.esdf().view();
     uint8_t* block_changed = map.block_changed().data();
     const tsdf_detail::VoxelMerge merge_into_voxel{tsdf_view, color_view, truncation, max_weight};
-    tsdf::MergeTallyStripe* tally_stripes = first_pass ? tsdf_detail::merge_tally_to_reset(scratch) : nullptr;
+    tsdf::MergeTallyStripe* tally_stripes =
+        first_pass ? tsdf_detail::merge_tally_to_reset(scratch) : nullptr;
     const bool hands_over_activation = first_pass && activates_while_listing;
     const int64_t extra = first_pass ? 1 + (tally_stripes ? tsdf::kMergeTallyStripes : 0) : 0;
     const int64_t bound = extra + blocks * voxels_per_block;
-    const int64_t threads =
-        device_blocks ? tsdf_detail::counted_pass_threads(bound, extra, scratch.last_listed_blocks * voxels_per_block)
-                      : bound;
+    const int64_t threads = device_blocks
+                                ? tsdf_detail::counted_pass_threads(
+                                      bound, extra, scratch.last_listed_blocks * voxels_per_block)
+                                : bound;
     parallel_for(backend, stream, threads, [=] COVOX_HD(int64_t t) {
       // the cells first (a warp's 32 cells aligned), then the extra items
-      const int64_t cells = device_blocks ? static_cast<int64_t>(*device_blocks) * voxels_per_block : bound - extra;
+      const int64_t cells =
+          device_blocks ? static_cast<int64_t>(*device_blocks) * voxels_per_block : bound - extra;
       uint32_t written = 0, rejected = 0;
       for (int64_t i = t; i < cells + extra; i += threads) {
         if (i >= cells) {  // the hand-over, then the tally's stripes
           if (i == cells) {
-            counts_on_device[tsdf_detail::kFreeOutOfRangeWord] = static_cast<uint32_t>(*free_out_of_range);
+            counts_on_device[tsdf_detail::kFreeOutOfRangeWord] =
+                static_cast<uint32_t>(*free_out_of_range);
             *free_out_of_range = 0;
             if (hands_over_activation) {
               uint32_t totals[3];
@@ -1069,11 +1153,13 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
         const uint32_t slot = slots[b];
         if (slot == kInvalidSlot ? !first_pass : (slot < slot_begin || slot >= slot_end)) continue;
         const Index3D block = block_indices[b];
-        const uint64_t block_key =
-            codec.key(Index3D(block.x * voxels_per_side, block.y * voxels_per_side, block.z * voxels_per_side));
+        const uint64_t block_key = codec.key(Index3D(
+            block.x * voxels_per_side, block.y * voxels_per_side, block.z * voxels_per_side));
         const uint64_t key = block_key | static_cast<uint64_t>(i & (voxels_per_block - 1));
-        const int64_t index = static_cast<int64_t>(slot) * voxels_per_block + (key & ((uint64_t(1) << voxel_bits) - 1));
-        if (sum_every_visit && slot != kInvalidSlot && is_new[b]) {  // a new block may reuse an erased one's slot
+        const int64_t index = static_cast<int64_t>(slot) * voxels_per_block +
+                              (key & ((uint64_t(1) << voxel_bits) - 1));
+        if (sum_every_visit && slot != kInvalidSlot &&
+            is_new[b]) {  // a new block may reuse an erased one's slot
           tsdf_view.store(index, TsdfVoxel{});
           color_view.store(index, ColorVoxel{});
           esdf_view.store(index, EsdfVoxel{});
@@ -1093,21 +1179,25 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
           merge_into_voxel(index, update);
         }
         // Every listed block has a kept visit, so it changes (the band's writes mark theirs too).
-        if ((i & (voxels_per_block - 1)) == 0 && slot != kInvalidSlot) block_changed[slot] = kAllPending;
+        if ((i & (voxels_per_block - 1)) == 0 && slot != kInvalidSlot)
+          block_changed[slot] = kAllPending;
       }
       const uint32_t lanes = warp_lanes();
       const uint32_t written_in_warp = warp_sum(lanes, written);
       const uint32_t rejected_in_warp = warp_sum(lanes, rejected);
       if (warp_lane() == warp_first_lane(lanes)) {
-        if (written_in_warp) atomic_add(&counts_on_device[tsdf_detail::kFreeOnlyVoxelsWord], written_in_warp);
-        if (rejected_in_warp) atomic_add(&counts_on_device[tsdf_detail::kFreeRejectedWord], rejected_in_warp);
+        if (written_in_warp)
+          atomic_add(&counts_on_device[tsdf_detail::kFreeOnlyVoxelsWord], written_in_warp);
+        if (rejected_in_warp)
+          atomic_add(&counts_on_device[tsdf_detail::kFreeRejectedWord], rejected_in_warp);
       }
     });
     if (tally_stripes) scratch.merge_tally_clean = true;
   };
   if (free_out_of_range) {
     if (pass_counted_on_device) {
-      write_listed_cells(true, block_bound, counts_on_device + tsdf_detail::kBlockCountWord, 0u, pool_slots);
+      write_listed_cells(true, block_bound, counts_on_device + tsdf_detail::kBlockCountWord, 0u,
+                         pool_slots);
     } else if (activation_deferred) {
       write_listed_cells(true, counts.blocks, nullptr, 0u, pool_slots);
     } else {
@@ -1121,7 +1211,8 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   scratch.last_listed_blocks = counts.blocks;
 
   if (activation_deferred) {
-    activation = map.blocks().finish_in_kernel_activation(counts.new_blocks, counts.rejected_blocks, counts.full_blocks);
+    activation = map.blocks().finish_in_kernel_activation(counts.new_blocks, counts.rejected_blocks,
+                                                          counts.full_blocks);
     stats.blocks_allocated = activation.num_new;
     if (map.blocks().slot_count() > pool_slots) {  // new slots past the pool: grown, then written
       map.ensure_pool_capacity(stream);
@@ -1132,14 +1223,15 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
   if (free_out_of_range) scratch.fixed_point_sums_clean = true;
 
   if (band.keys && counts.band_records > band_bound) {
-    throw Error("TSDF integrator: " + std::to_string(counts.band_records) + " band visits in one frame, more than the " +
-                std::to_string(band_bound) + " its rays allow (internal error; please report it)");
+    throw Error("TSDF integrator: " + std::to_string(counts.band_records) +
+                " band visits in one frame, more than the " + std::to_string(band_bound) +
+                " its rays allow (internal error; please report it)");
   }
-  const tsdf_detail::DroppedRecords dropped =
-      tsdf_detail::dropped_records(counts, live_records ? static_cast<int64_t>(counts.band_records) : record_count);
+  const tsdf_detail::DroppedRecords dropped = tsdf_detail::dropped_records(
+      counts, live_records ? static_cast<int64_t>(counts.band_records) : record_count);
   stats.voxels_updated = dropped.kept_voxels + counts.free_only_voxels;
-  stats.voxels_out_of_range =
-      (grouped ? grouping.out_of_range : dropped.out_of_range) + counts.free_out_of_range + counts.free_rejected;
+  stats.voxels_out_of_range = (grouped ? grouping.out_of_range : dropped.out_of_range) +
+                              counts.free_out_of_range + counts.free_rejected;
   if (activation.num_out_of_range + activation.num_failed_full > 0 && record_count > 0) {
     // Rare: count the voxels whose block the hash table rejected (outside its key range, or full).
     scratch.counts.resize_discard(record_count);
@@ -1147,9 +1239,13 @@ void tsdf_fuse_updates(Backend backend, const TsdfIntegratorConfig& config, cons
     parallel_for(backend, stream, record_count, [=] COVOX_HD(int64_t j) {
       const KeyT key = record_keys[j];
       const bool voxel_start = j == 0 || key != record_keys[j - 1];
-      rejected[j] = voxel_start && key < out_of_range_key && record_slots.slot_of(j, key) == kInvalidSlot ? 1u : 0u;
+      rejected[j] =
+          voxel_start && key < out_of_range_key && record_slots.slot_of(j, key) == kInvalidSlot
+              ? 1u
+              : 0u;
     });
-    stats.voxels_out_of_range += count_if(backend, stream, rejected, record_count, [] COVOX_HD(uint32_t r) { return r != 0; });
+    stats.voxels_out_of_range += count_if(backend, stream, rejected, record_count,
+                                          [] COVOX_HD(uint32_t r) { return r != 0; });
   }
   profile.mark("5 sum and write voxels");
 }
@@ -1158,20 +1254,23 @@ namespace tsdf_detail {
 // Steps 2b to 5 with the frame's record types: 32-bit keys when its box allows, colour visits
 // when it has colour.
 template <class Backend>
-void fuse_frame(Backend backend, const TsdfIntegratorConfig& config, const tsdf::FrameUpdates& frame, bool has_color,
-                int64_t ray_count, TsdfMap& map, TsdfScratchBuffers& scratch, IntegrationStats& stats,
-                StageProfiler::Scope& profile, const Stream& stream) {
+void fuse_frame(Backend backend, const TsdfIntegratorConfig& config,
+                const tsdf::FrameUpdates& frame, bool has_color, int64_t ray_count, TsdfMap& map,
+                TsdfScratchBuffers& scratch, IntegrationStats& stats, StageProfiler::Scope& profile,
+                const Stream& stream) {
   const bool short_keys = frame.codec.key_bits <= 32;
   if (has_color && short_keys) {
-    tsdf_fuse_updates<uint32_t, tsdf::ColorVisit>(backend, config, frame, ray_count, map, scratch, stats, profile, stream);
+    tsdf_fuse_updates<uint32_t, tsdf::ColorVisit>(backend, config, frame, ray_count, map, scratch,
+                                                  stats, profile, stream);
   } else if (has_color) {
-    tsdf_fuse_updates<uint64_t, tsdf::ColorVisit>(backend, config, frame, ray_count, map, scratch, stats, profile, stream);
+    tsdf_fuse_updates<uint64_t, tsdf::ColorVisit>(backend, config, frame, ray_count, map, scratch,
+                                                  stats, profile, stream);
   } else if (short_keys) {
-    tsdf_fuse_updates<uint32_t, tsdf::DistanceUpdate>(backend, config, frame, ray_count, map, scratch, stats, profile,
-                                                      stream);
+    tsdf_fuse_updates<uint32_t, tsdf::DistanceUpdate>(backend, config, frame, ray_count, map,
+                                                      scratch, stats, profile, stream);
   } else {
-    tsdf_fuse_updates<uint64_t, tsdf::DistanceUpdate>(backend, config, frame, ray_count, map, scratch, stats, profile,
-                                                      stream);
+    tsdf_fuse_updates<uint64_t, tsdf::DistanceUpdate>(backend, config, frame, ray_count, map,
+                                                      scratch, stats, profile, stream);
   }
 }
 }  // namespace tsdf_detail
@@ -1182,7 +1281,8 @@ namespace tsdf_detail {
 // merge writes) and unprojected first by the simple method.
 template <class Backend>
 IntegrationStats integrate_frame(Backend backend, const TsdfIntegratorConfig& config, TsdfMap& map,
-                                 const PointCloudView& cloud, const tsdf::DepthImagePoints* depth_image,
+                                 const PointCloudView& cloud,
+                                 const tsdf::DepthImagePoints* depth_image,
                                  const Eigen::Isometry3d& T_map_sensor, TsdfScratchBuffers& scratch,
                                  const Stream& stream) {
   IntegrationStats stats;
@@ -1225,7 +1325,8 @@ IntegrationStats integrate_frame(Backend backend, const TsdfIntegratorConfig& co
       profile.mark("0 unproject");
     }
     // Why points did or did not become rays, and the box of voxels their own rays traverse.
-    tally = transform_reduce(backend, stream, points, n, tsdf_detail::TallyPoint{ray_parameters, inverse_voxel_size},
+    tally = transform_reduce(backend, stream, points, n,
+                             tsdf_detail::TallyPoint{ray_parameters, inverse_voxel_size},
                              tsdf_detail::RayTally{}, tsdf_detail::AddTallies{});
     profile.mark("1 rays + tally");
     scratch.rays.resize_discard(n);
@@ -1244,10 +1345,11 @@ IntegrationStats integrate_frame(Backend backend, const TsdfIntegratorConfig& co
   } else {
     // Merge keys from a box around the sensor (no pass over the points first); the merge table
     // hashes them, so their length costs nothing.
-    const tsdf::MergeKeys merge_keys = tsdf::make_merge_keys(ray_parameters.T_world_sensor.translation,
-                                                             config.max_ray_length_m, voxel_size, voxels_per_side);
-    tally = tsdf_merge_rays(backend, ray_parameters, merge_keys, cloud, colors, intensities, grey_per_intensity,
-                            scratch, stream, depth_image);
+    const tsdf::MergeKeys merge_keys =
+        tsdf::make_merge_keys(ray_parameters.T_world_sensor.translation, config.max_ray_length_m,
+                              voxel_size, voxels_per_side);
+    tally = tsdf_merge_rays(backend, ray_parameters, merge_keys, cloud, colors, intensities,
+                            grey_per_intensity, scratch, stream, depth_image);
     ray_weights = scratch.ray_weights.data();
     colors = has_color ? scratch.ray_colors.data() : nullptr;
     intensities = nullptr;
@@ -1272,24 +1374,31 @@ IntegrationStats integrate_frame(Backend backend, const TsdfIntegratorConfig& co
     throw Error("TSDF integrator: " + std::to_string(ray_count) +
                 " rays in one coloured frame, at most 2^31 - 1 fit a visit record's ray index");
   }
-  const tsdf::FrameKeyCodec codec = tsdf::make_frame_key_codec(tally.low_voxel(), tally.high_voxel(), voxels_per_side);
+  const tsdf::FrameKeyCodec codec =
+      tsdf::make_frame_key_codec(tally.low_voxel(), tally.high_voxel(), voxels_per_side);
   // Every ray has at most voxels / kVoxelsPerPiece + 1 pieces: a bound known without a read-back.
   const int64_t piece_bound = total_updates / tsdf::kVoxelsPerPiece + ray_count;
   tsdf::RaySegment* rays = scratch.rays.data();
   // (each ray's piece count was written with the ray, and a 0 after the last ray)
   const uint32_t* ray_pieces = scratch.counts.data();
-  if (tsdf_detail::frame_sums_every_visit(config, Backend::kDevice, codec, total_updates, has_color)) {
+  if (tsdf_detail::frame_sums_every_visit(config, Backend::kDevice, codec, total_updates,
+                                          has_color)) {
     // Every visit summed: the rays are walked in groups (tsdf_traverse.h, RayGroups), each group
     // in as many levels as the longest ray has pieces (from the tally), without a piece table.
-    tsdf::FrameUpdates frame{codec,  total_updates, 0,                  nullptr,    nullptr,
-                             nullptr, rays,         colors,             intensities, grey_per_intensity,
-                             ray_weights, inverse_voxel_size, voxel_size, weight_parameters};
+    tsdf::FrameUpdates frame{codec,       total_updates,
+                             0,           nullptr,
+                             nullptr,     nullptr,
+                             rays,        colors,
+                             intensities, grey_per_intensity,
+                             ray_weights, inverse_voxel_size,
+                             voxel_size,  weight_parameters};
     frame.walks_ray_groups = true;
     frame.ray_pieces = ray_pieces;
     frame.most_ray_pieces = static_cast<uint32_t>(tally.most_pieces);
     frame.ray_count = ray_count;
     profile.mark("2a ray groups");
-    tsdf_detail::fuse_frame(backend, config, frame, has_color, ray_count, map, scratch, stats, profile, stream);
+    tsdf_detail::fuse_frame(backend, config, frame, has_color, ray_count, map, scratch, stats,
+                            profile, stream);
     return stats;
   }
   scratch.offsets.resize_discard(ray_count + 1);
@@ -1316,12 +1425,13 @@ IntegrationStats integrate_frame(Backend backend, const TsdfIntegratorConfig& co
     parallel_for(backend, stream, ray_count, [=](int64_t i) {
       if (*piece_total + i < piece_bound) piece_voxels[*piece_total + i] = 0;
       const uint32_t count = ray_pieces[i];
-      tsdf::for_each_ray_piece(rays[i], count, inverse_voxel_size, [&](uint32_t k, const Index3D& first, uint32_t voxels) {
-        const uint32_t p = first_piece[i] + k;
-        pieces[p] = tsdf::RayPiece{static_cast<uint32_t>(i), k, count};
-        firsts[p] = first;
-        piece_voxels[p] = voxels;
-      });
+      tsdf::for_each_ray_piece(rays[i], count, inverse_voxel_size,
+                               [&](uint32_t k, const Index3D& first, uint32_t voxels) {
+                                 const uint32_t p = first_piece[i] + k;
+                                 pieces[p] = tsdf::RayPiece{static_cast<uint32_t>(i), k, count};
+                                 firsts[p] = first;
+                                 piece_voxels[p] = voxels;
+                               });
     });
     exclusive_scan(backend, stream, piece_voxels, piece_bound, scratch.piece_offsets.data());
   } else {
@@ -1336,34 +1446,30 @@ IntegrationStats integrate_frame(Backend backend, const TsdfIntegratorConfig& co
     // launch instead of a kernel and a scan; one piece per thread, as the binary searches are
     // chains of dependent loads: with 8 per thread this scan took 18.9 us of a 7-Scenes 5 cm
     // frame on the H100, against 6.3 + 5.8 us for the kernel and the scan before it).
-    exclusive_scan_of<1>(backend, stream, piece_bound, [=] COVOX_HD(int64_t p) -> uint32_t {
-      if (p >= *piece_total) return 0u;
-      const uint32_t piece = static_cast<uint32_t>(p);
-      // the last ray whose first piece is at or before p (rays without pieces share the next one's)
-      const uint32_t i = static_cast<uint32_t>(lower_bound_index(first_piece, ray_count, piece + 1u) - 1);
-      const uint32_t index = piece - first_piece[i];
-      const uint32_t count = ray_pieces[i];
-      pieces[p] = tsdf::RayPiece{i, index, count};
-      return tsdf::ray_piece_voxel_count(rays[i], index, count, inverse_voxel_size);
-    }, scratch.piece_offsets.data());
+    exclusive_scan_of<1>(
+        backend, stream, piece_bound,
+        [=] COVOX_HD(int64_t p) -> uint32_t {
+          if (p >= *piece_total) return 0u;
+          const uint32_t piece = static_cast<uint32_t>(p);
+          // the last ray whose first piece is at or before p (rays without pieces share the next
+          // one's)
+          const uint32_t i =
+              static_cast<uint32_t>(lower_bound_index(first_piece, ray_count, piece + 1u) - 1);
+          const uint32_t index = piece - first_piece[i];
+          const uint32_t count = ray_pieces[i];
+          pieces[p] = tsdf::RayPiece{i, index, count};
+          return tsdf::ray_piece_voxel_count(rays[i], index, count, inverse_voxel_size);
+        },
+        scratch.piece_offsets.data());
   }
   profile.mark("2a ray pieces");
 
-  const tsdf::FrameUpdates frame{codec,
-                                  total_updates,
-                                  piece_bound,
-                                  piece_total,
-                                  pieces,
-                                  piece_first_voxels,
-                                  rays,
-                                  colors,
-                                  intensities,
-                                  grey_per_intensity,
-                                  ray_weights,
-                                  inverse_voxel_size,
-                                  voxel_size,
-                                  weight_parameters};
-  tsdf_detail::fuse_frame(backend, config, frame, has_color, ray_count, map, scratch, stats, profile, stream);
+  const tsdf::FrameUpdates frame{codec,       total_updates,      piece_bound, piece_total,
+                                 pieces,      piece_first_voxels, rays,        colors,
+                                 intensities, grey_per_intensity, ray_weights, inverse_voxel_size,
+                                 voxel_size,  weight_parameters};
+  tsdf_detail::fuse_frame(backend, config, frame, has_color, ray_count, map, scratch, stats,
+                          profile, stream);
   return stats;
 }
 }  // namespace tsdf_detail
@@ -1373,26 +1479,29 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
                                        TsdfMap& map, const PointCloudView& cloud,
                                        const Eigen::Isometry3d& T_map_sensor,
                                        TsdfScratchBuffers& scratch, const Stream& stream) {
-  return tsdf_detail::integrate_frame(backend, config, map, cloud, nullptr, T_map_sensor, scratch, stream);
+  return tsdf_detail::integrate_frame(backend, config, map, cloud, nullptr, T_map_sensor, scratch,
+                                      stream);
 }
 
 template <class Backend>
-IntegrationStats tsdf_integrate_depth_image(Backend backend, const TsdfIntegratorConfig& config, TsdfMap& map,
-                                            const tsdf::DepthImagePoints& image,
-                                            const Eigen::Isometry3d& T_map_camera, TsdfScratchBuffers& scratch,
-                                            const Stream& stream) {
+IntegrationStats tsdf_integrate_depth_image(Backend backend, const TsdfIntegratorConfig& config,
+                                            TsdfMap& map, const tsdf::DepthImagePoints& image,
+                                            const Eigen::Isometry3d& T_map_camera,
+                                            TsdfScratchBuffers& scratch, const Stream& stream) {
   const int64_t pixels = image.pixels();
   // The points (and colours) are written where the view names them: by the merge, or by the
   // unprojection before the simple method's first kernel.
   scratch.points.resize_discard(pixels);
   if (image.colors) scratch.colors.resize_discard(pixels);
-  const PointCloudView cloud{scratch.points.data(), image.colors ? scratch.colors.data() : nullptr, pixels};
-  return tsdf_detail::integrate_frame(backend, config, map, cloud, &image, T_map_camera, scratch, stream);
+  const PointCloudView cloud{scratch.points.data(), image.colors ? scratch.colors.data() : nullptr,
+                             pixels};
+  return tsdf_detail::integrate_frame(backend, config, map, cloud, &image, T_map_camera, scratch,
+                                      stream);
 }
 
 template <class Backend>
-void tsdf_unproject_depth(Backend backend, const tsdf::DepthImagePoints& image, TsdfScratchBuffers& scratch,
-                          const Stream& stream) {
+void tsdf_unproject_depth(Backend backend, const tsdf::DepthImagePoints& image,
+                          TsdfScratchBuffers& scratch, const Stream& stream) {
   const int64_t pixels = image.pixels();
   scratch.points.resize_discard(pixels);
   Vec3f* points = scratch.points.data();
@@ -1409,14 +1518,14 @@ void tsdf_unproject_depth(Backend backend, const tsdf::DepthImagePoints& image, 
   });
 }
 
-#define COVOX_INSTANTIATE_TSDF_INTEGRATOR(Backend)                                                  \
-  template IntegrationStats tsdf_integrate_points<Backend>(                                         \
-      Backend, const TsdfIntegratorConfig&, TsdfMap&, const PointCloudView&,                        \
-      const Eigen::Isometry3d&, TsdfScratchBuffers&, const Stream&);                                \
-  template IntegrationStats tsdf_integrate_depth_image<Backend>(                                    \
-      Backend, const TsdfIntegratorConfig&, TsdfMap&, const tsdf::DepthImagePoints&,                 \
-      const Eigen::Isometry3d&, TsdfScratchBuffers&, const Stream&);                                \
-  template void tsdf_unproject_depth<Backend>(Backend, const tsdf::DepthImagePoints&,               \
+#define COVOX_INSTANTIATE_TSDF_INTEGRATOR(Backend)                                    \
+  template IntegrationStats tsdf_integrate_points<Backend>(                           \
+      Backend, const TsdfIntegratorConfig&, TsdfMap&, const PointCloudView&,          \
+      const Eigen::Isometry3d&, TsdfScratchBuffers&, const Stream&);                  \
+  template IntegrationStats tsdf_integrate_depth_image<Backend>(                      \
+      Backend, const TsdfIntegratorConfig&, TsdfMap&, const tsdf::DepthImagePoints&,  \
+      const Eigen::Isometry3d&, TsdfScratchBuffers&, const Stream&);                  \
+  template void tsdf_unproject_depth<Backend>(Backend, const tsdf::DepthImagePoints&, \
                                               TsdfScratchBuffers&, const Stream&);
 
 }  // namespace covox

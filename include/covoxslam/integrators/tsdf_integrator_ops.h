@@ -17,12 +17,45 @@ namespace covox {
 
 struct TsdfScratchBuffers {
   explicit TsdfScratchBuffers(Device device)
-      : points(device), colors(device), rays(device), counts(device), offsets(device),
-        keys(device), merged_keys(device),
-        block_indices(device), slots(device), is_new(device), point_codes(device), ray_scan_scratch(device), ray_points(device),
-        merge_table_keys(device), merge_table_bundles(device), merge_tally(device), merge_warps_done(device),
-        ray_colors(device), ray_weights(device), block_flags(device), block_ranks(device), keys_alt(device),
-        keys32(device), keys32_alt(device), merged_keys32(device), distance_records(device), distance_records_alt(device), color_visits(device), color_visits_alt(device), merged_updates(device), pieces(device), piece_first_voxels(device), piece_voxels(device), piece_offsets(device), run_tile_parts(device), readback(device), box_marks(device), fixed_point_sums(device), record_ranks(device) {}
+      : points(device),
+        colors(device),
+        rays(device),
+        counts(device),
+        offsets(device),
+        keys(device),
+        merged_keys(device),
+        block_indices(device),
+        slots(device),
+        is_new(device),
+        point_codes(device),
+        ray_scan_scratch(device),
+        ray_points(device),
+        merge_table_keys(device),
+        merge_table_bundles(device),
+        merge_tally(device),
+        merge_warps_done(device),
+        ray_colors(device),
+        ray_weights(device),
+        block_flags(device),
+        block_ranks(device),
+        keys_alt(device),
+        keys32(device),
+        keys32_alt(device),
+        merged_keys32(device),
+        distance_records(device),
+        distance_records_alt(device),
+        color_visits(device),
+        color_visits_alt(device),
+        merged_updates(device),
+        pieces(device),
+        piece_first_voxels(device),
+        piece_voxels(device),
+        piece_offsets(device),
+        run_tile_parts(device),
+        readback(device),
+        box_marks(device),
+        fixed_point_sums(device),
+        record_ranks(device) {}
   Buffer<Vec3f> points;  // depth images unprojected, or host clouds uploaded
   Buffer<Rgb8> colors;
   Buffer<tsdf::RaySegment> rays;
@@ -120,16 +153,16 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
 // the points for the kernels after it (one kernel and one pass over the points fewer per frame
 // than unprojecting first); the simple method has the image unprojected first.
 template <class Backend>
-IntegrationStats tsdf_integrate_depth_image(Backend backend, const TsdfIntegratorConfig& config, TsdfMap& map,
-                                            const tsdf::DepthImagePoints& image,
-                                            const Eigen::Isometry3d& T_map_camera, TsdfScratchBuffers& scratch,
-                                            const Stream& stream);
+IntegrationStats tsdf_integrate_depth_image(Backend backend, const TsdfIntegratorConfig& config,
+                                            TsdfMap& map, const tsdf::DepthImagePoints& image,
+                                            const Eigen::Isometry3d& T_map_camera,
+                                            TsdfScratchBuffers& scratch, const Stream& stream);
 
 // Writes width*height points (invalid pixels become (0,0,0), which integration drops as zero
 // points) and colours into scratch.points / scratch.colors, in tile order (tsdf::pixel_tile_order,
 // tsdf_kernels.h).
 template <class Backend>
-void tsdf_unproject_depth(Backend backend, const tsdf::DepthImagePoints& image, TsdfScratchBuffers& scratch,
-                          const Stream& stream);
+void tsdf_unproject_depth(Backend backend, const tsdf::DepthImagePoints& image,
+                          TsdfScratchBuffers& scratch, const Stream& stream);
 
 }  // namespace covox

@@ -34,13 +34,17 @@ struct FrameKeyCodec {
   COVOX_HD_INLINE uint64_t key(const Index3D& voxel) const {
     const int shift = voxel_bits / 3;
     const int32_t mask = voxels_per_side - 1;
-    const int32_t bx = (voxel.x >> shift) - origin_block.x, by = (voxel.y >> shift) - origin_block.y,
+    const int32_t bx = (voxel.x >> shift) - origin_block.x,
+                  by = (voxel.y >> shift) - origin_block.y,
                   bz = (voxel.z >> shift) - origin_block.z;
-    if (bx < 0 || by < 0 || bz < 0 || bx >= size_x || by >= size_y || bz >= size_z) return out_of_range_key;
-    const int32_t local = (voxel.x & mask) | ((voxel.y & mask) << shift) | ((voxel.z & mask) << (2 * shift));
+    if (bx < 0 || by < 0 || bz < 0 || bx >= size_x || by >= size_y || bz >= size_z)
+      return out_of_range_key;
+    const int32_t local =
+        (voxel.x & mask) | ((voxel.y & mask) << shift) | ((voxel.z & mask) << (2 * shift));
     const uint64_t block_number =
         static_cast<uint64_t>(bx) +
-        static_cast<uint64_t>(size_x) * (static_cast<uint64_t>(by) + static_cast<uint64_t>(size_y) * bz);
+        static_cast<uint64_t>(size_x) *
+            (static_cast<uint64_t>(by) + static_cast<uint64_t>(size_y) * bz);
     return (block_number << voxel_bits) | static_cast<uint64_t>(local);
   }
   // Equal for all voxels of one block.
@@ -66,12 +70,14 @@ struct FrameKeyCodec {
     if (key_bits <= 32) {
       const uint32_t n = static_cast<uint32_t>(key >> voxel_bits);
       const uint32_t sx = static_cast<uint32_t>(size_x), plane = sx * static_cast<uint32_t>(size_y);
-      b = Index3D(origin_block.x + static_cast<int32_t>(n % sx), origin_block.y + static_cast<int32_t>((n % plane) / sx),
+      b = Index3D(origin_block.x + static_cast<int32_t>(n % sx),
+                  origin_block.y + static_cast<int32_t>((n % plane) / sx),
                   origin_block.z + static_cast<int32_t>(n / plane));
     } else {
       b = block(key);
     }
-    return Index3D(b.x * voxels_per_side + (local & mask), b.y * voxels_per_side + ((local >> shift) & mask),
+    return Index3D(b.x * voxels_per_side + (local & mask),
+                   b.y * voxels_per_side + ((local >> shift) & mask),
                    b.z * voxels_per_side + (local >> (2 * shift)));
   }
 };
@@ -79,12 +85,14 @@ struct FrameKeyCodec {
 // The codec for voxels in [min_voxel, max_voxel] (inclusive), padded by one block on every side
 // so that merged rays, whose mean points can round a hair outside their points' hull, stay in.
 // Throws covox::Error if the box is too large for 64-bit keys (a frame thousands of km across).
-FrameKeyCodec make_frame_key_codec(const Index3D& min_voxel, const Index3D& max_voxel, int32_t voxels_per_side);
+FrameKeyCodec make_frame_key_codec(const Index3D& min_voxel, const Index3D& max_voxel,
+                                   int32_t voxels_per_side);
 
 // A LiDAR intensity shown as a grey level: intensity * grey_per_intensity, clamped to 0..255.
 COVOX_HD_INLINE Rgb8 intensity_to_grey(float intensity, float grey_per_intensity) {
   const float grey = intensity * grey_per_intensity;
-  const uint8_t level = static_cast<uint8_t>(grey <= 0.0f ? 0.0f : (grey >= 255.0f ? 255.0f : grey));
+  const uint8_t level =
+      static_cast<uint8_t>(grey <= 0.0f ? 0.0f : (grey >= 255.0f ? 255.0f : grey));
   return Rgb8{level, level, level};
 }
 
@@ -150,8 +158,12 @@ COVOX_HD_INLINE double signed_fixed_value(uint64_t units, double units_per_one) 
   return static_cast<double>(static_cast<int64_t>(units)) / units_per_one;
 }
 // The free-space-only sums (one word per voxel): a visit's weight, and a sum's weight.
-COVOX_HD_INLINE uint64_t weight_units(float weight) { return signed_fixed_units(weight, kSumUnits); }
-COVOX_HD_INLINE float weight_of_units(uint64_t units) { return static_cast<float>(signed_fixed_value(units, kSumUnits)); }
+COVOX_HD_INLINE uint64_t weight_units(float weight) {
+  return signed_fixed_units(weight, kSumUnits);
+}
+COVOX_HD_INLINE float weight_of_units(uint64_t units) {
+  return static_cast<float>(signed_fixed_value(units, kSumUnits));
+}
 
 // Every visit summed: one cell per key of the frame's box, 2 64-bit words, kSumCellWords with
 // colour:
@@ -180,9 +192,11 @@ struct VoxelSumCells {
   // 2 cm frame, the traverse 142 -> 170 us and the pass 35 -> 62 us; the words of four
   // consecutive cells interleaved, one 32-byte sector per word: the pass 34 -> 72 us at 2 cm, and
   // 1.09-1.12x the frame time at 2 cm, on OS1-64 0.1 m and KITTI; 2026-11-26.)
-  COVOX_HD_INLINE uint64_t& word(uint64_t key, int w) const { return words[key * static_cast<uint64_t>(stride) + w]; }
-  COVOX_HD_INLINE void add(uint64_t key, const DistanceUpdate& update, bool free_space, bool takes_color,
-                           const Rgb8& color) const {
+  COVOX_HD_INLINE uint64_t& word(uint64_t key, int w) const {
+    return words[key * static_cast<uint64_t>(stride) + w];
+  }
+  COVOX_HD_INLINE void add(uint64_t key, const DistanceUpdate& update, bool free_space,
+                           bool takes_color, const Rgb8& color) const {
     const uint64_t units = weight_units(update.weight);
     if (units == 0) return;
     if (free_space) {
@@ -190,7 +204,8 @@ struct VoxelSumCells {
       return;
     }
     atomic_add(&word(key, 0), units);
-    const double offset = static_cast<double>(update.weighted_distance) / truncation - static_cast<double>(update.weight);
+    const double offset = static_cast<double>(update.weighted_distance) / truncation -
+                          static_cast<double>(update.weight);
     atomic_add(&word(key, 1), signed_fixed_units(offset, kSumUnits));
     if (stride < kSumCellWords || !takes_color) return;
     atomic_add(&word(key, 2), units);
@@ -215,7 +230,8 @@ struct VoxelSumCells {
     const uint64_t units = word(key, 0);
     if (units == 0) return false;
     sum->weight = weight_of_units(units);
-    sum->weighted_distance = static_cast<float>(signed_fixed_value(units + word(key, 1), kSumUnits) * truncation);
+    sum->weighted_distance =
+        static_cast<float>(signed_fixed_value(units + word(key, 1), kSumUnits) * truncation);
     word(key, 0) = 0;
     word(key, 1) = 0;
     return true;
@@ -246,12 +262,15 @@ inline int64_t band_visits_per_ray_bound(float truncation_m, float voxel_size_m)
 }
 
 // Point or ray i's colour: its own colour, else its intensity as grey, else none.
-COVOX_HD_INLINE Rgb8 color_of(const Rgb8* colors, const float* intensities, float grey_per_intensity, int64_t i) {
-  return colors ? colors[i] : (intensities ? intensity_to_grey(intensities[i], grey_per_intensity) : Rgb8{});
+COVOX_HD_INLINE Rgb8 color_of(const Rgb8* colors, const float* intensities,
+                              float grey_per_intensity, int64_t i) {
+  return colors ? colors[i]
+                : (intensities ? intensity_to_grey(intensities[i], grey_per_intensity) : Rgb8{});
 }
 
 struct MergeUpdates {
-  COVOX_HD_INLINE DistanceUpdate operator()(const DistanceUpdate& a, const DistanceUpdate& b) const {
+  COVOX_HD_INLINE DistanceUpdate operator()(const DistanceUpdate& a,
+                                            const DistanceUpdate& b) const {
     DistanceUpdate sum;
     sum.weighted_distance = a.weighted_distance + b.weighted_distance;
     sum.weight = a.weight + b.weight;
@@ -271,8 +290,8 @@ struct MergeUpdates {
 
 // Why a point did or did not become a ray.
 enum RayKind : uint8_t {
-  kSurfaceRay = 0,     // normal: carve free space (optional) and update the truncation band
-  kClearingRay = 1,    // beyond max range with allow_clear: carve free space only
+  kSurfaceRay = 0,   // normal: carve free space (optional) and update the truncation band
+  kClearingRay = 1,  // beyond max range with allow_clear: carve free space only
   kDroppedNonFinite = 2,
   kDroppedZero = 3,
   kDroppedTooClose = 4,
@@ -326,7 +345,8 @@ COVOX_HD_INLINE RaySegment make_ray(const RayParameters& p, const Vec3f& point_s
   }
   ray.kind = kSurfaceRay;
   ray.end = ray.surface + ray.direction * p.truncation_distance_m;
-  ray.start = p.voxel_carving_enabled ? origin : ray.surface - ray.direction * p.truncation_distance_m;
+  ray.start =
+      p.voxel_carving_enabled ? origin : ray.surface - ray.direction * p.truncation_distance_m;
   return ray;
 }
 
@@ -361,7 +381,7 @@ struct WalkAxis {
   int32_t position;
   int32_t remaining;  // grid lines left to cross
   int32_t step;
-  float t_max;        // where along the segment (0..1) the next grid line is crossed
+  float t_max;  // where along the segment (0..1) the next grid line is crossed
   float t_delta;
   COVOX_HD_INLINE WalkAxis(float a, float b, int32_t cur, int32_t end)
       : position(cur), remaining(abs_i32(end - cur)), step(end > cur ? 1 : -1) {
@@ -383,9 +403,9 @@ struct WalkAxis {
 };
 
 template <class Visitor>
-COVOX_HD_INLINE void traverse_voxels(const Vec3f& a_world, const Vec3f& b_world, const Index3D& first,
-                                     const Index3D& last, float inverse_voxel_size, bool include_last,
-                                     Visitor&& visit) {
+COVOX_HD_INLINE void traverse_voxels(const Vec3f& a_world, const Vec3f& b_world,
+                                     const Index3D& first, const Index3D& last,
+                                     float inverse_voxel_size, bool include_last, Visitor&& visit) {
   const Vec3f a = a_world * inverse_voxel_size;
   const Vec3f b = b_world * inverse_voxel_size;
   WalkAxis x(a.x, b.x, first.x, last.x);
@@ -406,7 +426,8 @@ COVOX_HD_INLINE void traverse_voxels(const Vec3f& a_world, const Vec3f& b_world,
       z.advance();
     } else if (take_y) {
       y.advance();
-    } else if (take_x || x.remaining > 0) {  // (or degenerate: a delta rounded to 0 with lines left)
+    } else if (take_x ||
+               x.remaining > 0) {  // (or degenerate: a delta rounded to 0 with lines left)
       x.advance();
     } else if (y.remaining > 0) {
       y.advance();
@@ -419,9 +440,10 @@ COVOX_HD_INLINE void traverse_voxels(const Vec3f& a_world, const Vec3f& b_world,
 
 // The whole ray: ray_voxel_count() voxels from ray.start to ray.end.
 template <class Visitor>
-COVOX_HD_INLINE void traverse_ray(const RaySegment& ray, float inverse_voxel_size, Visitor&& visit) {
-  traverse_voxels(ray.start, ray.end, voxel_of(ray.start, inverse_voxel_size), voxel_of(ray.end, inverse_voxel_size),
-                  inverse_voxel_size, true, visit);
+COVOX_HD_INLINE void traverse_ray(const RaySegment& ray, float inverse_voxel_size,
+                                  Visitor&& visit) {
+  traverse_voxels(ray.start, ray.end, voxel_of(ray.start, inverse_voxel_size),
+                  voxel_of(ray.end, inverse_voxel_size), inverse_voxel_size, true, visit);
 }
 
 // ---- Ray pieces --------------------------------------------------------------------------------
@@ -457,24 +479,28 @@ struct RayEndVoxels {
   Index3D last;
 };
 COVOX_HD_INLINE RayEndVoxels ray_end_voxels(const RaySegment& ray, float inverse_voxel_size) {
-  return RayEndVoxels{voxel_of(ray.start, inverse_voxel_size), voxel_of(ray.end, inverse_voxel_size)};
+  return RayEndVoxels{voxel_of(ray.start, inverse_voxel_size),
+                      voxel_of(ray.end, inverse_voxel_size)};
 }
 
-COVOX_HD_INLINE Index3D ray_cut_voxel(const RaySegment& ray, const RayEndVoxels& ends, uint32_t k, uint32_t pieces,
-                                      float inverse_voxel_size) {
+COVOX_HD_INLINE Index3D ray_cut_voxel(const RaySegment& ray, const RayEndVoxels& ends, uint32_t k,
+                                      uint32_t pieces, float inverse_voxel_size) {
   if (k == 0) return ends.first;
   if (k >= pieces) return ends.last;
   const Index3D v = voxel_of(ray_cut_point(ray, k, pieces), inverse_voxel_size);
-  return Index3D(clamp_between(v.x, ends.first.x, ends.last.x), clamp_between(v.y, ends.first.y, ends.last.y),
+  return Index3D(clamp_between(v.x, ends.first.x, ends.last.x),
+                 clamp_between(v.y, ends.first.y, ends.last.y),
                  clamp_between(v.z, ends.first.z, ends.last.z));
 }
-COVOX_HD_INLINE Index3D ray_cut_voxel(const RaySegment& ray, uint32_t k, uint32_t pieces, float inverse_voxel_size) {
+COVOX_HD_INLINE Index3D ray_cut_voxel(const RaySegment& ray, uint32_t k, uint32_t pieces,
+                                      float inverse_voxel_size) {
   return ray_cut_voxel(ray, ray_end_voxels(ray, inverse_voxel_size), k, pieces, inverse_voxel_size);
 }
 
 // Voxels of the piece from cut voxel a to cut voxel b (the last piece includes b).
 COVOX_HD_INLINE uint32_t piece_voxel_count(const Index3D& a, const Index3D& b, bool last_piece) {
-  return static_cast<uint32_t>(abs_i32(b.x - a.x) + abs_i32(b.y - a.y) + abs_i32(b.z - a.z)) + (last_piece ? 1u : 0u);
+  return static_cast<uint32_t>(abs_i32(b.x - a.x) + abs_i32(b.y - a.y) + abs_i32(b.z - a.z)) +
+         (last_piece ? 1u : 0u);
 }
 
 // Voxels piece k of `pieces` visits.
@@ -482,14 +508,16 @@ COVOX_HD_INLINE uint32_t ray_piece_voxel_count(const RaySegment& ray, uint32_t k
                                                float inverse_voxel_size) {
   const RayEndVoxels ends = ray_end_voxels(ray, inverse_voxel_size);
   return piece_voxel_count(ray_cut_voxel(ray, ends, k, pieces, inverse_voxel_size),
-                           ray_cut_voxel(ray, ends, k + 1, pieces, inverse_voxel_size), k + 1 == pieces);
+                           ray_cut_voxel(ray, ends, k + 1, pieces, inverse_voxel_size),
+                           k + 1 == pieces);
 }
 
 // A ray's `pieces` pieces in order, each cut voxel computed once (it ends one piece and starts the
 // next): emit(k, first voxel of piece k, voxels of piece k). The same cuts and counts as
 // ray_cut_voxel and ray_piece_voxel_count give piece by piece (the CPU twin's piece table).
 template <class Emit>
-COVOX_HD_INLINE void for_each_ray_piece(const RaySegment& ray, uint32_t pieces, float inverse_voxel_size, Emit&& emit) {
+COVOX_HD_INLINE void for_each_ray_piece(const RaySegment& ray, uint32_t pieces,
+                                        float inverse_voxel_size, Emit&& emit) {
   const RayEndVoxels ends = ray_end_voxels(ray, inverse_voxel_size);
   Index3D start = ends.first;
   for (uint32_t k = 0; k < pieces; ++k) {
@@ -501,17 +529,19 @@ COVOX_HD_INLINE void for_each_ray_piece(const RaySegment& ray, uint32_t pieces, 
 
 // Piece k of `pieces`, from cut voxel `first` to cut voxel `last` (computed by the caller).
 template <class Visitor>
-COVOX_HD_INLINE void traverse_ray_piece(const RaySegment& ray, uint32_t k, uint32_t pieces, const Index3D& first,
-                                        const Index3D& last, float inverse_voxel_size, Visitor&& visit) {
-  traverse_voxels(ray_cut_point(ray, k, pieces), ray_cut_point(ray, k + 1, pieces), first, last, inverse_voxel_size,
-                  k + 1 == pieces, visit);
+COVOX_HD_INLINE void traverse_ray_piece(const RaySegment& ray, uint32_t k, uint32_t pieces,
+                                        const Index3D& first, const Index3D& last,
+                                        float inverse_voxel_size, Visitor&& visit) {
+  traverse_voxels(ray_cut_point(ray, k, pieces), ray_cut_point(ray, k + 1, pieces), first, last,
+                  inverse_voxel_size, k + 1 == pieces, visit);
 }
 template <class Visitor>
-COVOX_HD_INLINE void traverse_ray_piece(const RaySegment& ray, uint32_t k, uint32_t pieces, float inverse_voxel_size,
-                                        Visitor&& visit) {
+COVOX_HD_INLINE void traverse_ray_piece(const RaySegment& ray, uint32_t k, uint32_t pieces,
+                                        float inverse_voxel_size, Visitor&& visit) {
   const RayEndVoxels ends = ray_end_voxels(ray, inverse_voxel_size);
   traverse_ray_piece(ray, k, pieces, ray_cut_voxel(ray, ends, k, pieces, inverse_voxel_size),
-                     ray_cut_voxel(ray, ends, k + 1, pieces, inverse_voxel_size), inverse_voxel_size, visit);
+                     ray_cut_voxel(ray, ends, k + 1, pieces, inverse_voxel_size),
+                     inverse_voxel_size, visit);
 }
 
 // Which ray a piece belongs to, and which of its pieces it is.
@@ -574,7 +604,8 @@ COVOX_HD_INLINE int64_t pixel_tile_order(int32_t u, int32_t v, int32_t width, in
   const int32_t column = u / kPixelTileWidth;
   const int32_t tile_columns = width - column * kPixelTileWidth;
   const int32_t tile_width = tile_columns < kPixelTileWidth ? tile_columns : kPixelTileWidth;
-  return static_cast<int64_t>(band) * kPixelTileHeight * width + static_cast<int64_t>(column) * kPixelTileWidth * band_height +
+  return static_cast<int64_t>(band) * kPixelTileHeight * width +
+         static_cast<int64_t>(column) * kPixelTileWidth * band_height +
          (v % kPixelTileHeight) * tile_width + (u % kPixelTileWidth);
 }
 
@@ -611,7 +642,9 @@ struct DepthImagePoints {
   int32_t width = 0, height = 0;
 
   COVOX_HD_INLINE int64_t pixels() const { return static_cast<int64_t>(width) * height; }
-  COVOX_HD_INLINE int64_t pixel_at(int64_t place) const { return pixel_at_tile_place(place, width, height); }
+  COVOX_HD_INLINE int64_t pixel_at(int64_t place) const {
+    return pixel_at_tile_place(place, width, height);
+  }
   COVOX_HD_INLINE Vec3f point(int64_t pixel) const {
     float z = 0.0f;
     if (depth_m) {
@@ -623,7 +656,8 @@ struct DepthImagePoints {
     }
     if (z == 0.0f) return Vec3f(0.0f, 0.0f, 0.0f);
     const int32_t u = static_cast<int32_t>(pixel % width), v = static_cast<int32_t>(pixel / width);
-    return Vec3f((static_cast<float>(u) - cx) * z * inverse_fx, (static_cast<float>(v) - cy) * z * inverse_fy, z);
+    return Vec3f((static_cast<float>(u) - cx) * z * inverse_fx,
+                 (static_cast<float>(v) - cy) * z * inverse_fy, z);
   }
 };
 

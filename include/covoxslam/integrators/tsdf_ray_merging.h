@@ -26,10 +26,10 @@ constexpr float kMergeUnitsPerMetre = 1073741824.0f;
 constexpr float kMaxMergedRange_m = 1000.0f;
 
 struct alignas(16) PointBundle {  // 48 bytes: three 16-byte loads
-  int64_t x = 0, y = 0, z = 0;  // sum of sensor-frame coordinates, in 2^-30 m
-  uint32_t r = 0, g = 0, b = 0; // sum of colour channels
+  int64_t x = 0, y = 0, z = 0;    // sum of sensor-frame coordinates, in 2^-30 m
+  uint32_t r = 0, g = 0, b = 0;   // sum of colour channels
   uint32_t count = 0;
-  uint32_t first = 0;           // smallest point index of the bundle
+  uint32_t first = 0;  // smallest point index of the bundle
 };
 
 COVOX_HD_INLINE int64_t to_merge_units(float metres) {
@@ -40,7 +40,9 @@ COVOX_HD_INLINE int64_t to_merge_units(float metres) {
 constexpr uint32_t kAlonePoint = 0xFFFFFFFFu;        // a ray of its own (clearing, outside the box)
 constexpr uint32_t kDroppedPointCode = 0xFFFFFFF0u;  // + (kind - kDroppedNonFinite): counted only
 COVOX_HD_INLINE bool is_bundle_slot(uint32_t code) { return code < kDroppedPointCode; }
-COVOX_HD_INLINE bool is_dropped_code(uint32_t code) { return code >= kDroppedPointCode && code != kAlonePoint; }
+COVOX_HD_INLINE bool is_dropped_code(uint32_t code) {
+  return code >= kDroppedPointCode && code != kAlonePoint;
+}
 COVOX_HD_INLINE uint8_t dropped_kind_of_code(uint32_t code) {
   return static_cast<uint8_t>(kDroppedNonFinite + (code - kDroppedPointCode));
 }
@@ -54,7 +56,8 @@ struct MergeKeys {
 
   // What point `index` with ray `ray` becomes: a bundle (its key, returned through `key`), a ray
   // of its own (kAlonePoint: a clearing ray, or a surface voxel outside the box), or a drop.
-  COVOX_HD_INLINE uint32_t classify(const RaySegment& ray, float inverse_voxel_size, uint64_t* key) const {
+  COVOX_HD_INLINE uint32_t classify(const RaySegment& ray, float inverse_voxel_size,
+                                    uint64_t* key) const {
     if (ray.kind == kSurfaceRay) {
       *key = codec.key(voxel_of(ray.surface, inverse_voxel_size));
       return *key != codec.out_of_range_key ? 0u : kAlonePoint;
@@ -66,7 +69,8 @@ struct MergeKeys {
 
 // The merge keys of a frame whose sensor sits at `origin` (world) with rays up to
 // max_ray_length_m. Throws covox::Error like make_frame_key_codec for an absurdly large box.
-MergeKeys make_merge_keys(const Vec3f& origin, float max_ray_length_m, float voxel_size_m, int32_t voxels_per_side);
+MergeKeys make_merge_keys(const Vec3f& origin, float max_ray_length_m, float voxel_size_m,
+                          int32_t voxels_per_side);
 
 // The frame's bundles, gathered without sorting the points: an open-addressing hash table from
 // merge key to bundle, filled with integer atomics. The sums are integers (and `first` a minimum),
@@ -85,8 +89,8 @@ constexpr uint32_t kNoPoint = 0xFFFFFFFFu;
 struct MergeTable {
   uint64_t* keys;
   PointBundle* bundles;
-  uint32_t mask;    // capacity - 1; the capacity is a power of two, at least twice the points
-  int shift;        // 64 - log2(capacity): the hash keeps the product's top bits
+  uint32_t mask;  // capacity - 1; the capacity is a power of two, at least twice the points
+  int shift;      // 64 - log2(capacity): the hash keeps the product's top bits
 
   COVOX_HD_INLINE uint32_t home_slot(uint64_t key) const {
     return static_cast<uint32_t>((key * 0x9E3779B97F4A7C15ull) >> shift) & mask;
@@ -158,7 +162,9 @@ struct alignas(128) MergeTallyStripe {
 };
 constexpr int kMergeTallyStripes = 32;
 // The copy that the warp of item i adds to.
-COVOX_HD_INLINE int merge_tally_stripe(int64_t i) { return static_cast<int>((i >> 5) & (kMergeTallyStripes - 1)); }
+COVOX_HD_INLINE int merge_tally_stripe(int64_t i) {
+  return static_cast<int>((i >> 5) & (kMergeTallyStripes - 1));
+}
 struct MergeTally {
   MergeTallyStripe stripes[kMergeTallyStripes];
 };
@@ -174,7 +180,8 @@ struct MergeTallySummary {
 // The stripes' sum by the calling warp's `lanes`: each lane reads some stripes (volatile loads:
 // what the other warps' atomics left in L2, not a stale line of this multiprocessor's L1), then
 // the warp reduces; every lane gets the sum.
-COVOX_HD_INLINE MergeTallyStripe sum_merge_tally_stripes(const MergeTallyStripe* stripes, uint32_t lanes) {
+COVOX_HD_INLINE MergeTallyStripe sum_merge_tally_stripes(const MergeTallyStripe* stripes,
+                                                         uint32_t lanes) {
   MergeTallyStripe part;
   part.reset();
   const int lane_count = static_cast<int>(warp_count(lanes));
@@ -185,7 +192,8 @@ COVOX_HD_INLINE MergeTallyStripe sum_merge_tally_stripes(const MergeTallyStripe*
     part.cast += stripe.cast;
     part.rays += stripe.rays;
     part.voxels += stripe.voxels;
-    part.most_pieces = part.most_pieces > stripe.most_pieces ? part.most_pieces : stripe.most_pieces;
+    part.most_pieces =
+        part.most_pieces > stripe.most_pieces ? part.most_pieces : stripe.most_pieces;
     for (int axis = 0; axis < 3; ++axis) {
       part.low[axis] = part.low[axis] < stripe.low[axis] ? part.low[axis] : stripe.low[axis];
       part.high[axis] = part.high[axis] > stripe.high[axis] ? part.high[axis] : stripe.high[axis];

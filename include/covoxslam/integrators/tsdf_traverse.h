@@ -51,10 +51,12 @@ COVOX_HD_INLINE float ray_weight_of(const FrameUpdates& frame, uint32_t i) {
 // per piece by the traverse (the record stores in between could alias it, so a lookup here would
 // be repeated for every voxel). A visit whose distance is the truncation (free space, clearing
 // rays) contributes (weight * truncation, weight) and no colour: free_space_update() below.
-COVOX_HD_INLINE DistanceUpdate voxel_update(const FrameUpdates& frame, const RaySegment& ray, float ray_weight,
-                                            const Index3D& voxel, float truncation, bool* takes_color) {
+COVOX_HD_INLINE DistanceUpdate voxel_update(const FrameUpdates& frame, const RaySegment& ray,
+                                            float ray_weight, const Index3D& voxel,
+                                            float truncation, bool* takes_color) {
   const float voxel_size = frame.voxel_size;
-  const Vec3f center((voxel.x + 0.5f) * voxel_size, (voxel.y + 0.5f) * voxel_size, (voxel.z + 0.5f) * voxel_size);
+  const Vec3f center((voxel.x + 0.5f) * voxel_size, (voxel.y + 0.5f) * voxel_size,
+                     (voxel.z + 0.5f) * voxel_size);
   const bool clearing = ray.kind == kClearingRay;
   float distance = clearing ? truncation : (ray.surface - center).dot(ray.direction);
   float weight = 0.0f;
@@ -81,16 +83,20 @@ COVOX_HD_INLINE DistanceUpdate free_space_update(float weight, float truncation)
 // A free-space visit: its distance is the truncation (clamped, or a clearing ray's) and it takes
 // no colour. (A visit without colour has its distance at +truncation or -truncation, or no
 // weight: the product tells the first.)
-COVOX_HD_INLINE bool is_free_space_visit(const DistanceUpdate& update, bool takes_color, float truncation) {
-  return !takes_color && update.weight >= 0.0f && update.weighted_distance == update.weight * truncation;
+COVOX_HD_INLINE bool is_free_space_visit(const DistanceUpdate& update, bool takes_color,
+                                         float truncation) {
+  return !takes_color && update.weight >= 0.0f &&
+         update.weighted_distance == update.weight * truncation;
 }
 
 // A record's value (see above): the update without colour; with colour (ColorVisit,
 // tsdf_kernels.h) the weight of a free-space visit, else the ray's index flagged as a band visit.
-COVOX_HD_INLINE void make_record_value(const DistanceUpdate& update, bool, uint32_t, DistanceUpdate* value) {
+COVOX_HD_INLINE void make_record_value(const DistanceUpdate& update, bool, uint32_t,
+                                       DistanceUpdate* value) {
   *value = update;
 }
-COVOX_HD_INLINE void make_record_value(const DistanceUpdate& update, bool free_space, uint32_t ray, ColorVisit* value) {
+COVOX_HD_INLINE void make_record_value(const DistanceUpdate& update, bool free_space, uint32_t ray,
+                                       ColorVisit* value) {
   value->word = free_space ? bits_of_float(update.weight) : (ray | ColorVisit::kBandVisitBit);
 }
 
@@ -107,12 +113,13 @@ struct PieceTraversal {
   // the records are sorted (tsdf_integrator_impl.h, step 4).
   uint32_t* block_marks = nullptr;
   // When given (with block_marks), one fixed-point weight sum per key of the frame's box: a kept
-  // free-space visit adds its weight there (weight_units, tsdf_kernels.h) and leaves a record with the
-  // zero-weight key, which the compaction drops; only the band's visits are sorted and reduced.
+  // free-space visit adds its weight there (weight_units, tsdf_kernels.h) and leaves a record with
+  // the zero-weight key, which the compaction drops; only the band's visits are sorted and reduced.
   // A free-space visit outside the box is counted in *free_out_of_range instead.
   uint64_t* free_space_sums = nullptr;
   uint64_t* free_out_of_range = nullptr;
-  bool accumulate_free_space = true;  // false: free-space visits only leave their zero-weight record
+  bool accumulate_free_space =
+      true;  // false: free-space visits only leave their zero-weight record
   // When given (instead of free_space_sums), every kept visit adds its update to its voxel's cell
   // (tsdf_kernels.h) and leaves a zero-weight record; the traverse then keeps no record at all
   // (sum_ray_groups). Visits outside the box are counted in *free_out_of_range.
@@ -127,54 +134,63 @@ struct PieceTraversal {
     // The piece's cut voxels: from the piece table where it has them (its own first voxel, and
     // the next piece's or the ray's last voxel), else computed.
     if (frame.piece_first_voxels) {
-      const Index3D last = piece.index + 1 == piece.pieces ? voxel_of(ray.end, frame.inverse_voxel_size)
-                                                           : frame.piece_first_voxels[p + 1];
-      visit_piece(ray, piece.ray, piece.index, piece.pieces, frame.piece_first_voxels[p], last, piece_offsets[p], emit);
+      const Index3D last = piece.index + 1 == piece.pieces
+                               ? voxel_of(ray.end, frame.inverse_voxel_size)
+                               : frame.piece_first_voxels[p + 1];
+      visit_piece(ray, piece.ray, piece.index, piece.pieces, frame.piece_first_voxels[p], last,
+                  piece_offsets[p], emit);
     } else {
       visit_piece(ray, piece.ray, piece.index, piece.pieces, piece_offsets[p], emit);
     }
   }
   // Piece k of ray i's `pieces`, its cut voxels computed (records from `out` on).
   template <class Emit>
-  COVOX_HD_INLINE void visit_piece(const RaySegment& ray, uint32_t i, uint32_t k, uint32_t pieces, uint32_t out,
-                                   Emit&& emit) const {
+  COVOX_HD_INLINE void visit_piece(const RaySegment& ray, uint32_t i, uint32_t k, uint32_t pieces,
+                                   uint32_t out, Emit&& emit) const {
     const RayEndVoxels ends = ray_end_voxels(ray, frame.inverse_voxel_size);
     visit_piece(ray, i, k, pieces, ray_cut_voxel(ray, ends, k, pieces, frame.inverse_voxel_size),
                 ray_cut_voxel(ray, ends, k + 1, pieces, frame.inverse_voxel_size), out, emit);
   }
   template <class Emit>
-  COVOX_HD_INLINE void visit_piece(const RaySegment& ray, uint32_t i, uint32_t k, uint32_t pieces, const Index3D& first,
-                                   const Index3D& last, uint32_t out, Emit&& emit) const {
+  COVOX_HD_INLINE void visit_piece(const RaySegment& ray, uint32_t i, uint32_t k, uint32_t pieces,
+                                   const Index3D& first, const Index3D& last, uint32_t out,
+                                   Emit&& emit) const {
     const float ray_weight = ray_weight_of(frame, i);
-    uint64_t marked = ~uint64_t(0);  // the block this piece marked last (a piece spans one to three)
-    traverse_ray_piece(ray, k, pieces, first, last, frame.inverse_voxel_size,
-                       [&](const Index3D& voxel) {
-      bool takes_color = false;
-      const DistanceUpdate update = voxel_update(frame, ray, ray_weight, voxel, truncation, &takes_color);
-      const bool free_space = is_free_space_visit(update, takes_color, truncation);
-      ValueT value;
-      make_record_value(update, free_space, i, &value);
-      uint64_t key = update.weight > 0.0f ? frame.codec.key(voxel) : static_cast<uint64_t>(zero_weight_key);
-      if (block_marks && key < frame.codec.out_of_range_key && frame.codec.block_part(key) != marked) {
-        marked = frame.codec.block_part(key);
-        mark_flag(&block_marks[marked]);
-      }
-      if ((sum_cells.words || (free_space_sums && free_space)) && update.weight > 0.0f) {
-        if (accumulate_free_space && key < frame.codec.out_of_range_key) {
-          if (sum_cells.words) {
-            const Rgb8 color = takes_color ? color_of(frame.colors, frame.intensities, frame.grey_per_intensity, i) : Rgb8{};
-            sum_cells.add(key, update, free_space, takes_color, color);
-          } else {
-            atomic_add(&free_space_sums[key], weight_units(update.weight));
+    uint64_t marked =
+        ~uint64_t(0);  // the block this piece marked last (a piece spans one to three)
+    traverse_ray_piece(
+        ray, k, pieces, first, last, frame.inverse_voxel_size, [&](const Index3D& voxel) {
+          bool takes_color = false;
+          const DistanceUpdate update =
+              voxel_update(frame, ray, ray_weight, voxel, truncation, &takes_color);
+          const bool free_space = is_free_space_visit(update, takes_color, truncation);
+          ValueT value;
+          make_record_value(update, free_space, i, &value);
+          uint64_t key = update.weight > 0.0f ? frame.codec.key(voxel)
+                                              : static_cast<uint64_t>(zero_weight_key);
+          if (block_marks && key < frame.codec.out_of_range_key &&
+              frame.codec.block_part(key) != marked) {
+            marked = frame.codec.block_part(key);
+            mark_flag(&block_marks[marked]);
           }
-        } else if (accumulate_free_space) {
-          atomic_add(free_out_of_range, uint64_t(1));
-        }
-        key = static_cast<uint64_t>(zero_weight_key);
-      }
-      emit(out, static_cast<KeyT>(key), value);
-      ++out;
-    });
+          if ((sum_cells.words || (free_space_sums && free_space)) && update.weight > 0.0f) {
+            if (accumulate_free_space && key < frame.codec.out_of_range_key) {
+              if (sum_cells.words) {
+                const Rgb8 color = takes_color ? color_of(frame.colors, frame.intensities,
+                                                          frame.grey_per_intensity, i)
+                                               : Rgb8{};
+                sum_cells.add(key, update, free_space, takes_color, color);
+              } else {
+                atomic_add(&free_space_sums[key], weight_units(update.weight));
+              }
+            } else if (accumulate_free_space) {
+              atomic_add(free_out_of_range, uint64_t(1));
+            }
+            key = static_cast<uint64_t>(zero_weight_key);
+          }
+          emit(out, static_cast<KeyT>(key), value);
+          ++out;
+        });
   }
 };
 
@@ -213,8 +229,8 @@ struct VoxelUpdateOfRecord {
     }
     const uint32_t i = word & ~ColorVisit::kBandVisitBit;
     bool takes_color = false;
-    const DistanceUpdate update =
-        voxel_update(frame, frame.rays[i], ray_weight_of(frame, i), frame.codec.voxel(key), truncation, &takes_color);
+    const DistanceUpdate update = voxel_update(frame, frame.rays[i], ray_weight_of(frame, i),
+                                               frame.codec.voxel(key), truncation, &takes_color);
     sum.weighted_distance = update.weighted_distance;
     sum.weight = update.weight;
     if (takes_color) {
@@ -245,8 +261,9 @@ struct BandRecords {
 // The CPU twin writes every record at its place (the zero-weight key for free-space visits) and
 // then compacts the band's: a scan of the kept flags, a scatter.
 template <class KeyT, class ValueT>
-void traverse_pieces(CpuBackend backend, const Stream& stream, int64_t piece_bound, int64_t total_updates,
-                     const PieceTraversal<KeyT, ValueT>& traversal, const RecordArrays<KeyT, ValueT>& arrays,
+void traverse_pieces(CpuBackend backend, const Stream& stream, int64_t piece_bound,
+                     int64_t total_updates, const PieceTraversal<KeyT, ValueT>& traversal,
+                     const RecordArrays<KeyT, ValueT>& arrays,
                      const BandRecords<KeyT, ValueT>& band = {}) {
   parallel_for(backend, stream, piece_bound, [&](int64_t p) { traversal(p, arrays); });
   if (!band.keys) return;
@@ -254,9 +271,12 @@ void traverse_pieces(CpuBackend backend, const Stream& stream, int64_t piece_bou
   const KeyT* visit_keys = arrays.keys;
   const ValueT* visit_values = arrays.values;
   uint32_t* ranks = band.ranks;
-  exclusive_scan_of(backend, stream, total_updates + 1, [=](int64_t j) -> uint32_t {
-    return j < total_updates && visit_keys[j] != dropped ? 1u : 0u;
-  }, ranks);
+  exclusive_scan_of(
+      backend, stream, total_updates + 1,
+      [=](int64_t j) -> uint32_t {
+        return j < total_updates && visit_keys[j] != dropped ? 1u : 0u;
+      },
+      ranks);
   const uint32_t kept = ranks[total_updates];
   *band.kept = kept;
   parallel_for(backend, stream, std::max(total_updates, band.bound), [=](int64_t j) {
@@ -292,17 +312,20 @@ struct RayGroups {
   int64_t groups;
   COVOX_HD_INLINE int64_t items() const { return groups * static_cast<int64_t>(levels); }
 };
-COVOX_HD_INLINE int64_t ray_group_count(int64_t rays) { return (rays + kRayGroupRays - 1) / kRayGroupRays; }
+COVOX_HD_INLINE int64_t ray_group_count(int64_t rays) {
+  return (rays + kRayGroupRays - 1) / kRayGroupRays;
+}
 // Work item w (level k of group g): lane `lane` walks piece k of the group's ray `lane`, if that
 // ray has that many pieces.
 template <class KeyT, class ValueT>
-COVOX_HD_INLINE void sum_ray_group_piece(const PieceTraversal<KeyT, ValueT>& traversal, const RayGroups& groups,
-                                         int64_t w, int lane) {
+COVOX_HD_INLINE void sum_ray_group_piece(const PieceTraversal<KeyT, ValueT>& traversal,
+                                         const RayGroups& groups, int64_t w, int lane) {
   const uint32_t levels = groups.levels;
   // (a 32-bit division where the items allow, as they always do in practice: a 64-bit one is a
   // long software sequence on the GPU)
-  const int64_t g = w <= int64_t(UINT32_MAX) ? static_cast<int64_t>(static_cast<uint32_t>(w) / levels)
-                                            : static_cast<int64_t>(static_cast<uint64_t>(w) / levels);
+  const int64_t g = w <= int64_t(UINT32_MAX)
+                        ? static_cast<int64_t>(static_cast<uint32_t>(w) / levels)
+                        : static_cast<int64_t>(static_cast<uint64_t>(w) / levels);
   const uint32_t k = static_cast<uint32_t>(w - g * levels);
   const int64_t i = g * kRayGroupRays + lane;
   if (i >= groups.rays) return;
@@ -313,15 +336,18 @@ COVOX_HD_INLINE void sum_ray_group_piece(const PieceTraversal<KeyT, ValueT>& tra
   // sampling, 7-Scenes 2 cm frame: warps waited on those loads in about a quarter of the samples;
   // with the copy the frames took 0.97-1.00 of the time, inside the runs' spread).
   const RaySegment ray = traversal.frame.rays[i];
-  traversal.visit_piece(ray, static_cast<uint32_t>(i), k, pieces, 0u, [](uint32_t, KeyT, const ValueT&) {});
+  traversal.visit_piece(ray, static_cast<uint32_t>(i), k, pieces, 0u,
+                        [](uint32_t, KeyT, const ValueT&) {});
 }
 // The CPU twin: one call per work item, its lanes in turn.
 template <class KeyT, class ValueT>
-void sum_ray_groups(CpuBackend backend, const Stream& stream, const PieceTraversal<KeyT, ValueT>& traversal,
-                    const RayGroups& groups) {
-  if (!traversal.sum_cells.words) throw Error("TSDF traverse: every visit's sum asked without cells to add it to");
+void sum_ray_groups(CpuBackend backend, const Stream& stream,
+                    const PieceTraversal<KeyT, ValueT>& traversal, const RayGroups& groups) {
+  if (!traversal.sum_cells.words)
+    throw Error("TSDF traverse: every visit's sum asked without cells to add it to");
   parallel_for(backend, stream, groups.items(), [&](int64_t w) {
-    for (int lane = 0; lane < kRayGroupRays; ++lane) sum_ray_group_piece(traversal, groups, w, lane);
+    for (int lane = 0; lane < kRayGroupRays; ++lane)
+      sum_ray_group_piece(traversal, groups, w, lane);
   });
 }
 
@@ -334,27 +360,30 @@ constexpr int kRayGroupThreads = 128;
 // spilled, 1.04-1.17x slower; 64 registers (32 bytes spilled) 0.94-0.99x, within the runs'
 // spread.)
 template <class KeyT, class ValueT>
-__global__ void __launch_bounds__(kRayGroupThreads) sum_ray_groups_kernel(PieceTraversal<KeyT, ValueT> traversal,
-                                                                          RayGroups groups) {
+__global__ void __launch_bounds__(kRayGroupThreads)
+    sum_ray_groups_kernel(PieceTraversal<KeyT, ValueT> traversal, RayGroups groups) {
   static_assert(kRayGroupRays == 32, "one lane per ray of a group");
   const int64_t items = groups.items();
   const int64_t warps = static_cast<int64_t>(gridDim.x) * (kRayGroupThreads / 32);
-  for (int64_t w = (static_cast<int64_t>(blockIdx.x) * kRayGroupThreads + threadIdx.x) / 32; w < items; w += warps) {
+  for (int64_t w = (static_cast<int64_t>(blockIdx.x) * kRayGroupThreads + threadIdx.x) / 32;
+       w < items; w += warps) {
     sum_ray_group_piece(traversal, groups, w, static_cast<int>(threadIdx.x & 31u));
   }
 }
 }  // namespace detail
 
 template <class KeyT, class ValueT>
-void sum_ray_groups(CudaBackend, const Stream& stream, const PieceTraversal<KeyT, ValueT>& traversal,
-                    const RayGroups& groups) {
-  if (!traversal.sum_cells.words) throw Error("TSDF traverse: every visit's sum asked without cells to add it to");
+void sum_ray_groups(CudaBackend, const Stream& stream,
+                    const PieceTraversal<KeyT, ValueT>& traversal, const RayGroups& groups) {
+  if (!traversal.sum_cells.words)
+    throw Error("TSDF traverse: every visit's sum asked without cells to add it to");
   if (groups.items() <= 0) return;
   constexpr int64_t kWarpsPerBlock = detail::kRayGroupThreads / 32;
-  const int64_t blocks = std::min<int64_t>((groups.items() + kWarpsPerBlock - 1) / kWarpsPerBlock, int64_t(1) << 16);
+  const int64_t blocks =
+      std::min<int64_t>((groups.items() + kWarpsPerBlock - 1) / kWarpsPerBlock, int64_t(1) << 16);
   detail::sum_ray_groups_kernel<KeyT, ValueT>
-      <<<static_cast<unsigned>(blocks), detail::kRayGroupThreads, 0, static_cast<cudaStream_t>(stream.native_handle())>>>(
-          traversal, groups);
+      <<<static_cast<unsigned>(blocks), detail::kRayGroupThreads, 0,
+         static_cast<cudaStream_t>(stream.native_handle())>>>(traversal, groups);
   cuda_check(cudaGetLastError(), "TSDF ray groups kernel launch");
 }
 #endif
@@ -373,15 +402,16 @@ constexpr int kMaxStagedRecords = 3 * kTraverseThreads * kVoxelsPerPiece / 2;
 // counts, then a decoupled look-back over the blocks before it) plus this thread's offset in it.
 // The last block writes the total. Called by every thread of the block.
 template <class KeyT, class ValueT>
-__device__ uint32_t band_place(uint32_t own, const BandRecords<KeyT, ValueT>& band, const ScanDescriptors& descriptors) {
+__device__ uint32_t band_place(uint32_t own, const BandRecords<KeyT, ValueT>& band,
+                               const ScanDescriptors& descriptors) {
   using BlockScan = cub::BlockScan<uint32_t, kTraverseThreads>;
   __shared__ typename BlockScan::TempStorage scan_storage;
   __shared__ uint32_t block_prefix;
   uint32_t thread_offset = 0, block_total = 0;
   BlockScan(scan_storage).ExclusiveSum(own, thread_offset, block_total);
   if (threadIdx.x < 32) {
-    const uint32_t prefix =
-        single_pass_scan_detail::look_back_tile_prefix(descriptors.words, descriptors.epoch, blockIdx.x, block_total);
+    const uint32_t prefix = single_pass_scan_detail::look_back_tile_prefix(
+        descriptors.words, descriptors.epoch, blockIdx.x, block_total);
     if (threadIdx.x == 0) {
       block_prefix = prefix;
       if (blockIdx.x == gridDim.x - 1) *band.kept = prefix + block_total;
@@ -397,7 +427,8 @@ __device__ uint32_t band_place(uint32_t own, const BandRecords<KeyT, ValueT>& ba
 // and writes them directly in a second. (The CPU writes every record, then compacts: two passes
 // over 33 MB at 2 cm, 39 us on the H100, that this saves.)
 template <class KeyT, class ValueT>
-__global__ void staged_traverse_kernel(PieceTraversal<KeyT, ValueT> traversal, RecordArrays<KeyT, ValueT> arrays,
+__global__ void staged_traverse_kernel(PieceTraversal<KeyT, ValueT> traversal,
+                                       RecordArrays<KeyT, ValueT> arrays,
                                        BandRecords<KeyT, ValueT> band, ScanDescriptors descriptors,
                                        int64_t piece_bound, uint32_t total_updates) {
   constexpr int kFitting = kTraverseSharedBytes / static_cast<int>(sizeof(ValueT) + sizeof(KeyT));
@@ -451,7 +482,8 @@ __global__ void staged_traverse_kernel(PieceTraversal<KeyT, ValueT> traversal, R
     return;
   }
   const uint32_t chunk = (size + kTraverseThreads - 1) / kTraverseThreads;
-  const uint32_t chunk_begin = min(size, threadIdx.x * chunk), chunk_end = min(size, chunk_begin + chunk);
+  const uint32_t chunk_begin = min(size, threadIdx.x * chunk),
+                 chunk_end = min(size, chunk_begin + chunk);
   uint32_t own = 0;
   for (uint32_t j = chunk_begin; j < chunk_end; ++j) own += staged_keys[j] != dropped ? 1u : 0u;
   uint32_t next = band_place(own, band, descriptors);
@@ -468,18 +500,22 @@ __global__ void staged_traverse_kernel(PieceTraversal<KeyT, ValueT> traversal, R
 
 template <class KeyT, class ValueT>
 void traverse_pieces(CudaBackend, const Stream& stream, int64_t piece_bound, int64_t total_updates,
-                     const PieceTraversal<KeyT, ValueT>& traversal, const RecordArrays<KeyT, ValueT>& arrays,
+                     const PieceTraversal<KeyT, ValueT>& traversal,
+                     const RecordArrays<KeyT, ValueT>& arrays,
                      const BandRecords<KeyT, ValueT>& band = {}) {
-  if (band.keys && piece_bound <= 0) throw Error("TSDF traverse: band records asked of a frame without pieces");
+  if (band.keys && piece_bound <= 0)
+    throw Error("TSDF traverse: band records asked of a frame without pieces");
   if (piece_bound <= 0) return;
   const int64_t blocks = (piece_bound + detail::kTraverseThreads - 1) / detail::kTraverseThreads;
   ScanDescriptors descriptors;
   if (band.keys) {
-    set_bytes(band.keys, Device::kCuda, 0xFF, static_cast<size_t>(band.bound) * sizeof(KeyT), stream);
+    set_bytes(band.keys, Device::kCuda, 0xFF, static_cast<size_t>(band.bound) * sizeof(KeyT),
+              stream);
     if (blocks > 1) descriptors = single_pass_scan_descriptors(stream, blocks);
   }
   detail::staged_traverse_kernel<KeyT, ValueT>
-      <<<static_cast<unsigned>(blocks), detail::kTraverseThreads, 0, static_cast<cudaStream_t>(stream.native_handle())>>>(
+      <<<static_cast<unsigned>(blocks), detail::kTraverseThreads, 0,
+         static_cast<cudaStream_t>(stream.native_handle())>>>(
           traversal, arrays, band, descriptors, piece_bound, static_cast<uint32_t>(total_updates));
   cuda_check(cudaGetLastError(), "TSDF traverse kernel launch");
 }

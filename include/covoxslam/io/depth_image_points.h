@@ -32,21 +32,23 @@ struct DepthToPointsOptions {
 };
 
 struct DepthPoints {
-  std::vector<Vec3f> points_m;   // camera frame: x right, y down, z forward
-  std::vector<Rgb8> colors;      // empty, or one per point
-  int64_t pixels_used = 0;       // pixels visited (after the stride)
-  int64_t pixels_invalid = 0;    // of those, without a valid depth
+  std::vector<Vec3f> points_m;  // camera frame: x right, y down, z forward
+  std::vector<Rgb8> colors;     // empty, or one per point
+  int64_t pixels_used = 0;      // pixels visited (after the stride)
+  int64_t pixels_invalid = 0;   // of those, without a valid depth
 };
 
 // Empty when fine, else a message naming the problem. `color` may be null.
-std::string check_depth_input(const ImageLayout& depth, size_t depth_bytes, const CameraIntrinsics& intrinsics,
-                              const ImageLayout* color, size_t color_bytes);
+std::string check_depth_input(const ImageLayout& depth, size_t depth_bytes,
+                              const CameraIntrinsics& intrinsics, const ImageLayout* color,
+                              size_t color_bytes);
 
 // Unprojects every valid pixel; throws nothing: returns the check_depth_input() message and leaves
 // `points` empty when the input is not usable.
-std::string depth_image_to_points(const ImageLayout& depth, const uint8_t* depth_data, size_t depth_bytes,
-                                  const CameraIntrinsics& intrinsics, const ImageLayout* color,
-                                  const uint8_t* color_data, size_t color_bytes, const DepthToPointsOptions& options,
+std::string depth_image_to_points(const ImageLayout& depth, const uint8_t* depth_data,
+                                  size_t depth_bytes, const CameraIntrinsics& intrinsics,
+                                  const ImageLayout* color, const uint8_t* color_data,
+                                  size_t color_bytes, const DepthToPointsOptions& options,
                                   DepthPoints* points);
 
 }  // namespace io

@@ -17,7 +17,9 @@ struct Gray16Image {
   int height = 0;
   std::vector<uint16_t> pixels;
 
-  uint16_t at(int row, int column) const { return pixels[static_cast<size_t>(row) * width + column]; }
+  uint16_t at(int row, int column) const {
+    return pixels[static_cast<size_t>(row) * width + column];
+  }
 };
 
 struct ImageSize {

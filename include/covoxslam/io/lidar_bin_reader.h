@@ -11,9 +11,9 @@ namespace covox {
 namespace io {
 
 enum class BinPointLayout {
-  kAutoDetect = 0,     // decide from the file (see detect_bin_point_layout)
-  kXyz = 3,            // 3 floats per point
-  kXyzIntensity = 4,   // 4 floats per point, the 4th is intensity/reflectance
+  kAutoDetect = 0,    // decide from the file (see detect_bin_point_layout)
+  kXyz = 3,           // 3 floats per point
+  kXyzIntensity = 4,  // 4 floats per point, the 4th is intensity/reflectance
 };
 
 // Decides 3 vs 4 floats per point. The file size settles it when only one stride divides it.
@@ -24,7 +24,8 @@ enum class BinPointLayout {
 BinPointLayout detect_bin_point_layout(const std::vector<float>& values, const std::string& path);
 
 // Reads a float32 point file. Non-finite points are dropped and counted in `stats`.
-PointCloud read_lidar_bin(const std::string& path, BinPointLayout layout = BinPointLayout::kAutoDetect,
+PointCloud read_lidar_bin(const std::string& path,
+                          BinPointLayout layout = BinPointLayout::kAutoDetect,
                           ReadStats* stats = nullptr);
 
 // Reads a whole file of little-endian float32 values (e.g. Newer College times_NN.bin, one

@@ -13,9 +13,9 @@ enum class PcdDataEncoding { kAscii, kBinary, kBinaryCompressed };
 
 struct PcdField {
   std::string name;
-  int size_bytes = 4;   // 1, 2, 4 or 8
-  char type = 'F';      // 'F' float, 'I' signed, 'U' unsigned
-  int count = 1;        // elements per point (e.g. 33 for an FPFH histogram)
+  int size_bytes = 4;       // 1, 2, 4 or 8
+  char type = 'F';          // 'F' float, 'I' signed, 'U' unsigned
+  int count = 1;            // elements per point (e.g. 33 for an FPFH histogram)
   size_t offset_bytes = 0;  // of the field's first element within one binary point record
 
   size_t total_bytes() const { return static_cast<size_t>(size_bytes) * count; }
@@ -27,8 +27,8 @@ struct PcdHeader {
   size_t height = 1;  // > 1 for an organised cloud (rows of an image-like sensor)
   size_t point_count = 0;
   PcdDataEncoding encoding = PcdDataEncoding::kAscii;
-  size_t data_offset_bytes = 0;  // where the data starts: just after the DATA line
-  size_t point_record_bytes = 0; // sum of all fields' total_bytes()
+  size_t data_offset_bytes = 0;   // where the data starts: just after the DATA line
+  size_t point_record_bytes = 0;  // sum of all fields' total_bytes()
 
   // Index into `fields` of the field named `name`, or -1.
   int field_index(const std::string& name) const;

@@ -24,9 +24,9 @@ namespace io {
 
 struct PointFieldDescription {
   std::string name;
-  uint32_t offset = 0;    // bytes from the start of a point
-  uint8_t datatype = 0;   // PointFieldType code
-  uint32_t count = 1;     // elements
+  uint32_t offset = 0;   // bytes from the start of a point
+  uint8_t datatype = 0;  // PointFieldType code
+  uint32_t count = 1;    // elements
 };
 
 struct PointCloudLayout {
@@ -46,23 +46,23 @@ struct CloudDecodeOptions {
 
 enum class CloudDecodeStatus {
   kOk,
-  kMissingXyz,          // no x, y or z field
-  kXyzNotFloat32,       // x, y or z is not a single FLOAT32
-  kUnknownFieldType,    // a field's datatype code is not a PointField type
-  kPointStepTooSmall,   // a field reaches past point_step
-  kRowStepTooSmall,     // row_step < width * point_step
-  kDataTooShort,        // fewer bytes than height * row_step
-  kBigEndian,           // big-endian data (not produced by any supported sensor driver)
+  kMissingXyz,         // no x, y or z field
+  kXyzNotFloat32,      // x, y or z is not a single FLOAT32
+  kUnknownFieldType,   // a field's datatype code is not a PointField type
+  kPointStepTooSmall,  // a field reaches past point_step
+  kRowStepTooSmall,    // row_step < width * point_step
+  kDataTooShort,       // fewer bytes than height * row_step
+  kBigEndian,          // big-endian data (not produced by any supported sensor driver)
 };
 const char* to_string(CloudDecodeStatus status);
 
 struct DecodedCloud {
   std::vector<Vec3f> points_m;
-  std::vector<Rgb8> colors;          // empty, or one per point
-  int64_t points_in = 0;             // width x height
-  int64_t dropped_non_finite = 0;    // points with a NaN or infinite coordinate
-  bool has_color = false;            // colours came from rgb / rgba
-  bool has_intensity = false;        // colours came from intensity (grey)
+  std::vector<Rgb8> colors;        // empty, or one per point
+  int64_t points_in = 0;           // width x height
+  int64_t dropped_non_finite = 0;  // points with a NaN or infinite coordinate
+  bool has_color = false;          // colours came from rgb / rgba
+  bool has_intensity = false;      // colours came from intensity (grey)
 };
 
 struct CloudDecodeResult {
@@ -76,8 +76,9 @@ CloudDecodeResult check_point_cloud_layout(const PointCloudLayout& layout, size_
 
 // Decodes `data` (data_size bytes) into `cloud` (cleared first). On an error `cloud` is left
 // empty and the result names the problem.
-CloudDecodeResult decode_point_cloud(const PointCloudLayout& layout, const uint8_t* data, size_t data_size,
-                                     const CloudDecodeOptions& options, DecodedCloud* cloud);
+CloudDecodeResult decode_point_cloud(const PointCloudLayout& layout, const uint8_t* data,
+                                     size_t data_size, const CloudDecodeOptions& options,
+                                     DecodedCloud* cloud);
 
 }  // namespace io
 }  // namespace covox

@@ -20,12 +20,14 @@ Eigen::Isometry3d read_matrix4_pose_file(const std::string& path, ReadStats* sta
 
 // Replica `traj.txt`: one row-major 4x4 camera-to-world matrix (16 numbers) per line.
 std::vector<Eigen::Isometry3d> read_matrix4_per_line_trajectory(
-    const std::string& path, ReadStats* stats = nullptr, const PoseTolerances& tolerances = PoseTolerances());
+    const std::string& path, ReadStats* stats = nullptr,
+    const PoseTolerances& tolerances = PoseTolerances());
 
 // KITTI odometry format (MulRan `odom_poses.txt` / `optimized_poses.txt`): the top 3 rows of a
 // row-major 4x4 sensor-to-world matrix (12 numbers) per line.
-std::vector<Eigen::Isometry3d> read_kitti_pose_file(const std::string& path, ReadStats* stats = nullptr,
-                                                    const PoseTolerances& tolerances = PoseTolerances());
+std::vector<Eigen::Isometry3d> read_kitti_pose_file(
+    const std::string& path, ReadStats* stats = nullptr,
+    const PoseTolerances& tolerances = PoseTolerances());
 
 // A named keyframe pose of a pose-graph dump.
 struct KeyframePose {
@@ -35,8 +37,9 @@ struct KeyframePose {
 
 // gtsam_points keyframe dump `graph.txt` (kitti_07_dump): `vN x y z qx qy qz qw` per line,
 // sensor-to-world.
-std::vector<KeyframePose> read_keyframe_graph_file(const std::string& path, ReadStats* stats = nullptr,
-                                                   const PoseTolerances& tolerances = PoseTolerances());
+std::vector<KeyframePose> read_keyframe_graph_file(
+    const std::string& path, ReadStats* stats = nullptr,
+    const PoseTolerances& tolerances = PoseTolerances());
 
 }  // namespace io
 }  // namespace covox

@@ -30,20 +30,22 @@ Eigen::Matrix3d nearest_rotation(const Eigen::Matrix3d& matrix);
 // Checks and, where needed, repairs a rotation + translation. `where` ("file:line") goes into
 // the error message. Throws covox::Error for non-finite values, det(R) <= 0 or an
 // orthonormality error above the reject tolerance.
-Eigen::Isometry3d make_rigid_pose(const Eigen::Matrix3d& rotation, const Eigen::Vector3d& translation,
-                                  const std::string& where, ReadStats* stats,
+Eigen::Isometry3d make_rigid_pose(const Eigen::Matrix3d& rotation,
+                                  const Eigen::Vector3d& translation, const std::string& where,
+                                  ReadStats* stats,
                                   const PoseTolerances& tolerances = PoseTolerances());
 
 // As make_rigid_pose for a homogeneous 4x4 matrix, whose bottom row must be (0, 0, 0, 1).
-Eigen::Isometry3d make_rigid_pose(const Eigen::Matrix4d& matrix, const std::string& where, ReadStats* stats,
+Eigen::Isometry3d make_rigid_pose(const Eigen::Matrix4d& matrix, const std::string& where,
+                                  ReadStats* stats,
                                   const PoseTolerances& tolerances = PoseTolerances());
 
 // As make_rigid_pose for a translation and a quaternion (x, y, z, w as the files write it),
 // which is always normalised; a norm off by more than the re-orthonormalise tolerance counts.
-Eigen::Isometry3d make_rigid_pose_from_quaternion(const Eigen::Vector3d& translation, double qx, double qy,
-                                                  double qz, double qw, const std::string& where,
-                                                  ReadStats* stats,
-                                                  const PoseTolerances& tolerances = PoseTolerances());
+Eigen::Isometry3d make_rigid_pose_from_quaternion(
+    const Eigen::Vector3d& translation, double qx, double qy, double qz, double qw,
+    const std::string& where, ReadStats* stats,
+    const PoseTolerances& tolerances = PoseTolerances());
 
 }  // namespace io
 }  // namespace covox

@@ -54,7 +54,8 @@ class ByteWriter {
 class ByteReader {
  public:
   // `what` names the buffer in error messages (e.g. "'flight.bag': message on /points").
-  ByteReader(const uint8_t* data, size_t size, std::string what) : data_(data), size_(size), what_(std::move(what)) {}
+  ByteReader(const uint8_t* data, size_t size, std::string what)
+      : data_(data), size_(size), what_(std::move(what)) {}
   uint8_t u8(const char* field);
   uint32_t u32(const char* field);
   uint64_t u64(const char* field);

@@ -61,7 +61,8 @@ class RecordHeader {
 };
 
 // Appends a whole record (lengths, header, data) to `out`.
-void append_record(std::vector<uint8_t>* out, const RecordHeader& header, const uint8_t* data, size_t data_size);
+void append_record(std::vector<uint8_t>* out, const RecordHeader& header, const uint8_t* data,
+                   size_t data_size);
 
 }  // namespace rosbag
 }  // namespace io

@@ -102,7 +102,8 @@ OdometryMessage parse_odometry(const uint8_t* data, size_t size, const std::stri
 
 // A dense (height 1) cloud of float32 x, y, z, plus a float32 intensity field when `intensities`
 // is not empty (then it must be as long as `points_m`).
-PointCloud2Message make_point_cloud2(const Header& header, const std::vector<Eigen::Vector3f>& points_m,
+PointCloud2Message make_point_cloud2(const Header& header,
+                                     const std::vector<Eigen::Vector3f>& points_m,
                                      const std::vector<float>& intensities = {});
 
 // The points of any PointCloud2 with x, y and z fields (float32 or float64, any offsets, any
@@ -111,7 +112,8 @@ PointCloud2Message make_point_cloud2(const Header& header, const std::vector<Eig
 // counted in stats->dropped_non_finite_points. Throws covox::Error naming `what` for a cloud
 // without x/y/z, a point step or row step too small for its fields, data shorter than
 // height * row_step, or big-endian data.
-PointCloud extract_points(const PointCloud2Message& cloud, const std::string& what, ReadStats* stats = nullptr);
+PointCloud extract_points(const PointCloud2Message& cloud, const std::string& what,
+                          ReadStats* stats = nullptr);
 
 }  // namespace rosbag
 }  // namespace io

@@ -23,7 +23,7 @@ namespace rosbag {
 struct BagConnection {
   uint32_t id = 0;
   std::string topic;
-  std::string type;    // e.g. "sensor_msgs/PointCloud2"
+  std::string type;  // e.g. "sensor_msgs/PointCloud2"
   std::string md5sum;
   std::string message_definition;
   std::string callerid;
@@ -34,8 +34,8 @@ struct BagConnection {
 struct IndexEntry {
   RosTime time;
   uint32_t connection = 0;
-  uint32_t chunk = 0;        // index into the bag's chunks
-  uint32_t offset = 0;       // of the message record inside the chunk's data
+  uint32_t chunk = 0;   // index into the bag's chunks
+  uint32_t offset = 0;  // of the message record inside the chunk's data
 };
 
 struct BagMessage {

@@ -45,7 +45,8 @@ struct BlockActivator {
       return kInvalidSlot;
     }
     if (!inserted) return table.slots[bucket];
-    const uint32_t slot = new_key_slot(free_stack, free_count, next_unused, atomic_add(&counters[0], 1u));
+    const uint32_t slot =
+        new_key_slot(free_stack, free_count, next_unused, atomic_add(&counters[0], 1u));
     table.slots[bucket] = slot;
     *is_new = true;
     return slot;

@@ -48,21 +48,26 @@ class BlockHashTable {
   // nothing, when the table might have to grow for count_bound new keys (growth needs the exact
   // count): call activate() then.
   bool activate_queued(const Index3D* keys, const uint32_t* count_on_device, int64_t count_bound,
-                       uint32_t* slots_out, uint8_t* is_new_out, uint32_t* totals_out, const Stream& stream);
-  ActivateResult finish_queued_activation(uint32_t num_new, uint32_t num_rejected, const Stream& stream);
+                       uint32_t* slots_out, uint8_t* is_new_out, uint32_t* totals_out,
+                       const Stream& stream);
+  ActivateResult finish_queued_activation(uint32_t num_new, uint32_t num_rejected,
+                                          const Stream& stream);
 
   // An activation of at most `count_bound` distinct keys made from inside the caller's kernels
   // (block_activator.h): fills *activator and returns true, or returns false when the table might
   // have to grow (call activate() then). Until finish_in_kernel_activation() gets the totals that
   // BlockActivator::hand_over_totals() wrote, other calls on this table are refused.
-  bool begin_in_kernel_activation(int64_t count_bound, BlockActivator* activator, const Stream& stream);
-  ActivateResult finish_in_kernel_activation(uint32_t num_new, uint32_t num_out_of_range, uint32_t num_table_full);
+  bool begin_in_kernel_activation(int64_t count_bound, BlockActivator* activator,
+                                  const Stream& stream);
+  ActivateResult finish_in_kernel_activation(uint32_t num_new, uint32_t num_out_of_range,
+                                             uint32_t num_table_full);
   // For a caller that stops (an exception) before it finishes a pending activation: waits for the
   // stream and finishes it from what the device holds, an in-kernel activation from its counters
   // (cleared again), a queued one from the totals it wrote to `queued_totals` (the caller's
   // totals_out; null: unknown), so that the table takes later calls and hands out no slot twice.
   // Nothing to do when no activation is pending. Does not throw: if the device cannot be read, the
-  // activation is dropped from the books and a warning logged (a slot may then be handed out twice).
+  // activation is dropped from the books and a warning logged (a slot may then be handed out
+  // twice).
   void abandon_pending_activation(const uint32_t* queued_totals, const Stream& stream) noexcept;
 
   // slots_out[i] = slot of keys[i] or kInvalidSlot. Returns how many were found.

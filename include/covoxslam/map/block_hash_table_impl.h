@@ -123,7 +123,8 @@ namespace hash_table_detail {
 // kernel, a scan and the assignment; on the H100 machine each launch costs the host 4-5 us, and a
 // TSDF frame waits for them: docs/benchmarks.md, "eighth pass" and "twelfth pass".)
 template <class Backend>
-void activate_insert_rank_and_assign(Backend backend, BlockHashTableState& state, const Index3D* keys, int64_t count,
+void activate_insert_rank_and_assign(Backend backend, BlockHashTableState& state,
+                                     const Index3D* keys, int64_t count,
                                      const uint32_t* count_on_device, const Stream& stream) {
   state.scratch_buckets.resize_discard(static_cast<size_t>(count));
   state.scratch_flags.resize_discard(static_cast<size_t>(count));
@@ -157,7 +158,8 @@ void activate_insert_rank_and_assign(Backend backend, BlockHashTableState& state
       [=] COVOX_HD(int64_t i, uint32_t rank) {
         ranks[i] = rank;
         // (the scan called value_of(i) before, in this block)
-        if (i < count && new_flags[i]) table.slots[buckets[i]] = new_key_slot(free_stack, free_count, next_unused, rank);
+        if (i < count && new_flags[i])
+          table.slots[buckets[i]] = new_key_slot(free_stack, free_count, next_unused, rank);
       },
       ranks);  // (the CPU twin's scratch: the prefixes land where the output puts them anyway)
 }
@@ -167,8 +169,9 @@ void activate_insert_rank_and_assign(Backend backend, BlockHashTableState& state
 // `totals_out` (device memory) gets the new keys' and the failures' totals from the gather's
 // first thread, which also clears the failure counter for the next call.
 template <class Backend>
-void activate_gather(Backend backend, BlockHashTableState& state, int64_t count, uint32_t* slots_out,
-                     uint8_t* is_new_out, uint32_t* totals_out, const Stream& stream) {
+void activate_gather(Backend backend, BlockHashTableState& state, int64_t count,
+                     uint32_t* slots_out, uint8_t* is_new_out, uint32_t* totals_out,
+                     const Stream& stream) {
   const uint64_t* buckets = state.scratch_buckets.data();
   const uint32_t* new_flags = state.scratch_flags.data();
   const uint32_t* ranks = state.scratch_ranks.data();
@@ -189,48 +192,56 @@ void activate_gather(Backend backend, BlockHashTableState& state, int64_t count,
 // The host's part once the totals are known (activate_finish_counted, block_hash_table.cpp: slot
 // bookkeeping and warnings), with the failures' kinds found from the batch's buckets.
 template <class Backend>
-ActivateResult activate_finish(Backend backend, BlockHashTableState& state, int64_t count, int64_t num_new,
-                               int64_t failed, const Stream& stream) {
+ActivateResult activate_finish(Backend backend, BlockHashTableState& state, int64_t count,
+                               int64_t num_new, int64_t failed, const Stream& stream) {
   // Failures are rare: their kinds are counted only when there were any.
-  const int64_t full = failed > 0 ? count_if(backend, stream, state.scratch_buckets.data(), count,
-                                             [] COVOX_HD(uint64_t bucket) { return bucket == kTableFullBucket; })
-                                  : 0;
+  const int64_t full =
+      failed > 0 ? count_if(backend, stream, state.scratch_buckets.data(), count,
+                            [] COVOX_HD(uint64_t bucket) { return bucket == kTableFullBucket; })
+                 : 0;
   return activate_finish_counted(state, num_new, failed - full, full);
 }
 
 }  // namespace hash_table_detail
 
 template <class Backend>
-ActivateResult hash_table_activate(Backend backend, BlockHashTableState& state,
-                                   const Index3D* keys, int64_t count, uint32_t* slots_out,
-                                   uint8_t* is_new_out, const Stream& stream) {
+ActivateResult hash_table_activate(Backend backend, BlockHashTableState& state, const Index3D* keys,
+                                   int64_t count, uint32_t* slots_out, uint8_t* is_new_out,
+                                   const Stream& stream) {
   if (count <= 0) return ActivateResult{};
   if (state.config.allow_growth) hash_table_grow_for_batch(backend, state, keys, count, stream);
   hash_table_detail::activate_insert_rank_and_assign(backend, state, keys, count, nullptr, stream);
   uint32_t* totals_on_device = state.activation_failures(stream) + 1;
-  hash_table_detail::activate_gather(backend, state, count, slots_out, is_new_out, totals_on_device, stream);
+  hash_table_detail::activate_gather(backend, state, count, slots_out, is_new_out, totals_on_device,
+                                     stream);
   uint32_t totals[2];
-  copy_bytes(totals, Device::kCpu, totals_on_device, state.activation_words.device(), sizeof(totals), stream);
+  copy_bytes(totals, Device::kCpu, totals_on_device, state.activation_words.device(),
+             sizeof(totals), stream);
   return hash_table_detail::activate_finish(backend, state, count, totals[0], totals[1], stream);
 }
 
 template <class Backend>
 bool hash_table_activate_queued(Backend backend, BlockHashTableState& state, const Index3D* keys,
-                                const uint32_t* count_on_device, int64_t count_bound, uint32_t* slots_out,
-                                uint8_t* is_new_out, uint32_t* totals_out, const Stream& stream) {
-  if (state.pending_count >= 0) throw Error("BlockHashTable::activate_queued: the previous one is not finished");
+                                const uint32_t* count_on_device, int64_t count_bound,
+                                uint32_t* slots_out, uint8_t* is_new_out, uint32_t* totals_out,
+                                const Stream& stream) {
+  if (state.pending_count >= 0)
+    throw Error("BlockHashTable::activate_queued: the previous one is not finished");
   // Growth needs the exact count of new keys: the caller takes the synchronous path then.
   if (count_bound <= 0 || state.might_grow_for(count_bound)) return false;
-  hash_table_detail::activate_insert_rank_and_assign(backend, state, keys, count_bound, count_on_device, stream);
-  hash_table_detail::activate_gather(backend, state, count_bound, slots_out, is_new_out, totals_out, stream);
+  hash_table_detail::activate_insert_rank_and_assign(backend, state, keys, count_bound,
+                                                     count_on_device, stream);
+  hash_table_detail::activate_gather(backend, state, count_bound, slots_out, is_new_out, totals_out,
+                                     stream);
   state.pending_count = count_bound;
   return true;
 }
 
 template <class Backend>
-ActivateResult hash_table_finish_queued(Backend backend, BlockHashTableState& state, uint32_t num_new,
-                                        uint32_t failed, const Stream& stream) {
-  if (state.pending_count < 0) throw Error("BlockHashTable::finish_queued_activation: no activation is queued");
+ActivateResult hash_table_finish_queued(Backend backend, BlockHashTableState& state,
+                                        uint32_t num_new, uint32_t failed, const Stream& stream) {
+  if (state.pending_count < 0)
+    throw Error("BlockHashTable::finish_queued_activation: no activation is queued");
   const int64_t count = state.pending_count;
   state.pending_count = -1;
   return hash_table_detail::activate_finish(backend, state, count, num_new, failed, stream);
@@ -241,9 +252,8 @@ int64_t hash_table_find(Backend backend, BlockHashTableState& state, const Index
                         int64_t count, uint32_t* slots_out, const Stream& stream) {
   if (count <= 0) return 0;
   const BlockHashTableView table = state.view();
-  parallel_for(backend, stream, count, [=] COVOX_HD(int64_t i) {
-    slots_out[i] = table.slot_of(keys[i]);
-  });
+  parallel_for(backend, stream, count,
+               [=] COVOX_HD(int64_t i) { slots_out[i] = table.slot_of(keys[i]); });
   return count_if(backend, stream, slots_out, count,
                   [] COVOX_HD(uint32_t slot) { return slot != kInvalidSlot; });
 }
@@ -301,7 +311,8 @@ void hash_table_export(Backend backend, BlockHashTableState& state, Buffer<Index
   parallel_for(backend, stream, buckets, [=] COVOX_HD(int64_t b) {
     live_flags[b] = is_live_block_key(table.keys[b]) ? 1u : 0u;
   });
-  hash_table_detail::rank_flags(backend, stream, state.scratch_flags, &state.scratch_ranks, buckets);
+  hash_table_detail::rank_flags(backend, stream, state.scratch_flags, &state.scratch_ranks,
+                                buckets);
   const uint32_t* ranks = state.scratch_ranks.data();
   Index3D* out_keys = keys_out->data();
   uint32_t* out_slots = slots_out->data();
@@ -314,22 +325,21 @@ void hash_table_export(Backend backend, BlockHashTableState& state, Buffer<Index
 }
 
 // Explicit instantiation list, used by the two backend files.
-#define COVOX_INSTANTIATE_BLOCK_HASH_TABLE(Backend)                                               \
-  template void hash_table_rehash<Backend>(Backend, BlockHashTableState&, uint64_t,              \
-                                           const Stream&);                                       \
-  template ActivateResult hash_table_activate<Backend>(Backend, BlockHashTableState&,            \
-                                                       const Index3D*, int64_t, uint32_t*,       \
-                                                       uint8_t*, const Stream&);                 \
+#define COVOX_INSTANTIATE_BLOCK_HASH_TABLE(Backend)                                                \
+  template void hash_table_rehash<Backend>(Backend, BlockHashTableState&, uint64_t,                \
+                                           const Stream&);                                         \
+  template ActivateResult hash_table_activate<Backend>(                                            \
+      Backend, BlockHashTableState&, const Index3D*, int64_t, uint32_t*, uint8_t*, const Stream&); \
   template bool hash_table_activate_queued<Backend>(Backend, BlockHashTableState&, const Index3D*, \
-                                                   const uint32_t*, int64_t, uint32_t*, uint8_t*,   \
-                                                   uint32_t*, const Stream&);                       \
-  template ActivateResult hash_table_finish_queued<Backend>(Backend, BlockHashTableState&, uint32_t,\
-                                                            uint32_t, const Stream&);               \
-  template int64_t hash_table_find<Backend>(Backend, BlockHashTableState&, const Index3D*,       \
-                                            int64_t, uint32_t*, const Stream&);                  \
-  template int64_t hash_table_erase<Backend>(Backend, BlockHashTableState&, const Index3D*,      \
-                                             int64_t, const Stream&);                            \
-  template void hash_table_export<Backend>(Backend, BlockHashTableState&, Buffer<Index3D>*,      \
+                                                    const uint32_t*, int64_t, uint32_t*, uint8_t*, \
+                                                    uint32_t*, const Stream&);                     \
+  template ActivateResult hash_table_finish_queued<Backend>(Backend, BlockHashTableState&,         \
+                                                            uint32_t, uint32_t, const Stream&);    \
+  template int64_t hash_table_find<Backend>(Backend, BlockHashTableState&, const Index3D*,         \
+                                            int64_t, uint32_t*, const Stream&);                    \
+  template int64_t hash_table_erase<Backend>(Backend, BlockHashTableState&, const Index3D*,        \
+                                             int64_t, const Stream&);                              \
+  template void hash_table_export<Backend>(Backend, BlockHashTableState&, Buffer<Index3D>*,        \
                                            Buffer<uint32_t>*, const Stream&);
 
 }  // namespace covox

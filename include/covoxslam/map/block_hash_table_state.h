@@ -23,17 +23,24 @@ struct BlockHashTableConfig {
 
 // What one activate() call did.
 struct ActivateResult {
-  int64_t num_new = 0;            // keys this call inserted (each counted once)
-  int64_t num_out_of_range = 0;   // rejected: a component outside [kMinBlockIndex, kMaxBlockIndex]
-  int64_t num_failed_full = 0;    // rejected: no free bucket (growth disabled or impossible)
+  int64_t num_new = 0;           // keys this call inserted (each counted once)
+  int64_t num_out_of_range = 0;  // rejected: a component outside [kMinBlockIndex, kMaxBlockIndex]
+  int64_t num_failed_full = 0;   // rejected: no free bucket (growth disabled or impossible)
   bool ok() const { return num_out_of_range == 0 && num_failed_full == 0; }
 };
 
 struct BlockHashTableState {
   explicit BlockHashTableState(Device device_in = Device::kCpu)
-      : device(device_in), keys(device_in), slots(device_in), free_slots(device_in),
-        scratch_buckets(device_in), scratch_flags(device_in), scratch_ranks(device_in),
-        scratch_slots(device_in), scratch_keys(device_in), activation_words(device_in) {}
+      : device(device_in),
+        keys(device_in),
+        slots(device_in),
+        free_slots(device_in),
+        scratch_buckets(device_in),
+        scratch_flags(device_in),
+        scratch_ranks(device_in),
+        scratch_slots(device_in),
+        scratch_keys(device_in),
+        activation_words(device_in) {}
 
   Device device;
   BlockHashTableConfig config;
@@ -44,12 +51,12 @@ struct BlockHashTableState {
   uint32_t free_count = 0;
   uint32_t next_unused_slot = 0;
 
-  int64_t live_count = 0;       // keys present
-  int64_t occupied_count = 0;   // keys present + tombstones
+  int64_t live_count = 0;      // keys present
+  int64_t occupied_count = 0;  // keys present + tombstones
   int64_t total_out_of_range = 0;
   int64_t total_failed_full = 0;
   int64_t rehash_count = 0;
-  int64_t pending_count = -1;  // a queued activation's key bound until it is finished; -1: none
+  int64_t pending_count = -1;      // a queued activation's key bound until it is finished; -1: none
   bool pending_in_kernel = false;  // the pending activation is an in-kernel one (block_activator.h)
 
   // Per-batch scratch, kept between calls so steady-state batches allocate nothing.
@@ -75,8 +82,8 @@ struct BlockHashTableState {
   // Whether `new_keys` more keys could take the table past its maximum load factor (it would
   // grow): an activation that cannot count its new keys first must then take the synchronous path.
   bool might_grow_for(int64_t new_keys) const {
-    return config.allow_growth &&
-           static_cast<double>(occupied_count + new_keys) > config.max_load_factor * static_cast<double>(bucket_count());
+    return config.allow_growth && static_cast<double>(occupied_count + new_keys) >
+                                      config.max_load_factor * static_cast<double>(bucket_count());
   }
   BlockHashTableView view() { return BlockHashTableView{keys.data(), slots.data(), keys.size()}; }
 };

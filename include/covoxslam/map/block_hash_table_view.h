@@ -16,14 +16,14 @@
 
 namespace covox {
 
-constexpr uint64_t kNoBucket = ~uint64_t(0);         // key not present / out of range
+constexpr uint64_t kNoBucket = ~uint64_t(0);             // key not present / out of range
 constexpr uint64_t kTableFullBucket = ~uint64_t(0) - 1;  // probed every bucket, none free
 
 // The slot of an activation's k-th new key: freed slots first (from the top of the free stack),
 // then never-used ones. The same rule for the batch activation (its rank scan) and the in-kernel
 // one (its counter, block_activator.h).
-COVOX_HD_INLINE uint32_t new_key_slot(const uint32_t* free_stack, uint32_t free_count, uint32_t next_unused,
-                                      uint32_t k) {
+COVOX_HD_INLINE uint32_t new_key_slot(const uint32_t* free_stack, uint32_t free_count,
+                                      uint32_t next_unused, uint32_t k) {
   return k < free_count ? free_stack[free_count - 1 - k] : next_unused + (k - free_count);
 }
 

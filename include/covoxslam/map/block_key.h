@@ -14,11 +14,11 @@
 namespace covox {
 
 constexpr int kBlockKeyBitsPerAxis = 21;
-constexpr int32_t kMinBlockIndex = -(1 << (kBlockKeyBitsPerAxis - 1));      // -1048576
-constexpr int32_t kMaxBlockIndex = (1 << (kBlockKeyBitsPerAxis - 1)) - 1;   //  1048575
-constexpr uint64_t kEmptyBlockKey = ~uint64_t(0);            // bucket never used
-constexpr uint64_t kErasedBlockKey = ~uint64_t(0) - 1;       // tombstone left by erase()
-constexpr uint64_t kInvalidBlockKey = ~uint64_t(0) - 2;      // an out-of-range index
+constexpr int32_t kMinBlockIndex = -(1 << (kBlockKeyBitsPerAxis - 1));     // -1048576
+constexpr int32_t kMaxBlockIndex = (1 << (kBlockKeyBitsPerAxis - 1)) - 1;  //  1048575
+constexpr uint64_t kEmptyBlockKey = ~uint64_t(0);                          // bucket never used
+constexpr uint64_t kErasedBlockKey = ~uint64_t(0) - 1;   // tombstone left by erase()
+constexpr uint64_t kInvalidBlockKey = ~uint64_t(0) - 2;  // an out-of-range index
 constexpr uint32_t kInvalidSlot = ~uint32_t(0);
 
 COVOX_HD_INLINE bool block_index_in_range(const Index3D& index) {

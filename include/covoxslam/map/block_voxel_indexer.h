@@ -25,10 +25,12 @@ struct BlockVoxelIndexer {
 
   // Pool index of the voxel, or -1 when its block is not allocated.
   COVOX_HD_INLINE int64_t pool_index(const Index3D& voxel) const {
-    const Index3D block(floor_divide(voxel.x, side), floor_divide(voxel.y, side), floor_divide(voxel.z, side));
+    const Index3D block(floor_divide(voxel.x, side), floor_divide(voxel.y, side),
+                        floor_divide(voxel.z, side));
     const uint32_t slot = blocks.slot_of(block);
     if (slot == kInvalidSlot) return -1;
-    const int64_t local = (voxel.x - block.x * side) + side * ((voxel.y - block.y * side) + side * (voxel.z - block.z * side));
+    const int64_t local = (voxel.x - block.x * side) +
+                          side * ((voxel.y - block.y * side) + side * (voxel.z - block.z * side));
     return static_cast<int64_t>(slot) * side * side * side + local;
   }
 };

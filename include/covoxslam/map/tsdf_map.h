@@ -16,8 +16,8 @@
 namespace covox {
 
 struct TsdfMapConfig {
-  float voxel_size_m = 0.2f;   // edge length of one voxel
-  int voxels_per_side = 16;    // voxels along one block edge: 8 or 16
+  float voxel_size_m = 0.2f;  // edge length of one voxel
+  int voxels_per_side = 16;   // voxels along one block edge: 8 or 16
   BlockHashTableConfig block_table;
 };
 
@@ -48,7 +48,9 @@ class TsdfMap {
   const TsdfMapConfig& config() const { return config_; }
   float voxel_size_m() const { return config_.voxel_size_m; }
   int voxels_per_side() const { return config_.voxels_per_side; }
-  int voxels_per_block() const { return config_.voxels_per_side * config_.voxels_per_side * config_.voxels_per_side; }
+  int voxels_per_block() const {
+    return config_.voxels_per_side * config_.voxels_per_side * config_.voxels_per_side;
+  }
   float block_size_m() const { return config_.voxel_size_m * config_.voxels_per_side; }
   int64_t block_count() const { return blocks_.size(); }
 

@@ -29,18 +29,17 @@ void blend_tsdf_updates(Backend backend, const Stream& stream, VoxelView<Voxel, 
   });
 }
 
-#define COVOX_INSTANTIATE_VOXEL_POOL_OPS_FOR(Backend, Voxel, L)                                  \
-  template void gather_voxel_distances<Backend, Voxel, L>(Backend, const Stream&,                \
-                                                          VoxelView<Voxel, L>, const uint32_t*,  \
-                                                          int64_t, float*);                      \
+#define COVOX_INSTANTIATE_VOXEL_POOL_OPS_FOR(Backend, Voxel, L)                                    \
+  template void gather_voxel_distances<Backend, Voxel, L>(                                         \
+      Backend, const Stream&, VoxelView<Voxel, L>, const uint32_t*, int64_t, float*);              \
   template void blend_tsdf_updates<Backend, Voxel, L>(Backend, const Stream&, VoxelView<Voxel, L>, \
-                                                      const uint32_t*, const float*,             \
-                                                      const float*, int64_t, float);
+                                                      const uint32_t*, const float*, const float*, \
+                                                      int64_t, float);
 
-#define COVOX_INSTANTIATE_VOXEL_POOL_OPS(Backend)                                   \
-  COVOX_INSTANTIATE_VOXEL_POOL_OPS_FOR(Backend, TsdfVoxel, Layout::kSoA)            \
-  COVOX_INSTANTIATE_VOXEL_POOL_OPS_FOR(Backend, TsdfVoxel, Layout::kAoS)            \
-  COVOX_INSTANTIATE_VOXEL_POOL_OPS_FOR(Backend, ColoredTsdfVoxel, Layout::kSoA)     \
+#define COVOX_INSTANTIATE_VOXEL_POOL_OPS(Backend)                               \
+  COVOX_INSTANTIATE_VOXEL_POOL_OPS_FOR(Backend, TsdfVoxel, Layout::kSoA)        \
+  COVOX_INSTANTIATE_VOXEL_POOL_OPS_FOR(Backend, TsdfVoxel, Layout::kAoS)        \
+  COVOX_INSTANTIATE_VOXEL_POOL_OPS_FOR(Backend, ColoredTsdfVoxel, Layout::kSoA) \
   COVOX_INSTANTIATE_VOXEL_POOL_OPS_FOR(Backend, ColoredTsdfVoxel, Layout::kAoS)
 
 }  // namespace covox

@@ -41,9 +41,9 @@ struct ColoredTsdfVoxel {
 };
 template <>
 struct VoxelFields<ColoredTsdfVoxel> {
-  using type = FieldList<&ColoredTsdfVoxel::distance_m, &ColoredTsdfVoxel::weight,
-                         &ColoredTsdfVoxel::r, &ColoredTsdfVoxel::g, &ColoredTsdfVoxel::b,
-                         &ColoredTsdfVoxel::color_weight>;
+  using type =
+      FieldList<&ColoredTsdfVoxel::distance_m, &ColoredTsdfVoxel::weight, &ColoredTsdfVoxel::r,
+                &ColoredTsdfVoxel::g, &ColoredTsdfVoxel::b, &ColoredTsdfVoxel::color_weight>;
 };
 
 // Euclidean signed distance (metres) to the nearest surface site, positive in free space.

@@ -46,7 +46,8 @@ struct RelativeConstraint4Dof {
 // graph's 4-DoF residual sees (e_t, e_theta_z) (yaw of a gravity-aligned relative pose);
 // roll and pitch (e_theta_x, e_theta_y) are nuisance and marginalised out with the Schur
 // complement  L_44 = L_ww - L_wn L_nn^+ L_nw  (pseudo-inverse: they may carry no information).
-RelativeConstraint4Dof project_loop_closure(const Eigen::Isometry3d& T_Sa_from, const Eigen::Isometry3d& T_from_to,
+RelativeConstraint4Dof project_loop_closure(const Eigen::Isometry3d& T_Sa_from,
+                                            const Eigen::Isometry3d& T_from_to,
                                             const Eigen::Isometry3d& T_Sb_to,
                                             const Eigen::Matrix<double, 6, 6>& information);
 

@@ -29,9 +29,10 @@
 // 256-column LiDAR, 0.2 m voxels; docs/benchmarks.md, "Drift correction on the simulated
 // flight"): aligned from the true relative pose, 56 overlapping submap pairs end 0.24 m and 0.64
 // degrees from it on average (the submaps' own drift, TSDF quantisation, sparse walls), about
-// what the odometry drifts between two submaps. A constraint that claims 100 times more than it knows overrides the odometry and,
-// at a revisit, pulls the whole graph. So the constraint's covariance is the points' covariance
-// plus a floor: min_sigma_m on x, y and z and min_sigma_yaw_rad on yaw,
+// what the odometry drifts between two submaps. A constraint that claims 100 times more than it
+// knows overrides the odometry and, at a revisit, pulls the whole graph. So the constraint's
+// covariance is the points' covariance plus a floor: min_sigma_m on x, y and z and
+// min_sigma_yaw_rad on yaw,
 //   information = ((J^T J / sigma^2)^-1 + diag(min_sigma_m^2 x3, min_sigma_yaw_rad^2))^-1,
 // which keeps the points' shape (a direction the overlap does not constrain - ground only: x, y
 // and yaw - stays weak) but caps every direction at what the registration really achieves.
@@ -99,7 +100,7 @@ struct SubmapRegistrationConfig {
   // Off by default: on the simulated drone flight, wrong candidates won and cascaded.
   bool search_enabled = false;
   double search_step_m = 1.0;
-  double search_step_rad = 0.0349065850398866;  // 2 degrees
+  double search_step_rad = 0.0349065850398866;    // 2 degrees
   double search_max_yaw_rad = 0.174532925199433;  // 10 degrees (and at most max_correction_rad)
   int search_candidates = 3;
   int64_t search_max_points = 1500;
@@ -162,14 +163,13 @@ struct SubmapRegistrationPoints {
   explicit SubmapRegistrationPoints(Device device) : points(device), search_points(device) {}
   backend::RegistrationPoints points;
   double mean_weight = 1.0;
-  std::vector<float> sqrt_weights;          // per point of `points`, on the host (fit test)
+  std::vector<float> sqrt_weights;            // per point of `points`, on the host (fit test)
   backend::RegistrationPoints search_points;  // an even subsample for the revisit search
   std::vector<float> search_sqrt_weights;
   Eigen::Vector3d centroid_m = Eigen::Vector3d::Zero();  // of the points, in the submap frame
 };
-std::unique_ptr<SubmapRegistrationPoints> prepare_registration_points(const TsdfMap& map,
-                                                                     const SubmapRegistrationConfig& config,
-                                                                     const Stream& stream);
+std::unique_ptr<SubmapRegistrationPoints> prepare_registration_points(
+    const TsdfMap& map, const SubmapRegistrationConfig& config, const Stream& stream);
 
 struct RegistrationCounts {
   int64_t attempted = 0;                // overlapping pairs aligned
@@ -197,19 +197,18 @@ struct RegistrationPartner {
 
 // The earlier submaps that overlap the new one at `pose` (bounding boxes, then shared blocks),
 // most shared blocks first, at most max_partners.
-std::vector<const RegistrationPartner*> overlapping_partners(const TsdfMap& map, const backend::Pose4Dof& pose,
-                                                             const std::vector<RegistrationPartner>& earlier,
-                                                             const SubmapRegistrationConfig& config);
+std::vector<const RegistrationPartner*> overlapping_partners(
+    const TsdfMap& map, const backend::Pose4Dof& pose,
+    const std::vector<RegistrationPartner>& earlier, const SubmapRegistrationConfig& config);
 
 // The constraints (kind kRegistration, from each partner to `id`) for the new submap at `pose`.
 // `own_walls`: the new submap's wall map cache, kept by the caller for the revisits to come (null:
 // built for this call only).
-std::vector<SubmapConstraint> registration_constraints(int64_t id, const TsdfMap& map,
-                                                       const SubmapRegistrationPoints& points,
-                                                       const backend::Pose4Dof& pose,
-                                                       const std::vector<RegistrationPartner>& earlier,
-                                                       const SubmapRegistrationConfig& config, const Stream& stream,
-                                                       RegistrationCounts* counts, WallMapCache* own_walls = nullptr);
+std::vector<SubmapConstraint> registration_constraints(
+    int64_t id, const TsdfMap& map, const SubmapRegistrationPoints& points,
+    const backend::Pose4Dof& pose, const std::vector<RegistrationPartner>& earlier,
+    const SubmapRegistrationConfig& config, const Stream& stream, RegistrationCounts* counts,
+    WallMapCache* own_walls = nullptr);
 
 }  // namespace pipeline
 }  // namespace covox

@@ -32,7 +32,8 @@ class ParameterSource {
 // A ParameterSource over a table of texts ("0.2", "true", "time"), for tests and tools.
 class TextParameterSource : public ParameterSource {
  public:
-  explicit TextParameterSource(std::map<std::string, std::string> values) : values_(std::move(values)) {}
+  explicit TextParameterSource(std::map<std::string, std::string> values)
+      : values_(std::move(values)) {}
   bool get_number(const std::string& name, double* value) const override;
   bool get_integer(const std::string& name, int64_t* value) const override;
   bool get_bool(const std::string& name, bool* value) const override;

@@ -115,30 +115,32 @@ struct ExternalConstraintCounters {
   int64_t rejected_same_submap = 0;    // loop closures: both scans in one submap
   int64_t dropped_submap_lost = 0;     // accepted, but its submap never reached the graph
   int64_t added = 0;                   // entered the pose graph
-  int64_t rejected_total() const { return rejected_bad_input + rejected_unknown_stamp + rejected_same_submap; }
+  int64_t rejected_total() const {
+    return rejected_bad_input + rejected_unknown_stamp + rejected_same_submap;
+  }
 };
 
 struct SlamCounters {
   // Input side (add_scan and the sensor queue).
-  int64_t scans_received = 0;                // every add_scan call
-  int64_t scans_dropped_invalid_pose = 0;    // non-finite or non-rigid T_odom_sensor
+  int64_t scans_received = 0;              // every add_scan call
+  int64_t scans_dropped_invalid_pose = 0;  // non-finite or non-rigid T_odom_sensor
   int64_t scans_dropped_empty_cloud = 0;
-  int64_t scans_dropped_bad_stamp = 0;       // non-finite, or not after the previous scan's
-  int64_t scans_dropped_bad_colors = 0;      // colour count not matching the point count
-  int64_t scans_rejected_not_running = 0;    // after finish() or shutdown()
-  int64_t scans_dropped_queue_full = 0;      // oldest scans dropped by the sensor queue
-  int64_t scans_discarded_at_shutdown = 0;   // still queued when shutdown() ran
-  int64_t scans_discarded_at_reset = 0;      // queued (or being integrated) when reset() ran
+  int64_t scans_dropped_bad_stamp = 0;      // non-finite, or not after the previous scan's
+  int64_t scans_dropped_bad_colors = 0;     // colour count not matching the point count
+  int64_t scans_rejected_not_running = 0;   // after finish() or shutdown()
+  int64_t scans_dropped_queue_full = 0;     // oldest scans dropped by the sensor queue
+  int64_t scans_discarded_at_shutdown = 0;  // still queued when shutdown() ran
+  int64_t scans_discarded_at_reset = 0;     // queued (or being integrated) when reset() ran
   // Frontend.
   int64_t scans_integrated = 0;
   int64_t scans_failed = 0;                  // the integrator threw (logged)
   int64_t points_integrated = 0;             // points handed to the integrator
   int64_t points_dropped_by_integrator = 0;  // non-finite, too close or too far
   int64_t submaps_created = 0;
-  int64_t submaps_dropped_queue_full = 0;    // oldest submaps dropped by the submap queue
+  int64_t submaps_dropped_queue_full = 0;  // oldest submaps dropped by the submap queue
   // Backend.
   int64_t submaps_finished = 0;
-  int64_t submaps_failed = 0;                // finishing threw (logged)
+  int64_t submaps_failed = 0;  // finishing threw (logged)
   int64_t odometry_constraints = 0;
   int64_t optimizations = 0;
   int64_t optimizations_failed = 0;
@@ -149,9 +151,9 @@ struct SlamCounters {
   ExternalConstraintCounters loop_closures;
   ExternalConstraintCounters absolute_positions;
   ExternalConstraintCounters heights;
-  int64_t resets = 0;                       // reset() and load_submaps() calls
-  int64_t submaps_discarded_at_reset = 0;   // active, queued or being finished at a reset
-  int64_t submaps_loaded = 0;               // by load_submaps()
+  int64_t resets = 0;                      // reset() and load_submaps() calls
+  int64_t submaps_discarded_at_reset = 0;  // active, queued or being finished at a reset
+  int64_t submaps_loaded = 0;              // by load_submaps()
 
   // Every scan that was given but will never be integrated, for any counted reason.
   int64_t scans_dropped_total() const {
@@ -359,7 +361,8 @@ class SlamSystem {
   bool solve_graph_locked();
   // kJoint: the dense registration terms of joint_pairs_ for `graph`; needs state_mutex_ (and
   // backend_mutex_ for the lifetime of the submaps they point to).
-  std::vector<backend::RegistrationTerm> joint_terms_locked(const SubmapPoseGraph::BackendGraph& graph) const;
+  std::vector<backend::RegistrationTerm> joint_terms_locked(
+      const SubmapPoseGraph::BackendGraph& graph) const;
   void reset_locked();
   void join_threads();
   // The correction T_W_odom for scans of submap `submap_id`; needs state_mutex_.

@@ -47,7 +47,8 @@ bool is_valid_rigid_pose(const Eigen::Isometry3d& pose);
 // lies a fraction `alpha` (clamped to [0, 1]) of the way from A to B: position
 // (1 - alpha) A + alpha B, and A's rotation turned by alpha times the yaw from A to B (the
 // shorter way round). alpha 0 gives A and 1 gives B exactly.
-Eigen::Isometry3d blend_corrected_pose(const Eigen::Isometry3d& C_from, const Eigen::Isometry3d& C_to,
+Eigen::Isometry3d blend_corrected_pose(const Eigen::Isometry3d& C_from,
+                                       const Eigen::Isometry3d& C_to,
                                        const Eigen::Isometry3d& T_odom_sensor, double alpha);
 
 // ---- Creation policy ---------------------------------------------------------------------------
@@ -71,12 +72,12 @@ struct SubmapPolicyConfig {
 void validate(const SubmapPolicyConfig& config);
 
 struct SubmapStatistics {
-  int64_t scans = 0;                // scans integrated
-  int64_t points_in = 0;            // points handed to the integrator
-  int64_t points_dropped = 0;       // of those, dropped by it (non-finite, too close or far)
-  int64_t blocks = 0;               // allocated TSDF blocks
-  double start_stamp_s = 0.0;       // first scan
-  double end_stamp_s = 0.0;         // last scan
+  int64_t scans = 0;                  // scans integrated
+  int64_t points_in = 0;              // points handed to the integrator
+  int64_t points_dropped = 0;         // of those, dropped by it (non-finite, too close or far)
+  int64_t blocks = 0;                 // allocated TSDF blocks
+  double start_stamp_s = 0.0;         // first scan
+  double end_stamp_s = 0.0;           // last scan
   double distance_travelled_m = 0.0;  // sensor path length from the first to the last scan
 };
 
@@ -84,8 +85,8 @@ struct SubmapStatistics {
 // new submap rather than joining the active one. The decision is taken when the next scan
 // arrives, so a submap covers [start, start + interval) in time or less than distance_m of path,
 // and the block count reached by its last scan. An empty submap never ends.
-bool should_start_new_submap(const SubmapPolicyConfig& config, const SubmapStatistics& active, double stamp_s,
-                             double step_m);
+bool should_start_new_submap(const SubmapPolicyConfig& config, const SubmapStatistics& active,
+                             double stamp_s, double step_m);
 
 // ---- The submap --------------------------------------------------------------------------------
 
@@ -98,7 +99,8 @@ struct SubmapFinishTimes {
 class Submap {
  public:
   // `T_odom_submap` must be gravity aligned (see gravity_aligned()).
-  Submap(int64_t id, Device device, const TsdfMapConfig& map_config, const Eigen::Isometry3d& T_odom_submap);
+  Submap(int64_t id, Device device, const TsdfMapConfig& map_config,
+         const Eigen::Isometry3d& T_odom_submap);
 
   int64_t id() const { return id_; }
   TsdfMap& map() { return map_; }
@@ -114,9 +116,11 @@ class Submap {
   const SubmapStatistics& statistics() const { return statistics_; }
 
   // Integrates a scan taken at odometry pose T_odom_sensor (device memory of the map's device)
-  // at its pose in the submap frame, and updates the statistics. Throws covox::Error after finish().
+  // at its pose in the submap frame, and updates the statistics. Throws covox::Error after
+  // finish().
   IntegrationStats integrate(TsdfIntegrator& integrator, const PointCloudView& cloud,
-                             const Eigen::Isometry3d& T_odom_sensor, double stamp_s, const Stream& stream);
+                             const Eigen::Isometry3d& T_odom_sensor, double stamp_s,
+                             const Stream& stream);
   // T_S_sensor for a scan at odometry pose T_odom_sensor.
   Eigen::Isometry3d submap_from_odometry(const Eigen::Isometry3d& T_odom_sensor) const {
     return T_odom_submap().inverse() * T_odom_sensor;

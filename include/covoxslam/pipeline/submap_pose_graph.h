@@ -62,8 +62,8 @@ struct SubmapConstraint {
 
 struct SubmapPoseGraphNode {
   int64_t id = 0;
-  backend::Pose4Dof pose;           // corrected T_W_S
-  bool loaded = false;              // from a map file: pose fixed
+  backend::Pose4Dof pose;  // corrected T_W_S
+  bool loaded = false;     // from a map file: pose fixed
 };
 
 class SubmapPoseGraph {
@@ -112,7 +112,8 @@ class SubmapPoseGraph {
 // `worst_fraction` > 0 sets aside only those further than max(max_residual_m, worst_fraction x the
 // largest residual): the worst first, so that constraints pulled off by them are judged again
 // after the next solve (SubmapRegistrationConfig::gate_worst_fraction).
-int set_aside_inconsistent_registrations(SubmapPoseGraph* graph, double max_residual_m, double worst_fraction = 0.0);
+int set_aside_inconsistent_registrations(SubmapPoseGraph* graph, double max_residual_m,
+                                         double worst_fraction = 0.0);
 
 // 4-DoF pose algebra (x_a = Rz(yaw) x_b + t): a * b (the inverse is backend::inverse_pose_4dof).
 backend::Pose4Dof compose(const backend::Pose4Dof& a, const backend::Pose4Dof& b);

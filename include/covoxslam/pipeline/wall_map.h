@@ -41,7 +41,8 @@ class WallMap {
   // Wall columns of `map` on a grid of cell_m (the map's voxel size), distances capped at cap_m.
   static WallMap from_map(const TsdfMap& map, double cap_m, const Stream& stream);
   // From given wall column centres (tests); same grid and cap rules.
-  static WallMap from_columns(const std::vector<Eigen::Vector2d>& columns_m, double cell_m, double cap_m);
+  static WallMap from_columns(const std::vector<Eigen::Vector2d>& columns_m, double cell_m,
+                              double cap_m);
 
   const std::vector<Eigen::Vector2d>& columns() const { return columns_; }
   double cell_m() const { return cell_m_; }
@@ -72,12 +73,12 @@ class WallMapCache {
 };
 
 struct WallSearchConfig {
-  double range_m = 2.5;          // offsets within +-range_m in x and y around the guess
+  double range_m = 2.5;  // offsets within +-range_m in x and y around the guess
   double step_m = 0.1;
   double yaw_range_rad = 0.0523598775598299;  // +-3 degrees
   double yaw_step_rad = 0.00872664625997165;  // 0.5 degrees
-  double sigma_m = 0.15;         // a column scores exp(-d^2 / (2 sigma^2)) at distance d
-  int64_t max_columns = 1500;    // of the moving map (an even subsample beyond)
+  double sigma_m = 0.15;       // a column scores exp(-d^2 / (2 sigma^2)) at distance d
+  int64_t max_columns = 1500;  // of the moving map (an even subsample beyond)
 };
 
 struct WallMatch {

@@ -31,17 +31,20 @@ geometry_msgs::Transform to_transform_msg(const Eigen::Isometry3d& pose);
 geometry_msgs::Pose to_pose_msg(const Eigen::Isometry3d& pose);
 
 // A triangle list (three points per triangle, per-vertex colours) in the frame of `pose`.
-visualization_msgs::Marker mesh_marker(const Mesh& mesh, const Eigen::Isometry3d& pose, const std::string& frame,
-                                       const ros::Time& stamp, const std::string& ns, int id);
+visualization_msgs::Marker mesh_marker(const Mesh& mesh, const Eigen::Isometry3d& pose,
+                                       const std::string& frame, const ros::Time& stamp,
+                                       const std::string& ns, int id);
 // A DELETEALL, then one LINE_LIST per submap (namespace submap_bounding_boxes, id = submap id)
 // holding the 12 edges of its world-frame box.
-visualization_msgs::MarkerArray bounding_box_markers(const std::vector<pipeline::SubmapInfo>& submaps,
-                                                    const std::string& frame, const ros::Time& stamp);
+visualization_msgs::MarkerArray bounding_box_markers(
+    const std::vector<pipeline::SubmapInfo>& submaps, const std::string& frame,
+    const ros::Time& stamp);
 // Submap origins (SPHERE_LIST) and one LINE_LIST per constraint kind between submap origins,
 // coloured by kind, in the namespace named after the kind.
-visualization_msgs::MarkerArray pose_graph_markers(const std::vector<pipeline::SubmapInfo>& submaps,
-                                                   const std::vector<pipeline::SubmapConstraint>& constraints,
-                                                   const std::string& frame, const ros::Time& stamp);
+visualization_msgs::MarkerArray pose_graph_markers(
+    const std::vector<pipeline::SubmapInfo>& submaps,
+    const std::vector<pipeline::SubmapConstraint>& constraints, const std::string& frame,
+    const ros::Time& stamp);
 // x, y, z and intensity (the signed distance in metres), all FLOAT32, unorganised.
 sensor_msgs::PointCloud2 slice_cloud(const std::vector<SlicePoint>& slice, const std::string& frame,
                                      const ros::Time& stamp);

@@ -46,20 +46,27 @@ namespace ros_layer {
 
 // Drops the node counts itself (the SLAM system counts its own, see SlamCounters).
 struct InputDropCounters {
-  pipeline::DropCounter bad_layout;        // PointCloud2 without x/y/z, wrong point step, short data
-  pipeline::DropCounter empty_cloud;       // no finite point left
-  pipeline::DropCounter bad_image;         // depth/colour image or camera info not usable
-  pipeline::DropCounter tf_timeout;        // the pose did not arrive within tf_wait_timeout_s
-  pipeline::DropCounter unknown_frame;     // the cloud's frame (or odom/base) is not in tf at all
+  pipeline::DropCounter bad_layout;     // PointCloud2 without x/y/z, wrong point step, short data
+  pipeline::DropCounter empty_cloud;    // no finite point left
+  pipeline::DropCounter bad_image;      // depth/colour image or camera info not usable
+  pipeline::DropCounter tf_timeout;     // the pose did not arrive within tf_wait_timeout_s
+  pipeline::DropCounter unknown_frame;  // the cloud's frame (or odom/base) is not in tf at all
   pipeline::DropCounter pose_unavailable;  // older than the tf / odometry buffer, or in a gap
   pipeline::DropCounter pending_overflow;  // more than max_pending_clouds waiting
   pipeline::DropCounter rejected_by_slam;  // SlamSystem::add_scan refused it (see its counters)
   pipeline::DropCounter bad_odometry;      // odometry messages not usable (time backwards, NaN)
   pipeline::DropCounter loop_closures_rejected;
   explicit InputDropCounters(double interval_s)
-      : bad_layout(interval_s), empty_cloud(interval_s), bad_image(interval_s), tf_timeout(interval_s),
-        unknown_frame(interval_s), pose_unavailable(interval_s), pending_overflow(interval_s),
-        rejected_by_slam(interval_s), bad_odometry(interval_s), loop_closures_rejected(interval_s) {}
+      : bad_layout(interval_s),
+        empty_cloud(interval_s),
+        bad_image(interval_s),
+        tf_timeout(interval_s),
+        unknown_frame(interval_s),
+        pose_unavailable(interval_s),
+        pending_overflow(interval_s),
+        rejected_by_slam(interval_s),
+        bad_odometry(interval_s),
+        loop_closures_rejected(interval_s) {}
 };
 
 class SlamNode {
@@ -84,8 +91,10 @@ class SlamNode {
 
   // ---- Input (slam_node_input.cpp) ----
   void cloud_callback(const sensor_msgs::PointCloud2::ConstPtr& cloud);
-  void depth_callback(const sensor_msgs::Image::ConstPtr& depth, const sensor_msgs::CameraInfo::ConstPtr& info);
-  void depth_color_callback(const sensor_msgs::Image::ConstPtr& depth, const sensor_msgs::CameraInfo::ConstPtr& info,
+  void depth_callback(const sensor_msgs::Image::ConstPtr& depth,
+                      const sensor_msgs::CameraInfo::ConstPtr& info);
+  void depth_color_callback(const sensor_msgs::Image::ConstPtr& depth,
+                            const sensor_msgs::CameraInfo::ConstPtr& info,
                             const sensor_msgs::Image::ConstPtr& color);
   void odometry_callback(const nav_msgs::Odometry::ConstPtr& odometry);
   void loop_closure_callback(const covoxslam::LoopClosure::ConstPtr& closure);
@@ -110,11 +119,13 @@ class SlamNode {
   // ---- Services (slam_node_services.cpp) ----
   bool save_map(covoxslam::FilePath::Request& request, covoxslam::FilePath::Response& response);
   bool load_map(covoxslam::FilePath::Request& request, covoxslam::FilePath::Response& response);
-  bool save_trajectory(covoxslam::FilePath::Request& request, covoxslam::FilePath::Response& response);
+  bool save_trajectory(covoxslam::FilePath::Request& request,
+                       covoxslam::FilePath::Response& response);
   bool save_mesh(covoxslam::FilePath::Request& request, covoxslam::FilePath::Response& response);
   bool generate_mesh(std_srvs::Trigger::Request& request, std_srvs::Trigger::Response& response);
   bool finish_map(std_srvs::Trigger::Request& request, std_srvs::Trigger::Response& response);
-  bool optimize_pose_graph(std_srvs::Trigger::Request& request, std_srvs::Trigger::Response& response);
+  bool optimize_pose_graph(std_srvs::Trigger::Request& request,
+                           std_srvs::Trigger::Response& response);
   bool reset(std_srvs::Trigger::Request& request, std_srvs::Trigger::Response& response);
 
   ros::NodeHandle node_;
@@ -143,9 +154,11 @@ class SlamNode {
   ros::Subscriber cloud_subscriber_;
   ros::Subscriber odometry_subscriber_;
   ros::Subscriber loop_closure_subscriber_;
-  using DepthPolicy = message_filters::sync_policies::ApproximateTime<sensor_msgs::Image, sensor_msgs::CameraInfo>;
-  using DepthColorPolicy = message_filters::sync_policies::ApproximateTime<sensor_msgs::Image, sensor_msgs::CameraInfo,
-                                                                           sensor_msgs::Image>;
+  using DepthPolicy =
+      message_filters::sync_policies::ApproximateTime<sensor_msgs::Image, sensor_msgs::CameraInfo>;
+  using DepthColorPolicy =
+      message_filters::sync_policies::ApproximateTime<sensor_msgs::Image, sensor_msgs::CameraInfo,
+                                                      sensor_msgs::Image>;
   std::unique_ptr<message_filters::Subscriber<sensor_msgs::Image>> depth_subscriber_;
   std::unique_ptr<message_filters::Subscriber<sensor_msgs::CameraInfo>> info_subscriber_;
   std::unique_ptr<message_filters::Subscriber<sensor_msgs::Image>> color_subscriber_;
