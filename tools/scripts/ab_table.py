@@ -1,8 +1,7 @@
 #!/usr/bin/env python3
-"""Compares same-run benchmark JSON files of several builds: for each case, the median
-integration time of every run, the median of those medians per side, and its ratio to the
-first side. tools/device/ab_tsdf.sh writes base_N.json and new_N.json (the default sides);
-tools/device/ab_trees.sh writes NAME_N.json for the sides it names.
+"""Compares same-run benchmark JSON files of several builds: for each case, the metric of every
+run, the median per side, and its ratio to the first side. tools/ab_compare.sh writes
+NAME_RUN.json for the sides it names and calls this with them.
 
     python3 tools/scripts/ab_table.py DIR [--sides A,B,...] [--metric METRIC]
 """
