@@ -1,8 +1,8 @@
 #pragma once
 // The one way every benchmark in tools/ reports its figures: rows of (case, metric, value, unit),
 // printed as an aligned plain-text table and written as JSON together with the device, the date
-// and the exact command line, so that every number in docs/benchmarks.md can be traced back to a
-// run and repeated.
+// and the exact command line, so that every figure in docs/performance.md can be traced back to
+// a run and repeated (tools/scripts/performance_tables.py builds its tables from the JSON).
 //
 //   tools::BenchmarkReport report("hash_table", describe_device(device), argc, argv);
 //   report.add("cuda lf=0.70", "find", 1234.5, "Mkeys/s");
