@@ -21,7 +21,7 @@
 #   BUILD                     build folder (default build_gpu)
 #   OUT                       logs and JSON copies (default ./gpu_suite_out)
 #   JOBS                      compile jobs (default: number of cores)
-#   COVOX_DATA_DIR            the real sensor data (default: the CMake default, ../shared/data)
+#   COVOX_DATA_DIR            the real sensor data (default: the CMake default)
 #   COVOX_EIGEN_INCLUDE_DIR   Eigen's headers, where Eigen is not installed
 #   COVOX_GTEST_SOURCE_DIR    GoogleTest's sources, where GoogleTest is not installed
 #   BENCH_ARGS                extra arguments for every benchmark
