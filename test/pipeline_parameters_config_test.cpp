@@ -71,8 +71,6 @@ std::map<std::string, Expectation> expectations() {
       {"integrate_color", {"false", [](const SlamConfig& c) { return !c.tsdf.integrate_color; }}},
       {"fixed_point_sums_max_scratch_mb",
        {"64", [](const SlamConfig& c) { return c.tsdf.fixed_point_sums_max_scratch_mb == 64; }}},
-      {"aggregate_free_space_in_warp",
-       {"true", [](const SlamConfig& c) { return c.tsdf.aggregate_free_space_in_warp; }}},
       {"esdf_max_distance_m",
        {"3", [](const SlamConfig& c) { return c.esdf.esdf_max_distance_m == 3.0f; }}},
       {"esdf_site_distance_threshold_vox",

@@ -3,11 +3,9 @@
 //
 //   benchmark_tsdf [--data DIR] [--device all|cuda|cpu] [--integrations 100]
 //                  [--output docs/benchmarks/tsdf.json] [--skip-rgbd] [--skip-lidar] [--case TEXT]
-//                  [--aggregate-free-space-in-warp]
 //
 // --case runs only the cases whose name contains TEXT (for example "2 cm colour carving"), so
-// that a kernel profiler sees one case's frames from the start. --aggregate-free-space-in-warp
-// sets that integrator option (off by default) in every case.
+// that a kernel profiler sees one case's frames from the start.
 //
 // Cases (issue 3): Ouster OS1-64 (newer_06) at 0.1 and 0.2 m voxels, truncation 3 voxels, 16 m
 // rays (voxgraph's ARCHE setting); KITTI HDL-64 at 0.2 m with 50 m rays; 7-Scenes at 5 cm and
@@ -43,7 +41,6 @@ struct Options {
   bool skip_rgbd = false;
   bool skip_lidar = false;
   std::string only_case;  // run only the cases whose name contains this (all when empty)
-  bool aggregate_free_space_in_warp = false;  // TsdfIntegratorConfig's option, for every case
   bool runs(const std::string& name) const {
     return only_case.empty() || name.find(only_case) != std::string::npos;
   }
@@ -54,7 +51,7 @@ Options parse(int argc, char** argv) {
       argc, argv,
       "usage: benchmark_tsdf [--data DIR] [--device all|cuda|cpu] [--integrations N]\n"
       "       [--output docs/benchmarks/tsdf.json] [--skip-rgbd] [--skip-lidar]\n"
-      "       [--case TEXT] [--aggregate-free-space-in-warp]");
+      "       [--case TEXT]");
   Options options;
   options.data = args.text("--data", io::data_directory());
   options.device = args.text("--device", options.device);
@@ -64,7 +61,6 @@ Options parse(int argc, char** argv) {
   options.skip_rgbd = args.flag("--skip-rgbd");
   options.skip_lidar = args.flag("--skip-lidar");
   options.only_case = args.text("--case", "");
-  options.aggregate_free_space_in_warp = args.flag("--aggregate-free-space-in-warp");
   args.finish();
   return options;
 }
@@ -132,7 +128,6 @@ void benchmark_lidar(Device device, const Options& options, const std::string& l
   config.use_sparsity_compensation_factor = true;
   config.sparsity_compensation_factor = 20.0f;
   config.method = method;
-  config.aggregate_free_space_in_warp = options.aggregate_free_space_in_warp;
   TsdfIntegrator integrator(config);
   const Timing timing =
       time_integrations(stream, scans.size(), options.integrations, map, [&](size_t f) {
@@ -158,7 +153,6 @@ void benchmark_rgbd(Device device, const Options& options, const tools::DeviceRg
   config.truncation_distance_m = 4.0f * voxel_size;  // nvblox's default truncation
   config.max_ray_length_m = 5.0f;
   config.voxel_carving_enabled = carving;
-  config.aggregate_free_space_in_warp = options.aggregate_free_space_in_warp;
   TsdfIntegrator integrator(config);
   const Timing timing =
       time_integrations(stream, frames.size(), options.integrations, map, [&](size_t f) {

@@ -7,6 +7,7 @@
 #include "covoxslam/core/log.h"
 #include "covoxslam/core/radix_sort.h"
 #include "covoxslam/core/stage_profiler.h"
+#include "covoxslam/integrators/internal/tsdf_frame_strategy.h"
 #include "covoxslam/integrators/tsdf_integrator_ops.h"
 
 namespace covox {
@@ -106,6 +107,16 @@ struct TsdfIntegrator::Scratch {
   TsdfScratchBuffers buffers;
 };
 
+namespace tsdf {
+void IntegratorInternals::set_strategy(TsdfIntegrator& integrator, const FrameStrategy& strategy) {
+  integrator.strategy_ = std::make_unique<FrameStrategy>(strategy);
+}
+const FrameStrategy& IntegratorInternals::strategy(const TsdfIntegrator& integrator) {
+  static const FrameStrategy shipped;
+  return integrator.strategy_ ? *integrator.strategy_ : shipped;
+}
+}  // namespace tsdf
+
 TsdfIntegrator::TsdfIntegrator(const TsdfIntegratorConfig& config) : config_(config) {}
 TsdfIntegrator::~TsdfIntegrator() = default;
 TsdfIntegrator::TsdfIntegrator(TsdfIntegrator&&) noexcept = default;
@@ -136,12 +147,12 @@ IntegrationStats TsdfIntegrator::integrate(TsdfMap& map, const PointCloudView& c
     throw Error("TSDF integrator: intensity_max_value must be positive");
   }
   check_pose(T_map_sensor);
-  if (!scratch_ || scratch_->buffers.rays.device() != map.device()) {
+  if (!scratch_ || scratch_->buffers.device() != map.device()) {
     scratch_ = std::make_unique<Scratch>(map.device());
   }
   const IntegrationStats stats = dispatch(map.device(), [&](auto backend) {
-    return tsdf_integrate_points(backend, config_, map, cloud, T_map_sensor, scratch_->buffers,
-                                 stream);
+    return tsdf_integrate_points(backend, config_, tsdf::IntegratorInternals::strategy(*this), map,
+                                 cloud, T_map_sensor, scratch_->buffers, stream);
   });
   log_drops(stats);
   return stats;
@@ -155,13 +166,13 @@ IntegrationStats TsdfIntegrator::integrate(TsdfMap& map, const std::vector<Vec3f
                 std::to_string(points.size()) + " points");
   }
   const Stream stream(map.device());
-  if (!scratch_ || scratch_->buffers.rays.device() != map.device()) {
+  if (!scratch_ || scratch_->buffers.device() != map.device()) {
     scratch_ = std::make_unique<Scratch>(map.device());
   }
-  scratch_->buffers.points.copy_from_host(points, stream);
-  scratch_->buffers.colors.copy_from_host(colors, stream);
-  PointCloudView view{scratch_->buffers.points.data(),
-                      colors.empty() ? nullptr : scratch_->buffers.colors.data(),
+  scratch_->buffers.input.points.copy_from_host(points, stream);
+  scratch_->buffers.input.colors.copy_from_host(colors, stream);
+  PointCloudView view{scratch_->buffers.input.points.data(),
+                      colors.empty() ? nullptr : scratch_->buffers.input.colors.data(),
                       static_cast<int64_t>(points.size())};
   return integrate(map, view, T_map_sensor, stream);
 }
@@ -181,7 +192,7 @@ IntegrationStats TsdfIntegrator::integrate_depth(TsdfMap& map, const DepthImageV
   }
   validate(config_, map.voxel_size_m());
   check_pose(T_map_camera);
-  if (!scratch_ || scratch_->buffers.rays.device() != map.device()) {
+  if (!scratch_ || scratch_->buffers.device() != map.device()) {
     scratch_ = std::make_unique<Scratch>(map.device());
   }
   tsdf::DepthImagePoints points;
@@ -198,8 +209,8 @@ IntegrationStats TsdfIntegrator::integrate_depth(TsdfMap& map, const DepthImageV
   points.height = k.height;
   // (the points and colours in tile order: tsdf::pixel_tile_order, tsdf_kernels.h)
   const IntegrationStats stats = dispatch(map.device(), [&](auto backend) {
-    return tsdf_integrate_depth_image(backend, config_, map, points, T_map_camera,
-                                      scratch_->buffers, stream);
+    return tsdf_integrate_depth_image(backend, config_, tsdf::IntegratorInternals::strategy(*this),
+                                      map, points, T_map_camera, scratch_->buffers, stream);
   });
   log_drops(stats);
   return stats;

@@ -214,8 +214,6 @@ const std::vector<SlamParameter>& slam_parameters() {
       bool_parameter("integrate_color", COVOX_FIELD(tsdf.integrate_color)),
       integer_parameter("fixed_point_sums_max_scratch_mb",
                         COVOX_FIELD(tsdf.fixed_point_sums_max_scratch_mb), 0, 1 << 20),
-      bool_parameter("aggregate_free_space_in_warp",
-                     COVOX_FIELD(tsdf.aggregate_free_space_in_warp)),
       // ESDF and mesh.
       number_parameter("esdf_max_distance_m", COVOX_FIELD(esdf.esdf_max_distance_m), positive),
       number_parameter("esdf_site_distance_threshold_vox",

@@ -1,8 +1,8 @@
 #pragma once
 // Step 3 of a TSDF frame on the CPU twin: group the visit records by voxel and sum each voxel's,
 // with the same result as the GPU's stable radix sort by key plus reduction by key (merged keys
-// ascending, each voxel's records summed left to right in record order), at about half the
-// memory traffic on a 2-core machine.
+// ascending, each voxel's records summed left to right in record order), with less memory
+// traffic.
 //
 // A radix sort of 22-bit keys moves every record three times; here each record moves once: a
 // stable counting sort by block (the key's block part, a few thousand values), then each block's
@@ -38,17 +38,16 @@ struct GroupCounts {
   uint32_t voxels = 0;        // distinct voxels written to merged_keys / merged
 };
 
-// Groups `count` records (keys, values) by voxel. The records are first moved, stably and by
-// block, to keys_alt / values_alt; update_of(j) then gives the sum term of moved record j (built
-// by the caller over keys_alt / values_alt), and combine(a, b) adds two. Writes the distinct
-// voxels' keys ascending to merged_keys and their sums to merged.
-template <class KeyT, class ValueT, class SumT, class UpdateOf, class Combine>
-GroupCounts group_updates_by_voxel_cpu(const FrameKeyCodec& codec, const KeyT* keys,
-                                       const ValueT* values, int64_t count, KeyT* keys_alt,
-                                       ValueT* values_alt, KeyT* merged_keys, SumT* merged,
-                                       const UpdateOf& update_of, const Combine& combine) {
+// 1. A stable counting sort of `count` records by block (the last bucket holds every record to
+//    drop) into keys_alt / values_alt: thread t owns the t-th chunk of records, and a bucket's
+//    records are placed chunk by chunk, so each bucket keeps the records' order. Returns where
+//    each bucket begins (buckets + 1 entries).
+template <class KeyT, class ValueT>
+std::vector<int64_t> sort_records_by_block(const FrameKeyCodec& codec, const KeyT* keys,
+                                           const ValueT* values, int64_t count, KeyT* keys_alt,
+                                           ValueT* values_alt) {
   const int64_t blocks = static_cast<int64_t>(codec.size_x) * codec.size_y * codec.size_z;
-  const int64_t buckets = blocks + 1;  // the last one holds every record to drop
+  const int64_t buckets = blocks + 1;
   const int voxel_bits = codec.voxel_bits;
   const auto bucket_of = [&](KeyT key) {
     const int64_t block = static_cast<int64_t>(static_cast<uint64_t>(key) >> voxel_bits);
@@ -57,8 +56,6 @@ GroupCounts group_updates_by_voxel_cpu(const FrameKeyCodec& codec, const KeyT* k
   const int max_threads = omp_get_max_threads();
   std::vector<int64_t> offsets(static_cast<size_t>(max_threads) * buckets);
   std::vector<int64_t> bucket_begin(static_cast<size_t>(buckets) + 1);
-  // 1. stable counting sort by block: thread t owns the t-th chunk of records, and a bucket's
-  //    records are placed chunk by chunk, so each bucket keeps the records' order.
 #pragma omp parallel num_threads(max_threads)
   {
     const int threads = omp_get_num_threads();
@@ -88,12 +85,20 @@ GroupCounts group_updates_by_voxel_cpu(const FrameKeyCodec& codec, const KeyT* k
       values_alt[position] = values[i];
     }
   }
-  // 2. distinct voxels per block (a bitmap of the block's voxels), then where each block's sums go
-  const int voxels_per_block = 1 << voxel_bits;
+  return bucket_begin;
+}
+
+// 2. The distinct voxels per block (a bitmap of the block's voxels), scanned into where each
+//    block's sums go (blocks + 1 entries: the last is the total).
+template <class KeyT>
+std::vector<int64_t> first_voxel_of_blocks(const FrameKeyCodec& codec, const KeyT* keys_alt,
+                                           const std::vector<int64_t>& bucket_begin) {
+  const int64_t blocks = static_cast<int64_t>(codec.size_x) * codec.size_y * codec.size_z;
+  const int voxels_per_block = 1 << codec.voxel_bits;
   const int words = (voxels_per_block + 63) / 64;
-  const uint64_t local_mask = (uint64_t(1) << voxel_bits) - 1;
+  const uint64_t local_mask = (uint64_t(1) << codec.voxel_bits) - 1;
   std::vector<int64_t> first_voxel(static_cast<size_t>(blocks) + 1, 0);
-#pragma omp parallel num_threads(max_threads)
+#pragma omp parallel num_threads(omp_get_max_threads())
   {
     std::vector<uint64_t> seen(static_cast<size_t>(words), 0);
 #pragma omp for schedule(dynamic, 16)
@@ -113,8 +118,22 @@ GroupCounts group_updates_by_voxel_cpu(const FrameKeyCodec& codec, const KeyT* k
   }
   for (int64_t b = 0; b < blocks; ++b)
     first_voxel[static_cast<size_t>(b) + 1] += first_voxel[static_cast<size_t>(b)];
-    // 3. each block's records summed in order into its voxels, read out in voxel (= key) order
-#pragma omp parallel num_threads(max_threads)
+  return first_voxel;
+}
+
+// 3. Each block's records summed in order into its voxels (update_of(j): moved record j's term,
+//    combine(a, b): two terms added), read out in voxel (= key) order into merged_keys / merged.
+template <class KeyT, class SumT, class UpdateOf, class Combine>
+void sum_block_voxels(const FrameKeyCodec& codec, const KeyT* keys_alt,
+                      const std::vector<int64_t>& bucket_begin,
+                      const std::vector<int64_t>& first_voxel, KeyT* merged_keys, SumT* merged,
+                      const UpdateOf& update_of, const Combine& combine) {
+  const int64_t blocks = static_cast<int64_t>(codec.size_x) * codec.size_y * codec.size_z;
+  const int voxel_bits = codec.voxel_bits;
+  const int voxels_per_block = 1 << voxel_bits;
+  const int words = (voxels_per_block + 63) / 64;
+  const uint64_t local_mask = (uint64_t(1) << voxel_bits) - 1;
+#pragma omp parallel num_threads(omp_get_max_threads())
   {
     std::vector<uint64_t> seen(static_cast<size_t>(words), 0);
     std::vector<SumT> sums(static_cast<size_t>(voxels_per_block));
@@ -144,6 +163,23 @@ GroupCounts group_updates_by_voxel_cpu(const FrameKeyCodec& codec, const KeyT* k
       }
     }
   }
+}
+
+// Groups `count` records (keys, values) by voxel. The records are first moved, stably and by
+// block, to keys_alt / values_alt; update_of(j) then gives the sum term of moved record j (built
+// by the caller over keys_alt / values_alt), and combine(a, b) adds two. Writes the distinct
+// voxels' keys ascending to merged_keys and their sums to merged.
+template <class KeyT, class ValueT, class SumT, class UpdateOf, class Combine>
+GroupCounts group_updates_by_voxel_cpu(const FrameKeyCodec& codec, const KeyT* keys,
+                                       const ValueT* values, int64_t count, KeyT* keys_alt,
+                                       ValueT* values_alt, KeyT* merged_keys, SumT* merged,
+                                       const UpdateOf& update_of, const Combine& combine) {
+  const int64_t blocks = static_cast<int64_t>(codec.size_x) * codec.size_y * codec.size_z;
+  const std::vector<int64_t> bucket_begin =
+      sort_records_by_block(codec, keys, values, count, keys_alt, values_alt);
+  const std::vector<int64_t> first_voxel = first_voxel_of_blocks(codec, keys_alt, bucket_begin);
+  sum_block_voxels(codec, keys_alt, bucket_begin, first_voxel, merged_keys, merged, update_of,
+                   combine);
   GroupCounts counts;
   counts.voxels = static_cast<uint32_t>(first_voxel[static_cast<size_t>(blocks)]);
   const KeyT zero_weight_key = static_cast<KeyT>(codec.zero_weight_key);

@@ -1,59 +1,43 @@
 #pragma once
 // TsdfIntegrator: fuses point clouds (LiDAR, or depth images turned into points on the device)
-// into a TsdfMap by raycasting, with the "merged" update of the coVoxSLAM paper (III-C/D):
-//   1. one ray per valid point, or with the merged method one per bundle of points whose
+// into a TsdfMap by raycasting, with the "merged" update of the coVoxSLAM paper (III-C/D). A frame
+// is a short sequence of named stages (tsdf_integrator_impl.h), steered by one plan decided from
+// the configuration, the backend and the frame's tally (internal/tsdf_frame_plan.h):
+//   1. rays: one per valid point, or with the merged method one per bundle of points whose
 //      surface falls into one voxel (bundled in a hash table with integer sums, ranked by their
-//      first point: tsdf_ray_merging.h); a ray's voxel count is known in closed form ->
-//      exclusive scan gives every ray its range in one update array;
-//   2. each ray walks its voxels (Amanatides-Woo, in pieces of ~8 voxels) and writes one visit
-//      record per voxel: the voxel's key with its (weighted sdf, weight) update, or, in a frame
-//      with colour, with the ray's index, from which step 5 recomputes the update and its
-//      weighted colour (tsdf_traverse.h: 4 bytes through the sort instead of 32); it also marks
-//      the blocks its kept records fall in, in a flag array over the frame's box. A free-space
-//      visit (distance clamped to +truncation, so no colour: only a weight) instead adds its
-//      weight to its voxel's cell of a fixed-point grid over the box, and only the band's visits
-//      (at most a bound per ray, known without a read-back) are compacted into records: with
-//      carving most visits are free space and near the sensor many rays cross each voxel
-//      (config.sum_free_space_in_fixed_point; tsdf_integrator_impl.h, "free-space sums").
-//      On the GPU, when the box's sums fit in config.fixed_point_sums_max_scratch_mb (almost
-//      always), every visit is summed so, the band's distance, weight and colour too
-//      (config.sum_band_in_fixed_point; tsdf::VoxelSumCells), and no record is kept at all:
-//      steps 3 and 5's reduction fall away and the pass of step 5 writes every voxel. Such a
-//      frame walks its rays in groups of 32 neighbours, one warp per group and piece index
-//      (tsdf_traverse.h, RayGroups), without a piece table;
-//   3. records are sorted by voxel key (the CPU twin groups them by block and sums each block's
-//      in a dense array instead, leaving one merged record per voxel: tsdf_group_updates_cpu.h);
-//   4. the marked blocks are listed (a scan of the marks) and allocated in one
-//      BlockHashTable::activate batch, before step 3 on the GPU, whose sort then hides the wait
-//      for the activation's totals (for boxes with more blocks than records, listed from the
-//      sorted records after step 3 instead); a frame that sums every visit activates each
-//      block in the scan that lists it (BlockActivator, block_activator.h) and gets the totals at
-//      its end, and a small one does not wait for its block count either (its pass reads it on
-//      the device);
-//   5. each voxel's records are summed (a segmented reduction in tiles, core/run_sums.h) and
-//      the sum, with the voxel's free-space sum, goes straight into one weighted-average write
-//      per distinct voxel; a pass over the listed blocks' cells then writes the voxels that had
-//      free-space visits only.
-// Why this order, not DESIGN.md's "segmented reduce, allocate, write": the sums never go
-// through memory, and the allocation waits for nothing but the traverse (docs/benchmarks.md,
-// "seventh pass", "eighth pass"); the reduction and the single write per voxel are the same.
+//      first point: tsdf_ray_merging.h); a ray's voxel count is known in closed form, so one
+//      tally gives the frame's visits, its box of voxels and its longest ray;
+//   2. visits: each ray walks its voxels (Amanatides-Woo, in pieces of ~8 voxels). A visit is
+//      merged per voxel in one of three ways (internal/tsdf_frame_strategy.h): as a record (the
+//      voxel's key with its update, or with colour the ray's index, from which the update is
+//      recomputed: tsdf_traverse.h) that is sorted and reduced; or, for a free-space visit
+//      (distance clamped to +truncation, no colour), by adding its weight to the voxel's cell of
+//      a fixed-point grid over the frame's box, only the band's visits kept as records; or, when
+//      the box's cells fit config.fixed_point_sums_max_scratch_mb, every visit so (distance,
+//      weight and colour: tsdf::VoxelSumCells), with no record at all, the rays then walked in
+//      groups of 32 neighbours without a piece table (tsdf_traverse.h, RayGroups). The walk also
+//      marks the blocks its kept visits fall in, in a flag array over the box;
+//   3. records are grouped by voxel: a stable radix sort by key (the CPU twin groups them by
+//      block and sums each block's in a dense array instead: tsdf_group_updates_cpu.h);
+//   4. the frame's blocks are listed (a scan of the marks, or from the sorted records when the
+//      box has more blocks than records) and allocated in one BlockHashTable batch, before the
+//      sort on the GPU so that the sort hides the wait for the activation's totals; a frame that
+//      sums every visit activates each block in the scan that lists it (block_activator.h) and
+//      reads the totals at its end;
+//   5. each voxel's records are summed (a segmented reduction in tiles, core/run_sums.h) and the
+//      sum, with the voxel's fixed-point sum, goes straight into one weighted-average write per
+//      voxel; a pass over the listed blocks' cells then writes the voxels that had summed visits
+//      only.
 // No atomics touch voxel data (only integer sums in scratch: the merge's sums of points and the
-// visits' sums in fixed point, exact in any order), and every float sum is taken in an order fixed
-// by the input, so results are deterministic run to run. (DESIGN.md sorts every update and merges
-// each voxel's with a segmented reduce; that path is kept, for boxes too large for the sums and
-// as the reference of the tests. Summing the visits as integers gives the same map up to the
-// fixed point's rounding, 2^-32 of a unit weight, with no sort: 0.64-0.82 of the frame time on
-// the H100, docs/benchmarks.md, "ninth pass" and "tenth pass".) The CPU twin
-// runs the same kernels except in four places, each with the same result (step 3's sums within
-// float rounding: the GPU adds a long run's pieces as a tree) and a comment saying why: step 3's
-// grouping (with it the counts of dropped records, which the GPU finds where their runs start in
-// its sorted keys), the piece table of step 2 (written one ray at a time, its cut voxels kept for
-// the traverse; on the GPU one thread per piece, inside the scan of the pieces' sizes; a frame
-// that sums every visit - on the GPU almost always, on the CPU twin only in the tests - has no
-// piece table on either backend and walks its rays in groups), the
-// merge's tally (a reduction instead of per-warp atomics), and step 4's activation (queued on the
-// GPU for the blocks counted on the device, its totals read back while the records sort; on the
-// CPU after reading the count, which costs nothing there).
+// visits' fixed-point sums, exact in any order), and every float sum is taken in an order fixed
+// by the input, so results are deterministic run to run. The CPU twin runs the same kernels
+// except in four places, each with the same result (step 3's sums within float rounding: the GPU
+// adds a long run's pieces as a tree): step 3's grouping (with it the counts of dropped records,
+// which the GPU finds where their runs start in its sorted keys), the piece table of step 2
+// (written one ray at a time, its cut voxels kept for the traverse; on the GPU one thread per
+// piece, inside the scan of the pieces' sizes), the merge's tally (a reduction instead of
+// per-warp atomics), and step 4's activation (queued on the GPU for the blocks counted on the
+// device; on the CPU after reading the count).
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -68,6 +52,11 @@
 #include "covoxslam/map/tsdf_map.h"
 
 namespace covox {
+
+namespace tsdf {
+struct FrameStrategy;
+class IntegratorInternals;
+}  // namespace tsdf
 
 // What one integration did; counters of dropped input are the "counted, logged drop".
 struct IntegrationStats {
@@ -84,7 +73,8 @@ struct IntegrationStats {
   int64_t voxels_out_of_range = 0;  // voxels dropped: block outside the map's key range
   int64_t blocks_allocated = 0;     // new blocks this call
   int64_t records_grouped = 0;      // visit records grouped by voxel (sorted) and reduced: every
-                                    // visit, or with free-space sums the band's (a bound on them)
+                                    // visit, with free-space sums the band's (a bound on them),
+                                    // with every visit summed none
 
   int64_t dropped_total() const {
     return dropped_non_finite + dropped_zero + dropped_too_close + dropped_too_far;
@@ -141,9 +131,12 @@ class TsdfIntegrator {
                                    const Eigen::Isometry3d& T_map_camera, const Stream& stream);
 
  private:
+  friend class tsdf::IntegratorInternals;
   struct Scratch;
   TsdfIntegratorConfig config_;
   std::unique_ptr<Scratch> scratch_;
+  // How frames merge their visits (internal/tsdf_frame_strategy.h); null: the shipped strategy.
+  std::unique_ptr<tsdf::FrameStrategy> strategy_;
 };
 
 }  // namespace covox

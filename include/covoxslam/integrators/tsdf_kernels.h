@@ -121,9 +121,9 @@ struct alignas(16) VoxelUpdate {
 //   with kBandVisitBit set; the reduction recomputes the update, and whether it takes the ray's
 //   colour, from the ray and the voxel;
 // - a visit in free space (its distance clamped to the truncation, so no colour): the bits of its
-//   weight, a float >= 0 (sign bit clear), from which the update follows without the ray. At 2 cm
-//   voxels with carving about 93 % of a 7-Scenes frame's visits are of this kind, and looking
-//   their rays up again was most of the reduction's time (docs/benchmarks.md, "ninth pass").
+//   weight, a float >= 0 (sign bit clear), from which the update follows without the ray. With
+//   carving most of a frame's visits are of this kind, and the reduction then reads no ray for
+//   them.
 struct ColorVisit {
   static constexpr uint32_t kBandVisitBit = 0x80000000u;
   uint32_t word = 0;
@@ -141,8 +141,8 @@ COVOX_HD_INLINE uint32_t bits_of_float(float value) {
   return bits;
 }
 
-// Visits' weights and updates summed per voxel in fixed point (tsdf_integrator_impl.h, "free-space
-// sums" and "every visit summed"): integer sums are exact, so the order in which atomic adds
+// Visits' weights and updates summed per voxel in fixed point (internal/tsdf_frame_plan.h,
+// VisitMerging): integer sums are exact, so the order in which atomic adds
 // arrive does not change the result (the frame stays deterministic with atomics into a scratch
 // grid, never into voxels). Values go in as signed 64-bit integers (two's complement), rounded to
 // the nearest unit. Weights, in both paths, take kSumUnits = 2^32 units per unit of weight: a
@@ -183,15 +183,9 @@ struct VoxelSumCells {
   uint64_t* words = nullptr;  // word w of cell k: words[k * stride + w]
   int stride = 0;             // 2 without colour, kSumCellWords with
   float truncation = 0.0f;
-  // The free-space visits of a GPU warp's lanes to one voxel at one step add their weights
-  // together, one atomic per voxel and step (add_free_space; TsdfIntegratorConfig::
-  // aggregate_free_space_in_warp): the ray groups' traverse (tsdf_traverse.h) walks neighbouring
-  // rays side by side in a warp, which near the sensor visit the same voxels.
-  bool aggregate_in_warp = false;
-  // (A cell's words side by side. Each word in its own plane over the box instead: H100, 7-Scenes
-  // 2 cm frame, the traverse 142 -> 170 us and the pass 35 -> 62 us; the words of four
-  // consecutive cells interleaved, one 32-byte sector per word: the pass 34 -> 72 us at 2 cm, and
-  // 1.09-1.12x the frame time at 2 cm, on OS1-64 0.1 m and KITTI; 2026-11-26.)
+  // (A cell's words side by side: a cell is one or two 32-byte sectors. Each word in a plane of
+  // its own over the box, or the words of neighbouring cells interleaved, spread a visit's atomics
+  // and the pass's reads over more sectors.)
   COVOX_HD_INLINE uint64_t& word(uint64_t key, int w) const {
     return words[key * static_cast<uint64_t>(stride) + w];
   }
@@ -199,8 +193,8 @@ struct VoxelSumCells {
                            bool takes_color, const Rgb8& color) const {
     const uint64_t units = weight_units(update.weight);
     if (units == 0) return;
-    if (free_space) {
-      add_free_space(key, units);
+    if (free_space) {  // (its distance offset is zero: one atomic in all)
+      atomic_add(&word(key, 0), units);
       return;
     }
     atomic_add(&word(key, 0), units);
@@ -212,18 +206,6 @@ struct VoxelSumCells {
     atomic_add(&word(key, 3), signed_fixed_units(update.weight * color.r, kWeightedColorUnits));
     atomic_add(&word(key, 4), signed_fixed_units(update.weight * color.g, kWeightedColorUnits));
     atomic_add(&word(key, 5), signed_fixed_units(update.weight * color.b, kWeightedColorUnits));
-  }
-  // A free-space visit's weight: its own atomic, or with the warp's lanes visiting the same voxel
-  // now, one atomic of their sum by the group's lowest lane (the integer sum is exact, so the
-  // cell ends the same). On the host a "warp" is the calling thread alone.
-  COVOX_HD_INLINE void add_free_space(uint64_t key, uint64_t units) const {
-    if (!aggregate_in_warp) {
-      atomic_add(&word(key, 0), units);
-      return;
-    }
-    const uint32_t peers = warp_match(warp_lanes(), key);
-    const uint64_t sum = (peers & (peers - 1u)) != 0u ? warp_sum(peers, units) : units;
-    if (warp_lane() == warp_first_lane(peers)) atomic_add(&word(key, 0), sum);
   }
   // The cell's sum (into a zeroed `sum`) and the cell cleared; false for an empty cell.
   COVOX_HD_INLINE bool take(uint64_t key, DistanceUpdate* sum) const {
@@ -374,9 +356,8 @@ COVOX_HD_INLINE uint32_t ray_voxel_count(const RaySegment& ray, float inverse_vo
 // stepped while it has grid lines left to cross, so rounding can never step past `last` or change
 // the count, even when `first`/`last` were clamped a voxel away from the points' own voxels.
 // One axis of the walk below. The three axes are named registers, not arrays: with arrays indexed
-// by the axis chosen at each step, the GPU kept them in local memory (a 64-byte stack frame per
-// thread, every step a round trip through L1; ncu on the 7-Scenes 2 cm traverse: loads with 1.2
-// of 32 bytes used, 13 cycles of each 24 per instruction waiting on them).
+// by the axis chosen at each step, the GPU keeps them in local memory (a stack frame per
+// thread, every step a round trip through L1).
 struct WalkAxis {
   int32_t position;
   int32_t remaining;  // grid lines left to cross
@@ -593,8 +574,6 @@ struct FrameUpdates {
 // Neighbouring points then lie together in both directions: a warp of the merge sees a compact
 // patch of pixels, which falls into few bundles, and the merged rays, ranked by their first
 // point, come in spatial patches, which the ray groups walk side by side (tsdf_traverse.h).
-// (H100, same-run against row order, 2026-11-26: the 7-Scenes merge kernel 31 -> 24 us at 2 cm
-// and 20 -> 16 us at 5 cm, the unproject 5 -> 7 us; frames 0.96 / 0.97x; "eleventh pass".)
 constexpr int32_t kPixelTileWidth = 8;
 constexpr int32_t kPixelTileHeight = 4;
 COVOX_HD_INLINE int64_t pixel_tile_order(int32_t u, int32_t v, int32_t width, int32_t height) {
@@ -630,8 +609,9 @@ COVOX_HD_INLINE int64_t pixel_at_tile_place(int64_t place, int32_t width, int32_
 // A depth image (device memory, row-major) read as a frame's points in tile order: point `place`
 // is the pixel pixel_at_tile_place(place) unprojected, ((u - cx) z / fx, (v - cy) z / fy, z), or
 // the zero point (dropped and counted as such) where the pixel has no measurement. Both the
-// unprojection kernel and the merge (which reads the image in place: tsdf_merge_rays) compute
-// the points with this one function, so they agree bit for bit.
+// unprojection kernel and the merge (which reads the image in place:
+// internal/tsdf_stage_merge_rays.h) compute the points with this one function, so they agree bit
+// for bit.
 struct DepthImagePoints {
   const uint16_t* depth = nullptr;  // raw units, or
   const float* depth_m = nullptr;   // metres (NaN, Inf, 0 or negative: no measurement)

@@ -136,10 +136,9 @@ struct MergeTable {
 // cast, rays written, voxels their traversal will visit, and the box of those voxels.
 // Thousands of warps add to these counters, and atomics on one cache line queue in one slice of
 // the GPU's L2: the counters are kept in kMergeTallyStripes copies, each on its own line, a warp
-// adding to the copy of its index, and the host sums the copies (one 4 KB read-back). (H100,
-// 7-Scenes 5 cm frame, the ray kernel: 15 us with one copy and every counter on its own line,
-// 10-11 us on 32 copies; 128 copies: 9.5 us, but the frame 1.02-1.07x slower with their 16 KB
-// read-back and reset.)
+// adding to the copy of its index, and the copies are summed at the end (the GPU's last warp:
+// MergeTallySummary; the CPU twin's host, from a 4 KB read-back). More copies spread the atomics
+// further but cost their sum and reset.
 struct alignas(128) MergeTallyStripe {
   uint64_t kinds[6];
   uint64_t cast;
@@ -148,8 +147,7 @@ struct alignas(128) MergeTallyStripe {
   int32_t low[3];
   int32_t high[3];
   int32_t most_pieces;  // the longest ray's pieces (tsdf_kernels.h, ray_piece_count)
-  // Field by field: assigning a whole default-constructed stripe cost 5.4 us per frame on the
-  // H100, this 2.4 us.
+  // Field by field, each a plain store (no temporary stripe built and copied).
   COVOX_HD_INLINE void reset() {
     for (int k = 0; k < 6; ++k) kinds[k] = 0;
     cast = rays = voxels = 0;

@@ -8,10 +8,10 @@
 //   that made the visit; the update, with the ray's colour when the visit takes it, is computed
 //   again from the ray and the voxel where the reduction reads the record (VoxelUpdateOfRecord),
 //   with the same function: moving 4 bytes through the traverse's writes and every radix pass
-//   costs less than moving a 32-byte coloured update (measured: 2 cm RGB-D traverse 164 -> 98 us
-//   on the H100), while for 8 bytes the recomputation costs about what it saves (LiDAR frames,
-//   measured). In free space, where the distance is the truncation and no colour is taken, the
-//   word is the visit's weight itself, so the reduction needs neither the ray nor the voxel.
+//   costs less than moving a 32-byte coloured update, while for an 8-byte update without colour
+//   the recomputation would cost about what it saves. In free space, where the distance is the
+//   truncation and no colour is taken, the word is the visit's weight itself, so the reduction
+//   needs neither the ray nor the voxel.
 // The per-voxel arithmetic is one __host__ __device__ function for both backends; only how the
 // records reach memory differs:
 // - CPU: each OpenMP thread writes its pieces' records directly (contiguous per thread).
@@ -110,7 +110,7 @@ struct PieceTraversal {
   float truncation;
   // When given, one flag per block of the frame's box (the codec's block number), set for every
   // block that a kept record (weight, inside the box) falls in: the frame's blocks, known before
-  // the records are sorted (tsdf_integrator_impl.h, step 4).
+  // the records are sorted (internal/tsdf_stage_blocks.h).
   uint32_t* block_marks = nullptr;
   // When given (with block_marks), one fixed-point weight sum per key of the frame's box: a kept
   // free-space visit adds its weight there (weight_units, tsdf_kernels.h) and leaves a record with
@@ -294,16 +294,11 @@ void traverse_pieces(CpuBackend backend, const Stream& stream, int64_t piece_bou
 // With every visit summed no record is kept, and the rays are walked in groups of kRayGroupRays
 // consecutive rays (neighbouring pixels or beams: their rays leave the sensor side by side), one
 // GPU warp per group and piece index ("level"): lane l walks piece k of the group's ray l, so that
-// at each step the lanes visit voxels at about the same distance along neighbouring rays, and
-// where they visit the same voxel (near the sensor) their free-space weights can go in one atomic
-// (VoxelSumCells::aggregate_in_warp). It needs no piece table, only the rays' piece counts: on the
-// H100 the frame loses the piece table's scan (27.7 us of a 7-Scenes 2 cm frame), and the walk
-// costs what one thread per piece did (142 against 149 us there); docs/benchmarks.md, "eleventh
-// pass". Every group gets as many levels as the frame's longest ray has pieces (the merge's tally
-// knows it), so work item w is level w % levels of group w / levels: a warp whose lanes' rays are
-// all shorter leaves at once. (Before, each group's own levels were scanned and every item found
-// its group by a binary search of the scan: one launch more, 5-8 us of GPU time per 7-Scenes frame
-// for the scan, and the search's chain of loads in every item; "twelfth pass".)
+// at each step the lanes visit voxels at about the same distance along neighbouring rays. It needs
+// no piece table (and no scan to build one), only the rays' piece counts. Every group gets as many
+// levels as the frame's longest ray has pieces (the merge's tally knows it), so work item w is
+// level w % levels of group w / levels: a warp whose lanes' rays are all shorter leaves at once,
+// and no item searches for its group.
 constexpr int kRayGroupRays = 32;
 struct RayGroups {
   const uint32_t* ray_pieces;  // each ray's piece count
@@ -332,9 +327,7 @@ COVOX_HD_INLINE void sum_ray_group_piece(const PieceTraversal<KeyT, ValueT>& tra
   const uint32_t pieces = groups.ray_pieces[i];
   if (k >= pieces) return;
   // The ray copied (see voxel_update): passed by reference into the frame's array, its fields
-  // were loaded again at every visit, the atomics in between might alias them (H100, ncu's stall
-  // sampling, 7-Scenes 2 cm frame: warps waited on those loads in about a quarter of the samples;
-  // with the copy the frames took 0.97-1.00 of the time, inside the runs' spread).
+  // would be loaded again at every visit, as the atomics in between might alias them.
   const RaySegment ray = traversal.frame.rays[i];
   traversal.visit_piece(ray, static_cast<uint32_t>(i), k, pieces, 0u,
                         [](uint32_t, KeyT, const ValueT&) {});
@@ -354,11 +347,8 @@ void sum_ray_groups(CpuBackend backend, const Stream& stream,
 #if defined(__CUDACC__)
 namespace detail {
 constexpr int kRayGroupThreads = 128;
-// One warp per work item, in a grid-stride loop up to the items' total (on the device). (Tried on
-// the H100, 2026-11-26: four consecutive items per warp, one search for them, 1.05-1.40x slower,
-// the fewer warps hiding less latency; 40-51 registers instead of 94-99 for more resident warps
-// spilled, 1.04-1.17x slower; 64 registers (32 bytes spilled) 0.94-0.99x, within the runs'
-// spread.)
+// One warp per work item, in a grid-stride loop up to the items' total (on the device); no
+// register cap beyond the launch bounds (fewer registers for more resident warps spill).
 template <class KeyT, class ValueT>
 __global__ void __launch_bounds__(kRayGroupThreads)
     sum_ray_groups_kernel(PieceTraversal<KeyT, ValueT> traversal, RayGroups groups) {
@@ -424,8 +414,8 @@ __device__ uint32_t band_place(uint32_t own, const BandRecords<KeyT, ValueT>& ba
 // With free-space sums (band.keys given) the block keeps only the band's records and copies them
 // out compacted: its staged records read in chunks, one per thread, counted, placed (band_place)
 // and stored; a block whose records do not fit counts its band visits in a first walk (no sums),
-// and writes them directly in a second. (The CPU writes every record, then compacts: two passes
-// over 33 MB at 2 cm, 39 us on the H100, that this saves.)
+// and writes them directly in a second. (The CPU writes every record, then compacts: two more
+// passes over the records, which this saves.)
 template <class KeyT, class ValueT>
 __global__ void staged_traverse_kernel(PieceTraversal<KeyT, ValueT> traversal,
                                        RecordArrays<KeyT, ValueT> arrays,

@@ -2,7 +2,7 @@
 // Insert-if-absent of distinct block keys one at a time, from inside the caller's own kernel
 // (BlockHashTable::begin_in_kernel_activation): for a caller that lists its keys in a kernel
 // anyway, which then needs no activation kernel of its own. A TSDF frame lists its blocks in the
-// scan of its traverse's marks and activates each as its rank is known (tsdf_integrator_impl.h):
+// scan of its traverse's marks and activates each as its rank is known (tsdf_stage_blocks.h):
 // on the H100 one launch and 5-7 us of GPU time fewer per frame (docs/benchmarks.md, "twelfth
 // pass"). Each new key takes the next slot by an atomic counter (freed slots first, from the top
 // of the free stack, then never-used ones): the same set of slots as activate() hands out for the
