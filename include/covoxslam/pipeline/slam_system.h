@@ -1,5 +1,5 @@
 #pragma once
-// SlamSystem: the pure C++ SLAM pipeline (no ROS), DESIGN.md "The data path".
+// SlamSystem: the pure C++ SLAM pipeline (no ROS): the data path.
 //
 //   add_scan() ──► sensor queue ──► frontend thread: integrate each scan into the active submap
 //                                   at its odometry pose in the submap frame; the creation
