@@ -21,7 +21,7 @@
 #include "covoxslam/io/data_directory.h"
 #include "covoxslam/io/map_file.h"
 #include "dataset_scan_sources.h"
-#include "flat_yaml.h"
+#include "covoxslam/pipeline/slam_config_files.h"
 #include "sim_flight.h"
 #include "sim_flight_bag.h"
 #include "sim_lidar.h"
@@ -86,7 +86,7 @@ TinyFlight* OfflineRunner::flight_ = nullptr;
 
 TEST_F(OfflineRunner, LibraryRunIntegratesEveryScanWithTheBagsOdometry) {
   BagScanSource source(bag(), BagScanOptions());
-  pipeline::SlamConfig config = arche_slam_config(Device::kCpu);
+  pipeline::SlamConfig config = pipeline::load_preset("arche_sim");
   config.submaps.interval_s = 0.5;  // four submaps, so that the backend has a graph to optimise
   SlamRunOptions options;
   options.progress_bar = false;
@@ -231,31 +231,6 @@ TEST_F(OfflineRunner, ProgramNamesAMissingBagOrAWrongTopic) {
   // Nothing half-written is left behind.
   EXPECT_FALSE(fs::exists(out / "t.tum"));
   EXPECT_FALSE(fs::exists(out / "m.ply"));
-}
-
-TEST(OfflineRunnerInputs, FlatYamlReadsTheNodeletParameterFilesAndRejectsNesting) {
-  const std::string path =
-      ::testing::TempDir() + "/offline_runner_test_" + std::to_string(::getpid()) + ".yaml";
-  {
-    std::ofstream file(path);
-    file << "# covoxslam\nvoxel_size_m: 0.1   # metres\n\nodom_frame: \"odom\"\nlabel: 'a # b'\n";
-  }
-  const std::map<std::string, std::string> values = read_flat_yaml(path);
-  ASSERT_EQ(values.size(), 3u);
-  EXPECT_EQ(values.at("voxel_size_m"), "0.1");
-  EXPECT_EQ(values.at("odom_frame"), "odom");
-  EXPECT_EQ(values.at("label"), "a # b");
-  {
-    std::ofstream file(path);
-    file << "registration:\n  enabled: true\n";
-  }
-  EXPECT_THROW(read_flat_yaml(path), Error);
-  {
-    std::ofstream file(path);
-    file << "a: 1\na: 2\n";
-  }
-  EXPECT_THROW(read_flat_yaml(path), Error);
-  std::remove(path.c_str());
 }
 
 TEST(OfflineRunnerInputs, RgbdFolderCloudsProjectOntoTheirPixelsAndOdometryDriftsAsAsked) {

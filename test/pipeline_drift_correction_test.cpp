@@ -87,8 +87,8 @@ TEST(PipelineDriftCorrection, RegistrationPullsTheDriftingTrajectoryBackToTheTru
   EXPECT_GT(run.odometry_rmse_m, 1.0);  // the drift is real
   // Every new submap registers at least to its predecessor.
   EXPECT_GE(r.accepted, static_cast<int64_t>(run.submaps.size()) - 1);
-  EXPECT_EQ(r.attempted, r.accepted + r.rejected_failed + r.rejected_too_far +
-                             r.rejected_too_few_points + r.rejected_poor_fit);
+  EXPECT_EQ(r.attempted,
+            r.accepted + r.rejected_failed + r.rejected_too_far + r.rejected_too_few_points);
   EXPECT_LT(run.corrected_rmse_m, 0.35 * run.odometry_rmse_m);
   EXPECT_LT(run.corrected_rmse_m, 0.3);
   EXPECT_LT(run.corrected_final_error_m, 0.3 * run.odometry_final_error_m);
@@ -122,8 +122,8 @@ TEST(PipelineDriftCorrection, WithoutRegistrationTheCorrectedTrajectoryIsTheOdom
 TEST(PipelineDriftCorrection, EachRejectionReasonIsCounted) {
   // Too far: no alignment may move the guess by more than 0.1 mm.
   SlamConfig config = yard_config();
-  config.registration.max_correction_m = 1e-4;
-  config.registration.max_correction_rad = 1e-6;
+  config.registration.acceptance.max_correction_m = 1e-4;
+  config.registration.acceptance.max_correction_rad = 1e-6;
   DriftRun run = run_drifting_lap(config, 12.0, lap_drift());
   std::printf("[ rejects  ] attempted %lld, too far %lld, failed %lld, too few %lld\n",
               static_cast<long long>(run.counters.registration.attempted),
@@ -135,12 +135,11 @@ TEST(PipelineDriftCorrection, EachRejectionReasonIsCounted) {
   EXPECT_EQ(counts.accepted, 0);
   // The short last submap (one scan) may also fall short of points; every other pair is too far.
   EXPECT_GE(counts.rejected_too_far, counts.attempted - 2);
-  EXPECT_EQ(counts.rejected_too_far + counts.rejected_too_few_points + counts.rejected_failed +
-                counts.rejected_poor_fit,
+  EXPECT_EQ(counts.rejected_too_far + counts.rejected_too_few_points + counts.rejected_failed,
             counts.attempted);
   // Too few points: more than a submap has.
   config = yard_config();
-  config.registration.min_points = 1000000;
+  config.registration.acceptance.min_points = 1000000;
   run = run_drifting_lap(config, 12.0, lap_drift());
   EXPECT_GE(run.counters.registration.attempted, 2);
   EXPECT_EQ(run.counters.registration.rejected_too_few_points, run.counters.registration.attempted);
@@ -157,20 +156,20 @@ TEST(PipelineDriftCorrection, RegistrationParametersAreValidatedByName) {
     }
   };
   SlamConfig config = yard_config();
-  config.registration.sampling_ratio = 0.0f;
-  expect_named(config, "registration.sampling_ratio");
+  config.registration.sampling.ratio = 0.0f;
+  expect_named(config, "registration.sampling.ratio");
   config = yard_config();
-  config.registration.point_sigma_m = -1.0;
-  expect_named(config, "registration.point_sigma_m");
+  config.registration.information.point_sigma_m = -1.0;
+  expect_named(config, "registration.information.point_sigma_m");
   config = yard_config();
-  config.registration.max_correction_rad = 4.0;
-  expect_named(config, "registration.max_correction_rad");
+  config.registration.acceptance.max_correction_rad = 4.0;
+  expect_named(config, "registration.acceptance.max_correction_rad");
   config = yard_config();
-  config.registration.max_correction_m = std::numeric_limits<double>::quiet_NaN();
-  expect_named(config, "registration.max_correction_m");
+  config.registration.acceptance.max_correction_m = std::numeric_limits<double>::quiet_NaN();
+  expect_named(config, "registration.acceptance.max_correction_m");
   config = yard_config();
-  config.registration.robust_loss_scale_m = 0.0;
-  expect_named(config, "registration.robust_loss_scale_m");
+  config.registration.alignment.robust_loss_scale_m = 0.0;
+  expect_named(config, "registration.alignment.robust_loss_scale_m");
   config = yard_config();
   config.external_stamp_tolerance_s = -0.1;
   expect_named(config, "external_stamp_tolerance_s");

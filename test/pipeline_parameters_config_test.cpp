@@ -1,6 +1,6 @@
-// Every SLAM parameter name reaches its SlamConfig field, and the shipped parameter files and the
-// ROS documentation list every one of them: a field added to SlamConfig (registration, solver)
-// and made readable must also be documented, and a name in config/*.yaml must be readable.
+// Every SLAM parameter name reaches its SlamConfig field; docs/parameters.md documents every one;
+// the shipped configuration files (the presets) hold only known keys, set only what differs from
+// the library defaults, and give the values they were measured with.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -12,11 +12,13 @@
 #include <sstream>
 #include <string>
 
+#include <unistd.h>
+
 #include "covoxslam/core/error.h"
+#include "covoxslam/io/yaml_subset.h"
+#include "covoxslam/pipeline/slam_config_files.h"
 #include "covoxslam/pipeline/slam_parameters.h"
 #include "support/parameter_errors.h"
-#include "flat_yaml.h"
-#include "slam_run.h"
 
 namespace covox {
 namespace pipeline {
@@ -39,157 +41,153 @@ std::map<std::string, Expectation> expectations() {
   using backend::RobustLoss;
   return {
       {"device", {"cpu", [](const SlamConfig& c) { return c.device == Device::kCpu; }}},
-      {"voxel_size_m", {"0.15", [](const SlamConfig& c) { return c.map.voxel_size_m == 0.15f; }}},
-      {"voxels_per_side", {"8", [](const SlamConfig& c) { return c.map.voxels_per_side == 8; }}},
-      {"block_table_initial_bucket_count",
+      {"map.voxel_size_m",
+       {"0.15", [](const SlamConfig& c) { return c.map.voxel_size_m == 0.15f; }}},
+      {"map.voxels_per_side",
+       {"8", [](const SlamConfig& c) { return c.map.voxels_per_side == 8; }}},
+      {"map.block_table.initial_bucket_count",
        {"1234",
         [](const SlamConfig& c) { return c.map.block_table.initial_bucket_count == 1234u; }}},
-      {"block_table_max_load_factor",
+      {"map.block_table.max_load_factor",
        {"0.5", [](const SlamConfig& c) { return c.map.block_table.max_load_factor == 0.5; }}},
-      {"block_table_allow_growth",
+      {"map.block_table.allow_growth",
        {"false", [](const SlamConfig& c) { return !c.map.block_table.allow_growth; }}},
-      {"integration_method",
+      {"tsdf.method",
        {"simple",
         [](const SlamConfig& c) { return c.tsdf.method == TsdfIntegrationMethod::kSimple; }}},
-      {"truncation_distance_m",
+      {"tsdf.truncation_distance_m",
        {"0.45", [](const SlamConfig& c) { return c.tsdf.truncation_distance_m == 0.45f; }}},
-      {"max_weight", {"77", [](const SlamConfig& c) { return c.tsdf.max_weight == 77.0f; }}},
-      {"min_ray_length_m",
+      {"tsdf.max_weight", {"77", [](const SlamConfig& c) { return c.tsdf.max_weight == 77.0f; }}},
+      {"tsdf.min_ray_length_m",
        {"0.3", [](const SlamConfig& c) { return c.tsdf.min_ray_length_m == 0.3f; }}},
-      {"max_ray_length_m",
+      {"tsdf.max_ray_length_m",
        {"12.5", [](const SlamConfig& c) { return c.tsdf.max_ray_length_m == 12.5f; }}},
-      {"voxel_carving_enabled",
+      {"tsdf.voxel_carving_enabled",
        {"false", [](const SlamConfig& c) { return !c.tsdf.voxel_carving_enabled; }}},
-      {"allow_clear", {"false", [](const SlamConfig& c) { return !c.tsdf.allow_clear; }}},
-      {"use_const_weight", {"true", [](const SlamConfig& c) { return c.tsdf.use_const_weight; }}},
-      {"use_weight_dropoff",
+      {"tsdf.allow_clear", {"false", [](const SlamConfig& c) { return !c.tsdf.allow_clear; }}},
+      {"tsdf.use_const_weight",
+       {"true", [](const SlamConfig& c) { return c.tsdf.use_const_weight; }}},
+      {"tsdf.use_weight_dropoff",
        {"false", [](const SlamConfig& c) { return !c.tsdf.use_weight_dropoff; }}},
-      {"use_sparsity_compensation_factor",
+      {"tsdf.use_sparsity_compensation_factor",
        {"true", [](const SlamConfig& c) { return c.tsdf.use_sparsity_compensation_factor; }}},
-      {"sparsity_compensation_factor",
+      {"tsdf.sparsity_compensation_factor",
        {"20", [](const SlamConfig& c) { return c.tsdf.sparsity_compensation_factor == 20.0f; }}},
-      {"integrate_color", {"false", [](const SlamConfig& c) { return !c.tsdf.integrate_color; }}},
-      {"fixed_point_sums_max_scratch_mb",
+      {"tsdf.integrate_color",
+       {"false", [](const SlamConfig& c) { return !c.tsdf.integrate_color; }}},
+      {"tsdf.fixed_point_sums_max_scratch_mb",
        {"64", [](const SlamConfig& c) { return c.tsdf.fixed_point_sums_max_scratch_mb == 64; }}},
-      {"esdf_max_distance_m",
+      {"esdf.max_distance_m",
        {"3", [](const SlamConfig& c) { return c.esdf.esdf_max_distance_m == 3.0f; }}},
-      {"esdf_site_distance_threshold_vox",
+      {"esdf.site_distance_threshold_vox",
        {"1.5", [](const SlamConfig& c) { return c.esdf.site_distance_threshold_vox == 1.5f; }}},
-      {"esdf_min_weight", {"0.01", [](const SlamConfig& c) { return c.esdf.min_weight == 0.01f; }}},
-      {"esdf_max_window_voxels",
+      {"esdf.min_weight", {"0.01", [](const SlamConfig& c) { return c.esdf.min_weight == 0.01f; }}},
+      {"esdf.max_window_voxels",
        {"1000000", [](const SlamConfig& c) { return c.esdf.max_window_voxels == 1000000; }}},
-      {"mesh_min_weight", {"0.02", [](const SlamConfig& c) { return c.mesh.min_weight == 0.02f; }}},
-      {"submap_creation_policy",
+      {"mesh.min_weight", {"0.02", [](const SlamConfig& c) { return c.mesh.min_weight == 0.02f; }}},
+      {"submaps.policy",
        {"blocks",
         [](const SlamConfig& c) { return c.submaps.policy == SubmapCreationPolicy::kBlockCount; }}},
-      {"submap_creation_interval_s",
+      {"submaps.interval_s",
        {"4.5", [](const SlamConfig& c) { return c.submaps.interval_s == 4.5; }}},
-      {"submap_creation_distance_m",
+      {"submaps.distance_m",
        {"7", [](const SlamConfig& c) { return c.submaps.distance_m == 7.0; }}},
-      {"submap_max_blocks",
+      {"submaps.max_blocks",
        {"321", [](const SlamConfig& c) { return c.submaps.max_blocks == 321; }}},
-      {"sensor_queue_size", {"3", [](const SlamConfig& c) { return c.sensor_queue_size == 3u; }}},
-      {"submap_queue_size", {"9", [](const SlamConfig& c) { return c.submap_queue_size == 9u; }}},
-      {"odometry_translation_sigma_m",
+      {"queues.sensor_scans", {"3", [](const SlamConfig& c) { return c.sensor_queue_size == 3u; }}},
+      {"queues.submaps", {"9", [](const SlamConfig& c) { return c.submap_queue_size == 9u; }}},
+      {"pose_graph.odometry_translation_sigma_m",
        {"0.7", [](const SlamConfig& c) { return c.odometry_translation_sigma_m == 0.7; }}},
-      {"odometry_yaw_sigma_rad",
+      {"pose_graph.odometry_yaw_sigma_rad",
        {"0.05", [](const SlamConfig& c) { return c.odometry_yaw_sigma_rad == 0.05; }}},
-      {"optimize_every_n_submaps",
+      {"pose_graph.optimize_every_n_submaps",
        {"0", [](const SlamConfig& c) { return c.optimize_every_n_submaps == 0; }}},
-      {"interpolate_trajectory_correction",
-       {"true", [](const SlamConfig& c) { return c.interpolate_trajectory_correction; }}},
-      {"external_stamp_tolerance_s",
+      {"pose_graph.interpolate_trajectory_correction",
+       {"false", [](const SlamConfig& c) { return !c.interpolate_trajectory_correction; }}},
+      {"pose_graph.external_stamp_tolerance_s",
        {"0.2", [](const SlamConfig& c) { return c.external_stamp_tolerance_s == 0.2; }}},
-      {"solver_max_iterations",
+      {"solver.max_iterations",
        {"17", [](const SlamConfig& c) { return c.solver.max_iterations == 17; }}},
-      {"solver_function_tolerance",
+      {"solver.function_tolerance",
        {"1e-4", [](const SlamConfig& c) { return c.solver.function_tolerance == 1e-4; }}},
-      {"solver_gradient_tolerance",
+      {"solver.gradient_tolerance",
        {"1e-7", [](const SlamConfig& c) { return c.solver.gradient_tolerance == 1e-7; }}},
-      {"solver_parameter_tolerance",
+      {"solver.parameter_tolerance",
        {"1e-5", [](const SlamConfig& c) { return c.solver.parameter_tolerance == 1e-5; }}},
-      {"solver_pcg_max_iterations",
+      {"solver.pcg_max_iterations",
        {"33", [](const SlamConfig& c) { return c.solver.pcg_max_iterations == 33; }}},
-      {"solver_pcg_relative_tolerance",
+      {"solver.pcg_relative_tolerance",
        {"0.01", [](const SlamConfig& c) { return c.solver.pcg_relative_tolerance == 0.01; }}},
-      {"solver_preconditioner",
+      {"solver.preconditioner",
        {"block_jacobi",
         [](const SlamConfig& c) {
           return c.solver.preconditioner == PcgPreconditioner::kBlockJacobi;
         }}},
-      {"solver_chain_segment_vertices",
+      {"solver.chain_segment_vertices",
        {"0", [](const SlamConfig& c) { return c.solver.chain_segment_vertices == 0; }}},
-      {"registration_enabled",
+      {"registration.enabled",
        {"false", [](const SlamConfig& c) { return !c.registration.enabled; }}},
-      {"registration_mode",
+      {"registration.mode",
        {"joint",
         [](const SlamConfig& c) { return c.registration.mode == RegistrationMode::kJoint; }}},
-      {"registration_sampling_ratio",
-       {"0.25", [](const SlamConfig& c) { return c.registration.sampling_ratio == 0.25f; }}},
-      {"registration_distance",
+      {"registration.overlap.min_shared_blocks",
+       {"6", [](const SlamConfig& c) { return c.registration.overlap.min_shared_blocks == 6; }}},
+      {"registration.overlap.max_partners",
+       {"0", [](const SlamConfig& c) { return c.registration.overlap.max_partners == 0; }}},
+      {"registration.sampling.ratio",
+       {"0.25", [](const SlamConfig& c) { return c.registration.sampling.ratio == 0.25f; }}},
+      {"registration.alignment.distance",
        {"esdf",
         [](const SlamConfig& c) {
-          return c.registration.distance == RegistrationDistance::kEsdf;
+          return c.registration.alignment.distance == RegistrationDistance::kEsdf;
         }}},
-      {"registration_symmetric",
-       {"true", [](const SlamConfig& c) { return c.registration.symmetric; }}},
-      {"registration_robust_loss",
+      {"registration.alignment.symmetric",
+       {"false", [](const SlamConfig& c) { return !c.registration.alignment.symmetric; }}},
+      {"registration.alignment.robust_loss",
        {"cauchy",
-        [](const SlamConfig& c) { return c.registration.robust_loss == RobustLoss::kCauchy; }}},
-      {"registration_robust_loss_scale_m",
-       {"0.4", [](const SlamConfig& c) { return c.registration.robust_loss_scale_m == 0.4; }}},
-      {"registration_point_sigma_m",
-       {"0.05", [](const SlamConfig& c) { return c.registration.point_sigma_m == 0.05; }}},
-      {"registration_min_sigma_m",
-       {"0.5", [](const SlamConfig& c) { return c.registration.min_sigma_m == 0.5; }}},
-      {"registration_min_sigma_yaw_rad",
-       {"0.03", [](const SlamConfig& c) { return c.registration.min_sigma_yaw_rad == 0.03; }}},
-      {"registration_min_shared_blocks",
-       {"6", [](const SlamConfig& c) { return c.registration.min_shared_blocks == 6; }}},
-      {"registration_min_points",
-       {"250", [](const SlamConfig& c) { return c.registration.min_points == 250; }}},
-      {"registration_max_correction_m",
-       {"3.5", [](const SlamConfig& c) { return c.registration.max_correction_m == 3.5; }}},
-      {"registration_max_correction_rad",
-       {"0.5", [](const SlamConfig& c) { return c.registration.max_correction_rad == 0.5; }}},
-      {"registration_inlier_distance_m",
-       {"0.25", [](const SlamConfig& c) { return c.registration.inlier_distance_m == 0.25; }}},
-      {"registration_min_inlier_fraction",
-       {"0.6", [](const SlamConfig& c) { return c.registration.min_inlier_fraction == 0.6; }}},
-      {"registration_min_fit_points",
-       {"40", [](const SlamConfig& c) { return c.registration.min_fit_points == 40; }}},
-      {"registration_search_enabled",
-       {"true", [](const SlamConfig& c) { return c.registration.search_enabled; }}},
-      {"registration_search_step_m",
-       {"0.5", [](const SlamConfig& c) { return c.registration.search_step_m == 0.5; }}},
-      {"registration_search_step_rad",
-       {"0.02", [](const SlamConfig& c) { return c.registration.search_step_rad == 0.02; }}},
-      {"registration_search_max_yaw_rad",
-       {"0.3", [](const SlamConfig& c) { return c.registration.search_max_yaw_rad == 0.3; }}},
-      {"registration_search_candidates",
-       {"5", [](const SlamConfig& c) { return c.registration.search_candidates == 5; }}},
-      {"registration_search_max_points",
-       {"900", [](const SlamConfig& c) { return c.registration.search_max_points == 900; }}},
-      {"registration_revisit_wall_search",
-       {"true", [](const SlamConfig& c) { return c.registration.revisit_wall_search; }}},
-      {"registration_revisit_min_id_gap",
-       {"6", [](const SlamConfig& c) { return c.registration.revisit_min_id_gap == 6; }}},
-      {"registration_wall_search_range_m",
-       {"1.5", [](const SlamConfig& c) { return c.registration.wall_search_range_m == 1.5; }}},
-      {"registration_wall_search_min_score",
-       {"80", [](const SlamConfig& c) { return c.registration.wall_search_min_score == 80.0; }}},
-      {"registration_wall_search_min_jump_m",
-       {"0.3", [](const SlamConfig& c) { return c.registration.wall_search_min_jump_m == 0.3; }}},
-      {"registration_max_partners",
-       {"0", [](const SlamConfig& c) { return c.registration.max_partners == 0; }}},
-      {"registration_max_iterations",
-       {"25", [](const SlamConfig& c) { return c.registration.max_iterations == 25; }}},
-      {"registration_coarse_levels",
-       {"3", [](const SlamConfig& c) { return c.registration.coarse_levels == 3; }}},
-      {"registration_max_graph_residual_m",
-       {"0.75", [](const SlamConfig& c) { return c.registration.max_graph_residual_m == 0.75; }}},
-      {"registration_gate_worst_fraction",
-       {"0.25", [](const SlamConfig& c) { return c.registration.gate_worst_fraction == 0.25; }}},
+        [](const SlamConfig& c) {
+          return c.registration.alignment.robust_loss == RobustLoss::kCauchy;
+        }}},
+      {"registration.alignment.robust_loss_scale_m",
+       {"0.4",
+        [](const SlamConfig& c) { return c.registration.alignment.robust_loss_scale_m == 0.4; }}},
+      {"registration.alignment.max_iterations",
+       {"25", [](const SlamConfig& c) { return c.registration.alignment.max_iterations == 25; }}},
+      {"registration.alignment.coarse_levels",
+       {"3", [](const SlamConfig& c) { return c.registration.alignment.coarse_levels == 3; }}},
+      {"registration.acceptance.min_points",
+       {"250", [](const SlamConfig& c) { return c.registration.acceptance.min_points == 250; }}},
+      {"registration.acceptance.max_correction_m",
+       {"2.5",
+        [](const SlamConfig& c) { return c.registration.acceptance.max_correction_m == 2.5; }}},
+      {"registration.acceptance.max_correction_rad",
+       {"0.5",
+        [](const SlamConfig& c) { return c.registration.acceptance.max_correction_rad == 0.5; }}},
+      {"registration.information.point_sigma_m",
+       {"0.05",
+        [](const SlamConfig& c) { return c.registration.information.point_sigma_m == 0.05; }}},
+      {"registration.information.min_sigma_m",
+       {"0.5", [](const SlamConfig& c) { return c.registration.information.min_sigma_m == 0.5; }}},
+      {"registration.information.min_sigma_yaw_rad",
+       {"0.03",
+        [](const SlamConfig& c) { return c.registration.information.min_sigma_yaw_rad == 0.03; }}},
+      {"registration.revisits.wall_search",
+       {"false", [](const SlamConfig& c) { return !c.registration.revisits.wall_search; }}},
+      {"registration.revisits.min_id_gap",
+       {"6", [](const SlamConfig& c) { return c.registration.revisits.min_id_gap == 6; }}},
+      {"registration.revisits.wall_search_range_m",
+       {"1.5",
+        [](const SlamConfig& c) { return c.registration.revisits.wall_search_range_m == 1.5; }}},
+      {"registration.revisits.wall_search_min_score",
+       {"80",
+        [](const SlamConfig& c) { return c.registration.revisits.wall_search_min_score == 80.0; }}},
+      {"registration.revisits.wall_search_min_jump_m",
+       {"0.3",
+        [](const SlamConfig& c) { return c.registration.revisits.wall_search_min_jump_m == 0.3; }}},
+      {"registration.gate.max_residual_m",
+       {"0.75", [](const SlamConfig& c) { return c.registration.gate.max_residual_m == 0.75; }}},
+      {"registration.gate.worst_fraction",
+       {"0.25", [](const SlamConfig& c) { return c.registration.gate.worst_fraction == 0.25; }}},
   };
 }
 
@@ -221,7 +219,7 @@ TEST(SlamParameterFiles, EveryNameSetsItsOwnField) {
   // ... and all together (a valid combination) each still lands in its own field.
   std::map<std::string, std::string> all;
   for (const auto& [name, expectation] : reference) all[name] = expectation.value;
-  all["truncation_distance_m"] = "0.45";  // >= one voxel of 0.15 m
+  all["tsdf.truncation_distance_m"] = "0.45";  // >= one voxel of 0.15 m
   SlamConfig config;
   read_slam_config(TextParameterSource(all), &config);
   for (const auto& [name, expectation] : reference) EXPECT_TRUE(expectation.holds(config)) << name;
@@ -230,121 +228,247 @@ TEST(SlamParameterFiles, EveryNameSetsItsOwnField) {
 using testing_support::expect_error_names;  // the error must name the wrong parameter
 
 TEST(SlamParameterFiles, BadRegistrationAndSolverValuesAreReportedByName) {
-  expect_error_names({{"registration_mode", "both"}}, "registration_mode");
-  expect_error_names({{"registration_min_sigma_m", "-0.1"}}, "registration_min_sigma_m");
-  expect_error_names({{"registration_min_inlier_fraction", "1.5"}},
-                     "registration_min_inlier_fraction");
-  expect_error_names({{"registration_inlier_distance_m", "0"}}, "registration_inlier_distance_m");
-  expect_error_names({{"registration_coarse_levels", "7"}}, "registration_coarse_levels");
-  expect_error_names({{"registration_coarse_levels", "-1"}}, "registration_coarse_levels");
-  expect_error_names({{"registration_max_graph_residual_m", "-0.5"}},
-                     "registration_max_graph_residual_m");
-  expect_error_names({{"registration_gate_worst_fraction", "1"}},
-                     "registration_gate_worst_fraction");
-  expect_error_names({{"registration_min_fit_points", "-1"}}, "registration_min_fit_points");
-  expect_error_names({{"registration_search_enabled", "maybe"}}, "registration_search_enabled");
-  expect_error_names({{"registration_search_step_m", "-1"}}, "registration_search_step_m");
-  expect_error_names({{"registration_search_candidates", "0"}}, "registration_search_candidates");
-  expect_error_names({{"registration_search_max_points", "3"}}, "registration_search_max_points");
-  expect_error_names({{"registration_revisit_min_id_gap", "0"}}, "registration_revisit_min_id_gap");
-  expect_error_names({{"registration_wall_search_range_m", "-1"}},
-                     "registration_wall_search_range_m");
-  expect_error_names({{"registration_min_points", "2"}}, "registration_min_points");
-  expect_error_names({{"registration_max_correction_rad", "4"}}, "registration_max_correction_rad");
-  expect_error_names({{"solver_preconditioner", "jacobi"}}, "solver_preconditioner");
-  expect_error_names({{"solver_pcg_relative_tolerance", "1.5"}}, "solver_pcg_relative_tolerance");
-  expect_error_names({{"solver_chain_segment_vertices", "-2"}}, "solver_chain_segment_vertices");
-  expect_error_names({{"esdf_max_window_voxels", "0"}}, "esdf_max_window_voxels");
+  expect_error_names({{"registration.mode", "both"}}, "registration.mode");
+  expect_error_names({{"registration.information.min_sigma_m", "-0.1"}},
+                     "registration.information.min_sigma_m");
+  expect_error_names({{"registration.alignment.coarse_levels", "7"}},
+                     "registration.alignment.coarse_levels");
+  expect_error_names({{"registration.alignment.coarse_levels", "-1"}},
+                     "registration.alignment.coarse_levels");
+  expect_error_names({{"registration.gate.max_residual_m", "-0.5"}},
+                     "registration.gate.max_residual_m");
+  expect_error_names({{"registration.gate.worst_fraction", "1"}},
+                     "registration.gate.worst_fraction");
+  expect_error_names({{"registration.revisits.wall_search", "maybe"}},
+                     "registration.revisits.wall_search");
+  expect_error_names({{"registration.revisits.min_id_gap", "0"}},
+                     "registration.revisits.min_id_gap");
+  expect_error_names({{"registration.revisits.wall_search_range_m", "-1"}},
+                     "registration.revisits.wall_search_range_m");
+  expect_error_names({{"registration.acceptance.min_points", "2"}},
+                     "registration.acceptance.min_points");
+  expect_error_names({{"registration.acceptance.max_correction_rad", "4"}},
+                     "registration.acceptance.max_correction_rad");
+  expect_error_names({{"solver.preconditioner", "jacobi"}}, "solver.preconditioner");
+  expect_error_names({{"solver.pcg_relative_tolerance", "1.5"}}, "solver.pcg_relative_tolerance");
+  expect_error_names({{"solver.chain_segment_vertices", "-2"}}, "solver.chain_segment_vertices");
+  expect_error_names({{"esdf.max_window_voxels", "0"}}, "esdf.max_window_voxels");
 }
 
-// The SLAM keys of a parameter file: those slam_parameter_names() knows.
-std::map<std::string, std::string> slam_keys(const std::map<std::string, std::string>& file) {
-  const std::vector<std::string>& names = slam_parameter_names();
-  std::map<std::string, std::string> keys;
-  for (const auto& [name, value] : file) {
-    if (std::find(names.begin(), names.end(), name) != names.end()) keys[name] = value;
-  }
-  return keys;
+// The text of docs/parameters.md, the one place every parameter is documented.
+std::string parameters_doc() {
+  std::ifstream file(repository_root() / "docs" / "parameters.md");
+  std::stringstream text;
+  text << file.rdbuf();
+  return text.str();
 }
 
-TEST(SlamParameterFiles, ShippedConfigsListAndDocumentEveryParameter) {
-  const fs::path root = repository_root();
-  const fs::path defaults_path = root / "config" / "covoxslam.yaml";
-  ASSERT_TRUE(fs::exists(defaults_path)) << defaults_path;
-  const std::map<std::string, std::string> defaults = tools::read_flat_yaml(defaults_path.string());
-  // Every SLAM parameter has its line in covoxslam.yaml, with a comment (meaning and unit).
-  std::ifstream defaults_text(defaults_path);
-  std::map<std::string, std::string> lines;
-  for (std::string line; std::getline(defaults_text, line);) {
-    const size_t colon = line.find(':');
-    if (colon != std::string::npos && !line.empty() && line[0] != '#' && line[0] != ' ')
-      lines[line.substr(0, colon)] = line;
+std::vector<fs::path> config_files() {
+  std::vector<fs::path> files;
+  for (const fs::directory_entry& entry : fs::directory_iterator(repository_root() / "config")) {
+    if (entry.path().extension() == ".yaml") files.push_back(entry.path());
   }
-  // The ROS documentation names every one too.
-  std::ifstream ros_doc(root / "docs" / "ros.md");
-  std::stringstream doc;
-  doc << ros_doc.rdbuf();
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
+TEST(SlamParameterFiles, EveryParameterIsDocumentedOnce) {
+  const std::string doc = parameters_doc();
+  ASSERT_FALSE(doc.empty()) << "docs/parameters.md is missing";
   for (const std::string& name : slam_parameter_names()) {
-    EXPECT_TRUE(defaults.count(name)) << "config/covoxslam.yaml lacks '" << name << "'";
-    if (lines.count(name)) {
-      EXPECT_NE(lines[name].find('#'), std::string::npos)
-          << "config/covoxslam.yaml: '" << name << "' has no comment";
+    const std::string cell = "| `" + name + "` |";
+    const size_t first = doc.find(cell);
+    EXPECT_NE(first, std::string::npos) << "docs/parameters.md has no row for `" << name << "`";
+    if (first != std::string::npos) {
+      EXPECT_EQ(doc.find(cell, first + 1), std::string::npos) << name << " is documented twice";
     }
-    EXPECT_NE(doc.str().find("`" + name + "`"), std::string::npos)
-        << "docs/ros.md does not name `" << name << "`";
   }
-  // Both files are valid as shipped: the defaults alone, and arche.yaml on top of them.
-  SlamConfig config;
-  ASSERT_NO_THROW(read_slam_config(TextParameterSource(slam_keys(defaults)), &config));
-  std::map<std::string, std::string> arche = slam_keys(defaults);
-  for (const auto& [name, value] :
-       slam_keys(tools::read_flat_yaml((root / "config" / "arche.yaml").string()))) {
-    arche[name] = value;
-  }
-  SlamConfig arche_config;
-  ASSERT_NO_THROW(read_slam_config(TextParameterSource(arche), &arche_config));
-  EXPECT_FLOAT_EQ(arche_config.tsdf.sparsity_compensation_factor,
-                  20.0f);  // voxgraph's ARCHE setting
 }
 
-// config/arche_sim.yaml is the offline runner's ARCHE preset for the ROS node (what `make demo`
-// measures): every SLAM setting the preset changes reads back the same from the file.
-TEST(SlamParameterFiles, ArcheSimFileEqualsTheRunnersArchePreset) {
-  const fs::path root = repository_root();
-  std::map<std::string, std::string> keys =
-      slam_keys(tools::read_flat_yaml((root / "config" / "covoxslam.yaml").string()));
-  for (const auto& [name, value] :
-       slam_keys(tools::read_flat_yaml((root / "config" / "arche_sim.yaml").string()))) {
-    keys[name] = value;
+// Every key of every shipped configuration file is known: the SLAM ones load (an unknown one is an
+// error), the nodelet's (`ros` section) are documented parameters of the nodelet.
+TEST(SlamParameterFiles, EveryKeyOfEveryShippedFileIsKnown) {
+  const std::string doc = parameters_doc();
+  const std::vector<fs::path> files = config_files();
+  ASSERT_GE(files.size(), 5u);
+  for (const fs::path& file : files) {
+    SlamConfig config;
+    SlamConfigFileUse use;
+    ASSERT_NO_THROW(use = load_slam_config(file.string(), &config)) << file;
+    EXPECT_GT(use.applied, 0u) << file;
+    for (const std::string& key : use.node_keys) {
+      EXPECT_NE(doc.find("| `" + key + "` |"), std::string::npos)
+          << file << ": '" << key << "' is not a documented parameter of the nodelet";
+    }
   }
-  SlamConfig file;
-  ASSERT_NO_THROW(read_slam_config(TextParameterSource(keys), &file));
-  const SlamConfig preset = tools::arche_slam_config(Device::kCpu);
-  EXPECT_EQ(file.map.voxel_size_m, preset.map.voxel_size_m);
-  EXPECT_EQ(file.map.voxels_per_side, preset.map.voxels_per_side);
-  EXPECT_EQ(file.tsdf.truncation_distance_m, preset.tsdf.truncation_distance_m);
-  EXPECT_EQ(file.tsdf.max_ray_length_m, preset.tsdf.max_ray_length_m);
-  EXPECT_EQ(file.tsdf.use_const_weight, preset.tsdf.use_const_weight);
-  EXPECT_EQ(file.tsdf.use_weight_dropoff, preset.tsdf.use_weight_dropoff);
-  EXPECT_EQ(file.tsdf.use_sparsity_compensation_factor,
-            preset.tsdf.use_sparsity_compensation_factor);
-  EXPECT_EQ(file.tsdf.sparsity_compensation_factor, preset.tsdf.sparsity_compensation_factor);
-  EXPECT_EQ(file.submaps.policy, preset.submaps.policy);
-  EXPECT_EQ(file.submaps.interval_s, preset.submaps.interval_s);
-  EXPECT_EQ(file.registration.symmetric, preset.registration.symmetric);
-  EXPECT_EQ(file.registration.sampling_ratio, preset.registration.sampling_ratio);
-  EXPECT_EQ(file.registration.robust_loss, preset.registration.robust_loss);
-  EXPECT_EQ(file.registration.min_sigma_m, preset.registration.min_sigma_m);
-  EXPECT_NEAR(file.registration.min_sigma_yaw_rad, preset.registration.min_sigma_yaw_rad, 1e-6);
-  EXPECT_EQ(file.registration.max_correction_m, preset.registration.max_correction_m);
-  EXPECT_EQ(file.registration.coarse_levels, preset.registration.coarse_levels);
-  EXPECT_EQ(file.registration.search_enabled, preset.registration.search_enabled);
-  EXPECT_EQ(file.registration.revisit_wall_search, preset.registration.revisit_wall_search);
-  EXPECT_EQ(file.registration.max_graph_residual_m, preset.registration.max_graph_residual_m);
-  EXPECT_EQ(file.registration.gate_worst_fraction, preset.registration.gate_worst_fraction);
-  EXPECT_EQ(file.interpolate_trajectory_correction, preset.interpolate_trajectory_correction);
-  EXPECT_EQ(file.odometry_translation_sigma_m, preset.odometry_translation_sigma_m);
-  EXPECT_EQ(file.odometry_yaw_sigma_rad, preset.odometry_yaw_sigma_rad);
+  EXPECT_EQ(preset_names(), (std::vector<std::string>{"arche", "arche_sim", "covoxslam",
+                                                      "lidar_keyframes", "rgbd"}));
+}
+
+// A preset sets only what differs from the library defaults: each of its SLAM keys alone changes
+// the fields below (those the shipped presets set).
+std::string describe(const SlamConfig& config) {
+  std::ostringstream text;
+  text.precision(17);
+  const SlamConfig& c = config;
+  text << c.map.voxel_size_m << ' ' << c.tsdf.truncation_distance_m << ' '
+       << c.tsdf.max_ray_length_m << ' ' << c.tsdf.use_const_weight << ' '
+       << c.tsdf.use_sparsity_compensation_factor << ' ' << c.tsdf.sparsity_compensation_factor
+       << ' ' << c.submaps.interval_s << ' ' << c.odometry_translation_sigma_m << ' '
+       << c.odometry_yaw_sigma_rad << ' ' << c.interpolate_trajectory_correction << ' '
+       << c.registration.alignment.coarse_levels << ' ' << c.registration.information.min_sigma_m
+       << ' ' << c.registration.information.min_sigma_yaw_rad << ' '
+       << c.registration.revisits.wall_search << ' ' << c.registration.gate.max_residual_m;
+  return text.str();
+}
+
+TEST(SlamParameterFiles, PresetsListOnlyWhatDiffersFromTheDefaults) {
+  for (const std::string& preset : {"arche", "arche_sim", "rgbd", "lidar_keyframes", "covoxslam"}) {
+    const io::YamlDocument document = io::read_yaml_subset(preset_path(preset));
+    for (const io::YamlEntry& entry : document.entries) {
+      if (entry.key.compare(0, 4, "ros.") == 0) continue;
+      SlamConfig config;
+      try {
+        read_slam_config(
+            TextParameterSource(std::map<std::string, std::string>{{entry.key, entry.value}}),
+            &config);
+      } catch (const Error& error) {
+        // Alone, a value may break a relation with the defaults (a truncation below the default
+        // voxel): the relations are checked after every field was read, so the field is set.
+        EXPECT_EQ(std::string(error.what()).rfind("parameters: ", 0), 0u) << error.what();
+      }
+      EXPECT_NE(describe(config), describe(SlamConfig()))
+          << document.where(entry) << " " << entry.key << " is the default";
+    }
+  }
+}
+
+// The presets as they were measured and documented (written out here, not read from the files).
+TEST(SlamParameterFiles, PresetsGiveTheirDocumentedValues) {
+  const SlamConfig sim = load_preset("arche_sim");
+  EXPECT_EQ(sim.map.voxel_size_m, 0.2f);
+  EXPECT_EQ(sim.map.voxels_per_side, 16);
+  EXPECT_EQ(sim.tsdf.truncation_distance_m, 0.6f);
+  EXPECT_EQ(sim.tsdf.max_ray_length_m, 16.0f);
+  EXPECT_TRUE(sim.tsdf.use_const_weight);
+  EXPECT_TRUE(sim.tsdf.use_weight_dropoff);
+  EXPECT_TRUE(sim.tsdf.use_sparsity_compensation_factor);
+  EXPECT_EQ(sim.tsdf.sparsity_compensation_factor, 20.0f);
+  EXPECT_EQ(sim.submaps.policy, SubmapCreationPolicy::kTimeInterval);
+  EXPECT_EQ(sim.submaps.interval_s, 5.0);
+  EXPECT_EQ(sim.registration.mode, RegistrationMode::kPairwise);
+  EXPECT_EQ(sim.registration.sampling.ratio, 0.05f);
+  EXPECT_EQ(sim.registration.alignment.robust_loss, backend::RobustLoss::kNone);
+  EXPECT_TRUE(sim.registration.alignment.symmetric);
+  EXPECT_EQ(sim.registration.alignment.coarse_levels, 2);
+  EXPECT_EQ(sim.registration.information.min_sigma_m, 0.2);
+  EXPECT_EQ(sim.registration.information.min_sigma_yaw_rad, 1.0 * 3.14159265358979323846 / 180.0);
+  EXPECT_EQ(sim.registration.acceptance.max_correction_m, 3.5);
+  EXPECT_TRUE(sim.registration.revisits.wall_search);
+  EXPECT_EQ(sim.registration.gate.max_residual_m, 0.3);
+  EXPECT_EQ(sim.registration.gate.worst_fraction, 0.7);
+  EXPECT_TRUE(sim.interpolate_trajectory_correction);
+  EXPECT_EQ(sim.odometry_translation_sigma_m, 0.07);
+  EXPECT_EQ(sim.odometry_yaw_sigma_rad, 0.007);
+
+  const SlamConfig arche = load_preset("arche");  // voxgraph's ARCHE settings
+  EXPECT_EQ(arche.tsdf.max_ray_length_m, 16.0f);
+  EXPECT_EQ(arche.tsdf.sparsity_compensation_factor, 20.0f);
+  EXPECT_EQ(arche.submaps.interval_s, 10.0);
+  EXPECT_EQ(arche.registration.information.min_sigma_yaw_rad, 0.0174533);
+  EXPECT_FALSE(arche.registration.revisits.wall_search);
+  EXPECT_EQ(arche.registration.gate.max_residual_m, 0.0);
+  EXPECT_FALSE(arche.interpolate_trajectory_correction);
+  EXPECT_EQ(arche.odometry_translation_sigma_m, 1.0);
+  EXPECT_EQ(arche.odometry_yaw_sigma_rad, 0.02);
+
+  const SlamConfig rgbd = load_preset("rgbd");
+  EXPECT_EQ(rgbd.map.voxel_size_m, 0.04f);
+  EXPECT_EQ(rgbd.tsdf.truncation_distance_m, 0.12f);
+  EXPECT_EQ(rgbd.tsdf.max_ray_length_m, 4.0f);
+  EXPECT_FALSE(rgbd.tsdf.use_const_weight);
+  EXPECT_FALSE(rgbd.tsdf.use_sparsity_compensation_factor);
+  EXPECT_EQ(rgbd.submaps.interval_s, 2.0);
+  EXPECT_EQ(rgbd.registration.information.min_sigma_m, 0.0);
+  EXPECT_EQ(rgbd.registration.alignment.coarse_levels, 0);
+  EXPECT_EQ(rgbd.registration.gate.max_residual_m, 0.0);
+  EXPECT_FALSE(rgbd.interpolate_trajectory_correction);
+  EXPECT_EQ(rgbd.odometry_translation_sigma_m, 0.1);
+  EXPECT_EQ(rgbd.odometry_yaw_sigma_rad, 0.01);
+
+  const SlamConfig keyframes = load_preset("lidar_keyframes");
+  EXPECT_EQ(keyframes.map.voxel_size_m, 0.5f);
+  EXPECT_EQ(keyframes.tsdf.truncation_distance_m, 1.5f);
+  EXPECT_EQ(keyframes.tsdf.max_ray_length_m, 40.0f);
+  EXPECT_TRUE(keyframes.tsdf.use_const_weight);
+  EXPECT_EQ(keyframes.tsdf.sparsity_compensation_factor, 20.0f);
+  EXPECT_EQ(keyframes.submaps.interval_s, 8.0);
+  EXPECT_EQ(keyframes.registration.alignment.coarse_levels, 0);
+  EXPECT_FALSE(keyframes.interpolate_trajectory_correction);
+  EXPECT_EQ(keyframes.odometry_translation_sigma_m, 0.1);
+}
+
+// A temporary configuration folder, found through COVOX_CONFIG_DIR while it lives.
+class ConfigFolder {
+ public:
+  ConfigFolder()
+      : path_(fs::path(::testing::TempDir()) /
+              ("covoxslam_config_test_" + std::to_string(::getpid()))) {
+    fs::create_directories(path_);
+    ::setenv("COVOX_CONFIG_DIR", path_.c_str(), 1);
+  }
+  ~ConfigFolder() {
+    ::unsetenv("COVOX_CONFIG_DIR");
+    fs::remove_all(path_);
+  }
+  std::string write(const std::string& name, const std::string& text) const {
+    const fs::path file = path_ / name;
+    std::ofstream(file) << text;
+    return file.string();
+  }
+
+ private:
+  fs::path path_;
+};
+
+TEST(SlamParameterFiles, TheConfigFolderCanBeMovedAndUnknownPresetsListTheKnownOnes) {
+  const ConfigFolder folder;
+  folder.write("small.yaml", "map:\n  voxel_size_m: 0.1\ntsdf:\n  truncation_distance_m: 0.3\n");
+  EXPECT_EQ(preset_names(), std::vector<std::string>{"small"});
+  EXPECT_EQ(load_preset("small").map.voxel_size_m, 0.1f);
+  try {
+    load_preset("arche");
+    ADD_FAILURE() << "no error for an unknown preset";
+  } catch (const Error& error) {
+    EXPECT_NE(std::string(error.what()).find("'arche'"), std::string::npos) << error.what();
+    EXPECT_NE(std::string(error.what()).find("small"), std::string::npos) << error.what();
+  }
+}
+
+TEST(SlamParameterFiles, FileErrorsNameTheFileAndLine) {
+  const ConfigFolder folder;
+  auto error_of = [](const std::string& path) {
+    SlamConfig config;
+    try {
+      load_slam_config(path, &config);
+    } catch (const Error& error) {
+      EXPECT_EQ(config.map.voxel_size_m, SlamConfig().map.voxel_size_m) << "changed on error";
+      return std::string(error.what());
+    }
+    return std::string("no error");
+  };
+  const std::string unknown =
+      folder.write("unknown.yaml", "map:\n  voxel_size_m: 0.1\n  voxel_size: 0.1\n");
+  EXPECT_NE(error_of(unknown).find(unknown + ":3: unknown parameter 'map.voxel_size'"),
+            std::string::npos)
+      << error_of(unknown);
+  const std::string bad = folder.write("bad.yaml", "# a comment\nmap:\n  voxel_size_m: -1\n");
+  EXPECT_NE(error_of(bad).find(bad + ":3: parameter 'map.voxel_size_m': must be positive"),
+            std::string::npos)
+      << error_of(bad);
+  const std::string flat = folder.write("flat.yaml", "voxel_size_m: 0.1\n");
+  EXPECT_NE(error_of(flat).find(flat + ":1: unknown parameter 'voxel_size_m'"), std::string::npos)
+      << error_of(flat);
 }
 
 }  // namespace

@@ -91,17 +91,17 @@ TEST(DropCounter, CountsEveryDropButLogsAtMostOncePerInterval) {
 
 TEST(SlamParameters, ReadsEveryNamedParameter) {
   TextParameterSource source({{"device", "cpu"},
-                              {"voxel_size_m", "0.1"},
-                              {"voxels_per_side", "8"},
-                              {"truncation_distance_m", "0.3"},
-                              {"max_ray_length_m", "12.5"},
-                              {"use_const_weight", "true"},
-                              {"integration_method", "simple"},
-                              {"submap_creation_policy", "distance"},
-                              {"submap_creation_distance_m", "7"},
-                              {"sensor_queue_size", "3"},
-                              {"odometry_yaw_sigma_rad", "0.05"},
-                              {"esdf_max_distance_m", "3"}});
+                              {"map.voxel_size_m", "0.1"},
+                              {"map.voxels_per_side", "8"},
+                              {"tsdf.truncation_distance_m", "0.3"},
+                              {"tsdf.max_ray_length_m", "12.5"},
+                              {"tsdf.use_const_weight", "true"},
+                              {"tsdf.method", "simple"},
+                              {"submaps.policy", "distance"},
+                              {"submaps.distance_m", "7"},
+                              {"queues.sensor_scans", "3"},
+                              {"pose_graph.odometry_yaw_sigma_rad", "0.05"},
+                              {"esdf.max_distance_m", "3"}});
   SlamConfig config;
   read_slam_config(source, &config);
   EXPECT_EQ(config.device, Device::kCpu);
@@ -118,8 +118,7 @@ TEST(SlamParameters, ReadsEveryNamedParameter) {
   EXPECT_FLOAT_EQ(config.esdf.esdf_max_distance_m, 3.0f);
   // Unset parameters keep their defaults.
   EXPECT_EQ(config.submap_queue_size, SlamConfig().submap_queue_size);
-  for (const auto& name :
-       {"voxel_size_m", "sensor_queue_size", "submap_creation_policy", "device"}) {
+  for (const auto& name : {"map.voxel_size_m", "queues.sensor_scans", "submaps.policy", "device"}) {
     EXPECT_NE(std::find(slam_parameter_names().begin(), slam_parameter_names().end(), name),
               slam_parameter_names().end());
   }
@@ -128,21 +127,23 @@ TEST(SlamParameters, ReadsEveryNamedParameter) {
 using testing_support::expect_error_names;  // the error must name the wrong parameter
 
 TEST(SlamParameters, BadValuesAreReportedByName) {
-  expect_error_names({{"voxel_size_m", "-0.2"}}, "voxel_size_m");
-  expect_error_names({{"voxel_size_m", "abc"}}, "voxel_size_m");
-  expect_error_names({{"voxels_per_side", "12"}}, "voxels_per_side");
-  expect_error_names({{"sensor_queue_size", "0"}}, "sensor_queue_size");
-  expect_error_names({{"sensor_queue_size", "-4"}}, "sensor_queue_size");
-  expect_error_names({{"submap_creation_policy", "sometimes"}}, "submap_creation_policy");
-  expect_error_names({{"submap_creation_interval_s", "0"}}, "submap_creation_interval_s");
-  expect_error_names({{"integration_method", "fast"}}, "integration_method");
-  expect_error_names({{"use_const_weight", "yes"}}, "use_const_weight");
+  expect_error_names({{"map.voxel_size_m", "-0.2"}}, "map.voxel_size_m");
+  expect_error_names({{"map.voxel_size_m", "abc"}}, "map.voxel_size_m");
+  expect_error_names({{"map.voxels_per_side", "12"}}, "map.voxels_per_side");
+  expect_error_names({{"queues.sensor_scans", "0"}}, "queues.sensor_scans");
+  expect_error_names({{"queues.sensor_scans", "-4"}}, "queues.sensor_scans");
+  expect_error_names({{"submaps.policy", "sometimes"}}, "submaps.policy");
+  expect_error_names({{"submaps.interval_s", "0"}}, "submaps.interval_s");
+  expect_error_names({{"tsdf.method", "fast"}}, "tsdf.method");
+  expect_error_names({{"tsdf.use_const_weight", "yes"}}, "tsdf.use_const_weight");
   expect_error_names({{"device", "tpu"}}, "device");
-  expect_error_names({{"odometry_translation_sigma_m", "nan"}}, "odometry_translation_sigma_m");
-  // Relations are checked by the library's validate(), which names both parameters.
-  expect_error_names({{"voxel_size_m", "0.5"}, {"truncation_distance_m", "0.3"}},
+  expect_error_names({{"pose_graph.odometry_translation_sigma_m", "nan"}},
+                     "pose_graph.odometry_translation_sigma_m");
+  // Relations are checked by the integrator's validate(), which names the fields.
+  expect_error_names({{"map.voxel_size_m", "0.5"}, {"tsdf.truncation_distance_m", "0.3"}},
                      "truncation_distance_m");
-  expect_error_names({{"min_ray_length_m", "6"}, {"max_ray_length_m", "5"}}, "max_ray_length_m");
+  expect_error_names({{"tsdf.min_ray_length_m", "6"}, {"tsdf.max_ray_length_m", "5"}},
+                     "max_ray_length_m");
 }
 
 }  // namespace

@@ -264,7 +264,7 @@ TEST(PipelineSlamSystem, InvalidConfigurationNamesTheParameter) {
     SlamSystem slam(config);
     FAIL() << "expected covox::Error";
   } catch (const Error& error) {
-    EXPECT_NE(std::string(error.what()).find("sensor_queue_size"), std::string::npos)
+    EXPECT_NE(std::string(error.what()).find("queues.sensor_scans"), std::string::npos)
         << error.what();
   }
   config = small_config();

@@ -135,10 +135,13 @@ TEST_P(WallMapTest, ARevisitStartedFromTheWallsEndsAtTheTruth) {
   const std::unique_ptr<TsdfMap> map_i =
       testing_support::scan_room_submap(device(), room, T_W_Si, 0.1f);
   SubmapRegistrationConfig config;
-  config.revisit_wall_search = true;
-  config.wall_search_min_score = 30.0;
-  config.max_correction_m = 3.0;
-  config.sampling_ratio = 0.25f;
+  config.revisits.wall_search = true;
+  config.revisits.wall_search_min_score = 30.0;
+  config.acceptance.max_correction_m = 3.0;
+  config.sampling.ratio = 0.25f;
+  // The one-way fine aligner alone, so the wall match is what brings the alignment home.
+  config.alignment.symmetric = false;
+  config.alignment.coarse_levels = 0;
   const Stream stream(device());
   const std::unique_ptr<SubmapRegistrationPoints> points =
       prepare_registration_points(*map_i, config, stream);

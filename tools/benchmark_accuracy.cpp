@@ -1,5 +1,5 @@
 // benchmark_accuracy: the trajectory accuracy of covoxslam against odometry alone on the inputs
-// the project evaluates (issue 7), one offline SLAM run each (tools/lib/slam_run.h), recorded in
+// the project evaluates, one offline SLAM run each (tools/lib/slam_run.h), recorded in
 // one report (default docs/benchmarks/accuracy.json):
 //   simulated flight   simulate_flight's bag (if --bag is given): ATE RMSE against the truth
 //   7-Scenes           redkitchen RGB-D, the dataset's poses perturbed by a deterministic drift of
@@ -25,6 +25,7 @@
 #include "covoxslam/core/error.h"
 #include "covoxslam/io/data_directory.h"
 #include "covoxslam/io/trajectory_io.h"
+#include "covoxslam/pipeline/slam_config_files.h"
 #include "dataset_scan_sources.h"
 #include "slam_run.h"
 
@@ -49,8 +50,101 @@ struct CaseRun {
   pipeline::SlamConfig config;
 };
 
+// A preset of config/ (pipeline::load_preset) on `device`.
+pipeline::SlamConfig preset_config(const std::string& preset, Device device) {
+  pipeline::SlamConfig config = pipeline::load_preset(preset);
+  config.device = device;
+  return config;
+}
+
 bool wanted(const std::string& cases, const std::string& name) {
   return cases.empty() || ("," + cases + ",").find("," + name + ",") != std::string::npos;
+}
+
+// The cases asked for whose inputs exist, each with its preset; a missing input is skipped with
+// a message.
+std::vector<CaseRun> collect_runs(const std::string& cases, const std::string& bag_path,
+                                  const std::string& data_dir, Device device) {
+  std::vector<CaseRun> runs;
+  if (wanted(cases, "sim")) {
+    if (std::filesystem::exists(bag_path)) {
+      runs.push_back({"simulated flight",
+                      std::make_unique<tools::BagScanSource>(bag_path, tools::BagScanOptions()),
+                      preset_config("arche_sim", device)});
+    } else {
+      std::printf("skipping the simulated flight: no bag '%s' (make demo writes it)\n",
+                  bag_path.c_str());
+    }
+  }
+  const std::string kitchen = data_dir + "/7scenes-redkitchen";
+  if (wanted(cases, "7scenes")) {
+    if (std::filesystem::exists(kitchen)) {
+      tools::RgbdScanOptions options;
+      options.pixel_stride = 4;
+      runs.push_back({"7-Scenes redkitchen",
+                      std::make_unique<tools::RgbdScanSource>(kitchen, options),
+                      preset_config("rgbd", device)});
+    } else {
+      std::printf("skipping 7-Scenes: no folder '%s'\n", kitchen.c_str());
+    }
+  }
+  const std::string riverside = data_dir + "/mulran-riverside02";
+  if (wanted(cases, "mulran")) {
+    if (std::filesystem::exists(riverside)) {
+      runs.push_back({"MulRan Riverside02",
+                      std::make_unique<tools::LidarKeyframeScanSource>(
+                          riverside, tools::LidarKeyframeScanOptions()),
+                      preset_config("lidar_keyframes", device)});
+    } else {
+      std::printf("skipping MulRan: no folder '%s'\n", riverside.c_str());
+    }
+  }
+  return runs;
+}
+
+// One case: run, print, add its rows to `report`, and write its trajectories when asked.
+void run_case(CaseRun& run, const std::string& trajectories_dir, tools::BenchmarkReport* report) {
+  std::printf("\n== %s: %s\n", run.name.c_str(), run.source->describe().c_str());
+  std::fflush(stdout);
+  const tools::SlamRunResult result =
+      tools::run_slam_system(*run.source, run.config, tools::SlamRunOptions());
+  tools::print_slam_run(result, stdout);
+  // Keyframes 0.76 s apart: the association tolerance must span one keyframe gap.
+  const tools::SlamRunEvaluation evaluation =
+      tools::evaluate_slam_run(*run.source, result, tools::AlignmentMode::kTranslationYaw, 1.0);
+  const bool truth = run.source->reference_kind() == tools::ReferenceKind::kGroundTruth;
+  const std::string metric = truth ? "ATE RMSE" : "distance to reference RMSE";
+  report->add(run.name, "scans", static_cast<double>(result.scans_given), "");
+  // The float setting, rounded back to the decimal it was given as.
+  report->add(run.name, "voxel size", std::round(run.config.map.voxel_size_m * 1e6) / 1e6, "m");
+  report->add(run.name, "submaps", static_cast<double>(result.submaps.size()), "");
+  report->add(run.name, "registration constraints",
+              static_cast<double>(result.counters.registration.accepted), "");
+  report->add(run.name, "real-time factor", result.real_time_factor(), "x");
+  if (auto* rgbd = dynamic_cast<tools::RgbdScanSource*>(run.source.get())) {
+    report->add(run.name, "odometry final drift", rgbd->final_drift_m(), "m");
+  }
+  if (evaluation.available) {
+    std::printf("%s (translation + yaw alignment, %zu poses): odometry %.3f m, covoxslam %.3f m\n",
+                metric.c_str(), evaluation.corrected.aligned.size(),
+                evaluation.odometry.absolute_position_m.rmse,
+                evaluation.corrected.absolute_position_m.rmse);
+    report->add(run.name, metric + " odometry", evaluation.odometry.absolute_position_m.rmse, "m");
+    report->add(run.name, metric + " covoxslam", evaluation.corrected.absolute_position_m.rmse,
+                "m");
+    report->add(run.name, "max error covoxslam", evaluation.corrected.absolute_position_m.max, "m");
+  } else {
+    std::printf("no evaluation: %s\n", evaluation.problem.c_str());
+  }
+  if (!trajectories_dir.empty()) {
+    std::filesystem::create_directories(trajectories_dir);
+    std::string stem = run.name;
+    for (char& c : stem) c = std::isalnum(static_cast<unsigned char>(c)) ? c : '_';
+    io::write_tum_trajectory(trajectories_dir + "/" + stem + "_covoxslam.tum", result.corrected);
+    io::write_tum_trajectory(trajectories_dir + "/" + stem + "_odometry.tum", result.odometry);
+    io::write_tum_trajectory(trajectories_dir + "/" + stem + "_reference.tum",
+                             run.source->reference());
+  }
 }
 
 }  // namespace
@@ -68,90 +162,9 @@ int main(int argc, char** argv) {
   try {
     const Device device = select_device(parse_device_request(device_text));
     tools::BenchmarkReport report("accuracy", describe_device(device), argc, argv);
-    std::vector<CaseRun> runs;
-    if (wanted(cases, "sim")) {
-      if (std::filesystem::exists(bag_path)) {
-        CaseRun run{"simulated flight",
-                    std::make_unique<tools::BagScanSource>(bag_path, tools::BagScanOptions()),
-                    tools::arche_slam_config(device)};
-        runs.push_back(std::move(run));
-      } else {
-        std::printf("skipping the simulated flight: no bag '%s' (make demo writes it)\n",
-                    bag_path.c_str());
-      }
-    }
-    const std::string kitchen = data_dir + "/7scenes-redkitchen";
-    if (wanted(cases, "7scenes")) {
-      if (std::filesystem::exists(kitchen)) {
-        tools::RgbdScanOptions options;
-        options.pixel_stride = 4;
-        runs.push_back({"7-Scenes redkitchen",
-                        std::make_unique<tools::RgbdScanSource>(kitchen, options),
-                        tools::rgbd_slam_config(device)});
-      } else {
-        std::printf("skipping 7-Scenes: no folder '%s'\n", kitchen.c_str());
-      }
-    }
-    const std::string riverside = data_dir + "/mulran-riverside02";
-    if (wanted(cases, "mulran")) {
-      if (std::filesystem::exists(riverside)) {
-        runs.push_back({"MulRan Riverside02",
-                        std::make_unique<tools::LidarKeyframeScanSource>(
-                            riverside, tools::LidarKeyframeScanOptions()),
-                        tools::lidar_keyframe_slam_config(device)});
-      } else {
-        std::printf("skipping MulRan: no folder '%s'\n", riverside.c_str());
-      }
-    }
+    std::vector<CaseRun> runs = collect_runs(cases, bag_path, data_dir, device);
     if (runs.empty()) throw Error("no case to run (see the messages above)");
-
-    for (CaseRun& run : runs) {
-      std::printf("\n== %s: %s\n", run.name.c_str(), run.source->describe().c_str());
-      std::fflush(stdout);
-      const tools::SlamRunResult result =
-          tools::run_slam_system(*run.source, run.config, tools::SlamRunOptions());
-      tools::print_slam_run(result, stdout);
-      // Keyframes 0.76 s apart: the association tolerance must span one keyframe gap.
-      const tools::SlamRunEvaluation evaluation =
-          tools::evaluate_slam_run(*run.source, result, tools::AlignmentMode::kTranslationYaw, 1.0);
-      const bool truth = run.source->reference_kind() == tools::ReferenceKind::kGroundTruth;
-      const std::string metric = truth ? "ATE RMSE" : "distance to reference RMSE";
-      report.add(run.name, "scans", static_cast<double>(result.scans_given), "");
-      // The float setting, rounded back to the decimal it was given as.
-      report.add(run.name, "voxel size", std::round(run.config.map.voxel_size_m * 1e6) / 1e6, "m");
-      report.add(run.name, "submaps", static_cast<double>(result.submaps.size()), "");
-      report.add(run.name, "registration constraints",
-                 static_cast<double>(result.counters.registration.accepted), "");
-      report.add(run.name, "real-time factor", result.real_time_factor(), "x");
-      if (auto* rgbd = dynamic_cast<tools::RgbdScanSource*>(run.source.get())) {
-        report.add(run.name, "odometry final drift", rgbd->final_drift_m(), "m");
-      }
-      if (evaluation.available) {
-        std::printf(
-            "%s (translation + yaw alignment, %zu poses): odometry %.3f m, covoxslam %.3f m\n",
-            metric.c_str(), evaluation.corrected.aligned.size(),
-            evaluation.odometry.absolute_position_m.rmse,
-            evaluation.corrected.absolute_position_m.rmse);
-        report.add(run.name, metric + " odometry", evaluation.odometry.absolute_position_m.rmse,
-                   "m");
-        report.add(run.name, metric + " covoxslam", evaluation.corrected.absolute_position_m.rmse,
-                   "m");
-        report.add(run.name, "max error covoxslam", evaluation.corrected.absolute_position_m.max,
-                   "m");
-      } else {
-        std::printf("no evaluation: %s\n", evaluation.problem.c_str());
-      }
-      if (!trajectories_dir.empty()) {
-        std::filesystem::create_directories(trajectories_dir);
-        std::string stem = run.name;
-        for (char& c : stem) c = std::isalnum(static_cast<unsigned char>(c)) ? c : '_';
-        io::write_tum_trajectory(trajectories_dir + "/" + stem + "_covoxslam.tum",
-                                 result.corrected);
-        io::write_tum_trajectory(trajectories_dir + "/" + stem + "_odometry.tum", result.odometry);
-        io::write_tum_trajectory(trajectories_dir + "/" + stem + "_reference.tum",
-                                 run.source->reference());
-      }
-    }
+    for (CaseRun& run : runs) run_case(run, trajectories_dir, &report);
     std::printf("\n");
     report.print_table(std::cout);
     report.write_json(output);

@@ -7,7 +7,7 @@
 // (each submap's first-scan stamp) and the flight's true sensor poses (TUM). Each submap is
 // placed at its true pose (gravity aligned) and registered to every earlier submap it overlaps,
 // exactly as the SLAM system does (pipeline::registration_constraints: coarse-to-fine levels,
-// symmetric solve, acceptance tests), with the registration settings of the ARCHE preset and an
+// symmetric solve, acceptance tests), with the registration settings of the arche_sim preset and an
 // optional `--config` file over it. With `--start-offset-m D` the new submap starts D metres
 // from its true position, in a direction that turns by the golden angle from one submap to the
 // next, and `--start-yaw-deg A` adds a yaw error of alternating sign: the basin, not just the bias.
@@ -37,6 +37,7 @@
 #include "covoxslam/io/map_file.h"
 #include "covoxslam/io/trajectory_io.h"
 #include "covoxslam/pipeline/registration_constraints.h"
+#include "covoxslam/pipeline/slam_config_files.h"
 #include "covoxslam/pipeline/submap.h"
 #include "covoxslam/pipeline/submap_pose_graph.h"
 #include "covoxslam/pipeline/wall_map.h"
@@ -52,7 +53,8 @@ const char* kUsage =
     "  --map FILE             map saved by run_slam --map (submaps with their ESDF)\n"
     "  --graph FILE           the same run's run_slam --graph dump (submap first-scan stamps)\n"
     "  --truth FILE.tum       true sensor poses (simulate_flight's truth.tum)\n"
-    "  --config FILE.yaml     SLAM parameters over the ARCHE preset (only registration_* matter)\n"
+    "  --config FILE.yaml     a configuration file over the arche_sim preset (only registration "
+    "matters)\n"
     "  --device auto|cpu|cuda (default auto)\n"
     "  --start-offset-m D     start each new submap D m from its true position (default 0)\n"
     "  --start-yaw-deg A      and A degrees off its true yaw, sign alternating (default 0)\n"
@@ -175,8 +177,9 @@ int main(int argc, char** argv) {
 
   try {
     const Device device = select_device(parse_device_request(device_text));
-    pipeline::SlamConfig config = tools::arche_slam_config(device);
-    if (!config_path.empty()) tools::apply_slam_config_file(config_path, &config);
+    pipeline::SlamConfig config = pipeline::load_preset("arche_sim");
+    config.device = device;
+    if (!config_path.empty()) pipeline::load_slam_config(config_path, &config);
     pipeline::validate(config.registration);
     const io::MapFileContents contents = io::load_map_file(map_path);
     if (!contents.has_esdf) throw Error(map_path + " has no ESDF (registration needs it)");
@@ -219,9 +222,9 @@ int main(int argc, char** argv) {
       if (walls) {
         for (const pipeline::RegistrationPartner* partner :
              pipeline::overlapping_partners(*maps[k], start, earlier, config.registration)) {
-          if (id - partner->id < config.registration.revisit_min_id_gap) continue;
+          if (id - partner->id < config.registration.revisits.min_id_gap) continue;
           pipeline::WallSearchConfig search;
-          search.range_m = config.registration.wall_search_range_m;
+          search.range_m = config.registration.revisits.wall_search_range_m;
           const pipeline::WallMatch match = pipeline::match_walls(
               own_walls->get(*maps[k], stream), partner->walls->get(*partner->map, stream),
               pipeline::relative_pose_4dof(partner->pose, start), search);

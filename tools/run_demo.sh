@@ -7,8 +7,8 @@
 #   tools/run_demo.sh [BUILD_DIR] [OUTPUT_DIR]
 # Settings (environment): DEMO_COLUMNS (LiDAR columns, default 256 so that the CPU twin maps the
 # whole flight in minutes; 1024 is the real OS1-64), DEMO_DEVICE (auto|cpu|cuda), DEMO_SEED.
-# The flight bag is what launch/arche.launch plays for the rviz variant (config:=arche_sim.yaml,
-# the runner's settings).
+# run_slam maps a bag with the arche_sim preset (config/arche_sim.yaml); the flight bag is what
+# launch/arche.launch plays for the rviz variant (config:=arche_sim.yaml, the same file).
 set -euo pipefail
 build=${1:-build}
 out=${2:-demo_output}

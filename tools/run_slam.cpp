@@ -24,8 +24,7 @@
 #include "covoxslam/io/mesh_ply.h"
 #include "covoxslam/io/trajectory_io.h"
 #include "dataset_scan_sources.h"
-#include "flat_yaml.h"
-#include "covoxslam/pipeline/slam_parameters.h"
+#include "covoxslam/pipeline/slam_config_files.h"
 #include "covoxslam/pipeline/submap.h"
 #include "slam_run.h"
 #include "trajectory_evaluation.h"
@@ -52,26 +51,25 @@ const char kUsage[] =
     "  --drift-m D                 RGB-D: least final odometry drift (default 0.3)\n"
     "  --drift-seed N              RGB-D: drift seed (default 1)\n"
     "  --max-scans N               stop after N scans (0: all)\n"
-    "mapping (defaults from the preset):\n"
+    "mapping (defaults from the preset; each option below overrides it):\n"
     "  --device auto|cpu|cuda      (default auto)\n"
-    "  --preset NAME               arche (bags: 0.2 m voxels, 0.6 m truncation, 16 m rays, LiDAR "
-    "weighting,\n"
-    "                              5 s submaps), rgbd (RGB-D folders: 4 cm, 12 cm, 4 m, "
-    "inverse-square\n"
-    "                              weighting, 2 s), lidar-keyframes (keyframe folders: 0.5 m, 1.5 "
-    "m, 40 m, 8 s)\n"
-    "  --config FILE.yaml          SLAM parameters as the nodelet reads them (e.g. "
-    "config/arche.yaml),\n"
-    "                              applied over the preset; ROS-only parameters in it are ignored\n"
+    "  --preset NAME               a configuration file in config/ (COVOX_CONFIG_DIR): arche_sim\n"
+    "                              (the default for bags), arche (voxgraph's ARCHE settings), "
+    "rgbd\n"
+    "                              (the default for RGB-D folders), lidar_keyframes (the default\n"
+    "                              for keyframe folders); docs/parameters.md lists the parameters\n"
+    "  --config FILE.yaml          a configuration file applied over the preset (its `ros` "
+    "section,\n"
+    "                              the nodelet's, is ignored)\n"
     "  --voxel-size-m S            voxel size\n"
     "  --truncation-m T            truncation distance\n"
     "  --max-ray-m R               points farther only clear space\n"
-    "  --submap-policy time|distance|blocks  (default time, voxgraph's)\n"
+    "  --submap-policy time|distance|blocks\n"
     "  --submap-interval-s S       time policy: seconds per submap\n"
-    "  --submap-distance-m D       distance policy: metres of path per submap (default 20)\n"
-    "  --submap-max-blocks N       blocks policy: blocks per submap (default 1000)\n"
-    "  --sensor-queue N            sensor queue size in scans (default 20)\n"
-    "  --submap-queue N            submap queue size in submaps (default 4)\n"
+    "  --submap-distance-m D       distance policy: metres of path per submap\n"
+    "  --submap-max-blocks N       blocks policy: blocks per submap\n"
+    "  --sensor-queue N            sensor queue size in scans\n"
+    "  --submap-queue N            submap queue size in submaps\n"
     "output:\n"
     "  --trajectory FILE.tum       corrected trajectory (default run_slam_trajectory.tum)\n"
     "  --odometry-trajectory FILE  odometry trajectory of the same scans (default: not written)\n"
@@ -122,174 +120,236 @@ void add_timing_rows(tools::BenchmarkReport* report, const std::string& name,
   report->add(name, module + " calls", static_cast<double>(timing.calls), "");
 }
 
+// The command line, read once.
+struct RunnerSettings {
+  std::string bag_path, dataset_path;
+  tools::BagScanOptions bag_options;
+  tools::RgbdScanOptions rgbd_options;
+  tools::LidarKeyframeScanOptions lidar_options;
+  int64_t max_scans = 0;
+  std::string device_text, preset, config_path;
+  // Overrides of the preset; NaN (numbers) or empty (texts): not given.
+  double voxel_size_m, truncation_m, max_ray_m, interval_s, distance_m, max_blocks;
+  double sensor_queue, submap_queue;
+  std::string policy_text;
+  std::string trajectory_path, odometry_path, reference_path, mesh_path, graph_path, map_path;
+  std::string align_text, json_path, case_name;
+  double max_time_gap_s = 0.1;
+  bool quiet = false;
+};
+
+void read_input_options(tools::CommandLine& args, RunnerSettings* s) {
+  s->bag_path = args.text("--bag", "");
+  s->dataset_path = args.text("--dataset", "");
+  tools::BagScanOptions& bag = s->bag_options;
+  bag.cloud_topic = args.text("--cloud-topic", bag.cloud_topic);
+  bag.odom_frame = args.text("--odom-frame", bag.odom_frame);
+  bag.odometry_topic = args.text("--odometry-topic", bag.odometry_topic);
+  bag.reference_topic = args.text("--reference-topic", bag.reference_topic);
+  bag.sensor_frame = args.text("--sensor-frame", bag.sensor_frame);
+  bag.min_range_m = args.number("--min-range-m", 0.5);
+  tools::RgbdScanOptions& rgbd = s->rgbd_options;
+  rgbd.pixel_stride = static_cast<int>(args.integer("--pixel-stride", rgbd.pixel_stride));
+  rgbd.frame_rate_hz = args.number("--frame-rate-hz", rgbd.frame_rate_hz);
+  rgbd.min_final_drift_m = args.number("--drift-m", rgbd.min_final_drift_m);
+  rgbd.drift_seed = static_cast<uint64_t>(args.integer("--drift-seed", 1));
+  s->max_scans = args.integer("--max-scans", 0);
+}
+
+void read_mapping_options(tools::CommandLine& args, RunnerSettings* s) {
+  const double unset = std::numeric_limits<double>::quiet_NaN();
+  s->device_text = args.text("--device", "auto");
+  s->preset = args.text("--preset", "");
+  s->config_path = args.text("--config", "");
+  s->voxel_size_m = args.number("--voxel-size-m", unset);
+  s->truncation_m = args.number("--truncation-m", unset);
+  s->max_ray_m = args.number("--max-ray-m", unset);
+  s->policy_text = args.text("--submap-policy", "");
+  s->interval_s = args.number("--submap-interval-s", unset);
+  s->distance_m = args.number("--submap-distance-m", unset);
+  s->max_blocks = args.number("--submap-max-blocks", unset);
+  s->sensor_queue = args.number("--sensor-queue", unset);
+  s->submap_queue = args.number("--submap-queue", unset);
+}
+
+void read_output_options(tools::CommandLine& args, RunnerSettings* s) {
+  s->trajectory_path = args.text("--trajectory", "run_slam_trajectory.tum");
+  s->odometry_path = args.text("--odometry-trajectory", "");
+  s->reference_path = args.text("--reference-trajectory", "");
+  s->mesh_path = args.text("--mesh", "run_slam_mesh.ply");
+  s->graph_path = args.text("--graph", "");
+  s->map_path = args.text("--map", "");
+  s->align_text = args.text("--align", "4dof");
+  s->max_time_gap_s = args.number("--max-time-gap-s", 0.1);
+  s->json_path = args.text("--json", "");
+  s->case_name = args.text("--case", "");
+  s->quiet = args.flag("--quiet");
+}
+
+RunnerSettings read_settings(tools::CommandLine& args) {
+  RunnerSettings s;
+  read_input_options(args, &s);
+  read_mapping_options(args, &s);
+  read_output_options(args, &s);
+  args.finish();
+  if (!s.bag_path.empty() && !s.dataset_path.empty())
+    args.fail("give --bag or --dataset, not both");
+  if (s.bag_path.empty() && s.dataset_path.empty()) s.bag_path = "sim_flight/flight.bag";
+  if (s.max_scans < 0) args.fail("--max-scans must be >= 0");
+  for (const double count : {s.max_blocks, s.sensor_queue, s.submap_queue}) {
+    if (!std::isnan(count) && !(count >= 1.0 && count == std::floor(count))) {
+      args.fail("--submap-max-blocks, --sensor-queue and --submap-queue take integers >= 1");
+    }
+  }
+  if (s.case_name.empty()) {
+    const std::string input = s.bag_path.empty() ? s.dataset_path : s.bag_path;
+    const size_t slash = input.find_last_of('/', input.size() > 1 ? input.size() - 2 : 0);
+    s.case_name = slash == std::string::npos ? input : input.substr(slash + 1);
+  }
+  return s;
+}
+
+std::unique_ptr<tools::ScanSource> open_source(RunnerSettings& s) {
+  if (!s.bag_path.empty()) return std::make_unique<tools::BagScanSource>(s.bag_path, s.bag_options);
+  if (s.max_scans > 0) {
+    s.rgbd_options.max_frames = s.lidar_options.max_scans = static_cast<size_t>(s.max_scans);
+  }
+  return tools::open_dataset_scan_source(s.dataset_path, s.rgbd_options, s.lidar_options);
+}
+
+// The preset (chosen by the input's kind unless given), the --config file over it, then the
+// command line's overrides.
+pipeline::SlamConfig build_config(RunnerSettings& s, const tools::ScanSource& source,
+                                  Device device) {
+  if (s.preset.empty()) {
+    s.preset = dynamic_cast<const tools::RgbdScanSource*>(&source)            ? "rgbd"
+               : dynamic_cast<const tools::LidarKeyframeScanSource*>(&source) ? "lidar_keyframes"
+                                                                              : "arche_sim";
+  }
+  pipeline::SlamConfig config = pipeline::load_preset(s.preset);
+  if (!s.config_path.empty()) {
+    const pipeline::SlamConfigFileUse use = pipeline::load_slam_config(s.config_path, &config);
+    std::printf("config: %s (%zu SLAM parameters, %zu of the nodelet's ignored)\n",
+                s.config_path.c_str(), use.applied, use.node_keys.size());
+  }
+  config.device = device;
+  if (!std::isnan(s.voxel_size_m)) config.map.voxel_size_m = static_cast<float>(s.voxel_size_m);
+  if (!std::isnan(s.truncation_m))
+    config.tsdf.truncation_distance_m = static_cast<float>(s.truncation_m);
+  if (!std::isnan(s.max_ray_m)) config.tsdf.max_ray_length_m = static_cast<float>(s.max_ray_m);
+  if (!s.policy_text.empty())
+    config.submaps.policy = pipeline::parse_submap_creation_policy(s.policy_text);
+  if (!std::isnan(s.interval_s)) config.submaps.interval_s = s.interval_s;
+  if (!std::isnan(s.distance_m)) config.submaps.distance_m = s.distance_m;
+  if (!std::isnan(s.max_blocks)) config.submaps.max_blocks = static_cast<int64_t>(s.max_blocks);
+  if (!std::isnan(s.sensor_queue)) config.sensor_queue_size = static_cast<size_t>(s.sensor_queue);
+  if (!std::isnan(s.submap_queue)) config.submap_queue_size = static_cast<size_t>(s.submap_queue);
+  pipeline::validate(config);
+  return config;
+}
+
+void write_outputs(const RunnerSettings& s, const tools::ScanSource& source,
+                   const tools::SlamRunResult& result) {
+  io::write_tum_trajectory(s.trajectory_path, result.corrected);
+  if (!s.odometry_path.empty()) io::write_tum_trajectory(s.odometry_path, result.odometry);
+  if (!s.reference_path.empty() && !source.reference().empty())
+    io::write_tum_trajectory(s.reference_path, source.reference());
+  io::write_mesh_ply(s.mesh_path, result.mesh);
+  if (!s.graph_path.empty()) write_graph(s.graph_path, result);
+}
+
+void print_evaluation(const tools::SlamRunEvaluation& evaluation, bool truth,
+                      tools::AlignmentMode alignment) {
+  if (!evaluation.available) {
+    std::printf("\nno trajectory evaluation: %s\n", evaluation.problem.c_str());
+    return;
+  }
+  std::printf("\n%s (%s alignment, %zu poses):\n",
+              truth ? "ATE RMSE against the ground truth"
+                    : "distance to the reference (another estimate, not truth)",
+              tools::alignment_mode_name(alignment).c_str(), evaluation.corrected.aligned.size());
+  std::printf("  odometry alone   %.3f m RMSE (max %.3f m)\n",
+              evaluation.odometry.absolute_position_m.rmse,
+              evaluation.odometry.absolute_position_m.max);
+  std::printf("  covoxslam        %.3f m RMSE (max %.3f m)\n",
+              evaluation.corrected.absolute_position_m.rmse,
+              evaluation.corrected.absolute_position_m.max);
+}
+
+void write_report(const RunnerSettings& s, const pipeline::SlamConfig& config, int argc,
+                  char** argv, const tools::SlamRunResult& result,
+                  const tools::SlamRunEvaluation& evaluation, bool truth) {
+  const std::string& name = s.case_name;
+  tools::BenchmarkReport report("pipeline", describe_device(config.device), argc, argv);
+  report.add(name, "scans", static_cast<double>(result.scans_given), "");
+  report.add(name, "input duration", result.input_duration_s, "s");
+  report.add(name, "wall time", result.wall_s, "s");
+  report.add(name, "real-time factor", result.real_time_factor(), "x");
+  add_timing_rows(&report, name, "tsdf", result.timings.tsdf);
+  add_timing_rows(&report, name, "esdf", result.timings.esdf);
+  add_timing_rows(&report, name, "mesh", result.timings.mesh);
+  add_timing_rows(&report, name, "registration", result.timings.registration);
+  add_timing_rows(&report, name, "backend", result.timings.backend);
+  add_timing_rows(&report, name, "sensor queue wait", result.timings.sensor_queue_wait);
+  add_timing_rows(&report, name, "submap queue wait", result.timings.submap_queue_wait);
+  report.add(name, "read input", result.read_s, "s");
+  report.add(name, "submaps", static_cast<double>(result.submaps.size()), "");
+  report.add(name, "map blocks", static_cast<double>(result.map_blocks), "");
+  report.add(name, "map memory", result.map_memory_mb, "MB");
+  report.add(
+      name, "scans dropped",
+      static_cast<double>(result.counters.scans_dropped_total() + result.scans_dropped_by_source),
+      "");
+  if (evaluation.available) {
+    const std::string metric = truth ? "ATE RMSE " : "distance to reference RMSE ";
+    report.add(name, metric + "odometry", evaluation.odometry.absolute_position_m.rmse, "m");
+    report.add(name, metric + "covoxslam", evaluation.corrected.absolute_position_m.rmse, "m");
+  }
+  report.write_json(s.json_path);
+  std::printf("report -> %s\n", s.json_path.c_str());
+}
+
+void run(RunnerSettings& s, int argc, char** argv) {
+  const tools::AlignmentMode alignment = tools::parse_alignment_mode(s.align_text);
+  const Device device = select_device(parse_device_request(s.device_text));
+  std::unique_ptr<tools::ScanSource> source = open_source(s);
+  const pipeline::SlamConfig config = build_config(s, *source, device);
+  std::printf(
+      "device: %s\ninput: %s\npreset: %s (%.3f m voxels, %.3f m truncation, %.1f m rays, "
+      "submaps: %s)\n",
+      describe_device(config.device).c_str(), source->describe().c_str(), s.preset.c_str(),
+      config.map.voxel_size_m, config.tsdf.truncation_distance_m, config.tsdf.max_ray_length_m,
+      pipeline::to_string(config.submaps.policy));
+  std::fflush(stdout);
+
+  tools::SlamRunOptions options;
+  options.max_scans = static_cast<size_t>(s.max_scans);
+  options.progress_bar = !s.quiet;
+  options.map_path = s.map_path;
+  const tools::SlamRunResult result = tools::run_slam_system(*source, config, options);
+  write_outputs(s, *source, result);
+
+  tools::print_slam_run(result, stdout);
+  // With COVOX_PROFILE_STAGES=1: where each module's time went, stage by stage.
+  if (StageProfiler::enabled()) std::printf("\n%s\n", StageProfiler::report().c_str());
+  std::printf("mesh -> %s\ntrajectory: %zu poses -> %s\n", s.mesh_path.c_str(),
+              result.corrected.size(), s.trajectory_path.c_str());
+  if (!s.map_path.empty()) std::printf("map -> %s\n", s.map_path.c_str());
+
+  const tools::SlamRunEvaluation evaluation =
+      tools::evaluate_slam_run(*source, result, alignment, s.max_time_gap_s);
+  const bool truth = source->reference_kind() == tools::ReferenceKind::kGroundTruth;
+  print_evaluation(evaluation, truth, alignment);
+  if (!s.json_path.empty()) write_report(s, config, argc, argv, result, evaluation, truth);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   tools::CommandLine args(argc, argv, kUsage);
-  std::string bag_path = args.text("--bag", "");
-  const std::string dataset_path = args.text("--dataset", "");
-  tools::BagScanOptions bag_options;
-  bag_options.cloud_topic = args.text("--cloud-topic", bag_options.cloud_topic);
-  bag_options.odom_frame = args.text("--odom-frame", bag_options.odom_frame);
-  bag_options.odometry_topic = args.text("--odometry-topic", bag_options.odometry_topic);
-  bag_options.reference_topic = args.text("--reference-topic", bag_options.reference_topic);
-  bag_options.sensor_frame = args.text("--sensor-frame", bag_options.sensor_frame);
-  bag_options.min_range_m = args.number("--min-range-m", 0.5);
-  tools::RgbdScanOptions rgbd_options;
-  rgbd_options.pixel_stride =
-      static_cast<int>(args.integer("--pixel-stride", rgbd_options.pixel_stride));
-  rgbd_options.frame_rate_hz = args.number("--frame-rate-hz", rgbd_options.frame_rate_hz);
-  rgbd_options.min_final_drift_m = args.number("--drift-m", rgbd_options.min_final_drift_m);
-  rgbd_options.drift_seed = static_cast<uint64_t>(args.integer("--drift-seed", 1));
-  tools::LidarKeyframeScanOptions lidar_options;
-  const int64_t max_scans = args.integer("--max-scans", 0);
-  const std::string device_text = args.text("--device", "auto");
-  std::string preset = args.text("--preset", "");
-  const std::string config_path = args.text("--config", "");
-  // NaN: not given, the preset decides.
-  const double unset = std::numeric_limits<double>::quiet_NaN();
-  const double voxel_size_m = args.number("--voxel-size-m", unset);
-  const double truncation_m = args.number("--truncation-m", unset);
-  const double max_ray_m = args.number("--max-ray-m", unset);
-  const std::string policy_text = args.text("--submap-policy", "time");
-  const double interval_s = args.number("--submap-interval-s", unset);
-  const double distance_m = args.number("--submap-distance-m", 20.0);
-  const int64_t max_blocks = args.integer("--submap-max-blocks", 1000);
-  const int64_t sensor_queue = args.integer("--sensor-queue", 20);
-  const int64_t submap_queue = args.integer("--submap-queue", 4);
-  const std::string trajectory_path = args.text("--trajectory", "run_slam_trajectory.tum");
-  const std::string odometry_path = args.text("--odometry-trajectory", "");
-  const std::string reference_path = args.text("--reference-trajectory", "");
-  const std::string mesh_path = args.text("--mesh", "run_slam_mesh.ply");
-  const std::string graph_path = args.text("--graph", "");
-  const std::string map_path = args.text("--map", "");
-  const std::string align_text = args.text("--align", "4dof");
-  const double max_time_gap_s = args.number("--max-time-gap-s", 0.1);
-  const std::string json_path = args.text("--json", "");
-  std::string case_name = args.text("--case", "");
-  const bool quiet = args.flag("--quiet");
-  args.finish();
-  if (!bag_path.empty() && !dataset_path.empty()) args.fail("give --bag or --dataset, not both");
-  if (bag_path.empty() && dataset_path.empty()) bag_path = "sim_flight/flight.bag";
-  if (max_scans < 0) args.fail("--max-scans must be >= 0");
-  if (sensor_queue < 1 || submap_queue < 1)
-    args.fail("--sensor-queue and --submap-queue must be at least 1");
-
+  RunnerSettings settings = read_settings(args);
   try {
-    const tools::AlignmentMode alignment = tools::parse_alignment_mode(align_text);
-    const Device device = select_device(parse_device_request(device_text));
-    std::unique_ptr<tools::ScanSource> source;
-    if (!bag_path.empty()) {
-      source = std::make_unique<tools::BagScanSource>(bag_path, bag_options);
-    } else {
-      if (max_scans > 0)
-        rgbd_options.max_frames = lidar_options.max_scans = static_cast<size_t>(max_scans);
-      source = tools::open_dataset_scan_source(dataset_path, rgbd_options, lidar_options);
-    }
-    if (preset.empty()) {
-      preset = dynamic_cast<tools::RgbdScanSource*>(source.get())            ? "rgbd"
-               : dynamic_cast<tools::LidarKeyframeScanSource*>(source.get()) ? "lidar-keyframes"
-                                                                             : "arche";
-    }
-    pipeline::SlamConfig config = tools::preset_slam_config(preset, device);
-    if (!config_path.empty()) {
-      const tools::ConfigFileUse use = tools::apply_slam_config_file(config_path, &config);
-      std::printf("config: %s (%zu SLAM parameters; not for the runner: %s)\n", config_path.c_str(),
-                  use.applied, use.ignored.empty() ? "none" : use.ignored.c_str());
-    }
-    if (!std::isnan(voxel_size_m)) config.map.voxel_size_m = static_cast<float>(voxel_size_m);
-    if (!std::isnan(truncation_m))
-      config.tsdf.truncation_distance_m = static_cast<float>(truncation_m);
-    if (!std::isnan(max_ray_m)) config.tsdf.max_ray_length_m = static_cast<float>(max_ray_m);
-    config.submaps.policy = pipeline::parse_submap_creation_policy(policy_text);
-    if (!std::isnan(interval_s)) config.submaps.interval_s = interval_s;
-    config.submaps.distance_m = distance_m;
-    config.submaps.max_blocks = max_blocks;
-    config.sensor_queue_size = static_cast<size_t>(sensor_queue);
-    config.submap_queue_size = static_cast<size_t>(submap_queue);
-    if (case_name.empty()) {
-      const std::string input = bag_path.empty() ? dataset_path : bag_path;
-      const size_t slash = input.find_last_of('/', input.size() > 1 ? input.size() - 2 : 0);
-      case_name = slash == std::string::npos ? input : input.substr(slash + 1);
-    }
-    std::printf(
-        "device: %s\ninput: %s\npreset: %s (%.3f m voxels, %.3f m truncation, %.1f m rays, "
-        "submaps: %s)\n",
-        describe_device(config.device).c_str(), source->describe().c_str(), preset.c_str(),
-        config.map.voxel_size_m, config.tsdf.truncation_distance_m, config.tsdf.max_ray_length_m,
-        pipeline::to_string(config.submaps.policy));
-    std::fflush(stdout);
-
-    tools::SlamRunOptions options;
-    options.max_scans = static_cast<size_t>(max_scans);
-    options.progress_bar = !quiet;
-    options.map_path = map_path;
-    const tools::SlamRunResult result = tools::run_slam_system(*source, config, options);
-
-    io::write_tum_trajectory(trajectory_path, result.corrected);
-    if (!odometry_path.empty()) io::write_tum_trajectory(odometry_path, result.odometry);
-    if (!reference_path.empty() && !source->reference().empty())
-      io::write_tum_trajectory(reference_path, source->reference());
-    io::write_mesh_ply(mesh_path, result.mesh);
-    if (!graph_path.empty()) write_graph(graph_path, result);
-
-    tools::print_slam_run(result, stdout);
-    // With COVOX_PROFILE_STAGES=1: where each module's time went, stage by stage.
-    if (StageProfiler::enabled()) std::printf("\n%s\n", StageProfiler::report().c_str());
-    std::printf("mesh -> %s\ntrajectory: %zu poses -> %s\n", mesh_path.c_str(),
-                result.corrected.size(), trajectory_path.c_str());
-    if (!map_path.empty()) std::printf("map -> %s\n", map_path.c_str());
-
-    const tools::SlamRunEvaluation evaluation =
-        tools::evaluate_slam_run(*source, result, alignment, max_time_gap_s);
-    const bool truth = source->reference_kind() == tools::ReferenceKind::kGroundTruth;
-    if (evaluation.available) {
-      std::printf("\n%s (%s alignment, %zu poses):\n",
-                  truth ? "ATE RMSE against the ground truth"
-                        : "distance to the reference (another estimate, not truth)",
-                  tools::alignment_mode_name(alignment).c_str(),
-                  evaluation.corrected.aligned.size());
-      std::printf("  odometry alone   %.3f m RMSE (max %.3f m)\n",
-                  evaluation.odometry.absolute_position_m.rmse,
-                  evaluation.odometry.absolute_position_m.max);
-      std::printf("  covoxslam        %.3f m RMSE (max %.3f m)\n",
-                  evaluation.corrected.absolute_position_m.rmse,
-                  evaluation.corrected.absolute_position_m.max);
-    } else {
-      std::printf("\nno trajectory evaluation: %s\n", evaluation.problem.c_str());
-    }
-
-    if (!json_path.empty()) {
-      tools::BenchmarkReport report("pipeline", describe_device(config.device), argc, argv);
-      report.add(case_name, "scans", static_cast<double>(result.scans_given), "");
-      report.add(case_name, "input duration", result.input_duration_s, "s");
-      report.add(case_name, "wall time", result.wall_s, "s");
-      report.add(case_name, "real-time factor", result.real_time_factor(), "x");
-      add_timing_rows(&report, case_name, "tsdf", result.timings.tsdf);
-      add_timing_rows(&report, case_name, "esdf", result.timings.esdf);
-      add_timing_rows(&report, case_name, "mesh", result.timings.mesh);
-      add_timing_rows(&report, case_name, "registration", result.timings.registration);
-      add_timing_rows(&report, case_name, "backend", result.timings.backend);
-      add_timing_rows(&report, case_name, "sensor queue wait", result.timings.sensor_queue_wait);
-      add_timing_rows(&report, case_name, "submap queue wait", result.timings.submap_queue_wait);
-      report.add(case_name, "read input", result.read_s, "s");
-      report.add(case_name, "submaps", static_cast<double>(result.submaps.size()), "");
-      report.add(case_name, "map blocks", static_cast<double>(result.map_blocks), "");
-      report.add(case_name, "map memory", result.map_memory_mb, "MB");
-      report.add(case_name, "scans dropped",
-                 static_cast<double>(result.counters.scans_dropped_total() +
-                                     result.scans_dropped_by_source),
-                 "");
-      if (evaluation.available) {
-        const std::string metric = truth ? "ATE RMSE " : "distance to reference RMSE ";
-        report.add(case_name, metric + "odometry", evaluation.odometry.absolute_position_m.rmse,
-                   "m");
-        report.add(case_name, metric + "covoxslam", evaluation.corrected.absolute_position_m.rmse,
-                   "m");
-      }
-      report.write_json(json_path);
-      std::printf("report -> %s\n", json_path.c_str());
-    }
+    run(settings, argc, argv);
   } catch (const Error& error) {
     std::cerr << "\nrun_slam: " << error.what() << std::endl;
     return 1;

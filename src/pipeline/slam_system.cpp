@@ -39,21 +39,21 @@ void validate(const SlamConfig& config) {
           "map.voxels_per_side must be 8 or 16, got " + std::to_string(config.map.voxels_per_side));
   validate(config.tsdf, config.map.voxel_size_m);
   validate(config.submaps);
-  require(config.sensor_queue_size >= 1, "sensor_queue_size must be at least 1");
-  require(config.submap_queue_size >= 1, "submap_queue_size must be at least 1");
+  require(config.sensor_queue_size >= 1, "queues.sensor_scans must be at least 1");
+  require(config.submap_queue_size >= 1, "queues.submaps must be at least 1");
   require(std::isfinite(config.odometry_translation_sigma_m) &&
               config.odometry_translation_sigma_m > 0.0,
-          "odometry_translation_sigma_m must be positive, got " +
+          "pose_graph.odometry_translation_sigma_m must be positive, got " +
               std::to_string(config.odometry_translation_sigma_m));
   require(std::isfinite(config.odometry_yaw_sigma_rad) && config.odometry_yaw_sigma_rad > 0.0,
-          "odometry_yaw_sigma_rad must be positive, got " +
+          "pose_graph.odometry_yaw_sigma_rad must be positive, got " +
               std::to_string(config.odometry_yaw_sigma_rad));
   require(config.optimize_every_n_submaps >= 0,
-          "optimize_every_n_submaps must be >= 0, got " +
+          "pose_graph.optimize_every_n_submaps must be >= 0, got " +
               std::to_string(config.optimize_every_n_submaps));
   require(
       std::isfinite(config.external_stamp_tolerance_s) && config.external_stamp_tolerance_s >= 0.0,
-      "external_stamp_tolerance_s must be >= 0, got " +
+      "pose_graph.external_stamp_tolerance_s must be >= 0, got " +
           std::to_string(config.external_stamp_tolerance_s));
   validate(config.registration);
   if (config.device == Device::kCuda && !cuda_device_available()) {
@@ -555,7 +555,7 @@ int SlamSystem::integrate_pending_constraints_locked(bool final) {
 }
 
 void SlamSystem::optimize_locked() {
-  const double max_residual_m = config_.registration.max_graph_residual_m;
+  const double max_residual_m = config_.registration.gate.max_residual_m;
   if (!(max_residual_m > 0.0)) {
     solve_graph_locked();
     return;
@@ -571,8 +571,8 @@ void SlamSystem::optimize_locked() {
     }
   }
   // Each round sets aside at least one constraint, so the rounds end; the cap bounds the time.
-  // Worst-first rounds (gate_worst_fraction) set aside fewer per round, so they get more.
-  const double worst_fraction = config_.registration.gate_worst_fraction;
+  // Worst-first rounds (gate.worst_fraction) set aside fewer per round, so they get more.
+  const double worst_fraction = config_.registration.gate.worst_fraction;
   const int max_rounds = worst_fraction > 0.0 ? 25 : 10;
   int set_aside = 0;
   for (int round = 0; round < max_rounds; ++round) {
@@ -668,10 +668,11 @@ std::vector<backend::RegistrationTerm> SlamSystem::joint_terms_locked(
     // The same scaling as the pairwise constraints (registration_constraints.h): weights
     // normalised to mean 1, point_sigma_m and the loss scale in metres.
     const double sqrt_mean_weight = std::sqrt(points_submap.registration_points->mean_weight);
-    term.residual.distance = config_.registration.distance;
-    term.residual.loss = config_.registration.robust_loss;
-    term.residual.loss_scale = config_.registration.robust_loss_scale_m * sqrt_mean_weight;
-    term.residual_sigma = config_.registration.point_sigma_m * sqrt_mean_weight;
+    term.residual.distance = config_.registration.alignment.distance;
+    term.residual.loss = config_.registration.alignment.robust_loss;
+    term.residual.loss_scale =
+        config_.registration.alignment.robust_loss_scale_m * sqrt_mean_weight;
+    term.residual_sigma = config_.registration.information.point_sigma_m * sqrt_mean_weight;
     terms.push_back(term);
   }
   return terms;

@@ -11,8 +11,9 @@ namespace ros_layer {
 
 namespace {
 
+// The options live in the `ros` section of the configuration (~ros/<name>).
 [[noreturn]] void bad(const std::string& name, const std::string& problem) {
-  throw Error("parameter '" + name + "': " + problem);
+  throw Error("parameter 'ros." + name + "': " + problem);
 }
 
 void read_frame(const RosParameterSource& source, const std::string& name, std::string* frame) {
@@ -120,7 +121,8 @@ const std::vector<std::string>& node_option_names() {
   return names;
 }
 
-NodeOptions read_node_options(const ros::NodeHandle& node) {
+NodeOptions read_node_options(const ros::NodeHandle& private_node) {
+  const ros::NodeHandle node(private_node, "ros");
   const RosParameterSource source(node);
   NodeOptions options;
   read_frame(source, "mission_frame", &options.mission_frame);

@@ -12,14 +12,28 @@ namespace {
 }
 }  // namespace
 
-bool RosParameterSource::get_number(const std::string& name, double* value) const {
+std::string RosParameterSource::ros_name(const std::string& name) {
+  std::string nested = name;
+  for (char& c : nested) {
+    if (c == '.') c = '/';
+  }
+  return nested;
+}
+
+std::string RosParameterSource::location(const std::string& name) const {
+  return node_.resolveName(ros_name(name));
+}
+
+bool RosParameterSource::get_number(const std::string& dotted, double* value) const {
+  const std::string name = ros_name(dotted);
   if (!node_.hasParam(name)) return false;
   // getParam(double) also accepts integers ("5" for 5.0).
   if (!node_.getParam(name, *value)) wrong_type(node_, name, "a number");
   return true;
 }
 
-bool RosParameterSource::get_integer(const std::string& name, int64_t* value) const {
+bool RosParameterSource::get_integer(const std::string& dotted, int64_t* value) const {
+  const std::string name = ros_name(dotted);
   if (!node_.hasParam(name)) return false;
   int parsed = 0;
   if (!node_.getParam(name, parsed)) wrong_type(node_, name, "an integer");
@@ -27,13 +41,15 @@ bool RosParameterSource::get_integer(const std::string& name, int64_t* value) co
   return true;
 }
 
-bool RosParameterSource::get_bool(const std::string& name, bool* value) const {
+bool RosParameterSource::get_bool(const std::string& dotted, bool* value) const {
+  const std::string name = ros_name(dotted);
   if (!node_.hasParam(name)) return false;
   if (!node_.getParam(name, *value)) wrong_type(node_, name, "true or false");
   return true;
 }
 
-bool RosParameterSource::get_text(const std::string& name, std::string* value) const {
+bool RosParameterSource::get_text(const std::string& dotted, std::string* value) const {
+  const std::string name = ros_name(dotted);
   if (!node_.hasParam(name)) return false;
   if (!node_.getParam(name, *value)) wrong_type(node_, name, "a text");
   return true;

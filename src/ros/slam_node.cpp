@@ -40,23 +40,33 @@ void forward_library_log_to_ros() {
   });
 }
 
-// Private parameters that neither list knows are most likely misspelt: say so once.
+// Private parameters that neither list knows are most likely misspelt: say so once. The SLAM
+// parameters' dotted names are nested on the server (registration/gate/...), the node's own sit
+// in the `ros` namespace.
 void warn_about_unknown_parameters(const ros::NodeHandle& private_node) {
   std::vector<std::string> all;
   if (!ros::param::getParamNames(all)) return;
-  std::set<std::string> known(pipeline::slam_parameter_names().begin(),
-                              pipeline::slam_parameter_names().end());
-  known.insert(node_option_names().begin(), node_option_names().end());
+  std::set<std::string> known;
+  for (const std::string& name : pipeline::slam_parameter_names()) {
+    known.insert(RosParameterSource::ros_name(name));
+  }
+  for (const std::string& name : node_option_names()) known.insert("ros/" + name);
   const std::string prefix = private_node.getNamespace() + "/";
   for (const std::string& name : all) {
     if (name.compare(0, prefix.size(), prefix) != 0) continue;
-    const std::string relative = name.substr(prefix.size());
-    if (relative.find('/') != std::string::npos) continue;  // a sub-namespace (e.g. a plugin's)
-    if (!known.count(relative)) {
+    if (!known.count(name.substr(prefix.size()))) {
       ROS_WARN_STREAM("covoxslam: unknown parameter '"
-                      << name << "' is ignored (misspelt? see config/covoxslam.yaml)");
+                      << name << "' is ignored (misspelt? docs/parameters.md lists them)");
     }
   }
+}
+
+// The SLAM configuration from the private parameters; the device is auto unless one is set.
+pipeline::SlamConfig read_slam_parameters(const ros::NodeHandle& private_node) {
+  pipeline::SlamConfig config;
+  config.device = select_device(DeviceRequest::kAuto);
+  pipeline::read_slam_config(RosParameterSource(private_node), &config);
+  return config;
 }
 
 }  // namespace
@@ -72,9 +82,7 @@ SlamNode::SlamNode(ros::NodeHandle node, ros::NodeHandle private_node)
       drops_(options_.drop_log_interval_s) {
   forward_library_log_to_ros();
   warn_about_unknown_parameters(private_node_);
-  pipeline::SlamConfig config;
-  config.device = select_device(DeviceRequest::kAuto);
-  pipeline::read_slam_config(RosParameterSource(private_node_), &config);
+  const pipeline::SlamConfig config = read_slam_parameters(private_node_);
   slam_ = std::make_unique<pipeline::SlamSystem>(config);
   ROS_INFO_STREAM("covoxslam: mapping on "
                   << describe_device(config.device) << ", voxel " << config.map.voxel_size_m

@@ -716,11 +716,11 @@ TEST(CovoxSlamNodeStartup, BadParametersStopTheNodeWithTheirName) {
   const struct {
     const char* argument;
     const char* name;
-  } cases[] = {{"_voxel_size_m:=-0.2", "voxel_size_m"},
-               {"_submap_creation_policy:=sometimes", "submap_creation_policy"},
-               {"_tf_wait_timeout_s:=-1.0", "tf_wait_timeout_s"},
-               {"_T_base_sensor:=[1.0,2.0,3.0]", "T_base_sensor"},
-               {"_truncation_distance_m:=0.05", "truncation_distance_m"}};
+  } cases[] = {{"_map/voxel_size_m:=-0.2", "map.voxel_size_m"},
+               {"_submaps/policy:=sometimes", "submaps.policy"},
+               {"_ros/tf_wait_timeout_s:=-1.0", "ros.tf_wait_timeout_s"},
+               {"_ros/T_base_sensor:=[1.0,2.0,3.0]", "ros.T_base_sensor"},
+               {"_tsdf/truncation_distance_m:=0.05", "truncation_distance_m"}};
   int index = 0;
   for (const auto& bad : cases) {
     int status = 0;

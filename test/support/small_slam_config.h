@@ -6,7 +6,8 @@ namespace covox {
 namespace testing_support {
 
 // CPU; 0.2 m voxels in 8-voxel blocks, truncation 0.6 m, 8 m rays, ESDF up to 1 m; a new submap
-// every second; queues deep enough that no scan is dropped for lack of room.
+// every second; queues deep enough that no scan is dropped for lack of room; one-way registration
+// without the revisit aids, one trajectory correction per submap.
 pipeline::SlamConfig small_slam_config();
 
 }  // namespace testing_support

@@ -62,31 +62,5 @@ SlamRunEvaluation evaluate_slam_run(const ScanSource& source, const SlamRunResul
 // The per-module timing table and the counters, as the runner prints them.
 void print_slam_run(const SlamRunResult& result, FILE* out);
 
-// voxgraph's ARCHE configuration (peers.md) on `device`: 0.2 m voxels, 0.6 m truncation, 16 m
-// rays, constant weight with drop-off and sparsity compensation 20; then what the simulated
-// flight measured (see slam_run.cpp): a submap every 5 s (voxgraph: 10 s), odometry sigmas 0.07 m
-// and 0.007 rad per submap, a registration accuracy floor of 0.2 m and 1 degree, the consistency
-// gate at 0.3 m and the interpolated trajectory correction.
-pipeline::SlamConfig arche_slam_config(Device device);
-// RGB-D (7-Scenes-sized rooms): inverse-square weighting (depth noise grows with range), no
-// sparsity compensation (every pixel hits a surface), 4 cm voxels, 12 cm truncation, 4 m rays,
-// a submap every 2 s, odometry sigmas 0.1 m and 0.01 rad.
-pipeline::SlamConfig rgbd_slam_config(Device device);
-// City-scale LiDAR keyframes (MulRan, ~9 m apart): 0.5 m voxels, 1.5 m truncation, 40 m rays,
-// a submap every 8 s (about 10 keyframes).
-pipeline::SlamConfig lidar_keyframe_slam_config(Device device);
-// "arche", "rgbd" or "lidar-keyframes"; throws covox::Error naming the bad value otherwise.
-pipeline::SlamConfig preset_slam_config(const std::string& preset, Device device);
-
-// Applies the SLAM parameters of a flat YAML file (as the nodelet reads them, e.g.
-// config/arche.yaml) over `config`; the device stays as it was. Frames, topics and visualisation
-// settings are the nodelet's: they are skipped and named in `ignored`. Throws covox::Error for an
-// unreadable file or a bad value.
-struct ConfigFileUse {
-  size_t applied = 0;
-  std::string ignored;  // comma-separated names
-};
-ConfigFileUse apply_slam_config_file(const std::string& path, pipeline::SlamConfig* config);
-
 }  // namespace tools
 }  // namespace covox

@@ -1,5 +1,5 @@
 #pragma once
-// SlamSystem: the pure C++ SLAM pipeline (no ROS), DESIGN.md "The data path".
+// SlamSystem: the pure C++ SLAM pipeline (no ROS): the data path.
 //
 //   add_scan() ──► sensor queue ──► frontend thread: integrate each scan into the active submap
 //                                   at its odometry pose in the submap frame; the creation
@@ -62,6 +62,8 @@
 namespace covox {
 namespace pipeline {
 
+// Every field is a parameter of the configuration files (pipeline/slam_parameters.h reads them;
+// docs/parameters.md lists each with its name, unit and default).
 struct SlamConfig {
   Device device = Device::kCpu;
   TsdfMapConfig map;
@@ -79,13 +81,13 @@ struct SlamConfig {
   // Optimise after every n-th submap enters the graph, and when external constraints or
   // request_optimization() arrive; 0: only in finish() and on request_optimization().
   int optimize_every_n_submaps = 1;
-  // Corrected trajectory: false (voxgraph's): every scan of a submap gets its submap's correction
-  // T_world_submap * T_odom_submap^-1, a step at each new submap. True: a scan between the first
-  // scans of submap k and of the next submap in the graph gets the correction blended linearly in
-  // time between the two submaps' corrections (blend_corrected_pose), as odometry drift grows
-  // over the submap; the last submap keeps its own. Only the reported trajectory changes (the
-  // maps, constraints and the graph do not).
-  bool interpolate_trajectory_correction = false;
+  // Corrected trajectory: true: a scan between the first scans of submap k and of the next
+  // submap in the graph gets the correction blended linearly in time between the two submaps'
+  // corrections (blend_corrected_pose), as odometry drift grows over the submap; the last submap
+  // keeps its own. False (voxgraph's): every scan of a submap gets its submap's correction
+  // T_world_submap * T_odom_submap^-1, a step at each new submap. Only the reported trajectory
+  // changes (the maps, constraints and the graph do not).
+  bool interpolate_trajectory_correction = true;
   // Registration constraints between overlapping submaps (the drift correction).
   SubmapRegistrationConfig registration;
   // Loop closures, GNSS positions and heights name a scan by stamp: the nearest integrated scan
@@ -144,7 +146,7 @@ struct SlamCounters {
   int64_t odometry_constraints = 0;
   int64_t optimizations = 0;
   int64_t optimizations_failed = 0;
-  // Registration constraints set aside by the consistency gate (registration.max_graph_residual_m)
+  // Registration constraints set aside by the consistency gate (registration.gate.max_residual_m)
   // in the latest optimisation.
   int64_t registrations_set_aside = 0;
   RegistrationCounts registration;  // attempted, accepted and each reason for a rejection
@@ -355,7 +357,7 @@ class SlamSystem {
   // Moves waiting external constraints whose submaps are in the graph into it; `final`: no more
   // submaps will come, so those still waiting are dropped (counted). Returns how many entered.
   int integrate_pending_constraints_locked(bool final);
-  // Solves the graph; with registration.max_graph_residual_m, also runs the consistency gate.
+  // Solves the graph; with registration.gate.max_residual_m, also runs the consistency gate.
   void optimize_locked();
   // One solve of the graph as it is (false: the solve failed, logged and counted).
   bool solve_graph_locked();

@@ -1,7 +1,8 @@
 #pragma once
-// The nodelet's own parameters (frames, topics, waiting, publishing); the SLAM parameters are
-// read by pipeline::read_slam_config(). Every one is documented in config/covoxslam.yaml and
-// docs/ros.md, and checked at start-up with an error naming it.
+// The nodelet's own parameters (frames, waiting, input decoding, publishing): the `ros` section of
+// a configuration file, ~ros/<name> on the parameter server; the SLAM parameters beside it are
+// read by pipeline::read_slam_config(). Every one is documented in docs/parameters.md and checked
+// at start-up with an error naming it.
 #include <string>
 
 #include <Eigen/Geometry>
@@ -51,11 +52,12 @@ struct NodeOptions {
   double drop_log_interval_s = 5.0;
 };
 
-// Reads every option the private node handle sets (defaults for the others) and checks them;
-// throws covox::Error naming the first bad parameter.
+// Reads every option set under the private node handle's `ros` namespace (defaults for the
+// others) and checks them; throws covox::Error naming the first bad parameter.
 NodeOptions read_node_options(const ros::NodeHandle& private_node);
 
-// The option names, so that unknown (misspelt) private parameters can be reported.
+// The option names within the `ros` section, so that unknown (misspelt) private parameters can be
+// reported.
 const std::vector<std::string>& node_option_names();
 
 }  // namespace ros_layer

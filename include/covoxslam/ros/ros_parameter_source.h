@@ -1,6 +1,8 @@
 #pragma once
 // The ROS parameter server as a pipeline::ParameterSource: a parameter set with the wrong type
-// (a text where a number belongs) is an error naming it, not a silently kept default.
+// (a text where a number belongs) is an error naming it, not a silently kept default. The
+// library's dotted names are nested parameters: "registration.gate.max_residual_m" is
+// ~registration/gate/max_residual_m, as `rosparam load` of a configuration file sets it.
 #include <string>
 
 #include <ros/node_handle.h>
@@ -17,6 +19,10 @@ class RosParameterSource : public pipeline::ParameterSource {
   bool get_integer(const std::string& name, int64_t* value) const override;
   bool get_bool(const std::string& name, bool* value) const override;
   bool get_text(const std::string& name, std::string* value) const override;
+  std::string location(const std::string& name) const override;
+
+  // "registration.gate.max_residual_m" -> "registration/gate/max_residual_m".
+  static std::string ros_name(const std::string& name);
 
  private:
   ros::NodeHandle node_;

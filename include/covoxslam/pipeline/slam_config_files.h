@@ -1,0 +1,43 @@
+#pragma once
+// The configuration files in config/: YAML (the subset of io/yaml_subset.h) with the parameters
+// of pipeline/slam_parameters.h as nested sections, plus a `ros` section with the nodelet's own
+// settings (frames, waiting, publishing) that the library lists but does not read. A file sets
+// only what differs from the library defaults; docs/parameters.md lists every parameter.
+//
+// The named files are the presets: arche (voxgraph's ARCHE settings), arche_sim (the simulated
+// flight's, what `make demo` runs), rgbd, lidar_keyframes, and covoxslam (the nodelet's generic
+// default). The offline runner, the benchmarks, the nodelet's launch files and the tests all read
+// these files, so a preset exists once.
+#include <cstddef>
+#include <string>
+#include <vector>
+
+#include "covoxslam/pipeline/slam_system.h"
+
+namespace covox {
+namespace pipeline {
+
+// What a configuration file held.
+struct SlamConfigFileUse {
+  size_t applied = 0;                  // SLAM parameters it set
+  std::vector<std::string> node_keys;  // keys of its `ros` section ("ros.odom_frame", ...)
+};
+
+// Applies the configuration file at `path` over `*config`: each parameter it sets replaces the
+// value there, the others stay. Throws covox::Error, with the file and line where there is one,
+// for a line outside the YAML subset, an unknown key or a bad value; `*config` is unchanged then.
+SlamConfigFileUse load_slam_config(const std::string& path, SlamConfig* config);
+
+// The folder of the configuration files: $COVOX_CONFIG_DIR when it is set, else the source
+// tree's config/ when it exists, else the installed share/covoxslam/config.
+std::string config_directory();
+// The presets: the names of the *.yaml files in config_directory(), sorted.
+std::vector<std::string> preset_names();
+// The file of preset `name`; throws covox::Error naming the folder and listing the presets when
+// there is none.
+std::string preset_path(const std::string& name);
+// The library defaults with preset `name` applied (device: the CPU, as SlamConfig's default).
+SlamConfig load_preset(const std::string& name);
+
+}  // namespace pipeline
+}  // namespace covox

@@ -1,0 +1,101 @@
+#include "covoxslam/pipeline/slam_config_files.h"
+
+#include <algorithm>
+#include <cstdlib>
+#include <filesystem>
+#include <map>
+
+#include "covoxslam/core/error.h"
+#include "covoxslam/io/yaml_subset.h"
+#include "covoxslam/pipeline/slam_parameters.h"
+
+// Set by CMake for this file: the source tree's and the installed configuration folders.
+#ifndef COVOX_CONFIG_SOURCE_DIR
+#define COVOX_CONFIG_SOURCE_DIR ""
+#endif
+#ifndef COVOX_CONFIG_INSTALL_DIR
+#define COVOX_CONFIG_INSTALL_DIR ""
+#endif
+
+namespace covox {
+namespace pipeline {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+// The section of a file that belongs to the nodelet.
+const char kNodeSection[] = "ros.";
+
+bool is_slam_parameter(const std::string& key) {
+  const std::vector<std::string>& names = slam_parameter_names();
+  return std::find(names.begin(), names.end(), key) != names.end();
+}
+
+}  // namespace
+
+SlamConfigFileUse load_slam_config(const std::string& path, SlamConfig* config) {
+  const io::YamlDocument document = io::read_yaml_subset(path);
+  std::map<std::string, std::string> values, locations;
+  SlamConfigFileUse use;
+  for (const io::YamlEntry& entry : document.entries) {
+    if (entry.key.compare(0, sizeof(kNodeSection) - 1, kNodeSection) == 0) {
+      use.node_keys.push_back(entry.key);
+    } else if (is_slam_parameter(entry.key)) {
+      values[entry.key] = entry.value;
+      locations[entry.key] = document.where(entry);
+    } else {
+      throw Error(document.where(entry) + ": unknown parameter '" + entry.key +
+                  "' (docs/parameters.md lists them; the nodelet's own go in the `ros` section)");
+    }
+  }
+  use.applied = values.size();
+  SlamConfig updated = *config;
+  read_slam_config(TextParameterSource(std::move(values), std::move(locations)), &updated);
+  *config = updated;
+  return use;
+}
+
+std::string config_directory() {
+  const char* environment = std::getenv("COVOX_CONFIG_DIR");
+  if (environment && *environment) return environment;
+  const std::string source = COVOX_CONFIG_SOURCE_DIR;
+  std::error_code error;
+  if (!source.empty() && fs::is_directory(source, error)) return source;
+  return COVOX_CONFIG_INSTALL_DIR;
+}
+
+std::vector<std::string> preset_names() {
+  std::vector<std::string> names;
+  std::error_code error;
+  const std::string folder = config_directory();
+  if (folder.empty() || !fs::is_directory(folder, error)) return names;
+  for (const fs::directory_entry& entry : fs::directory_iterator(folder, error)) {
+    if (entry.is_regular_file(error) && entry.path().extension() == ".yaml") {
+      names.push_back(entry.path().stem().string());
+    }
+  }
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+std::string preset_path(const std::string& name) {
+  const std::vector<std::string> names = preset_names();
+  if (std::find(names.begin(), names.end(), name) != names.end()) {
+    return (fs::path(config_directory()) / (name + ".yaml")).string();
+  }
+  std::string list;
+  for (const std::string& known : names) list += (list.empty() ? "" : ", ") + known;
+  throw Error("unknown preset '" + name + "': the presets in '" + config_directory() +
+              "' (set COVOX_CONFIG_DIR for another folder) are " +
+              (list.empty() ? std::string("none") : list));
+}
+
+SlamConfig load_preset(const std::string& name) {
+  SlamConfig config;
+  load_slam_config(preset_path(name), &config);
+  return config;
+}
+
+}  // namespace pipeline
+}  // namespace covox
