@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# Same-run comparison of benchmark_tsdf built from several source trees on one GPU machine (the
+# Side-by-side comparison of benchmark_tsdf built from several source trees on one GPU host (the
 # N-way form of ab_tsdf.sh): each tree (a `git archive` of a revision, or a copy of this tree
-# with one change, unpacked under the git-ignored .snapshot/ and carried to the machine) is
+# with one change, unpacked under the git-ignored .snapshot/ and copied to the host) is
 # built in build_ab_NAME/ (benchmark_tsdf only, the builds side by side), then the binaries run
 # in turn RUNS times each, so that all see the same machine state. Per-run JSON and logs go to
 # $OUT/ab/ as NAME_RUN.json; tools/scripts/ab_table.py prints the medians per case against the
@@ -31,7 +31,7 @@ for k in "${!names[@]}"; do
   (
     source_dir=$(cd "${dirs[$k]}" && pwd)
     build=build_ab_${names[$k]}
-    # A machine kept warm between calls may hold this build configured from another tree.
+    # A build folder left by an earlier run may have been configured from another tree.
     if [ -f "$build/CMakeCache.txt" ] && ! grep -q "^CMAKE_HOME_DIRECTORY:INTERNAL=$source_dir$" "$build/CMakeCache.txt"; then
       rm -rf "$build"
     fi

@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
-# Same-run A/B of the TSDF benchmark on one GPU machine: builds benchmark_tsdf from a base tree
-# (a `git archive` of the base revision unpacked in BASE_DIR, built in build_base/ here, outside
-# BASE_DIR, which the device tool replaces on every call) and from this tree (build_gpu/, the
-# whole suite), then runs the two alternately RUNS times each, so that both see the same machine
-# state, and once more each with the stage profile (COVOX_PROFILE_STAGES). Per-run JSON and logs
-# go to $OUT/ab/; the medians per case are printed by tools/scripts/ab_table.py.
+# Side-by-side comparison of the TSDF benchmark built from two trees on one GPU host: builds
+# benchmark_tsdf from a base tree (a `git archive` of the base revision unpacked in BASE_DIR,
+# built in build_base/ here, outside BASE_DIR, so that replacing BASE_DIR keeps the build) and
+# from this tree (build_gpu/, the whole suite), then runs the two alternately RUNS times each,
+# so that both see the same machine state, and once more each with the stage profile
+# (COVOX_PROFILE_STAGES). Per-run JSON and logs go to $OUT/ab/; the medians per case are printed by tools/scripts/ab_table.py.
 #   tools/device/ab_tsdf.sh BASE_DIR [RUNS] [benchmark_tsdf args...]
 set -uo pipefail
 cd "$(dirname "$0")/../.."
@@ -17,7 +17,7 @@ configure() {  # source dir, build dir
   cmake -S "$1" -B "$2" -DCMAKE_BUILD_TYPE=Release -DCOVOX_CUDA_ARCHITECTURES=90 -DCOVOX_BUILD_ROS=OFF \
     -DCOVOX_DATA_DIR="$COVOX_DATA_DIR" > "$OUT/ab/configure_$(basename "$2").log" 2>&1
 }
-# A machine kept warm between calls may hold a build_base configured from another base tree.
+# A build_base left by an earlier run may have been configured from another base tree.
 if [ -f build_base/CMakeCache.txt ] &&
    ! grep -q "^CMAKE_HOME_DIRECTORY:INTERNAL=$(cd "$BASE_DIR" && pwd)$" build_base/CMakeCache.txt; then
   rm -rf build_base

@@ -3,11 +3,11 @@
 #   tools/device/flight_sweep.sh BUILD_DIR WORK_DIR "SEEDS" "COLUMNS" preset|VARIANT.yaml ...
 # Simulates each (seed, columns) flight once (kept in WORK_DIR/bags, reused by later calls), runs
 # `run_slam` with each VARIANT.yaml applied over the ARCHE preset (`--config`; the word `preset`
-# for the preset alone), JOBS runs at a time (default 1: the runs are deterministic, but on the H100
-# four processes sharing the GPU took 39 s each instead of 4-5 s), and prints one row per variant:
-# ATE RMSE per flight, the mean and the worst. Logs, trajectories and graph dumps stay in
+# for the preset alone), JOBS runs at a time (default 1: the runs are deterministic, but processes
+# sharing one GPU slow each other down by more than they run in parallel), and prints one row per
+# variant: ATE RMSE per flight, the mean and the worst. Logs, trajectories and graph dumps stay in
 # WORK_DIR/runs.
-# Example (H100): tools/device/flight_sweep.sh build_gpu $OUT/sweep "1 2 3 4 5" "256 1024" preset v/*.yaml
+# Example: tools/device/flight_sweep.sh build_gpu $OUT/sweep "1 2 3 4 5" "256 1024" preset v/*.yaml
 set -uo pipefail
 build=$1 work=$2 seeds=$3 columns=$4
 shift 4

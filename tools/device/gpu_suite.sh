@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
-# Builds the non-ROS library, tests and benchmarks on a GPU machine without ROS (the H100 lent
-# to sessions), runs the test suite and the benchmarks, and leaves logs and JSON under $OUT.
+# Builds the non-ROS library, tests and benchmarks on a GPU host without ROS, runs the test suite
+# and the benchmarks, and leaves logs and JSON under $OUT.
 #   tools/device/gpu_suite.sh [build|test|bench:NAME[,NAME...]]...   (default: build test)
 # Expects Eigen and GoogleTest sources in .device_deps/ and the data subset in .device_data/
-# when they are not installed there (see docs/benchmarks.md, "How the GPU figures are taken").
+# when they are not installed there.
 set -uo pipefail
 cd "$(dirname "$0")/../.."
 OUT=${OUT:-/tmp/covox_out}
@@ -26,7 +26,8 @@ for step in "${steps[@]}"; do
       ;;
     test)
       # Four tests at a time with four OpenMP threads each: more threads than cores makes the
-      # CPU twin's many short parallel loops spin against each other (minutes instead of seconds).
+      # CPU twin's many short parallel loops spin against each other, each test waiting mostly on
+      # the others.
       (cd "$BUILD" && OMP_NUM_THREADS=4 ctest --output-on-failure -j 4 --timeout 600 > "$OUT/ctest.log" 2>&1)
       grep -E "tests passed|tests failed|\(Failed\)|\(Timeout\)|\*\*\*" "$OUT/ctest.log" | head -40
       ;;

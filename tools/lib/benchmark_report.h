@@ -1,8 +1,8 @@
 #pragma once
 // The one way every benchmark in tools/ reports its figures: rows of (case, metric, value, unit),
 // printed as an aligned plain-text table and written as JSON together with the device, the date
-// and the exact command line, so that every number in docs/benchmarks.md can be traced back to a
-// run and repeated.
+// and the exact command line, so that every reported figure can be traced back to a run and
+// repeated.
 //
 //   tools::BenchmarkReport report("hash_table", describe_device(device), argc, argv);
 //   report.add("cuda lf=0.70", "find", 1234.5, "Mkeys/s");
@@ -13,7 +13,7 @@
 //   {
 //     "benchmark": "hash_table",
 //     "device": "...",
-//     "date": "2026-11-22T17:04:33Z",
+//     "date": "YYYY-MM-DDThh:mm:ssZ",
 //     "command": "build/benchmark_hash_table --keys 2000000",
 //     "results": [
 //       {"case": "...", "metric": "...", "value": 1234.5, "unit": "Mkeys/s"}
@@ -85,7 +85,7 @@ std::string json_number(double value);
 // argv joined by spaces; an argument with characters a shell would interpret is single-quoted,
 // so the recorded command can be pasted back into a shell.
 std::string command_line(int argc, const char* const* argv);
-// The current UTC time as ISO 8601, e.g. "2026-11-22T17:04:33Z".
+// The current UTC time as ISO 8601, "YYYY-MM-DDThh:mm:ssZ".
 std::string iso8601_utc_now();
 
 }  // namespace tools

@@ -62,11 +62,11 @@ SlamRunEvaluation evaluate_slam_run(const ScanSource& source, const SlamRunResul
 // The per-module timing table and the counters, as the runner prints them.
 void print_slam_run(const SlamRunResult& result, FILE* out);
 
-// voxgraph's ARCHE configuration (peers.md) on `device`: 0.2 m voxels, 0.6 m truncation, 16 m
-// rays, constant weight with drop-off and sparsity compensation 20; then what the simulated
-// flight measured (see slam_run.cpp): a submap every 5 s (voxgraph: 10 s), odometry sigmas 0.07 m
-// and 0.007 rad per submap, a registration accuracy floor of 0.2 m and 1 degree, the consistency
-// gate at 0.3 m and the interpolated trajectory correction.
+// voxgraph's ARCHE configuration on `device`: 0.2 m voxels, 0.6 m truncation, 16 m rays,
+// constant weight with drop-off and sparsity compensation 20; then the settings chosen on the
+// simulated flight (slam_run.cpp says why): a submap every 5 s (voxgraph: 10 s), odometry sigmas
+// 0.07 m and 0.007 rad per submap, a registration accuracy floor of 0.2 m and 1 degree, the
+// consistency gate at 0.3 m and the interpolated trajectory correction.
 pipeline::SlamConfig arche_slam_config(Device device);
 // RGB-D (7-Scenes-sized rooms): inverse-square weighting (depth noise grows with range), no
 // sparsity compensation (every pixel hits a surface), 4 cm voxels, 12 cm truncation, 4 m rays,

@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Compares same-run benchmark JSON files of several builds: for each case, the median
+"""Compares the benchmark JSON files of several builds run in turn on one machine (so that all
+see the same machine state): for each case, the median
 integration time of every run, the median of those medians per side, and its ratio to the
 first side. tools/device/ab_tsdf.sh writes base_N.json and new_N.json (the default sides);
 tools/device/ab_trees.sh writes NAME_N.json for the sides it names.

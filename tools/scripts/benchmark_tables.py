@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Prints the latest benchmark tables (docs/benchmarks/*.json) as Markdown, with the command,
-device and date of each run, for pasting into docs/benchmarks.md:
+device and date of each run, for pasting into the documentation:
 
     python3 tools/scripts/benchmark_tables.py docs/benchmarks/*.json
 """

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Kernel time per TSDF frame from an Nsight Compute CSV (docs/benchmarks.md, "sixth pass"):
+"""Kernel time per TSDF frame from an Nsight Compute CSV:
    ncu --clock-control none --cache-control none --metrics gpu__time_duration.sum --csv \
        --launch-skip 400 --launch-count 240 build_gpu/benchmark_tsdf --device cuda --integrations 12 --skip-lidar > f.csv
    tools/scripts/ncu_frame_kernels.py f.csv [FIRST]
