@@ -12,8 +12,8 @@
 //                     [--output PATH]
 //
 // Cases:
-//  * registration graphs (the benchmark): n submaps of a street with odometry between
-//    consecutive ones and dense registration terms k -> k+1, k -> k+2, k+1 -> k (Huber), about
+//  * registration graphs: n submaps of a street with odometry between consecutive ones and
+//    dense registration terms k -> k+1, k -> k+2, k+1 -> k (Huber), about
 //    points-per-submap points per term, each an ESDF/TSDF lookup with trilinear interpolation and
 //    Jacobians w.r.t. both poses (tools/lib/registration_benchmark_world.h: distinct-submaps real
 //    submaps whose fields are reused along a periodic street, because building a thousand real
@@ -97,81 +97,125 @@ int positive_int(const std::string& flag, const std::string& text, int minimum) 
   return static_cast<int>(value);
 }
 
+// The --preconditioner choices: one of them, or both for a side-by-side comparison.
+std::vector<backend::PcgPreconditioner> preconditioners_of(const std::string& name) {
+  if (name == "block-jacobi") return {backend::PcgPreconditioner::kBlockJacobi};
+  if (name == "chain") return {backend::PcgPreconditioner::kOdometryChain};
+  if (name == "both") {
+    return {backend::PcgPreconditioner::kBlockJacobi, backend::PcgPreconditioner::kOdometryChain};
+  }
+  usage_error("--preconditioner must be block-jacobi, chain or both, got '" + name + "'");
+}
+
+backend::RegistrationDistance distance_of(const std::string& name) {
+  if (name == "tsdf") return backend::RegistrationDistance::kTsdfNearSurface;
+  if (name == "esdf") return backend::RegistrationDistance::kEsdf;
+  usage_error("--registration-distance must be tsdf or esdf, got '" + name + "'");
+}
+
+std::vector<int> submap_counts(const std::string& flag, const std::string& text) {
+  std::vector<int> counts;
+  std::stringstream list(text);
+  for (std::string item; std::getline(list, item, ',');)
+    counts.push_back(positive_int(flag, item, 3));
+  return counts;
+}
+
+double positive_number(const std::string& flag, const std::string& text) {
+  const double value = std::atof(text.c_str());
+  if (!(value > 0.0)) usage_error(flag + " must be positive");
+  return value;
+}
+
+// One command-line option: its name, whether a value follows it, and how it sets Options (from
+// the value, empty for a switch).
+struct OptionRule {
+  const char* name;
+  bool takes_value;
+  void (*apply)(Options& o, const std::string& flag, const std::string& value);
+};
+
+const OptionRule kOptionRules[] = {
+    {"--device", true, [](Options& o, const std::string&, const std::string& v) { o.device = v; }},
+    {"--submaps", true,
+     [](Options& o, const std::string& f, const std::string& v) {
+       o.submaps = submap_counts(f, v);
+     }},
+    {"--repeats", true,
+     [](Options& o, const std::string& f, const std::string& v) {
+       o.repeats = positive_int(f, v, 1);
+     }},
+    {"--ceres-repeats", true,
+     [](Options& o, const std::string& f, const std::string& v) {
+       o.ceres_repeats = positive_int(f, v, 1);
+     }},
+    {"--ceres-time-limit-s", true,
+     [](Options& o, const std::string& f, const std::string& v) {
+       o.ceres_time_limit_s = positive_number(f, v);
+     }},
+    {"--data", true, [](Options& o, const std::string&, const std::string& v) { o.data = v; }},
+    {"--skip-ceres", false,
+     [](Options& o, const std::string&, const std::string&) { o.skip_ceres = true; }},
+    {"--skip-garage", false,
+     [](Options& o, const std::string&, const std::string&) { o.skip_garage = true; }},
+    {"--skip-registration", false,
+     [](Options& o, const std::string&, const std::string&) { o.skip_registration = true; }},
+    {"--relative-graphs", false,
+     [](Options& o, const std::string&, const std::string&) { o.relative_graphs = true; }},
+    {"--preconditioner", true,
+     [](Options& o, const std::string&, const std::string& v) {
+       o.preconditioners = preconditioners_of(v);
+     }},
+    {"--distinct-submaps", true,
+     [](Options& o, const std::string& f, const std::string& v) {
+       o.world.distinct_submaps = positive_int(f, v, 3);
+     }},
+    {"--lidar-columns", true,
+     [](Options& o, const std::string& f, const std::string& v) {
+       o.world.lidar_columns = positive_int(f, v, 16);
+     }},
+    {"--points-per-submap", true,
+     [](Options& o, const std::string& f, const std::string& v) {
+       o.world.points_per_submap = positive_int(f, v, 10);
+     }},
+    {"--pcg-tolerance", true,
+     [](Options& o, const std::string& f, const std::string& v) {
+       o.solver.pcg_relative_tolerance = positive_number(f, v);
+     }},
+    {"--registration-sigma", true,
+     [](Options& o, const std::string& f, const std::string& v) {
+       o.registration_sigma = positive_number(f, v);
+     }},
+    {"--chain-segment", true,
+     [](Options& o, const std::string& f, const std::string& v) {
+       o.solver.chain_segment_vertices = positive_int(f, v, 0);
+     }},
+    {"--pcg-max-iterations", true,
+     [](Options& o, const std::string& f, const std::string& v) {
+       o.solver.pcg_max_iterations = positive_int(f, v, 1);
+     }},
+    {"--registration-distance", true,
+     [](Options& o, const std::string&, const std::string& v) { o.distance = distance_of(v); }},
+    {"--output", true, [](Options& o, const std::string&, const std::string& v) { o.output = v; }},
+};
+
+// Options are applied in command-line order, so a repeated option's last value wins.
 Options parse(int argc, char** argv) {
   Options o;
   o.data = io::data_directory();
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
-    const auto value = [&]() -> std::string {
-      if (i + 1 >= argc) usage_error(arg + " needs a value");
-      return argv[++i];
-    };
-    if (arg == "--device") {
-      o.device = value();
-    } else if (arg == "--submaps") {
-      o.submaps.clear();
-      std::stringstream list(value());
-      for (std::string item; std::getline(list, item, ',');)
-        o.submaps.push_back(positive_int(arg, item, 3));
-    } else if (arg == "--repeats") {
-      o.repeats = positive_int(arg, value(), 1);
-    } else if (arg == "--ceres-repeats") {
-      o.ceres_repeats = positive_int(arg, value(), 1);
-    } else if (arg == "--ceres-time-limit-s") {
-      o.ceres_time_limit_s = std::atof(value().c_str());
-      if (!(o.ceres_time_limit_s > 0.0)) usage_error("--ceres-time-limit-s must be positive");
-    } else if (arg == "--data") {
-      o.data = value();
-    } else if (arg == "--skip-ceres") {
-      o.skip_ceres = true;
-    } else if (arg == "--skip-garage") {
-      o.skip_garage = true;
-    } else if (arg == "--skip-registration") {
-      o.skip_registration = true;
-    } else if (arg == "--relative-graphs") {
-      o.relative_graphs = true;
-    } else if (arg == "--preconditioner") {
-      const std::string name = value();
-      if (name == "block-jacobi") {
-        o.preconditioners = {backend::PcgPreconditioner::kBlockJacobi};
-      } else if (name == "chain") {
-        o.preconditioners = {backend::PcgPreconditioner::kOdometryChain};
-      } else if (name == "both") {
-        o.preconditioners = {backend::PcgPreconditioner::kBlockJacobi,
-                             backend::PcgPreconditioner::kOdometryChain};
-      } else {
-        usage_error("--preconditioner must be block-jacobi, chain or both, got '" + name + "'");
-      }
-    } else if (arg == "--distinct-submaps") {
-      o.world.distinct_submaps = positive_int(arg, value(), 3);
-    } else if (arg == "--lidar-columns") {
-      o.world.lidar_columns = positive_int(arg, value(), 16);
-    } else if (arg == "--points-per-submap") {
-      o.world.points_per_submap = positive_int(arg, value(), 10);
-    } else if (arg == "--pcg-tolerance") {
-      o.solver.pcg_relative_tolerance = std::atof(value().c_str());
-      if (!(o.solver.pcg_relative_tolerance > 0.0)) usage_error("--pcg-tolerance must be positive");
-    } else if (arg == "--registration-sigma") {
-      o.registration_sigma = std::atof(value().c_str());
-      if (!(o.registration_sigma > 0.0)) usage_error("--registration-sigma must be positive");
-    } else if (arg == "--chain-segment") {
-      o.solver.chain_segment_vertices = positive_int(arg, value(), 0);
-    } else if (arg == "--pcg-max-iterations") {
-      o.solver.pcg_max_iterations = positive_int(arg, value(), 1);
-    } else if (arg == "--registration-distance") {
-      const std::string name = value();
-      if (name == "tsdf") {
-        o.distance = backend::RegistrationDistance::kTsdfNearSurface;
-      } else if (name == "esdf") {
-        o.distance = backend::RegistrationDistance::kEsdf;
-      } else {
-        usage_error("--registration-distance must be tsdf or esdf, got '" + name + "'");
-      }
-    } else if (arg == "--output") {
-      o.output = value();
-    } else {
-      usage_error("unknown argument '" + arg + "'");
+    const OptionRule* rule = nullptr;
+    for (const OptionRule& candidate : kOptionRules) {
+      if (arg == candidate.name) rule = &candidate;
     }
+    if (rule == nullptr) usage_error("unknown argument '" + arg + "'");
+    std::string value;
+    if (rule->takes_value) {
+      if (i + 1 >= argc) usage_error(arg + " needs a value");
+      value = argv[++i];
+    }
+    rule->apply(o, arg, value);
   }
   return o;
 }

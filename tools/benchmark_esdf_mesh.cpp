@@ -5,9 +5,9 @@
 //
 // After each integration (not timed) the incremental ESDF update and the incremental mesh update
 // of the touched blocks (on the device) are timed, then the copy of the new block meshes to the
-// host, separately; at the end one full ESDF recomputation and one full mesh
-// extraction of the whole map. Cases (issue 4): the Ouster OS1-64 scans at 0.2 m (truncation 3
-// voxels, 16 m rays) and 7-Scenes frames 0-69 at 5 cm, as the TSDF benchmark integrates them.
+// host, separately; at the end one full ESDF recomputation and one full mesh extraction of the
+// whole map. Cases: the Ouster OS1-64 scans at 0.2 m (truncation 3 voxels, 16 m rays) and
+// 7-Scenes frames 0-69 at 5 cm, as the TSDF benchmark integrates them.
 #include <iostream>
 #include <string>
 #include <vector>

@@ -7,7 +7,7 @@
 // --case runs only the cases whose name contains TEXT (for example "2 cm colour carving"), so
 // that a kernel profiler sees one case's frames from the start.
 //
-// Cases (issue 3): Ouster OS1-64 (newer_06) at 0.1 and 0.2 m voxels, truncation 3 voxels, 16 m
+// Cases: Ouster OS1-64 (newer_06) at 0.1 and 0.2 m voxels, truncation 3 voxels, 16 m
 // rays (voxgraph's ARCHE setting); KITTI HDL-64 at 0.2 m with 50 m rays; 7-Scenes at 5 cm and
 // 2 cm with colour, frames 0-69 (what nvblox was timed on).
 #include <algorithm>

@@ -69,135 +69,209 @@ void draw_progress(size_t done, size_t total, double elapsed_s) {
                100.0 * fraction, done, total, elapsed_s, eta_s);
 }
 
+struct Options {
+  std::string flight_path;
+  std::string pose_source;
+  std::string truth_path;
+  std::string device_text;
+  double voxel_size_m = 0.2;
+  double truncation_m = 0.6;
+  double max_ray_m = 16.0;
+  int64_t esdf_every = 10;
+  int64_t mesh_every = 10;
+  int64_t max_scans = 0;
+  std::string mesh_path;
+};
+
+Options parse_options(int argc, char** argv) {
+  tools::CommandLine args(argc, argv, kUsage);
+  Options o;
+  o.flight_path = args.text("--bag", "sim_flight/flight.bag");
+  o.pose_source = args.text("--poses", "odometry");
+  const size_t slash = o.flight_path.find_last_of('/');
+  o.truth_path = args.text(
+      "--truth", (slash == std::string::npos ? std::string() : o.flight_path.substr(0, slash + 1)) +
+                     "truth.tum");
+  o.device_text = args.text("--device", "auto");
+  o.voxel_size_m = args.number("--voxel-size-m", 0.2);
+  o.truncation_m = args.number("--truncation-m", 0.6);
+  o.max_ray_m = args.number("--max-ray-m", 16.0);
+  o.esdf_every = args.integer("--esdf-every", 10);
+  o.mesh_every = args.integer("--mesh-every", 10);
+  o.max_scans = args.integer("--max-scans", 0);
+  o.mesh_path = args.text("--mesh", "map_flight_mesh.ply");
+  args.finish();
+  if (o.pose_source != "odometry" && o.pose_source != "truth")
+    args.fail("--poses must be odometry or truth");
+  if (o.esdf_every <= 0 || o.mesh_every <= 0)
+    args.fail("--esdf-every and --mesh-every must be positive");
+  return o;
+}
+
+TsdfMapConfig map_config(const Options& o) {
+  TsdfMapConfig config;
+  config.voxel_size_m = static_cast<float>(o.voxel_size_m);
+  config.voxels_per_side = 16;
+  return config;
+}
+
+// voxgraph's ARCHE configuration: constant weight with drop-off, sparsity compensation.
+TsdfIntegratorConfig tsdf_config(const Options& o) {
+  TsdfIntegratorConfig config;
+  config.truncation_distance_m = static_cast<float>(o.truncation_m);
+  config.max_ray_length_m = static_cast<float>(o.max_ray_m);
+  config.use_const_weight = true;
+  config.use_weight_dropoff = true;
+  config.use_sparsity_compensation_factor = true;
+  config.sparsity_compensation_factor = 20.0f;
+  return config;
+}
+
+// The map and the three integrators that keep it, on one device and stream, with the time each
+// module took.
+struct Mapper {
+  Mapper(Device device, const Options& o)
+      : map(device, map_config(o)),
+        tsdf(tsdf_config(o)),
+        esdf(EsdfIntegratorConfig{}),
+        stream(device) {}
+  TsdfMap map;
+  TsdfIntegrator tsdf;
+  EsdfIntegrator esdf;
+  MeshIntegrator mesher;
+  const Stream stream;
+  ModuleTimer read_timer{"read scan"}, tsdf_timer{"tsdf integrate"}, esdf_timer{"esdf update"},
+      mesh_timer{"mesh update"}, final_timer{"final mesh"};
+};
+
+// What the mapping loop gathered: the odometry of every scan read, the points seen, the scans
+// without a truth pose (skipped under --poses truth), the welded final mesh and the wall time.
+struct FlightRun {
+  io::Trajectory odometry;
+  int64_t points = 0;
+  int64_t scans_without_truth = 0;
+  Mesh mesh;
+  double wall_s = 0.0;
+};
+
+// The pose `scan` is fused at: its odometry pose, or under --poses truth the true pose at its
+// stamp (false when the truth does not cover it).
+bool fusion_pose(const Options& o, const io::Trajectory& truth_poses, const tools::SourceScan& scan,
+                 Eigen::Isometry3d* pose) {
+  *pose = scan.T_odom_sensor;
+  if (o.pose_source != "truth") return true;
+  io::StampedPose stamped;
+  if (!tools::interpolate_pose(truth_poses, scan.stamp_s, &stamped)) return false;
+  pose->linear() = stamped.orientation.normalized().toRotationMatrix();
+  pose->translation() = stamped.position_m;
+  return true;
+}
+
+// Fuses up to `total` scans, with the ESDF and mesh updates every esdf_every / mesh_every scans,
+// then catches up with the scans after the last periodic update and extracts the welded mesh.
+FlightRun map_scans(const Options& o, tools::BagScanSource& reader,
+                    const io::Trajectory& truth_poses, size_t total, Mapper& m) {
+  FlightRun run;
+  tools::SourceScan scan;
+  const auto start = Clock::now();
+  for (size_t k = 0; k < total; ++k) {
+    bool have = false;
+    timed(&m.read_timer, m.stream, [&] { have = reader.next(&scan); });
+    if (!have) break;
+    io::StampedPose stamped;
+    stamped.timestamp_s = scan.stamp_s;
+    stamped.position_m = scan.T_odom_sensor.translation();
+    stamped.orientation = Eigen::Quaterniond(scan.T_odom_sensor.linear());
+    run.odometry.poses.push_back(stamped);
+    run.points += static_cast<int64_t>(scan.points_sensor_m.size());
+    Eigen::Isometry3d pose;
+    if (!fusion_pose(o, truth_poses, scan, &pose)) {
+      ++run.scans_without_truth;
+      continue;
+    }
+    timed(&m.tsdf_timer, m.stream,
+          [&] { m.tsdf.integrate(m.map, scan.points_sensor_m, {}, pose); });
+    if ((k + 1) % o.esdf_every == 0)
+      timed(&m.esdf_timer, m.stream, [&] { m.esdf.update(m.map, m.stream); });
+    if ((k + 1) % o.mesh_every == 0)
+      timed(&m.mesh_timer, m.stream, [&] { m.mesher.update(m.map, m.stream); });
+    if (k % 10 == 0 || k + 1 == total) {
+      draw_progress(k + 1, total, std::chrono::duration<double>(Clock::now() - start).count());
+    }
+  }
+  timed(&m.esdf_timer, m.stream, [&] { m.esdf.update(m.map, m.stream); });
+  timed(&m.final_timer, m.stream, [&] { run.mesh = m.mesher.extract_all(m.map, m.stream); });
+  std::fprintf(stderr, "\n");
+  run.wall_s = std::chrono::duration<double>(Clock::now() - start).count();
+  return run;
+}
+
+void print_timings(const Mapper& m, double wall_s, double flight_s) {
+  std::printf("\n%-16s %8s %10s %12s\n", "module", "calls", "total s", "ms/call");
+  for (const ModuleTimer* t :
+       {&m.read_timer, &m.tsdf_timer, &m.esdf_timer, &m.mesh_timer, &m.final_timer}) {
+    std::printf("%-16s %8lld %10.2f %12.2f\n", t->name.c_str(), static_cast<long long>(t->calls),
+                t->seconds, t->calls ? 1000.0 * t->seconds / t->calls : 0.0);
+  }
+  std::printf("%-16s %8s %10.2f   (%.2f s per simulated second)\n", "total", "", wall_s,
+              flight_s > 0 ? wall_s / flight_s : 0.0);
+}
+
+// The odometry's ATE against the bag's reference, without and with a translation + yaw
+// alignment.
+void print_odometry_ate(const io::Trajectory& reference, const io::Trajectory& estimate) {
+  tools::TrajectoryEvaluationOptions options;
+  for (tools::AlignmentMode mode :
+       {tools::AlignmentMode::kNone, tools::AlignmentMode::kTranslationYaw}) {
+    options.alignment = mode;
+    const tools::TrajectoryEvaluation evaluation =
+        tools::evaluate_trajectory(reference, estimate, options);
+    std::printf("odometry ATE RMSE (alignment %s): %.3f m (max %.3f m)\n",
+                tools::alignment_mode_name(mode).c_str(), evaluation.absolute_position_m.rmse,
+                evaluation.absolute_position_m.max);
+  }
+}
+
+void print_report(const Options& o, Device device, const tools::BagScanSource& reader,
+                  const Mapper& m, const FlightRun& run) {
+  const size_t scans = run.odometry.size();
+  const double flight_s = reader.duration_s() * scans / std::max<size_t>(1, reader.size());
+  std::printf("device: %s\n", describe_device(device).c_str());
+  std::printf("flight: %s, %zu scans (%.1f s), %.0f points/scan, fused at %s poses\n",
+              o.flight_path.c_str(), scans, flight_s, scans ? double(run.points) / scans : 0.0,
+              o.pose_source.c_str());
+  if (run.scans_without_truth + reader.dropped() > 0) {
+    std::printf("scans skipped: %lld without a truth pose, %lld unreadable or without odometry\n",
+                static_cast<long long>(run.scans_without_truth),
+                static_cast<long long>(reader.dropped()));
+  }
+  print_timings(m, run.wall_s, flight_s);
+  const double voxel_bytes = sizeof(TsdfVoxel) + sizeof(ColorVoxel) + sizeof(EsdfVoxel);
+  std::printf(
+      "\nmap: %lld blocks of %d^3 voxels at %.2f m (%.1f MiB of voxels); mesh %zu triangles -> "
+      "%s\n",
+      static_cast<long long>(m.map.block_count()), m.map.voxels_per_side(), o.voxel_size_m,
+      m.map.block_count() * m.map.voxels_per_block() * voxel_bytes / (1024.0 * 1024.0),
+      run.mesh.triangle_count(), o.mesh_path.c_str());
+  if (scans >= 3 && reader.reference().size() >= 3)
+    print_odometry_ate(reader.reference(), run.odometry);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  tools::CommandLine args(argc, argv, kUsage);
-  const std::string flight_path = args.text("--bag", "sim_flight/flight.bag");
-  const std::string pose_source = args.text("--poses", "odometry");
-  const size_t slash = flight_path.find_last_of('/');
-  const std::string truth_path = args.text(
-      "--truth", (slash == std::string::npos ? std::string() : flight_path.substr(0, slash + 1)) +
-                     "truth.tum");
-  const std::string device_text = args.text("--device", "auto");
-  const double voxel_size_m = args.number("--voxel-size-m", 0.2);
-  const double truncation_m = args.number("--truncation-m", 0.6);
-  const double max_ray_m = args.number("--max-ray-m", 16.0);
-  const int64_t esdf_every = args.integer("--esdf-every", 10);
-  const int64_t mesh_every = args.integer("--mesh-every", 10);
-  const int64_t max_scans = args.integer("--max-scans", 0);
-  const std::string mesh_path = args.text("--mesh", "map_flight_mesh.ply");
-  args.finish();
-  if (pose_source != "odometry" && pose_source != "truth")
-    args.fail("--poses must be odometry or truth");
-  if (esdf_every <= 0 || mesh_every <= 0)
-    args.fail("--esdf-every and --mesh-every must be positive");
-
+  const Options o = parse_options(argc, argv);
   try {
-    const Device device = select_device(parse_device_request(device_text));
-    tools::BagScanSource reader(flight_path, tools::BagScanOptions());
-    const size_t total = max_scans > 0 ? std::min<size_t>(max_scans, reader.size()) : reader.size();
+    const Device device = select_device(parse_device_request(o.device_text));
+    tools::BagScanSource reader(o.flight_path, tools::BagScanOptions());
+    const size_t total =
+        o.max_scans > 0 ? std::min<size_t>(o.max_scans, reader.size()) : reader.size();
     io::Trajectory truth_poses;
-    if (pose_source == "truth") truth_poses = io::read_tum_trajectory(truth_path);
-    TsdfMapConfig map_config;
-    map_config.voxel_size_m = static_cast<float>(voxel_size_m);
-    map_config.voxels_per_side = 16;
-    TsdfMap map(device, map_config);
-    // voxgraph's ARCHE configuration: constant weight with drop-off, sparsity compensation.
-    TsdfIntegratorConfig tsdf_config;
-    tsdf_config.truncation_distance_m = static_cast<float>(truncation_m);
-    tsdf_config.max_ray_length_m = static_cast<float>(max_ray_m);
-    tsdf_config.use_const_weight = true;
-    tsdf_config.use_weight_dropoff = true;
-    tsdf_config.use_sparsity_compensation_factor = true;
-    tsdf_config.sparsity_compensation_factor = 20.0f;
-    TsdfIntegrator tsdf(tsdf_config);
-    EsdfIntegrator esdf(EsdfIntegratorConfig{});
-    MeshIntegrator mesher;
-    const Stream stream(device);
-
-    ModuleTimer read_timer{"read scan"}, tsdf_timer{"tsdf integrate"}, esdf_timer{"esdf update"},
-        mesh_timer{"mesh update"}, final_timer{"final mesh"};
-    io::Trajectory odometry;
-    int64_t points = 0;
-    int64_t scans_without_truth = 0;
-    tools::SourceScan scan;
-    const auto start = Clock::now();
-    for (size_t k = 0; k < total; ++k) {
-      bool have = false;
-      timed(&read_timer, stream, [&] { have = reader.next(&scan); });
-      if (!have) break;
-      io::StampedPose stamped;
-      stamped.timestamp_s = scan.stamp_s;
-      stamped.position_m = scan.T_odom_sensor.translation();
-      stamped.orientation = Eigen::Quaterniond(scan.T_odom_sensor.linear());
-      odometry.poses.push_back(stamped);
-      points += static_cast<int64_t>(scan.points_sensor_m.size());
-      Eigen::Isometry3d pose = scan.T_odom_sensor;
-      if (pose_source == "truth") {
-        if (!tools::interpolate_pose(truth_poses, scan.stamp_s, &stamped)) {
-          ++scans_without_truth;
-          continue;
-        }
-        pose.linear() = stamped.orientation.normalized().toRotationMatrix();
-        pose.translation() = stamped.position_m;
-      }
-      timed(&tsdf_timer, stream, [&] { tsdf.integrate(map, scan.points_sensor_m, {}, pose); });
-      if ((k + 1) % esdf_every == 0) timed(&esdf_timer, stream, [&] { esdf.update(map, stream); });
-      if ((k + 1) % mesh_every == 0)
-        timed(&mesh_timer, stream, [&] { mesher.update(map, stream); });
-      if (k % 10 == 0 || k + 1 == total) {
-        draw_progress(k + 1, total, std::chrono::duration<double>(Clock::now() - start).count());
-      }
-    }
-    // Catch up with the scans after the last periodic update, then the welded final mesh.
-    timed(&esdf_timer, stream, [&] { esdf.update(map, stream); });
-    Mesh mesh;
-    timed(&final_timer, stream, [&] { mesh = mesher.extract_all(map, stream); });
-    std::fprintf(stderr, "\n");
-    const double wall_s = std::chrono::duration<double>(Clock::now() - start).count();
-    io::write_mesh_ply(mesh_path, mesh);
-
-    const size_t scans = odometry.size();
-    const double flight_s = reader.duration_s() * scans / std::max<size_t>(1, reader.size());
-    std::printf("device: %s\n", describe_device(device).c_str());
-    std::printf("flight: %s, %zu scans (%.1f s), %.0f points/scan, fused at %s poses\n",
-                flight_path.c_str(), scans, flight_s, scans ? double(points) / scans : 0.0,
-                pose_source.c_str());
-    if (scans_without_truth + reader.dropped() > 0) {
-      std::printf("scans skipped: %lld without a truth pose, %lld unreadable or without odometry\n",
-                  static_cast<long long>(scans_without_truth),
-                  static_cast<long long>(reader.dropped()));
-    }
-    std::printf("\n%-16s %8s %10s %12s\n", "module", "calls", "total s", "ms/call");
-    for (const ModuleTimer* t :
-         {&read_timer, &tsdf_timer, &esdf_timer, &mesh_timer, &final_timer}) {
-      std::printf("%-16s %8lld %10.2f %12.2f\n", t->name.c_str(), static_cast<long long>(t->calls),
-                  t->seconds, t->calls ? 1000.0 * t->seconds / t->calls : 0.0);
-    }
-    std::printf("%-16s %8s %10.2f   (%.2f s per simulated second)\n", "total", "", wall_s,
-                flight_s > 0 ? wall_s / flight_s : 0.0);
-    const double voxel_bytes = sizeof(TsdfVoxel) + sizeof(ColorVoxel) + sizeof(EsdfVoxel);
-    std::printf(
-        "\nmap: %lld blocks of %d^3 voxels at %.2f m (%.1f MiB of voxels); mesh %zu triangles -> "
-        "%s\n",
-        static_cast<long long>(map.block_count()), map.voxels_per_side(), voxel_size_m,
-        map.block_count() * map.voxels_per_block() * voxel_bytes / (1024.0 * 1024.0),
-        mesh.triangle_count(), mesh_path.c_str());
-    if (scans >= 3 && reader.reference().size() >= 3) {
-      tools::TrajectoryEvaluationOptions options;
-      const io::Trajectory& reference = reader.reference();
-      const io::Trajectory& estimate = odometry;
-      for (tools::AlignmentMode mode :
-           {tools::AlignmentMode::kNone, tools::AlignmentMode::kTranslationYaw}) {
-        options.alignment = mode;
-        const tools::TrajectoryEvaluation evaluation =
-            tools::evaluate_trajectory(reference, estimate, options);
-        std::printf("odometry ATE RMSE (alignment %s): %.3f m (max %.3f m)\n",
-                    tools::alignment_mode_name(mode).c_str(), evaluation.absolute_position_m.rmse,
-                    evaluation.absolute_position_m.max);
-      }
-    }
+    if (o.pose_source == "truth") truth_poses = io::read_tum_trajectory(o.truth_path);
+    Mapper mapper(device, o);
+    const FlightRun run = map_scans(o, reader, truth_poses, total, mapper);
+    io::write_mesh_ply(o.mesh_path, run.mesh);
+    print_report(o, device, reader, mapper, run);
   } catch (const Error& error) {
     std::cerr << "\nmap_flight: " << error.what() << std::endl;
     return 1;

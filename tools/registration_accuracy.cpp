@@ -154,129 +154,203 @@ void print_group(const char* name, const std::vector<PairError>& errors) {
               length_sum > 0.0 ? 100.0 * along_sum / length_sum : NAN);
 }
 
+struct Options {
+  std::string map_path, graph_path, truth_path, config_path, device_text;
+  double start_offset_m = 0.0;
+  double start_yaw_deg = 0.0;
+  int64_t neighbour_gap = 3;
+  int64_t repeat = 0;
+  bool rows = false;
+  bool walls = false;
+};
+
+Options parse_options(int argc, char** argv) {
+  tools::CommandLine args(argc, argv, kUsage);
+  Options o;
+  o.map_path = args.text("--map", "");
+  o.graph_path = args.text("--graph", "");
+  o.truth_path = args.text("--truth", "");
+  o.config_path = args.text("--config", "");
+  o.device_text = args.text("--device", "auto");
+  o.start_offset_m = args.number("--start-offset-m", 0.0);
+  o.start_yaw_deg = args.number("--start-yaw-deg", 0.0);
+  o.neighbour_gap = args.integer("--neighbour-gap", 3);
+  o.repeat = args.integer("--repeat", 0);
+  o.rows = args.flag("--rows");
+  o.walls = args.flag("--walls");
+  args.finish();
+  if (o.map_path.empty() || o.graph_path.empty() || o.truth_path.empty())
+    args.fail("--map, --graph and --truth are required");
+  if (!(o.start_offset_m >= 0.0)) args.fail("--start-offset-m must be >= 0");
+  if (o.repeat < 0) args.fail("--repeat must be >= 0");
+  return o;
+}
+
+// What the evaluation reads: the registration settings, the saved submaps (on the device), the
+// submaps' first-scan stamps and the true poses.
+struct Inputs {
+  pipeline::SlamConfig config;
+  io::MapFileContents contents;
+  std::map<int64_t, double> stamps;
+  io::Trajectory truth;
+  std::vector<std::unique_ptr<TsdfMap>> maps;
+};
+
+Inputs load_inputs(const Options& o, Device device) {
+  Inputs in;
+  in.config = pipeline::load_preset("arche_sim");
+  in.config.device = device;
+  if (!o.config_path.empty()) pipeline::load_slam_config(o.config_path, &in.config);
+  pipeline::validate(in.config.registration);
+  in.contents = io::load_map_file(o.map_path);
+  if (!in.contents.has_esdf) throw Error(o.map_path + " has no ESDF (registration needs it)");
+  in.stamps = read_submap_stamps(o.graph_path);
+  in.truth = io::read_tum_trajectory(o.truth_path);
+  if (!in.truth.has_orientations) throw Error(o.truth_path + " has no orientations");
+  in.maps = io::make_maps(in.contents, device);
+  return in;
+}
+
+// The submaps registered so far, with what the SLAM system keeps per submap (its wall map cache
+// and registration points, which the partners point at), and the errors found.
+struct Evaluation {
+  std::vector<pipeline::RegistrationPartner> earlier;
+  std::vector<PairError> neighbours, revisits, wall_matches;
+  std::vector<std::unique_ptr<pipeline::WallMapCache>> wall_caches;
+  std::vector<std::unique_ptr<pipeline::SubmapRegistrationPoints>> kept_points;
+  pipeline::RegistrationCounts counts;
+  std::map<int64_t, backend::Pose4Dof> true_pose;
+};
+
+// Where submap k's registration starts: its true pose, moved start_offset_m along a direction
+// that turns by the golden angle per submap and turned by start_yaw_deg of alternating sign.
+backend::Pose4Dof start_pose(const backend::Pose4Dof& truth_k, size_t k, const Options& o) {
+  backend::Pose4Dof start = truth_k;
+  const double direction = kGoldenAngleRad * static_cast<double>(k);
+  start.x += o.start_offset_m * std::cos(direction);
+  start.y += o.start_offset_m * std::sin(direction);
+  start.yaw = wrap_angle(start.yaw + (k % 2 ? 1.0 : -1.0) * o.start_yaw_deg * kPi / 180.0);
+  return start;
+}
+
+// One submap being registered: its id, index, map, points, wall cache and poses.
+struct NewSubmap {
+  int64_t id;
+  size_t k;
+  TsdfMap* map;
+  const pipeline::SubmapRegistrationPoints* points;
+  pipeline::WallMapCache* walls;
+  backend::Pose4Dof truth;
+  backend::Pose4Dof start;
+};
+
+// The wall match alone against every overlapping revisit partner, started where the
+// registration starts.
+void evaluate_wall_matches(const NewSubmap& s, const Options& o, const Inputs& in,
+                           const Stream& stream, Evaluation& ev) {
+  const pipeline::SubmapRegistrationConfig& registration = in.config.registration;
+  for (const pipeline::RegistrationPartner* partner :
+       pipeline::overlapping_partners(*s.map, s.start, ev.earlier, registration)) {
+    if (s.id - partner->id < registration.revisits.min_id_gap) continue;
+    pipeline::WallSearchConfig search;
+    search.range_m = registration.revisits.wall_search_range_m;
+    const pipeline::WallMatch match = pipeline::match_walls(
+        s.walls->get(*s.map, stream), partner->walls->get(*partner->map, stream),
+        pipeline::relative_pose_4dof(partner->pose, s.start), search);
+    const backend::Pose4Dof expected =
+        pipeline::relative_pose_4dof(ev.true_pose.at(partner->id), s.truth);
+    const PairError e = pair_error(partner->id, s.id, match.T_fixed_moving, expected);
+    ev.wall_matches.push_back(e);
+    if (o.rows) {
+      std::printf("walls %4lld -> %-4lld %11.3f %8.2f score %.1f\n", static_cast<long long>(e.from),
+                  static_cast<long long>(e.to), e.horizontal_m, e.yaw_deg, match.score);
+    }
+  }
+}
+
+// Registers the accepted constraint `c` again `repeat` times, each from the last result (its
+// partner's pose composed with the measurement); stops early when a re-registration is refused.
+pipeline::SubmapConstraint realign(pipeline::SubmapConstraint c, const NewSubmap& s,
+                                   const Options& o, const Inputs& in, const Stream& stream,
+                                   const Evaluation& ev) {
+  for (int64_t again = 0; again < o.repeat; ++again) {
+    const pipeline::RegistrationPartner* partner = nullptr;
+    for (const pipeline::RegistrationPartner& p : ev.earlier) {
+      if (p.id == c.from_submap) partner = &p;
+    }
+    pipeline::RegistrationCounts ignored;
+    const std::vector<pipeline::SubmapConstraint> redo = pipeline::registration_constraints(
+        s.id, *s.map, *s.points, pipeline::compose(partner->pose, c.measurement), {*partner},
+        in.config.registration, stream, &ignored);
+    if (redo.empty()) break;
+    c = redo.front();
+  }
+  return c;
+}
+
+// Registers submap k to the earlier ones from its start pose, records each accepted
+// constraint's error, and adds the submap to the partners at its true pose.
+void evaluate_submap(size_t k, const Options& o, const Inputs& in, const Stream& stream,
+                     Evaluation& ev) {
+  const int64_t id = in.contents.submaps[k].id;
+  const auto stamp = in.stamps.find(id);
+  if (stamp == in.stamps.end())
+    throw Error("submap " + std::to_string(id) + " is not in " + o.graph_path);
+  const backend::Pose4Dof truth_k =
+      pipeline::pose_4dof_from_isometry(true_pose_at(in.truth, stamp->second, o.truth_path));
+  ev.true_pose[id] = truth_k;
+  const backend::Pose4Dof start = start_pose(truth_k, k, o);
+  ev.kept_points.push_back(
+      pipeline::prepare_registration_points(*in.maps[k], in.config.registration, stream));
+  ev.wall_caches.push_back(std::make_unique<pipeline::WallMapCache>());
+  const NewSubmap s{
+      id,      k,    in.maps[k].get(), ev.kept_points.back().get(), ev.wall_caches.back().get(),
+      truth_k, start};
+  const std::vector<pipeline::SubmapConstraint> constraints =
+      pipeline::registration_constraints(id, *s.map, *s.points, start, ev.earlier,
+                                         in.config.registration, stream, &ev.counts, s.walls);
+  if (o.walls) evaluate_wall_matches(s, o, in, stream, ev);
+  for (const pipeline::SubmapConstraint& accepted : constraints) {
+    const pipeline::SubmapConstraint c = realign(accepted, s, o, in, stream, ev);
+    const backend::Pose4Dof expected =
+        pipeline::relative_pose_4dof(ev.true_pose.at(c.from_submap), truth_k);
+    const PairError e = pair_error(c.from_submap, c.to_submap, c.measurement, expected);
+    (e.to - e.from <= o.neighbour_gap ? ev.neighbours : ev.revisits).push_back(e);
+    if (o.rows) {
+      std::printf("%4lld -> %-4lld %11.3f %11.3f %8.2f %8.3f\n", static_cast<long long>(e.from),
+                  static_cast<long long>(e.to), e.horizontal_m, e.vertical_m, e.yaw_deg, e.along_m);
+    }
+  }
+  ev.earlier.push_back(pipeline::RegistrationPartner{id, s.map, truth_k, s.walls, s.points});
+}
+
+void print_summary(const Options& o, Device device, const Evaluation& ev) {
+  std::printf(
+      "registration from %.2f m / %.1f deg off the truth (%s): %lld attempted, %lld accepted\n",
+      o.start_offset_m, o.start_yaw_deg, describe_device(device).c_str(),
+      static_cast<long long>(ev.counts.attempted), static_cast<long long>(ev.counts.accepted));
+  std::printf("%-11s %5s %10s %10s %10s %10s %8s %10s %10s\n", "pairs", "n", "med_xy_m",
+              "mean_xy_m", "med_z_m", "med_yaw_deg", ">0.5m", "along_m", "scale_%");
+  print_group("neighbours", ev.neighbours);
+  print_group("revisits", ev.revisits);
+  std::vector<PairError> all = ev.neighbours;
+  all.insert(all.end(), ev.revisits.begin(), ev.revisits.end());
+  print_group("all", all);
+  if (o.walls) print_group("wall match", ev.wall_matches);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  tools::CommandLine args(argc, argv, kUsage);
-  const std::string map_path = args.text("--map", "");
-  const std::string graph_path = args.text("--graph", "");
-  const std::string truth_path = args.text("--truth", "");
-  const std::string config_path = args.text("--config", "");
-  const std::string device_text = args.text("--device", "auto");
-  const double start_offset_m = args.number("--start-offset-m", 0.0);
-  const double start_yaw_deg = args.number("--start-yaw-deg", 0.0);
-  const int64_t neighbour_gap = args.integer("--neighbour-gap", 3);
-  const int64_t repeat = args.integer("--repeat", 0);
-  const bool rows = args.flag("--rows");
-  const bool walls = args.flag("--walls");
-  args.finish();
-  if (map_path.empty() || graph_path.empty() || truth_path.empty())
-    args.fail("--map, --graph and --truth are required");
-  if (!(start_offset_m >= 0.0)) args.fail("--start-offset-m must be >= 0");
-  if (repeat < 0) args.fail("--repeat must be >= 0");
-
+  const Options o = parse_options(argc, argv);
   try {
-    const Device device = select_device(parse_device_request(device_text));
-    pipeline::SlamConfig config = pipeline::load_preset("arche_sim");
-    config.device = device;
-    if (!config_path.empty()) pipeline::load_slam_config(config_path, &config);
-    pipeline::validate(config.registration);
-    const io::MapFileContents contents = io::load_map_file(map_path);
-    if (!contents.has_esdf) throw Error(map_path + " has no ESDF (registration needs it)");
-    const std::map<int64_t, double> stamps = read_submap_stamps(graph_path);
-    const io::Trajectory truth = io::read_tum_trajectory(truth_path);
-    if (!truth.has_orientations) throw Error(truth_path + " has no orientations");
-    std::vector<std::unique_ptr<TsdfMap>> maps = io::make_maps(contents, device);
+    const Device device = select_device(parse_device_request(o.device_text));
+    const Inputs in = load_inputs(o, device);
     const Stream stream(device);
-
-    std::vector<pipeline::RegistrationPartner> earlier;
-    std::vector<PairError> neighbours, revisits, wall_matches;
-    std::vector<std::unique_ptr<pipeline::WallMapCache>>
-        wall_caches;  // one per submap, as the SLAM system keeps
-    std::vector<std::unique_ptr<pipeline::SubmapRegistrationPoints>>
-        kept_points;  // the same for their points
-    pipeline::RegistrationCounts counts;
-    std::map<int64_t, backend::Pose4Dof> true_pose;
-    if (rows) std::printf("from -> to   horizontal_m  vertical_m  yaw_deg  along_m\n");
-    for (size_t k = 0; k < contents.submaps.size(); ++k) {
-      const int64_t id = contents.submaps[k].id;
-      const auto stamp = stamps.find(id);
-      if (stamp == stamps.end())
-        throw Error("submap " + std::to_string(id) + " is not in " + graph_path);
-      const backend::Pose4Dof truth_k =
-          pipeline::pose_4dof_from_isometry(true_pose_at(truth, stamp->second, truth_path));
-      true_pose[id] = truth_k;
-      backend::Pose4Dof start = truth_k;
-      const double direction = kGoldenAngleRad * static_cast<double>(k);
-      start.x += start_offset_m * std::cos(direction);
-      start.y += start_offset_m * std::sin(direction);
-      start.yaw = wrap_angle(start.yaw + (k % 2 ? 1.0 : -1.0) * start_yaw_deg * kPi / 180.0);
-      kept_points.push_back(
-          pipeline::prepare_registration_points(*maps[k], config.registration, stream));
-      const std::unique_ptr<pipeline::SubmapRegistrationPoints>& points = kept_points.back();
-      wall_caches.push_back(std::make_unique<pipeline::WallMapCache>());
-      pipeline::WallMapCache* const own_walls = wall_caches.back().get();
-      const std::vector<pipeline::SubmapConstraint> constraints =
-          pipeline::registration_constraints(id, *maps[k], *points, start, earlier,
-                                             config.registration, stream, &counts, own_walls);
-      if (walls) {
-        for (const pipeline::RegistrationPartner* partner :
-             pipeline::overlapping_partners(*maps[k], start, earlier, config.registration)) {
-          if (id - partner->id < config.registration.revisits.min_id_gap) continue;
-          pipeline::WallSearchConfig search;
-          search.range_m = config.registration.revisits.wall_search_range_m;
-          const pipeline::WallMatch match = pipeline::match_walls(
-              own_walls->get(*maps[k], stream), partner->walls->get(*partner->map, stream),
-              pipeline::relative_pose_4dof(partner->pose, start), search);
-          const backend::Pose4Dof expected =
-              pipeline::relative_pose_4dof(true_pose.at(partner->id), truth_k);
-          const PairError e = pair_error(partner->id, id, match.T_fixed_moving, expected);
-          wall_matches.push_back(e);
-          if (rows) {
-            std::printf("walls %4lld -> %-4lld %11.3f %8.2f score %.1f\n",
-                        static_cast<long long>(e.from), static_cast<long long>(e.to),
-                        e.horizontal_m, e.yaw_deg, match.score);
-          }
-        }
-      }
-      for (pipeline::SubmapConstraint c : constraints) {
-        for (int64_t again = 0; again < repeat; ++again) {
-          const pipeline::RegistrationPartner* partner = nullptr;
-          for (const pipeline::RegistrationPartner& p : earlier) {
-            if (p.id == c.from_submap) partner = &p;
-          }
-          pipeline::RegistrationCounts ignored;
-          const std::vector<pipeline::SubmapConstraint> redo = pipeline::registration_constraints(
-              id, *maps[k], *points, pipeline::compose(partner->pose, c.measurement), {*partner},
-              config.registration, stream, &ignored);
-          if (redo.empty()) break;
-          c = redo.front();
-        }
-        const backend::Pose4Dof expected =
-            pipeline::relative_pose_4dof(true_pose.at(c.from_submap), truth_k);
-        const PairError e = pair_error(c.from_submap, c.to_submap, c.measurement, expected);
-        (e.to - e.from <= neighbour_gap ? neighbours : revisits).push_back(e);
-        if (rows) {
-          std::printf("%4lld -> %-4lld %11.3f %11.3f %8.2f %8.3f\n", static_cast<long long>(e.from),
-                      static_cast<long long>(e.to), e.horizontal_m, e.vertical_m, e.yaw_deg,
-                      e.along_m);
-        }
-      }
-      earlier.push_back(
-          pipeline::RegistrationPartner{id, maps[k].get(), truth_k, own_walls, points.get()});
-    }
-    std::printf(
-        "registration from %.2f m / %.1f deg off the truth (%s): %lld attempted, %lld accepted\n",
-        start_offset_m, start_yaw_deg, describe_device(device).c_str(),
-        static_cast<long long>(counts.attempted), static_cast<long long>(counts.accepted));
-    std::printf("%-11s %5s %10s %10s %10s %10s %8s %10s %10s\n", "pairs", "n", "med_xy_m",
-                "mean_xy_m", "med_z_m", "med_yaw_deg", ">0.5m", "along_m", "scale_%");
-    print_group("neighbours", neighbours);
-    print_group("revisits", revisits);
-    std::vector<PairError> all = neighbours;
-    all.insert(all.end(), revisits.begin(), revisits.end());
-    print_group("all", all);
-    if (walls) print_group("wall match", wall_matches);
+    Evaluation ev;
+    if (o.rows) std::printf("from -> to   horizontal_m  vertical_m  yaw_deg  along_m\n");
+    for (size_t k = 0; k < in.contents.submaps.size(); ++k) evaluate_submap(k, o, in, stream, ev);
+    print_summary(o, device, ev);
   } catch (const std::exception& error) {
     std::fprintf(stderr, "registration_accuracy: %s\n", error.what());
     return 1;

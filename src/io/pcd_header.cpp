@@ -65,16 +65,10 @@ void validate_field(const PcdField& field, const std::string& where) {
   if (field.count < 1) throw Error(where + ": field '" + field.name + "' has COUNT < 1");
 }
 
-}  // namespace
-
-int PcdHeader::field_index(const std::string& name) const {
-  for (size_t i = 0; i < fields.size(); ++i) {
-    if (fields[i].name == name) return static_cast<int>(i);
-  }
-  return -1;
-}
-
-PcdHeader parse_pcd_header(const std::vector<uint8_t>& bytes, const std::string& path) {
+// Splits the header into its non-comment lines, up to and including the DATA line;
+// `*position_out` is the byte just past that line (where the data starts).
+std::vector<HeaderLine> split_header_lines(const std::vector<uint8_t>& bytes,
+                                           const std::string& path, size_t* position_out) {
   const std::string_view all(reinterpret_cast<const char*>(bytes.data()),
                              std::min(bytes.size(), kMaxHeaderBytes));
   std::vector<HeaderLine> lines;
@@ -102,86 +96,131 @@ PcdHeader parse_pcd_header(const std::vector<uint8_t>& bytes, const std::string&
     throw Error("'" + path +
                 "': no DATA line in the header: not a PCD file, or the header is truncated");
   }
+  *position_out = position;
+  return lines;
+}
 
-  PcdHeader header;
-  header.data_offset_bytes = position;
-  const HeaderLine* fields_line = nullptr;
-  const HeaderLine* size_line = nullptr;
-  const HeaderLine* type_line = nullptr;
-  const HeaderLine* count_line = nullptr;
+// The per-field lines (kept for a second look once FIELDS is known) and whether the optional
+// scalar keywords were present.
+struct FieldLines {
+  const HeaderLine* fields = nullptr;
+  const HeaderLine* size = nullptr;
+  const HeaderLine* type = nullptr;
+  const HeaderLine* count = nullptr;
   bool have_width = false;
   bool have_points = false;
+};
+
+std::string_view single_value(const HeaderLine& line, const std::string& where) {
+  if (line.values.size() != 1)
+    throw Error(where + ": " + std::string(line.keyword) + " needs one value");
+  return line.values.front();
+}
+
+// Reads the scalar keywords into `header` and remembers where the per-field lines are; a later
+// line with the same keyword wins.
+FieldLines read_keywords(const std::vector<HeaderLine>& lines, const std::string& path,
+                         PcdHeader& header) {
+  FieldLines found;
   for (const HeaderLine& line : lines) {
     const std::string where = path + ":" + std::to_string(line.line_number);
-    auto single_value = [&]() -> std::string_view {
-      if (line.values.size() != 1)
-        throw Error(where + ": " + std::string(line.keyword) + " needs one value");
-      return line.values.front();
-    };
     if (line.keyword == "FIELDS" || line.keyword == "COLUMNS") {  // COLUMNS: the v0.5 name
-      fields_line = &line;
+      found.fields = &line;
     } else if (line.keyword == "SIZE") {
-      size_line = &line;
+      found.size = &line;
     } else if (line.keyword == "TYPE") {
-      type_line = &line;
+      found.type = &line;
     } else if (line.keyword == "COUNT") {
-      count_line = &line;
+      found.count = &line;
     } else if (line.keyword == "WIDTH") {
-      header.width = parse_count(single_value(), where);
-      have_width = true;
+      header.width = parse_count(single_value(line, where), where);
+      found.have_width = true;
     } else if (line.keyword == "HEIGHT") {
-      header.height = parse_count(single_value(), where);
+      header.height = parse_count(single_value(line, where), where);
     } else if (line.keyword == "POINTS") {
-      header.point_count = parse_count(single_value(), where);
-      have_points = true;
+      header.point_count = parse_count(single_value(line, where), where);
+      found.have_points = true;
     } else if (line.keyword == "DATA") {
-      header.encoding = parse_encoding(single_value(), where);
+      header.encoding = parse_encoding(single_value(line, where), where);
     }
     // VERSION and VIEWPOINT carry nothing the readers use; unknown keywords are tolerated as
     // PCL does, so files from newer writers still load.
   }
+  return found;
+}
 
-  if (fields_line == nullptr || size_line == nullptr || type_line == nullptr) {
+std::string line_place(const std::string& path, const HeaderLine& line) {
+  return path + ":" + std::to_string(line.line_number);
+}
+
+// Field i from the FIELDS, SIZE, TYPE and (optional) COUNT lines, validated.
+PcdField parse_field(const FieldLines& lines, size_t i, const std::string& path) {
+  PcdField field;
+  field.name = std::string(lines.fields->values[i]);
+  field.size_bytes =
+      static_cast<int>(parse_count(lines.size->values[i], line_place(path, *lines.size)));
+  if (lines.type->values[i].size() != 1) {
+    throw Error(line_place(path, *lines.type) + ": TYPE '" + std::string(lines.type->values[i]) +
+                "' is not one of F, I, U");
+  }
+  field.type = lines.type->values[i].front();
+  if (lines.count != nullptr) {
+    field.count =
+        static_cast<int>(parse_count(lines.count->values[i], line_place(path, *lines.count)));
+  }
+  validate_field(field, "'" + path + "'");
+  return field;
+}
+
+// Builds the field list and the point record layout (fields packed in order).
+void read_fields(const FieldLines& lines, const std::string& path, PcdHeader& header) {
+  if (lines.fields == nullptr || lines.size == nullptr || lines.type == nullptr) {
     throw Error("'" + path + "': header lacks FIELDS, SIZE or TYPE");
   }
-  const size_t field_count = fields_line->values.size();
+  const size_t field_count = lines.fields->values.size();
   if (field_count == 0) throw Error("'" + path + "': FIELDS lists no fields");
-  require_length(*size_line, field_count, path + ":" + std::to_string(size_line->line_number));
-  require_length(*type_line, field_count, path + ":" + std::to_string(type_line->line_number));
-  if (count_line != nullptr) {
-    require_length(*count_line, field_count, path + ":" + std::to_string(count_line->line_number));
-  }
+  require_length(*lines.size, field_count, line_place(path, *lines.size));
+  require_length(*lines.type, field_count, line_place(path, *lines.type));
+  if (lines.count != nullptr)
+    require_length(*lines.count, field_count, line_place(path, *lines.count));
   for (size_t i = 0; i < field_count; ++i) {
-    PcdField field;
-    field.name = std::string(fields_line->values[i]);
-    const std::string where = path + ":" + std::to_string(size_line->line_number);
-    field.size_bytes = static_cast<int>(parse_count(size_line->values[i], where));
-    if (type_line->values[i].size() != 1) {
-      throw Error(path + ":" + std::to_string(type_line->line_number) + ": TYPE '" +
-                  std::string(type_line->values[i]) + "' is not one of F, I, U");
-    }
-    field.type = type_line->values[i].front();
-    if (count_line != nullptr) {
-      field.count = static_cast<int>(
-          parse_count(count_line->values[i], path + ":" + std::to_string(count_line->line_number)));
-    }
-    validate_field(field, "'" + path + "'");
+    PcdField field = parse_field(lines, i, path);
     field.offset_bytes = header.point_record_bytes;
     header.point_record_bytes += field.total_bytes();
     header.fields.push_back(std::move(field));
   }
+}
 
-  if (!have_width) throw Error("'" + path + "': header lacks WIDTH");
+// POINTS defaults to WIDTH x HEIGHT and, when given, must equal it.
+void check_point_count(const FieldLines& lines, const std::string& path, PcdHeader& header) {
+  if (!lines.have_width) throw Error("'" + path + "': header lacks WIDTH");
   if (header.height != 0 && header.width > std::numeric_limits<size_t>::max() / header.height) {
     throw Error("'" + path + "': WIDTH x HEIGHT overflows: corrupt header");
   }
   const size_t width_times_height = header.width * header.height;
-  if (!have_points) header.point_count = width_times_height;
+  if (!lines.have_points) header.point_count = width_times_height;
   if (header.point_count != width_times_height) {
     throw Error("'" + path + "': POINTS is " + std::to_string(header.point_count) +
                 " but WIDTH x HEIGHT is " + std::to_string(header.width) + " x " +
                 std::to_string(header.height));
   }
+}
+
+}  // namespace
+
+int PcdHeader::field_index(const std::string& name) const {
+  for (size_t i = 0; i < fields.size(); ++i) {
+    if (fields[i].name == name) return static_cast<int>(i);
+  }
+  return -1;
+}
+
+PcdHeader parse_pcd_header(const std::vector<uint8_t>& bytes, const std::string& path) {
+  PcdHeader header;
+  const std::vector<HeaderLine> lines = split_header_lines(bytes, path, &header.data_offset_bytes);
+  const FieldLines field_lines = read_keywords(lines, path, header);
+  read_fields(field_lines, path, header);
+  check_point_count(field_lines, path, header);
   return header;
 }
 

@@ -225,100 +225,150 @@ uint8_t color_channel(double value, PlyType type) {
   return static_cast<uint8_t>(std::clamp(std::lround(scaled), 0L, 255L));
 }
 
-}  // namespace
+// Where the mesh's columns sit among an element's properties (-1: absent). The vertex element
+// gives x, y, z and optionally all three colour channels; the face element its index list.
+struct MeshColumns {
+  int x = -1, y = -1, z = -1, red = -1, green = -1, blue = -1, indices = -1;
+};
 
-Mesh read_mesh_ply(const std::string& path) {
-  const std::vector<uint8_t> bytes = read_file_bytes(path);
-  const PlyHeader header = parse_header(bytes, path);
-  ValueReader reader(bytes, header.data_offset_bytes, header.format, path);
+MeshColumns vertex_columns(const PlyElement& element, const std::string& path) {
+  MeshColumns columns;
+  columns.x = property_index(element, {"x"});
+  columns.y = property_index(element, {"y"});
+  columns.z = property_index(element, {"z"});
+  if (columns.x < 0 || columns.y < 0 || columns.z < 0)
+    throw Error("'" + path + "': PLY vertex element lacks x, y or z");
+  columns.red = property_index(element, {"red", "r"});
+  columns.green = property_index(element, {"green", "g"});
+  columns.blue = property_index(element, {"blue", "b"});
+  if (columns.red < 0 || columns.green < 0 || columns.blue < 0)
+    columns.red = columns.green = columns.blue = -1;
+  return columns;
+}
 
-  // Every row takes at least one byte: a corrupt element count cannot make us reserve more.
-  const size_t max_rows = bytes.size() - header.data_offset_bytes;
-  Mesh mesh;
-  bool have_vertices = false;
-  std::vector<double> values;
-  for (const PlyElement& element : header.elements) {
-    const bool is_vertex = element.name == "vertex";
-    const bool is_face = element.name == "face";
-    int x = -1, y = -1, z = -1, red = -1, green = -1, blue = -1, indices = -1;
-    if (is_vertex) {
-      x = property_index(element, {"x"});
-      y = property_index(element, {"y"});
-      z = property_index(element, {"z"});
-      if (x < 0 || y < 0 || z < 0)
-        throw Error("'" + path + "': PLY vertex element lacks x, y or z");
-      red = property_index(element, {"red", "r"});
-      green = property_index(element, {"green", "g"});
-      blue = property_index(element, {"blue", "b"});
-      if (red < 0 || green < 0 || blue < 0) red = green = blue = -1;
-      mesh.vertices_m.reserve(std::min(element.count, max_rows));
-      if (red >= 0) mesh.colors.reserve(std::min(element.count, max_rows));
-      have_vertices = true;
+MeshColumns face_columns(const PlyElement& element, const std::string& path) {
+  MeshColumns columns;
+  columns.indices = property_index(element, {"vertex_indices", "vertex_index"});
+  if (columns.indices >= 0 && !element.properties[columns.indices].is_list) columns.indices = -1;
+  if (columns.indices < 0)
+    throw Error("'" + path + "': PLY face element has no vertex_indices list");
+  return columns;
+}
+
+// Reads one list property's items; those of the face index list (`keep`) go to `corners`.
+void read_list(ValueReader& reader, const PlyElement& element, const PlyProperty& property,
+               bool keep, size_t row, std::vector<uint32_t>& corners, const std::string& path) {
+  const double count = reader.next(property.count_type);
+  if (!(count >= 0.0))
+    throw Error("'" + path + "': negative list length in element " + element.name);
+  if (keep) corners.clear();
+  for (size_t item = 0; item < static_cast<size_t>(count); ++item) {
+    const double value = reader.next(property.type);
+    if (!keep) continue;
+    if (!(value >= 0.0) || value >= 4294967296.0) {
+      throw Error("'" + path + "': face " + std::to_string(row) + " has vertex index " +
+                  std::to_string(value));
     }
-    if (is_face) {
-      indices = property_index(element, {"vertex_indices", "vertex_index"});
-      if (indices >= 0 && !element.properties[indices].is_list) indices = -1;
-      if (indices < 0) throw Error("'" + path + "': PLY face element has no vertex_indices list");
-      mesh.triangles.reserve(3 * std::min(element.count, max_rows));
-    }
-    // An element without properties occupies no bytes; looping over a corrupt count of them
-    // would only burn time.
-    if (element.properties.empty()) continue;
-    values.resize(element.properties.size());
-    std::vector<uint32_t> corners;
-    for (size_t row = 0; row < element.count; ++row) {
-      for (size_t p = 0; p < element.properties.size(); ++p) {
-        const PlyProperty& property = element.properties[p];
-        if (!property.is_list) {
-          values[p] = reader.next(property.type);
-          continue;
-        }
-        const double count = reader.next(property.count_type);
-        if (!(count >= 0.0))
-          throw Error("'" + path + "': negative list length in element " + element.name);
-        const bool keep = static_cast<int>(p) == indices;
-        if (keep) corners.clear();
-        for (size_t item = 0; item < static_cast<size_t>(count); ++item) {
-          const double value = reader.next(property.type);
-          if (keep) {
-            if (!(value >= 0.0) || value >= 4294967296.0) {
-              throw Error("'" + path + "': face " + std::to_string(row) + " has vertex index " +
-                          std::to_string(value));
-            }
-            corners.push_back(static_cast<uint32_t>(value));
-          }
-        }
-      }
-      if (is_vertex) {
-        const Vec3f vertex(static_cast<float>(values[x]), static_cast<float>(values[y]),
-                           static_cast<float>(values[z]));
-        if (!vertex.is_finite()) {
-          throw Error("'" + path + "': vertex " + std::to_string(row) +
-                      " has a non-finite coordinate");
-        }
-        mesh.vertices_m.push_back(vertex);
-        if (red >= 0) {
-          mesh.colors.push_back(Rgb8{color_channel(values[red], element.properties[red].type),
-                                     color_channel(values[green], element.properties[green].type),
-                                     color_channel(values[blue], element.properties[blue].type)});
-        }
-      } else if (is_face) {
-        // Polygons become a fan around their first corner; degenerate faces (< 3 corners) are
-        // skipped, as viewers do.
-        for (size_t corner = 2; corner < corners.size(); ++corner) {
-          mesh.triangles.insert(mesh.triangles.end(),
-                                {corners[0], corners[corner - 1], corners[corner]});
-        }
-      }
+    corners.push_back(static_cast<uint32_t>(value));
+  }
+}
+
+// Reads one row of an element: scalar properties into `values`, the face index list (the
+// property at `indices`) into `corners`; other lists are read past.
+void read_row(ValueReader& reader, const PlyElement& element, int indices, size_t row,
+              std::vector<double>& values, std::vector<uint32_t>& corners,
+              const std::string& path) {
+  for (size_t p = 0; p < element.properties.size(); ++p) {
+    const PlyProperty& property = element.properties[p];
+    if (property.is_list) {
+      read_list(reader, element, property, static_cast<int>(p) == indices, row, corners, path);
+    } else {
+      values[p] = reader.next(property.type);
     }
   }
-  if (!have_vertices) throw Error("'" + path + "': PLY file has no vertex element");
+}
+
+void append_vertex(const PlyElement& element, const MeshColumns& columns,
+                   const std::vector<double>& values, size_t row, Mesh& mesh,
+                   const std::string& path) {
+  const Vec3f vertex(static_cast<float>(values[columns.x]), static_cast<float>(values[columns.y]),
+                     static_cast<float>(values[columns.z]));
+  if (!vertex.is_finite()) {
+    throw Error("'" + path + "': vertex " + std::to_string(row) + " has a non-finite coordinate");
+  }
+  mesh.vertices_m.push_back(vertex);
+  if (columns.red < 0) return;
+  const auto channel = [&](int column) {
+    return color_channel(values[column], element.properties[column].type);
+  };
+  mesh.colors.push_back(Rgb8{channel(columns.red), channel(columns.green), channel(columns.blue)});
+}
+
+// Polygons become a fan around their first corner; degenerate faces (< 3 corners) are skipped,
+// as viewers do.
+void append_face(const std::vector<uint32_t>& corners, Mesh& mesh) {
+  for (size_t corner = 2; corner < corners.size(); ++corner) {
+    mesh.triangles.insert(mesh.triangles.end(), {corners[0], corners[corner - 1], corners[corner]});
+  }
+}
+
+// Reads every row of one element, keeping the vertices or faces when it is one of those.
+// `max_rows` bounds the reservations: every row takes at least one byte, so a corrupt element
+// count cannot make us reserve more than the body could hold. `values` is the row buffer, shared
+// by all elements.
+void read_element(ValueReader& reader, const PlyElement& element, size_t max_rows,
+                  std::vector<double>& values, Mesh& mesh, const std::string& path) {
+  const bool is_vertex = element.name == "vertex";
+  const bool is_face = element.name == "face";
+  MeshColumns columns;
+  if (is_vertex) {
+    columns = vertex_columns(element, path);
+    mesh.vertices_m.reserve(std::min(element.count, max_rows));
+    if (columns.red >= 0) mesh.colors.reserve(std::min(element.count, max_rows));
+  } else if (is_face) {
+    columns = face_columns(element, path);
+    mesh.triangles.reserve(3 * std::min(element.count, max_rows));
+  }
+  // An element without properties occupies no bytes; looping over a corrupt count of them
+  // would only burn time.
+  if (element.properties.empty()) return;
+  values.resize(element.properties.size());
+  std::vector<uint32_t> corners;
+  for (size_t row = 0; row < element.count; ++row) {
+    read_row(reader, element, columns.indices, row, values, corners, path);
+    if (is_vertex) {
+      append_vertex(element, columns, values, row, mesh, path);
+    } else if (is_face) {
+      append_face(corners, mesh);
+    }
+  }
+}
+
+void check_face_indices(const Mesh& mesh, const std::string& path) {
   for (uint32_t index : mesh.triangles) {
     if (index >= mesh.vertices_m.size()) {
       throw Error("'" + path + "': face refers to vertex " + std::to_string(index) +
                   " but there are only " + std::to_string(mesh.vertices_m.size()));
     }
   }
+}
+
+}  // namespace
+
+Mesh read_mesh_ply(const std::string& path) {
+  const std::vector<uint8_t> bytes = read_file_bytes(path);
+  const PlyHeader header = parse_header(bytes, path);
+  ValueReader reader(bytes, header.data_offset_bytes, header.format, path);
+  const size_t max_rows = bytes.size() - header.data_offset_bytes;
+  Mesh mesh;
+  bool have_vertices = false;
+  std::vector<double> values;
+  for (const PlyElement& element : header.elements) {
+    read_element(reader, element, max_rows, values, mesh, path);
+    have_vertices = have_vertices || element.name == "vertex";
+  }
+  if (!have_vertices) throw Error("'" + path + "': PLY file has no vertex element");
+  check_face_indices(mesh, path);
   return mesh;
 }
 

@@ -76,9 +76,10 @@ WallMap WallMap::from_map(const TsdfMap& map, double cap_m, const Stream& stream
   const std::vector<backend::RegistrationPoint> host = points.points.to_host(stream);
   // The TSDF's own gradient: a band of 2.5 voxels keeps a surface voxel's neighbours on the TSDF
   // (the ESDF beyond is unsigned and bends the gradient) while staying under the usual truncation
-  // of 3 voxels, beyond which TSDF values are clamped. With the aligner's 1-voxel band and a
-  // 45-degree threshold, 49 % of a room's wall columns lay within 0.25 m of its walls; with
-  // these, 93 % (test/pipeline_wall_map_test.cpp). Floor seen at grazing angles is what remains.
+  // of 3 voxels, beyond which TSDF values are clamped. Under the aligner's narrower band the
+  // neighbours of many wall voxels fall on the ESDF and bend their gradients, and fewer columns
+  // land on the walls (test/pipeline_wall_map_test.cpp checks the share that does). Floor seen
+  // at grazing angles is what remains.
   backend::RegistrationResidualConfig gradient_config;
   gradient_config.tsdf_band_m = 2.5f * map.voxel_size_m();
   Buffer<backend::RegistrationResidual> residuals(map.device());

@@ -46,7 +46,7 @@ class CommandLine {
 // The devices a benchmark runs on: "all" = every usable device, GPU first; otherwise one device
 // chosen like everywhere else ("cuda", "cpu", "auto").
 std::vector<Device> benchmark_devices(const std::string& request);
-// "NVIDIA H100 ...; CPU (2 OpenMP threads)" for the report header.
+// "<GPU name>; CPU (<N> OpenMP threads)" for the report header.
 std::string describe_devices(const std::vector<Device>& devices);
 
 }  // namespace tools

@@ -155,8 +155,7 @@ RegistrationResult align_submaps(const RegistrationPoints& points_i, const TsdfM
 // Symmetric registration: besides submap i's points in submap j's field (above), submap j's
 // points in submap i's field, both in one Levenberg-Marquardt over T_Sj_Si. Each direction has
 // its own biases (the points of one submap, the unobserved corners and view-dependent TSDF of the
-// other); on the simulated drone flight the two-way solve ended nearer the true relative pose
-// than the one-way solve (docs/benchmarks.md, "Registration accuracy on the simulated flight").
+// other); in one solve over both, neither direction's biases decide the result alone.
 struct SymmetricRegistrationPair {
   const RegistrationPoints* points_i = nullptr;
   const TsdfMap* map_j = nullptr;

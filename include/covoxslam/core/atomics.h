@@ -110,8 +110,8 @@ COVOX_HD_INLINE uint64_t atomic_load_relaxed(const uint64_t* address) {
 // Sets a flag word to 1 unless it is set already. Many threads may mark the same flag in one
 // kernel: each reads it first, on the GPU through its multiprocessor's L1 cache (a plain load: a
 // stale 0 costs one more store of the same 1), so a hot flag is stored about once per
-// multiprocessor, not once per thread. (A volatile load, which goes to L2 every time, doubled
-// the OS1-64 traverse's time on the H100.)
+// multiprocessor, not once per thread. (Not a volatile load: that goes to L2 every time, and a
+// traverse marks its hot flags from many threads.)
 COVOX_HD_INLINE void mark_flag(uint32_t* flag) {
 #if COVOX_DEVICE_CODE
   if (*flag == 0u) *flag = 1u;

@@ -16,8 +16,8 @@ void free_bytes(Device device, void* pointer) noexcept;
 // Copies `bytes` between any two devices. When the destination is host memory (CPU) the call
 // returns after the data has arrived; device-to-device copies are queued on `stream`. Small
 // copies from the GPU (a frame's counts, up to 64 KiB) go through a page-locked buffer of the
-// calling thread: a copy into pageable memory is staged by the driver, about 4 us more per
-// read-back on the H100 (docs/benchmarks.md, "seventh pass").
+// calling thread: a copy into pageable memory would be staged by the driver through a buffer of
+// its own, an extra copy on every read-back.
 void copy_bytes(void* destination, Device destination_device, const void* source,
                 Device source_device, size_t bytes, const Stream& stream);
 // A small copy to the host (at most kMaxBytes) queued on `stream` now and collected later: the

@@ -110,8 +110,8 @@ void exclusive_scan_of(CpuBackend backend, const Stream& stream, int64_t count,
 }
 // The same with a caller's scratch of `count` values for the CPU twin, which writes the values
 // there and scans them in place before handing them to `out`: no temporary array per call (a
-// fresh 80 MB one per 20 M-key hash table activation cost the CPU twin 10-15 % of its insert
-// rate in page faults). The GPU's scan needs none (the overload below ignores it).
+// fresh one for every large hash table activation would be paid again in page faults each
+// time). The GPU's scan needs none (the overload below ignores it).
 template <int kItems = kScanItemsPerThread, class ValueOf, class Output>
 void exclusive_scan_of(CpuBackend backend, const Stream& stream, int64_t count,
                        const ValueOf& value_of, Output out, uint32_t* scratch) {
@@ -129,7 +129,7 @@ void exclusive_scan_of(CudaBackend backend, const Stream& stream, int64_t count,
 #endif
 #if defined(__CUDACC__)
 // 32-bit values: the single-pass scan, one launch (single_pass_scan.h). Others: CUB directly
-// (Thrust's scan costs several microseconds more per call in fixed overhead).
+// (Thrust's scan adds a fixed overhead per call on top of CUB's).
 template <class T>
 void exclusive_scan(CudaBackend backend, const Stream& stream, const T* in, int64_t count, T* out) {
   if (count <= 0) return;
@@ -253,8 +253,9 @@ Result transform_reduce(CpuBackend backend, const Stream& stream, InputIterator 
                                   init, op);
 }
 #if defined(__CUDACC__)
-// CUB directly, result through a device temporary and one small copy: Thrust's version adds
-// about 15 us of fixed cost per call on the H100, a lot next to a 0.5 ms frame.
+// CUB directly, result through a device temporary and one small copy: Thrust's version adds a
+// fixed cost per call (its own temporary allocation and synchronisation) that a small
+// per-frame reduction would pay every frame.
 template <class InputIterator, class Result, class Transform, class ReduceOp>
 Result transform_reduce(CudaBackend, const Stream& stream, InputIterator data, int64_t count,
                         Transform transform, Result init, ReduceOp op) {

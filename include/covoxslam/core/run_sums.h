@@ -20,11 +20,10 @@
 // way the order of the additions is fixed by the records' positions, so the sums are the same
 // every run (the two backends may round differently: the GPU adds a run's pieces as a tree).
 //
-// Why not a device-wide reduction by key: on the H100 CUB's, reading 24-byte coloured updates,
-// took 38 us of a 7-Scenes 5 cm frame (124 registers per thread, a quarter of the GPU's threads
-// resident, half its cycles at barriers), and its output went through memory once more for the
-// writes. Here a run's sum goes from registers (or shared memory) to the consumer: 22 us for the
-// same frame, sums and writes together (docs/benchmarks.md, "seventh pass").
+// Why not a device-wide reduction by key: CUB's, on wide coloured updates, needs many registers
+// per thread (few threads resident, much time at barriers) and writes its output to memory, from
+// where a second kernel reads it back for the writes. Here a run's sum goes from registers (or
+// shared memory) straight to the consumer.
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -45,10 +44,9 @@
 
 namespace covox {
 
-// Four records per thread and at most 80 registers (three blocks of 256 threads resident per
-// SM): the fastest of the variants tried on the H100 (1, 2 or 4 records; 40 to 136 registers),
-// on the 7-Scenes 2 cm frame's 3.8 M records 190 us against 328 us with the compiler's own
-// choice of 136 registers (docs/benchmarks.md, "seventh pass").
+// Four records per thread and at most 80 registers, so that three blocks of 256 threads stay
+// resident per SM: enough records per thread to hide the loads' latency, without the register
+// count the compiler would pick on its own (which leaves too few threads resident).
 constexpr int kRunSumThreads = 256;  // GPU threads per tile
 constexpr int kRunSumItems = 4;      // consecutive records per GPU thread
 constexpr int kRunSumBlocksPerSm = 3;
@@ -281,9 +279,9 @@ void consume_run_sums(Backend backend, const Stream& stream, const KeyT* keys, i
   sum_tiles(backend, stream, keys, count, live_count, tiles, term, op, consume, parts, run_count);
   if (tiles == 1) return;  // no run crosses a tile's edge
   // The runs crossing tile edges, each by its start tile: its tail, then the heads of the tiles
-  // it passes through and of the one it ends in, in tile order. (About 5 us on the H100 however
-  // few the tiles: a chain of dependent loads, down to the voxel's; looking eight tiles ahead at
-  // a time changed nothing measurable, 2026-11-24.)
+  // it passes through and of the one it ends in, in tile order. Its cost is a chain of
+  // dependent loads (down to the voxel's) however few the tiles; reading several tiles ahead at
+  // a time does not shorten that chain.
   parallel_for(backend, stream, tiles - 1, [=] COVOX_HD(int64_t tile) {
     // (the live records' last tile ends its last run: no walk goes past it)
     if (tile * kRunSumTile >= live_records(count, live_count)) return;

@@ -10,10 +10,9 @@
 // be a functor, called as out(i, prefix) once for each i after value_of(i) (scan_output below):
 // what a kernel after the scan would have done with each prefix, without its launch.
 //
-// Why not CUB's DeviceScan: on the H100 machine a frame's launches, not its kernels, set its
-// latency (docs/benchmarks.md, "eighth pass": a kernel launch costs the host 4-5 us there, CUB's
-// scan 10-11 us for its sizing call, its init kernel and its scan kernel), and a scan of a
-// functor saves the kernel that would have written the values first. The GPU version is a
+// Why not CUB's DeviceScan: a frame's small scans are bound by their launches, not by their
+// kernels, and CUB's scan costs a sizing call, an init kernel and a scan kernel; a scan of a
+// functor also saves the kernel that would have written the values first. The GPU version is a
 // decoupled look-back scan (Merrill and Garland, 2016) whose tile descriptors carry an epoch: a
 // descriptor left by an earlier scan on the same stream reads as "not yet published", so the
 // descriptors need no init kernel. Tiles of 256 x kItems values (2048 by default), one thread

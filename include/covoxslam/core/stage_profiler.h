@@ -9,8 +9,8 @@
 // read the table for the shares, not the absolute sum.
 // COVOX_PROFILE_STAGES=host charges the host's time between marks without synchronising: where
 // the host spends a frame (its launches, its own work and the waits the code itself does), with
-// the GPU running ahead as it does unprofiled. Each mark costs the host about a microsecond
-// (a lookup under a lock), so the stages read high by that much each.
+// the GPU running ahead as it does unprofiled. Each mark costs the host a lookup under a lock,
+// so every stage reads high by that much.
 //
 // Usage (the integrators do this):
 //   StageProfiler::Scope profile("tsdf", stream);   // begin

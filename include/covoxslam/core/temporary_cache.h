@@ -1,8 +1,8 @@
 #pragma once
 // A caching allocator for the temporary storage of the parallel primitives (Thrust's sort, scan,
 // reduce_by_key). Without it every call allocates and frees its scratch: on the GPU cudaMalloc
-// and cudaFree cost tens of microseconds and synchronise the device (more than a TSDF frame may
-// take); on the CPU a large malloc is a fresh mmap whose pages fault in again on every frame.
+// and cudaFree are slow next to a frame's kernels and synchronise the device; on the CPU a large
+// malloc is a fresh mmap whose pages fault in again on every frame.
 //
 // Freed blocks are kept per stream and handed out again (the smallest block that fits). Reuse is
 // safe because work on one stream runs in order: a later algorithm on the same stream cannot

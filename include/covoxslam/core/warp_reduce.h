@@ -1,8 +1,8 @@
 #pragma once
 // Reductions over the lanes of a GPU warp that run a kernel body together, so that many threads
 // adding to the same counter or bundle issue one atomic per warp instead of one each (atomics on
-// one address serialise in the GPU's L2: 80 pixels of a depth image adding to one 5 cm bundle
-// cost more than the rest of the kernel). On the host a "warp" is the calling thread alone, so
+// one address serialise in the GPU's L2: the many pixels of a depth image that add to one bundle
+// would otherwise wait for each other). On the host a "warp" is the calling thread alone, so
 // the same kernel body does one atomic per call there.
 //
 // `lanes` is the mask of lanes taking part (warp_lanes() at the call site: a parallel_for's last
@@ -164,7 +164,7 @@ COVOX_HD_INLINE uint32_t warp_count(uint32_t lanes) {
 // voxel, say): the lowest lane's value times the lane count plus the sum of the differences,
 // which go through in two 32-bit reductions (a 16-bit piece and the signed rest, neither of
 // which can overflow over 32 lanes) instead of four. Lanes of different groups reduce in turn,
-// so each reduction saved counts once per group (H100, a depth image's bundle kernel).
+// so each reduction saved counts once per group.
 COVOX_HD_INLINE int64_t warp_sum_clustered(uint32_t lanes, int64_t value) {
 #if COVOX_DEVICE_CODE && __CUDA_ARCH__ >= 800
   const long long reference = __shfl_sync(lanes, static_cast<long long>(value), __ffs(lanes) - 1);

@@ -114,46 +114,30 @@ COVOX_HD_INLINE void lower_envelope(const int32_t* f, int64_t f_stride, int32_t*
   }
 }
 
-}  // namespace esdf_detail
+// The boxes of one update: the write region (changed blocks + halo) and the window the distance
+// transform runs over (write region + halo), both clipped to the map's blocks (there are no
+// sites and nothing to write beyond them). A site more than a halo outside the write region is
+// farther than esdf_max_distance_m from every voxel written, so the window sees every site
+// that matters.
+struct UpdateBoxes {
+  VoxelBox write_region;
+  VoxelBox window;
+};
 
-template <class Backend>
-EsdfUpdateStats esdf_update(Backend backend, const EsdfIntegratorConfig& config, TsdfMap& map,
-                            bool all_blocks, EsdfScratchBuffers& scratch, const Stream& stream) {
-  using namespace esdf_detail;
-  EsdfUpdateStats stats;
-  map.blocks().export_entries(&scratch.block_indices, &scratch.block_slots);
-  const int64_t block_count = static_cast<int64_t>(scratch.block_indices.size());
-  if (block_count == 0) return stats;
-  const Index3D* block_indices = scratch.block_indices.data();
-  const uint32_t* block_slots = scratch.block_slots.data();
-  uint8_t* changed = map.block_changed().data();
-
-  const auto policy = execution_policy(backend, stream);
-  const BlockBounds changed_bounds = thrust::transform_reduce(
-      policy, thrust::counting_iterator<int64_t>(0),
-      thrust::counting_iterator<int64_t>(block_count),
-      BoundsOfBlock{block_indices, block_slots, changed, all_blocks}, BlockBounds{}, MergeBounds{});
-  stats.changed_blocks = changed_bounds.count;
-  if (changed_bounds.count == 0) return stats;
-  const BlockBounds all_bounds = thrust::transform_reduce(
-      policy, thrust::counting_iterator<int64_t>(0),
-      thrust::counting_iterator<int64_t>(block_count),
-      BoundsOfBlock{block_indices, block_slots, changed, true}, BlockBounds{}, MergeBounds{});
-
-  // Voxel boxes: write region = changed blocks + halo; window = write region + halo, both
-  // clipped to the map's blocks (there are no sites and nothing to write beyond them).
-  const int32_t side = map.voxels_per_side();
-  const float voxel_size = map.voxel_size_m();
-  const int32_t halo = static_cast<int32_t>(std::ceil(config.esdf_max_distance_m / voxel_size));
-  VoxelBox write_region{}, window{};
+inline UpdateBoxes update_boxes(const BlockBounds& changed, const BlockBounds& all, int32_t side,
+                                int32_t halo) {
+  UpdateBoxes boxes{};
   for (int k = 0; k < 3; ++k) {
-    const int32_t map_lo = all_bounds.lo[k] * side, map_hi = (all_bounds.hi[k] + 1) * side - 1;
-    write_region.lo[k] = std::max(map_lo, changed_bounds.lo[k] * side - halo);
-    write_region.hi[k] = std::min(map_hi, (changed_bounds.hi[k] + 1) * side - 1 + halo);
-    window.lo[k] = std::max(map_lo, write_region.lo[k] - halo);
-    window.hi[k] = std::min(map_hi, write_region.hi[k] + halo);
+    const int32_t map_lo = all.lo[k] * side, map_hi = (all.hi[k] + 1) * side - 1;
+    boxes.write_region.lo[k] = std::max(map_lo, changed.lo[k] * side - halo);
+    boxes.write_region.hi[k] = std::min(map_hi, (changed.hi[k] + 1) * side - 1 + halo);
+    boxes.window.lo[k] = std::max(map_lo, boxes.write_region.lo[k] - halo);
+    boxes.window.hi[k] = std::min(map_hi, boxes.write_region.hi[k] + halo);
   }
-  const int64_t volume = window.volume();
+  return boxes;
+}
+
+inline void check_window_volume(int64_t volume, const EsdfIntegratorConfig& config) {
   if (volume > config.max_window_voxels) {
     throw Error("ESDF: the update window has " + std::to_string(volume) +
                 " voxels, more than max_window_voxels (" +
@@ -161,7 +145,21 @@ EsdfUpdateStats esdf_update(Backend backend, const EsdfIntegratorConfig& config,
                 "); update more often, or use larger voxels or a "
                 "smaller esdf_max_distance_m");
   }
-  stats.window_voxels = volume;
+}
+
+// The window's dense arrays: squared distances (and the transform's second copy), and the lower
+// envelopes' per-line scratch, lines interleaved. `bounds` has one more entry per line than
+// `sites`: wx max(wy, wz) lines at most.
+struct WindowArrays {
+  int32_t* squared;
+  int32_t* squared_tmp;
+  int32_t* sites;
+  double* bounds;
+  int32_t wx, wy, wz;
+};
+
+inline WindowArrays size_window_arrays(EsdfScratchBuffers& scratch, const VoxelBox& window) {
+  const int64_t volume = window.volume();
   const int32_t wx = static_cast<int32_t>(window.size(0)),
                 wy = static_cast<int32_t>(window.size(1)),
                 wz = static_cast<int32_t>(window.size(2));
@@ -169,28 +167,58 @@ EsdfUpdateStats esdf_update(Backend backend, const EsdfIntegratorConfig& config,
   scratch.squared_tmp.resize_discard(volume);
   scratch.envelope_sites.resize_discard(volume);
   scratch.envelope_bounds.resize_discard(volume + static_cast<int64_t>(wx) * std::max(wy, wz));
-  int32_t* squared = scratch.squared.data();
-  int32_t* squared_tmp = scratch.squared_tmp.data();
-  int32_t* envelope_sites = scratch.envelope_sites.data();
-  double* envelope_bounds = scratch.envelope_bounds.data();
+  return WindowArrays{scratch.squared.data(),
+                      scratch.squared_tmp.data(),
+                      scratch.envelope_sites.data(),
+                      scratch.envelope_bounds.data(),
+                      wx,
+                      wy,
+                      wz};
+}
 
-  // Sites: observed voxels close to the surface.
-  parallel_for(backend, stream, volume, [=] COVOX_HD(int64_t i) { squared[i] = kFar; });
-  const int64_t voxels_per_block = map.voxels_per_block();
-  const auto tsdf = map.tsdf().view();
-  const float site_threshold = config.site_distance_threshold_vox * voxel_size;
-  const float min_weight = config.min_weight;
-  parallel_for(backend, stream, block_count * voxels_per_block, [=] COVOX_HD(int64_t i) {
+// The map's allocated blocks (exported: index and slot), walked voxel by voxel.
+struct BlockVoxels {
+  const Index3D* indices;
+  const uint32_t* slots;
+  int64_t voxels_per_block;
+  int32_t side;
+  // Voxel i of the walk: its global index and its index in the voxel pools.
+  COVOX_HD_INLINE Index3D voxel(int64_t i, int64_t* pool_index) const {
     const int64_t b = i / voxels_per_block, k = i % voxels_per_block;
-    const Index3D v = global_voxel(block_indices[b], k, side);
-    if (!window.contains(v)) return;
-    const TsdfVoxel voxel = tsdf.load(static_cast<int64_t>(block_slots[b]) * voxels_per_block + k);
-    if (voxel.weight >= min_weight && fabsf(voxel.distance_m) <= site_threshold)
-      squared[window.offset_of(v)] = 0;
-  });
+    *pool_index = static_cast<int64_t>(slots[b]) * voxels_per_block + k;
+    return global_voxel(indices[b], k, side);
+  }
+};
 
-  // x: distance to the nearest site in the row (two sweeps), squared.
-  parallel_for(backend, stream, static_cast<int64_t>(wy) * wz, [=] COVOX_HD(int64_t line) {
+// Kernel: no site anywhere yet.
+struct FillFar {
+  int32_t* squared;
+  COVOX_HD_INLINE void operator()(int64_t i) const { squared[i] = kFar; }
+};
+
+// Kernel: sites are the window's observed voxels close to the surface (squared distance 0).
+struct MarkSites {
+  BlockVoxels walk;
+  TsdfMap::TsdfStorage::View tsdf;
+  VoxelBox window;
+  int32_t* squared;
+  float site_threshold_m;
+  float min_weight;
+  COVOX_HD_INLINE void operator()(int64_t i) const {
+    int64_t index;
+    const Index3D v = walk.voxel(i, &index);
+    if (!window.contains(v)) return;
+    const TsdfVoxel voxel = tsdf.load(index);
+    if (voxel.weight >= min_weight && fabsf(voxel.distance_m) <= site_threshold_m)
+      squared[window.offset_of(v)] = 0;
+  }
+};
+
+// Kernel: per x row, the squared distance to the nearest site in the row (two sweeps).
+struct RowDistances {
+  int32_t* squared;
+  int32_t wx;
+  COVOX_HD_INLINE void operator()(int64_t line) const {
     int32_t* row = squared + line * wx;
     int32_t last_site = -1;
     for (int32_t x = 0; x < wx; ++x) {
@@ -204,47 +232,137 @@ EsdfUpdateStats esdf_update(Backend backend, const EsdfIntegratorConfig& config,
       if (next_site >= 0 && next_site - x < d) d = next_site - x;
       row[x] = d == kFar ? kFar : d * d;
     }
-  });
-  // y: lower envelopes over the x result (lines indexed by x fastest: coalesced on the GPU).
-  const int64_t y_lines = static_cast<int64_t>(wx) * wz;
-  parallel_for(backend, stream, y_lines, [=] COVOX_HD(int64_t line) {
-    const int64_t x = line % wx, z = line / wx;
-    const int64_t base = x + static_cast<int64_t>(wx) * wy * z;
-    lower_envelope(squared + base, wx, squared_tmp + base, wx, wy, envelope_sites + line,
-                   envelope_bounds + line, y_lines);
-  });
-  // z: lower envelopes over the y result.
-  const int64_t z_lines = static_cast<int64_t>(wx) * wy;
-  parallel_for(backend, stream, z_lines, [=] COVOX_HD(int64_t line) {
-    lower_envelope(squared_tmp + line, z_lines, squared + line, z_lines, wz, envelope_sites + line,
-                   envelope_bounds + line, z_lines);
-  });
+  }
+};
 
-  // Write back the voxels of the write region, signed by the TSDF, clamped to the maximum.
-  const auto esdf = map.esdf().view();
-  const float max_distance = config.esdf_max_distance_m;
-  parallel_for(backend, stream, block_count * voxels_per_block, [=] COVOX_HD(int64_t i) {
-    const int64_t b = i / voxels_per_block, k = i % voxels_per_block;
-    const Index3D v = global_voxel(block_indices[b], k, side);
+// Kernel: lower envelopes along y over the x result, from `squared` into `squared_tmp` (lines
+// indexed by x fastest: coalesced on the GPU).
+struct EnvelopesAlongY {
+  WindowArrays a;
+  COVOX_HD_INLINE void operator()(int64_t line) const {
+    const int64_t y_lines = static_cast<int64_t>(a.wx) * a.wz;
+    const int64_t x = line % a.wx, z = line / a.wx;
+    const int64_t base = x + static_cast<int64_t>(a.wx) * a.wy * z;
+    lower_envelope(a.squared + base, a.wx, a.squared_tmp + base, a.wx, a.wy, a.sites + line,
+                   a.bounds + line, y_lines);
+  }
+};
+
+// Kernel: lower envelopes along z over the y result, from `squared_tmp` back into `squared`.
+struct EnvelopesAlongZ {
+  WindowArrays a;
+  COVOX_HD_INLINE void operator()(int64_t line) const {
+    const int64_t z_lines = static_cast<int64_t>(a.wx) * a.wy;
+    lower_envelope(a.squared_tmp + line, z_lines, a.squared + line, z_lines, a.wz, a.sites + line,
+                   a.bounds + line, z_lines);
+  }
+};
+
+// Kernel: the write region's voxels get the distance, signed by the TSDF and clamped to the
+// maximum; unobserved voxels are stored as unobserved.
+struct WriteDistances {
+  BlockVoxels walk;
+  TsdfMap::TsdfStorage::View tsdf;
+  TsdfMap::EsdfStorage::View esdf;
+  VoxelBox write_region;
+  VoxelBox window;
+  const int32_t* squared;
+  float min_weight;
+  float max_distance_m;
+  float voxel_size_m;
+  COVOX_HD_INLINE void operator()(int64_t i) const {
+    int64_t index;
+    const Index3D v = walk.voxel(i, &index);
     if (!write_region.contains(v)) return;
-    const int64_t index = static_cast<int64_t>(block_slots[b]) * voxels_per_block + k;
     const TsdfVoxel voxel = tsdf.load(index);
     EsdfVoxel out;
     out.observed = voxel.weight >= min_weight ? 1 : 0;
     if (out.observed) {
       const int32_t d2 = squared[window.offset_of(v)];
-      float distance = d2 == kFar ? max_distance : sqrtf(static_cast<float>(d2)) * voxel_size;
-      distance = distance < max_distance ? distance : max_distance;
+      float distance = d2 == kFar ? max_distance_m : sqrtf(static_cast<float>(d2)) * voxel_size_m;
+      distance = distance < max_distance_m ? distance : max_distance_m;
       out.is_site = d2 == 0 ? 1 : 0;
       out.distance_m = voxel.distance_m < 0.0f ? -distance : distance;
     }
     esdf.store(index, out);
-  });
-  stats.voxels_written = write_region.volume();
+  }
+};
+
+// Kernel: clears a block's kEsdfPending bit.
+struct ClearEsdfPending {
+  const uint32_t* slots;
+  uint8_t* changed;
+  COVOX_HD_INLINE void operator()(int64_t b) const {
+    changed[slots[b]] &= static_cast<uint8_t>(~kEsdfPending);
+  }
+};
+
+// Bounds of the exported blocks whose ESDF is pending (of all of them when `all` is set).
+template <class Backend>
+BlockBounds reduce_block_bounds(Backend backend, const Stream& stream,
+                                const EsdfScratchBuffers& scratch, const uint8_t* changed,
+                                bool all) {
+  return thrust::transform_reduce(
+      execution_policy(backend, stream), thrust::counting_iterator<int64_t>(0),
+      thrust::counting_iterator<int64_t>(static_cast<int64_t>(scratch.block_indices.size())),
+      BoundsOfBlock{scratch.block_indices.data(), scratch.block_slots.data(), changed, all},
+      BlockBounds{}, MergeBounds{});
+}
+
+// The exact Euclidean distance transform over the window: per-row distances along x, then
+// lower envelopes along y and along z; the result ends in `squared`.
+template <class Backend>
+void distance_transform(Backend backend, const Stream& stream, const WindowArrays& arrays) {
+  parallel_for(backend, stream, static_cast<int64_t>(arrays.wy) * arrays.wz,
+               RowDistances{arrays.squared, arrays.wx});
+  parallel_for(backend, stream, static_cast<int64_t>(arrays.wx) * arrays.wz,
+               EnvelopesAlongY{arrays});
+  parallel_for(backend, stream, static_cast<int64_t>(arrays.wx) * arrays.wy,
+               EnvelopesAlongZ{arrays});
+}
+
+}  // namespace esdf_detail
+
+template <class Backend>
+EsdfUpdateStats esdf_update(Backend backend, const EsdfIntegratorConfig& config, TsdfMap& map,
+                            bool all_blocks, EsdfScratchBuffers& scratch, const Stream& stream) {
+  using namespace esdf_detail;
+  EsdfUpdateStats stats;
+  map.blocks().export_entries(&scratch.block_indices, &scratch.block_slots);
+  const int64_t block_count = static_cast<int64_t>(scratch.block_indices.size());
+  if (block_count == 0) return stats;
+  uint8_t* changed = map.block_changed().data();
+  const BlockBounds changed_bounds =
+      reduce_block_bounds(backend, stream, scratch, changed, all_blocks);
+  stats.changed_blocks = changed_bounds.count;
+  if (changed_bounds.count == 0) return stats;
+  const BlockBounds all_bounds = reduce_block_bounds(backend, stream, scratch, changed, true);
+
+  const int32_t side = map.voxels_per_side();
+  const float voxel_size = map.voxel_size_m();
+  const int32_t halo = static_cast<int32_t>(std::ceil(config.esdf_max_distance_m / voxel_size));
+  const UpdateBoxes boxes = update_boxes(changed_bounds, all_bounds, side, halo);
+  const int64_t volume = boxes.window.volume();
+  check_window_volume(volume, config);
+  stats.window_voxels = volume;
+  const WindowArrays arrays = size_window_arrays(scratch, boxes.window);
+
+  const BlockVoxels walk{scratch.block_indices.data(), scratch.block_slots.data(),
+                         map.voxels_per_block(), side};
+  const int64_t voxels = block_count * walk.voxels_per_block;
+  const auto tsdf = map.tsdf().view();
+  parallel_for(backend, stream, volume, FillFar{arrays.squared});
+  parallel_for(backend, stream, voxels,
+               MarkSites{walk, tsdf, boxes.window, arrays.squared,
+                         config.site_distance_threshold_vox * voxel_size, config.min_weight});
+  distance_transform(backend, stream, arrays);
+  parallel_for(
+      backend, stream, voxels,
+      WriteDistances{walk, tsdf, map.esdf().view(), boxes.write_region, boxes.window,
+                     arrays.squared, config.min_weight, config.esdf_max_distance_m, voxel_size});
+  stats.voxels_written = boxes.write_region.volume();
   // Every changed block lies inside the write region: all caught up.
-  parallel_for(backend, stream, block_count, [=] COVOX_HD(int64_t b) {
-    changed[block_slots[b]] &= static_cast<uint8_t>(~kEsdfPending);
-  });
+  parallel_for(backend, stream, block_count, ClearEsdfPending{walk.slots, changed});
   stream.synchronize();
   return stats;
 }

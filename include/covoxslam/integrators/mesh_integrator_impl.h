@@ -116,6 +116,332 @@ struct SortedFirstVertex {
   }
 };
 
+// The sizes one extraction works with, fixed by the input blocks and the map.
+struct ExtractShape {
+  int64_t block_count;
+  int64_t per_block;  // voxels (cubes) per block
+  int64_t cubes;
+  int32_t side;
+  int edge_bits;             // bits of a block-local edge key
+  uint32_t edges_per_block;  // block-local edge keys: 3 (side + 1)^3
+};
+
+// Kernel: the number of triangles of each cube, 0 for a cube that cannot be read and for the
+// extra entry `cubes` (so that the exclusive scan's last entry is the total).
+struct CountCubeTriangles {
+  CubeReader reader;
+  uint32_t* counts;
+  int64_t cubes;
+  int64_t per_block;
+  int32_t side;
+  COVOX_HD_INLINE void operator()(int64_t i) const {
+    counts[i] = 0;
+    if (i == cubes) return;
+    float values[8];
+    Rgb8 colors[8];
+    if (!reader.read(i / per_block, local_voxel(i % per_block, side), values, colors)) return;
+    counts[i] = static_cast<uint32_t>(marching_cubes::polygonize(values, [](int, int, int) {}));
+  }
+};
+
+// How a triangle corner is named for the weld: by its global edge key (kGlobal); under
+// kPerBlock, by (block, local edge), either as an index into the dense weld table (`table` set:
+// the entry is claimed by the smallest corner on it, the one a stable sort would keep first) or
+// as a sort key with the block in the bits above the local edge.
+struct CornerNaming {
+  bool per_block_weld;
+  uint32_t* table;
+  uint32_t edges_per_block;
+  int edge_bits;
+  int32_t side;
+  COVOX_HD_INLINE uint64_t key(int64_t block, const Index3D& origin, const Index3D& local,
+                               const Index3D& offset, int axis, int64_t slot) const {
+    if (!per_block_weld) return edge_key(origin + offset, axis);
+    const uint32_t local_edge =
+        local_edge_key(local.x + offset.x, local.y + offset.y, local.z + offset.z, axis, side);
+    if (!table) return (static_cast<uint64_t>(block) << edge_bits) | local_edge;
+    const uint64_t entry = static_cast<uint64_t>(block) * edges_per_block + local_edge;
+    atomic_min(&table[entry], static_cast<uint32_t>(slot));
+    return entry;
+  }
+};
+
+// Per triangle corner (3 per triangle, in triangle order): its weld key, its own index (the
+// sort's payload), its position and its colour.
+struct CornerArrays {
+  uint64_t* keys;
+  uint32_t* order;
+  Vec3f* positions;
+  Rgb8* colors;
+};
+
+// Kernel: writes the corners of each cube's triangles from the cube's first triangle on,
+// triangles wound consistently (marching_cubes::needs_flip), corners placed at the edge
+// crossings with colours interpolated between the edge's end voxels.
+struct EmitCubeCorners {
+  CubeReader reader;
+  const Index3D* blocks;
+  const uint32_t* counts;
+  const uint32_t* offsets;
+  CornerNaming naming;
+  CornerArrays out;
+  int64_t per_block;
+  int32_t side;
+  float voxel_size;
+
+  COVOX_HD_INLINE void operator()(int64_t i) const {
+    if (counts[i] == 0) return;
+    const int64_t block = i / per_block;
+    const Index3D local = local_voxel(i % per_block, side);
+    const Index3D origin(blocks[block].x * side + local.x, blocks[block].y * side + local.y,
+                         blocks[block].z * side + local.z);
+    float values[8];
+    Rgb8 colors[8];
+    reader.read(block, local, values, colors);
+    int64_t t = offsets[i];
+    marching_cubes::polygonize(values, [&](int a, int b, int c) {
+      if (marching_cubes::needs_flip(values, a, b, c)) {
+        const int swap = b;
+        b = c;
+        c = swap;
+      }
+      const int edges[3] = {a, b, c};
+      for (int k = 0; k < 3; ++k) corner(3 * t + k, edges[k], block, local, origin, values, colors);
+      ++t;
+    });
+  }
+
+  COVOX_HD_INLINE void corner(int64_t slot, int e, int64_t block, const Index3D& local,
+                              const Index3D& origin, const float* values,
+                              const Rgb8* colors) const {
+    const int start = marching_cubes::edge_start(e), end = marching_cubes::edge_end(e);
+    const Index3D offset(start & 1, (start >> 1) & 1, (start >> 2) & 1);
+    out.keys[slot] = naming.key(block, origin, local, offset, marching_cubes::edge_axis(e), slot);
+    out.order[slot] = static_cast<uint32_t>(slot);
+    const Vec3f p = marching_cubes::crossing_point(values, e);
+    out.positions[slot] =
+        Vec3f((origin.x + 0.5f + p.x) * voxel_size, (origin.y + 0.5f + p.y) * voxel_size,
+              (origin.z + 0.5f + p.z) * voxel_size);
+    const float f = marching_cubes::crossing_fraction(values, e);
+    const Rgb8 ca = colors[start], cb = colors[end];
+    out.colors[slot] = Rgb8{static_cast<uint8_t>(ca.r + f * (cb.r - ca.r) + 0.5f),
+                            static_cast<uint8_t>(ca.g + f * (cb.g - ca.g) + 0.5f),
+                            static_cast<uint8_t>(ca.b + f * (cb.b - ca.b) + 0.5f)};
+  }
+};
+
+// Kernel: 1 for each claimed weld table entry, 0 for the others and for the extra last entry.
+struct MarkClaimedEntries {
+  const uint32_t* table;
+  uint32_t* claimed;
+  int64_t table_entries;
+  COVOX_HD_INLINE void operator()(int64_t e) const {
+    claimed[e] = e < table_entries && table[e] != kInvalidSlot ? 1u : 0u;
+  }
+};
+
+// Kernel: each claimed table entry's vertex is the corner that claimed it.
+struct WriteTableVertices {
+  const uint32_t* claimed;
+  const uint32_t* ids;
+  const uint32_t* table;
+  const Vec3f* positions;
+  const Rgb8* corner_colors;
+  MeshOutputs out;
+  COVOX_HD_INLINE void operator()(int64_t e) const {
+    if (!claimed[e]) return;
+    out.vertices[ids[e]] = positions[table[e]];
+    out.colors[ids[e]] = corner_colors[table[e]];
+  }
+};
+
+// Kernel: each corner's vertex, numbered from its block's first vertex.
+struct WriteTableTriangles {
+  const uint32_t* ids;
+  const uint64_t* keys;
+  const uint32_t* block_first_vertex;
+  uint32_t edges_per_block;
+  MeshOutputs out;
+  COVOX_HD_INLINE void operator()(int64_t j) const {
+    out.triangles[j] = ids[keys[j]] - block_first_vertex[keys[j] / edges_per_block];
+  }
+};
+
+// Kernel: 1 where a run of equal sorted keys starts, 0 elsewhere and for the extra last entry.
+struct MarkFirstOfRun {
+  const uint64_t* keys;
+  uint32_t* flags;
+  int64_t corners;
+  COVOX_HD_INLINE void operator()(int64_t j) const {
+    flags[j] = (j < corners && (j == 0 || keys[j] != keys[j - 1])) ? 1u : 0u;
+  }
+};
+
+// Kernel: the first corner of each run of equal keys gives the run's vertex; every corner's
+// triangle entry (at its position before the sort) gets the run's vertex, numbered from its
+// block's first vertex when `block_first_vertex` is set.
+struct WriteSortedMesh {
+  const uint32_t* first_ids;
+  const uint32_t* flags;
+  const uint32_t* order;
+  const uint64_t* keys;
+  const uint32_t* block_first_vertex;
+  const Vec3f* positions;
+  const Rgb8* corner_colors;
+  int edge_bits;
+  MeshOutputs out;
+  COVOX_HD_INLINE void operator()(int64_t j) const {
+    // The run of equal keys that j belongs to starts where the flag was set.
+    const uint32_t id = first_ids[j] + flags[j] - 1;
+    if (flags[j]) {
+      out.vertices[id] = positions[order[j]];
+      out.colors[id] = corner_colors[order[j]];
+    }
+    out.triangles[order[j]] =
+        block_first_vertex ? id - block_first_vertex[keys[j] >> edge_bits] : id;
+  }
+};
+
+inline ExtractShape extract_shape(const TsdfMap& map, const MeshScratchBuffers& scratch) {
+  ExtractShape shape;
+  shape.block_count = static_cast<int64_t>(scratch.blocks.size());
+  shape.side = map.voxels_per_side();
+  shape.per_block = map.voxels_per_block();
+  shape.cubes = shape.block_count * shape.per_block;
+  shape.edge_bits = local_edge_bits(shape.side);
+  shape.edges_per_block =
+      3u * static_cast<uint32_t>((shape.side + 1) * (shape.side + 1) * (shape.side + 1));
+  return shape;
+}
+
+// Per-block ranges start empty: an extraction that finds no triangle leaves them so.
+inline void clear_block_ranges(MeshScratchBuffers& scratch, int64_t block_count,
+                               const Stream& stream) {
+  scratch.block_first_vertex.resize_discard(block_count + 1);
+  scratch.block_first_triangle.resize_discard(block_count + 1);
+  scratch.block_first_vertex.fill_bytes(0, stream);
+  scratch.block_first_triangle.fill_bytes(0, stream);
+}
+
+// Stage 1: triangles per cube and each cube's first triangle (scratch.offsets). Returns the
+// triangle count.
+template <class Backend>
+int64_t count_triangles(Backend backend, const Stream& stream, const CubeReader& reader,
+                        const ExtractShape& shape, MeshScratchBuffers& scratch) {
+  const int64_t cubes = shape.cubes;
+  scratch.counts.resize_discard(cubes + 1);
+  scratch.offsets.resize_discard(cubes + 1);
+  uint32_t* counts = scratch.counts.data();
+  parallel_for(backend, stream, cubes + 1,
+               CountCubeTriangles{reader, counts, cubes, shape.per_block, shape.side});
+  exclusive_scan(backend, stream, counts, cubes + 1, scratch.offsets.data());
+  return scratch.offsets.element(cubes, stream);
+}
+
+// Stage 2: the triangle corners, named by their edge (globally, or inside their block). With
+// `weld_table` the table of every block's edges is reset first and claimed by the corners.
+template <class Backend>
+void emit_corners(Backend backend, const Stream& stream, const CubeReader& reader,
+                  const ExtractShape& shape, bool per_block_weld, bool weld_table, float voxel_size,
+                  int64_t corners, MeshScratchBuffers& scratch) {
+  scratch.keys.resize_discard(corners);
+  scratch.order.resize_discard(corners);
+  scratch.positions.resize_discard(corners);
+  scratch.colors.resize_discard(corners);
+  const CornerArrays out{scratch.keys.data(), scratch.order.data(), scratch.positions.data(),
+                         scratch.colors.data()};
+  uint32_t* table = nullptr;
+  if (weld_table) {
+    scratch.weld_table.resize_discard(shape.block_count * shape.edges_per_block);
+    scratch.weld_table.fill_bytes(0xff, stream);
+    table = scratch.weld_table.data();
+  }
+  const CornerNaming naming{per_block_weld, table, shape.edges_per_block, shape.edge_bits,
+                            shape.side};
+  parallel_for(
+      backend, stream, shape.cubes,
+      EmitCubeCorners{reader, scratch.blocks.data(), scratch.counts.data(), scratch.offsets.data(),
+                      naming, out, shape.per_block, shape.side, voxel_size});
+}
+
+// Stage 3 with the table: claimed entries, in (block, local edge) order, are the vertices; the
+// same numbering as the sorted weld's. Returns the vertex count.
+template <class Backend>
+int64_t weld_with_table(Backend backend, const Stream& stream, const ExtractShape& shape,
+                        int64_t corners, MeshScratchBuffers& scratch) {
+  const int64_t table_entries = shape.block_count * shape.edges_per_block;
+  const uint32_t* table = scratch.weld_table.data();
+  scratch.flags.resize_discard(table_entries + 1);
+  scratch.vertex_ids.resize_discard(table_entries + 1);
+  uint32_t* claimed = scratch.flags.data();
+  parallel_for(backend, stream, table_entries + 1,
+               MarkClaimedEntries{table, claimed, table_entries});
+  exclusive_scan(backend, stream, claimed, table_entries + 1, scratch.vertex_ids.data());
+  const int64_t vertices = scratch.vertex_ids.element(table_entries, stream);
+  const uint32_t* ids = scratch.vertex_ids.data();
+  write_block_ranges(backend, stream, scratch, shape.block_count, shape.per_block,
+                     scratch.offsets.data(), TableFirstVertex{ids, shape.edges_per_block});
+  const uint32_t* block_first_vertex = scratch.block_first_vertex.data();
+  const MeshOutputs out = size_outputs(scratch, vertices, corners);
+  parallel_for(backend, stream, table_entries,
+               WriteTableVertices{claimed, ids, table, scratch.positions.data(),
+                                  scratch.colors.data(), out});
+  parallel_for(backend, stream, corners,
+               WriteTableTriangles{ids, scratch.keys.data(), block_first_vertex,
+                                   shape.edges_per_block, out});
+  return vertices;
+}
+
+// Sorts the corners by key, carrying their indices. Per-block keys need only bits_for(blocks) +
+// edge_bits bits, so their radix sort runs only the passes those bits need; `keys` and `order`
+// then name whichever pair of arrays holds the result.
+template <class Backend>
+void sort_corners(Backend backend, const Stream& stream, const ExtractShape& shape,
+                  bool per_block_weld, int64_t corners, MeshScratchBuffers& scratch,
+                  uint64_t*& keys, uint32_t*& order) {
+  if (!per_block_weld) {
+    sort_by_key(backend, stream, keys, order, corners);
+    return;
+  }
+  scratch.keys_alt.resize_discard(corners);
+  scratch.order_alt.resize_discard(corners);
+  uint64_t* keys_alt = scratch.keys_alt.data();
+  uint32_t* order_alt = scratch.order_alt.data();
+  radix_sort_pairs_swapping(backend, stream, keys, order, corners,
+                            bits_for(static_cast<uint64_t>(shape.block_count)) + shape.edge_bits,
+                            keys_alt, order_alt);
+}
+
+// Stage 3 by sorting: corners sorted by edge, one vertex per distinct edge. Returns the vertex
+// count.
+template <class Backend>
+int64_t weld_by_sorting(Backend backend, const Stream& stream, const ExtractShape& shape,
+                        bool per_block_weld, int64_t corners, MeshScratchBuffers& scratch) {
+  uint64_t* keys = scratch.keys.data();
+  uint32_t* order = scratch.order.data();
+  sort_corners(backend, stream, shape, per_block_weld, corners, scratch, keys, order);
+  scratch.flags.resize_discard(corners + 1);
+  scratch.vertex_ids.resize_discard(corners + 1);
+  uint32_t* flags = scratch.flags.data();
+  parallel_for(backend, stream, corners + 1, MarkFirstOfRun{keys, flags, corners});
+  exclusive_scan(backend, stream, flags, corners + 1, scratch.vertex_ids.data());
+  const int64_t vertices = scratch.vertex_ids.element(corners, stream);
+  const uint32_t* first_ids = scratch.vertex_ids.data();
+  const uint32_t* block_first_vertex = nullptr;
+  if (per_block_weld) {
+    write_block_ranges(backend, stream, scratch, shape.block_count, shape.per_block,
+                       scratch.offsets.data(),
+                       SortedFirstVertex{first_ids, keys, corners, shape.edge_bits});
+    block_first_vertex = scratch.block_first_vertex.data();
+  }
+  const MeshOutputs out = size_outputs(scratch, vertices, corners);
+  parallel_for(
+      backend, stream, corners,
+      WriteSortedMesh{first_ids, flags, order, keys, block_first_vertex, scratch.positions.data(),
+                      scratch.colors.data(), shape.edge_bits, out});
+  return vertices;
+}
+
 }  // namespace mesh_detail
 
 template <class Backend>
@@ -139,182 +465,26 @@ int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshWeld w
                      int64_t max_weld_table_entries) {
   using namespace mesh_detail;
   *vertex_count = 0;
-  const int64_t block_count = static_cast<int64_t>(scratch.blocks.size());
-  const int32_t side = map.voxels_per_side();
-  const int64_t per_block = map.voxels_per_block();
-  const int64_t cubes = block_count * per_block;
+  const ExtractShape shape = extract_shape(map, scratch);
   const bool per_block_weld = weld == MeshWeld::kPerBlock;
-  if (per_block_weld) {  // empty ranges until the triangles are known
-    scratch.block_first_vertex.resize_discard(block_count + 1);
-    scratch.block_first_triangle.resize_discard(block_count + 1);
-    scratch.block_first_vertex.fill_bytes(0, stream);
-    scratch.block_first_triangle.fill_bytes(0, stream);
-  }
-  if (cubes == 0) return 0;
+  if (per_block_weld) clear_block_ranges(scratch, shape.block_count, stream);
+  if (shape.cubes == 0) return 0;
   mesh_find_neighbour_slots(backend, map, scratch, stream);
-  const CubeReader reader{scratch.neighbours.data(), side, map.tsdf().view(), map.color().view(),
-                          min_weight};
-  const Index3D* blocks = scratch.blocks.data();
-
-  // 1. triangles per cube
-  scratch.counts.resize_discard(cubes + 1);
-  scratch.offsets.resize_discard(cubes + 1);
-  uint32_t* counts = scratch.counts.data();
-  parallel_for(backend, stream, cubes + 1, [=] COVOX_HD(int64_t i) {
-    counts[i] = 0;
-    if (i == cubes) return;
-    float values[8];
-    Rgb8 colors[8];
-    if (!reader.read(i / per_block, local_voxel(i % per_block, side), values, colors)) return;
-    counts[i] = static_cast<uint32_t>(marching_cubes::polygonize(values, [](int, int, int) {}));
-  });
-  exclusive_scan(backend, stream, counts, cubes + 1, scratch.offsets.data());
-  const int64_t triangle_count = scratch.offsets.element(cubes, stream);
+  const CubeReader reader{scratch.neighbours.data(), shape.side, map.tsdf().view(),
+                          map.color().view(), min_weight};
+  const int64_t triangle_count = count_triangles(backend, stream, reader, shape, scratch);
   if (triangle_count == 0) return 0;
-
-  // 2. emit triangle corners, named by their edge (globally, or inside their block)
   const int64_t corners = 3 * triangle_count;
-  scratch.keys.resize_discard(corners);
-  scratch.order.resize_discard(corners);
-  scratch.positions.resize_discard(corners);
-  scratch.colors.resize_discard(corners);
-  uint64_t* keys = scratch.keys.data();
-  uint32_t* order = scratch.order.data();
-  Vec3f* positions = scratch.positions.data();
-  Rgb8* corner_colors = scratch.colors.data();
-  const uint32_t* offsets = scratch.offsets.data();
-  const float voxel_size = map.voxel_size_m();
-  const int edge_bits = local_edge_bits(side);
-  // Per-block weld through a dense table of every block's edges (one entry per block and local
-  // edge, claimed by the first corner on it) when the table is small enough; else by sorting.
-  const uint32_t edges_per_block = 3u * static_cast<uint32_t>((side + 1) * (side + 1) * (side + 1));
-  const int64_t table_entries = block_count * edges_per_block;
-  const bool weld_table = per_block_weld && table_entries <= max_weld_table_entries;
-  uint32_t* table = nullptr;
-  if (weld_table) {
-    scratch.weld_table.resize_discard(table_entries);
-    scratch.weld_table.fill_bytes(0xff, stream);
-    table = scratch.weld_table.data();
-  }
-  parallel_for(backend, stream, cubes, [=] COVOX_HD(int64_t i) {
-    if (counts[i] == 0) return;
-    const int64_t block = i / per_block;
-    const Index3D local = local_voxel(i % per_block, side);
-    const Index3D origin(blocks[block].x * side + local.x, blocks[block].y * side + local.y,
-                         blocks[block].z * side + local.z);
-    float values[8];
-    Rgb8 colors[8];
-    reader.read(block, local, values, colors);
-    int64_t t = offsets[i];
-    marching_cubes::polygonize(values, [&](int a, int b, int c) {
-      if (marching_cubes::needs_flip(values, a, b, c)) {
-        const int swap = b;
-        b = c;
-        c = swap;
-      }
-      const int edges[3] = {a, b, c};
-      for (int k = 0; k < 3; ++k) {
-        const int e = edges[k], start = marching_cubes::edge_start(e),
-                  end = marching_cubes::edge_end(e);
-        const int64_t slot = 3 * t + k;
-        const Index3D offset(start & 1, (start >> 1) & 1, (start >> 2) & 1);
-        const int axis = marching_cubes::edge_axis(e);
-        if (!per_block_weld) {
-          keys[slot] = edge_key(origin + offset, axis);
-        } else {
-          const uint32_t local_edge = local_edge_key(local.x + offset.x, local.y + offset.y,
-                                                     local.z + offset.z, axis, side);
-          if (table) {  // the table entry, claimed by the smallest corner (what a stable sort keeps
-                        // first)
-            keys[slot] = static_cast<uint64_t>(block) * edges_per_block + local_edge;
-            atomic_min(&table[keys[slot]], static_cast<uint32_t>(slot));
-          } else {
-            keys[slot] = (static_cast<uint64_t>(block) << edge_bits) | local_edge;
-          }
-        }
-        order[slot] = static_cast<uint32_t>(slot);
-        const Vec3f p = marching_cubes::crossing_point(values, e);
-        positions[slot] =
-            Vec3f((origin.x + 0.5f + p.x) * voxel_size, (origin.y + 0.5f + p.y) * voxel_size,
-                  (origin.z + 0.5f + p.z) * voxel_size);
-        const float f = marching_cubes::crossing_fraction(values, e);
-        const Rgb8 ca = colors[start], cb = colors[end];
-        corner_colors[slot] = Rgb8{static_cast<uint8_t>(ca.r + f * (cb.r - ca.r) + 0.5f),
-                                   static_cast<uint8_t>(ca.g + f * (cb.g - ca.g) + 0.5f),
-                                   static_cast<uint8_t>(ca.b + f * (cb.b - ca.b) + 0.5f)};
-      }
-      ++t;
-    });
-  });
-
-  if (weld_table) {
-    // 3. weld through the table: claimed entries, in (block, local edge) order, are the
-    //    vertices; the same numbering as the sorted keys below.
-    scratch.flags.resize_discard(table_entries + 1);
-    scratch.vertex_ids.resize_discard(table_entries + 1);
-    uint32_t* claimed = scratch.flags.data();
-    parallel_for(backend, stream, table_entries + 1, [=] COVOX_HD(int64_t e) {
-      claimed[e] = e < table_entries && table[e] != kInvalidSlot ? 1u : 0u;
-    });
-    exclusive_scan(backend, stream, claimed, table_entries + 1, scratch.vertex_ids.data());
-    const int64_t vertices = scratch.vertex_ids.element(table_entries, stream);
-    const uint32_t* ids = scratch.vertex_ids.data();
-    write_block_ranges(backend, stream, scratch, block_count, per_block, offsets,
-                       TableFirstVertex{ids, edges_per_block});
-    const uint32_t* block_first_vertex = scratch.block_first_vertex.data();
-    const MeshOutputs out = size_outputs(scratch, vertices, corners);
-    parallel_for(backend, stream, table_entries, [=] COVOX_HD(int64_t e) {
-      if (!claimed[e]) return;
-      out.vertices[ids[e]] = positions[table[e]];
-      out.colors[ids[e]] = corner_colors[table[e]];
-    });
-    parallel_for(backend, stream, corners, [=] COVOX_HD(int64_t j) {
-      out.triangles[j] = ids[keys[j]] - block_first_vertex[keys[j] / edges_per_block];
-    });
-    *vertex_count = vertices;
-    return triangle_count;
-  }
-
-  // 3. weld: sort corners by edge, one vertex per distinct edge. Per-block keys need only
-  //    bits_for(blocks) + 12 bits: a 3-4 pass radix sort instead of a full 64-bit one.
-  if (per_block_weld) {
-    scratch.keys_alt.resize_discard(corners);
-    scratch.order_alt.resize_discard(corners);
-    uint64_t* keys_alt = scratch.keys_alt.data();
-    uint32_t* order_alt = scratch.order_alt.data();
-    radix_sort_pairs_swapping(backend, stream, keys, order, corners,
-                              bits_for(static_cast<uint64_t>(block_count)) + edge_bits, keys_alt,
-                              order_alt);
-  } else {
-    sort_by_key(backend, stream, keys, order, corners);
-  }
-  scratch.flags.resize_discard(corners + 1);
-  scratch.vertex_ids.resize_discard(corners + 1);
-  uint32_t* flags = scratch.flags.data();
-  parallel_for(backend, stream, corners + 1, [=] COVOX_HD(int64_t j) {
-    flags[j] = (j < corners && (j == 0 || keys[j] != keys[j - 1])) ? 1u : 0u;
-  });
-  exclusive_scan(backend, stream, flags, corners + 1, scratch.vertex_ids.data());
-  const int64_t vertices = scratch.vertex_ids.element(corners, stream);
-  const uint32_t* first_ids = scratch.vertex_ids.data();
-  const uint32_t* block_first_vertex = nullptr;
-  if (per_block_weld) {
-    write_block_ranges(backend, stream, scratch, block_count, per_block, offsets,
-                       SortedFirstVertex{first_ids, keys, corners, edge_bits});
-    block_first_vertex = scratch.block_first_vertex.data();
-  }
-  const MeshOutputs out = size_outputs(scratch, vertices, corners);
-  parallel_for(backend, stream, corners, [=] COVOX_HD(int64_t j) {
-    // The run of equal keys that j belongs to starts where the flag was set.
-    const uint32_t id = first_ids[j] + flags[j] - 1;
-    if (flags[j]) {
-      out.vertices[id] = positions[order[j]];
-      out.colors[id] = corner_colors[order[j]];
-    }
-    out.triangles[order[j]] =
-        block_first_vertex ? id - block_first_vertex[keys[j] >> edge_bits] : id;
-  });
-  *vertex_count = vertices;
+  // The per-block weld goes through a dense table of every block's edges (one entry per block
+  // and local edge, claimed by the first corner on it) when the table is small enough; else, and
+  // for the global weld, by sorting.
+  const bool weld_table =
+      per_block_weld && shape.block_count * shape.edges_per_block <= max_weld_table_entries;
+  emit_corners(backend, stream, reader, shape, per_block_weld, weld_table, map.voxel_size_m(),
+               corners, scratch);
+  *vertex_count = weld_table
+                      ? weld_with_table(backend, stream, shape, corners, scratch)
+                      : weld_by_sorting(backend, stream, shape, per_block_weld, corners, scratch);
   return triangle_count;
 }
 

@@ -1,5 +1,5 @@
 #pragma once
-// Writes ROS bag format 2.0 files without ROS (the GPU machine and the simulator have none):
+// Writes ROS bag format 2.0 files without ROS, so that the simulator runs where ROS is absent:
 // uncompressed chunks, index-data records after each chunk, and the connection and chunk-info
 // index at the end, so `rosbag info`, `rosbag play` and the rosbag C++/Python APIs read the file
 // as one that `rosbag record` wrote.

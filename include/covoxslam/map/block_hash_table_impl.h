@@ -119,9 +119,9 @@ namespace hash_table_detail {
 // launch: each key is inserted by the scan that ranks the new ones (exclusive_scan_of reads each
 // value once), and as each new key's rank is known it gets its slot; ranks[count] is the number
 // of new keys. Keys that could not be placed (outside the key range, table full) are counted in
-// the state's failure counter, which the gather reads and clears. (Before: a memset, the insert
-// kernel, a scan and the assignment; on the H100 machine each launch costs the host 4-5 us, and a
-// TSDF frame waits for them: docs/benchmarks.md, "eighth pass" and "twelfth pass".)
+// the state's failure counter, which the gather reads and clears. One launch instead of a memset,
+// an insert kernel, a scan and an assignment kernel: a TSDF frame waits for each launch's host
+// cost.
 template <class Backend>
 void activate_insert_rank_and_assign(Backend backend, BlockHashTableState& state,
                                      const Index3D* keys, int64_t count,

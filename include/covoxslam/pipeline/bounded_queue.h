@@ -1,5 +1,6 @@
 #pragma once
-// BoundedQueue: the hand-over between the SLAM threads (DESIGN.md "The data path").
+// BoundedQueue: the hand-over between the SLAM threads (sensor input to front end, front end to
+// back end).
 //
 // The producer never waits: when the queue is full, push() drops the OLDEST entry and counts it.
 // Dropping the oldest (not the newest) keeps the map following the robot: after a stall the

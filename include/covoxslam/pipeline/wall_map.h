@@ -2,20 +2,17 @@
 // Top-view wall maps of submaps and a correlative search between two of them: the start of a
 // revisit's registration.
 //
-// Why: a revisit starts as far off as the odometry drifted since the last visit (1 to 3 m on the
-// simulated flight), and the distance-field aligner's basin is smaller than that: registered from
-// 1.5 m off the true relative pose, revisit pairs of the simulated flight ended 1.05 m off on
-// median (docs/benchmarks.md, "The registration's own error"). The aligner sees walls only
+// Why: a revisit starts as far off as the odometry drifted since the last visit, which can be
+// more than the distance-field aligner's basin: started metres off the true relative pose, it
+// stops in a local minimum short of it. The aligner sees walls only
 // through registration points whose eight trilinear corners are observed in the partner, which
 // walls (unobserved behind themselves, holed between sparse LiDAR rays) rarely give; the ground,
 // which says nothing about x, y and yaw, carries the rest. A top view needs no observed
 // neighbourhood: a column of the map holds a wall when one of its surface voxels has a TSDF
 // gradient within about 25 degrees of horizontal. Two submaps' wall columns are matched over a
 // grid of horizontal offsets and yaws by the number of columns that land on a wall of the other
-// (a Gaussian of the distance); started from that match, revisits of the zero-drift flight
-// registered from 1.5 m off ended 0.51 m off on median instead of 1.06 m, and the ten simulated
-// flights' ATE went from 0.370 m mean / 0.827 m worst to 0.338 / 0.586 m (docs/benchmarks.md,
-// "Revisits started from the walls").
+// (a Gaussian of the distance). The search covers the whole offset range at once, so its result
+// does not depend on a basin, and the aligner then refines from inside its own.
 //
 // The search runs on the host (a few million look-ups per pair, OpenMP over the yaw steps) and is
 // deterministic: the best score wins, ties go to the first grid pose.
