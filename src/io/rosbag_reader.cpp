@@ -59,6 +59,23 @@ uint64_t BagReader::read_record(uint64_t position, std::vector<uint8_t>* header,
   return data_at + 4 + data_size;
 }
 
+// A connection record: its header names the connection and topic, its data is the publisher's
+// header (message type, checksum, definition, caller, latching).
+static BagConnection decode_connection(const RecordHeader& header, const std::vector<uint8_t>& data,
+                                       const std::string& what) {
+  const RecordHeader publisher = RecordHeader::decode(data.data(), data.size(), what);
+  BagConnection connection;
+  connection.id = header.u32("conn", what);
+  connection.topic = header.text("topic", what);
+  connection.type = publisher.text("type", what);
+  connection.md5sum = publisher.text("md5sum", what);
+  connection.message_definition =
+      publisher.has("message_definition") ? publisher.text("message_definition", what) : "";
+  connection.callerid = publisher.has("callerid") ? publisher.text("callerid", what) : "";
+  connection.latching = publisher.has("latching") && publisher.text("latching", what) == "1";
+  return connection;
+}
+
 void BagReader::read_index() {
   std::vector<uint8_t> header_bytes, data;
   read_record(kBagMagicSize, &header_bytes, nullptr);
@@ -83,18 +100,7 @@ void BagReader::read_index() {
         RecordHeader::decode(header_bytes.data(), header_bytes.size(), record_what);
     if (header.u8("op", record_what) != kOpConnection)
       throw Error(what + ": expected a connection record in the index");
-    const RecordHeader publisher = RecordHeader::decode(data.data(), data.size(), record_what);
-    BagConnection connection;
-    connection.id = header.u32("conn", record_what);
-    connection.topic = header.text("topic", record_what);
-    connection.type = publisher.text("type", record_what);
-    connection.md5sum = publisher.text("md5sum", record_what);
-    connection.message_definition = publisher.has("message_definition")
-                                        ? publisher.text("message_definition", record_what)
-                                        : "";
-    connection.callerid = publisher.has("callerid") ? publisher.text("callerid", record_what) : "";
-    connection.latching =
-        publisher.has("latching") && publisher.text("latching", record_what) == "1";
+    const BagConnection connection = decode_connection(header, data, record_what);
     connection_slot[connection.id] = connections_.size();
     connections_.push_back(connection);
   }

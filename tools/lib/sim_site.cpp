@@ -234,6 +234,29 @@ class Ground {
   std::vector<double> heights_;
 };
 
+// A rubble pile of radius_m around spot: 10-16 blocks and slabs, higher in the middle.
+void add_rubble_pile(const Eigen::Vector2d& spot, double radius_m, const Ground& ground,
+                     Random* random, World* world) {
+  const int pieces = 10 + static_cast<int>(random->uniform() * 7.0);
+  for (int k = 0; k < pieces; ++k) {
+    const double r = radius_m * std::sqrt(random->uniform());
+    const double angle = random->uniform(0.0, 2.0 * kPi);
+    const Eigen::Vector2d xy = spot + r * Eigen::Vector2d(std::cos(angle), std::sin(angle));
+    Box piece;
+    const bool slab = random->uniform() < 0.3;  // broken concrete slabs among the blocks
+    piece.half_extent_m =
+        slab ? Eigen::Vector3d(random->uniform(0.6, 1.1), random->uniform(0.4, 0.8), 0.08)
+             : Eigen::Vector3d(random->uniform(0.15, 0.6), random->uniform(0.15, 0.6),
+                               random->uniform(0.15, 0.5));
+    piece.rotation = random_rotation(random);
+    // Higher in the middle of the pile.
+    piece.centre_m = Eigen::Vector3d(
+        xy.x(), xy.y(), ground.lowest_near(xy) + random->uniform(0.0, 1.0) * (1.0 - r / radius_m));
+    piece.colour = kRubble;
+    world->add(piece);
+  }
+}
+
 }  // namespace
 
 Site build_site(const SiteConfig& config, const Figure8Path& path, uint64_t seed) {
@@ -300,24 +323,7 @@ Site build_site(const SiteConfig& config, const Figure8Path& path, uint64_t seed
   for (int i = 0; i < config.rubble_piles; ++i) {
     const double radius = random.uniform(1.5, 2.5);
     if (!find_spot(radius, &spot)) break;
-    const int pieces = 10 + static_cast<int>(random.uniform() * 7.0);
-    for (int k = 0; k < pieces; ++k) {
-      const double r = radius * std::sqrt(random.uniform());
-      const double angle = random.uniform(0.0, 2.0 * kPi);
-      const Eigen::Vector2d xy = spot + r * Eigen::Vector2d(std::cos(angle), std::sin(angle));
-      Box piece;
-      const bool slab = random.uniform() < 0.3;  // broken concrete slabs among the blocks
-      piece.half_extent_m =
-          slab ? Eigen::Vector3d(random.uniform(0.6, 1.1), random.uniform(0.4, 0.8), 0.08)
-               : Eigen::Vector3d(random.uniform(0.15, 0.6), random.uniform(0.15, 0.6),
-                                 random.uniform(0.15, 0.5));
-      piece.rotation = random_rotation(&random);
-      // Higher in the middle of the pile.
-      piece.centre_m = Eigen::Vector3d(
-          xy.x(), xy.y(), ground.lowest_near(xy) + random.uniform(0.0, 1.0) * (1.0 - r / radius));
-      piece.colour = kRubble;
-      site.world.add(piece);
-    }
+    add_rubble_pile(spot, radius, ground, &random, &site.world);
   }
   for (int i = 0; i < config.poles; ++i) {
     if (!find_spot(0.5, &spot)) break;
