@@ -73,9 +73,9 @@ geometry_msgs::Pose to_pose_msg(const Eigen::Isometry3d& pose) {
   return msg;
 }
 
-visualization_msgs::Marker mesh_marker(const Mesh& mesh, const Eigen::Isometry3d& pose,
-                                       const std::string& frame, const ros::Time& stamp,
-                                       const std::string& ns, int id) {
+visualization_msgs::Marker mesh_marker(const Mesh& mesh, const std::vector<Rgb8>& colors,
+                                       const Eigen::Isometry3d& pose, const std::string& frame,
+                                       const ros::Time& stamp, const std::string& ns, int id) {
   visualization_msgs::Marker marker;
   marker.header.frame_id = frame;
   marker.header.stamp = stamp;
@@ -87,7 +87,7 @@ visualization_msgs::Marker mesh_marker(const Mesh& mesh, const Eigen::Isometry3d
   marker.scale.x = marker.scale.y = marker.scale.z = 1.0;
   marker.color.r = marker.color.g = marker.color.b = 0.7f;
   marker.color.a = 1.0f;
-  const bool colored = mesh.colors.size() == mesh.vertices_m.size();
+  const bool colored = colors.size() == mesh.vertices_m.size();
   marker.points.reserve(mesh.triangles.size());
   if (colored) marker.colors.reserve(mesh.triangles.size());
   for (uint32_t index : mesh.triangles) {
@@ -99,9 +99,9 @@ visualization_msgs::Marker mesh_marker(const Mesh& mesh, const Eigen::Isometry3d
     marker.points.push_back(point);
     if (colored) {
       std_msgs::ColorRGBA color;
-      color.r = mesh.colors[index].r / 255.0f;
-      color.g = mesh.colors[index].g / 255.0f;
-      color.b = mesh.colors[index].b / 255.0f;
+      color.r = colors[index].r / 255.0f;
+      color.g = colors[index].g / 255.0f;
+      color.b = colors[index].b / 255.0f;
       color.a = 1.0f;
       marker.colors.push_back(color);
     }

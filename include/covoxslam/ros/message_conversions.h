@@ -30,10 +30,11 @@ Eigen::Isometry3d to_isometry(const geometry_msgs::Transform& transform);
 geometry_msgs::Transform to_transform_msg(const Eigen::Isometry3d& pose);
 geometry_msgs::Pose to_pose_msg(const Eigen::Isometry3d& pose);
 
-// A triangle list (three points per triangle, per-vertex colours) in the frame of `pose`.
-visualization_msgs::Marker mesh_marker(const Mesh& mesh, const Eigen::Isometry3d& pose,
-                                       const std::string& frame, const ros::Time& stamp,
-                                       const std::string& ns, int id);
+// A triangle list (three points per triangle) in `frame` at `pose`, each point coloured by
+// `colors` (one per mesh vertex, e.g. map/mesh_colors.h's display_colors()).
+visualization_msgs::Marker mesh_marker(const Mesh& mesh, const std::vector<Rgb8>& colors,
+                                       const Eigen::Isometry3d& pose, const std::string& frame,
+                                       const ros::Time& stamp, const std::string& ns, int id);
 // A DELETEALL, then one LINE_LIST per submap (namespace submap_bounding_boxes, id = submap id)
 // holding the 12 edges of its world-frame box.
 visualization_msgs::MarkerArray bounding_box_markers(
