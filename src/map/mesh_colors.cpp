@@ -36,6 +36,14 @@ Rgb8 height_color(float height_m, const HeightColorRange& range) {
               channel(a[2] + f * (b[2] - a[2]))};
 }
 
+bool has_observed_colors(const Mesh& mesh) {
+  if (mesh.colors.size() != mesh.vertices_m.size()) return false;
+  for (const Rgb8& color : mesh.colors) {
+    if (!is_unobserved_color(color)) return true;
+  }
+  return false;
+}
+
 std::vector<Rgb8> display_colors(const Mesh& mesh, const Eigen::Isometry3d& T_world_mesh,
                                  const HeightColorRange& range) {
   const bool colored = mesh.colors.size() == mesh.vertices_m.size();

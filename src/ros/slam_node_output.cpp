@@ -16,6 +16,11 @@ namespace {
 
 std::string submap_frame(int64_t id) { return "submap_" + std::to_string(id); }
 
+// Submap meshes: namespace of the per-vertex coloured marker, and the number of height slices a
+// mesh without fused colour is sent in (half a metre each over the default 10 m range).
+constexpr const char* kMeshNamespace = "submap_mesh";
+constexpr int kHeightBands = 20;
+
 bool same_pose(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
   // 1 mm / about 0.06 degrees: below what rviz shows, above solver noise.
   return (a.translation() - b.translation()).norm() < 1e-3 &&
@@ -178,28 +183,39 @@ visualization_msgs::MarkerArray SlamNode::submap_mesh_markers(const std::vector<
                                                               const std::vector<int64_t>& removed,
                                                               const ros::Time& stamp) {
   visualization_msgs::MarkerArray markers;
-  for (int64_t id : removed) {
-    visualization_msgs::Marker deletion;
-    deletion.header.frame_id = submap_frame(id);
-    deletion.header.stamp = stamp;
-    deletion.ns = "submap_mesh";
-    deletion.id = static_cast<int>(id);
-    deletion.action = visualization_msgs::Marker::DELETE;
-    markers.markers.push_back(deletion);
-  }
   const HeightColorRange range{static_cast<float>(options_.mesh_height_color_min_m),
                                static_cast<float>(options_.mesh_height_color_max_m)};
+  for (int64_t id : removed) {
+    markers.markers.push_back(
+        deletion_marker(submap_frame(id), stamp, kMeshNamespace, static_cast<int>(id)));
+    for (int band = 0; band < kHeightBands; ++band) {
+      markers.markers.push_back(deletion_marker(
+          submap_frame(id), stamp, std::string(kMeshNamespace) + "_height_" + std::to_string(band),
+          static_cast<int>(id)));
+    }
+  }
   for (int64_t id : ids) {
     Mesh mesh;
     Eigen::Isometry3d T_world_submap;
     if (!slam_->submap_mesh(id, &mesh, &T_world_submap)) continue;
     // Vertices in the submap's own frame, which tf places: moving the submap moves the marker.
-    // Heights for the colour map are taken at the submap's pose of now.
-    visualization_msgs::Marker marker = mesh_marker(
-        mesh, display_colors(mesh, T_world_submap, range), Eigen::Isometry3d::Identity(),
-        submap_frame(id), stamp, "submap_mesh", static_cast<int>(id));
-    marker.frame_locked = true;
-    markers.markers.push_back(std::move(marker));
+    // Heights for the colours are taken at the submap's pose of now. A mesh with fused colours
+    // is one marker with per-vertex colours (black vertices by height); one without is sent as
+    // height slices of one colour each. Either way the other form is deleted.
+    const bool colored = has_observed_colors(mesh);
+    std::vector<visualization_msgs::Marker> bands =
+        height_band_markers(colored ? Mesh() : mesh, T_world_submap, range, kHeightBands,
+                            submap_frame(id), stamp, kMeshNamespace, static_cast<int>(id));
+    visualization_msgs::Marker vertex_colored =
+        colored ? mesh_marker(mesh, display_colors(mesh, T_world_submap, range),
+                              Eigen::Isometry3d::Identity(), submap_frame(id), stamp,
+                              kMeshNamespace, static_cast<int>(id))
+                : deletion_marker(submap_frame(id), stamp, kMeshNamespace, static_cast<int>(id));
+    bands.push_back(std::move(vertex_colored));
+    for (visualization_msgs::Marker& marker : bands) {
+      marker.frame_locked = true;
+      markers.markers.push_back(std::move(marker));
+    }
   }
   return markers;
 }

@@ -24,6 +24,7 @@
 #include <limits>
 #include <map>
 #include <mutex>
+#include <set>
 #include <string>
 #include <thread>
 #include <vector>
@@ -348,8 +349,10 @@ struct Latest {
   nav_msgs::Path path;
   covoxslam::SubmapPoses submaps;
   visualization_msgs::Marker combined_mesh;
-  std::map<int, visualization_msgs::Marker> separated_meshes;
-  std::map<int, int> mesh_sends;  // how often each submap's mesh came on ~separated_mesh
+  // Markers by (namespace, id): a submap's mesh is one per-vertex coloured marker or several
+  // height slices, all with the submap's id.
+  std::map<std::pair<std::string, int>, visualization_msgs::Marker> separated_meshes;
+  std::map<int, int> mesh_sends;  // in how many messages each submap's mesh came
   sensor_msgs::PointCloud2 esdf_slice;
   sensor_msgs::PointCloud2 active_esdf_slice;
   std::map<int, visualization_msgs::Marker> boxes;
@@ -359,6 +362,29 @@ struct Latest {
 };
 
 Latest latest;
+
+// Submap id -> the points of all its mesh markers.
+using MeshMarkers = std::map<std::pair<std::string, int>, visualization_msgs::Marker>;
+std::map<int, size_t> points_per_submap(const MeshMarkers& markers) {
+  std::map<int, size_t> points;
+  for (const auto& marker : markers) points[marker.first.second] += marker.second.points.size();
+  return points;
+}
+
+// Applies one ~separated_mesh message to `markers`; returns the submaps it sent a mesh of.
+std::set<int> apply_mesh_message(const visualization_msgs::MarkerArray& message,
+                                 MeshMarkers* markers) {
+  std::set<int> sent;
+  for (const auto& marker : message.markers) {
+    if (marker.action == visualization_msgs::Marker::DELETEALL) markers->clear();
+    if (marker.action == visualization_msgs::Marker::DELETE) markers->erase({marker.ns, marker.id});
+    if (marker.action == visualization_msgs::Marker::ADD) {
+      (*markers)[{marker.ns, marker.id}] = marker;
+      sent.insert(marker.id);
+    }
+  }
+  return sent;
+}
 
 // Waits (wall time) until `condition` holds under the lock.
 bool wait_for(const std::function<bool()>& condition, double timeout_s) {
@@ -466,7 +492,7 @@ int64_t scans_in_submaps_from(int64_t first_new_id) {
 // then opens a connection of its own, as a late rviz or a second node does.
 struct LateSubscriber {
   std::mutex mutex;
-  std::map<int, visualization_msgs::Marker> meshes;
+  MeshMarkers meshes;
 };
 LateSubscriber late;
 
@@ -481,25 +507,23 @@ void expect_late_subscriber_gets_every_mesh(ros::NodeHandle& node, ros::Subscrib
     for (const auto& submap : latest.submaps.submaps) {
       if (submap.mesh_triangles > 0) submaps[static_cast<int>(submap.id)] = submap;
     }
-    for (const auto& marker : latest.separated_meshes)
-      points_first_subscriber[marker.first] = marker.second.points.size();
+    points_first_subscriber = points_per_submap(latest.separated_meshes);
   }
   ASSERT_GT(submaps.size(), 2u);
   first->shutdown();
   std::this_thread::sleep_for(std::chrono::milliseconds(500));
   auto on_mesh = [](const visualization_msgs::MarkerArray::ConstPtr& m) {
     std::lock_guard<std::mutex> lock(late.mutex);
-    for (const auto& marker : m->markers) {
-      if (marker.action == visualization_msgs::Marker::ADD) late.meshes[marker.id] = marker;
-    }
+    apply_mesh_message(*m, &late.meshes);
   };
   ros::Subscriber subscriber =
       node.subscribe<visualization_msgs::MarkerArray>(ns("separated_mesh"), 10, +on_mesh);
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(15);
   auto has_all = [&] {
     std::lock_guard<std::mutex> lock(late.mutex);
+    const std::map<int, size_t> points = points_per_submap(late.meshes);
     for (const auto& submap : submaps) {
-      if (!late.meshes.count(submap.first)) return false;
+      if (!points.count(submap.first)) return false;
     }
     return true;
   };
@@ -524,18 +548,27 @@ void expect_late_subscriber_gets_every_mesh(ros::NodeHandle& node, ros::Subscrib
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   EXPECT_TRUE(has_frames()) << "tf has frames: " << tf_buffer.allFramesAsString();
   std::lock_guard<std::mutex> lock(late.mutex);
-  for (const auto& submap : submaps) {
-    const visualization_msgs::Marker& marker = late.meshes[submap.first];
-    const std::string frame = "submap_" + std::to_string(submap.first);
+  for (const auto& entry : late.meshes) {
+    const visualization_msgs::Marker& marker = entry.second;
+    const std::string frame = "submap_" + std::to_string(marker.id);
     EXPECT_EQ(marker.header.frame_id, frame);
     EXPECT_TRUE(marker.frame_locked);
     EXPECT_EQ(marker.type, visualization_msgs::Marker::TRIANGLE_LIST);
     EXPECT_EQ(marker.points.size() % 3, 0u);
-    EXPECT_EQ(marker.points.size(), points_first_subscriber[submap.first]) << frame;
-    ASSERT_EQ(marker.colors.size(), marker.points.size()) << frame;
-    int black = 0;
-    for (const auto& color : marker.colors) black += color.r + color.g + color.b == 0.0f;
-    EXPECT_EQ(black, 0) << frame;
+    // Per-vertex colours, or one colour for the whole marker (a height slice): never black.
+    if (marker.colors.empty()) {
+      EXPECT_GT(marker.color.r + marker.color.g + marker.color.b, 0.5f) << marker.ns;
+    } else {
+      ASSERT_EQ(marker.colors.size(), marker.points.size()) << frame;
+      int black = 0;
+      for (const auto& color : marker.colors) black += color.r + color.g + color.b == 0.0f;
+      EXPECT_EQ(black, 0) << frame;
+    }
+  }
+  const std::map<int, size_t> late_points = points_per_submap(late.meshes);
+  for (const auto& submap : submaps) {
+    const std::string frame = "submap_" + std::to_string(submap.first);
+    EXPECT_EQ(late_points.at(submap.first), points_first_subscriber[submap.first]) << frame;
     geometry_msgs::TransformStamped pose;
     ASSERT_NO_THROW(pose = tf_buffer.lookupTransform("mission", frame, ros::Time(0))) << frame;
     EXPECT_NEAR(pose.transform.translation.x, submap.second.pose.position.x, 2e-3) << frame;
@@ -669,15 +702,7 @@ TEST_F(CovoxSlamNodeletTest, MapsABagAndServesTheMap) {
   };
   auto on_separated = [](const visualization_msgs::MarkerArray::ConstPtr& m) {
     std::lock_guard<std::mutex> lock(latest.mutex);
-    for (const auto& marker : m->markers) {
-      if (marker.action == visualization_msgs::Marker::DELETEALL) latest.separated_meshes.clear();
-      if (marker.action == visualization_msgs::Marker::DELETE)
-        latest.separated_meshes.erase(marker.id);
-      if (marker.action == visualization_msgs::Marker::ADD) {
-        latest.separated_meshes[marker.id] = marker;
-        ++latest.mesh_sends[marker.id];
-      }
-    }
+    for (int id : apply_mesh_message(*m, &latest.separated_meshes)) ++latest.mesh_sends[id];
   };
   auto on_slice = [](const sensor_msgs::PointCloud2::ConstPtr& m) {
     std::lock_guard<std::mutex> lock(latest.mutex);
@@ -861,14 +886,15 @@ TEST_F(CovoxSlamNodeletTest, MapsABagAndServesTheMap) {
   if (!wait_for(
           [&] {
             return !latest.combined_mesh.points.empty() &&
-                   latest.separated_meshes.size() == submap_count &&
+                   points_per_submap(latest.separated_meshes).size() == submap_count &&
                    separated_points_now() == latest.combined_mesh.points.size();
           },
           10.0)) {
     std::lock_guard<std::mutex> lock(latest.mutex);
     FAIL() << "no consistent meshes: combined " << latest.combined_mesh.points.size()
            << " points, separated " << separated_points_now() << " points in "
-           << latest.separated_meshes.size() << " markers for " << submap_count << " submaps";
+           << points_per_submap(latest.separated_meshes).size() << " submap meshes for "
+           << submap_count << " submaps";
   }
   {
     std::lock_guard<std::mutex> lock(latest.mutex);

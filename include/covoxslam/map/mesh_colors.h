@@ -28,6 +28,9 @@ inline bool is_unobserved_color(const Rgb8& color) {
   return color.r == 0 && color.g == 0 && color.b == 0;
 }
 
+// True when at least one vertex carries a fused colour.
+bool has_observed_colors(const Mesh& mesh);
+
 // One colour per vertex: the vertex's own colour when observed, otherwise the height colour of
 // its world height (T_world_mesh * vertex).z. A mesh without colours gets height colours only.
 std::vector<Rgb8> display_colors(const Mesh& mesh, const Eigen::Isometry3d& T_world_mesh,
