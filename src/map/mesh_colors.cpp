@@ -7,12 +7,13 @@ namespace covox {
 
 namespace {
 
-// The colour map's anchors at 0, 1/4, 1/2, 3/4 and 1 of the range. Each has a channel of at least
-// 200, so no height is shown dark.
+// The colour map's anchors at 0, 1/4, 1/2, 3/4 and 1 of the range. Two neighbours share a channel
+// that is at least 200 at both (blue-cyan: blue; cyan-green and green-yellow: green; yellow-red:
+// red), so it stays at least 200 between them too: no height is shown dark.
 constexpr int kAnchors = 5;
 constexpr float kAnchorColors[kAnchors][3] = {{48.0f, 72.0f, 210.0f},   // blue
-                                              {40.0f, 180.0f, 230.0f},  // cyan
-                                              {70.0f, 205.0f, 90.0f},   // green
+                                              {40.0f, 200.0f, 230.0f},  // cyan
+                                              {70.0f, 215.0f, 90.0f},   // green
                                               {240.0f, 215.0f, 50.0f},  // yellow
                                               {225.0f, 70.0f, 50.0f}};  // red
 
