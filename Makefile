@@ -6,6 +6,9 @@
 #               after the first run) and maps it, GPU if present, CPU otherwise
 #   make test   installs what is missing, builds everything (library, tools, tests, ROS layer)
 #               and runs the whole test suite
+#   make ros    installs what is missing (ROS 1, rviz, the message and tf command-line tools) and
+#               builds the ROS layer (nodelet, node, messages) into BUILD_DIR; then
+#               `source build/devel/setup.bash` makes roslaunch / rosrun / rostopic find it
 #
 # Settings (make VAR=value):
 #   CUDA_ARCH   CUDA architectures to compile for. Default: 90 (one architecture, because nvcc on
@@ -42,7 +45,12 @@ DEBIAN_ROS_PACKAGES := catkin ros-core-dev libroscpp-dev libnodeletlib-dev libno
   libstd-srvs-dev ros-message-generation librostest-dev python3-rostest libnodeletlib-tools rosbash \
   python3-rosbag python3-roslaunch libmessage-filters-dev libdiagnostic-msgs-dev libtf2-dev \
   python3-std-srvs python3-diagnostic-msgs
-DEBIAN_PACKAGES := $(DEBIAN_BUILD_PACKAGES) $(DEBIAN_ROS_PACKAGES)
+# What the documented ROS commands run: rviz, rostopic / rosservice / rosnode with the Python
+# message packages of the node's inputs and outputs, and the tf tools (tf_echo, view_frames).
+DEBIAN_ROS_TOOL_PACKAGES := rviz python3-rostopic python3-rosservice python3-rosnode \
+  python3-std-msgs python3-geometry-msgs python3-sensor-msgs python3-nav-msgs \
+  python3-visualization-msgs python3-tf2-msgs python3-tf2-ros tf-tools tf2-tools
+DEBIAN_PACKAGES := $(DEBIAN_BUILD_PACKAGES) $(DEBIAN_ROS_PACKAGES) $(DEBIAN_ROS_TOOL_PACKAGES)
 
 CMAKE_FLAGS := -DCMAKE_BUILD_TYPE=Release -DCOVOX_WITH_CUDA=$(WITH_CUDA) \
   -DCOVOX_CUDA_ARCHITECTURES="$(CUDA_ARCH)" -DCOVOX_DATA_DIR="$(COVOX_DATA_DIR)"
@@ -56,7 +64,7 @@ DEMO_CMAKE_FLAGS := -DCMAKE_BUILD_TYPE=Release -DCOVOX_WITH_CUDA=$(DEMO_WITH_CUD
 
 DEMO_TARGETS := simulate_flight run_slam evaluate_trajectory
 
-.PHONY: all deps demo-deps configure build test demo release clean format format-check
+.PHONY: all deps demo-deps configure build test demo ros release clean format format-check
 
 all: build
 
@@ -96,6 +104,16 @@ demo: demo-deps
 	cmake -S . -B $(DEMO_BUILD_DIR) $(DEMO_CMAKE_FLAGS)
 	cmake --build $(DEMO_BUILD_DIR) -j $(JOBS) --target $(DEMO_TARGETS)
 	tools/run_demo.sh $(DEMO_BUILD_DIR) $(DEMO_DIR)
+
+# The ROS layer alone (and the library under it), for roslaunch: the nodelet library, the node and
+# the messages (C++ and Python) in $(BUILD_DIR)/devel.
+ROS_TARGETS := covoxslam_ros covoxslam_node covoxslam_generate_messages
+
+ros: configure
+	@cmake --build $(BUILD_DIR) --target help | grep -q covoxslam_ros || \
+	  { echo "covoxslam: the ROS layer is not configured (see CMake's warning above)"; exit 1; }
+	cmake --build $(BUILD_DIR) -j $(JOBS) --target $(ROS_TARGETS)
+	@echo "covoxslam: ROS layer built; in each new shell: source $(BUILD_DIR)/devel/setup.bash"
 
 # What a release builds: every supported CUDA architecture.
 release:

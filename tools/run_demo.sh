@@ -59,5 +59,6 @@ $(sed -n 's/^map: /  map:               /p' "$out/run_slam.txt")
   mesh:              $out/mesh.ply (ground truth: $flight/world.ply)
   trajectory plot:   $out/trajectory.png
   flight bag:        $flight/flight.bag (rosbag play-able, ARCHE topics)
-  in rviz (ROS):     roslaunch covoxslam arche.launch bag:=$(cd "$flight" && pwd)/flight.bag rviz:=true config:=arche_sim.yaml
+  in rviz (ROS), from the repository root in any shell:
+    make ros && source build/devel/setup.bash && roslaunch covoxslam arche.launch bag:=$(cd "$flight" && pwd)/flight.bag rviz:=true config:=arche_sim.yaml
 SUMMARY

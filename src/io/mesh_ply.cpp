@@ -3,12 +3,18 @@
 #include <ostream>
 
 #include "covoxslam/io/file_bytes.h"
+#include "covoxslam/map/mesh_colors.h"
 
 namespace covox {
 namespace io {
 
 void write_mesh_ply(const std::string& path, const Mesh& mesh) {
   const bool has_color = mesh.colors.size() == mesh.vertices_m.size();
+  // Vertices without a fused colour (black) are written in their height's colour, spread over
+  // the mesh's own heights.
+  const std::vector<Rgb8> colors =
+      has_color ? display_colors(mesh, Eigen::Isometry3d::Identity(), vertex_height_range(mesh))
+                : std::vector<Rgb8>();
   write_file_replacing(path, "write_mesh_ply", /*binary=*/true, [&](std::ostream& file) {
     file << "ply\nformat binary_little_endian 1.0\ncomment written by covoxslam\n"
          << "element vertex " << mesh.vertices_m.size() << "\n"
@@ -20,7 +26,7 @@ void write_mesh_ply(const std::string& path, const Mesh& mesh) {
       const float xyz[3] = {mesh.vertices_m[v].x, mesh.vertices_m[v].y, mesh.vertices_m[v].z};
       file.write(reinterpret_cast<const char*>(xyz), sizeof(xyz));
       if (has_color) {
-        const unsigned char rgb[3] = {mesh.colors[v].r, mesh.colors[v].g, mesh.colors[v].b};
+        const unsigned char rgb[3] = {colors[v].r, colors[v].g, colors[v].b};
         file.write(reinterpret_cast<const char*>(rgb), sizeof(rgb));
       }
     }

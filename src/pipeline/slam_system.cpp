@@ -191,6 +191,22 @@ void SlamSystem::finish() {
   running_ = false;
 }
 
+bool SlamSystem::resume() {
+  std::lock_guard<std::mutex> lock(lifecycle_mutex_);
+  if (aborted_.load()) return false;
+  if (!stopped_) return true;
+  // finish() left both queues closed and drained and the threads joined; the frontend reset its
+  // active submap, so the first scan from now on opens a new one.
+  sensor_queue_.reopen();
+  submap_queue_.reopen();
+  stopped_ = false;
+  running_ = true;
+  accepting_ = true;
+  frontend_thread_ = std::thread([this] { frontend_loop(); });
+  backend_thread_ = std::thread([this] { backend_loop(); });
+  return true;
+}
+
 void SlamSystem::shutdown() {
   std::lock_guard<std::mutex> lock(lifecycle_mutex_);
   if (stopped_) return;

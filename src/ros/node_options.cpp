@@ -88,6 +88,28 @@ Eigen::Isometry3d read_transform(const ros::NodeHandle& node, const std::string&
                 std::to_string(values.size()));
 }
 
+// time_jump_policy, time_jump_min_s and the mesh height colour range.
+void read_time_and_mesh_options(const RosParameterSource& source, NodeOptions* options) {
+  if (source.get_text("time_jump_policy", &options->time_jump_policy) &&
+      options->time_jump_policy != "reset" && options->time_jump_policy != "refuse") {
+    bad("time_jump_policy", "must be reset or refuse, got '" + options->time_jump_policy + "'");
+  }
+  read_amount(source, "time_jump_min_s", &options->time_jump_min_s);
+  const struct {
+    const char* name;
+    double* height_m;
+  } heights[] = {{"mesh_height_color_min_m", &options->mesh_height_color_min_m},
+                 {"mesh_height_color_max_m", &options->mesh_height_color_max_m}};
+  for (const auto& height : heights) {
+    double value = 0.0;
+    if (!source.get_number(height.name, &value)) continue;
+    if (!std::isfinite(value)) bad(height.name, "must be a finite height in metres");
+    *height.height_m = value;
+  }
+  if (!(options->mesh_height_color_max_m > options->mesh_height_color_min_m))
+    bad("mesh_height_color_max_m", "must be above mesh_height_color_min_m");
+}
+
 }  // namespace
 
 const std::vector<std::string>& node_option_names() {
@@ -117,7 +139,11 @@ const std::vector<std::string>& node_option_names() {
                                                  "active_submap_esdf_slice_period_s",
                                                  "publish_combined_mesh",
                                                  "publish_separated_mesh",
-                                                 "drop_log_interval_s"};
+                                                 "drop_log_interval_s",
+                                                 "time_jump_policy",
+                                                 "time_jump_min_s",
+                                                 "mesh_height_color_min_m",
+                                                 "mesh_height_color_max_m"};
   return names;
 }
 
@@ -162,6 +188,7 @@ NodeOptions read_node_options(const ros::NodeHandle& private_node) {
   read_flag(source, "publish_combined_mesh", &options.publish_combined_mesh);
   read_flag(source, "publish_separated_mesh", &options.publish_separated_mesh);
   read_amount(source, "drop_log_interval_s", &options.drop_log_interval_s, true);
+  read_time_and_mesh_options(source, &options);
   return options;
 }
 

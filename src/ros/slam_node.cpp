@@ -122,17 +122,30 @@ SlamNode::SlamNode(ros::NodeHandle node, ros::NodeHandle private_node)
   pending_timer_ =
       node_.createWallTimer(ros::WallDuration(0.02), [this](const ros::WallTimerEvent&) {
         std::lock_guard<std::mutex> lock(input_mutex_);
+        check_clock_locked();
         process_pending_locked();
       });
 
-  // Output: publishers, timers and services on the second queue.
+  start_output();
+  output_spinner_ = std::make_unique<ros::AsyncSpinner>(1, &output_queue_);
+  output_spinner_->start();
+}
+
+void SlamNode::start_output() {
+  // Publishers, timers and services on the second queue.
   output_node_.setCallbackQueue(&output_queue_);
   path_publisher_ = output_node_.advertise<nav_msgs::Path>("pose_history", 1, true);
   submap_poses_publisher_ = output_node_.advertise<covoxslam::SubmapPoses>("submap_poses", 1, true);
   combined_mesh_publisher_ =
       output_node_.advertise<visualization_msgs::Marker>("combined_mesh", 1, true);
-  separated_mesh_publisher_ =
-      output_node_.advertise<visualization_msgs::MarkerArray>("separated_mesh", 10, true);
+  // Not latched: each message holds only new or re-meshed submaps, so a new subscriber is sent
+  // every submap on connecting instead (on this queue, the output thread).
+  separated_mesh_publisher_ = output_node_.advertise<visualization_msgs::MarkerArray>(
+      "separated_mesh", 100,
+      [this](const ros::SingleSubscriberPublisher& subscriber) {
+        send_meshes_to_new_subscriber(subscriber);
+      },
+      ros::SubscriberStatusCallback());
   bounding_boxes_publisher_ =
       output_node_.advertise<visualization_msgs::MarkerArray>("submap_bounding_boxes", 1, true);
   pose_graph_publisher_ =
@@ -168,8 +181,6 @@ SlamNode::SlamNode(ros::NodeHandle node, ros::NodeHandle private_node)
   services_.push_back(
       output_node_.advertiseService("optimize_pose_graph", &SlamNode::optimize_pose_graph, this));
   services_.push_back(output_node_.advertiseService("reset", &SlamNode::reset, this));
-  output_spinner_ = std::make_unique<ros::AsyncSpinner>(1, &output_queue_);
-  output_spinner_->start();
 }
 
 SlamNode::~SlamNode() {

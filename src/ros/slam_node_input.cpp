@@ -1,6 +1,9 @@
 // SlamNode input: clouds and depth images become scans, wait for their pose (tf or odometry
-// topic) and go to the SLAM system; loop closures go straight to it.
+// topic) and go to the SLAM system; loop closures go straight to it. Time going backwards is
+// detected here (accept_time_locked).
 #include <tf2_eigen/tf2_eigen.h>
+
+#include <sstream>
 
 #include "covoxslam/io/depth_image_points.h"
 #include "covoxslam/io/pointcloud_fields.h"
@@ -10,7 +13,29 @@
 namespace covox {
 namespace ros_layer {
 
+namespace {
+
+// tf cannot answer `stamp` now and never will: its buffer starts after it (tf keeps data in time
+// order, so older data does not arrive later), or the stamp lies further back than the buffer
+// keeps at all.
+bool tf_never_answers(const std::string& error, const ros::Time& stamp,
+                      const ros::Duration& cache_length) {
+  if (error.find("extrapolation into the past") != std::string::npos) return true;
+  const ros::Time now = ros::Time::now();
+  return !now.isZero() && now > stamp && (now - stamp) > cache_length;
+}
+
+std::string seconds_text(double seconds) {
+  std::ostringstream text;
+  text.precision(3);
+  text << std::fixed << seconds;
+  return text.str();
+}
+
+}  // namespace
+
 void SlamNode::count_drop(pipeline::DropCounter& counter, const std::string& what) {
+  last_refusal_ = what;
   if (counter.count(ros::WallTime::now().toSec())) {
     ROS_WARN_STREAM("covoxslam: " << what << " (" << counter.logged_batch()
                                   << " such drops since the last message, " << counter.total()
@@ -29,6 +54,7 @@ void SlamNode::cloud_callback(const sensor_msgs::PointCloud2::ConstPtr& cloud) {
   std::lock_guard<std::mutex> lock(input_mutex_);
   ++clouds_received_;
   if (!result.ok()) {
+    last_refusal_ = "a PointCloud2 with a bad layout: " + result.message;
     if (drops_.bad_layout.count(ros::WallTime::now().toSec())) {
       ROS_ERROR_STREAM("covoxslam: dropped the PointCloud2 in frame '"
                        << cloud->header.frame_id << "' at " << cloud->header.stamp << ": "
@@ -38,6 +64,7 @@ void SlamNode::cloud_callback(const sensor_msgs::PointCloud2::ConstPtr& cloud) {
     }
     return;
   }
+  points_dropped_non_finite_ += decoded.dropped_non_finite;
   if (decoded.points_m.empty()) {
     count_drop(drops_.empty_cloud,
                "dropped a cloud at " + std::to_string(cloud->header.stamp.toSec()) +
@@ -47,6 +74,12 @@ void SlamNode::cloud_callback(const sensor_msgs::PointCloud2::ConstPtr& cloud) {
   }
   if (cloud->header.frame_id.empty()) {
     count_drop(drops_.unknown_frame, "dropped a cloud with an empty frame_id");
+    return;
+  }
+  if (!accept_time_locked(cloud->header.stamp, &cloud_time_, "cloud")) {
+    count_drop(drops_.refused_after_time_jump, "refused the cloud at " +
+                                                   seconds_text(cloud->header.stamp.toSec()) +
+                                                   " s: " + refusing_reason_);
     return;
   }
   PendingScan scan;
@@ -90,6 +123,12 @@ void SlamNode::depth_color_callback(const sensor_msgs::Image::ConstPtr& depth,
     count_drop(drops_.empty_cloud, "dropped a depth image without a valid pixel");
     return;
   }
+  if (!accept_time_locked(depth->header.stamp, &cloud_time_, "depth image")) {
+    count_drop(drops_.refused_after_time_jump, "refused the depth image at " +
+                                                   seconds_text(depth->header.stamp.toSec()) +
+                                                   " s: " + refusing_reason_);
+    return;
+  }
   PendingScan scan;
   scan.stamp = depth->header.stamp;
   scan.frame = depth->header.frame_id;
@@ -122,6 +161,8 @@ void SlamNode::odometry_callback(const nav_msgs::Odometry::ConstPtr& odometry) {
   transform.rotation = pose.orientation;
   const Eigen::Isometry3d T_odom_base = to_isometry(transform);
   std::lock_guard<std::mutex> lock(input_mutex_);
+  // While clouds are refused after a time jump, their odometry is of no use either.
+  if (!accept_time_locked(odometry->header.stamp, &odometry_time_, "odometry")) return;
   if (!odometry_buffer_.add(odometry->header.stamp.toSec(), T_odom_base)) {
     count_drop(drops_.bad_odometry,
                "ignored an odometry message at " + std::to_string(odometry->header.stamp.toSec()) +
@@ -145,6 +186,11 @@ SlamNode::PoseResult SlamNode::sensor_pose_locked(const PendingScan& scan,
     if (tf_buffer_.canTransform(options_.odom_frame, options_.base_frame, scan.stamp, &error)) {
       T_odom_base = tf2::transformToEigen(
           tf_buffer_.lookupTransform(options_.odom_frame, options_.base_frame, scan.stamp));
+    } else if (tf_never_answers(error, scan.stamp, tf_buffer_.getCacheLength())) {
+      count_drop(drops_.pose_unavailable, "dropped the cloud" + at + ": tf " + options_.odom_frame +
+                                              " -> " + options_.base_frame +
+                                              " holds no data that old (" + error + ")");
+      return PoseResult::kDrop;
     } else if (waited_s <= timeout_s) {
       return PoseResult::kWait;
     } else {
@@ -182,6 +228,11 @@ SlamNode::PoseResult SlamNode::sensor_pose_locked(const PendingScan& scan,
     if (tf_buffer_.canTransform(options_.base_frame, scan.frame, scan.stamp, &error)) {
       T_base_sensor = tf2::transformToEigen(
           tf_buffer_.lookupTransform(options_.base_frame, scan.frame, scan.stamp));
+    } else if (tf_never_answers(error, scan.stamp, tf_buffer_.getCacheLength())) {
+      count_drop(drops_.pose_unavailable, "dropped the cloud" + at + ": tf " + options_.base_frame +
+                                              " -> " + scan.frame + " holds no data that old (" +
+                                              error + ")");
+      return PoseResult::kDrop;
     } else if (waited_s <= timeout_s) {
       return PoseResult::kWait;
     } else {
@@ -200,6 +251,8 @@ SlamNode::PoseResult SlamNode::sensor_pose_locked(const PendingScan& scan,
 }
 
 void SlamNode::process_pending_locked() {
+  // finish_map has stopped the SLAM system for a moment: the clouds wait for it to run again.
+  if (finishing_) return;
   // In arrival order: the SLAM system needs increasing stamps, so a scan never overtakes an
   // older one that still waits.
   while (!pending_.empty()) {
@@ -218,12 +271,105 @@ void SlamNode::process_pending_locked() {
         last_added_stamp_ = scan.stamp;
       } else {
         count_drop(drops_.rejected_by_slam, "the SLAM system refused the cloud at " +
-                                                std::to_string(scan.stamp.toSec()) +
-                                                " s (see its counters in ~diagnostics)");
+                                                seconds_text(scan.stamp.toSec()) +
+                                                " s: " + slam_refusal_reason());
       }
     }
     pending_.pop_front();
   }
+}
+
+std::string SlamNode::slam_refusal_reason() {
+  const pipeline::SlamCounters now = slam_->counters();
+  const pipeline::SlamCounters& before = refusal_reference_;
+  const struct {
+    bool grew;
+    const char* why;
+  } reasons[] = {
+      {now.scans_dropped_bad_stamp > before.scans_dropped_bad_stamp,
+       "its stamp is not after the previous cloud's (a repeated stamp, or time going back by "
+       "less than time_jump_min_s)"},
+      {now.scans_dropped_invalid_pose > before.scans_dropped_invalid_pose,
+       "its pose is not a finite rigid transform"},
+      {now.scans_dropped_empty_cloud > before.scans_dropped_empty_cloud, "it has no points"},
+      {now.scans_dropped_bad_colors > before.scans_dropped_bad_colors,
+       "its colour count does not match its point count"},
+      {now.scans_rejected_not_running > before.scans_rejected_not_running,
+       "the SLAM system is not running"}};
+  refusal_reference_ = now;
+  for (const auto& reason : reasons) {
+    if (reason.grew) return reason.why;
+  }
+  return "see the SLAM counters in ~diagnostics";
+}
+
+void SlamNode::clear_input_locked() {
+  pending_.clear();
+  odometry_buffer_.clear();
+  last_clock_ = ros::Time();
+  cloud_time_ = TimeLine();
+  odometry_time_ = TimeLine();
+  last_added_stamp_ = ros::Time();
+  refusing_reason_.clear();
+}
+
+void SlamNode::check_clock_locked() {
+  // Only simulated time is watched: a wall clock stepped back (NTP) is no new time line.
+  if (!ros::Time::isSimTime()) return;
+  const ros::Time now = ros::Time::now();
+  if (now.isZero()) return;  // before the first /clock message
+  if (!last_clock_.isZero() && now < last_clock_)
+    on_time_jump_locked("the ROS clock", last_clock_.toSec(), now.toSec());
+  last_clock_ = now;
+}
+
+bool SlamNode::accept_time_locked(const ros::Time& stamp, TimeLine* line, const char* input) {
+  check_clock_locked();
+  if (!line->newest.isZero() && !stamp.isZero() &&
+      (line->newest - stamp).toSec() > options_.time_jump_min_s) {
+    if (++line->backwards_in_a_row >= 2) {
+      on_time_jump_locked(std::string("the ") + input + " stamps", line->newest.toSec(),
+                          stamp.toSec());
+    }
+  } else {
+    line->backwards_in_a_row = 0;
+  }
+  if (!refusing_reason_.empty()) return false;
+  if (stamp > line->newest) line->newest = stamp;
+  return true;
+}
+
+void SlamNode::on_time_jump_locked(const std::string& cause, double from_s, double to_s) {
+  // The clock and each input's stamps report the same jump one after the other: within
+  // time_jump_min_s of wall time after a handled jump, only the references start again.
+  const ros::WallTime now_wall = ros::WallTime::now();
+  const bool same_jump =
+      !last_jump_wall_.isZero() && (now_wall - last_jump_wall_).toSec() < options_.time_jump_min_s;
+  last_jump_wall_ = now_wall;
+  cloud_time_ = TimeLine();
+  odometry_time_ = TimeLine();
+  if (same_jump) return;
+  ++time_jumps_;
+  const std::string jump = "time went backwards by " + seconds_text(from_s - to_s) + " s (" +
+                           cause + " jumped from " + seconds_text(from_s) + " s to " +
+                           seconds_text(to_s) + " s: a bag played again or looped?)";
+  if (options_.time_jump_policy == "refuse") {
+    // Nothing mapped from now on fits the map's time line: refuse until reset or load_map.
+    pending_.clear();
+    odometry_buffer_.clear();
+    refusing_reason_ =
+        jump + "; clouds are refused until ~reset or ~load_map (time_jump_policy: refuse)";
+    ROS_WARN_STREAM("covoxslam: " << refusing_reason_);
+    return;
+  }
+  ROS_WARN_STREAM(
+      "covoxslam: " << jump << "; the map is reset and mapping starts again with the next cloud "
+                    << "(time_jump_policy: reset)");
+  clear_input_locked();
+  slam_->reset();
+  slam_->resume();
+  ++automatic_resets_;
+  markers_reset_requested_ = true;
 }
 
 void SlamNode::loop_closure_callback(const covoxslam::LoopClosure::ConstPtr& closure) {

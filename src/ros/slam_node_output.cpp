@@ -1,10 +1,11 @@
 // SlamNode output: the mission -> odom correction on tf, the corrected path, submap poses,
-// meshes (per submap only when changed), bounding boxes, the pose graph, ESDF slices and
-// diagnostics. Runs on the output thread.
+// submap frames on /tf_static, meshes (per submap, sent once when new or re-meshed), bounding
+// boxes, the pose graph, ESDF slices and diagnostics. Runs on the output thread.
 #include <covoxslam/SubmapPoses.h>
 #include <geometry_msgs/TransformStamped.h>
 #include <nav_msgs/Path.h>
 
+#include "covoxslam/map/mesh_colors.h"
 #include "covoxslam/ros/message_conversions.h"
 #include "covoxslam/ros/slam_node.h"
 
@@ -12,6 +13,13 @@ namespace covox {
 namespace ros_layer {
 
 namespace {
+
+std::string submap_frame(int64_t id) { return "submap_" + std::to_string(id); }
+
+// Submap meshes: namespace of the per-vertex coloured marker, and the number of height slices a
+// mesh without fused colour is sent in (half a metre each over the default 10 m range).
+constexpr const char* kMeshNamespace = "submap_mesh";
+constexpr int kHeightBands = 20;
 
 bool same_pose(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
   // 1 mm / about 0.06 degrees: below what rviz shows, above solver noise.
@@ -33,13 +41,49 @@ void add_timing(diagnostic_msgs::DiagnosticStatus* status, const std::string& na
   status->values.push_back(entry(name + "_max_ms", std::to_string(1000.0 * t.max_s)));
 }
 
+void add_slam_counters(diagnostic_msgs::DiagnosticStatus* status,
+                       const pipeline::SlamCounters& counters, int64_t sensor_queue_length,
+                       int64_t submap_queue_length) {
+  const struct {
+    const char* key;
+    int64_t value;
+  } values[] = {{"sensor_queue_length", sensor_queue_length},
+                {"submap_queue_length", submap_queue_length},
+                {"scans_integrated", counters.scans_integrated},
+                {"scans_dropped_total", counters.scans_dropped_total()},
+                {"scans_dropped_queue_full", counters.scans_dropped_queue_full},
+                {"scans_dropped_invalid_pose", counters.scans_dropped_invalid_pose},
+                {"scans_dropped_bad_stamp", counters.scans_dropped_bad_stamp},
+                {"scans_rejected_not_running", counters.scans_rejected_not_running},
+                {"scans_discarded_at_reset", counters.scans_discarded_at_reset},
+                {"scans_failed", counters.scans_failed},
+                {"points_integrated", counters.points_integrated},
+                {"points_dropped_by_integrator", counters.points_dropped_by_integrator},
+                {"submaps_created", counters.submaps_created},
+                {"submaps_finished", counters.submaps_finished},
+                {"submaps_dropped_queue_full", counters.submaps_dropped_queue_full},
+                {"submaps_failed", counters.submaps_failed},
+                {"submaps_loaded", counters.submaps_loaded},
+                {"odometry_constraints", counters.odometry_constraints},
+                {"registration_attempted", counters.registration.attempted},
+                {"registration_accepted", counters.registration.accepted},
+                {"loop_closures_received", counters.loop_closures.received},
+                {"loop_closures_added", counters.loop_closures.added},
+                {"optimizations", counters.optimizations},
+                {"optimizations_failed", counters.optimizations_failed},
+                {"resets", counters.resets}};
+  for (const auto& value : values)
+    status->values.push_back(entry(value.key, std::to_string(value.value)));
+}
+
 }  // namespace
 
 void SlamNode::publish_tf(const ros::WallTimerEvent&) {
   // tf listeners reject (and warn about) a repeated stamp: with simulated time the clock stands
-  // still before and after a bag, so publish only when it moved.
+  // still before and after a bag, so publish only when it moved (backwards too: a bag played
+  // again restarts the clock).
   const ros::Time now = ros::Time::now();
-  if (now.isZero() || now <= last_tf_stamp_) return;
+  if (now.isZero() || now == last_tf_stamp_) return;
   last_tf_stamp_ = now;
   geometry_msgs::TransformStamped transform;
   transform.header.stamp = now;
@@ -49,7 +93,15 @@ void SlamNode::publish_tf(const ros::WallTimerEvent&) {
   tf_broadcaster_.sendTransform(transform);
 }
 
-void SlamNode::publish_visualization(const ros::WallTimerEvent&) { publish_map(false); }
+void SlamNode::publish_visualization(const ros::WallTimerEvent&) {
+  // The input thread reset the map (time went backwards): the markers show the discarded one.
+  if (markers_reset_requested_.exchange(false)) {
+    clear_published_markers();
+    publish_map(false, true);
+    return;
+  }
+  publish_map(false, false);
+}
 
 void SlamNode::clear_published_markers() {
   visualization_msgs::Marker clear;
@@ -70,55 +122,27 @@ void SlamNode::clear_published_markers() {
   map_changed_ = true;
 }
 
-void SlamNode::publish_map(bool force) {
-  const ros::Time stamp = ros::Time::now();
-  const std::string& frame = options_.mission_frame;
-
-  // Path of corrected sensor poses: whenever a scan was added or poses may have moved.
-  const std::vector<pipeline::StampedPose> trajectory = slam_->corrected_trajectory();
-  const std::vector<pipeline::SubmapInfo> submaps = slam_->submaps();
-
-  // Which submaps changed since they were last published (new, moved, re-meshed).
-  std::vector<const pipeline::SubmapInfo*> changed;
-  for (const pipeline::SubmapInfo& submap : submaps) {
-    auto it = published_submaps_.find(submap.id);
-    if (force || it == published_submaps_.end() ||
-        !same_pose(it->second.T_world_submap, submap.T_world_submap) ||
-        it->second.mesh_triangles != submap.mesh_triangles) {
-      changed.push_back(&submap);
-    }
+void SlamNode::publish_path(const std::vector<pipeline::StampedPose>& trajectory,
+                            const ros::Time& stamp) {
+  nav_msgs::Path path;
+  path.header.frame_id = options_.mission_frame;
+  path.header.stamp = stamp;
+  path.poses.reserve(trajectory.size());
+  for (const pipeline::StampedPose& pose : trajectory) {
+    geometry_msgs::PoseStamped stamped;
+    stamped.header.frame_id = options_.mission_frame;
+    stamped.header.stamp.fromSec(pose.stamp_s);
+    stamped.pose = to_pose_msg(pose.T_world_sensor);
+    path.poses.push_back(stamped);
   }
-  // Submaps that disappeared (reset, load_map) are deleted from rviz.
-  std::vector<int64_t> removed;
-  for (const auto& published : published_submaps_) {
-    bool present = false;
-    for (const pipeline::SubmapInfo& submap : submaps)
-      present = present || submap.id == published.first;
-    if (!present) removed.push_back(published.first);
-  }
-  const bool graph_changed = force || map_changed_ || !changed.empty() || !removed.empty();
-  const bool path_changed = graph_changed || trajectory.size() != published_trajectory_size_;
+  path_publisher_.publish(path);
+  published_trajectory_size_ = trajectory.size();
+}
 
-  if (path_changed) {
-    nav_msgs::Path path;
-    path.header.frame_id = frame;
-    path.header.stamp = stamp;
-    path.poses.reserve(trajectory.size());
-    for (const pipeline::StampedPose& pose : trajectory) {
-      geometry_msgs::PoseStamped stamped;
-      stamped.header.frame_id = frame;
-      stamped.header.stamp.fromSec(pose.stamp_s);
-      stamped.pose = to_pose_msg(pose.T_world_sensor);
-      path.poses.push_back(stamped);
-    }
-    path_publisher_.publish(path);
-    published_trajectory_size_ = trajectory.size();
-  }
-  if (!graph_changed) return;
-  map_changed_ = false;
-
+void SlamNode::publish_submap_poses(const std::vector<pipeline::SubmapInfo>& submaps,
+                                    const ros::Time& stamp) {
   covoxslam::SubmapPoses poses;
-  poses.header.frame_id = frame;
+  poses.header.frame_id = options_.mission_frame;
   poses.header.stamp = stamp;
   for (const pipeline::SubmapInfo& submap : submaps) {
     covoxslam::SubmapPose pose;
@@ -133,48 +157,139 @@ void SlamNode::publish_map(bool force) {
     poses.submaps.push_back(pose);
   }
   submap_poses_publisher_.publish(poses);
+}
 
-  if (options_.publish_separated_mesh) {
-    visualization_msgs::MarkerArray markers;
-    for (int64_t id : removed) {
-      visualization_msgs::Marker deletion;
-      deletion.header.frame_id = frame;
-      deletion.header.stamp = stamp;
-      deletion.ns = "submap_mesh";
-      deletion.id = static_cast<int>(id);
-      deletion.action = visualization_msgs::Marker::DELETE;
-      markers.markers.push_back(deletion);
+void SlamNode::publish_submap_frames(const std::vector<pipeline::SubmapInfo>& submaps, bool force) {
+  std::vector<geometry_msgs::TransformStamped> frames;
+  for (const pipeline::SubmapInfo& submap : submaps) {
+    auto published = published_frames_.find(submap.id);
+    if (!force && published != published_frames_.end() &&
+        same_pose(published->second, submap.T_world_submap)) {
+      continue;
     }
-    for (const pipeline::SubmapInfo* submap : changed) {
-      Mesh mesh;
-      Eigen::Isometry3d T_world_submap;
-      if (!slam_->submap_mesh(submap->id, &mesh, &T_world_submap)) continue;
-      // The vertices stay in the submap frame; a moved submap only changes the marker's pose.
-      markers.markers.push_back(mesh_marker(mesh, T_world_submap, frame, stamp, "submap_mesh",
-                                            static_cast<int>(submap->id)));
-    }
-    if (!markers.markers.empty()) separated_mesh_publisher_.publish(markers);
+    geometry_msgs::TransformStamped frame;
+    frame.header.stamp = ros::Time::now();
+    frame.header.frame_id = options_.mission_frame;
+    frame.child_frame_id = submap_frame(submap.id);
+    frame.transform = to_transform_msg(submap.T_world_submap);
+    frames.push_back(frame);
+    published_frames_[submap.id] = submap.T_world_submap;
   }
+  // The broadcaster re-sends every frame it ever sent, with these updated, as one latched list.
+  if (!frames.empty()) static_broadcaster_.sendTransform(frames);
+}
+
+visualization_msgs::MarkerArray SlamNode::submap_mesh_markers(const std::vector<int64_t>& ids,
+                                                              const std::vector<int64_t>& removed,
+                                                              const ros::Time& stamp) {
+  visualization_msgs::MarkerArray markers;
+  const HeightColorRange range{static_cast<float>(options_.mesh_height_color_min_m),
+                               static_cast<float>(options_.mesh_height_color_max_m)};
+  for (int64_t id : removed) {
+    markers.markers.push_back(
+        deletion_marker(submap_frame(id), stamp, kMeshNamespace, static_cast<int>(id)));
+    for (int band = 0; band < kHeightBands; ++band) {
+      markers.markers.push_back(deletion_marker(
+          submap_frame(id), stamp, std::string(kMeshNamespace) + "_height_" + std::to_string(band),
+          static_cast<int>(id)));
+    }
+  }
+  for (int64_t id : ids) {
+    Mesh mesh;
+    Eigen::Isometry3d T_world_submap;
+    if (!slam_->submap_mesh(id, &mesh, &T_world_submap)) continue;
+    // Vertices in the submap's own frame, which tf places: moving the submap moves the marker.
+    // Heights for the colours are taken at the submap's pose of now. A mesh with fused colours
+    // is one marker with per-vertex colours (black vertices by height); one without is sent as
+    // height slices of one colour each. Either way the other form is deleted.
+    const bool colored = has_observed_colors(mesh);
+    std::vector<visualization_msgs::Marker> bands =
+        height_band_markers(colored ? Mesh() : mesh, T_world_submap, range, kHeightBands,
+                            submap_frame(id), stamp, kMeshNamespace, static_cast<int>(id));
+    visualization_msgs::Marker vertex_colored =
+        colored ? mesh_marker(mesh, display_colors(mesh, T_world_submap, range),
+                              Eigen::Isometry3d::Identity(), submap_frame(id), stamp,
+                              kMeshNamespace, static_cast<int>(id))
+                : deletion_marker(submap_frame(id), stamp, kMeshNamespace, static_cast<int>(id));
+    bands.push_back(std::move(vertex_colored));
+    for (visualization_msgs::Marker& marker : bands) {
+      marker.frame_locked = true;
+      markers.markers.push_back(std::move(marker));
+    }
+  }
+  return markers;
+}
+
+void SlamNode::send_meshes_to_new_subscriber(const ros::SingleSubscriberPublisher& subscriber) {
+  if (!options_.publish_separated_mesh || published_submaps_.empty()) return;
+  std::vector<int64_t> ids;
+  for (const auto& published : published_submaps_) ids.push_back(published.first);
+  subscriber.publish(submap_mesh_markers(ids, {}, ros::Time::now()));
+}
+
+void SlamNode::publish_map(bool resend_meshes, bool with_combined_mesh) {
+  const ros::Time stamp = ros::Time::now();
+  const std::vector<pipeline::StampedPose> trajectory = slam_->corrected_trajectory();
+  const std::vector<pipeline::SubmapInfo> submaps = slam_->submaps();
+
+  // A new or re-meshed submap sends its mesh; a moved one only its frame.
+  std::vector<int64_t> meshed, removed;
+  bool moved = false;
+  for (const pipeline::SubmapInfo& submap : submaps) {
+    auto it = published_submaps_.find(submap.id);
+    if (resend_meshes || it == published_submaps_.end() ||
+        it->second.mesh_triangles != submap.mesh_triangles) {
+      meshed.push_back(submap.id);
+    } else if (!same_pose(it->second.T_world_submap, submap.T_world_submap)) {
+      moved = true;
+    }
+  }
+  // Submaps that disappeared (reset, load_map) are deleted from rviz.
+  for (const auto& published : published_submaps_) {
+    bool present = false;
+    for (const pipeline::SubmapInfo& submap : submaps)
+      present = present || submap.id == published.first;
+    if (!present) removed.push_back(published.first);
+  }
+  const bool graph_changed = resend_meshes || with_combined_mesh || map_changed_ || moved ||
+                             !meshed.empty() || !removed.empty();
+  if (graph_changed || trajectory.size() != published_trajectory_size_)
+    publish_path(trajectory, stamp);
+  if (!graph_changed) return;
+  map_changed_ = false;
+
+  publish_submap_poses(submaps, stamp);
+  // The frames go out before the markers drawn in them.
+  publish_submap_frames(submaps, resend_meshes);
+  if (options_.publish_separated_mesh && (!meshed.empty() || !removed.empty()))
+    separated_mesh_publisher_.publish(submap_mesh_markers(meshed, removed, stamp));
   for (int64_t id : removed) published_submaps_.erase(id);
-  for (const pipeline::SubmapInfo* submap : changed) {
-    published_submaps_[submap->id] =
-        PublishedSubmap{submap->T_world_submap, submap->mesh_triangles};
+  for (const pipeline::SubmapInfo& submap : submaps) {
+    published_submaps_[submap.id] = PublishedSubmap{submap.T_world_submap, submap.mesh_triangles};
   }
 
-  if (options_.publish_combined_mesh &&
-      combined_mesh_publisher_.getNumSubscribers() + (force ? 1 : 0) > 0) {
-    combined_mesh_publisher_.publish(mesh_marker(
-        slam_->combined_mesh(), Eigen::Isometry3d::Identity(), frame, stamp, "combined_mesh", 0));
+  // The combined mesh holds every triangle in the world frame, so any moved submap changes it:
+  // it is published on request only (finish_map, generate_mesh, reset, load_map), latched.
+  if (options_.publish_combined_mesh && with_combined_mesh) {
+    const Mesh combined = slam_->combined_mesh();
+    const HeightColorRange range{static_cast<float>(options_.mesh_height_color_min_m),
+                                 static_cast<float>(options_.mesh_height_color_max_m)};
+    const Eigen::Isometry3d identity = Eigen::Isometry3d::Identity();
+    combined_mesh_publisher_.publish(
+        mesh_marker(combined, display_colors(combined, identity, range), identity,
+                    options_.mission_frame, stamp, "combined_mesh", 0));
   }
-  bounding_boxes_publisher_.publish(bounding_box_markers(submaps, frame, stamp));
-  pose_graph_publisher_.publish(pose_graph_markers(submaps, slam_->constraints(), frame, stamp));
+  bounding_boxes_publisher_.publish(bounding_box_markers(submaps, options_.mission_frame, stamp));
+  pose_graph_publisher_.publish(
+      pose_graph_markers(submaps, slam_->constraints(), options_.mission_frame, stamp));
 
   if (options_.publish_esdf_slices) {
-    esdf_slice_publisher_.publish(
-        slice_cloud(slam_->esdf_slice_world(options_.esdf_slice_height_m), frame, stamp));
+    esdf_slice_publisher_.publish(slice_cloud(slam_->esdf_slice_world(options_.esdf_slice_height_m),
+                                              options_.mission_frame, stamp));
     int64_t newest_id = -1;
-    submap_esdf_slice_publisher_.publish(slice_cloud(
-        slam_->esdf_slice_newest_submap(options_.esdf_slice_height_m, &newest_id), frame, stamp));
+    submap_esdf_slice_publisher_.publish(
+        slice_cloud(slam_->esdf_slice_newest_submap(options_.esdf_slice_height_m, &newest_id),
+                    options_.mission_frame, stamp));
   }
 }
 
@@ -197,6 +312,46 @@ void SlamNode::publish_active_submap_slice(const ros::WallTimerEvent&) {
       slice_cloud(slice, options_.mission_frame, ros::Time::now()));
 }
 
+void SlamNode::add_input_diagnostics(diagnostic_msgs::DiagnosticStatus* status, int64_t* node_drops,
+                                     std::string* state) {
+  std::lock_guard<std::mutex> lock(input_mutex_);
+  const struct {
+    const char* key;
+    const pipeline::DropCounter& counter;
+  } drops[] = {{"clouds_dropped_bad_layout", drops_.bad_layout},
+               {"clouds_dropped_empty", drops_.empty_cloud},
+               {"images_dropped_bad", drops_.bad_image},
+               {"clouds_dropped_tf_timeout", drops_.tf_timeout},
+               {"clouds_dropped_unknown_frame", drops_.unknown_frame},
+               {"clouds_dropped_pose_unavailable", drops_.pose_unavailable},
+               {"clouds_dropped_pending_overflow", drops_.pending_overflow},
+               {"clouds_refused_by_slam", drops_.rejected_by_slam},
+               {"clouds_refused_after_time_jump", drops_.refused_after_time_jump},
+               {"odometry_messages_ignored", drops_.bad_odometry},
+               {"loop_closures_refused", drops_.loop_closures_rejected}};
+  if (!refusing_reason_.empty()) {
+    *state = "refusing clouds: " + refusing_reason_;
+  } else if (finishing_) {
+    *state = "finishing the map (clouds wait)";
+  } else {
+    *state = scans_added_ > 0 ? "mapping" : "waiting for the first cloud";
+  }
+  status->values.push_back(entry("state", *state));
+  status->values.push_back(entry("last_refusal", last_refusal_.empty() ? "none" : last_refusal_));
+  status->values.push_back(entry("clouds_received", std::to_string(clouds_received_)));
+  status->values.push_back(entry("scans_added", std::to_string(scans_added_)));
+  status->values.push_back(entry("clouds_waiting_for_tf", std::to_string(pending_.size())));
+  status->values.push_back(
+      entry("points_dropped_non_finite", std::to_string(points_dropped_non_finite_)));
+  status->values.push_back(entry("time_jumps_backwards", std::to_string(time_jumps_)));
+  status->values.push_back(entry("automatic_resets", std::to_string(automatic_resets_)));
+  *node_drops = 0;
+  for (const auto& drop : drops) {
+    status->values.push_back(entry(drop.key, std::to_string(drop.counter.total())));
+    *node_drops += drop.counter.total();
+  }
+}
+
 void SlamNode::publish_diagnostics(const ros::WallTimerEvent&) {
   const pipeline::SlamCounters counters = slam_->counters();
   const pipeline::SlamTimings timings = slam_->timings();
@@ -204,57 +359,10 @@ void SlamNode::publish_diagnostics(const ros::WallTimerEvent&) {
   status.name = "covoxslam";
   status.hardware_id = describe_device(slam_->config().device);
   int64_t node_drops = 0;
-  {
-    std::lock_guard<std::mutex> lock(input_mutex_);
-    const struct {
-      const char* key;
-      const pipeline::DropCounter& counter;
-    } drops[] = {{"clouds_dropped_bad_layout", drops_.bad_layout},
-                 {"clouds_dropped_empty", drops_.empty_cloud},
-                 {"images_dropped_bad", drops_.bad_image},
-                 {"clouds_dropped_tf_timeout", drops_.tf_timeout},
-                 {"clouds_dropped_unknown_frame", drops_.unknown_frame},
-                 {"clouds_dropped_pose_unavailable", drops_.pose_unavailable},
-                 {"clouds_dropped_pending_overflow", drops_.pending_overflow},
-                 {"clouds_refused_by_slam", drops_.rejected_by_slam},
-                 {"odometry_messages_ignored", drops_.bad_odometry},
-                 {"loop_closures_refused", drops_.loop_closures_rejected}};
-    status.values.push_back(entry("clouds_received", std::to_string(clouds_received_)));
-    status.values.push_back(entry("scans_added", std::to_string(scans_added_)));
-    status.values.push_back(entry("clouds_waiting_for_tf", std::to_string(pending_.size())));
-    for (const auto& drop : drops) {
-      status.values.push_back(entry(drop.key, std::to_string(drop.counter.total())));
-      node_drops += drop.counter.total();
-    }
-  }
-  const struct {
-    const char* key;
-    int64_t value;
-  } values[] = {{"sensor_queue_length", static_cast<int64_t>(slam_->sensor_queue_length())},
-                {"submap_queue_length", static_cast<int64_t>(slam_->submap_queue_length())},
-                {"scans_integrated", counters.scans_integrated},
-                {"scans_dropped_total", counters.scans_dropped_total()},
-                {"scans_dropped_queue_full", counters.scans_dropped_queue_full},
-                {"scans_dropped_invalid_pose", counters.scans_dropped_invalid_pose},
-                {"scans_dropped_bad_stamp", counters.scans_dropped_bad_stamp},
-                {"scans_failed", counters.scans_failed},
-                {"points_integrated", counters.points_integrated},
-                {"points_dropped_by_integrator", counters.points_dropped_by_integrator},
-                {"submaps_created", counters.submaps_created},
-                {"submaps_finished", counters.submaps_finished},
-                {"submaps_dropped_queue_full", counters.submaps_dropped_queue_full},
-                {"submaps_failed", counters.submaps_failed},
-                {"submaps_loaded", counters.submaps_loaded},
-                {"odometry_constraints", counters.odometry_constraints},
-                {"registration_attempted", counters.registration.attempted},
-                {"registration_accepted", counters.registration.accepted},
-                {"loop_closures_received", counters.loop_closures.received},
-                {"loop_closures_added", counters.loop_closures.added},
-                {"optimizations", counters.optimizations},
-                {"optimizations_failed", counters.optimizations_failed},
-                {"resets", counters.resets}};
-  for (const auto& value : values)
-    status.values.push_back(entry(value.key, std::to_string(value.value)));
+  std::string state;
+  add_input_diagnostics(&status, &node_drops, &state);
+  add_slam_counters(&status, counters, static_cast<int64_t>(slam_->sensor_queue_length()),
+                    static_cast<int64_t>(slam_->submap_queue_length()));
   add_timing(&status, "tsdf", timings.tsdf);
   add_timing(&status, "esdf", timings.esdf);
   add_timing(&status, "mesh", timings.mesh);
@@ -263,16 +371,20 @@ void SlamNode::publish_diagnostics(const ros::WallTimerEvent&) {
   add_timing(&status, "sensor_queue_wait", timings.sensor_queue_wait);
   add_timing(&status, "submap_queue_wait", timings.submap_queue_wait);
 
-  // WARN while inputs are being dropped (since the previous report), OK otherwise.
+  // ERROR while clouds are refused, WARN while inputs are being dropped (since the previous
+  // report), OK otherwise; the message is the state.
   const int64_t dropped_total =
       node_drops + counters.scans_dropped_total() + counters.submaps_dropped_queue_full;
-  if (dropped_total > last_dropped_total_) {
+  if (state.compare(0, 8, "refusing") == 0) {
+    status.level = diagnostic_msgs::DiagnosticStatus::ERROR;
+    status.message = state;
+  } else if (dropped_total > last_dropped_total_) {
     status.level = diagnostic_msgs::DiagnosticStatus::WARN;
-    status.message = std::to_string(dropped_total - last_dropped_total_) +
+    status.message = state + "; " + std::to_string(dropped_total - last_dropped_total_) +
                      " inputs dropped since the last report";
   } else {
     status.level = diagnostic_msgs::DiagnosticStatus::OK;
-    status.message = "mapping";
+    status.message = state;
   }
   last_dropped_total_ = dropped_total;
   diagnostic_msgs::DiagnosticArray array;

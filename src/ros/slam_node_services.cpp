@@ -1,8 +1,10 @@
 // SlamNode services: save / load the map, save the trajectory (TUM) and the mesh (PLY), publish
-// the meshes now, finish the map, optimise, reset. They run on the output thread; every failure
+// the meshes now, finish the map, optimise, reset. After finish_map, reset and load_map the node
+// maps the next clouds. They run on the output thread; every failure
 // is answered with success = false and a message saying why (never an exception into roscpp).
 #include <exception>
 #include <functional>
+#include <utility>
 
 #include "covoxslam/core/error.h"
 #include "covoxslam/io/map_file.h"
@@ -34,6 +36,18 @@ std::string require_path(const std::string& path) {
   if (path.empty()) throw Error("file_path is empty");
   return path;
 }
+
+// Runs `on_exit` when the scope ends, also by an exception.
+class ScopeExit {
+ public:
+  explicit ScopeExit(std::function<void()> on_exit) : on_exit_(std::move(on_exit)) {}
+  ~ScopeExit() { on_exit_(); }
+  ScopeExit(const ScopeExit&) = delete;
+  ScopeExit& operator=(const ScopeExit&) = delete;
+
+ private:
+  std::function<void()> on_exit_;
+};
 
 }  // namespace
 
@@ -87,9 +101,16 @@ bool SlamNode::load_map(covoxslam::FilePath::Request& request,
       pending_.clear();
     }
     slam_->load_submaps(std::move(submaps));
+    {
+      // The loaded map starts a new time line: earlier stamps (a bag played again) are mapped.
+      std::lock_guard<std::mutex> lock(input_mutex_);
+      clear_input_locked();
+    }
+    slam_->resume();
     clear_published_markers();
-    publish_map(true);
-    return "loaded " + std::to_string(count) + " submaps from " + path;
+    publish_map(false, true);
+    return "loaded " + std::to_string(count) + " submaps from " + path +
+           "; mapping continues in a new submap with the next cloud";
   });
 }
 
@@ -122,7 +143,7 @@ bool SlamNode::save_mesh(covoxslam::FilePath::Request& request,
 
 bool SlamNode::generate_mesh(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& response) {
   return answer("generate_mesh", response, [&] {
-    publish_map(true);
+    publish_map(true, true);
     return "published the meshes of " + std::to_string(slam_->submaps().size()) + " submaps (" +
            std::to_string(slam_->combined_mesh().triangle_count()) + " triangles)";
   });
@@ -131,17 +152,30 @@ bool SlamNode::generate_mesh(std_srvs::Trigger::Request&, std_srvs::Trigger::Res
 bool SlamNode::finish_map(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& response) {
   return answer("finish_map", response, [&] {
     {
-      // What still waits for tf gets one last chance, then the SLAM system is flushed.
+      // What waits for tf now gets one last chance; clouds arriving from now on wait until the
+      // SLAM system runs again.
       std::lock_guard<std::mutex> lock(input_mutex_);
       process_pending_locked();
+      finishing_ = true;
     }
-    slam_->finish();
-    publish_map(true);
+    bool resumed = false;
+    {
+      const ScopeExit map_on([&] {
+        resumed = slam_->resume();
+        std::lock_guard<std::mutex> lock(input_mutex_);
+        finishing_ = false;
+        process_pending_locked();
+      });
+      // Every queued cloud is integrated, the active submap finished, the graph optimised.
+      slam_->finish();
+      publish_map(false, true);
+    }
+    if (!resumed) throw Error("the SLAM system was shut down: mapping cannot continue");
     const pipeline::SlamCounters counters = slam_->counters();
     return "finished: " + std::to_string(counters.scans_integrated) + " scans in " +
            std::to_string(slam_->submaps().size()) + " submaps, " +
            std::to_string(counters.optimizations) +
-           " optimisations; later clouds are refused until reset";
+           " optimisations; mapping continues in a new submap with the next cloud";
   });
 }
 
@@ -156,13 +190,15 @@ bool SlamNode::optimize_pose_graph(std_srvs::Trigger::Request&,
 bool SlamNode::reset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& response) {
   return answer("reset", response, [&] {
     {
+      // Also forgets the time line: the next cloud may be older than the last one (a bag
+      // played again), and a refusal after a time jump ends here.
       std::lock_guard<std::mutex> lock(input_mutex_);
-      pending_.clear();
-      odometry_buffer_.clear();
+      clear_input_locked();
     }
     slam_->reset();
+    slam_->resume();
     clear_published_markers();
-    publish_map(true);
+    publish_map(false, true);
     return std::string("the map is empty; mapping continues with the next cloud");
   });
 }

@@ -4,7 +4,10 @@
 // z field and one in a frame that tf does not know - plays it with `rosbag play --clock`, and
 // checks what the nodelet publishes (path, submap poses, meshes, ESDF slice against the room's
 // analytic distance, tf, diagnostics counters) and its services (finish, save map / trajectory /
-// mesh, reset, load map, generate mesh).
+// mesh, reset, load map, generate mesh). Then it goes on as an operator would: after load_map
+// and after finish_map more of the flight is played and must be mapped, a late subscriber must
+// receive every submap's mesh, and the first bag played again (time going backwards) must be
+// mapped after an automatic reset.
 #include <gtest/gtest.h>
 
 #include <unistd.h>
@@ -21,6 +24,7 @@
 #include <limits>
 #include <map>
 #include <mutex>
+#include <set>
 #include <string>
 #include <thread>
 #include <vector>
@@ -252,7 +256,10 @@ bool depth_images() {
 
 Eigen::Isometry3d base_to_sensor() { return depth_images() ? base_to_camera() : base_to_lidar(); }
 
-void write_bag(const std::string& path) {
+// `clouds` valid clouds from `start_s` on the same path (a later start continues the flight), with
+// the bad clouds of the first bag when `bad_clouds`.
+void write_bag(const std::string& path, double start_s = kStart_s, int clouds = kClouds,
+               bool bad_clouds = true) {
   rosbag::Bag bag(path, rosbag::bagmode::Write);
   auto latched = boost::make_shared<ros::M_string>();
   (*latched)["latching"] = "1";
@@ -264,10 +271,10 @@ void write_bag(const std::string& path) {
   tf2_msgs::TFMessage statics;
   statics.transforms.push_back(stamped(base_to_lidar(), "base_link", "lidar", kStart_s));
   statics.transforms.push_back(stamped(base_to_camera(), "base_link", "camera", kStart_s));
-  bag.write("/tf_static", ros::Time(kStart_s), statics, latched);
-  const double end_s = kStart_s + kClouds * kCloudPeriod_s + 0.5;
-  for (int k = 0; kStart_s + 0.02 * k <= end_s; ++k) {
-    const double t = kStart_s + 0.02 * k;
+  bag.write("/tf_static", ros::Time(start_s), statics, latched);
+  const double end_s = start_s + clouds * kCloudPeriod_s + 0.5;
+  for (int k = 0; start_s + 0.02 * k <= end_s; ++k) {
+    const double t = start_s + 0.02 * k;
     if (odometry_as_topic()) {
       nav_msgs::Odometry odometry;
       odometry.header.stamp.fromSec(t);
@@ -285,8 +292,8 @@ void write_bag(const std::string& path) {
       bag.write("/tf", ros::Time(t), message);
     }
   }
-  for (int k = 0; k < kClouds; ++k) {
-    const double t = kStart_s + 0.1 + kCloudPeriod_s * k;
+  for (int k = 0; k < clouds; ++k) {
+    const double t = start_s + 0.1 + kCloudPeriod_s * k;
     if (depth_images()) {
       sensor_msgs::Image depth, color;
       make_depth_images(t, &depth, &color);
@@ -296,12 +303,43 @@ void write_bag(const std::string& path) {
       continue;
     }
     bag.write("/synthetic/points", ros::Time(t), make_cloud(t, "lidar", false));
+    if (!bad_clouds) continue;
     if (k == 3)
       bag.write("/synthetic/points", ros::Time(t + 0.2), make_cloud(t + 0.2, "lidar", true));
     if (k == 6)
       bag.write("/synthetic/points", ros::Time(t + 0.2), make_cloud(t + 0.2, "nowhere", false));
   }
   bag.close();
+}
+
+// Plays `bag_path` into the nodelet with the clock (-d: wait after advertising so that the
+// nodelet is connected); returns rosbag's exit status, `log` receives what it said.
+int play_bag(const fs::path& folder, const std::string& bag_path, std::string* log) {
+  const std::string play =
+      "rosbag play --clock -q -d 2 " + bag_path + " > " + (folder / "play.log").string() + " 2>&1";
+  const int status = std::system(play.c_str());
+  std::ifstream file((folder / "play.log").string());
+  log->assign((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
+  return status;
+}
+
+// NaN / infinite points among the clouds the first bag holds (the valid ones and the one in an
+// unknown frame; the cloud without z is refused before its points are read).
+int64_t non_finite_points_in_first_bag() {
+  int64_t count = 0;
+  for (int k = 0; k < kClouds; ++k) {
+    const double t = kStart_s + 0.1 + kCloudPeriod_s * k;
+    std::vector<sensor_msgs::PointCloud2> clouds = {make_cloud(t, "lidar", false)};
+    if (k == 6) clouds.push_back(make_cloud(t + 0.2, "nowhere", false));
+    for (const sensor_msgs::PointCloud2& cloud : clouds) {
+      for (size_t offset = 0; offset < cloud.data.size(); offset += cloud.point_step) {
+        float xyz[3];
+        std::memcpy(xyz, cloud.data.data() + offset + 4, sizeof(xyz));
+        if (!std::isfinite(xyz[0]) || !std::isfinite(xyz[1]) || !std::isfinite(xyz[2])) ++count;
+      }
+    }
+  }
+  return count;
 }
 
 // ---- What the nodelet publishes --------------------------------------------------------------
@@ -311,7 +349,10 @@ struct Latest {
   nav_msgs::Path path;
   covoxslam::SubmapPoses submaps;
   visualization_msgs::Marker combined_mesh;
-  std::map<int, visualization_msgs::Marker> separated_meshes;
+  // Markers by (namespace, id): a submap's mesh is one per-vertex coloured marker or several
+  // height slices, all with the submap's id.
+  std::map<std::pair<std::string, int>, visualization_msgs::Marker> separated_meshes;
+  std::map<int, int> mesh_sends;  // in how many messages each submap's mesh came
   sensor_msgs::PointCloud2 esdf_slice;
   sensor_msgs::PointCloud2 active_esdf_slice;
   std::map<int, visualization_msgs::Marker> boxes;
@@ -321,6 +362,29 @@ struct Latest {
 };
 
 Latest latest;
+
+// Submap id -> the points of all its mesh markers.
+using MeshMarkers = std::map<std::pair<std::string, int>, visualization_msgs::Marker>;
+std::map<int, size_t> points_per_submap(const MeshMarkers& markers) {
+  std::map<int, size_t> points;
+  for (const auto& marker : markers) points[marker.first.second] += marker.second.points.size();
+  return points;
+}
+
+// Applies one ~separated_mesh message to `markers`; returns the submaps it sent a mesh of.
+std::set<int> apply_mesh_message(const visualization_msgs::MarkerArray& message,
+                                 MeshMarkers* markers) {
+  std::set<int> sent;
+  for (const auto& marker : message.markers) {
+    if (marker.action == visualization_msgs::Marker::DELETEALL) markers->clear();
+    if (marker.action == visualization_msgs::Marker::DELETE) markers->erase({marker.ns, marker.id});
+    if (marker.action == visualization_msgs::Marker::ADD) {
+      (*markers)[{marker.ns, marker.id}] = marker;
+      sent.insert(marker.id);
+    }
+  }
+  return sent;
+}
 
 // Waits (wall time) until `condition` holds under the lock.
 bool wait_for(const std::function<bool()>& condition, double timeout_s) {
@@ -394,6 +458,221 @@ int compare_slice_with_room(const sensor_msgs::PointCloud2& slice, int* good) {
   return checked;
 }
 
+// A cloud 50 s older than anything tf (or the odometry buffer) holds is dropped as "pose
+// unavailable" at once, not counted as a tf timeout, and does not count as time going backwards.
+void expect_old_cloud_dropped_at_once(ros::NodeHandle& node) {
+  const int64_t unavailable = diagnostic_value("clouds_dropped_pose_unavailable");
+  const int64_t timeouts = diagnostic_value("clouds_dropped_tf_timeout");
+  ros::Publisher points = node.advertise<sensor_msgs::PointCloud2>("/synthetic/points", 1);
+  const auto connected = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  while (points.getNumSubscribers() == 0 && std::chrono::steady_clock::now() < connected)
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  points.publish(make_cloud(kStart_s - 50.0, "lidar", false));
+  EXPECT_TRUE(wait_for(
+      [&] { return diagnostic_value("clouds_dropped_pose_unavailable") == unavailable + 1; }, 10.0))
+      << "pose unavailable: " << diagnostic_value("clouds_dropped_pose_unavailable") << " (was "
+      << unavailable << "), tf timeouts " << diagnostic_value("clouds_dropped_tf_timeout");
+  std::lock_guard<std::mutex> lock(latest.mutex);
+  EXPECT_EQ(diagnostic_value("clouds_dropped_tf_timeout"), timeouts);
+  EXPECT_EQ(diagnostic_value("automatic_resets"), 0);
+}
+
+// Sum of the scans in the submaps that were not loaded from a map file (the submap poses do not
+// say which were; their ids do: loaded ids are below `first_new_id`).
+int64_t scans_in_submaps_from(int64_t first_new_id) {
+  int64_t scans = 0;
+  for (const auto& submap : latest.submaps.submaps) {
+    if (submap.id >= first_new_id) scans += submap.scans;
+  }
+  return scans;
+}
+
+// A subscriber that connects late (here: after several maps, finishes and loads). roscpp connects
+// a topic once per process, so the test's first subscription is shut down before: the late one
+// then opens a connection of its own, as a late rviz or a second node does.
+struct LateSubscriber {
+  std::mutex mutex;
+  MeshMarkers meshes;
+};
+LateSubscriber late;
+
+// A new ~separated_mesh subscriber receives every submap's mesh, each in its submap's frame
+// (frame-locked), never black, as large as what the first subscriber holds, and the submap frames
+// on tf are the submaps' corrected poses.
+void expect_late_subscriber_gets_every_mesh(ros::NodeHandle& node, ros::Subscriber* first) {
+  std::map<int, covoxslam::SubmapPose> submaps;
+  std::map<int, size_t> points_first_subscriber;
+  {
+    std::lock_guard<std::mutex> lock(latest.mutex);
+    for (const auto& submap : latest.submaps.submaps) {
+      if (submap.mesh_triangles > 0) submaps[static_cast<int>(submap.id)] = submap;
+    }
+    points_first_subscriber = points_per_submap(latest.separated_meshes);
+  }
+  ASSERT_GT(submaps.size(), 2u);
+  first->shutdown();
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  auto on_mesh = [](const visualization_msgs::MarkerArray::ConstPtr& m) {
+    std::lock_guard<std::mutex> lock(late.mutex);
+    apply_mesh_message(*m, &late.meshes);
+  };
+  ros::Subscriber subscriber =
+      node.subscribe<visualization_msgs::MarkerArray>(ns("separated_mesh"), 10, +on_mesh);
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(15);
+  auto has_all = [&] {
+    std::lock_guard<std::mutex> lock(late.mutex);
+    const std::map<int, size_t> points = points_per_submap(late.meshes);
+    for (const auto& submap : submaps) {
+      if (!points.count(submap.first)) return false;
+    }
+    return true;
+  };
+  while (!has_all() && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  ASSERT_TRUE(has_all()) << "the late subscriber has " << late.meshes.size() << " of "
+                         << submaps.size() << " submap meshes";
+  tf2_ros::Buffer tf_buffer;
+  tf2_ros::TransformListener tf_listener(tf_buffer);
+  // Polled in wall time: the simulated clock stands still after the bag, so a tf wait with a
+  // timeout would never end.
+  auto has_frames = [&] {
+    for (const auto& submap : submaps) {
+      if (!tf_buffer.canTransform("mission", "submap_" + std::to_string(submap.first),
+                                  ros::Time(0)))
+        return false;
+    }
+    return true;
+  };
+  const auto tf_deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  while (!has_frames() && std::chrono::steady_clock::now() < tf_deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  EXPECT_TRUE(has_frames()) << "tf has frames: " << tf_buffer.allFramesAsString();
+  std::lock_guard<std::mutex> lock(late.mutex);
+  for (const auto& entry : late.meshes) {
+    const visualization_msgs::Marker& marker = entry.second;
+    const std::string frame = "submap_" + std::to_string(marker.id);
+    EXPECT_EQ(marker.header.frame_id, frame);
+    EXPECT_TRUE(marker.frame_locked);
+    EXPECT_EQ(marker.type, visualization_msgs::Marker::TRIANGLE_LIST);
+    EXPECT_EQ(marker.points.size() % 3, 0u);
+    // Per-vertex colours, or one colour for the whole marker (a height slice): never black.
+    if (marker.colors.empty()) {
+      EXPECT_GT(marker.color.r + marker.color.g + marker.color.b, 0.5f) << marker.ns;
+    } else {
+      ASSERT_EQ(marker.colors.size(), marker.points.size()) << frame;
+      int black = 0;
+      for (const auto& color : marker.colors) black += color.r + color.g + color.b == 0.0f;
+      EXPECT_EQ(black, 0) << frame;
+    }
+  }
+  const std::map<int, size_t> late_points = points_per_submap(late.meshes);
+  for (const auto& submap : submaps) {
+    const std::string frame = "submap_" + std::to_string(submap.first);
+    EXPECT_EQ(late_points.at(submap.first), points_first_subscriber[submap.first]) << frame;
+    geometry_msgs::TransformStamped pose;
+    ASSERT_NO_THROW(pose = tf_buffer.lookupTransform("mission", frame, ros::Time(0))) << frame;
+    EXPECT_NEAR(pose.transform.translation.x, submap.second.pose.position.x, 2e-3) << frame;
+    EXPECT_NEAR(pose.transform.translation.y, submap.second.pose.position.y, 2e-3) << frame;
+    EXPECT_NEAR(pose.transform.translation.z, submap.second.pose.position.z, 2e-3) << frame;
+  }
+}
+
+// After the main test's load_map: more of the flight mapped after load_map and after finish_map,
+// a late subscriber given every submap's mesh, and the first bag played again mapped after an
+// automatic reset.
+void operator_goes_on(ros::NodeHandle& node, ros::Subscriber* separated_meshes,
+                      const fs::path& folder, size_t loaded_count) {
+  constexpr int kMoreClouds = 6;
+  // Each continuation starts after the previous bag's end, so the clock only moves forward.
+  const double second_start_s = kStart_s + kClouds * kCloudPeriod_s + 1.0;
+  const double third_start_s = second_start_s + kMoreClouds * kCloudPeriod_s + 1.0;
+  const int64_t added_before = diagnostic_value("scans_added");
+  int64_t first_new_id = 0;
+  {
+    std::lock_guard<std::mutex> lock(latest.mutex);
+    for (const auto& submap : latest.submaps.submaps)
+      first_new_id = std::max<int64_t>(first_new_id, submap.id + 1);
+  }
+  std::string log, message;
+
+  // load_map -> more clouds mapped, into new submaps after the loaded ones.
+  const std::string second = (folder / "second.bag").string();
+  write_bag(second, second_start_s, kMoreClouds, false);
+  ASSERT_EQ(play_bag(folder, second, &log), 0) << log;
+  EXPECT_TRUE(wait_for(
+      [&] {
+        return diagnostic_value("scans_added") == added_before + kMoreClouds &&
+               latest.submaps.submaps.size() > loaded_count &&
+               latest.path.poses.size() == static_cast<size_t>(kMoreClouds);
+      },
+      20.0))
+      << "after load_map: scans added " << diagnostic_value("scans_added") << " (was "
+      << added_before << "), " << latest.submaps.submaps.size() << " submaps (" << loaded_count
+      << " loaded), path " << latest.path.poses.size();
+
+  // finish_map -> every scan so far is in a finished submap, and more clouds are mapped after.
+  ASSERT_TRUE(call_trigger("finish_map", &message)) << message;
+  ASSERT_TRUE(wait_for([&] { return scans_in_submaps_from(first_new_id) == kMoreClouds; }, 10.0))
+      << scans_in_submaps_from(first_new_id) << " scans in finished new submaps";
+  size_t finished_count = 0;
+  {
+    std::lock_guard<std::mutex> lock(latest.mutex);
+    finished_count = latest.submaps.submaps.size();
+  }
+  const std::string third = (folder / "third.bag").string();
+  write_bag(third, third_start_s, kMoreClouds, false);
+  ASSERT_EQ(play_bag(folder, third, &log), 0) << log;
+  EXPECT_TRUE(wait_for(
+      [&] {
+        return diagnostic_value("scans_added") == added_before + 2 * kMoreClouds &&
+               latest.submaps.submaps.size() > finished_count &&
+               latest.path.poses.size() == static_cast<size_t>(2 * kMoreClouds);
+      },
+      20.0))
+      << "after finish_map: scans added " << diagnostic_value("scans_added") << ", "
+      << latest.submaps.submaps.size() << " submaps (" << finished_count << " when finished), path "
+      << latest.path.poses.size();
+  EXPECT_EQ(diagnostic_value("automatic_resets"), 0);
+  {
+    std::lock_guard<std::mutex> lock(latest.mutex);
+    EXPECT_EQ(latest.diagnostics["state"], "mapping");
+    // The submaps mapped since load_map moved with each optimisation, yet each one's triangles
+    // came once: moving a submap moves its frame on tf.
+    int new_meshes = 0;
+    for (const auto& sends : latest.mesh_sends) {
+      if (sends.first < first_new_id) continue;
+      ++new_meshes;
+      EXPECT_EQ(sends.second, 1) << "submap " << sends.first << "'s mesh came " << sends.second
+                                 << " times";
+    }
+    EXPECT_GE(new_meshes, 2);
+  }
+
+  expect_late_subscriber_gets_every_mesh(node, separated_meshes);
+
+  // The first bag played again: the clock jumps back, the map is reset automatically and the
+  // second play is mapped.
+  const int64_t added_before_replay = diagnostic_value("scans_added");
+  ASSERT_EQ(play_bag(folder, (folder / "synthetic.bag").string(), &log), 0) << log;
+  EXPECT_TRUE(wait_for(
+      [&] {
+        return diagnostic_value("automatic_resets") == 1 &&
+               diagnostic_value("time_jumps_backwards") == 1 &&
+               diagnostic_value("scans_added") == added_before_replay + kClouds &&
+               latest.path.poses.size() == static_cast<size_t>(kClouds);
+      },
+      25.0))
+      << "replay: automatic resets " << diagnostic_value("automatic_resets") << ", time jumps "
+      << diagnostic_value("time_jumps_backwards") << ", scans added "
+      << diagnostic_value("scans_added") << " (was " << added_before_replay << "), path "
+      << latest.path.poses.size() << "; rosbag play said: " << log;
+  std::lock_guard<std::mutex> lock(latest.mutex);
+  for (int k = 0; k < kClouds && k < static_cast<int>(latest.path.poses.size()); ++k) {
+    EXPECT_NEAR(latest.path.poses[k].header.stamp.toSec(), kStart_s + 0.1 + kCloudPeriod_s * k,
+                1e-6);
+  }
+}
+
 class CovoxSlamNodeletTest : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -423,13 +702,7 @@ TEST_F(CovoxSlamNodeletTest, MapsABagAndServesTheMap) {
   };
   auto on_separated = [](const visualization_msgs::MarkerArray::ConstPtr& m) {
     std::lock_guard<std::mutex> lock(latest.mutex);
-    for (const auto& marker : m->markers) {
-      if (marker.action == visualization_msgs::Marker::DELETEALL) latest.separated_meshes.clear();
-      if (marker.action == visualization_msgs::Marker::DELETE)
-        latest.separated_meshes.erase(marker.id);
-      if (marker.action == visualization_msgs::Marker::ADD)
-        latest.separated_meshes[marker.id] = marker;
-    }
+    for (int id : apply_mesh_message(*m, &latest.separated_meshes)) ++latest.mesh_sends[id];
   };
   auto on_slice = [](const sensor_msgs::PointCloud2::ConstPtr& m) {
     std::lock_guard<std::mutex> lock(latest.mutex);
@@ -473,18 +746,11 @@ TEST_F(CovoxSlamNodeletTest, MapsABagAndServesTheMap) {
   ASSERT_TRUE(ros::service::waitForService(ns("finish_map"), ros::Duration(60.0)))
       << "the nodelet did not come up (see its log above)";
 
-  // Play the bag into the nodelet. -d: wait after advertising so the nodelet is connected.
+  // Play the bag into the nodelet.
   const std::string bag_path = (folder_ / "synthetic.bag").string();
   write_bag(bag_path);
-  const std::string play =
-      "rosbag play --clock -q -d 2 " + bag_path + " > " + (folder_ / "play.log").string() + " 2>&1";
-  const int play_status = std::system(play.c_str());
   std::string play_log;
-  {
-    std::ifstream log((folder_ / "play.log").string());
-    play_log.assign((std::istreambuf_iterator<char>(log)), std::istreambuf_iterator<char>());
-  }
-  ASSERT_EQ(play_status, 0) << "rosbag play failed: " << play << "\n" << play_log;
+  ASSERT_EQ(play_bag(folder_, bag_path, &play_log), 0) << "rosbag play failed:\n" << play_log;
 
   // The bad clouds are counted: one without z, one in a frame tf does not know (after the
   // tf wait timeout). Every valid cloud reached the SLAM system.
@@ -502,6 +768,17 @@ TEST_F(CovoxSlamNodeletTest, MapsABagAndServesTheMap) {
       << diagnostic_value("clouds_dropped_bad_layout") << ", unknown frame "
       << diagnostic_value("clouds_dropped_unknown_frame") << ", scans added "
       << diagnostic_value("scans_added");
+  if (!depth_images()) {
+    // NaN points inside valid clouds are dropped and counted, each one.
+    EXPECT_TRUE(wait_for(
+        [] {
+          return diagnostic_value("points_dropped_non_finite") == non_finite_points_in_first_bag();
+        },
+        5.0))
+        << diagnostic_value("points_dropped_non_finite") << " non-finite points counted, "
+        << non_finite_points_in_first_bag() << " sent";
+    expect_old_cloud_dropped_at_once(node);
+  }
 
   // A loop closure between scans of the first and the last submap, with the true relative
   // sensor pose: it waits for its submaps and enters the pose graph.
@@ -609,14 +886,15 @@ TEST_F(CovoxSlamNodeletTest, MapsABagAndServesTheMap) {
   if (!wait_for(
           [&] {
             return !latest.combined_mesh.points.empty() &&
-                   latest.separated_meshes.size() == submap_count &&
+                   points_per_submap(latest.separated_meshes).size() == submap_count &&
                    separated_points_now() == latest.combined_mesh.points.size();
           },
           10.0)) {
     std::lock_guard<std::mutex> lock(latest.mutex);
     FAIL() << "no consistent meshes: combined " << latest.combined_mesh.points.size()
            << " points, separated " << separated_points_now() << " points in "
-           << latest.separated_meshes.size() << " markers for " << submap_count << " submaps";
+           << points_per_submap(latest.separated_meshes).size() << " submap meshes for "
+           << submap_count << " submaps";
   }
   {
     std::lock_guard<std::mutex> lock(latest.mutex);
@@ -694,6 +972,8 @@ TEST_F(CovoxSlamNodeletTest, MapsABagAndServesTheMap) {
   ASSERT_TRUE(call_trigger("generate_mesh", &message)) << message;
   EXPECT_TRUE(wait_for([] { return latest.combined_mesh.points.size() > 300; }, 10.0));
   EXPECT_TRUE(call_trigger("optimize_pose_graph", &message)) << message;
+
+  operator_goes_on(node, &s4, folder_, submap_count);
 }
 
 // Start-up checks: a bad parameter stops covoxslam_node with a message naming it.

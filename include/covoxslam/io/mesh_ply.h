@@ -1,7 +1,8 @@
 #pragma once
 // Binary little-endian PLY export of a mesh (vertex x y z as float, red green blue as uchar,
 // faces as uchar-counted int lists): what rviz-independent viewers (MeshLab, CloudCompare,
-// Open3D) read. Written to a temporary file and renamed.
+// Open3D) read. Written to a temporary file and renamed. Vertices whose colour is black (no fused
+// colour or intensity) are written in the colour of their height (map/mesh_colors.h).
 #include <string>
 
 #include "covoxslam/map/mesh.h"

@@ -133,6 +133,12 @@ class BoundedQueue {
     ready_.notify_all();
   }
 
+  // Accepts pushes again after close() (SlamSystem::resume); an aborted queue stays aborted.
+  void reopen() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!aborted_) closed_ = false;
+  }
+
   // No more pushes and pop() returns false at once; queued entries are discarded (shutdown).
   // Returns how many were discarded, so the caller can count them.
   size_t abort() {

@@ -21,8 +21,9 @@
 // Lifecycle: the threads start in the constructor (or in start() when config.start_threads is
 // false). finish() flushes both queues - every queued scan is integrated, the active submap is
 // handed over and finished - and runs a final optimisation. shutdown() (and the destructor) stop
-// at once and discard queued work. After either, add_scan() is refused (counted). reset() and
-// load_submaps() replace the map while the threads keep running.
+// at once and discard queued work. After either, add_scan() is refused (counted). resume() after
+// finish() starts the threads again: the finished submaps stay, the next scan starts a new
+// submap. reset() and load_submaps() replace the map, with or without the threads running.
 //
 // Drift correction: the odometry constraints carry the odometry's relative poses; registration
 // constraints (registration_constraints.h) measure the true relative pose of overlapping
@@ -233,6 +234,12 @@ class SlamSystem {
   void finish();
   // Stops the threads at once; queued scans and submaps are discarded (counted). Idempotent.
   void shutdown();
+  // After finish(): reopens the queues and starts the threads again. The finished submaps stay in
+  // the graph as they are; the next scan starts a new submap, linked to the last one by odometry,
+  // and its stamp must follow the last accepted one (unless reset() or load_submaps() ran).
+  // Returns true when the system runs afterwards (also when it never stopped), false after
+  // shutdown(), which is final.
+  bool resume();
   bool running() const { return running_.load(); }
   // Entries waiting now: for diagnostics, and for offline runners that throttle their input
   // instead of letting the queues drop (a recorded flight should be processed completely).

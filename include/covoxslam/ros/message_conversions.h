@@ -17,6 +17,7 @@
 #include "covoxslam/io/depth_image_points.h"
 #include "covoxslam/io/pointcloud_fields.h"
 #include "covoxslam/map/mesh.h"
+#include "covoxslam/map/mesh_colors.h"
 #include "covoxslam/pipeline/slam_system.h"
 
 namespace covox {
@@ -30,10 +31,24 @@ Eigen::Isometry3d to_isometry(const geometry_msgs::Transform& transform);
 geometry_msgs::Transform to_transform_msg(const Eigen::Isometry3d& pose);
 geometry_msgs::Pose to_pose_msg(const Eigen::Isometry3d& pose);
 
-// A triangle list (three points per triangle, per-vertex colours) in the frame of `pose`.
-visualization_msgs::Marker mesh_marker(const Mesh& mesh, const Eigen::Isometry3d& pose,
-                                       const std::string& frame, const ros::Time& stamp,
-                                       const std::string& ns, int id);
+// A triangle list (three points per triangle) in `frame` at `pose`, each point coloured by
+// `colors` (one per mesh vertex, e.g. map/mesh_colors.h's display_colors()).
+visualization_msgs::Marker mesh_marker(const Mesh& mesh, const std::vector<Rgb8>& colors,
+                                       const Eigen::Isometry3d& pose, const std::string& frame,
+                                       const ros::Time& stamp, const std::string& ns, int id);
+// The triangles of `mesh` (in `frame`, at the identity) grouped by the world height of their
+// centre, (T_world_mesh * centre).z, into `bands` equal slices of `range` (clamped at its ends):
+// one TRIANGLE_LIST of one colour, height_color() of the slice's middle, per slice. Without
+// per-vertex colours a triangle costs 72 bytes instead of 120, for meshes without fused colour.
+// Slice k is marker `id` in namespace "<ns>_height_<k>"; an empty slice gives a DELETE there, so
+// that re-sending a mesh leaves no stale slice behind.
+std::vector<visualization_msgs::Marker> height_band_markers(
+    const Mesh& mesh, const Eigen::Isometry3d& T_world_mesh, const HeightColorRange& range,
+    int bands, const std::string& frame, const ros::Time& stamp, const std::string& ns, int id);
+// A DELETE of marker `id` in namespace `ns`.
+visualization_msgs::Marker deletion_marker(const std::string& frame, const ros::Time& stamp,
+                                           const std::string& ns, int id);
+
 // A DELETEALL, then one LINE_LIST per submap (namespace submap_bounding_boxes, id = submap id)
 // holding the 12 edges of its world-frame box.
 visualization_msgs::MarkerArray bounding_box_markers(

@@ -50,6 +50,13 @@ struct NodeOptions {
   bool publish_combined_mesh = true;
   bool publish_separated_mesh = true;
   double drop_log_interval_s = 5.0;
+  // Time going backwards (the ROS clock, or input stamps by more than time_jump_min_s): "reset"
+  // the map and map on, or "refuse" clouds until ~reset / ~load_map.
+  std::string time_jump_policy = "reset";
+  double time_jump_min_s = 1.0;
+  // Mesh vertices without a fused colour are coloured by world height over this range (m).
+  double mesh_height_color_min_m = -1.0;
+  double mesh_height_color_max_m = 9.0;
 };
 
 // Reads every option set under the private node handle's `ros` namespace (defaults for the

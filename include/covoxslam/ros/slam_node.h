@@ -11,7 +11,21 @@
 //
 // A cloud whose pose is not known yet waits (in arrival order) for up to tf_wait_timeout_s of
 // wall time; then it is dropped and counted, with a rate-limited warning that names the frames
-// and tf's reason (unknown frame, extrapolation).
+// and tf's reason (unknown frame, extrapolation). A cloud older than what tf or the odometry
+// buffer holds is dropped at once (its pose can never arrive).
+//
+// Map lifecycle: finish_map freezes what exists (SlamSystem::finish) and mapping continues in a
+// new submap (SlamSystem::resume); reset and load_map replace the map and mapping continues too.
+// Time going backwards - the simulated ROS clock, or two cloud (or odometry) stamps in a row more
+// than time_jump_min_s before the newest: a bag played again or looped - resets the map or, with
+// time_jump_policy "refuse", refuses clouds until reset or load_map. ~diagnostics carries the
+// state and the reason of the latest refusal.
+//
+// Meshes: each submap's mesh is one marker in the submap's own frame (submap_<id>, on
+// /tf_static under mission_frame), sent once when the submap is new or re-meshed; a submap that
+// moves costs a transform on /tf_static, not its triangles. A new ~separated_mesh subscriber is
+// sent every submap's marker on connecting.
+#include <atomic>
 #include <deque>
 #include <map>
 #include <memory>
@@ -31,8 +45,10 @@
 #include <sensor_msgs/PointCloud2.h>
 #include <std_srvs/Trigger.h>
 #include <tf2_ros/buffer.h>
+#include <tf2_ros/static_transform_broadcaster.h>
 #include <tf2_ros/transform_broadcaster.h>
 #include <tf2_ros/transform_listener.h>
+#include <visualization_msgs/MarkerArray.h>
 
 #include "covoxslam/FilePath.h"
 #include "covoxslam/LoopClosure.h"
@@ -56,6 +72,7 @@ struct InputDropCounters {
   pipeline::DropCounter rejected_by_slam;  // SlamSystem::add_scan refused it (see its counters)
   pipeline::DropCounter bad_odometry;      // odometry messages not usable (time backwards, NaN)
   pipeline::DropCounter loop_closures_rejected;
+  pipeline::DropCounter refused_after_time_jump;  // time_jump_policy refuse: until reset/load
   explicit InputDropCounters(double interval_s)
       : bad_layout(interval_s),
         empty_cloud(interval_s),
@@ -66,7 +83,8 @@ struct InputDropCounters {
         pending_overflow(interval_s),
         rejected_by_slam(interval_s),
         bad_odometry(interval_s),
-        loop_closures_rejected(interval_s) {}
+        loop_closures_rejected(interval_s),
+        refused_after_time_jump(interval_s) {}
 };
 
 class SlamNode {
@@ -99,6 +117,24 @@ class SlamNode {
   void odometry_callback(const nav_msgs::Odometry::ConstPtr& odometry);
   void loop_closure_callback(const covoxslam::LoopClosure::ConstPtr& closure);
   void enqueue_locked(PendingScan scan);
+  // The stamps of one input (clouds, or the odometry topic) as seen so far.
+  struct TimeLine {
+    ros::Time newest;            // zero: none yet
+    int backwards_in_a_row = 0;  // messages more than time_jump_min_s before `newest`
+  };
+  // Time going backwards (see the class comment): the clock against the previous call, `stamp`
+  // against `line`. One message far in the past is only stale (it is dropped as such); two in a
+  // row start a new time line. Resets the map or starts refusing as time_jump_policy says.
+  // Returns false when the input must be refused. Needs input_mutex_.
+  bool accept_time_locked(const ros::Time& stamp, TimeLine* line, const char* input);
+  // The clock part of it alone (the pending timer runs it too, so a jump is seen without input).
+  void check_clock_locked();
+  void on_time_jump_locked(const std::string& cause, double from_s, double to_s);
+  // Forgets the input side's state (pending clouds, odometry, time references, refusal), for a
+  // map that starts again. Needs input_mutex_.
+  void clear_input_locked();
+  // Why the SLAM system refused the latest scan, from its counters.
+  std::string slam_refusal_reason();
   // Hands every pending scan whose pose is known to the SLAM system, in order; drops the ones
   // that timed out or can never be answered. Needs input_mutex_.
   void process_pending_locked();
@@ -106,14 +142,33 @@ class SlamNode {
   PoseResult sensor_pose_locked(const PendingScan& scan, Eigen::Isometry3d* T_odom_sensor);
   void count_drop(pipeline::DropCounter& counter, const std::string& what);
 
+  // Advertises the outputs and starts the timers and services on the output queue.
+  void start_output();
+
   // ---- Output (slam_node_output.cpp) ----
   void publish_tf(const ros::WallTimerEvent&);
   void publish_visualization(const ros::WallTimerEvent&);
   void publish_diagnostics(const ros::WallTimerEvent&);
+  // The node's own counters and state (`state` also receives it); `node_drops` their drop total.
+  void add_input_diagnostics(diagnostic_msgs::DiagnosticStatus* status, int64_t* node_drops,
+                             std::string* state);
   void publish_active_submap_slice(const ros::WallTimerEvent&);
-  // Publishes path, submap poses, meshes (changed submaps only unless `force`), boxes, graph and
-  // slices. Visualisation thread only.
-  void publish_map(bool force);
+  // Publishes path, submap poses, meshes (new or re-meshed submaps only), submap frames (new or
+  // moved ones), boxes, graph and slices. Visualisation thread only.
+  // `resend_meshes`: every submap's mesh and frame (generate_mesh); `with_combined_mesh`: also
+  // ~combined_mesh (finish_map, generate_mesh, reset, load_map).
+  void publish_map(bool resend_meshes, bool with_combined_mesh);
+  void publish_path(const std::vector<pipeline::StampedPose>& trajectory, const ros::Time& stamp);
+  void publish_submap_poses(const std::vector<pipeline::SubmapInfo>& submaps,
+                            const ros::Time& stamp);
+  // mission_frame -> submap_<id> on /tf_static for every submap whose pose is new or moved.
+  void publish_submap_frames(const std::vector<pipeline::SubmapInfo>& submaps, bool force);
+  // Markers of the given submaps' meshes (in their own frames) and deletions of `removed`.
+  visualization_msgs::MarkerArray submap_mesh_markers(const std::vector<int64_t>& ids,
+                                                      const std::vector<int64_t>& removed,
+                                                      const ros::Time& stamp);
+  // A new ~separated_mesh subscriber gets every published submap's mesh.
+  void send_meshes_to_new_subscriber(const ros::SingleSubscriberPublisher& subscriber);
   void clear_published_markers();
 
   // ---- Services (slam_node_services.cpp) ----
@@ -141,6 +196,7 @@ class SlamNode {
   tf2_ros::Buffer tf_buffer_;
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
   tf2_ros::TransformBroadcaster tf_broadcaster_;
+  tf2_ros::StaticTransformBroadcaster static_broadcaster_;
 
   // Input side, guarded by input_mutex_.
   std::mutex input_mutex_;
@@ -149,7 +205,26 @@ class SlamNode {
   InputDropCounters drops_;
   int64_t clouds_received_ = 0;
   int64_t scans_added_ = 0;
+  int64_t points_dropped_non_finite_ = 0;  // NaN/Inf points inside otherwise valid clouds
+  int64_t time_jumps_ = 0;
+  int64_t automatic_resets_ = 0;
   ros::Time last_added_stamp_;
+  // Time references for detecting a jump backwards (zero: none yet).
+  ros::Time last_clock_;
+  TimeLine cloud_time_;
+  TimeLine odometry_time_;
+  // When the latest jump was handled: the clock and the stamps see one jump one after the other.
+  ros::WallTime last_jump_wall_;
+  // Non-empty while clouds are refused after a time jump (time_jump_policy refuse).
+  std::string refusing_reason_;
+  // Why the latest cloud was refused or dropped, for ~diagnostics.
+  std::string last_refusal_;
+  // While finish_map runs, clouds wait in pending_ instead of going to the stopped system.
+  bool finishing_ = false;
+  // The SLAM counters at the previous refusal: the one that grew names the next refusal's reason.
+  pipeline::SlamCounters refusal_reference_;
+  // An automatic reset on the input thread asks the output thread to clear the markers.
+  std::atomic<bool> markers_reset_requested_{false};
 
   ros::Subscriber cloud_subscriber_;
   ros::Subscriber odometry_subscriber_;
@@ -182,12 +257,15 @@ class SlamNode {
   ros::WallTimer diagnostics_timer_;
   ros::WallTimer active_slice_timer_;
   std::vector<ros::ServiceServer> services_;
-  // What each published per-submap marker showed, to re-publish only changed ones.
+  // What was published per submap: its frame's pose on /tf_static and its mesh's size, to send
+  // a moved submap's pose and a new or re-meshed submap's mesh only.
   struct PublishedSubmap {
     Eigen::Isometry3d T_world_submap;
     int64_t mesh_triangles;
   };
   std::map<int64_t, PublishedSubmap> published_submaps_;
+  // Submap frames ever sent on /tf_static (a static transform cannot be withdrawn).
+  std::map<int64_t, Eigen::Isometry3d> published_frames_;
   size_t published_trajectory_size_ = 0;
   bool map_changed_ = true;
   int64_t last_dropped_total_ = 0;
