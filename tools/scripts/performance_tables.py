@@ -324,22 +324,6 @@ def sources_table(reports):
     return lines
 
 
-def all_results(reports):
-    lines = []
-    for name, report in reports.items():
-        lines.append(f"<details><summary><code>{name}</code>: {report['device']}</summary>")
-        lines.append("")
-        lines.append("| case | metric | value | unit |")
-        lines.append("|---|---|---:|---|")
-        for row in report["results"]:
-            lines.append(f"| {row['case']} | {row['metric']} | {number(row['value'])} | "
-                         f"{row['unit']} |")
-        lines.append("")
-        lines.append("</details>")
-        lines.append("")
-    return lines[:-1]
-
-
 BLOCKS = {
     "goals": goals_table,
     "peers": peers_table,
@@ -350,7 +334,6 @@ BLOCKS = {
     "accuracy": accuracy_table,
     "pipeline": pipeline_table,
     "sources": sources_table,
-    "all_results": all_results,
 }
 
 MARKER = re.compile(r"^<!-- generated: (\w+) -->\n(.*?)^<!-- end generated: \1 -->$",
