@@ -5,7 +5,7 @@
 
 #include <Eigen/Dense>
 
-#include "covoxslam/backend/pose_graph_solver_impl.h"
+#include "covoxslam/backend/internal/pose_graph_solver_impl.h"
 #include "covoxslam/backend/synthetic_pose_graph.h"
 
 namespace covox {

@@ -8,7 +8,7 @@
 #include <memory>
 
 #include "covoxslam/backend/registration.h"
-#include "covoxslam/backend/registration_ops.h"
+#include "covoxslam/backend/internal/registration_ops.h"
 #include "covoxslam/core/error.h"
 #include "support/per_device_cache.h"
 #include "support/registration_room.h"

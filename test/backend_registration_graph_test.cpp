@@ -12,7 +12,7 @@
 
 #include "covoxslam/backend/ceres_registration_oracle.h"
 #include "covoxslam/backend/pose_graph_solver.h"
-#include "covoxslam/backend/registration_ops.h"
+#include "covoxslam/backend/internal/registration_ops.h"
 #include "covoxslam/backend/registration_terms.h"
 #include "covoxslam/core/error.h"
 #include "covoxslam/integrators/esdf_integrator.h"

@@ -25,7 +25,7 @@
 #include "covoxslam/io/file_bytes.h"
 #include "covoxslam/io/image_codecs.h"
 #include "covoxslam/io/lidar_bin_reader.h"
-#include "covoxslam/io/lzf_decompress.h"
+#include "covoxslam/io/internal/lzf_decompress.h"
 #include "covoxslam/io/mesh_ply.h"
 #include "covoxslam/io/pcd_reader.h"
 #include "covoxslam/io/ply_reader.h"

@@ -6,7 +6,7 @@
 
 #include <random>
 
-#include "covoxslam/integrators/tsdf_kernels.h"
+#include "covoxslam/integrators/internal/tsdf_kernels.h"
 
 namespace covox {
 namespace {

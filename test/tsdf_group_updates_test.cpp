@@ -9,7 +9,7 @@
 #include <random>
 #include <vector>
 
-#include "covoxslam/integrators/tsdf_group_updates_cpu.h"
+#include "covoxslam/integrators/internal/tsdf_group_updates_cpu.h"
 
 namespace covox {
 namespace {

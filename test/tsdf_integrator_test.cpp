@@ -2,7 +2,7 @@
 // dropped input, and CPU vs CUDA parity.
 #include "covoxslam/integrators/tsdf_integrator.h"
 #include "covoxslam/integrators/internal/tsdf_frame_strategy.h"
-#include "covoxslam/integrators/tsdf_kernels.h"
+#include "covoxslam/integrators/internal/tsdf_kernels.h"
 
 #include <gtest/gtest.h>
 

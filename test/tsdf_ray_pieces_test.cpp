@@ -10,7 +10,7 @@
 #include <tuple>
 #include <vector>
 
-#include "covoxslam/integrators/tsdf_kernels.h"
+#include "covoxslam/integrators/internal/tsdf_kernels.h"
 
 namespace covox {
 namespace {

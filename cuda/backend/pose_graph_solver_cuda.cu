@@ -1,5 +1,5 @@
 // CUDA instantiation of the pose-graph solver (same source as the CPU twin).
-#include "covoxslam/backend/pose_graph_solver_impl.h"
+#include "covoxslam/backend/internal/pose_graph_solver_impl.h"
 
 namespace covox {
 namespace backend {

@@ -1,5 +1,5 @@
 // CUDA instantiation of submap registration (same source as the CPU twin).
-#include "covoxslam/backend/registration_impl.h"
+#include "covoxslam/backend/internal/registration_impl.h"
 
 namespace covox {
 namespace backend {

@@ -1,5 +1,5 @@
 // CUDA instantiation of the runtime-dispatched primitives (same source as the CPU twin).
-#include "covoxslam/core/device_algorithms_impl.h"
+#include "covoxslam/core/internal/device_algorithms_impl.h"
 
 namespace covox {
 namespace algorithms {

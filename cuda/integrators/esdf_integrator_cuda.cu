@@ -1,5 +1,5 @@
 // CUDA instantiation of the ESDF update (same source as the CPU twin).
-#include "covoxslam/integrators/esdf_integrator_impl.h"
+#include "covoxslam/integrators/internal/esdf_integrator_impl.h"
 
 namespace covox {
 COVOX_INSTANTIATE_ESDF_INTEGRATOR(CudaBackend)

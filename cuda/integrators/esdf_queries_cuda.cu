@@ -1,5 +1,5 @@
 // CUDA instantiation of the ESDF queries (same source as the CPU twin).
-#include "covoxslam/integrators/esdf_queries_impl.h"
+#include "covoxslam/integrators/internal/esdf_queries_impl.h"
 
 namespace covox {
 COVOX_INSTANTIATE_ESDF_QUERIES(CudaBackend)

@@ -1,5 +1,5 @@
 // CUDA instantiation of marching-cubes extraction (same source as the CPU twin).
-#include "covoxslam/integrators/mesh_integrator_impl.h"
+#include "covoxslam/integrators/internal/mesh_integrator_impl.h"
 
 namespace covox {
 COVOX_INSTANTIATE_MESH_INTEGRATOR(CudaBackend)

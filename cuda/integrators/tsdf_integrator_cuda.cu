@@ -1,5 +1,5 @@
 // CUDA instantiation of TSDF integration (same source as the CPU twin).
-#include "covoxslam/integrators/tsdf_integrator_impl.h"
+#include "covoxslam/integrators/internal/tsdf_integrator_impl.h"
 
 namespace covox {
 COVOX_INSTANTIATE_TSDF_INTEGRATOR(CudaBackend)

@@ -1,5 +1,5 @@
 // CUDA instantiation of the voxel pool operations (same source as the CPU twin).
-#include "covoxslam/map/voxel_pool_ops_impl.h"
+#include "covoxslam/map/internal/voxel_pool_ops_impl.h"
 
 namespace covox {
 COVOX_INSTANTIATE_VOXEL_POOL_OPS(CudaBackend)

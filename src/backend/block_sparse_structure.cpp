@@ -1,4 +1,4 @@
-#include "covoxslam/backend/block_sparse_structure.h"
+#include "covoxslam/backend/internal/block_sparse_structure.h"
 
 #include <algorithm>
 #include <map>

@@ -2,7 +2,7 @@
 
 #include <sstream>
 
-#include "covoxslam/backend/pose_graph_solver_ops.h"
+#include "covoxslam/backend/internal/pose_graph_solver_ops.h"
 
 namespace covox {
 namespace backend {

@@ -1,5 +1,5 @@
 // CPU (OpenMP) instantiation of the pose-graph solver.
-#include "covoxslam/backend/pose_graph_solver_impl.h"
+#include "covoxslam/backend/internal/pose_graph_solver_impl.h"
 
 namespace covox {
 namespace backend {

@@ -8,7 +8,7 @@
 #include <unordered_set>
 
 #include "covoxslam/backend/pose_graph.h"
-#include "covoxslam/backend/registration_ops.h"
+#include "covoxslam/backend/internal/registration_ops.h"
 #include "covoxslam/core/error.h"
 #include "covoxslam/map/block_key.h"
 

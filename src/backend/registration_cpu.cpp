@@ -1,5 +1,5 @@
 // CPU (OpenMP) instantiation of submap registration.
-#include "covoxslam/backend/registration_impl.h"
+#include "covoxslam/backend/internal/registration_impl.h"
 
 namespace covox {
 namespace backend {

@@ -3,7 +3,7 @@
 #include <cmath>
 #include <string>
 
-#include "covoxslam/backend/registration_ops.h"
+#include "covoxslam/backend/internal/registration_ops.h"
 #include "covoxslam/core/error.h"
 
 namespace covox {

@@ -1,5 +1,5 @@
 #include "covoxslam/core/device_algorithms.h"
-#include "covoxslam/core/device_algorithms_primitives.h"
+#include "covoxslam/core/internal/device_algorithms_primitives.h"
 
 #include <cstdint>
 

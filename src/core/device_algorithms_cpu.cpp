@@ -1,5 +1,5 @@
 // CPU (OpenMP) instantiation of the runtime-dispatched primitives.
-#include "covoxslam/core/device_algorithms_impl.h"
+#include "covoxslam/core/internal/device_algorithms_impl.h"
 
 namespace covox {
 namespace algorithms {

@@ -1,5 +1,5 @@
 // CPU (OpenMP) instantiation of the ESDF update.
-#include "covoxslam/integrators/esdf_integrator_impl.h"
+#include "covoxslam/integrators/internal/esdf_integrator_impl.h"
 
 namespace covox {
 COVOX_INSTANTIATE_ESDF_INTEGRATOR(CpuBackend)

@@ -3,7 +3,7 @@
 #include <cmath>
 
 #include "covoxslam/core/error.h"
-#include "covoxslam/integrators/esdf_queries_ops.h"
+#include "covoxslam/integrators/internal/esdf_queries_ops.h"
 
 namespace covox {
 namespace {

@@ -1,5 +1,5 @@
 // CPU (OpenMP) instantiation of the ESDF queries.
-#include "covoxslam/integrators/esdf_queries_impl.h"
+#include "covoxslam/integrators/internal/esdf_queries_impl.h"
 
 namespace covox {
 COVOX_INSTANTIATE_ESDF_QUERIES(CpuBackend)

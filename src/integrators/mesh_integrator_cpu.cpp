@@ -1,5 +1,5 @@
 // CPU (OpenMP) instantiation of marching-cubes extraction.
-#include "covoxslam/integrators/mesh_integrator_impl.h"
+#include "covoxslam/integrators/internal/mesh_integrator_impl.h"
 
 namespace covox {
 COVOX_INSTANTIATE_MESH_INTEGRATOR(CpuBackend)

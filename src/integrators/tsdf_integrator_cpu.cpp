@@ -1,5 +1,5 @@
 // CPU (OpenMP) instantiation of TSDF integration.
-#include "covoxslam/integrators/tsdf_integrator_impl.h"
+#include "covoxslam/integrators/internal/tsdf_integrator_impl.h"
 
 namespace covox {
 COVOX_INSTANTIATE_TSDF_INTEGRATOR(CpuBackend)

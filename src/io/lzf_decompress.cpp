@@ -1,4 +1,4 @@
-#include "covoxslam/io/lzf_decompress.h"
+#include "covoxslam/io/internal/lzf_decompress.h"
 
 #include <cstring>
 

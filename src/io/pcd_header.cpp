@@ -1,4 +1,4 @@
-#include "covoxslam/io/pcd_header.h"
+#include "covoxslam/io/internal/pcd_header.h"
 
 #include <algorithm>
 #include <charconv>
@@ -6,7 +6,7 @@
 #include <string_view>
 
 #include "covoxslam/core/error.h"
-#include "covoxslam/io/text_numbers.h"
+#include "covoxslam/io/internal/text_numbers.h"
 
 namespace covox {
 namespace io {

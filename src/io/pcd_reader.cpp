@@ -10,9 +10,9 @@
 #include "covoxslam/core/error.h"
 #include "covoxslam/core/log.h"
 #include "covoxslam/io/file_bytes.h"
-#include "covoxslam/io/lzf_decompress.h"
-#include "covoxslam/io/pcd_header.h"
-#include "covoxslam/io/text_numbers.h"
+#include "covoxslam/io/internal/lzf_decompress.h"
+#include "covoxslam/io/internal/pcd_header.h"
+#include "covoxslam/io/internal/text_numbers.h"
 
 namespace covox {
 namespace io {

@@ -8,7 +8,7 @@
 
 #include "covoxslam/core/error.h"
 #include "covoxslam/io/file_bytes.h"
-#include "covoxslam/io/text_numbers.h"
+#include "covoxslam/io/internal/text_numbers.h"
 
 namespace covox {
 namespace io {

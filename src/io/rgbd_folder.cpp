@@ -9,7 +9,7 @@
 #include "covoxslam/io/file_bytes.h"
 #include "covoxslam/io/image_codecs.h"
 #include "covoxslam/io/pose_file_readers.h"
-#include "covoxslam/io/text_numbers.h"
+#include "covoxslam/io/internal/text_numbers.h"
 
 namespace covox {
 namespace io {

@@ -1,4 +1,4 @@
-#include "covoxslam/io/text_numbers.h"
+#include "covoxslam/io/internal/text_numbers.h"
 
 #include <charconv>
 #include <system_error>

@@ -1,5 +1,5 @@
 // CPU (OpenMP) instantiation of the BlockHashTable algorithms.
-#include "covoxslam/map/block_hash_table_impl.h"
+#include "covoxslam/map/internal/block_hash_table_impl.h"
 
 namespace covox {
 COVOX_INSTANTIATE_BLOCK_HASH_TABLE(CpuBackend)

@@ -1,5 +1,5 @@
 // CPU (OpenMP) instantiation of the voxel pool operations.
-#include "covoxslam/map/voxel_pool_ops_impl.h"
+#include "covoxslam/map/internal/voxel_pool_ops_impl.h"
 
 namespace covox {
 COVOX_INSTANTIATE_VOXEL_POOL_OPS(CpuBackend)

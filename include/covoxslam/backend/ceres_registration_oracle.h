@@ -24,9 +24,9 @@
 #include <vector>
 
 #include "covoxslam/backend/ceres_pose_graph_oracle.h"
-#include "covoxslam/backend/registration_ops.h"
+#include "covoxslam/backend/internal/registration_ops.h"
 #include "covoxslam/backend/registration_terms.h"
-#include "covoxslam/backend/registration_terms_ops.h"
+#include "covoxslam/backend/internal/registration_terms_ops.h"
 
 namespace covox {
 namespace backend {

@@ -35,8 +35,8 @@
 #include <cub/device/device_reduce.cuh>
 #include <cub/device/device_scan.cuh>
 #include <thrust/system/cuda/execution_policy.h>
-#include "covoxslam/core/cuda_check.cuh"
-#include "covoxslam/core/cuda_temporary_allocator.cuh"
+#include "covoxslam/core/internal/cuda_check.cuh"
+#include "covoxslam/core/internal/cuda_temporary_allocator.cuh"
 #endif
 
 namespace covox {

@@ -33,7 +33,7 @@
 
 #if defined(__CUDACC__)
 #include <cub/block/block_scan.cuh>
-#include "covoxslam/core/cuda_check.cuh"
+#include "covoxslam/core/internal/cuda_check.cuh"
 #endif
 
 namespace covox {

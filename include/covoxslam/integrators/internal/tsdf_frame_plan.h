@@ -13,9 +13,9 @@
 #include "covoxslam/integrators/internal/tsdf_frame_strategy.h"
 #include "covoxslam/integrators/internal/tsdf_ray_tally.h"
 #include "covoxslam/integrators/internal/tsdf_scratch.h"
-#include "covoxslam/integrators/tsdf_group_updates_cpu.h"
+#include "covoxslam/integrators/internal/tsdf_group_updates_cpu.h"
 #include "covoxslam/integrators/tsdf_integrator.h"
-#include "covoxslam/integrators/tsdf_kernels.h"
+#include "covoxslam/integrators/internal/tsdf_kernels.h"
 #include "covoxslam/map/tsdf_map.h"
 
 namespace covox {

@@ -7,7 +7,7 @@
 
 #include "covoxslam/core/index3d.h"
 #include "covoxslam/core/macros.h"
-#include "covoxslam/integrators/tsdf_kernels.h"
+#include "covoxslam/integrators/internal/tsdf_kernels.h"
 
 namespace covox {
 namespace tsdf {

@@ -11,8 +11,8 @@
 #include "covoxslam/core/memory.h"
 #include "covoxslam/core/vec3.h"
 #include "covoxslam/integrators/internal/tsdf_frame_results.h"
-#include "covoxslam/integrators/tsdf_kernels.h"
-#include "covoxslam/integrators/tsdf_ray_merging.h"
+#include "covoxslam/integrators/internal/tsdf_kernels.h"
+#include "covoxslam/integrators/internal/tsdf_ray_merging.h"
 
 namespace covox {
 

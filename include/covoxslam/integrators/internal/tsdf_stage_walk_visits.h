@@ -7,8 +7,8 @@
 #include <utility>
 
 #include "covoxslam/integrators/internal/tsdf_frame_plan.h"
-#include "covoxslam/integrators/tsdf_group_updates_cpu.h"
-#include "covoxslam/integrators/tsdf_traverse.h"
+#include "covoxslam/integrators/internal/tsdf_group_updates_cpu.h"
+#include "covoxslam/integrators/internal/tsdf_traverse.h"
 
 namespace covox {
 namespace tsdf {

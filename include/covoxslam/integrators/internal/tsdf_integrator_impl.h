@@ -17,7 +17,7 @@
 #include "covoxslam/integrators/internal/tsdf_stage_ray_pieces.h"
 #include "covoxslam/integrators/internal/tsdf_stage_walk_visits.h"
 #include "covoxslam/integrators/internal/tsdf_stage_write_voxels.h"
-#include "covoxslam/integrators/tsdf_integrator_ops.h"
+#include "covoxslam/integrators/internal/tsdf_integrator_ops.h"
 
 namespace covox {
 namespace tsdf {

@@ -1,7 +1,7 @@
 #pragma once
 // Registration steps written once for both backends (instantiated in
 // src/backend/registration_cpu.cpp and cuda/backend/registration_cuda.cu).
-#include "covoxslam/backend/registration_ops.h"
+#include "covoxslam/backend/internal/registration_ops.h"
 #include <thrust/functional.h>
 
 #include "covoxslam/core/parallel.h"

@@ -4,7 +4,7 @@
 // backend's device; matrices are D x D row-major, one after the other.
 #include <thrust/functional.h>
 
-#include "covoxslam/backend/registration_terms_ops.h"
+#include "covoxslam/backend/internal/registration_terms_ops.h"
 #include "covoxslam/core/parallel.h"
 
 namespace covox {

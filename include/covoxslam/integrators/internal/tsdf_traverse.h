@@ -32,9 +32,9 @@
 #include "covoxslam/core/macros.h"
 #include "covoxslam/core/memory.h"
 #include "covoxslam/core/parallel.h"
-#include "covoxslam/core/sorted_search.h"
+#include "covoxslam/core/internal/sorted_search.h"
 #include "covoxslam/core/stream.h"
-#include "covoxslam/integrators/tsdf_kernels.h"
+#include "covoxslam/integrators/internal/tsdf_kernels.h"
 
 namespace covox {
 namespace tsdf {

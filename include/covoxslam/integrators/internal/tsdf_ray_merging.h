@@ -14,7 +14,7 @@
 #include "covoxslam/core/atomics.h"
 #include "covoxslam/core/macros.h"
 #include "covoxslam/core/vec3.h"
-#include "covoxslam/integrators/tsdf_kernels.h"
+#include "covoxslam/integrators/internal/tsdf_kernels.h"
 
 namespace covox {
 namespace tsdf {

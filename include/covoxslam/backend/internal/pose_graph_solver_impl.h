@@ -11,10 +11,10 @@
 #include <utility>
 #include <vector>
 
-#include "covoxslam/backend/block_sparse_structure.h"
-#include "covoxslam/backend/normal_equations_impl.h"
-#include "covoxslam/backend/pose_graph_solver_ops.h"
-#include "covoxslam/backend/registration_terms_workspace.h"
+#include "covoxslam/backend/internal/block_sparse_structure.h"
+#include "covoxslam/backend/internal/normal_equations_impl.h"
+#include "covoxslam/backend/internal/pose_graph_solver_ops.h"
+#include "covoxslam/backend/internal/registration_terms_workspace.h"
 #include "covoxslam/core/buffer.h"
 #include "covoxslam/core/error.h"
 

@@ -9,7 +9,7 @@
 // then chunks of a term in order): deterministic and the same order on both backends, no atomics.
 #include <cstdint>
 
-#include "covoxslam/backend/registration_ops.h"
+#include "covoxslam/backend/internal/registration_ops.h"
 #include "covoxslam/core/parallel.h"
 
 namespace covox {

@@ -29,8 +29,8 @@
 #if defined(__CUDACC__)
 #include <cub/device/device_radix_sort.cuh>
 
-#include "covoxslam/core/cuda_check.cuh"
-#include "covoxslam/core/cuda_temporary_allocator.cuh"
+#include "covoxslam/core/internal/cuda_check.cuh"
+#include "covoxslam/core/internal/cuda_temporary_allocator.cuh"
 #endif
 
 namespace covox {

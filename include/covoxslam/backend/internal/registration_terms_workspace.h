@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "covoxslam/backend/registration_terms.h"
-#include "covoxslam/backend/registration_terms_ops.h"
+#include "covoxslam/backend/internal/registration_terms_ops.h"
 #include "covoxslam/core/buffer.h"
 #include "covoxslam/core/memory.h"
 

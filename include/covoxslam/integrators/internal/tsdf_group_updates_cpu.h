@@ -16,7 +16,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "covoxslam/integrators/tsdf_kernels.h"
+#include "covoxslam/integrators/internal/tsdf_kernels.h"
 
 namespace covox {
 namespace tsdf {

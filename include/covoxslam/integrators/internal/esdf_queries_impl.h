@@ -3,7 +3,7 @@
 #include <thrust/functional.h>
 
 #include "covoxslam/core/parallel.h"
-#include "covoxslam/integrators/esdf_queries_ops.h"
+#include "covoxslam/integrators/internal/esdf_queries_ops.h"
 #include "covoxslam/map/block_voxel_indexer.h"
 
 namespace covox {

@@ -8,7 +8,7 @@
 #include "covoxslam/integrators/internal/tsdf_frame_strategy.h"
 #include "covoxslam/integrators/internal/tsdf_scratch.h"
 #include "covoxslam/integrators/tsdf_integrator.h"
-#include "covoxslam/integrators/tsdf_kernels.h"
+#include "covoxslam/integrators/internal/tsdf_kernels.h"
 
 namespace covox {
 

@@ -35,11 +35,11 @@
 #include "covoxslam/core/macros.h"
 #include "covoxslam/core/parallel.h"
 #include "covoxslam/core/stream.h"
-#include "covoxslam/core/warp_reduce.h"
+#include "covoxslam/core/internal/warp_reduce.h"
 
 #if defined(__CUDACC__)
 #include <cub/block/block_scan.cuh>
-#include "covoxslam/core/cuda_check.cuh"
+#include "covoxslam/core/internal/cuda_check.cuh"
 #endif
 
 namespace covox {

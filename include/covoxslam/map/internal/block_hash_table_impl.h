@@ -19,7 +19,7 @@
 #include "covoxslam/core/error.h"
 #include "covoxslam/core/log.h"
 #include "covoxslam/core/parallel.h"
-#include "covoxslam/map/block_hash_table_ops.h"
+#include "covoxslam/map/internal/block_hash_table_ops.h"
 #include "covoxslam/map/block_hash_table_state.h"
 
 namespace covox {
