@@ -248,6 +248,8 @@ void SlamNode::publish_diagnostics(const ros::WallTimerEvent&) {
                 {"odometry_constraints", counters.odometry_constraints},
                 {"registration_attempted", counters.registration.attempted},
                 {"registration_accepted", counters.registration.accepted},
+                {"registration_rejected_misfit", counters.registration.rejected_misfit},
+                {"registration_rejected_by_odometry", counters.registration.rejected_by_odometry},
                 {"loop_closures_received", counters.loop_closures.received},
                 {"loop_closures_added", counters.loop_closures.added},
                 {"optimizations", counters.optimizations},
@@ -255,6 +257,8 @@ void SlamNode::publish_diagnostics(const ros::WallTimerEvent&) {
                 {"resets", counters.resets}};
   for (const auto& value : values)
     status.values.push_back(entry(value.key, std::to_string(value.value)));
+  status.values.push_back(entry("correction_rms_m", std::to_string(counters.correction_rms_m)));
+  status.values.push_back(entry("correction_max_m", std::to_string(counters.correction_max_m)));
   add_timing(&status, "tsdf", timings.tsdf);
   add_timing(&status, "esdf", timings.esdf);
   add_timing(&status, "mesh", timings.mesh);
