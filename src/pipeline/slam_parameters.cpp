@@ -264,6 +264,8 @@ void add_pose_graph_parameters(std::vector<SlamParameter>* table) {
                            non_negative),
           number_parameter("pose_graph.odometry_drift_deg_per_m",
                            COVOX_FIELD(odometry_drift_deg_per_m), non_negative),
+          number_parameter("pose_graph.registration_loss_scale_sigmas",
+                           COVOX_FIELD(registration_loss_scale_sigmas), non_negative),
           integer_parameter("pose_graph.optimize_every_n_submaps",
                             COVOX_FIELD(optimize_every_n_submaps), 0, 1000000),
           bool_parameter("pose_graph.interpolate_trajectory_correction",

@@ -584,10 +584,61 @@ int SlamSystem::integrate_pending_constraints_locked(bool final) {
   return added;
 }
 
+namespace {
+
+// The Cauchy weight 1 / (1 + r^2 / c^2) of every active registration constraint at the graph's
+// current poses, r^2 = e^T information e (e: the measurement's error, in the measurement's
+// convention, yaw wrapped); returns the largest change of a weight.
+double reweight_registrations(SubmapPoseGraph* graph, double scale_sigmas) {
+  const std::vector<SubmapConstraint>& constraints = graph->constraints();
+  double largest_change = 0.0;
+  for (size_t k = 0; k < constraints.size(); ++k) {
+    const SubmapConstraint& c = constraints[k];
+    if (c.kind != SubmapConstraintKind::kRegistration || !c.active) continue;
+    const int64_t from = graph->index_of(c.from_submap), to = graph->index_of(c.to_submap);
+    if (from < 0 || to < 0) continue;
+    const backend::Pose4Dof relative =
+        relative_pose_4dof(graph->nodes()[static_cast<size_t>(from)].pose,
+                           graph->nodes()[static_cast<size_t>(to)].pose);
+    const Eigen::Vector4d error(
+        relative.x - c.measurement.x, relative.y - c.measurement.y, relative.z - c.measurement.z,
+        std::remainder(relative.yaw - c.measurement.yaw, 2.0 * 3.14159265358979323846));
+    const double r_sq = std::max(0.0, error.dot(c.information * error));
+    const double weight = 1.0 / (1.0 + r_sq / (scale_sigmas * scale_sigmas));
+    largest_change = std::max(largest_change, std::abs(weight - c.weight));
+    graph->set_weight(k, std::max(weight, 1e-12));
+  }
+  return largest_change;
+}
+
+}  // namespace
+
+bool SlamSystem::solve_robust_locked() {
+  const double scale = config_.registration_loss_scale_sigmas;
+  if (!(scale > 0.0)) return solve_graph_locked();
+  // Iteratively reweighted least squares: each solve's weights come from the previous solution,
+  // starting from the plain least-squares one; a few rounds settle the weights.
+  {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    for (size_t k = 0; k < pose_graph_.constraints().size(); ++k) pose_graph_.set_weight(k, 1.0);
+  }
+  const int max_rounds = 8;
+  for (int round = 0; round < max_rounds; ++round) {
+    if (!solve_graph_locked()) return false;
+    double change = 0.0;
+    {
+      std::lock_guard<std::mutex> lock(state_mutex_);
+      change = reweight_registrations(&pose_graph_, scale);
+    }
+    if (change < 0.01) break;
+  }
+  return solve_graph_locked();
+}
+
 void SlamSystem::optimize_locked() {
   const double max_residual_m = config_.registration.gate.max_residual_m;
   if (!(max_residual_m > 0.0)) {
-    solve_graph_locked();
+    solve_robust_locked();
     return;
   }
   // The consistency gate: every optimisation starts from all registration constraints, so one set
@@ -606,7 +657,7 @@ void SlamSystem::optimize_locked() {
   const int max_rounds = worst_fraction > 0.0 ? 25 : 10;
   int set_aside = 0;
   for (int round = 0; round < max_rounds; ++round) {
-    if (!solve_graph_locked()) return;
+    if (!solve_robust_locked()) return;
     int now = 0;
     {
       std::lock_guard<std::mutex> lock(state_mutex_);
@@ -614,7 +665,7 @@ void SlamSystem::optimize_locked() {
     }
     set_aside += now;
     if (now == 0) break;
-    if (round + 1 == max_rounds) solve_graph_locked();  // the graph without the last ones set aside
+    if (round + 1 == max_rounds) solve_robust_locked();  // without the last ones set aside
   }
   std::lock_guard<std::mutex> lock(state_mutex_);
   counters_.registrations_set_aside = set_aside;

@@ -101,6 +101,15 @@ void SubmapPoseGraph::set_active(size_t index, bool active) {
   constraints_[index].active = active;
 }
 
+void SubmapPoseGraph::set_weight(size_t index, double weight) {
+  if (index >= constraints_.size() || !(weight > 0.0 && weight <= 1.0)) {
+    throw Error("submap pose graph: no weight " + std::to_string(weight) + " for constraint " +
+                std::to_string(index) + " (" + std::to_string(constraints_.size()) +
+                " constraints; weights lie in (0, 1])");
+  }
+  constraints_[index].weight = weight;
+}
+
 int set_aside_inconsistent_registrations(SubmapPoseGraph* graph, double max_residual_m,
                                          double worst_fraction) {
   const std::vector<SubmapConstraint>& constraints = graph->constraints();
@@ -201,7 +210,8 @@ SubmapPoseGraph::BackendGraph SubmapPoseGraph::to_backend_graph() const {
     Eigen::Matrix4d rotation = Eigen::Matrix4d::Identity();
     rotation.topLeftCorner<2, 2>() << std::cos(offset_a.yaw), -std::sin(offset_a.yaw),
         std::sin(offset_a.yaw), std::cos(offset_a.yaw);
-    const Eigen::Matrix4d information = rotation * c.information * rotation.transpose();
+    const Eigen::Matrix4d information =
+        c.weight * (rotation * c.information * rotation.transpose());
     out.graph.constraints.push_back(
         backend::make_relative_constraint_4dof(vertex_a, vertex_b, compose(offset_a, c.measurement),
                                                0.5 * (information + information.transpose())));

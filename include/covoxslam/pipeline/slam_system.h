@@ -85,6 +85,11 @@ struct SlamConfig {
   // (registration.verification). 0 and 0: the sigmas alone.
   double odometry_drift_m_per_m = 0.0;
   double odometry_drift_deg_per_m = 0.0;
+  // Robust loss on registration constraints in the pose-graph solve (Cauchy, by iteratively
+  // reweighted solves): a constraint whose whitened residual r (r^2 = e^T information e at the
+  // solution) is large gets its information times 1 / (1 + r^2 / c^2), c this scale in standard
+  // deviations, so one wrong registration cannot bend the trajectory. 0: plain least squares.
+  double registration_loss_scale_sigmas = 0.0;
   // Optimise after every n-th submap enters the graph, and when external constraints or
   // request_optimization() arrive; 0: only in finish() and on request_optimization().
   int optimize_every_n_submaps = 1;
@@ -378,6 +383,8 @@ class SlamSystem {
   void optimize_locked();
   // One solve of the graph as it is (false: the solve failed, logged and counted).
   bool solve_graph_locked();
+  // solve_graph_locked under the robust loss on registration constraints (above), if any.
+  bool solve_robust_locked();
   // kJoint: the dense registration terms of joint_pairs_ for `graph`; needs state_mutex_ (and
   // backend_mutex_ for the lifetime of the submaps they point to).
   std::vector<backend::RegistrationTerm> joint_terms_locked(

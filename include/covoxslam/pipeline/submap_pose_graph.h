@@ -54,6 +54,9 @@ struct SubmapConstraint {
   // False: set aside by the consistency gate (registration.gate.max_residual_m); kept in the
   // graph's list but not given to the solver.
   bool active = true;
+  // The solver sees information * weight: the robust loss on registration constraints
+  // (pose_graph.registration_loss_scale_sigmas) lowers it for those that disagree with the rest.
+  double weight = 1.0;
 
   bool is_absolute() const {
     return kind == SubmapConstraintKind::kAbsolutePosition || kind == SubmapConstraintKind::kHeight;
@@ -89,6 +92,8 @@ class SubmapPoseGraph {
   // The consistency gate's switch for constraint `index` of constraints(); inactive ones are left
   // out of to_backend_graph(). Throws covox::Error for an index out of range.
   void set_active(size_t index, bool active);
+  // Throws covox::Error for an unknown index or a weight outside (0, 1].
+  void set_weight(size_t index, double weight);
 
   // The backend graph at the current poses, and the mapping back (see apply_solution).
   struct BackendGraph {
