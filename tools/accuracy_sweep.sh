@@ -32,7 +32,7 @@ for seed in "$@"; do
   flight="$out/flight_seed${seed}_${columns}col"
   if [ ! -f "$flight/flight.bag" ]; then
     "$bin/simulate_flight" --output-dir "$flight" --seed "$seed" --columns "$columns" \
-      > "$out/simulate_seed$seed.txt"
+      > "$out/simulate_seed$seed.txt" 2>&1
   fi
   log="$out/run_slam_seed$seed.txt"
   "$bin/run_slam" --bag "$flight/flight.bag" --device "$device" --quiet \
