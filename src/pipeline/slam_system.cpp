@@ -584,35 +584,6 @@ int SlamSystem::integrate_pending_constraints_locked(bool final) {
   return added;
 }
 
-namespace {
-
-// The Cauchy weight 1 / (1 + r^2 / c^2) of every active registration constraint at the graph's
-// current poses, r^2 = e^T information e (e: the measurement's error, in the measurement's
-// convention, yaw wrapped); returns the largest change of a weight.
-double reweight_registrations(SubmapPoseGraph* graph, double scale_sigmas) {
-  const std::vector<SubmapConstraint>& constraints = graph->constraints();
-  double largest_change = 0.0;
-  for (size_t k = 0; k < constraints.size(); ++k) {
-    const SubmapConstraint& c = constraints[k];
-    if (c.kind != SubmapConstraintKind::kRegistration || !c.active) continue;
-    const int64_t from = graph->index_of(c.from_submap), to = graph->index_of(c.to_submap);
-    if (from < 0 || to < 0) continue;
-    const backend::Pose4Dof relative =
-        relative_pose_4dof(graph->nodes()[static_cast<size_t>(from)].pose,
-                           graph->nodes()[static_cast<size_t>(to)].pose);
-    const Eigen::Vector4d error(
-        relative.x - c.measurement.x, relative.y - c.measurement.y, relative.z - c.measurement.z,
-        std::remainder(relative.yaw - c.measurement.yaw, 2.0 * 3.14159265358979323846));
-    const double r_sq = std::max(0.0, error.dot(c.information * error));
-    const double weight = 1.0 / (1.0 + r_sq / (scale_sigmas * scale_sigmas));
-    largest_change = std::max(largest_change, std::abs(weight - c.weight));
-    graph->set_weight(k, std::max(weight, 1e-12));
-  }
-  return largest_change;
-}
-
-}  // namespace
-
 bool SlamSystem::solve_robust_locked() {
   const double scale = config_.registration_loss_scale_sigmas;
   if (!(scale > 0.0)) return solve_graph_locked();
@@ -628,7 +599,7 @@ bool SlamSystem::solve_robust_locked() {
     double change = 0.0;
     {
       std::lock_guard<std::mutex> lock(state_mutex_);
-      change = reweight_registrations(&pose_graph_, scale);
+      change = reweight_registrations_cauchy(&pose_graph_, scale);
     }
     if (change < 0.01) break;
   }

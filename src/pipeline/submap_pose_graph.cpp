@@ -6,6 +6,7 @@
 #include <string>
 
 #include "covoxslam/core/error.h"
+#include "covoxslam/pipeline/submap.h"
 
 namespace covox {
 namespace pipeline {
@@ -139,6 +140,28 @@ int set_aside_inconsistent_registrations(SubmapPoseGraph* graph, double max_resi
     }
   }
   return count;
+}
+
+double reweight_registrations_cauchy(SubmapPoseGraph* graph, double scale_sigmas) {
+  const std::vector<SubmapConstraint>& constraints = graph->constraints();
+  double largest_change = 0.0;
+  for (size_t k = 0; k < constraints.size(); ++k) {
+    const SubmapConstraint& c = constraints[k];
+    if (c.kind != SubmapConstraintKind::kRegistration || !c.active) continue;
+    const int64_t from = graph->index_of(c.from_submap), to = graph->index_of(c.to_submap);
+    if (from < 0 || to < 0) continue;
+    const backend::Pose4Dof relative =
+        relative_pose_4dof(graph->nodes()[static_cast<size_t>(from)].pose,
+                           graph->nodes()[static_cast<size_t>(to)].pose);
+    const Eigen::Vector4d error(
+        relative.x - c.measurement.x, relative.y - c.measurement.y, relative.z - c.measurement.z,
+        std::remainder(relative.yaw - c.measurement.yaw, 2.0 * 3.14159265358979323846));
+    const double r_sq = std::max(0.0, error.dot(c.information * error));
+    const double weight = 1.0 / (1.0 + r_sq / (scale_sigmas * scale_sigmas));
+    largest_change = std::max(largest_change, std::abs(weight - c.weight));
+    graph->set_weight(k, std::max(weight, 1e-12));
+  }
+  return largest_change;
 }
 
 void SubmapPoseGraph::clear() {

@@ -120,6 +120,13 @@ class SubmapPoseGraph {
 int set_aside_inconsistent_registrations(SubmapPoseGraph* graph, double max_residual_m,
                                          double worst_fraction = 0.0);
 
+// One round of the robust (Cauchy) loss on registration constraints: every active registration
+// constraint gets the weight 1 / (1 + r^2 / scale_sigmas^2) at the graph's current poses,
+// r^2 = e^T information e (e: the measurement's error in its own convention, yaw wrapped).
+// Returns the largest change of a weight; solving and reweighting until it is small is
+// iteratively reweighted least squares.
+double reweight_registrations_cauchy(SubmapPoseGraph* graph, double scale_sigmas);
+
 // 4-DoF pose algebra (x_a = Rz(yaw) x_b + t): a * b (the inverse is backend::inverse_pose_4dof).
 backend::Pose4Dof compose(const backend::Pose4Dof& a, const backend::Pose4Dof& b);
 
