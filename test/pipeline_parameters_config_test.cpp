@@ -100,6 +100,20 @@ std::map<std::string, Expectation> expectations() {
        {"0.7", [](const SlamConfig& c) { return c.odometry_translation_sigma_m == 0.7; }}},
       {"pose_graph.odometry_yaw_sigma_rad",
        {"0.05", [](const SlamConfig& c) { return c.odometry_yaw_sigma_rad == 0.05; }}},
+      {"pose_graph.odometry_drift_m_per_m",
+       {"0.07", [](const SlamConfig& c) { return c.odometry_drift_m_per_m == 0.07; }}},
+      {"pose_graph.odometry_drift_deg_per_m",
+       {"1.5", [](const SlamConfig& c) { return c.odometry_drift_deg_per_m == 1.5; }}},
+      {"pose_graph.registration_loss_scale_sigmas",
+       {"2.5", [](const SlamConfig& c) { return c.registration_loss_scale_sigmas == 2.5; }}},
+      {"registration.acceptance.max_residual_rms_vox",
+       {"1.5",
+        [](const SlamConfig& c) { return c.registration.acceptance.max_residual_rms_vox == 1.5; }}},
+      {"registration.verification.max_mahalanobis_sq",
+       {"13.0",
+        [](const SlamConfig& c) {
+          return c.registration.verification.max_mahalanobis_sq == 13.0;
+        }}},
       {"pose_graph.optimize_every_n_submaps",
        {"0", [](const SlamConfig& c) { return c.optimize_every_n_submaps == 0; }}},
       {"pose_graph.interpolate_trajectory_correction",
@@ -318,7 +332,10 @@ std::string describe(const SlamConfig& config) {
        << c.odometry_yaw_sigma_rad << ' ' << c.interpolate_trajectory_correction << ' '
        << c.registration.alignment.coarse_levels << ' ' << c.registration.information.min_sigma_m
        << ' ' << c.registration.information.min_sigma_yaw_rad << ' '
-       << c.registration.revisits.wall_search << ' ' << c.registration.gate.max_residual_m;
+       << c.registration.revisits.wall_search << ' ' << c.registration.gate.max_residual_m << ' '
+       << c.registration.acceptance.max_residual_rms_vox << ' '
+       << c.registration.verification.max_mahalanobis_sq << ' ' << c.odometry_drift_m_per_m << ' '
+       << c.odometry_drift_deg_per_m << ' ' << c.registration_loss_scale_sigmas;
   return text.str();
 }
 
@@ -389,12 +406,18 @@ TEST(SlamParameterFiles, PresetsGiveTheirDocumentedValues) {
   EXPECT_FALSE(rgbd.tsdf.use_const_weight);
   EXPECT_FALSE(rgbd.tsdf.use_sparsity_compensation_factor);
   EXPECT_EQ(rgbd.submaps.interval_s, 2.0);
-  EXPECT_EQ(rgbd.registration.information.min_sigma_m, 0.0);
+  EXPECT_EQ(rgbd.registration.information.min_sigma_m, 0.03);
+  EXPECT_EQ(rgbd.registration.information.min_sigma_yaw_rad, 0.02);
   EXPECT_EQ(rgbd.registration.alignment.coarse_levels, 0);
   EXPECT_EQ(rgbd.registration.gate.max_residual_m, 0.0);
+  EXPECT_EQ(rgbd.registration.acceptance.max_residual_rms_vox, 1.0);
+  EXPECT_EQ(rgbd.registration.verification.max_mahalanobis_sq, 18.5);
   EXPECT_FALSE(rgbd.interpolate_trajectory_correction);
-  EXPECT_EQ(rgbd.odometry_translation_sigma_m, 0.1);
-  EXPECT_EQ(rgbd.odometry_yaw_sigma_rad, 0.01);
+  EXPECT_EQ(rgbd.odometry_translation_sigma_m, 0.01);
+  EXPECT_EQ(rgbd.odometry_yaw_sigma_rad, 0.002);
+  EXPECT_EQ(rgbd.odometry_drift_m_per_m, 0.1);
+  EXPECT_EQ(rgbd.odometry_drift_deg_per_m, 2.0);
+  EXPECT_EQ(rgbd.registration_loss_scale_sigmas, 3.0);
 
   const SlamConfig keyframes = load_preset("lidar_keyframes");
   EXPECT_EQ(keyframes.map.voxel_size_m, 0.5f);

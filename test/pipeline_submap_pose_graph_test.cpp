@@ -401,6 +401,47 @@ TEST(PipelineSubmapPoseGraph, ConsistencyGateSetsAsideTheWrongRevisitAndTheLoopC
   EXPECT_GT(error_without, error_oracle + 0.03);
 }
 
+// The robust loss's weights: at the true poses of the gate's loop, the right registrations have no
+// residual (weight 1) and the wrong one (2 m off at 0.2 m sigma: r^2 = 100) gets 1 / (1 + 100 / 9)
+// at a scale of 3 sigmas.
+TEST(PipelineSubmapPoseGraph, CauchyWeightsFollowTheWhitenedResidual) {
+  GateLoop loop = gate_loop();
+  SubmapPoseGraph at_truth;
+  for (size_t k = 0; k < loop.truth.size(); ++k)
+    at_truth.add_submap(static_cast<int64_t>(k), loop.truth[k], false);
+  for (const SubmapConstraint& c : loop.graph.constraints()) at_truth.add_constraint(c);
+  reweight_registrations_cauchy(&at_truth, 3.0);
+  for (size_t k = 0; k < at_truth.constraints().size(); ++k) {
+    const SubmapConstraint& c = at_truth.constraints()[k];
+    const double expected = k == loop.wrong_index ? 1.0 / (1.0 + 25.0 * 4.0 / 9.0) : 1.0;
+    EXPECT_NEAR(c.weight, expected, 1e-9) << k;
+  }
+}
+
+// Reweighted solves (the robust loss) keep the wrong revisit from bending the loop: the result
+// lies nearer the graph without it than the plain solve does, and its weight ends small.
+TEST(PipelineSubmapPoseGraph, CauchyLossKeepsTheWrongRevisitFromBendingTheLoop) {
+  GateLoop plain = gate_loop();
+  solve(&plain.graph);
+  GateLoop oracle = gate_loop();
+  oracle.graph.set_active(oracle.wrong_index, false);
+  solve(&oracle.graph);
+  GateLoop robust = gate_loop();
+  for (int round = 0; round < 20; ++round) {
+    solve(&robust.graph);
+    if (reweight_registrations_cauchy(&robust.graph, 3.0) < 1e-3) break;
+  }
+  solve(&robust.graph);
+  const double error_plain = max_horizontal_error(plain.graph, plain.truth);
+  const double error_oracle = max_horizontal_error(oracle.graph, oracle.truth);
+  const double error_robust = max_horizontal_error(robust.graph, robust.truth);
+  std::printf(
+      "[ cauchy   ] max error: plain %.3f m, robust %.3f m, without the wrong revisit %.3f m\n",
+      error_plain, error_robust, error_oracle);
+  EXPECT_LT(robust.graph.constraints()[robust.wrong_index].weight, 0.1);
+  EXPECT_LT(error_robust - error_oracle, 0.25 * (error_plain - error_oracle));
+}
+
 }  // namespace
 }  // namespace pipeline
 }  // namespace covox

@@ -18,8 +18,10 @@
 #include "bag_scan_source.h"
 #include "benchmark_report.h"
 #include "command_line.h"
+#include "constraint_evaluation.h"
 #include "covoxslam/core/device.h"
 #include "covoxslam/core/error.h"
+#include "covoxslam/core/log.h"
 #include "covoxslam/core/stage_profiler.h"
 #include "covoxslam/io/mesh_ply.h"
 #include "covoxslam/io/trajectory_io.h"
@@ -50,6 +52,8 @@ const char kUsage[] =
     "  --frame-rate-hz F           RGB-D: frame rate for stamps (default 30)\n"
     "  --drift-m D                 RGB-D: least final odometry drift (default 0.3)\n"
     "  --drift-seed N              RGB-D: drift seed (default 1)\n"
+    "  --drift-scale S             RGB-D: drift model and --drift-m times S (default 1; 0: "
+    "odometry = reference)\n"
     "  --max-scans N               stop after N scans (0: all)\n"
     "mapping (defaults from the preset; each option below overrides it):\n"
     "  --device auto|cpu|cuda      (default auto)\n"
@@ -86,6 +90,11 @@ const char kUsage[] =
     "  --align none|translation|4dof|se3|sim3  ATE alignment (default 4dof: translation + yaw, as "
     "ARCHE)\n"
     "  --max-time-gap-s G          association tolerance (default 0.1)\n"
+    "  --verify-constraints        print each registration constraint's error against the "
+    "reference\n"
+    "  --verify-tolerance-m M      ... and count those wrong by more than M (default 0.1) or 2 "
+    "degrees\n"
+    "  --debug-log                 the library's debug lines (each registration's statistics)\n"
     "  --json FILE                 write the results as a benchmark report (e.g. "
     "docs/benchmarks/pipeline.json)\n"
     "  --case NAME                 the report's case name (default: the input's file name)\n"
@@ -136,6 +145,9 @@ struct RunnerSettings {
   std::string align_text, json_path, case_name;
   double max_time_gap_s = 0.1;
   bool quiet = false;
+  bool verify_constraints = false;
+  double verify_tolerance_m = 0.1;
+  bool debug_log = false;
 };
 
 void read_input_options(tools::CommandLine& args, RunnerSettings* s) {
@@ -153,6 +165,7 @@ void read_input_options(tools::CommandLine& args, RunnerSettings* s) {
   rgbd.frame_rate_hz = args.number("--frame-rate-hz", rgbd.frame_rate_hz);
   rgbd.min_final_drift_m = args.number("--drift-m", rgbd.min_final_drift_m);
   rgbd.drift_seed = static_cast<uint64_t>(args.integer("--drift-seed", 1));
+  rgbd.drift_scale = args.number("--drift-scale", rgbd.drift_scale);
   s->max_scans = args.integer("--max-scans", 0);
 }
 
@@ -184,6 +197,9 @@ void read_output_options(tools::CommandLine& args, RunnerSettings* s) {
   s->json_path = args.text("--json", "");
   s->case_name = args.text("--case", "");
   s->quiet = args.flag("--quiet");
+  s->verify_constraints = args.flag("--verify-constraints");
+  s->verify_tolerance_m = args.number("--verify-tolerance-m", s->verify_tolerance_m);
+  s->debug_log = args.flag("--debug-log");
 }
 
 RunnerSettings read_settings(tools::CommandLine& args) {
@@ -276,6 +292,26 @@ void print_evaluation(const tools::SlamRunEvaluation& evaluation, bool truth,
               evaluation.corrected.absolute_position_m.max);
 }
 
+// What the backend did: registrations by outcome and the trajectory's shift from the odometry.
+void add_backend_rows(tools::BenchmarkReport* report, const std::string& name,
+                      const tools::SlamRunResult& result) {
+  const pipeline::RegistrationCounts& r = result.counters.registration;
+  const std::pair<const char*, int64_t> counts[] = {
+      {"registrations attempted", r.attempted},
+      {"registrations accepted", r.accepted},
+      {"registrations rejected: failed", r.rejected_failed},
+      {"registrations rejected: too far", r.rejected_too_far},
+      {"registrations rejected: too few points", r.rejected_too_few_points},
+      {"registrations rejected: misfit", r.rejected_misfit},
+      {"registrations rejected: disagree with odometry", r.rejected_by_odometry},
+      {"registrations set aside by the gate", result.counters.registrations_set_aside}};
+  for (const auto& count : counts)
+    report->add(name, count.first, static_cast<double>(count.second), "");
+  const tools::TrajectoryShift shift = tools::trajectory_shift(result);
+  report->add(name, "shift from odometry RMS", shift.rms_m, "m");
+  report->add(name, "shift from odometry max", shift.max_m, "m");
+}
+
 void write_report(const RunnerSettings& s, const pipeline::SlamConfig& config, int argc,
                   char** argv, const tools::SlamRunResult& result,
                   const tools::SlamRunEvaluation& evaluation, bool truth) {
@@ -294,6 +330,7 @@ void write_report(const RunnerSettings& s, const pipeline::SlamConfig& config, i
   add_timing_rows(&report, name, "submap queue wait", result.timings.submap_queue_wait);
   report.add(name, "read input", result.read_s, "s");
   report.add(name, "submaps", static_cast<double>(result.submaps.size()), "");
+  add_backend_rows(&report, name, result);
   report.add(name, "map blocks", static_cast<double>(result.map_blocks), "");
   report.add(name, "map memory", result.map_memory_mb, "MB");
   report.add(
@@ -309,7 +346,11 @@ void write_report(const RunnerSettings& s, const pipeline::SlamConfig& config, i
   std::printf("report -> %s\n", s.json_path.c_str());
 }
 
+// --verify-constraints: the yaw tolerance that goes with --verify-tolerance-m.
+constexpr double kVerifyToleranceYawRad = 2.0 * 3.14159265358979323846 / 180.0;
+
 void run(RunnerSettings& s, int argc, char** argv) {
+  if (s.debug_log) set_min_log_level(LogLevel::kDebug);
   const tools::AlignmentMode alignment = tools::parse_alignment_mode(s.align_text);
   const Device device = select_device(parse_device_request(s.device_text));
   std::unique_ptr<tools::ScanSource> source = open_source(s);
@@ -340,6 +381,12 @@ void run(RunnerSettings& s, int argc, char** argv) {
       tools::evaluate_slam_run(*source, result, alignment, s.max_time_gap_s);
   const bool truth = source->reference_kind() == tools::ReferenceKind::kGroundTruth;
   print_evaluation(evaluation, truth, alignment);
+  if (s.verify_constraints && !source->reference().empty()) {
+    const tools::ConstraintEvaluation constraints = tools::evaluate_registration_constraints(
+        source->reference(), result.submaps, result.constraints, s.verify_tolerance_m,
+        kVerifyToleranceYawRad);
+    tools::print_constraint_evaluation(constraints, stdout);
+  }
   if (!s.json_path.empty()) write_report(s, config, argc, argv, result, evaluation, truth);
 }
 

@@ -48,6 +48,9 @@ void validate_acceptance(const SubmapRegistrationConfig::Acceptance& config) {
               config.max_correction_rad <= 3.14159265358979323846,
           "acceptance.max_correction_rad must be in (0, pi], got " +
               std::to_string(config.max_correction_rad));
+  require(std::isfinite(config.max_residual_rms_vox) && config.max_residual_rms_vox >= 0.0,
+          "acceptance.max_residual_rms_vox must be >= 0 (0: off), got " +
+              std::to_string(config.max_residual_rms_vox));
 }
 
 void validate_information(const SubmapRegistrationConfig::Information& config) {
@@ -100,6 +103,10 @@ void validate(const SubmapRegistrationConfig& config) {
   validate_information(config.information);
   validate_revisits(config.revisits);
   validate_gate(config.gate);
+  require(std::isfinite(config.verification.max_mahalanobis_sq) &&
+              config.verification.max_mahalanobis_sq >= 0.0,
+          "verification.max_mahalanobis_sq must be >= 0 (0: off), got " +
+              std::to_string(config.verification.max_mahalanobis_sq));
 }
 
 Eigen::Matrix4d floored_information(const Eigen::Matrix4d& points_information, double min_sigma_m,
@@ -172,12 +179,43 @@ const char* to_string(backend::RegistrationDistance distance) {
   return "unknown";
 }
 
+double odometry_mahalanobis_sq(const backend::Pose4Dof& measured,
+                               const RegistrationOdometry& odometry_j,
+                               const RegistrationOdometry& odometry_i,
+                               const Eigen::Matrix4d& points_information, double floor_m,
+                               double floor_rad) {
+  const backend::Pose4Dof expected = relative_pose_4dof(odometry_j.pose, odometry_i.pose);
+  const Eigen::Vector4d error(
+      measured.x - expected.x, measured.y - expected.y, measured.z - expected.z,
+      std::remainder(measured.yaw - expected.yaw, 2.0 * 3.14159265358979323846));
+  const double path_m = std::abs(odometry_i.path_m - odometry_j.path_m);
+  const double sigma_m = odometry_i.drift_m_per_m * path_m + floor_m;
+  const double sigma_rad = odometry_i.drift_rad_per_m * path_m + floor_rad;
+  const Eigen::Vector4d odometry_variance(sigma_m * sigma_m, sigma_m * sigma_m, sigma_m * sigma_m,
+                                          sigma_rad * sigma_rad);
+  // The points' covariance (the pseudo-inverse of their information: a free direction adds
+  // nothing, the odometry's variance bounds it) added to the odometry's.
+  Eigen::Matrix4d covariance = odometry_variance.asDiagonal();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> eigen(
+      0.5 * (points_information + points_information.transpose()));
+  for (int k = 0; k < 4; ++k) {
+    const double value = eigen.eigenvalues()(k);
+    if (value > 0.0) {
+      const Eigen::Vector4d v = eigen.eigenvectors().col(k);
+      covariance += v * v.transpose() / value;
+    }
+  }
+  return error.dot(covariance.ldlt().solve(error));
+}
+
 void RegistrationCounts::add(const RegistrationCounts& other) {
   attempted += other.attempted;
   accepted += other.accepted;
   rejected_failed += other.rejected_failed;
   rejected_too_far += other.rejected_too_far;
   rejected_too_few_points += other.rejected_too_few_points;
+  rejected_misfit += other.rejected_misfit;
+  rejected_by_odometry += other.rejected_by_odometry;
   started_from_walls += other.started_from_walls;
   joint_pairs += other.joint_pairs;
 }
@@ -258,6 +296,7 @@ struct PairContext {
   backend::RegistrationAlignerConfig aligner;
   double sqrt_mean_weight;
   WallMapCache* walls_i;
+  RegistrationOdometry odometry;
 };
 
 backend::RegistrationAlignerConfig aligner_config(const SubmapRegistrationConfig& config,
@@ -332,6 +371,18 @@ SubmapConstraint accepted_constraint(const PairContext& context, int64_t partner
   return c;
 }
 
+// The squared Mahalanobis distance of an accepted alignment from the odometry
+// (odometry_mahalanobis_sq), with a floor of one voxel and one degree; -1 when either submap's
+// odometry is unknown.
+double verified_mahalanobis_sq(const PairContext& context, const RegistrationPartner& partner,
+                               const SubmapConstraint& constraint) {
+  if (!context.odometry.known || !partner.odometry.known) return -1.0;
+  const double one_degree_rad = 3.14159265358979323846 / 180.0;
+  return odometry_mahalanobis_sq(constraint.measurement, partner.odometry, context.odometry,
+                                 constraint.information, context.map->voxel_size_m(),
+                                 one_degree_rad);
+}
+
 // One overlapping pair: aligned, judged and counted; true with `constraint` when accepted.
 bool register_pair(const PairContext& context, const RegistrationPartner& partner,
                    RegistrationCounts* counts, SubmapConstraint* constraint) {
@@ -369,10 +420,27 @@ bool register_pair(const PairContext& context, const RegistrationPartner& partne
                 " to ", context.id);
     return false;
   }
-  if (from_walls) ++counts->started_from_walls;
-  log_message(LogLevel::kDebug, "SLAM registration: submap ", partner.id, " -> ", context.id, ": ",
-              attempt.result.used_points, " points used");
   *constraint = accepted_constraint(context, partner.id, attempt.result);
+  const double mahalanobis_sq = verified_mahalanobis_sq(context, partner, *constraint);
+  const double rms = attempt.result.used_points > 0
+                         ? std::sqrt(2.0 * attempt.result.final_cost /
+                                     static_cast<double>(attempt.result.used_points)) /
+                               context.sqrt_mean_weight
+                         : 0.0;
+  log_message(LogLevel::kDebug, "SLAM registration: submap ", partner.id, " -> ", context.id,
+              ": points ", attempt.result.used_points, " skipped ", attempt.result.skipped_points,
+              " rms_m ", rms, " walls ", from_walls, " mahalanobis_sq ", mahalanobis_sq);
+  const double max_rms_vox = config.acceptance.max_residual_rms_vox;
+  if (max_rms_vox > 0.0 && rms > max_rms_vox * context.map->voxel_size_m()) {
+    ++counts->rejected_misfit;
+    return false;
+  }
+  const double max_mahalanobis_sq = config.verification.max_mahalanobis_sq;
+  if (max_mahalanobis_sq > 0.0 && mahalanobis_sq > max_mahalanobis_sq) {
+    ++counts->rejected_by_odometry;
+    return false;
+  }
+  if (from_walls) ++counts->started_from_walls;
   ++counts->accepted;
   return true;
 }
@@ -408,7 +476,7 @@ std::vector<SubmapConstraint> registration_constraints(
     int64_t id, const TsdfMap& map, const SubmapRegistrationPoints& points,
     const backend::Pose4Dof& pose, const std::vector<RegistrationPartner>& earlier,
     const SubmapRegistrationConfig& config, const Stream& stream, RegistrationCounts* counts,
-    WallMapCache* own_walls) {
+    WallMapCache* own_walls, const RegistrationOdometry& odometry) {
   std::vector<SubmapConstraint> constraints;
   if (!config.enabled) return constraints;
   // Wall maps are built at the first revisit that needs them; without a caller's cache, the new
@@ -423,7 +491,8 @@ std::vector<SubmapConstraint> registration_constraints(
                             &stream,
                             aligner_config(config, sqrt_mean_weight),
                             sqrt_mean_weight,
-                            own_walls ? own_walls : &local_own_walls};
+                            own_walls ? own_walls : &local_own_walls,
+                            odometry};
   for (const RegistrationPartner* partner : overlapping_partners(map, pose, earlier, config)) {
     SubmapConstraint constraint;
     if (register_pair(context, *partner, counts, &constraint)) constraints.push_back(constraint);

@@ -455,6 +455,32 @@ bool SlamSystem::process_submap(QueuedSubmap item) {
   return every > 0 && vertices % static_cast<size_t>(every) == 0;
 }
 
+Eigen::Matrix4d SlamSystem::odometry_link_information(const SubmapStatistics& previous) const {
+  // The per-link sigmas and the drift over the earlier submap's path, as independent variances.
+  const double path_m = previous.distance_travelled_m;
+  const double drift_m = config_.odometry_drift_m_per_m * path_m;
+  const double drift_rad =
+      config_.odometry_drift_deg_per_m * path_m * 3.14159265358979323846 / 180.0;
+  const double sigma_m = config_.odometry_translation_sigma_m;
+  const double sigma_rad = config_.odometry_yaw_sigma_rad;
+  Eigen::Matrix4d information = Eigen::Matrix4d::Zero();
+  information(0, 0) = information(1, 1) = information(2, 2) =
+      1.0 / (sigma_m * sigma_m + drift_m * drift_m);
+  information(3, 3) = 1.0 / (sigma_rad * sigma_rad + drift_rad * drift_rad);
+  return information;
+}
+
+RegistrationOdometry SlamSystem::odometry_for_verification(const Submap& submap,
+                                                           double path_m) const {
+  RegistrationOdometry odometry;
+  odometry.known = true;
+  odometry.pose = submap.odometry_pose();
+  odometry.path_m = path_m;
+  odometry.drift_m_per_m = config_.odometry_drift_m_per_m;
+  odometry.drift_rad_per_m = config_.odometry_drift_deg_per_m * 3.14159265358979323846 / 180.0;
+  return odometry;
+}
+
 void SlamSystem::add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
                                           std::unique_ptr<SubmapRegistrationPoints> points) {
   // The link to the graph so far, and the initial guess.
@@ -462,6 +488,7 @@ void SlamSystem::add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
   bool have_link = false;
   backend::Pose4Dof guess = submap->odometry_pose();
   std::vector<RegistrationPartner> partners, joint_partners;
+  RegistrationOdometry own_odometry;
   const bool joint = config_.registration.mode == RegistrationMode::kJoint;
   {
     std::lock_guard<std::mutex> lock(state_mutex_);
@@ -481,22 +508,24 @@ void SlamSystem::add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
         link.kind = SubmapConstraintKind::kOdometry;
         link.measurement =
             relative_pose_4dof(previous.submap->odometry_pose(), submap->odometry_pose());
-        const double translation_information =
-            1.0 / (config_.odometry_translation_sigma_m * config_.odometry_translation_sigma_m);
-        link.information = Eigen::Matrix4d::Zero();
-        link.information(0, 0) = link.information(1, 1) = link.information(2, 2) =
-            translation_information;
-        link.information(3, 3) =
-            1.0 / (config_.odometry_yaw_sigma_rad * config_.odometry_yaw_sigma_rad);
+        link.information = odometry_link_information(previous.submap->statistics());
         // The previous corrected pose composed with the odometry step, so a new submap starts
         // consistent with the correction found so far rather than at raw odometry.
         guess = compose(previous.submap->pose(), link.measurement);
       }
     }
+    double path_m = 0.0;  // the odometry's path length from the first mapped submap
     for (const GraphSubmap& earlier : graph_submaps_) {
-      const RegistrationPartner partner{earlier.submap->id(), &earlier.submap->map(),
-                                        earlier.submap->pose(), earlier.walls.get(),
-                                        earlier.registration_points.get()};
+      RegistrationPartner partner{earlier.submap->id(),
+                                  &earlier.submap->map(),
+                                  earlier.submap->pose(),
+                                  earlier.walls.get(),
+                                  earlier.registration_points.get(),
+                                  RegistrationOdometry()};
+      if (!earlier.loaded) {
+        partner.odometry = odometry_for_verification(*earlier.submap, path_m);
+        path_m += earlier.submap->statistics().distance_travelled_m;
+      }
       // kJoint: pairs with mapped submaps become dense terms; loaded ones stay pairwise.
       if (joint && !earlier.loaded) {
         joint_partners.push_back(partner);
@@ -504,6 +533,7 @@ void SlamSystem::add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
         partners.push_back(partner);
       }
     }
+    own_odometry = odometry_for_verification(*submap, path_m);
   }
   submap->set_pose(guess);
 
@@ -514,9 +544,9 @@ void SlamSystem::add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
   std::vector<int64_t> joint_pair_partners;
   auto walls = std::make_unique<WallMapCache>();
   if (points) {
-    registrations =
-        registration_constraints(submap->id(), submap->map(), *points, guess, partners,
-                                 config_.registration, backend_stream_, &counts, walls.get());
+    registrations = registration_constraints(submap->id(), submap->map(), *points, guess, partners,
+                                             config_.registration, backend_stream_, &counts,
+                                             walls.get(), own_odometry);
     if (config_.registration.enabled) {
       for (const RegistrationPartner* partner :
            overlapping_partners(submap->map(), guess, joint_partners, config_.registration)) {
@@ -570,10 +600,32 @@ int SlamSystem::integrate_pending_constraints_locked(bool final) {
   return added;
 }
 
+bool SlamSystem::solve_robust_locked() {
+  const double scale = config_.registration_loss_scale_sigmas;
+  if (!(scale > 0.0)) return solve_graph_locked();
+  // Iteratively reweighted least squares: each solve's weights come from the previous solution,
+  // starting from the plain least-squares one; a few rounds settle the weights.
+  {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    for (size_t k = 0; k < pose_graph_.constraints().size(); ++k) pose_graph_.set_weight(k, 1.0);
+  }
+  const int max_rounds = 8;
+  for (int round = 0; round < max_rounds; ++round) {
+    if (!solve_graph_locked()) return false;
+    double change = 0.0;
+    {
+      std::lock_guard<std::mutex> lock(state_mutex_);
+      change = reweight_registrations_cauchy(&pose_graph_, scale);
+    }
+    if (change < 0.01) break;
+  }
+  return solve_graph_locked();
+}
+
 void SlamSystem::optimize_locked() {
   const double max_residual_m = config_.registration.gate.max_residual_m;
   if (!(max_residual_m > 0.0)) {
-    solve_graph_locked();
+    solve_robust_locked();
     return;
   }
   // The consistency gate: every optimisation starts from all registration constraints, so one set
@@ -592,7 +644,7 @@ void SlamSystem::optimize_locked() {
   const int max_rounds = worst_fraction > 0.0 ? 25 : 10;
   int set_aside = 0;
   for (int round = 0; round < max_rounds; ++round) {
-    if (!solve_graph_locked()) return;
+    if (!solve_robust_locked()) return;
     int now = 0;
     {
       std::lock_guard<std::mutex> lock(state_mutex_);
@@ -600,7 +652,7 @@ void SlamSystem::optimize_locked() {
     }
     set_aside += now;
     if (now == 0) break;
-    if (round + 1 == max_rounds) solve_graph_locked();  // the graph without the last ones set aside
+    if (round + 1 == max_rounds) solve_robust_locked();  // without the last ones set aside
   }
   std::lock_guard<std::mutex> lock(state_mutex_);
   counters_.registrations_set_aside = set_aside;
@@ -659,10 +711,28 @@ bool SlamSystem::solve_graph_locked() {
       pose_graph_.apply_solution(graph);
       for (size_t k = 0; k < graph_submaps_.size(); ++k)
         graph_submaps_[k].submap->set_pose(pose_graph_.nodes()[k].pose);
+      update_correction_counters_locked();
     }
     if (!has_absolute || max_yaw_change < 1e-6) break;
   }
   return true;
+}
+
+void SlamSystem::update_correction_counters_locked() {
+  double sum_sq = 0.0, largest = 0.0;
+  int64_t count = 0;
+  for (const GraphSubmap& g : graph_submaps_) {
+    if (g.loaded) continue;
+    const backend::Pose4Dof& a = g.submap->pose();
+    const backend::Pose4Dof& b = g.submap->odometry_pose();
+    const double d = std::sqrt((a.x - b.x) * (a.x - b.x) + (a.y - b.y) * (a.y - b.y) +
+                               (a.z - b.z) * (a.z - b.z));
+    sum_sq += d * d;
+    largest = std::max(largest, d);
+    ++count;
+  }
+  counters_.correction_rms_m = count > 0 ? std::sqrt(sum_sq / static_cast<double>(count)) : 0.0;
+  counters_.correction_max_m = largest;
 }
 
 std::vector<backend::RegistrationTerm> SlamSystem::joint_terms_locked(

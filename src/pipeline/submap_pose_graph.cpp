@@ -6,6 +6,7 @@
 #include <string>
 
 #include "covoxslam/core/error.h"
+#include "covoxslam/pipeline/submap.h"
 
 namespace covox {
 namespace pipeline {
@@ -101,6 +102,15 @@ void SubmapPoseGraph::set_active(size_t index, bool active) {
   constraints_[index].active = active;
 }
 
+void SubmapPoseGraph::set_weight(size_t index, double weight) {
+  if (index >= constraints_.size() || !(weight > 0.0 && weight <= 1.0)) {
+    throw Error("submap pose graph: no weight " + std::to_string(weight) + " for constraint " +
+                std::to_string(index) + " (" + std::to_string(constraints_.size()) +
+                " constraints; weights lie in (0, 1])");
+  }
+  constraints_[index].weight = weight;
+}
+
 int set_aside_inconsistent_registrations(SubmapPoseGraph* graph, double max_residual_m,
                                          double worst_fraction) {
   const std::vector<SubmapConstraint>& constraints = graph->constraints();
@@ -130,6 +140,28 @@ int set_aside_inconsistent_registrations(SubmapPoseGraph* graph, double max_resi
     }
   }
   return count;
+}
+
+double reweight_registrations_cauchy(SubmapPoseGraph* graph, double scale_sigmas) {
+  const std::vector<SubmapConstraint>& constraints = graph->constraints();
+  double largest_change = 0.0;
+  for (size_t k = 0; k < constraints.size(); ++k) {
+    const SubmapConstraint& c = constraints[k];
+    if (c.kind != SubmapConstraintKind::kRegistration || !c.active) continue;
+    const int64_t from = graph->index_of(c.from_submap), to = graph->index_of(c.to_submap);
+    if (from < 0 || to < 0) continue;
+    const backend::Pose4Dof relative =
+        relative_pose_4dof(graph->nodes()[static_cast<size_t>(from)].pose,
+                           graph->nodes()[static_cast<size_t>(to)].pose);
+    const Eigen::Vector4d error(
+        relative.x - c.measurement.x, relative.y - c.measurement.y, relative.z - c.measurement.z,
+        std::remainder(relative.yaw - c.measurement.yaw, 2.0 * 3.14159265358979323846));
+    const double r_sq = std::max(0.0, error.dot(c.information * error));
+    const double weight = 1.0 / (1.0 + r_sq / (scale_sigmas * scale_sigmas));
+    largest_change = std::max(largest_change, std::abs(weight - c.weight));
+    graph->set_weight(k, std::max(weight, 1e-12));
+  }
+  return largest_change;
 }
 
 void SubmapPoseGraph::clear() {
@@ -201,7 +233,8 @@ SubmapPoseGraph::BackendGraph SubmapPoseGraph::to_backend_graph() const {
     Eigen::Matrix4d rotation = Eigen::Matrix4d::Identity();
     rotation.topLeftCorner<2, 2>() << std::cos(offset_a.yaw), -std::sin(offset_a.yaw),
         std::sin(offset_a.yaw), std::cos(offset_a.yaw);
-    const Eigen::Matrix4d information = rotation * c.information * rotation.transpose();
+    const Eigen::Matrix4d information =
+        c.weight * (rotation * c.information * rotation.transpose());
     out.graph.constraints.push_back(
         backend::make_relative_constraint_4dof(vertex_a, vertex_b, compose(offset_a, c.measurement),
                                                0.5 * (information + information.transpose())));

@@ -67,6 +67,8 @@ void add_slam_counters(diagnostic_msgs::DiagnosticStatus* status,
                 {"odometry_constraints", counters.odometry_constraints},
                 {"registration_attempted", counters.registration.attempted},
                 {"registration_accepted", counters.registration.accepted},
+                {"registration_rejected_misfit", counters.registration.rejected_misfit},
+                {"registration_rejected_by_odometry", counters.registration.rejected_by_odometry},
                 {"loop_closures_received", counters.loop_closures.received},
                 {"loop_closures_added", counters.loop_closures.added},
                 {"optimizations", counters.optimizations},
@@ -74,6 +76,9 @@ void add_slam_counters(diagnostic_msgs::DiagnosticStatus* status,
                 {"resets", counters.resets}};
   for (const auto& value : values)
     status->values.push_back(entry(value.key, std::to_string(value.value)));
+  // The submaps' shift from their odometry poses: how far the backend moved the trajectory.
+  status->values.push_back(entry("correction_rms_m", std::to_string(counters.correction_rms_m)));
+  status->values.push_back(entry("correction_max_m", std::to_string(counters.correction_max_m)));
 }
 
 }  // namespace

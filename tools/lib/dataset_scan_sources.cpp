@@ -77,7 +77,8 @@ RgbdScanSource::RgbdScanSource(const std::string& path, const RgbdScanOptions& o
   drift.yaw_bias_deg_per_s = 0.3;
   drift.translation_random_walk_m_per_sqrt_s = 0.01;
   drift.yaw_random_walk_deg_per_sqrt_s = 0.1;
-  drift.min_final_drift_m = options_.min_final_drift_m;
+  drift.min_final_drift_m = options_.min_final_drift_m * options_.drift_scale;
+  drift = drift.scaled(options_.drift_scale);
   const std::vector<sim::StampedIsometry> odometry =
       sim::simulate_odometry(truth, drift, options_.drift_seed);
   for (const sim::StampedIsometry& pose : odometry) {

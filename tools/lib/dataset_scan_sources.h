@@ -27,6 +27,8 @@ struct RgbdScanOptions {
   double frame_rate_hz = 30.0;  // Kinect v1
   double min_final_drift_m = 0.3;
   uint64_t drift_seed = 1;
+  // The drift model and min_final_drift_m multiplied by this (0: odometry = reference).
+  double drift_scale = 1.0;
   double max_depth_m = 0.0;  // 0: every valid depth
   size_t max_frames = 0;     // 0: all
 };

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <thread>
 
@@ -150,6 +151,26 @@ SlamRunEvaluation evaluate_slam_run(const ScanSource& source, const SlamRunResul
   return evaluation;
 }
 
+TrajectoryShift trajectory_shift(const SlamRunResult& result) {
+  // Both trajectories hold the integrated scans' stamps: pair them by stamp.
+  TrajectoryShift shift;
+  const std::vector<io::StampedPose>& a = result.corrected.poses;
+  const std::vector<io::StampedPose>& b = result.odometry.poses;
+  double sum_sq = 0.0;
+  size_t count = 0, k = 0;
+  for (const io::StampedPose& pose : a) {
+    while (k < b.size() && b[k].timestamp_s < pose.timestamp_s) ++k;
+    if (k == b.size()) break;
+    if (b[k].timestamp_s != pose.timestamp_s) continue;
+    const double d = (pose.position_m - b[k].position_m).norm();
+    sum_sq += d * d;
+    shift.max_m = std::max(shift.max_m, d);
+    ++count;
+  }
+  shift.rms_m = count > 0 ? std::sqrt(sum_sq / static_cast<double>(count)) : 0.0;
+  return shift;
+}
+
 void print_slam_run(const SlamRunResult& result, FILE* out) {
   const pipeline::SlamCounters& c = result.counters;
   std::fprintf(
@@ -162,16 +183,23 @@ void print_slam_run(const SlamRunResult& result, FILE* out) {
       static_cast<long long>(c.registration.attempted), static_cast<long long>(c.optimizations));
   std::fprintf(out,
                "registration: %lld attempted, %lld accepted, rejected: %lld failed, %lld too far, "
-               "%lld too few "
-               "points; %lld revisits started from the walls; %lld set aside by the consistency "
-               "gate at the end\n",
+               "%lld too few points, %lld misfit, %lld disagreeing with the odometry; %lld "
+               "revisits started from the walls; %lld set aside by the consistency gate at the "
+               "end\n",
                static_cast<long long>(c.registration.attempted),
                static_cast<long long>(c.registration.accepted),
                static_cast<long long>(c.registration.rejected_failed),
                static_cast<long long>(c.registration.rejected_too_far),
                static_cast<long long>(c.registration.rejected_too_few_points),
+               static_cast<long long>(c.registration.rejected_misfit),
+               static_cast<long long>(c.registration.rejected_by_odometry),
                static_cast<long long>(c.registration.started_from_walls),
                static_cast<long long>(c.registrations_set_aside));
+  const TrajectoryShift shift = trajectory_shift(result);
+  std::fprintf(out,
+               "correction: the trajectory moved %.3f m RMS (max %.3f m) from its odometry; "
+               "submaps %.3f m RMS (max %.3f m)\n",
+               shift.rms_m, shift.max_m, c.correction_rms_m, c.correction_max_m);
   std::fprintf(out,
                "scans: %zu given, %lld integrated, %lld dropped by the pipeline (queue full %lld, "
                "invalid pose "

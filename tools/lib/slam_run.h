@@ -59,6 +59,14 @@ struct SlamRunEvaluation {
 SlamRunEvaluation evaluate_slam_run(const ScanSource& source, const SlamRunResult& result,
                                     AlignmentMode alignment, double max_time_gap_s);
 
+// How far the corrected trajectory lies from the odometry at the same stamps (positions; the
+// world frame is the odometry frame of the first submap).
+struct TrajectoryShift {
+  double rms_m = 0.0;
+  double max_m = 0.0;
+};
+TrajectoryShift trajectory_shift(const SlamRunResult& result);
+
 // The per-module timing table and the counters, as the runner prints them.
 void print_slam_run(const SlamRunResult& result, FILE* out);
 

@@ -94,6 +94,11 @@ struct SubmapRegistrationConfig {
     // believed.
     double max_correction_m = 3.5;
     double max_correction_rad = 0.349065850398866;  // 20 degrees
+    // The RMS of the aligned points' distances to the partner's surface (weights normalised to a
+    // mean of 1), in voxels of the new submap. A right alignment leaves the surfaces' own noise,
+    // under a voxel; one stuck in a wrong minimum (a repeated structure, a revisit started far
+    // off) leaves surfaces apart by voxels. Above this, no constraint. 0: off.
+    double max_residual_rms_vox = 0.0;
   } acceptance;
   // The constraint's information (see above).
   struct Information {
@@ -134,7 +139,39 @@ struct SubmapRegistrationConfig {
     // threshold at once loses them with the wrong ones. In [0, 1); 0: all at once.
     double worst_fraction = 0.7;
   } gate;
+  // Verification against the odometry (see odometry_mahalanobis below): an alignment whose
+  // relative pose disagrees with the odometry's relative pose of the two submaps by more than the
+  // odometry's own uncertainty along the path between them (plus the points' covariance and a
+  // floor of one voxel and one degree) is not believed. The squared Mahalanobis distance of that
+  // disagreement over (x, y, z, yaw) follows a chi-square law with 4 degrees of freedom when the
+  // alignment is right; max_mahalanobis_sq is its threshold. 0: off.
+  struct Verification {
+    double max_mahalanobis_sq = 0.0;
+  } verification;
 };
+
+// What the odometry says about a submap: its odometry pose T_odom_S and the odometry's path
+// length from the start of the run to the submap's first scan. Two submaps' odometry relative pose
+// is believed to within drift_m_per_m (per axis) and drift_rad_per_m (yaw) times the path between
+// them. `known` false: no verification for the pairs of this submap.
+struct RegistrationOdometry {
+  bool known = false;
+  backend::Pose4Dof pose;
+  double path_m = 0.0;
+  double drift_m_per_m = 0.0;
+  double drift_rad_per_m = 0.0;
+};
+
+// The squared Mahalanobis distance between the relative pose `measured` (T_Sj_Si) and the
+// odometry's relative pose from `odometry_j` to `odometry_i`, under the covariance
+//   diag((drift_m_per_m d + floor_m)^2 x3, (drift_rad_per_m d + floor_rad)^2) + points_covariance,
+// d the path between the two submaps (drift rates of `odometry_i`). `points_information` may be
+// singular (a free direction adds nothing).
+double odometry_mahalanobis_sq(const backend::Pose4Dof& measured,
+                               const RegistrationOdometry& odometry_j,
+                               const RegistrationOdometry& odometry_i,
+                               const Eigen::Matrix4d& points_information, double floor_m,
+                               double floor_rad);
 
 // The information of a registration constraint: `points_information` (over x, y, z, yaw; may be
 // singular where the overlap leaves a direction free) with the accuracy floor added to its
@@ -170,6 +207,8 @@ struct RegistrationCounts {
   int64_t rejected_failed = 0;          // the aligner threw or did not converge
   int64_t rejected_too_far = 0;         // moved more than max_correction_m / _rad
   int64_t rejected_too_few_points = 0;  // fewer than min_points inside the partner's field
+  int64_t rejected_misfit = 0;          // residual RMS above max_residual_rms_vox
+  int64_t rejected_by_odometry = 0;     // disagreed with the odometry (verification)
   int64_t started_from_walls = 0;       // accepted revisits aligned from the wall match
   int64_t joint_pairs = 0;              // kJoint: overlapping pairs added as dense terms
   void add(const RegistrationCounts& other);
@@ -184,6 +223,7 @@ struct RegistrationPartner {
   // The map's registration points (prepare_registration_points with the same config), for the
   // reverse half of symmetric registration; null: prepared again for each pair.
   const SubmapRegistrationPoints* points = nullptr;
+  RegistrationOdometry odometry;  // for the verification; unknown: not verified
 };
 
 // The earlier submaps that overlap the new one at `pose` (bounding boxes, then shared blocks),
@@ -199,7 +239,7 @@ std::vector<SubmapConstraint> registration_constraints(
     int64_t id, const TsdfMap& map, const SubmapRegistrationPoints& points,
     const backend::Pose4Dof& pose, const std::vector<RegistrationPartner>& earlier,
     const SubmapRegistrationConfig& config, const Stream& stream, RegistrationCounts* counts,
-    WallMapCache* own_walls = nullptr);
+    WallMapCache* own_walls = nullptr, const RegistrationOdometry& odometry = {});
 
 }  // namespace pipeline
 }  // namespace covox

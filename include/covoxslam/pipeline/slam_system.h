@@ -79,6 +79,18 @@ struct SlamConfig {
   // Standard deviations of the odometry between consecutive submaps (information = 1 / sigma^2).
   double odometry_translation_sigma_m = 0.1;
   double odometry_yaw_sigma_rad = 0.01;
+  // The odometry's drift per metre of path (per axis, and in yaw): two submaps' odometry relative
+  // pose is believed to within these times the path between them. The odometry constraint of
+  // consecutive submaps gets this drift over the earlier submap's path added to the sigmas above
+  // (variances add), and a registration that disagrees with the odometry beyond it is rejected
+  // (registration.verification). 0 and 0: the sigmas alone.
+  double odometry_drift_m_per_m = 0.0;
+  double odometry_drift_deg_per_m = 0.0;
+  // Robust loss on registration constraints in the pose-graph solve (Cauchy, by iteratively
+  // reweighted solves): a constraint whose whitened residual r (r^2 = e^T information e at the
+  // solution) is large gets its information times 1 / (1 + r^2 / c^2), c this scale in standard
+  // deviations, so one wrong registration cannot bend the trajectory. 0: plain least squares.
+  double registration_loss_scale_sigmas = 0.0;
   // Optimise after every n-th submap enters the graph, and when external constraints or
   // request_optimization() arrive; 0: only in finish() and on request_optimization().
   int optimize_every_n_submaps = 1;
@@ -150,6 +162,11 @@ struct SlamCounters {
   // Registration constraints set aside by the consistency gate (registration.gate.max_residual_m)
   // in the latest optimisation.
   int64_t registrations_set_aside = 0;
+  // How far the latest solve moved the mapped submaps from their odometry: the RMS and the
+  // largest distance between a submap's corrected and odometry positions (the world frame is the
+  // odometry frame of the first submap).
+  double correction_rms_m = 0.0;
+  double correction_max_m = 0.0;
   RegistrationCounts registration;  // attempted, accepted and each reason for a rejection
   ExternalConstraintCounters loop_closures;
   ExternalConstraintCounters absolute_positions;
@@ -349,6 +366,11 @@ class SlamSystem {
     std::unique_ptr<WallMapCache> walls = std::make_unique<WallMapCache>();
   };
 
+  RegistrationOdometry odometry_for_verification(const Submap& submap, double path_m) const;
+  // The odometry constraint's information from the submap before it (sigmas and drift).
+  Eigen::Matrix4d odometry_link_information(const SubmapStatistics& previous) const;
+  // correction_rms_m / correction_max_m from the submaps' poses; caller holds state_mutex_.
+  void update_correction_counters_locked();
   void frontend_loop();
   void backend_loop();
   void process_scan(const QueuedScan& queued);
@@ -368,6 +390,8 @@ class SlamSystem {
   void optimize_locked();
   // One solve of the graph as it is (false: the solve failed, logged and counted).
   bool solve_graph_locked();
+  // solve_graph_locked under the robust loss on registration constraints (above), if any.
+  bool solve_robust_locked();
   // kJoint: the dense registration terms of joint_pairs_ for `graph`; needs state_mutex_ (and
   // backend_mutex_ for the lifetime of the submaps they point to).
   std::vector<backend::RegistrationTerm> joint_terms_locked(

@@ -54,6 +54,9 @@ struct SubmapConstraint {
   // False: set aside by the consistency gate (registration.gate.max_residual_m); kept in the
   // graph's list but not given to the solver.
   bool active = true;
+  // The solver sees information * weight: the robust loss on registration constraints
+  // (pose_graph.registration_loss_scale_sigmas) lowers it for those that disagree with the rest.
+  double weight = 1.0;
 
   bool is_absolute() const {
     return kind == SubmapConstraintKind::kAbsolutePosition || kind == SubmapConstraintKind::kHeight;
@@ -89,6 +92,8 @@ class SubmapPoseGraph {
   // The consistency gate's switch for constraint `index` of constraints(); inactive ones are left
   // out of to_backend_graph(). Throws covox::Error for an index out of range.
   void set_active(size_t index, bool active);
+  // Throws covox::Error for an unknown index or a weight outside (0, 1].
+  void set_weight(size_t index, double weight);
 
   // The backend graph at the current poses, and the mapping back (see apply_solution).
   struct BackendGraph {
@@ -114,6 +119,13 @@ class SubmapPoseGraph {
 // after the next solve (SubmapRegistrationConfig::gate.worst_fraction).
 int set_aside_inconsistent_registrations(SubmapPoseGraph* graph, double max_residual_m,
                                          double worst_fraction = 0.0);
+
+// One round of the robust (Cauchy) loss on registration constraints: every active registration
+// constraint gets the weight 1 / (1 + r^2 / scale_sigmas^2) at the graph's current poses,
+// r^2 = e^T information e (e: the measurement's error in its own convention, yaw wrapped).
+// Returns the largest change of a weight; solving and reweighting until it is small is
+// iteratively reweighted least squares.
+double reweight_registrations_cauchy(SubmapPoseGraph* graph, double scale_sigmas);
 
 // 4-DoF pose algebra (x_a = Rz(yaw) x_b + t): a * b (the inverse is backend::inverse_pose_4dof).
 backend::Pose4Dof compose(const backend::Pose4Dof& a, const backend::Pose4Dof& b);
