@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "covoxslam/pipeline/slam_system.h"
+#include "support/small_slam_config.h"
 #include "sim_lidar.h"
 #include "sim_world.h"
 
@@ -112,14 +113,7 @@ inline SlamConfig yard_config() {
   config.submaps.interval_s = 4.0;
   config.sensor_queue_size = 10000;
   config.submap_queue_size = 1000;
-  // The registration these tests were written for: one-way fine alignment from the odometry's
-  // guess within 2 m, no consistency gate, one trajectory correction per submap.
-  config.registration.alignment.symmetric = false;
-  config.registration.alignment.coarse_levels = 0;
-  config.registration.acceptance.max_correction_m = 2.0;
-  config.registration.revisits.wall_search = false;
-  config.registration.gate.worst_fraction = 0.0;
-  config.interpolate_trajectory_correction = false;
+  testing_support::use_one_way_registration(&config);
   return config;
 }
 

@@ -3,6 +3,15 @@
 namespace covox {
 namespace testing_support {
 
+void use_one_way_registration(pipeline::SlamConfig* config) {
+  config->registration.alignment.symmetric = false;
+  config->registration.alignment.coarse_levels = 0;
+  config->registration.acceptance.max_correction_m = 2.0;
+  config->registration.revisits.wall_search = false;
+  config->registration.gate.worst_fraction = 0.0;
+  config->interpolate_trajectory_correction = false;
+}
+
 pipeline::SlamConfig small_slam_config() {
   pipeline::SlamConfig config;
   config.device = Device::kCpu;
@@ -15,14 +24,7 @@ pipeline::SlamConfig small_slam_config() {
   config.submaps.interval_s = 1.0;
   config.sensor_queue_size = 1000;
   config.submap_queue_size = 100;
-  // The registration these tests were written for: one-way fine alignment from the odometry's
-  // guess within 2 m, no consistency gate, one trajectory correction per submap.
-  config.registration.alignment.symmetric = false;
-  config.registration.alignment.coarse_levels = 0;
-  config.registration.acceptance.max_correction_m = 2.0;
-  config.registration.revisits.wall_search = false;
-  config.registration.gate.worst_fraction = 0.0;
-  config.interpolate_trajectory_correction = false;
+  use_one_way_registration(&config);
   return config;
 }
 
