@@ -224,7 +224,7 @@ TEST_P(RegistrationGraphTest, AssembledBlocksMatchHostSums) {
               1e-10 * with_terms.cost);
 }
 
-// The acceptance test for the graph: the final cost equals Ceres' on the same problem
+// The acceptance test for the graph: the final cost equals Ceres' on the same problem
 // (voxgraph's structure: one cost function per pair) within 1e-6 relative, the solutions agree,
 // and the registration terms pull the odometry-only solution back to the truth.
 TEST_P(RegistrationGraphTest, SolutionMatchesCeresAndTruth) {

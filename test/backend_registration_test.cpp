@@ -196,7 +196,7 @@ TEST_P(RegistrationTest, RobustLossesDownWeightLargeResiduals) {
   EXPECT_THROW(evaluate_registration_residuals(points, *pair.map_j, off, Pose4Dof{}, bad), Error);
 }
 
-// The acceptance test: offsets up to 0.5 m and 10 degrees, recovered to 2 cm and 0.2 deg.
+// The acceptance test: offsets up to 0.5 m and 10 degrees, recovered to 2 cm and 0.2 deg.
 TEST_P(RegistrationTest, AlignerRecoversKnownOffset) {
   const SubmapPair& pair = submap_pair(device());
   const Stream stream(device());

@@ -214,7 +214,7 @@ TEST_P(BackendParkingGarage, DefaultSettingsComeCloseToCeres) {
   compare_with_ceres(options, 1e-3);
 }
 
-// The target, 1e-4 of Ceres' final cost: needs ~200 LM iterations of up to 2000 PCG
+// The target, 1e-4 of Ceres' final cost: needs ~200 LM iterations of up to 2000 PCG
 // iterations each (about 150 s on 2 CPU cores), so it runs only with COVOX_SLOW_TESTS=1.
 TEST_P(BackendParkingGarage, TightSettingsMatchCeresWithin1e4) {
   if (std::getenv("COVOX_SLOW_TESTS") == nullptr) {

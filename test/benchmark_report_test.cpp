@@ -1,4 +1,4 @@
-// The benchmark results format (issue 2, item 5): what every tools/benchmark_* writes.
+// The benchmark results format: what every tools/benchmark_* writes.
 #include <gtest/gtest.h>
 
 #include <cmath>
