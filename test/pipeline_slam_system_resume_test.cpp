@@ -4,7 +4,9 @@
 // followed by mapping too. shutdown() is final: resume() refuses.
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cstdint>
+#include <thread>
 #include <vector>
 
 #include "covoxslam/pipeline/slam_system.h"
@@ -111,6 +113,42 @@ TEST(PipelineSlamSystemResume, ResetOrLoadAfterFinishThenResumeMapsAgain) {
   for (size_t k = 0; k < saved_count; ++k) EXPECT_TRUE(submaps[k].loaded) << k;
   for (size_t k = saved_count; k < submaps.size(); ++k) EXPECT_FALSE(submaps[k].loaded) << k;
   EXPECT_EQ(slam.corrected_trajectory().size(), 6u);
+}
+
+// Waits (at most 10 s) until both queues are empty: the threads have taken every scan and submap.
+void wait_until_idle(const SlamSystem& slam) {
+  for (int k = 0; k < 1000 && (slam.sensor_queue_length() > 0 || slam.submap_queue_length() > 0);
+       ++k) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+}
+
+// The operator's order on a running node: finish, map on, snapshot, reset, map, load the
+// snapshot while the threads run, map on: the loaded map plus the new submaps.
+TEST(PipelineSlamSystemResume, LoadWhileRunningKeepsTheSubmapsMappedAfterIt) {
+  SlamSystem slam(testing_support::small_slam_config());
+  add_scans(&slam, 0, 6);
+  slam.finish();
+  ASSERT_TRUE(slam.resume());
+  add_scans(&slam, 6, 6);
+  slam.finish();
+  ASSERT_TRUE(slam.resume());
+  std::vector<SubmapSnapshot> saved = slam.submap_snapshots();
+  const size_t saved_count = saved.size();
+  ASSERT_GE(saved_count, 1u);
+  slam.reset();
+  ASSERT_TRUE(slam.resume());
+  add_scans(&slam, 12, 6);
+  wait_until_idle(slam);
+  slam.load_submaps(std::move(saved));
+  ASSERT_TRUE(slam.resume());
+  add_scans(&slam, 18, 12);
+  slam.finish();
+  const std::vector<SubmapInfo> submaps = slam.submaps();
+  ASSERT_GT(submaps.size(), saved_count);
+  for (size_t k = 0; k < saved_count; ++k) EXPECT_TRUE(submaps[k].loaded) << k;
+  for (size_t k = saved_count; k < submaps.size(); ++k) EXPECT_FALSE(submaps[k].loaded) << k;
+  EXPECT_EQ(slam.corrected_trajectory().size(), 12u);
 }
 
 TEST(PipelineSlamSystemResume, ShutdownIsFinal) {
