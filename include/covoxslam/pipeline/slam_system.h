@@ -33,6 +33,7 @@
 #include <atomic>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -273,8 +274,17 @@ class SlamSystem {
   std::vector<StampedPose> corrected_trajectory() const;
   // The finished submaps' meshes moved to their corrected poses, as one mesh.
   Mesh combined_mesh() const;
-  // The finished submaps (TSDF, colour, ESDF) at their corrected poses, for saving a map.
+  // The finished submaps (TSDF, colour, ESDF) at their corrected poses.
   std::vector<SubmapSnapshot> submap_snapshots() const;
+  // Hands each finished submap, in graph order, to `write` in its compact form
+  // (io/submap_codec.h, distance scale map_distance_scale_m()) at its corrected pose, one at a
+  // time: what a map file stores (io::MapFileWriter), without the whole map in memory at once.
+  // Waits for the backend's current step (src/pipeline/slam_system_store.cpp).
+  using EncodedSubmapSink = std::function<void(int64_t id, const Eigen::Isometry3d& T_world_submap,
+                                               const std::vector<uint8_t>& encoded)>;
+  void write_submaps(const EncodedSubmapSink& write);
+  // The compact form's distance scale: the TSDF truncation distance.
+  float map_distance_scale_m() const { return config_.tsdf.truncation_distance_m; }
   SlamCounters counters() const;
   SlamTimings timings() const;
   // The latest optimisation's summary (default-constructed before the first).
