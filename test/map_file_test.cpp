@@ -3,6 +3,7 @@
 
 #include <cstdio>
 #include <cstring>
+#include <iostream>
 #include <unistd.h>
 #include <fstream>
 #include <iterator>
@@ -12,6 +13,7 @@
 #include "covoxslam/core/error.h"
 #include "covoxslam/integrators/esdf_integrator.h"
 #include "covoxslam/io/map_file.h"
+#include "covoxslam/io/submap_codec.h"
 #include "support/analytic_tsdf.h"
 #include "support/test_devices.h"
 
@@ -81,22 +83,75 @@ class MapFileTest : public DeviceTest {
   }
 };
 
-TEST_P(MapFileTest, SaveThenLoadIsBitExact) {
+TEST_P(MapFileTest, SaveThenLoadKeepsTheQuantisedMapAndSavesTheSameBytes) {
   const io::MapFileContents saved = make_contents();
   const std::string path = temporary_path("roundtrip.cvxmap");
   io::save_map_file(path, saved);
   const io::MapFileContents loaded = io::load_map_file(path);
   ASSERT_EQ(loaded.submaps.size(), 2u);
   EXPECT_EQ(loaded.voxel_size_m, saved.voxel_size_m);
-  EXPECT_TRUE(loaded.has_esdf);
+  EXPECT_EQ(loaded.voxels_per_side, saved.voxels_per_side);
+  EXPECT_FALSE(loaded.has_esdf);  // recomputed by whoever builds the map
+  EXPECT_GT(loaded.distance_scale_m, 0.0f);
   for (size_t s = 0; s < 2; ++s) {
     EXPECT_EQ(loaded.submaps[s].id, saved.submaps[s].id);
     EXPECT_EQ(loaded.submaps[s].T_world_submap.matrix(), saved.submaps[s].T_world_submap.matrix());
+    // Exactly what the codec gives back for the saved blocks.
+    const std::vector<HostBlock> expected = io::decode_submap(
+        io::encode_submap(saved.submaps[s].blocks, 8, loaded.distance_scale_m), "expected");
+    ASSERT_EQ(loaded.submaps[s].blocks.size(), expected.size());
+    for (size_t b = 0; b < expected.size(); ++b) {
+      EXPECT_TRUE(loaded.submaps[s].blocks[b].index == expected[b].index);
+      EXPECT_EQ(0, std::memcmp(loaded.submaps[s].blocks[b].tsdf.data(), expected[b].tsdf.data(),
+                               expected[b].tsdf.size() * sizeof(TsdfVoxel)));
+    }
+  }
+  // save -> load -> save gives the same file, byte for byte.
+  const std::string again = temporary_path("roundtrip_again.cvxmap");
+  io::save_map_file(again, loaded);
+  EXPECT_EQ(read_bytes(path), read_bytes(again));
+  // Through the device maps: the blocks as loaded.
+  const auto maps = io::make_maps(loaded, device());
+  EXPECT_EQ(maps[1]->block_count(), static_cast<int64_t>(loaded.submaps[1].blocks.size()));
+  std::remove(path.c_str());
+  std::remove(again.c_str());
+}
+
+TEST_P(MapFileTest, Version1FilesStillLoadBitExact) {
+  const io::MapFileContents saved = make_contents();
+  const std::string path = temporary_path("version1.cvxmap");
+  io::save_map_file_version1(path, saved);
+  const io::MapFileContents loaded = io::load_map_file(path);
+  ASSERT_EQ(loaded.submaps.size(), 2u);
+  EXPECT_TRUE(loaded.has_esdf);
+  for (size_t s = 0; s < 2; ++s) {
+    EXPECT_EQ(loaded.submaps[s].id, saved.submaps[s].id);
     EXPECT_TRUE(same_blocks(loaded.submaps[s].blocks, saved.submaps[s].blocks));
   }
-  // Through the device maps and back.
-  const auto maps = io::make_maps(loaded, device());
-  EXPECT_TRUE(same_blocks(maps[1]->snapshot(), saved.submaps[1].blocks));
+  // And version 2 of it is smaller: no ESDF, quantised fields, no padding.
+  const std::string version2 = temporary_path("version2.cvxmap");
+  io::save_map_file(version2, loaded);
+  const size_t bytes_v1 = read_bytes(path).size(), bytes_v2 = read_bytes(version2).size();
+  std::cout << "map file: version 1 " << bytes_v1 << " bytes, version 2 " << bytes_v2 << "\n";
+  EXPECT_LT(2 * bytes_v2, bytes_v1);
+  std::remove(path.c_str());
+  std::remove(version2.c_str());
+}
+
+TEST_P(MapFileTest, AFailedWriteLeavesTheOldFile) {
+  const std::string path = temporary_path("kept.cvxmap");
+  io::save_map_file(path, make_contents());
+  const auto before = read_bytes(path);
+  {
+    io::MapFileWriter writer(path, 0.1f, 8, 0.4f);
+    // Encoded with another distance scale: refused, and the writer is dropped uncommitted.
+    EXPECT_THROW(writer.add_submap(1, Eigen::Isometry3d::Identity(),
+                                   io::encode_submap(make_contents().submaps[0].blocks, 8, 0.5f)),
+                 Error);
+  }
+  EXPECT_EQ(read_bytes(path), before);
+  const std::string temporary = path + ".tmp." + std::to_string(::getpid());
+  EXPECT_NE(::access(temporary.c_str(), F_OK), 0) << "the temporary file was left behind";
   std::remove(path.c_str());
 }
 

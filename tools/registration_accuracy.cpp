@@ -203,11 +203,14 @@ Inputs load_inputs(const Options& o, Device device) {
   if (!o.config_path.empty()) pipeline::load_slam_config(o.config_path, &in.config);
   pipeline::validate(in.config.registration);
   in.contents = io::load_map_file(o.map_path);
-  if (!in.contents.has_esdf) throw Error(o.map_path + " has no ESDF (registration needs it)");
   in.stamps = read_submap_stamps(o.graph_path);
   in.truth = io::read_tum_trajectory(o.truth_path);
   if (!in.truth.has_orientations) throw Error(o.truth_path + " has no orientations");
   in.maps = io::make_maps(in.contents, device);
+  // Version 2 map files store no ESDF: it is recomputed from the TSDF, as loading a map does.
+  if (!in.contents.has_esdf) {
+    for (auto& map : in.maps) EsdfIntegrator(in.config.esdf).update_all(*map, Stream(device));
+  }
   return in;
 }
 

@@ -328,6 +328,24 @@ void add_backend_rows(tools::BenchmarkReport* report, const std::string& name,
   report->add(name, "shift from odometry max", shift.max_m, "m");
 }
 
+// Where the finished submaps' voxels ended up under the memory budget, and what moving them cost.
+void add_memory_rows(tools::BenchmarkReport* report, const std::string& name,
+                     const pipeline::SubmapStoreCounters& m) {
+  const double mb = 1024.0 * 1024.0;
+  report->add(name, "submaps resident", static_cast<double>(m.submaps_resident), "");
+  report->add(name, "submaps compact", static_cast<double>(m.submaps_compact), "");
+  report->add(name, "submaps on disk", static_cast<double>(m.submaps_on_disk), "");
+  report->add(name, "resident submap memory", static_cast<double>(m.resident_bytes) / mb, "MB");
+  report->add(name, "compact submap memory", static_cast<double>(m.compact_bytes) / mb, "MB");
+  report->add(name, "spilled submap bytes", static_cast<double>(m.disk_bytes) / mb, "MB");
+  report->add(name, "submap compactions", static_cast<double>(m.compactions), "");
+  report->add(name, "submap restores", static_cast<double>(m.restores), "");
+  report->add(name, "submap restore time", m.restore_s, "s");
+  report->add(name, "submap spills", static_cast<double>(m.spills), "");
+  report->add(name, "submap spill reads", static_cast<double>(m.spill_reads), "");
+  report->add(name, "submap spill failures", static_cast<double>(m.spill_failures), "");
+}
+
 void write_report(const RunnerSettings& s, const pipeline::SlamConfig& config, int argc,
                   char** argv, const tools::SlamRunResult& result,
                   const tools::SlamRunEvaluation& evaluation, bool truth) {
@@ -349,6 +367,7 @@ void write_report(const RunnerSettings& s, const pipeline::SlamConfig& config, i
   add_backend_rows(&report, name, result);
   report.add(name, "map blocks", static_cast<double>(result.map_blocks), "");
   report.add(name, "map memory", result.map_memory_mb, "MB");
+  add_memory_rows(&report, name, result.counters.memory);
   report.add(
       name, "scans dropped",
       static_cast<double>(result.counters.scans_dropped_total() + result.scans_dropped_by_source),

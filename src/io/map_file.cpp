@@ -1,5 +1,12 @@
 #include "covoxslam/io/map_file.h"
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
@@ -8,6 +15,7 @@
 
 #include "covoxslam/core/error.h"
 #include "covoxslam/io/file_bytes.h"
+#include "covoxslam/io/submap_codec.h"
 
 namespace covox {
 namespace io {
@@ -15,6 +23,7 @@ namespace {
 
 constexpr char kMagic[8] = {'C', 'O', 'V', 'O', 'X', 'M', 'A', 'P'};
 constexpr uint32_t kFlagEsdf = 1;
+constexpr uint32_t kVersion1 = 1;
 
 uint64_t fnv1a(const unsigned char* data, size_t size) {
   uint64_t hash = 0xcbf29ce484222325ull;
@@ -124,12 +133,12 @@ void get_voxels(Reader& r, HostBlock* block, size_t per_block, bool esdf) {
 
 }  // namespace
 
-void save_map_file(const std::string& path, const MapFileContents& contents) {
+void save_map_file_version1(const std::string& path, const MapFileContents& contents) {
   const size_t per_block = static_cast<size_t>(contents.voxels_per_side) *
                            contents.voxels_per_side * contents.voxels_per_side;
   Writer w;
   for (char c : kMagic) w.put(c);
-  w.put(kMapFileVersion);
+  w.put(kVersion1);
   w.put(contents.has_esdf ? kFlagEsdf : 0u);
   w.put(contents.voxel_size_m);
   w.put(static_cast<int32_t>(contents.voxels_per_side));
@@ -157,22 +166,15 @@ void save_map_file(const std::string& path, const MapFileContents& contents) {
   });
 }
 
-MapFileContents load_map_file(const std::string& path) {
+namespace {
+
+MapFileContents load_version1(const std::string& path) {
   std::ifstream file(path, std::ios::binary);
   if (!file) throw Error("map file " + path + ": cannot open");
   const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(file)),
                                          std::istreambuf_iterator<char>());
-  if (bytes.size() < sizeof(kMagic) || std::memcmp(bytes.data(), kMagic, sizeof(kMagic)) != 0) {
-    throw Error("map file " + path + ": not a covoxslam map (wrong magic)");
-  }
   if (bytes.size() < sizeof(kMagic) + sizeof(uint64_t) + 2 * sizeof(uint32_t)) {
     throw Error("map file " + path + ": truncated header");
-  }
-  uint32_t version = 0;
-  std::memcpy(&version, bytes.data() + sizeof(kMagic), sizeof(version));
-  if (version != kMapFileVersion) {
-    throw Error("map file " + path + ": format version " + std::to_string(version) +
-                ", this build reads version " + std::to_string(kMapFileVersion));
   }
   const size_t payload = bytes.size() - sizeof(uint64_t);
   uint64_t stored = 0;
@@ -214,6 +216,261 @@ MapFileContents load_map_file(const std::string& path) {
   if (r.remaining() != 0)
     throw Error("map file " + path + ": unexpected bytes after the last submap");
   return contents;
+}
+
+// Sequential reads of a version 2 file with a hard end (the checksum's offset); every error
+// names the file and what was being read.
+class StreamReader {
+ public:
+  StreamReader(std::ifstream& file, uint64_t end, const std::string& path)
+      : file_(file), end_(end), path_(path) {}
+  template <class T>
+  T get(const char* what) {
+    T value;
+    read(&value, sizeof(T), what);
+    return value;
+  }
+  void read(void* out, uint64_t size, const char* what) {
+    if (size > end_ - position_)
+      throw Error("map file " + path_ + ": truncated while reading " + what);
+    file_.read(static_cast<char*>(out), static_cast<std::streamsize>(size));
+    if (!file_) throw Error("map file " + path_ + ": read error while reading " + what);
+    position_ += size;
+  }
+  uint64_t remaining() const { return end_ - position_; }
+
+ private:
+  std::ifstream& file_;
+  uint64_t end_;
+  uint64_t position_ = 0;
+  const std::string& path_;
+};
+
+constexpr uint8_t kTagEnd = 0;
+constexpr uint8_t kTagSubmap = 1;
+constexpr size_t kWriteBufferBytes = size_t{1} << 20;
+// Magic, version, flags, voxel size, voxels per side, distance scale.
+constexpr uint64_t kVersion2HeaderBytes = 8 + 4 + 4 + 4 + 4 + 4;
+
+uint64_t fnv1a_update(uint64_t hash, const unsigned char* data, size_t size) {
+  for (size_t i = 0; i < size; ++i) {
+    hash ^= data[i];
+    hash *= 0x100000001b3ull;
+  }
+  return hash;
+}
+
+// The first pass over a version 2 file: its checksum, read in chunks. Returns the payload size.
+uint64_t check_version2_checksum(std::ifstream& file, uint64_t file_size, const std::string& path) {
+  if (file_size < kVersion2HeaderBytes + 1 + 8 + 8)
+    throw Error("map file " + path + ": truncated (shorter than an empty map)");
+  const uint64_t payload = file_size - sizeof(uint64_t);
+  std::vector<unsigned char> chunk(kWriteBufferBytes);
+  uint64_t hash = 0xcbf29ce484222325ull;
+  file.seekg(0);
+  for (uint64_t done = 0; done < payload;) {
+    const size_t size = static_cast<size_t>(std::min<uint64_t>(chunk.size(), payload - done));
+    file.read(reinterpret_cast<char*>(chunk.data()), static_cast<std::streamsize>(size));
+    if (!file) throw Error("map file " + path + ": read error");
+    hash = fnv1a_update(hash, chunk.data(), size);
+    done += size;
+  }
+  uint64_t stored = 0;
+  file.read(reinterpret_cast<char*>(&stored), sizeof(stored));
+  if (!file || stored != hash)
+    throw Error("map file " + path + ": checksum mismatch (the file is truncated or corrupted)");
+  return payload;
+}
+
+SubmapRecord read_version2_submap(StreamReader& r, const MapFileContents& contents,
+                                  const std::string& path) {
+  SubmapRecord submap;
+  submap.id = r.get<int64_t>("submap id");
+  Eigen::Matrix4d pose;
+  for (int i = 0; i < 16; ++i) pose(i / 4, i % 4) = r.get<double>("submap pose");
+  submap.T_world_submap.matrix() = pose;
+  const uint64_t size = r.get<uint64_t>("submap length");
+  if (size > r.remaining())
+    throw Error("map file " + path + ": submap length larger than the file");
+  std::vector<uint8_t> encoded(static_cast<size_t>(size));
+  r.read(encoded.data(), size, "submap voxels");
+  const std::string what = "map file " + path + ": submap " + std::to_string(submap.id);
+  const EncodedSubmapInfo info =
+      validate_encoded_submap(encoded.data(), encoded.size(), what.c_str());
+  if (info.voxels_per_side != contents.voxels_per_side ||
+      info.distance_scale_m != contents.distance_scale_m)
+    throw Error(what + ": voxels per side or distance scale differ from the file's");
+  submap.blocks = decode_submap(encoded, what.c_str());
+  return submap;
+}
+
+MapFileContents load_version2(std::ifstream& file, uint64_t file_size, const std::string& path) {
+  const uint64_t payload = check_version2_checksum(file, file_size, path);
+  file.clear();
+  file.seekg(0);
+  StreamReader r(file, payload, path);
+  char magic[sizeof(kMagic)];
+  r.read(magic, sizeof(magic), "magic");
+  r.get<uint32_t>("version");
+  MapFileContents contents;
+  if (r.get<uint32_t>("flags") != 0) throw Error("map file " + path + ": unknown flags");
+  contents.voxel_size_m = r.get<float>("voxel size");
+  contents.voxels_per_side = r.get<int32_t>("voxels per side");
+  contents.distance_scale_m = r.get<float>("distance scale");
+  if (!(contents.voxel_size_m > 0.0f) || !(contents.distance_scale_m > 0.0f) ||
+      (contents.voxels_per_side != 8 && contents.voxels_per_side != 16)) {
+    throw Error("map file " + path + ": invalid voxel size, voxels per side or distance scale");
+  }
+  for (;;) {
+    const uint8_t tag = r.get<uint8_t>("record tag");
+    if (tag == kTagEnd) break;
+    if (tag != kTagSubmap) throw Error("map file " + path + ": unknown record tag");
+    contents.submaps.push_back(read_version2_submap(r, contents, path));
+  }
+  if (r.get<uint64_t>("submap count") != contents.submaps.size())
+    throw Error("map file " + path + ": the submap count does not match the records");
+  if (r.remaining() != 0)
+    throw Error("map file " + path + ": unexpected bytes after the last submap");
+  return contents;
+}
+
+float largest_distance_m(const MapFileContents& contents) {
+  float largest = 0.0f;
+  for (const SubmapRecord& submap : contents.submaps) {
+    for (const HostBlock& block : submap.blocks) {
+      for (const TsdfVoxel& v : block.tsdf) largest = std::max(largest, std::abs(v.distance_m));
+    }
+  }
+  return largest > 0.0f ? largest : 1.0f;
+}
+
+[[noreturn]] void throw_errno(const std::string& path, const std::string& what) {
+  throw Error("map file " + path + ": " + what + ": " + std::strerror(errno));
+}
+
+}  // namespace
+
+MapFileWriter::MapFileWriter(const std::string& path, float voxel_size_m, int voxels_per_side,
+                             float distance_scale_m)
+    : path_(path),
+      voxels_per_side_(voxels_per_side),
+      distance_scale_m_(distance_scale_m),
+      checksum_(0xcbf29ce484222325ull) {
+  if (!(voxel_size_m > 0.0f) || (voxels_per_side != 8 && voxels_per_side != 16) ||
+      !(distance_scale_m > 0.0f))
+    throw Error("map file " + path + ": invalid voxel size, voxels per side or distance scale");
+  struct stat status {};
+  in_place_ = ::stat(path.c_str(), &status) == 0 && !S_ISREG(status.st_mode);
+  temporary_ = in_place_ ? path : path + ".tmp." + std::to_string(::getpid());
+  fd_ = ::open(temporary_.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  if (fd_ < 0) throw_errno(temporary_, "cannot open for writing");
+  buffer_.reserve(kWriteBufferBytes);
+  for (char c : kMagic) put(c);
+  put(kMapFileVersion);
+  put(uint32_t{0});
+  put(voxel_size_m);
+  put(static_cast<int32_t>(voxels_per_side));
+  put(distance_scale_m);
+}
+
+MapFileWriter::~MapFileWriter() {
+  if (fd_ < 0) return;
+  ::close(fd_);
+  if (!in_place_) ::unlink(temporary_.c_str());
+}
+
+void MapFileWriter::put_bytes(const void* data, size_t size) {
+  const auto* bytes = static_cast<const unsigned char*>(data);
+  checksum_ = fnv1a_update(checksum_, bytes, size);
+  while (size > 0) {
+    const size_t room = kWriteBufferBytes - buffer_.size();
+    const size_t take = std::min(room, size);
+    buffer_.insert(buffer_.end(), bytes, bytes + take);
+    bytes += take;
+    size -= take;
+    if (buffer_.size() == kWriteBufferBytes) flush();
+  }
+}
+
+void MapFileWriter::flush() {
+  size_t done = 0;
+  while (done < buffer_.size()) {
+    const ssize_t wrote = ::write(fd_, buffer_.data() + done, buffer_.size() - done);
+    if (wrote < 0 && errno == EINTR) continue;
+    if (wrote <= 0) throw_errno(temporary_, "write failed");
+    done += static_cast<size_t>(wrote);
+  }
+  buffer_.clear();
+}
+
+void MapFileWriter::add_submap(int64_t id, const Eigen::Isometry3d& T_world_submap,
+                               const std::vector<uint8_t>& encoded) {
+  if (fd_ < 0) throw Error("map file " + path_ + ": add_submap after commit");
+  const std::string what = "map file " + path_ + ": submap " + std::to_string(id);
+  const EncodedSubmapInfo info =
+      validate_encoded_submap(encoded.data(), encoded.size(), what.c_str());
+  if (info.voxels_per_side != voxels_per_side_ || info.distance_scale_m != distance_scale_m_)
+    throw Error(what + ": encoded with other voxels per side or distance scale than the file's");
+  put(kTagSubmap);
+  put(id);
+  const Eigen::Matrix4d pose = T_world_submap.matrix();
+  for (int i = 0; i < 16; ++i) put(pose(i / 4, i % 4));
+  put(static_cast<uint64_t>(encoded.size()));
+  put_bytes(encoded.data(), encoded.size());
+  ++submaps_;
+}
+
+void MapFileWriter::commit() {
+  if (fd_ < 0) throw Error("map file " + path_ + ": committed twice");
+  put(kTagEnd);
+  put(submaps_);
+  const uint64_t checksum = checksum_;
+  put(checksum);
+  flush();
+  if (!in_place_ && ::fsync(fd_) != 0) throw_errno(temporary_, "fsync failed");
+  const int fd = fd_;
+  fd_ = -1;
+  if (::close(fd) != 0) {
+    if (!in_place_) ::unlink(temporary_.c_str());
+    throw_errno(temporary_, "close failed");
+  }
+  if (!in_place_ && std::rename(temporary_.c_str(), path_.c_str()) != 0) {
+    const int error = errno;
+    ::unlink(temporary_.c_str());
+    errno = error;
+    throw_errno(path_, "cannot rename the temporary over it");
+  }
+}
+
+void save_map_file(const std::string& path, const MapFileContents& contents) {
+  const float scale_m =
+      contents.distance_scale_m > 0.0f ? contents.distance_scale_m : largest_distance_m(contents);
+  MapFileWriter writer(path, contents.voxel_size_m, contents.voxels_per_side, scale_m);
+  for (const SubmapRecord& submap : contents.submaps) {
+    writer.add_submap(submap.id, submap.T_world_submap,
+                      encode_submap(submap.blocks, contents.voxels_per_side, scale_m));
+  }
+  writer.commit();
+}
+
+MapFileContents load_map_file(const std::string& path) {
+  std::ifstream file(path, std::ios::binary | std::ios::ate);
+  if (!file) throw Error("map file " + path + ": cannot open");
+  const uint64_t file_size = static_cast<uint64_t>(file.tellg());
+  file.seekg(0);
+  char magic[sizeof(kMagic)] = {};
+  file.read(magic, sizeof(magic));
+  if (!file || std::memcmp(magic, kMagic, sizeof(kMagic)) != 0)
+    throw Error("map file " + path + ": not a covoxslam map (wrong magic)");
+  uint32_t version = 0;
+  file.read(reinterpret_cast<char*>(&version), sizeof(version));
+  if (!file) throw Error("map file " + path + ": truncated header");
+  if (version == kVersion1) return load_version1(path);
+  if (version != kMapFileVersion) {
+    throw Error("map file " + path + ": format version " + std::to_string(version) +
+                ", this build reads versions 1 and " + std::to_string(kMapFileVersion));
+  }
+  return load_version2(file, file_size, path);
 }
 
 std::vector<std::unique_ptr<TsdfMap>> make_maps(const MapFileContents& contents, Device device) {

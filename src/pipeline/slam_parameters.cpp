@@ -230,7 +230,7 @@ void add_tsdf_parameters(std::vector<SlamParameter>* table) {
       });
 }
 
-// ESDF, mesh, submaps and queues.
+// ESDF, mesh, submaps, queues and the memory budget.
 void add_esdf_mesh_submap_parameters(std::vector<SlamParameter>* table) {
   table->insert(
       table->end(),
@@ -248,6 +248,12 @@ void add_esdf_mesh_submap_parameters(std::vector<SlamParameter>* table) {
           integer_parameter("submaps.max_blocks", COVOX_FIELD(submaps.max_blocks), 1),
           integer_parameter("queues.sensor_scans", COVOX_FIELD(sensor_queue_size), 1, 100000),
           integer_parameter("queues.submaps", COVOX_FIELD(submap_queue_size), 1, 1000),
+          number_parameter("memory.device_budget_mb", COVOX_FIELD(memory.device_budget_mb),
+                           non_negative),
+          number_parameter("memory.host_budget_mb", COVOX_FIELD(memory.host_budget_mb),
+                           non_negative),
+          text_parameter("memory.spill_directory", COVOX_FIELD(memory.spill_directory),
+                         [](const std::string& text) { return text; }),
       });
 }
 

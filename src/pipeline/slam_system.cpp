@@ -56,6 +56,7 @@ void validate(const SlamConfig& config) {
       "pose_graph.external_stamp_tolerance_s must be >= 0, got " +
           std::to_string(config.external_stamp_tolerance_s));
   validate(config.registration);
+  validate(config.memory);
   if (config.device == Device::kCuda && !cuda_device_available()) {
     throw NotAvailableError(
         "SLAM configuration: device cuda was asked for but no usable GPU is available "
@@ -79,6 +80,9 @@ SlamSystem::SlamSystem(const SlamConfig& config)
       frontend_stream_(Stream::create(config.device)),
       points_buffer_(config.device),
       colors_buffer_(config.device),
+      store_(std::make_unique<SubmapStore>(config.memory, config.tsdf.truncation_distance_m)),
+      restore_esdf_(config.esdf),
+      restore_stream_(Stream::create(config.device)),
       esdf_integrator_(config.esdf),
       mesh_integrator_(config.mesh),
       backend_stream_(Stream::create(config.device)) {
@@ -414,12 +418,14 @@ bool SlamSystem::process_submap(QueuedSubmap item) {
   }
   // Finishing and point extraction touch only this submap: no lock, so reset() need not wait.
   try {
+    store_->add(*submap, backend_stream_);
     times = submap->finish(esdf_integrator_, mesh_integrator_, backend_stream_);
     const auto start = Clock::now();
     if (config_.registration.enabled)
       points = prepare_registration_points(submap->map(), config_.registration, backend_stream_);
     points_s = seconds_since(start);
   } catch (const std::exception& error) {
+    store_->remove(submap->id());
     std::lock_guard<std::mutex> lock(state_mutex_);
     ++counters_.submaps_failed;
     log_error("SLAM backend: finishing submap ", submap->id(), " failed: ", error.what());
@@ -430,6 +436,7 @@ bool SlamSystem::process_submap(QueuedSubmap item) {
     std::lock_guard<std::mutex> lock(state_mutex_);
     if (item.generation != generation_.load()) {
       ++counters_.submaps_discarded_at_reset;
+      store_->remove(submap->id());
       return false;
     }
     timings_.esdf.add(times.esdf_s);
@@ -437,9 +444,12 @@ bool SlamSystem::process_submap(QueuedSubmap item) {
     ++counters_.submaps_finished;
   }
   const auto start = Clock::now();
+  const int64_t id = submap->id();
   try {
     add_to_pose_graph_locked(std::move(submap), std::move(points));
+    enforce_budget_locked(-1);
   } catch (const std::exception& error) {
+    store_->remove(id);
     std::lock_guard<std::mutex> lock(state_mutex_);
     ++counters_.submaps_failed;
     log_error("SLAM backend: adding a submap to the pose graph failed: ", error.what());
@@ -543,6 +553,7 @@ void SlamSystem::add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
   std::vector<SubmapConstraint> registrations;
   std::vector<int64_t> joint_pair_partners;
   auto walls = std::make_unique<WallMapCache>();
+  acquire_overlap_candidates_locked(*submap, guess);
   if (points) {
     registrations = registration_constraints(submap->id(), submap->map(), *points, guess, partners,
                                              config_.registration, backend_stream_, &counts,
@@ -853,21 +864,12 @@ Mesh SlamSystem::combined_mesh() const {
   return combined;
 }
 
-std::vector<SubmapSnapshot> SlamSystem::submap_snapshots() const {
-  std::lock_guard<std::mutex> lock(state_mutex_);
-  std::vector<SubmapSnapshot> snapshots;
-  snapshots.reserve(graph_submaps_.size());
-  for (const GraphSubmap& entry : graph_submaps_) {
-    const Submap& submap = *entry.submap;
-    snapshots.push_back(
-        SubmapSnapshot{submap.id(), submap.T_world_submap(), submap.map().snapshot()});
-  }
-  return snapshots;
-}
-
 SlamCounters SlamSystem::counters() const {
+  const SubmapStoreCounters memory = store_->counters();
   std::lock_guard<std::mutex> lock(state_mutex_);
-  return counters_;
+  SlamCounters counters = counters_;
+  counters.memory = memory;
+  return counters;
 }
 
 SlamTimings SlamSystem::timings() const {

@@ -204,6 +204,7 @@ void SlamSystem::reset_locked() {
     counters_.submaps_discarded_at_reset += static_cast<int64_t>(submap_queue_.clear());
     ++counters_.resets;
     discarded.swap(graph_submaps_);
+    store_->clear();
     pose_graph_.clear();
     pending_constraints_.clear();
     joint_pairs_.clear();
@@ -244,6 +245,7 @@ void SlamSystem::load_submaps(std::vector<SubmapSnapshot> submaps) {
   EsdfIntegrator esdf(config_.esdf);
   MeshIntegrator mesher(config_.mesh);
   std::vector<GraphSubmap> loaded;
+  std::vector<std::vector<uint8_t>> loaded_bytes;  // compact forms, for the store after the reset
   loaded.reserve(submaps.size());
   for (SubmapSnapshot& snapshot : submaps) {
     auto submap =
@@ -254,6 +256,7 @@ void SlamSystem::load_submaps(std::vector<SubmapSnapshot> submaps) {
       throw Error("load_submaps: submap " + std::to_string(snapshot.id) + ": " + error.what());
     }
     snapshot.blocks.clear();
+    loaded_bytes.push_back(store_->quantize(*submap, stream));
     submap->finish(esdf, mesher, stream);
     std::unique_ptr<SubmapRegistrationPoints> points;
     if (config_.registration.enabled)
@@ -273,12 +276,15 @@ void SlamSystem::load_submaps(std::vector<SubmapSnapshot> submaps) {
   reset_locked();
   {
     std::lock_guard<std::mutex> lock(state_mutex_);
-    for (GraphSubmap& entry : loaded) {
+    for (size_t k = 0; k < loaded.size(); ++k) {
+      GraphSubmap& entry = loaded[k];
+      store_->adopt(*entry.submap, std::move(loaded_bytes[k]));
       pose_graph_.add_submap(entry.submap->id(), entry.submap->pose(), /*loaded=*/true);
       graph_submaps_.push_back(std::move(entry));
     }
     counters_.submaps_loaded += static_cast<int64_t>(loaded.size());
   }
+  enforce_budget_locked(-1);
 }
 
 Eigen::Isometry3d SlamSystem::T_world_odom() const {

@@ -46,7 +46,7 @@ bool SlamSystem::submap_mesh(int64_t id, Mesh* mesh_submap,
 
 std::vector<SlicePoint> SlamSystem::esdf_slice_world(double height_m) {
   std::lock_guard<std::mutex> structure_lock(backend_mutex_);
-  std::vector<std::pair<const Submap*, Eigen::Isometry3d>> submaps;
+  std::vector<std::pair<Submap*, Eigen::Isometry3d>> submaps;
   {
     std::lock_guard<std::mutex> lock(state_mutex_);
     for (const GraphSubmap& entry : graph_submaps_) {
@@ -63,6 +63,8 @@ std::vector<SlicePoint> SlamSystem::esdf_slice_world(double height_m) {
   std::unordered_map<uint64_t, SlicePoint> cells;
   const Stream stream = Stream::create(config_.device);
   for (const auto& [submap, T_world_submap] : submaps) {
+    acquire_locked(*submap);  // leaves again below, oldest first, to keep the budget
+    enforce_budget_locked(submap->id());
     for (const SlicePoint& point :
          world_slice_of(submap->map(), T_world_submap, height_m, stream)) {
       const uint64_t key = key_of(point.position_m);
@@ -80,6 +82,7 @@ std::vector<SlicePoint> SlamSystem::esdf_slice_world(double height_m) {
       }
     }
   }
+  enforce_budget_locked(-1);
   std::vector<SlicePoint> merged;
   merged.reserve(cells.size());
   for (const auto& cell : cells) merged.push_back(cell.second);
@@ -88,7 +91,7 @@ std::vector<SlicePoint> SlamSystem::esdf_slice_world(double height_m) {
 
 std::vector<SlicePoint> SlamSystem::esdf_slice_newest_submap(double height_m, int64_t* submap_id) {
   std::lock_guard<std::mutex> structure_lock(backend_mutex_);
-  const Submap* newest = nullptr;
+  Submap* newest = nullptr;
   Eigen::Isometry3d T_world_submap = Eigen::Isometry3d::Identity();
   {
     std::lock_guard<std::mutex> lock(state_mutex_);
@@ -100,8 +103,11 @@ std::vector<SlicePoint> SlamSystem::esdf_slice_newest_submap(double height_m, in
   }
   *submap_id = newest ? newest->id() : -1;
   if (!newest) return {};
+  acquire_locked(*newest);
   const Stream stream = Stream::create(config_.device);
-  return world_slice_of(newest->map(), T_world_submap, height_m, stream);
+  std::vector<SlicePoint> slice = world_slice_of(newest->map(), T_world_submap, height_m, stream);
+  enforce_budget_locked(-1);
+  return slice;
 }
 
 std::vector<SlicePoint> SlamSystem::esdf_slice_active_submap(double height_m, int64_t* submap_id) {

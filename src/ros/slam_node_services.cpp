@@ -8,6 +8,7 @@
 
 #include "covoxslam/core/error.h"
 #include "covoxslam/io/map_file.h"
+#include "covoxslam/io/submap_codec.h"
 #include "covoxslam/io/mesh_ply.h"
 #include "covoxslam/io/trajectory_io.h"
 #include "covoxslam/ros/slam_node.h"
@@ -55,21 +56,16 @@ bool SlamNode::save_map(covoxslam::FilePath::Request& request,
                         covoxslam::FilePath::Response& response) {
   return answer("save_map", response, [&] {
     const std::string path = require_path(request.file_path);
-    io::MapFileContents contents;
-    contents.voxel_size_m = slam_->config().map.voxel_size_m;
-    contents.voxels_per_side = slam_->config().map.voxels_per_side;
-    contents.has_esdf = true;  // finished submaps carry their ESDF
-    int64_t blocks = 0;
-    for (pipeline::SubmapSnapshot& snapshot : slam_->submap_snapshots()) {
-      io::SubmapRecord record;
-      record.id = snapshot.id;
-      record.T_world_submap = snapshot.T_world_submap;
-      record.blocks = std::move(snapshot.blocks);
-      blocks += static_cast<int64_t>(record.blocks.size());
-      contents.submaps.push_back(std::move(record));
-    }
-    io::save_map_file(path, contents);
-    return "saved " + std::to_string(contents.submaps.size()) + " submaps (" +
+    io::MapFileWriter writer(path, slam_->config().map.voxel_size_m,
+                             slam_->config().map.voxels_per_side, slam_->map_distance_scale_m());
+    uint64_t blocks = 0;
+    slam_->write_submaps([&](int64_t id, const Eigen::Isometry3d& T_world_submap,
+                             const std::vector<uint8_t>& encoded) {
+      writer.add_submap(id, T_world_submap, encoded);
+      blocks += io::validate_encoded_submap(encoded.data(), encoded.size(), "save_map").blocks;
+    });
+    writer.commit();
+    return "saved " + std::to_string(writer.submaps_written()) + " submaps (" +
            std::to_string(blocks) + " blocks) to " + path;
   });
 }

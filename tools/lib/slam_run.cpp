@@ -115,18 +115,13 @@ SlamRunResult run_slam_system(ScanSource& source, const pipeline::SlamConfig& co
                          (1024.0 * 1024.0);
 
   if (!options.map_path.empty()) {
-    io::MapFileContents contents;
-    contents.voxel_size_m = config.map.voxel_size_m;
-    contents.voxels_per_side = config.map.voxels_per_side;
-    contents.has_esdf = true;  // finishing a submap computes its ESDF
-    for (pipeline::SubmapSnapshot& snapshot : slam.submap_snapshots()) {
-      io::SubmapRecord record;
-      record.id = snapshot.id;
-      record.T_world_submap = snapshot.T_world_submap;
-      record.blocks = std::move(snapshot.blocks);
-      contents.submaps.push_back(std::move(record));
-    }
-    io::save_map_file(options.map_path, contents);
+    io::MapFileWriter writer(options.map_path, config.map.voxel_size_m, config.map.voxels_per_side,
+                             slam.map_distance_scale_m());
+    slam.write_submaps([&](int64_t id, const Eigen::Isometry3d& T_world_submap,
+                           const std::vector<uint8_t>& encoded) {
+      writer.add_submap(id, T_world_submap, encoded);
+    });
+    writer.commit();
   }
   return result;
 }

@@ -1,13 +1,24 @@
 #pragma once
-// Map files: a collection of submaps (TSDF, colour, optional ESDF, submap poses, map
-// parameters) in one versioned binary file with a checksum.
+// Map files: a collection of submaps (TSDF, colour, submap poses, map parameters) in one
+// versioned binary file with a checksum.
 //
-// Layout (little-endian): "COVOXMAP" magic, format version, flags, voxel size, voxels per side,
-// submap count; per submap its id, pose T_world_submap (4x4 doubles) and blocks (index then
-// voxels); finally the FNV-1a 64 checksum of everything before it. Files are written to a
-// temporary file and renamed, so a crash never leaves a half-written map under the real name.
-// Loading checks magic, version, sizes and checksum before building anything: a truncated,
-// corrupted or foreign file throws covox::Error and the caller's running map is untouched.
+// Version 2 (written), little-endian: "COVOXMAP" magic, format version (u32), flags (u32, 0),
+// voxel size (f32), voxels per side (i32), distance scale (f32, the submap codec's); then one
+// record per submap: tag 1 (u8), id (i64), pose T_world_submap (4x4 doubles, row major), the
+// length (u64) and bytes of its compact form (io/submap_codec.h); then tag 0 (u8) and the submap
+// count (u64); finally the FNV-1a 64 checksum of everything before it. The ESDF is not stored:
+// loading recomputes it. MapFileWriter streams the file submap by submap (peak memory: one
+// submap's compact form and a write buffer), into a temporary file beside the target that is
+// synced and then renamed over it, so a crash never leaves a half-written map under the real name.
+//
+// Version 1 (read only): the same magic, version, flags (bit 0: ESDF stored), voxel size, voxels
+// per side, submap count (u64); per submap its id, pose and blocks at full precision (index, then
+// TSDF, colour and optionally ESDF voxels field by field); the checksum.
+//
+// Loading checks magic, version, sizes, every submap's compact form and the checksum before it
+// returns anything: a truncated, corrupted or foreign file throws covox::Error and the caller's
+// running map is untouched. Version 2 files are read twice from disk (checksum, then records), so
+// loading never holds the file's bytes in memory at once.
 #include <Eigen/Geometry>
 
 #include <cstdint>
@@ -21,7 +32,7 @@
 namespace covox {
 namespace io {
 
-constexpr uint32_t kMapFileVersion = 1;
+constexpr uint32_t kMapFileVersion = 2;
 
 struct SubmapRecord {
   int64_t id = 0;
@@ -32,11 +43,55 @@ struct SubmapRecord {
 struct MapFileContents {
   float voxel_size_m = 0.0f;
   int voxels_per_side = 0;
-  bool has_esdf = false;
+  // The submap codec's distance scale (the TSDF truncation distance). Saving with 0 uses the
+  // largest |distance| in the map; loading a version 1 file leaves it 0.
+  float distance_scale_m = 0.0f;
+  bool has_esdf = false;  // version 1 files only: the blocks carry their ESDF
   std::vector<SubmapRecord> submaps;
 };
 
+// Streams a version 2 map file. add_submap() takes each submap's compact form
+// (io::encode_submap with the header's voxels per side and distance scale) and writes it at once;
+// commit() writes the trailer and checksum, syncs and renames. Destroying an uncommitted writer
+// (an exception on the way) removes the temporary and leaves an existing file as it was. Every
+// error is a covox::Error naming the file.
+class MapFileWriter {
+ public:
+  MapFileWriter(const std::string& path, float voxel_size_m, int voxels_per_side,
+                float distance_scale_m);
+  ~MapFileWriter();
+  MapFileWriter(const MapFileWriter&) = delete;
+  MapFileWriter& operator=(const MapFileWriter&) = delete;
+
+  void add_submap(int64_t id, const Eigen::Isometry3d& T_world_submap,
+                  const std::vector<uint8_t>& encoded);
+  void commit();
+  uint64_t submaps_written() const { return submaps_; }
+
+ private:
+  void put_bytes(const void* data, size_t size);
+  template <class T>
+  void put(const T& value) {
+    put_bytes(&value, sizeof(T));
+  }
+  void flush();
+
+  std::string path_;
+  std::string temporary_;
+  int fd_ = -1;
+  bool in_place_ = false;  // a device or pipe: written directly
+  int voxels_per_side_ = 0;
+  float distance_scale_m_ = 0.0f;
+  uint64_t checksum_;
+  uint64_t submaps_ = 0;
+  std::vector<uint8_t> buffer_;
+};
+
+// Writes `contents` as a version 2 file (each submap encoded as it is written).
 void save_map_file(const std::string& path, const MapFileContents& contents);
+// Writes the retired version 1 layout; kept so that the version 1 reader stays tested.
+void save_map_file_version1(const std::string& path, const MapFileContents& contents);
+// Loads a version 1 or 2 file (version 2: blocks decoded, without ESDF voxels).
 MapFileContents load_map_file(const std::string& path);
 
 // Builds device maps from loaded contents.

@@ -33,6 +33,7 @@
 #include <atomic>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -59,6 +60,7 @@
 #include "covoxslam/pipeline/registration_constraints.h"
 #include "covoxslam/pipeline/submap.h"
 #include "covoxslam/pipeline/submap_pose_graph.h"
+#include "covoxslam/pipeline/submap_store.h"
 
 namespace covox {
 namespace pipeline {
@@ -107,6 +109,8 @@ struct SlamConfig {
   // within this tolerance (a 10 Hz LiDAR: half the scan period covers every stamp in between).
   double external_stamp_tolerance_s = 0.05;
   backend::PoseGraphSolverOptions solver;
+  // Memory budget of the finished submaps (pipeline/submap_store.h).
+  MemoryBudgetConfig memory;
   // False: the threads start in start(), so that tests can fill the queues first.
   bool start_threads = true;
 };
@@ -174,6 +178,7 @@ struct SlamCounters {
   int64_t resets = 0;                      // reset() and load_submaps() calls
   int64_t submaps_discarded_at_reset = 0;  // active, queued or being finished at a reset
   int64_t submaps_loaded = 0;              // by load_submaps()
+  SubmapStoreCounters memory;              // where the finished submaps' voxels are
 
   // Every scan that was given but will never be integrated, for any counted reason.
   int64_t scans_dropped_total() const {
@@ -273,8 +278,17 @@ class SlamSystem {
   std::vector<StampedPose> corrected_trajectory() const;
   // The finished submaps' meshes moved to their corrected poses, as one mesh.
   Mesh combined_mesh() const;
-  // The finished submaps (TSDF, colour, ESDF) at their corrected poses, for saving a map.
-  std::vector<SubmapSnapshot> submap_snapshots() const;
+  // The finished submaps (TSDF, colour, ESDF) at their corrected poses.
+  std::vector<SubmapSnapshot> submap_snapshots();
+  // Hands each finished submap, in graph order, to `write` in its compact form
+  // (io/submap_codec.h, distance scale map_distance_scale_m()) at its corrected pose, one at a
+  // time: what a map file stores (io::MapFileWriter), without the whole map in memory at once.
+  // Waits for the backend's current step (src/pipeline/slam_system_store.cpp).
+  using EncodedSubmapSink = std::function<void(int64_t id, const Eigen::Isometry3d& T_world_submap,
+                                               const std::vector<uint8_t>& encoded)>;
+  void write_submaps(const EncodedSubmapSink& write);
+  // The compact form's distance scale: the TSDF truncation distance.
+  float map_distance_scale_m() const { return config_.tsdf.truncation_distance_m; }
   SlamCounters counters() const;
   SlamTimings timings() const;
   // The latest optimisation's summary (default-constructed before the first).
@@ -397,6 +411,13 @@ class SlamSystem {
   std::vector<backend::RegistrationTerm> joint_terms_locked(
       const SubmapPoseGraph::BackendGraph& graph) const;
   void reset_locked();
+  // Memory budget (src/pipeline/slam_system_store.cpp); all need backend_mutex_.
+  // Brings back every earlier submap whose world box (a block's margin around it) meets the
+  // box of `submap` at `pose`: a superset of the partners registration can pick.
+  void acquire_overlap_candidates_locked(const Submap& submap, const backend::Pose4Dof& pose);
+  void acquire_locked(Submap& submap);
+  // Compacts and spills down to the budgets, oldest first; `keep` (an id, or -1) stays.
+  void enforce_budget_locked(int64_t keep);
   void join_threads();
   // The correction T_W_odom for scans of submap `submap_id`; needs state_mutex_.
   Eigen::Isometry3d correction_for_locked(int64_t submap_id) const;
@@ -433,6 +454,12 @@ class SlamSystem {
   std::atomic<bool> active_copy_requested_{false};
   std::mutex active_copy_mutex_;
   std::shared_ptr<const ActiveSubmapCopy> active_copy_;
+
+  // Finished submaps' voxels under the memory budget, and what brings them back (all used
+  // under backend_mutex_).
+  std::unique_ptr<SubmapStore> store_;
+  EsdfIntegrator restore_esdf_;
+  Stream restore_stream_;
 
   // Backend thread only (and finish() after the threads have joined).
   EsdfIntegrator esdf_integrator_;

@@ -1,0 +1,120 @@
+#pragma once
+// SubmapStore: where finished submaps' voxels live under a memory budget.
+//
+// Every finished submap goes through the compact codec once (io/submap_codec.h) before its ESDF,
+// mesh and registration points are computed, so its voxels are the decoded compact form from then
+// on. That makes leaving memory lossless: a submap is in one of three places,
+//   resident - its full TsdfMap (TSDF, colour, ESDF) on the map's device,
+//   compact  - only its compact bytes, in host memory,
+//   on disk  - its compact bytes in the spill file (spill_directory),
+// and coming back (decode, load, ESDF recomputed by EsdfIntegrator::update_all) rebuilds exactly
+// the map it had when it was finished. Once the resident maps exceed device_budget_mb, the oldest
+// resident submaps (graph order) are compacted; once the compact bytes in memory exceed
+// host_budget_mb, the oldest compact submaps go to disk. A failed spill write is logged and
+// counted, and the submap stays in memory: nothing is ever lost.
+//
+// The store is driven by SlamSystem under its backend_mutex_ (every call that changes a submap's
+// voxels), and keeps its own mutex for the counters and the bytes it holds.
+#include <cstdint>
+#include <mutex>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "covoxslam/core/stream.h"
+#include "covoxslam/integrators/esdf_integrator.h"
+#include "covoxslam/pipeline/submap.h"
+
+namespace covox {
+namespace pipeline {
+
+struct MemoryBudgetConfig {
+  // Full (resident) finished submaps, in MiB of voxel pools on the map's device. 0: no budget and
+  // no compact form: finished submaps keep their voxels exactly as integrated.
+  double device_budget_mb = 1536.0;
+  // Compact submaps held in host memory, MiB; beyond it the oldest go to the spill file.
+  double host_budget_mb = 1536.0;
+  // Folder of the spill file (created when first needed, removed from the folder at once so it
+  // disappears with the process). Empty: the system's temporary folder.
+  std::string spill_directory;
+};
+// Throws covox::Error naming the first invalid parameter (prefix "memory.").
+void validate(const MemoryBudgetConfig& config);
+
+// Where the finished submaps' voxels are, and what moving them cost.
+struct SubmapStoreCounters {
+  int64_t submaps_resident = 0;
+  int64_t submaps_compact = 0;  // compact bytes in host memory only
+  int64_t submaps_on_disk = 0;
+  int64_t resident_bytes = 0;  // voxel pools of the resident submaps
+  int64_t compact_bytes = 0;   // compact forms held in host memory (resident ones' included)
+  int64_t disk_bytes = 0;      // compact forms written to the spill file
+  int64_t compactions = 0;     // a resident submap's voxels released
+  int64_t restores = 0;        // a submap's voxels rebuilt from its compact form
+  int64_t spills = 0;          // compact forms written to the spill file
+  int64_t spill_reads = 0;     // compact forms read back from it
+  int64_t spill_failures = 0;  // spill writes that failed (the submap stayed in memory)
+  double restore_s = 0.0;      // wall time spent rebuilding submaps (decode, load, ESDF)
+};
+
+// The bytes of a map's voxel pools (TSDF, colour and ESDF voxels of every slot).
+int64_t voxel_pool_bytes(const TsdfMap& map);
+
+class SubmapStore {
+ public:
+  SubmapStore(const MemoryBudgetConfig& config, float distance_scale_m);
+  ~SubmapStore();
+  SubmapStore(const SubmapStore&) = delete;
+  SubmapStore& operator=(const SubmapStore&) = delete;
+
+  // False with device_budget_mb 0: the store does nothing and submaps stay as integrated.
+  bool enabled() const { return config_.device_budget_mb > 0.0; }
+
+  // A submap about to be finished: replaces its voxels by their compact form decoded, and keeps
+  // the compact bytes. Call before Submap::finish().
+  void add(Submap& submap, const Stream& stream);
+  // add() in two steps, for submaps built before they can be registered (load_submaps): the
+  // quantisation (returns the compact bytes; the submap's voxels become their decoded form) and
+  // taking the resident submap with its bytes into the store. With the store disabled, quantize()
+  // returns nothing and leaves the voxels, and adopt() does nothing.
+  std::vector<uint8_t> quantize(Submap& submap, const Stream& stream) const;
+  void adopt(const Submap& submap, std::vector<uint8_t> bytes);
+  // Makes the submap's voxels resident again (decoded, ESDF recomputed); a no-op if they are.
+  void acquire(Submap& submap, EsdfIntegrator& esdf, const Stream& stream);
+  // Compacts resident submaps, oldest (first in `oldest_first`) first, until the resident bytes
+  // fit the device budget, then spills the oldest compact ones until the bytes in host memory
+  // fit the host budget. `keep` (an id, or -1) stays resident.
+  void enforce(const std::vector<Submap*>& oldest_first, int64_t keep);
+  // The compact form of a submap the store holds (read back from the spill file if needed);
+  // empty when the store does not know the id.
+  std::vector<uint8_t> encoded(int64_t id);
+  // Forgets every submap (reset, load): their bytes and the spill file's contents.
+  void clear();
+  // Forgets one submap.
+  void remove(int64_t id);
+  SubmapStoreCounters counters() const;
+
+ private:
+  struct Entry {
+    std::vector<uint8_t> bytes;  // empty while on disk only
+    uint64_t size = 0;           // of the compact form
+    int64_t file_offset = -1;    // in the spill file, once written there
+    bool resident = true;
+    int64_t resident_bytes = 0;
+  };
+  // Appends the entry's bytes to the spill file; false (logged, counted) when that fails.
+  bool spill_locked(int64_t id, Entry& entry);
+  std::vector<uint8_t> read_back_locked(int64_t id, const Entry& entry);
+  void open_spill_file_locked();
+
+  const MemoryBudgetConfig config_;
+  const float distance_scale_m_;
+  mutable std::mutex mutex_;
+  std::unordered_map<int64_t, Entry> entries_;
+  SubmapStoreCounters counters_;
+  int spill_fd_ = -1;
+  int64_t spill_end_ = 0;
+};
+
+}  // namespace pipeline
+}  // namespace covox

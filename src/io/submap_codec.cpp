@@ -1,0 +1,312 @@
+#include "covoxslam/io/submap_codec.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <string>
+
+#include "covoxslam/core/error.h"
+
+namespace covox {
+namespace io {
+namespace {
+
+constexpr char kMagic[4] = {'C', 'V', 'X', 'S'};
+constexpr uint8_t kFlagColor = 1;
+constexpr double kDistanceSteps = 32767.0;
+// Header: magic, version, voxels per side, distance scale, block count.
+constexpr size_t kHeaderBytes = 4 + 4 + 4 + 4 + 8;
+
+// The quantised fields of one voxel: all zero is the never-observed voxel.
+struct QuantisedVoxel {
+  int16_t distance = 0;
+  uint16_t weight = 0;
+  uint8_t r = 0, g = 0, b = 0;
+  uint16_t color_weight = 0;
+  bool observed() const { return distance != 0 || weight != 0 || has_color(); }
+  bool has_color() const { return r != 0 || g != 0 || b != 0 || color_weight != 0; }
+};
+
+int16_t quantise_distance(float distance_m, double scale_m) {
+  if (std::isnan(distance_m)) return 0;
+  const double unit = std::min(1.0, std::max(-1.0, static_cast<double>(distance_m) / scale_m));
+  return static_cast<int16_t>(std::lround(unit * kDistanceSteps));
+}
+
+float dequantise_distance(int16_t distance, float scale_m) {
+  return static_cast<float>(distance) * (scale_m / static_cast<float>(kDistanceSteps));
+}
+
+QuantisedVoxel quantise(const TsdfVoxel& tsdf, const ColorVoxel& color, double scale_m) {
+  QuantisedVoxel q;
+  q.distance = quantise_distance(tsdf.distance_m, scale_m);
+  q.weight = float_to_half(tsdf.weight);
+  q.r = color.r;
+  q.g = color.g;
+  q.b = color.b;
+  q.color_weight = float_to_half(color.weight);
+  return q;
+}
+
+template <class T>
+void append(std::vector<uint8_t>* out, const T& value) {
+  const auto* bytes = reinterpret_cast<const uint8_t*>(&value);
+  out->insert(out->end(), bytes, bytes + sizeof(T));
+}
+
+void encode_block(const HostBlock& block, size_t per_block, double scale_m,
+                  std::vector<QuantisedVoxel>* scratch, std::vector<uint8_t>* out) {
+  std::vector<QuantisedVoxel>& voxels = *scratch;
+  voxels.clear();
+  std::vector<uint8_t> mask(per_block / 8, 0);
+  bool color = false;
+  for (size_t k = 0; k < per_block; ++k) {
+    const QuantisedVoxel q = quantise(block.tsdf[k], block.color[k], scale_m);
+    if (!q.observed()) continue;
+    mask[k / 8] = static_cast<uint8_t>(mask[k / 8] | (1u << (k % 8)));
+    color = color || q.has_color();
+    voxels.push_back(q);
+  }
+  if (voxels.empty()) return;  // only never-observed voxels: the block is dropped
+  append(out, block.index.x);
+  append(out, block.index.y);
+  append(out, block.index.z);
+  append(out, static_cast<uint8_t>(color ? kFlagColor : 0));
+  out->insert(out->end(), mask.begin(), mask.end());
+  for (const QuantisedVoxel& q : voxels) append(out, q.distance);
+  for (const QuantisedVoxel& q : voxels) append(out, q.weight);
+  if (!color) return;
+  for (const QuantisedVoxel& q : voxels) {
+    out->push_back(q.r);
+    out->push_back(q.g);
+    out->push_back(q.b);
+  }
+  for (const QuantisedVoxel& q : voxels) append(out, q.color_weight);
+}
+
+// Bounds-checked reading of encoded bytes; every error names `what`.
+class ByteReader {
+ public:
+  ByteReader(const uint8_t* data, size_t size, const char* what)
+      : data_(data), size_(size), what_(what) {}
+  template <class T>
+  T get(const char* field) {
+    T value;
+    std::memcpy(&value, take(sizeof(T), field), sizeof(T));
+    return value;
+  }
+  const uint8_t* take(size_t bytes, const char* field) {
+    if (bytes > size_ - position_) fail(std::string("truncated while reading ") + field);
+    const uint8_t* at = data_ + position_;
+    position_ += bytes;
+    return at;
+  }
+  size_t remaining() const { return size_ - position_; }
+  [[noreturn]] void fail(const std::string& message) const {
+    throw Error(std::string(what_) + ": " + message);
+  }
+
+ private:
+  const uint8_t* data_;
+  size_t size_;
+  size_t position_ = 0;
+  const char* what_;
+};
+
+EncodedSubmapInfo read_header(ByteReader& r) {
+  const uint8_t* magic = r.take(sizeof(kMagic), "the submap magic");
+  if (std::memcmp(magic, kMagic, sizeof(kMagic)) != 0) r.fail("not an encoded submap (magic)");
+  const uint32_t version = r.get<uint32_t>("the codec version");
+  if (version != kSubmapCodecVersion) {
+    r.fail("submap codec version " + std::to_string(version) + ", this build reads version " +
+           std::to_string(kSubmapCodecVersion));
+  }
+  EncodedSubmapInfo info;
+  info.voxels_per_side = static_cast<int>(r.get<uint32_t>("voxels per side"));
+  info.distance_scale_m = r.get<float>("the distance scale");
+  info.blocks = r.get<uint64_t>("the block count");
+  if (info.voxels_per_side != 8 && info.voxels_per_side != 16)
+    r.fail("voxels per side must be 8 or 16, got " + std::to_string(info.voxels_per_side));
+  if (!(std::isfinite(info.distance_scale_m) && info.distance_scale_m > 0.0f))
+    r.fail("the distance scale is not a positive number");
+  // A block needs at least its index, flags and mask.
+  const size_t per_block =
+      static_cast<size_t>(info.voxels_per_side) * info.voxels_per_side * info.voxels_per_side;
+  if (info.blocks > r.remaining() / (sizeof(Index3D) + 1 + per_block / 8))
+    r.fail("the block count is larger than the bytes");
+  return info;
+}
+
+size_t popcount(const uint8_t* mask, size_t bytes) {
+  size_t count = 0;
+  for (size_t i = 0; i < bytes; ++i) {
+    for (uint8_t b = mask[i]; b != 0; b = static_cast<uint8_t>(b & (b - 1))) ++count;
+  }
+  return count;
+}
+
+// Reads one block; fills `block` when it is not null. `previous` is the index of the block
+// before (null for the first): indices must increase.
+Index3D read_block(ByteReader& r, const EncodedSubmapInfo& info, const Index3D* previous,
+                   HostBlock* block) {
+  const size_t per_block =
+      static_cast<size_t>(info.voxels_per_side) * info.voxels_per_side * info.voxels_per_side;
+  Index3D index;
+  index.x = r.get<int32_t>("a block index");
+  index.y = r.get<int32_t>("a block index");
+  index.z = r.get<int32_t>("a block index");
+  if (previous && !(*previous < index)) r.fail("block indices are not in increasing order");
+  const uint8_t flags = r.get<uint8_t>("block flags");
+  if ((flags & ~kFlagColor) != 0) r.fail("unknown block flags");
+  const uint8_t* mask = r.take(per_block / 8, "a block mask");
+  const size_t n = popcount(mask, per_block / 8);
+  if (n == 0) r.fail("a stored block has no observed voxel");
+  const bool color = (flags & kFlagColor) != 0;
+  const uint8_t* distances = r.take(n * 2, "distances");
+  const uint8_t* weights = r.take(n * 2, "weights");
+  const uint8_t* rgb = color ? r.take(n * 3, "colours") : nullptr;
+  const uint8_t* color_weights = color ? r.take(n * 2, "colour weights") : nullptr;
+  if (!block) return index;
+  block->index = index;
+  block->tsdf.assign(per_block, TsdfVoxel());
+  block->color.assign(per_block, ColorVoxel());
+  block->esdf.clear();
+  size_t j = 0;
+  for (size_t k = 0; k < per_block; ++k) {
+    if (((mask[k / 8] >> (k % 8)) & 1u) == 0) continue;
+    int16_t distance;
+    uint16_t weight;
+    std::memcpy(&distance, distances + 2 * j, 2);
+    std::memcpy(&weight, weights + 2 * j, 2);
+    block->tsdf[k].distance_m = dequantise_distance(distance, info.distance_scale_m);
+    block->tsdf[k].weight = half_to_float(weight);
+    if (color) {
+      uint16_t color_weight;
+      std::memcpy(&color_weight, color_weights + 2 * j, 2);
+      block->color[k].r = rgb[3 * j];
+      block->color[k].g = rgb[3 * j + 1];
+      block->color[k].b = rgb[3 * j + 2];
+      block->color[k].weight = half_to_float(color_weight);
+    }
+    ++j;
+  }
+  return index;
+}
+
+EncodedSubmapInfo walk(const uint8_t* data, size_t size, const char* what,
+                       std::vector<HostBlock>* blocks) {
+  ByteReader r(data, size, what);
+  const EncodedSubmapInfo info = read_header(r);
+  if (blocks) blocks->resize(info.blocks);
+  Index3D previous;
+  for (uint64_t b = 0; b < info.blocks; ++b) {
+    previous = read_block(r, info, b > 0 ? &previous : nullptr, blocks ? &(*blocks)[b] : nullptr);
+  }
+  if (r.remaining() != 0) r.fail("unexpected bytes after the last block");
+  return info;
+}
+
+}  // namespace
+
+uint16_t float_to_half(float value) {
+  uint32_t bits;
+  std::memcpy(&bits, &value, sizeof(bits));
+  const uint32_t sign = (bits >> 16) & 0x8000u;
+  const uint32_t float_exponent = (bits >> 23) & 0xffu;
+  uint32_t mantissa = bits & 0x7fffffu;
+  if (float_exponent == 0xffu)
+    return static_cast<uint16_t>(sign | 0x7c00u | (mantissa ? 0x200u : 0u));
+  const int exponent = static_cast<int>(float_exponent) - 127 + 15;
+  if (exponent >= 31) return static_cast<uint16_t>(sign | 0x7bffu);
+  if (exponent <= 0) {
+    // Subnormal half: value = m * 2^-24, m = (1.mantissa << 23) >> (14 - exponent).
+    if (exponent < -10) return static_cast<uint16_t>(sign);
+    mantissa |= 0x800000u;
+    const uint32_t shift = static_cast<uint32_t>(14 - exponent);
+    uint32_t half = mantissa >> shift;
+    const uint32_t remainder = mantissa & ((1u << shift) - 1u);
+    const uint32_t halfway = 1u << (shift - 1u);
+    if (remainder > halfway || (remainder == halfway && (half & 1u))) ++half;
+    return static_cast<uint16_t>(sign | half);
+  }
+  uint32_t half = (static_cast<uint32_t>(exponent) << 10) | (mantissa >> 13);
+  const uint32_t remainder = mantissa & 0x1fffu;
+  // A carry out of the mantissa moves into the exponent, which is the right rounding.
+  if (remainder > 0x1000u || (remainder == 0x1000u && (half & 1u))) ++half;
+  if (half >= 0x7c00u) half = 0x7bffu;
+  return static_cast<uint16_t>(sign | half);
+}
+
+float half_to_float(uint16_t half) {
+  const uint32_t sign = static_cast<uint32_t>(half & 0x8000u) << 16;
+  const uint32_t exponent = (half >> 10) & 0x1fu;
+  const uint32_t mantissa = half & 0x3ffu;
+  if (exponent == 0) {
+    const float magnitude = std::ldexp(static_cast<float>(mantissa), -24);
+    return sign ? -magnitude : magnitude;
+  }
+  uint32_t bits = sign | (mantissa << 13);
+  bits |= exponent == 31 ? 0x7f800000u : (exponent - 15 + 127) << 23;
+  float value;
+  std::memcpy(&value, &bits, sizeof(value));
+  return value;
+}
+
+std::vector<uint8_t> encode_submap(const std::vector<HostBlock>& blocks, int voxels_per_side,
+                                   float distance_scale_m) {
+  if (voxels_per_side != 8 && voxels_per_side != 16)
+    throw Error("encode_submap: voxels per side must be 8 or 16");
+  if (!(std::isfinite(distance_scale_m) && distance_scale_m > 0.0f))
+    throw Error("encode_submap: the distance scale must be a positive number of metres");
+  const size_t per_block = static_cast<size_t>(voxels_per_side) * voxels_per_side * voxels_per_side;
+  std::vector<uint8_t> out;
+  out.insert(out.end(), kMagic, kMagic + sizeof(kMagic));
+  append(&out, kSubmapCodecVersion);
+  append(&out, static_cast<uint32_t>(voxels_per_side));
+  append(&out, distance_scale_m);
+  const size_t count_at = out.size();
+  append(&out, uint64_t{0});
+  uint64_t stored = 0;
+  std::vector<QuantisedVoxel> scratch;
+  for (size_t b = 0; b < blocks.size(); ++b) {
+    const HostBlock& block = blocks[b];
+    if (block.tsdf.size() != per_block || block.color.size() != per_block)
+      throw Error("encode_submap: a block has the wrong voxel count");
+    if (b > 0 && !(blocks[b - 1].index < block.index))
+      throw Error("encode_submap: blocks are not sorted by distinct indices");
+    const size_t before = out.size();
+    encode_block(block, per_block, distance_scale_m, &scratch, &out);
+    if (out.size() != before) ++stored;
+  }
+  std::memcpy(out.data() + count_at, &stored, sizeof(stored));
+  return out;
+}
+
+std::vector<uint8_t> encode_submap(const TsdfMap& map, float distance_scale_m) {
+  return encode_submap(map.snapshot(), map.voxels_per_side(), distance_scale_m);
+}
+
+EncodedSubmapInfo validate_encoded_submap(const uint8_t* data, size_t size, const char* what) {
+  if (size < kHeaderBytes) throw Error(std::string(what) + ": truncated submap header");
+  return walk(data, size, what, nullptr);
+}
+
+std::vector<HostBlock> decode_submap(const uint8_t* data, size_t size, const char* what) {
+  std::vector<HostBlock> blocks;
+  walk(data, size, what, &blocks);
+  return blocks;
+}
+
+void load_encoded_submap(const std::vector<uint8_t>& bytes, TsdfMap* map, const Stream& stream) {
+  const EncodedSubmapInfo info =
+      validate_encoded_submap(bytes.data(), bytes.size(), "load_encoded_submap");
+  if (info.voxels_per_side != map->voxels_per_side())
+    throw Error("load_encoded_submap: the submap has " + std::to_string(info.voxels_per_side) +
+                " voxels per side, the map " + std::to_string(map->voxels_per_side()));
+  const std::vector<HostBlock> blocks = decode_submap(bytes, "load_encoded_submap");
+  map->clear();
+  map->load_blocks(blocks, stream);
+}
+
+}  // namespace io
+}  // namespace covox

@@ -1,0 +1,96 @@
+// SlamSystem's map storage: finished submaps under the memory budget (pipeline/submap_store.h)
+// and in their compact form (io/submap_codec.h) for map files.
+#include <mutex>
+#include <unordered_set>
+#include <utility>
+#include <vector>
+
+#include "covoxslam/io/submap_codec.h"
+#include "covoxslam/pipeline/slam_system.h"
+
+namespace covox {
+namespace pipeline {
+
+void SlamSystem::write_submaps(const EncodedSubmapSink& write) {
+  // backend_mutex_ keeps the graph's submaps (and their voxels) as they are while each is encoded;
+  // state_mutex_ is held only to read a pose.
+  std::lock_guard<std::mutex> structure_lock(backend_mutex_);
+  std::vector<std::pair<const Submap*, Eigen::Isometry3d>> submaps;
+  {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    for (const GraphSubmap& entry : graph_submaps_)
+      submaps.emplace_back(entry.submap.get(), entry.submap->T_world_submap());
+  }
+  for (const auto& [submap, T_world_submap] : submaps) {
+    // The store holds the compact form of every finished submap it manages (the same bytes the
+    // submap was rebuilt from); without a budget the voxels are encoded here.
+    std::vector<uint8_t> encoded = store_->encoded(submap->id());
+    if (encoded.empty()) encoded = io::encode_submap(submap->map(), map_distance_scale_m());
+    write(submap->id(), T_world_submap, encoded);
+  }
+}
+
+void SlamSystem::acquire_locked(Submap& submap) {
+  store_->acquire(submap, restore_esdf_, restore_stream_);
+}
+
+void SlamSystem::enforce_budget_locked(int64_t keep) {
+  if (!store_->enabled()) return;
+  std::vector<Submap*> oldest_first;
+  {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    // kJoint solves read the field submaps of its pairs at every optimisation: they stay.
+    std::unordered_set<int64_t> pinned;
+    for (const JointPair& pair : joint_pairs_) pinned.insert(pair.field_submap);
+    for (const GraphSubmap& entry : graph_submaps_) {
+      if (entry.submap && !pinned.count(entry.submap->id()))
+        oldest_first.push_back(entry.submap.get());
+    }
+  }
+  store_->enforce(oldest_first, keep);
+}
+
+void SlamSystem::acquire_overlap_candidates_locked(const Submap& submap,
+                                                   const backend::Pose4Dof& pose) {
+  if (!store_->enabled() || submap.bounding_box_submap().isEmpty()) return;
+  const Eigen::Isometry3d T_world_submap = to_isometry(pose);
+  Eigen::AlignedBox3d box;
+  for (int corner = 0; corner < 8; ++corner) {
+    box.extend(T_world_submap * submap.bounding_box_submap().corner(
+                                    static_cast<Eigen::AlignedBox3d::CornerType>(corner)));
+  }
+  const double margin_m = submap.map().block_size_m();
+  box.min() -= Eigen::Vector3d::Constant(margin_m);
+  box.max() += Eigen::Vector3d::Constant(margin_m);
+  std::vector<Submap*> candidates;
+  {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    for (const GraphSubmap& entry : graph_submaps_) {
+      if (entry.submap && entry.submap->bounding_box_world().intersects(box))
+        candidates.push_back(entry.submap.get());
+    }
+  }
+  for (Submap* candidate : candidates) acquire_locked(*candidate);
+}
+
+std::vector<SubmapSnapshot> SlamSystem::submap_snapshots() {
+  std::lock_guard<std::mutex> structure_lock(backend_mutex_);
+  std::vector<std::pair<Submap*, Eigen::Isometry3d>> submaps;
+  {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    for (const GraphSubmap& entry : graph_submaps_)
+      submaps.emplace_back(entry.submap.get(), entry.submap->T_world_submap());
+  }
+  std::vector<SubmapSnapshot> snapshots;
+  snapshots.reserve(submaps.size());
+  for (const auto& [submap, T_world_submap] : submaps) {
+    acquire_locked(*submap);
+    snapshots.push_back(SubmapSnapshot{submap->id(), T_world_submap, submap->map().snapshot()});
+    enforce_budget_locked(submap->id());
+  }
+  enforce_budget_locked(-1);
+  return snapshots;
+}
+
+}  // namespace pipeline
+}  // namespace covox

@@ -1,0 +1,246 @@
+#include "covoxslam/pipeline/submap_store.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <string>
+
+#include "covoxslam/core/error.h"
+#include "covoxslam/core/log.h"
+#include "covoxslam/io/submap_codec.h"
+
+namespace covox {
+namespace pipeline {
+
+namespace {
+
+constexpr double kBytesPerMb = 1024.0 * 1024.0;
+
+// Bytes of one voxel across the three SoA pools (fields only: SoA stores no padding).
+constexpr int64_t kVoxelBytes = (4 + 4) + (1 + 1 + 1 + 4) + (4 + 1 + 1);
+
+}  // namespace
+
+void validate(const MemoryBudgetConfig& config) {
+  if (!(std::isfinite(config.device_budget_mb) && config.device_budget_mb >= 0.0))
+    throw Error("memory.device_budget_mb must be >= 0, got " +
+                std::to_string(config.device_budget_mb));
+  if (!(std::isfinite(config.host_budget_mb) && config.host_budget_mb >= 0.0))
+    throw Error("memory.host_budget_mb must be >= 0, got " + std::to_string(config.host_budget_mb));
+}
+
+int64_t voxel_pool_bytes(const TsdfMap& map) {
+  return map.pool_slots() * map.voxels_per_block() * kVoxelBytes;
+}
+
+SubmapStore::SubmapStore(const MemoryBudgetConfig& config, float distance_scale_m)
+    : config_(config), distance_scale_m_(distance_scale_m) {
+  validate(config_);
+}
+
+SubmapStore::~SubmapStore() {
+  if (spill_fd_ >= 0) ::close(spill_fd_);
+}
+
+void SubmapStore::add(Submap& submap, const Stream& stream) {
+  if (!enabled()) return;
+  adopt(submap, quantize(submap, stream));
+}
+
+std::vector<uint8_t> SubmapStore::quantize(Submap& submap, const Stream& stream) const {
+  if (!enabled()) return {};
+  std::vector<uint8_t> bytes = io::encode_submap(submap.map(), distance_scale_m_);
+  // Rebuilt in a fresh map, as every later restore is, so its block slots are laid out alike.
+  submap.map() = TsdfMap(submap.map().device(), submap.map().config());
+  io::load_encoded_submap(bytes, &submap.map(), stream);
+  return bytes;
+}
+
+void SubmapStore::adopt(const Submap& submap, std::vector<uint8_t> bytes) {
+  if (!enabled()) return;
+  Entry entry;
+  entry.bytes = std::move(bytes);
+  entry.size = entry.bytes.size();
+  entry.resident_bytes = voxel_pool_bytes(submap.map());
+  std::lock_guard<std::mutex> lock(mutex_);
+  auto [it, inserted] = entries_.emplace(submap.id(), std::move(entry));
+  if (!inserted) throw Error("SubmapStore: submap " + std::to_string(submap.id()) + " added twice");
+  ++counters_.submaps_resident;
+  counters_.resident_bytes += it->second.resident_bytes;
+  counters_.compact_bytes += static_cast<int64_t>(it->second.size);
+}
+
+void SubmapStore::acquire(Submap& submap, EsdfIntegrator& esdf, const Stream& stream) {
+  if (!enabled()) return;
+  std::lock_guard<std::mutex> lock(mutex_);
+  auto it = entries_.find(submap.id());
+  if (it == entries_.end() || it->second.resident) return;
+  Entry& entry = it->second;
+  const auto start = std::chrono::steady_clock::now();
+  const bool from_disk = entry.bytes.empty();
+  const std::vector<uint8_t> bytes = from_disk ? read_back_locked(submap.id(), entry) : entry.bytes;
+  submap.map() = TsdfMap(submap.map().device(), submap.map().config());
+  io::load_encoded_submap(bytes, &submap.map(), stream);
+  esdf.update_all(submap.map(), stream);
+  stream.synchronize();
+  entry.resident = true;
+  entry.resident_bytes = voxel_pool_bytes(submap.map());
+  if (from_disk) {
+    --counters_.submaps_on_disk;
+  } else {
+    --counters_.submaps_compact;
+  }
+  ++counters_.submaps_resident;
+  counters_.resident_bytes += entry.resident_bytes;
+  ++counters_.restores;
+  counters_.restore_s +=
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+void SubmapStore::enforce(const std::vector<Submap*>& oldest_first, int64_t keep) {
+  if (!enabled()) return;
+  std::lock_guard<std::mutex> lock(mutex_);
+  const double device_budget = config_.device_budget_mb * kBytesPerMb;
+  for (Submap* submap : oldest_first) {
+    if (static_cast<double>(counters_.resident_bytes) <= device_budget) break;
+    auto it = entries_.find(submap->id());
+    if (submap->id() == keep || it == entries_.end() || !it->second.resident) continue;
+    Entry& entry = it->second;
+    // An empty map of the same configuration: the pools' memory is freed with the old one.
+    submap->map() = TsdfMap(submap->map().device(), submap->map().config());
+    entry.resident = false;
+    counters_.resident_bytes -= entry.resident_bytes;
+    entry.resident_bytes = 0;
+    --counters_.submaps_resident;
+    ++counters_.compactions;
+    if (entry.bytes.empty()) {
+      ++counters_.submaps_on_disk;  // came back from disk for a while; its copy there is current
+    } else {
+      ++counters_.submaps_compact;
+    }
+  }
+  const double host_budget = config_.host_budget_mb * kBytesPerMb;
+  for (Submap* submap : oldest_first) {
+    if (static_cast<double>(counters_.compact_bytes) <= host_budget) break;
+    auto it = entries_.find(submap->id());
+    if (it == entries_.end() || it->second.resident || it->second.bytes.empty()) continue;
+    if (!spill_locked(submap->id(), it->second)) break;  // no disk: keep everything in memory
+  }
+}
+
+bool SubmapStore::spill_locked(int64_t id, Entry& entry) {
+  try {
+    if (entry.file_offset < 0) {
+      open_spill_file_locked();
+      size_t done = 0;
+      while (done < entry.bytes.size()) {
+        const ssize_t wrote = ::pwrite(spill_fd_, entry.bytes.data() + done,
+                                       entry.bytes.size() - done, spill_end_ + done);
+        if (wrote < 0 && errno == EINTR) continue;
+        if (wrote <= 0) throw Error(std::string("write failed: ") + std::strerror(errno));
+        done += static_cast<size_t>(wrote);
+      }
+      entry.file_offset = spill_end_;
+      spill_end_ += static_cast<int64_t>(entry.size);
+      counters_.disk_bytes += static_cast<int64_t>(entry.size);
+      ++counters_.spills;
+    }
+  } catch (const std::exception& error) {
+    // The first failure and then every 100th: a full disk cannot flood the log, the counter
+    // says how many there were.
+    if (++counters_.spill_failures % 100 != 1) return false;
+    log_error("SLAM memory: could not write submap ", id, " to the spill file in '",
+              config_.spill_directory, "': ", error.what(), " (it stays in memory; ",
+              counters_.spill_failures, " such failures)");
+    return false;
+  }
+  counters_.compact_bytes -= static_cast<int64_t>(entry.size);
+  std::vector<uint8_t>().swap(entry.bytes);
+  --counters_.submaps_compact;
+  ++counters_.submaps_on_disk;
+  return true;
+}
+
+std::vector<uint8_t> SubmapStore::read_back_locked(int64_t id, const Entry& entry) {
+  std::vector<uint8_t> bytes(static_cast<size_t>(entry.size));
+  size_t done = 0;
+  while (done < bytes.size()) {
+    const ssize_t got =
+        ::pread(spill_fd_, bytes.data() + done, bytes.size() - done, entry.file_offset + done);
+    if (got < 0 && errno == EINTR) continue;
+    if (got <= 0)
+      throw Error("SLAM memory: reading submap " + std::to_string(id) +
+                  " back from the spill file failed: " + std::strerror(errno));
+    done += static_cast<size_t>(got);
+  }
+  ++counters_.spill_reads;
+  return bytes;
+}
+
+void SubmapStore::open_spill_file_locked() {
+  if (spill_fd_ >= 0) return;
+  const std::filesystem::path folder = config_.spill_directory.empty()
+                                           ? std::filesystem::temp_directory_path()
+                                           : std::filesystem::path(config_.spill_directory);
+  std::string path = (folder / "covoxslam_spill_XXXXXX").string();
+  const int fd = ::mkstemp(path.data());
+  if (fd < 0)
+    throw Error("cannot create a spill file in '" + folder.string() + "': " + std::strerror(errno));
+  // Unlinked at once: the space is freed when the process closes it, even after a crash.
+  ::unlink(path.c_str());
+  spill_fd_ = fd;
+  spill_end_ = 0;
+}
+
+std::vector<uint8_t> SubmapStore::encoded(int64_t id) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  auto it = entries_.find(id);
+  if (it == entries_.end()) return {};
+  if (!it->second.bytes.empty()) return it->second.bytes;
+  return read_back_locked(id, it->second);
+}
+
+void SubmapStore::remove(int64_t id) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  auto it = entries_.find(id);
+  if (it == entries_.end()) return;
+  const Entry& entry = it->second;
+  if (entry.resident) {
+    --counters_.submaps_resident;
+    counters_.resident_bytes -= entry.resident_bytes;
+  } else if (entry.bytes.empty()) {
+    --counters_.submaps_on_disk;
+  } else {
+    --counters_.submaps_compact;
+  }
+  if (!entry.bytes.empty()) counters_.compact_bytes -= static_cast<int64_t>(entry.size);
+  entries_.erase(it);
+}
+
+void SubmapStore::clear() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  entries_.clear();
+  const SubmapStoreCounters totals = counters_;
+  counters_ = SubmapStoreCounters();
+  // What moving submaps cost stays counted across resets; where they are starts afresh.
+  counters_.compactions = totals.compactions;
+  counters_.restores = totals.restores;
+  counters_.spills = totals.spills;
+  counters_.spill_reads = totals.spill_reads;
+  counters_.spill_failures = totals.spill_failures;
+  counters_.restore_s = totals.restore_s;
+  if (spill_fd_ >= 0 && ::ftruncate(spill_fd_, 0) == 0) spill_end_ = 0;
+}
+
+SubmapStoreCounters SubmapStore::counters() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return counters_;
+}
+
+}  // namespace pipeline
+}  // namespace covox

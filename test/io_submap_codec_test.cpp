@@ -1,0 +1,215 @@
+// The compact submap codec: the quantisation error stays within its documented bound on a real
+// integrated map, the codec is idempotent, never-observed blocks are dropped, and the ESDF
+// recomputed from the decoded TSDF is what the pipeline computes from that TSDF.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <map>
+#include <vector>
+
+#include "covoxslam/core/buffer.h"
+#include "covoxslam/core/error.h"
+#include "covoxslam/integrators/esdf_integrator.h"
+#include "covoxslam/integrators/tsdf_integrator.h"
+#include "covoxslam/io/submap_codec.h"
+#include "pipeline_test_scene.h"
+#include "support/test_devices.h"
+
+namespace covox {
+namespace {
+
+using pipeline::test_scene::circle_pose;
+using testing_support::DeviceTest;
+
+constexpr float kTruncationM = 0.6f;
+
+class SubmapCodecTest : public DeviceTest {
+ protected:
+  // A few LiDAR scans of the yard, coloured by height, integrated into one 8-voxel-block map.
+  void integrate_yard(TsdfMap* map) {
+    const sim::World world = pipeline::test_scene::make_yard();
+    const sim::LidarConfig lidar = pipeline::test_scene::small_lidar();
+    TsdfIntegratorConfig config = pipeline::test_scene::yard_config().tsdf;
+    config.truncation_distance_m = kTruncationM;
+    TsdfIntegrator integrator(config);
+    const Stream stream(device());
+    Buffer<Vec3f> points(device());
+    Buffer<Rgb8> colors(device());
+    for (int k = 0; k < 4; ++k) {
+      const Eigen::Isometry3d pose = circle_pose(1.5 * k);
+      const std::vector<Vec3f> cloud = sim::simulate_scan(world, lidar, pose, 7 + k);
+      std::vector<Rgb8> rgb;
+      for (const Vec3f& p : cloud) {
+        const uint8_t level = static_cast<uint8_t>(std::min(255.0f, std::abs(p.z) * 60.0f));
+        rgb.push_back(Rgb8{level, static_cast<uint8_t>(255 - level), 40});
+      }
+      points.copy_from_host(cloud, stream);
+      colors.copy_from_host(rgb, stream);
+      PointCloudView view;
+      view.points = points.data();
+      view.colors = k % 2 == 0 ? colors.data() : nullptr;  // colour from half of the scans
+      view.count = static_cast<int64_t>(cloud.size());
+      integrator.integrate(*map, view, pose, stream);
+      stream.synchronize();
+    }
+  }
+};
+
+double half_bound(float value) {
+  // Round to nearest: half a unit in the last place of binary16.
+  const double magnitude = std::abs(static_cast<double>(value));
+  if (magnitude < std::ldexp(1.0, -14)) return std::ldexp(1.0, -25);
+  return magnitude * std::ldexp(1.0, -11);
+}
+
+TEST(HalfFloat, RoundsToNearestAndRoundTripsEveryHalf) {
+  for (uint32_t h = 0; h < 0x7c00u; ++h) {
+    const float value = io::half_to_float(static_cast<uint16_t>(h));
+    EXPECT_EQ(io::float_to_half(value), h) << h;
+    EXPECT_EQ(io::float_to_half(-value), h | 0x8000u) << h;
+  }
+  EXPECT_EQ(io::half_to_float(io::float_to_half(1.0f)), 1.0f);
+  EXPECT_EQ(io::half_to_float(io::float_to_half(10000.0f)), 10000.0f);
+  EXPECT_EQ(io::half_to_float(io::float_to_half(1e9f)), 65504.0f);  // saturates
+  // 1 + 2^-11 lies halfway between 1 and 1 + 2^-10: ties go to the even mantissa (1).
+  EXPECT_EQ(io::half_to_float(io::float_to_half(1.0f + std::ldexp(1.0f, -11))), 1.0f);
+  EXPECT_EQ(io::half_to_float(io::float_to_half(0.3f)), 0.300048828125f);
+}
+
+TEST_P(SubmapCodecTest, ErrorWithinTheBoundAndUnobservedBlocksDropped) {
+  TsdfMap map(device(), TsdfMapConfig{0.2f, 8, {}});
+  integrate_yard(&map);
+  const std::vector<HostBlock> original = map.snapshot();
+  const std::vector<uint8_t> bytes = io::encode_submap(map, kTruncationM);
+  const std::vector<HostBlock> decoded = io::decode_submap(bytes, "test");
+
+  std::map<Index3D, const HostBlock*> by_index;
+  for (const HostBlock& block : decoded) by_index[block.index] = &block;
+  // Half a quantisation step, plus the float rounding of the decoded value.
+  const double distance_bound = kTruncationM / 65534.0 + kTruncationM * std::ldexp(1.0, -23);
+  double max_distance_error = 0.0;
+  int64_t dropped = 0, colored_voxels = 0;
+  for (const HostBlock& block : original) {
+    const auto it = by_index.find(block.index);
+    if (it == by_index.end()) {
+      ++dropped;
+      for (size_t k = 0; k < block.tsdf.size(); ++k) {
+        EXPECT_EQ(io::float_to_half(block.tsdf[k].weight), 0u);
+        EXPECT_EQ(block.color[k].r | block.color[k].g | block.color[k].b, 0);
+      }
+      continue;
+    }
+    const HostBlock& back = *it->second;
+    for (size_t k = 0; k < block.tsdf.size(); ++k) {
+      const double error = std::abs(double(back.tsdf[k].distance_m) - block.tsdf[k].distance_m);
+      max_distance_error = std::max(max_distance_error, error);
+      EXPECT_LE(std::abs(double(back.tsdf[k].weight) - block.tsdf[k].weight),
+                half_bound(block.tsdf[k].weight));
+      EXPECT_LE(std::abs(double(back.color[k].weight) - block.color[k].weight),
+                half_bound(block.color[k].weight));
+      EXPECT_EQ(back.color[k].r, block.color[k].r);
+      EXPECT_EQ(back.color[k].g, block.color[k].g);
+      EXPECT_EQ(back.color[k].b, block.color[k].b);
+      if (block.color[k].weight > 0.0f) ++colored_voxels;
+    }
+  }
+  EXPECT_LE(max_distance_error, distance_bound);
+  EXPECT_GT(colored_voxels, 0);
+  const size_t full_bytes = original.size() * 512 * (8 + 7 + 6);
+  std::cout << "blocks " << original.size() << " kept " << decoded.size() << " dropped " << dropped
+            << "; bytes full " << full_bytes << " encoded " << bytes.size()
+            << "; max distance error " << max_distance_error << " m (bound " << distance_bound
+            << ")\n";
+  EXPECT_EQ(decoded.size() + static_cast<size_t>(dropped), original.size());
+  EXPECT_LT(bytes.size() * 4, full_bytes);
+}
+
+TEST_P(SubmapCodecTest, EncodingIsIdempotent) {
+  TsdfMap map(device(), TsdfMapConfig{0.2f, 8, {}});
+  integrate_yard(&map);
+  const std::vector<uint8_t> once = io::encode_submap(map, kTruncationM);
+  TsdfMap back(device(), TsdfMapConfig{0.2f, 8, {}});
+  io::load_encoded_submap(once, &back, Stream(device()));
+  const std::vector<uint8_t> twice = io::encode_submap(back, kTruncationM);
+  EXPECT_EQ(once, twice);
+  // Through the device map once more (a submap that left and came back twice).
+  TsdfMap again(device(), TsdfMapConfig{0.2f, 8, {}});
+  io::load_encoded_submap(twice, &again, Stream(device()));
+  EXPECT_EQ(io::encode_submap(again, kTruncationM), once);
+}
+
+// The blocks the codec drops hold no observed voxel, so the ESDF computed from the decoded map
+// equals, voxel for voxel, the ESDF computed from the same quantised TSDF with those blocks still
+// allocated (what a pipeline that kept them would compute).
+TEST_P(SubmapCodecTest, EsdfFromDecodedTsdfMatchesTheFullMapsEsdf) {
+  TsdfMap map(device(), TsdfMapConfig{0.2f, 8, {}});
+  integrate_yard(&map);
+  const std::vector<uint8_t> bytes = io::encode_submap(map, kTruncationM);
+  const std::vector<HostBlock> decoded = io::decode_submap(bytes, "test");
+  std::map<Index3D, const HostBlock*> by_index;
+  for (const HostBlock& block : decoded) by_index[block.index] = &block;
+  // The full block set, each voxel replaced by its quantised value (zero in dropped blocks).
+  std::vector<HostBlock> full = map.snapshot();
+  for (HostBlock& block : full) {
+    block.esdf.clear();
+    const auto it = by_index.find(block.index);
+    for (size_t k = 0; k < block.tsdf.size(); ++k) {
+      block.tsdf[k] = it == by_index.end() ? TsdfVoxel() : it->second->tsdf[k];
+      block.color[k] = it == by_index.end() ? ColorVoxel() : it->second->color[k];
+    }
+  }
+  const Stream stream(device());
+  TsdfMap full_map(device(), map.config());
+  full_map.load_blocks(full, stream);
+  EsdfIntegrator(EsdfIntegratorConfig{}).update_all(full_map, stream);
+  TsdfMap decoded_map(device(), map.config());
+  io::load_encoded_submap(bytes, &decoded_map, stream);
+  EsdfIntegrator(EsdfIntegratorConfig{}).update_all(decoded_map, stream);
+
+  std::map<Index3D, HostBlock> full_esdf;
+  for (HostBlock& block : full_map.snapshot()) full_esdf[block.index] = std::move(block);
+  int64_t observed = 0;
+  for (const HostBlock& block : decoded_map.snapshot()) {
+    const HostBlock& reference = full_esdf.at(block.index);
+    for (size_t k = 0; k < block.esdf.size(); ++k) {
+      EXPECT_EQ(block.esdf[k].observed, reference.esdf[k].observed);
+      EXPECT_EQ(block.esdf[k].is_site, reference.esdf[k].is_site);
+      if (block.esdf[k].observed) {
+        ++observed;
+        EXPECT_EQ(block.esdf[k].distance_m, reference.esdf[k].distance_m);
+      }
+    }
+  }
+  EXPECT_GT(observed, 0);
+  // The dropped blocks' ESDF voxels are unobserved in the full map too.
+  for (const auto& [index, block] : full_esdf) {
+    if (by_index.count(index)) continue;
+    for (const EsdfVoxel& v : block.esdf) EXPECT_EQ(v.observed, 0);
+  }
+}
+
+TEST_P(SubmapCodecTest, DamagedBytesAreRejected) {
+  TsdfMap map(device(), TsdfMapConfig{0.2f, 8, {}});
+  integrate_yard(&map);
+  const std::vector<uint8_t> good = io::encode_submap(map, kTruncationM);
+  EXPECT_NO_THROW(io::validate_encoded_submap(good.data(), good.size(), "test"));
+  EXPECT_THROW(io::decode_submap(good.data(), good.size() - 1, "test"), Error);
+  EXPECT_THROW(io::decode_submap(good.data(), 10, "test"), Error);
+  std::vector<uint8_t> longer = good;
+  longer.push_back(0);
+  EXPECT_THROW(io::decode_submap(longer, "test"), Error);
+  std::vector<uint8_t> version = good;
+  version[4] = 7;
+  EXPECT_THROW(io::decode_submap(version, "test"), Error);
+  std::vector<uint8_t> count = good;
+  count[16] = 0xff;  // the block count's low byte
+  EXPECT_THROW(io::decode_submap(count, "test"), Error);
+  TsdfMap other(device(), TsdfMapConfig{0.2f, 16, {}});
+  EXPECT_THROW(io::load_encoded_submap(good, &other, Stream(device())), Error);
+}
+
+COVOX_INSTANTIATE_ON_ALL_DEVICES(SubmapCodecTest);
+
+}  // namespace
+}  // namespace covox

@@ -1,0 +1,131 @@
+// The memory budget: a small budget forces finished submaps out of memory (compact, then spilled
+// to disk) on a lap of the yard that revisits its start; the map saved at the end and every
+// registration are identical to an unbounded run whose submaps went through the same codec.
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "covoxslam/io/submap_codec.h"
+#include "pipeline_test_scene.h"
+
+namespace covox {
+namespace pipeline {
+namespace {
+
+using namespace test_scene;
+
+struct LapResult {
+  std::vector<std::vector<uint8_t>> saved;  // write_submaps(), in order
+  std::vector<int64_t> ids;
+  std::vector<SubmapConstraint> constraints;
+  std::vector<StampedPose> trajectory;
+  SlamCounters counters;
+  size_t slice_points = 0;
+};
+
+LapResult run_lap(const MemoryBudgetConfig& memory) {
+  SlamConfig config = yard_config();
+  config.memory = memory;
+  const sim::World world = make_yard();
+  const sim::LidarConfig lidar = small_lidar();
+  Drift drift;
+  drift.yaw_rate_rad_per_s = 0.002;
+  drift.bias_m_per_s = Eigen::Vector3d(0.01, -0.005, 0.0);
+  SlamSystem slam(config);
+  // One lap of the 6 m circle (about 38 s at 1 m/s) and a bit more, so the last submaps revisit
+  // the first ones.
+  const double period_s = 0.4;
+  for (int k = 0; k * period_s <= 44.0; ++k) {
+    const double t = k * period_s;
+    SimulatedScan s =
+        simulate(world, lidar, t, circle_pose(t), drift.at(t), static_cast<uint64_t>(k + 1));
+    EXPECT_TRUE(slam.add_scan(std::move(s.scan)));
+  }
+  slam.finish();
+  LapResult result;
+  result.slice_points = slam.esdf_slice_world(1.0).size();
+  slam.write_submaps([&](int64_t id, const Eigen::Isometry3d&, const std::vector<uint8_t>& bytes) {
+    result.ids.push_back(id);
+    result.saved.push_back(bytes);
+  });
+  result.constraints = slam.constraints();
+  result.trajectory = slam.corrected_trajectory();
+  result.counters = slam.counters();
+  return result;
+}
+
+void expect_same_run(const LapResult& a, const LapResult& b) {
+  EXPECT_EQ(a.ids, b.ids);
+  ASSERT_EQ(a.saved.size(), b.saved.size());
+  for (size_t k = 0; k < a.saved.size(); ++k) EXPECT_TRUE(a.saved[k] == b.saved[k]) << k;
+  ASSERT_EQ(a.constraints.size(), b.constraints.size());
+  for (size_t k = 0; k < a.constraints.size(); ++k) {
+    const SubmapConstraint& x = a.constraints[k];
+    const SubmapConstraint& y = b.constraints[k];
+    EXPECT_EQ(x.kind, y.kind);
+    EXPECT_EQ(x.from_submap, y.from_submap);
+    EXPECT_EQ(x.to_submap, y.to_submap);
+    EXPECT_EQ(x.measurement.x, y.measurement.x);
+    EXPECT_EQ(x.measurement.y, y.measurement.y);
+    EXPECT_EQ(x.measurement.z, y.measurement.z);
+    EXPECT_EQ(x.measurement.yaw, y.measurement.yaw);
+    EXPECT_EQ(x.information, y.information);
+  }
+  ASSERT_EQ(a.trajectory.size(), b.trajectory.size());
+  for (size_t k = 0; k < a.trajectory.size(); ++k)
+    EXPECT_EQ(a.trajectory[k].T_world_sensor.matrix(), b.trajectory[k].T_world_sensor.matrix());
+  EXPECT_EQ(a.slice_points, b.slice_points);
+}
+
+TEST(SubmapStore, SmallBudgetSpillsAndGivesTheUnboundedRunsMapAndRegistrations) {
+  MemoryBudgetConfig unbounded;
+  unbounded.device_budget_mb = 1e6;
+  unbounded.host_budget_mb = 1e6;
+  const LapResult reference = run_lap(unbounded);
+  EXPECT_EQ(reference.counters.memory.compactions, 0);
+  EXPECT_GT(reference.counters.registration.accepted, 0);
+
+  MemoryBudgetConfig small;
+  small.device_budget_mb = 1.0;  // one or two 8-voxel-block submaps of the yard
+  small.host_budget_mb = 0.1;
+  small.spill_directory = ::testing::TempDir();
+  const LapResult bounded = run_lap(small);
+  const SubmapStoreCounters& memory = bounded.counters.memory;
+  std::cout << "resident " << memory.submaps_resident << " (" << memory.resident_bytes
+            << " B), compact " << memory.submaps_compact << " (" << memory.compact_bytes
+            << " B), on disk " << memory.submaps_on_disk << " (" << memory.disk_bytes
+            << " B); compactions " << memory.compactions << ", restores " << memory.restores << " ("
+            << memory.restore_s << " s), spills " << memory.spills << ", reads "
+            << memory.spill_reads << "\n";
+  EXPECT_GT(memory.compactions, 0);
+  EXPECT_GT(memory.spills, 0);
+  EXPECT_GT(memory.restores, 0);
+  EXPECT_GT(memory.spill_reads, 0);
+  EXPECT_EQ(memory.spill_failures, 0);
+  EXPECT_LE(memory.resident_bytes, static_cast<int64_t>(1.0 * 1024 * 1024) + 600000);
+  EXPECT_EQ(memory.submaps_resident + memory.submaps_compact + memory.submaps_on_disk,
+            static_cast<int64_t>(bounded.ids.size()));
+  expect_same_run(bounded, reference);
+}
+
+TEST(SubmapStore, AFailedSpillKeepsTheSubmapInMemory) {
+  MemoryBudgetConfig broken;
+  broken.device_budget_mb = 1.0;
+  broken.host_budget_mb = 0.0;
+  broken.spill_directory = ::testing::TempDir() + "/no_such_folder_for_spills";
+  const LapResult result = run_lap(broken);
+  EXPECT_GT(result.counters.memory.spill_failures, 0);
+  EXPECT_EQ(result.counters.memory.submaps_on_disk, 0);
+  EXPECT_GT(result.counters.memory.submaps_compact, 0);
+  for (const std::vector<uint8_t>& bytes : result.saved) {
+    EXPECT_NO_THROW(io::validate_encoded_submap(bytes.data(), bytes.size(), "saved"));
+  }
+}
+
+}  // namespace
+}  // namespace pipeline
+}  // namespace covox
