@@ -33,6 +33,7 @@
 #include <atomic>
 #include <cstddef>
 #include <cstdint>
+#include <deque>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -94,6 +95,11 @@ struct SlamConfig {
   // Optimise after every n-th submap enters the graph, and when external constraints or
   // request_optimization() arrive; 0: only in finish() and on request_optimization().
   int optimize_every_n_submaps = 1;
+  // Long missions: a solve of the whole graph costs time in proportion to its size, so once the
+  // graph holds more than 1 / fraction submaps the optimisations are spaced by fraction x the
+  // graph's size (submaps_between_optimizations), which keeps the solve time per new submap
+  // bounded. Below that size nothing changes. 0: every n-th submap however large the graph.
+  double optimize_spacing_fraction = 1.0 / 32.0;
   // Corrected trajectory: true: a scan between the first scans of submap k and of the next
   // submap in the graph gets the correction blended linearly in time between the two submaps'
   // corrections (blend_corrected_pose), as odometry drift grows over the submap; the last submap
@@ -113,6 +119,11 @@ struct SlamConfig {
 
 // Throws covox::Error naming the first invalid parameter.
 void validate(const SlamConfig& config);
+
+// How many new submaps the backend lets enter a graph of `graph_submaps` submaps before it
+// optimises again: max(optimize_every_n_submaps, floor(optimize_spacing_fraction x
+// graph_submaps)); 0 when optimize_every_n_submaps is 0 (only on request and at the end).
+int64_t submaps_between_optimizations(const SlamConfig& config, int64_t graph_submaps);
 
 // One scan: points in the sensor frame and the sensor's odometry pose at the scan's stamp.
 struct Scan {
@@ -277,6 +288,12 @@ class SlamSystem {
   std::vector<SubmapSnapshot> submap_snapshots() const;
   SlamCounters counters() const;
   SlamTimings timings() const;
+  // Each integrated scan's frontend time (seconds, the samples timings().tsdf sums) since the
+  // previous call, oldest first: what a caller needs for latency percentiles over a window. At
+  // most kScanDurationsKept wait between calls; older ones are dropped uncollected, so a caller
+  // that never asks costs a fixed amount of memory.
+  std::vector<double> take_scan_durations();
+  static constexpr size_t kScanDurationsKept = 8192;
   // The latest optimisation's summary (default-constructed before the first).
   backend::PoseGraphSolverSummary last_solver_summary() const;
   // Every constraint in the pose graph (submap ids), for diagnostics and drawing the graph.
@@ -364,6 +381,8 @@ class SlamSystem {
     bool loaded = false;
     // Its wall map for the revisit start (pipeline/wall_map.h), built when first needed.
     std::unique_ptr<WallMapCache> walls = std::make_unique<WallMapCache>();
+    // Its blocks on the host, for the overlap tests of every later submap (registration).
+    std::unique_ptr<backend::SubmapFootprint> footprint;
   };
 
   RegistrationOdometry odometry_for_verification(const Submap& submap, double path_m) const;
@@ -413,6 +432,8 @@ class SlamSystem {
   // Ids continue across resets, and after load_submaps() beyond the loaded ones.
   std::atomic<int64_t> next_submap_id_{0};
 
+  // The graph's size at the latest optimisation (backend_mutex_): the spacing on long missions.
+  size_t submaps_at_last_optimization_ = 0;
   // Frontend thread only.
   TsdfIntegrator tsdf_integrator_;
   Stream frontend_stream_;
@@ -475,6 +496,7 @@ class SlamSystem {
   std::vector<JointPair> joint_pairs_;
   backend::PoseGraphSolverSummary last_summary_;
   std::vector<TrajectoryEntry> trajectory_;
+  std::deque<double> scan_durations_s_;  // take_scan_durations()'s, at most kScanDurationsKept
 };
 
 }  // namespace pipeline
