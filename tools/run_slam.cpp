@@ -5,7 +5,8 @@
 // them and optimising the pose graph - as fast as the machine allows, without ROS. Writes the
 // corrected and the odometry trajectories (TUM), the combined mesh (PLY), optionally the map,
 // prints a per-module timing table with the real-time factor, and evaluates both trajectories
-// against the input's reference (ATE RMSE).
+// against the input's reference (ATE RMSE). With --simulate the scans come from a simulated flight
+// generated in process instead (tools/lib/sim_scan_source.h).
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -29,6 +30,7 @@
 #include "png_plot.h"
 #include "covoxslam/pipeline/slam_config_files.h"
 #include "covoxslam/pipeline/submap.h"
+#include "sim_scan_source.h"
 #include "slam_run.h"
 #include "trajectory_evaluation.h"
 
@@ -37,7 +39,7 @@ namespace {
 using namespace covox;
 
 const char kUsage[] =
-    "usage: run_slam (--bag FILE | --dataset DIR) [options]\n"
+    "usage: run_slam (--bag FILE | --dataset DIR | --simulate) [options]\n"
     "input (default --bag sim_flight/flight.bag):\n"
     "  --bag FILE                  ROS bag (format 2.0, uncompressed chunks)\n"
     "  --cloud-topic T             (default /penguin/os1_cloud_node/points)\n"
@@ -56,6 +58,9 @@ const char kUsage[] =
     "  --drift-scale S             RGB-D: drift model and --drift-m times S (default 1; 0: "
     "odometry = reference)\n"
     "  --max-scans N               stop after N scans (0: all)\n"
+    "  --simulate                  a simulated flight generated scan by scan in process, no bag\n"
+    "                              (simulate_flight's scans for the same options; --min-range-m\n"
+    "                              applies); the simulator's options are listed at the end\n"
     "mapping (defaults from the preset; each option below overrides it):\n"
     "  --device auto|cpu|cuda      (default auto)\n"
     "  --preset NAME               a configuration file in config/ (COVOX_CONFIG_DIR): arche_sim\n"
@@ -106,7 +111,8 @@ const char kUsage[] =
     "                              report as cases t=NNNNs\n"
     "  --timeline-plot FILE.png    the timeline as a plot: memory, scan times and per-submap\n"
     "                              times against mission time\n"
-    "  --quiet                     no progress bar\n";
+    "  --quiet                     no progress bar\n"
+    "simulator (with --simulate; --drift-scale then scales the simulated odometry's drift):\n";
 
 // The final pose graph as text, for inspection: one line per submap and per constraint (m, rad).
 void write_graph(const std::string& path, const tools::SlamRunResult& result) {
@@ -140,6 +146,8 @@ void add_timing_rows(tools::BenchmarkReport* report, const std::string& name,
 // The command line, read once.
 struct RunnerSettings {
   std::string bag_path, dataset_path;
+  bool simulate = false;
+  sim::SimulationOptions simulation;
   tools::BagScanOptions bag_options;
   tools::RgbdScanOptions rgbd_options;
   tools::LidarKeyframeScanOptions lidar_options;
@@ -176,6 +184,8 @@ void read_input_options(tools::CommandLine& args, RunnerSettings* s) {
   rgbd.drift_seed = static_cast<uint64_t>(args.integer("--drift-seed", 1));
   rgbd.drift_scale = args.number("--drift-scale", rgbd.drift_scale);
   s->max_scans = args.integer("--max-scans", 0);
+  s->simulate = args.flag("--simulate");
+  if (s->simulate) s->simulation = sim::read_simulation_options(args);
 }
 
 void read_mapping_options(tools::CommandLine& args, RunnerSettings* s) {
@@ -219,9 +229,10 @@ RunnerSettings read_settings(tools::CommandLine& args) {
   read_mapping_options(args, &s);
   read_output_options(args, &s);
   args.finish();
-  if (!s.bag_path.empty() && !s.dataset_path.empty())
-    args.fail("give --bag or --dataset, not both");
-  if (s.bag_path.empty() && s.dataset_path.empty()) s.bag_path = "sim_flight/flight.bag";
+  if (int(!s.bag_path.empty()) + int(!s.dataset_path.empty()) + int(s.simulate) > 1)
+    args.fail("give one of --bag, --dataset and --simulate");
+  if (s.bag_path.empty() && s.dataset_path.empty() && !s.simulate)
+    s.bag_path = "sim_flight/flight.bag";
   if (s.max_scans < 0) args.fail("--max-scans must be >= 0");
   if (!(s.timeline_interval_s >= 0.0)) args.fail("--timeline-interval-s must be >= 0");
   if (!s.timeline_plot_path.empty() && !(s.timeline_interval_s > 0.0))
@@ -231,6 +242,7 @@ RunnerSettings read_settings(tools::CommandLine& args) {
       args.fail("--submap-max-blocks, --sensor-queue and --submap-queue take integers >= 1");
     }
   }
+  if (s.case_name.empty() && s.simulate) s.case_name = "simulated";
   if (s.case_name.empty()) {
     const std::string input = s.bag_path.empty() ? s.dataset_path : s.bag_path;
     const size_t slash = input.find_last_of('/', input.size() > 1 ? input.size() - 2 : 0);
@@ -240,6 +252,10 @@ RunnerSettings read_settings(tools::CommandLine& args) {
 }
 
 std::unique_ptr<tools::ScanSource> open_source(RunnerSettings& s) {
+  if (s.simulate) {
+    return std::make_unique<tools::SimScanSource>(s.simulation, s.bag_options.min_range_m,
+                                                  static_cast<size_t>(s.max_scans));
+  }
   if (!s.bag_path.empty()) return std::make_unique<tools::BagScanSource>(s.bag_path, s.bag_options);
   if (s.max_scans > 0) {
     s.rgbd_options.max_frames = s.lidar_options.max_scans = static_cast<size_t>(s.max_scans);
@@ -451,6 +467,12 @@ void run(RunnerSettings& s, int argc, char** argv) {
   write_outputs(s, *source, result);
 
   tools::print_slam_run(result, stdout);
+  if (const auto* simulated = dynamic_cast<const tools::SimScanSource*>(source.get())) {
+    std::printf(
+        "simulator: %.2f s generating %zu scans (%.2f ms per scan), part of read input\n",
+        simulated->generation_s(), result.scans_given,
+        result.scans_given > 0 ? 1000.0 * simulated->generation_s() / result.scans_given : 0.0);
+  }
   tools::print_timeline(result.timeline, stdout);
   if (!s.timeline_plot_path.empty()) write_timeline_plot(s.timeline_plot_path, result.timeline);
   // With COVOX_PROFILE_STAGES=1: where each module's time went, stage by stage.
@@ -478,7 +500,7 @@ void run(RunnerSettings& s, int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  tools::CommandLine args(argc, argv, kUsage);
+  tools::CommandLine args(argc, argv, std::string(kUsage) + sim::kSimulationUsage);
   RunnerSettings settings = read_settings(args);
   try {
     run(settings, argc, argv);

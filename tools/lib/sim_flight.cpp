@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <string>
 
 #include "covoxslam/core/error.h"
@@ -69,24 +70,74 @@ std::vector<StampedIsometry> drifted(const std::vector<StampedIsometry>& truth,
   return odometry;
 }
 
+// The drift scaled until the odometry ends final_drift_percent of the distance flown from the
+// truth (within a percent of that; the final drift is close to linear in the scale).
+std::vector<StampedIsometry> odometry_drifting_by_percent(const std::vector<StampedIsometry>& truth,
+                                                          const DriftConfig& config,
+                                                          uint64_t seed) {
+  double distance_m = 0.0;
+  for (size_t k = 1; k < truth.size(); ++k)
+    distance_m += (truth[k].pose.translation() - truth[k - 1].pose.translation()).norm();
+  const double target_m = 0.01 * config.final_drift_percent * distance_m;
+  double scale = 1.0;
+  std::vector<StampedIsometry> odometry = drifted(truth, config, seed, scale);
+  for (int attempt = 0; attempt < 12 && truth.size() > 1; ++attempt) {
+    const double drift = final_drift_m(truth, odometry);
+    if (std::abs(drift - target_m) <= 0.01 * target_m) break;
+    scale *= drift > 1e-6 ? target_m / drift : 2.0;
+    odometry = drifted(truth, config, seed, scale);
+  }
+  return odometry;
+}
+
+// The number of laps and the length of one: the configured lap length, or the path split into
+// the fewest whole laps no longer than 9 A (nor than `longest_m`, the longest a figure 8 of half
+// length A can be). `whole` tells whether the laps fill the path.
+size_t plan_laps(const FlightConfig& config, double longest_m, double* lap_m, bool* whole) {
+  if (config.lap_length_m > 0.0) {
+    *lap_m = config.lap_length_m;
+    const double laps = std::max(1.0, std::ceil(config.path_length_m / *lap_m - 1e-9));
+    *whole = std::abs(config.path_length_m - laps * *lap_m) <= 1e-9 * config.path_length_m;
+    return static_cast<size_t>(laps);
+  }
+  const double laps = std::max(
+      1.0, std::ceil(config.path_length_m / std::min(longest_m, 9.0 * config.lobe_half_length_m)));
+  *lap_m = config.path_length_m / laps;
+  *whole = true;
+  return static_cast<size_t>(laps);
+}
+
 }  // namespace
 
 Figure8Path::Figure8Path(const FlightConfig& config)
     : config_(config), a_(config.lobe_half_length_m) {
   if (!(config.lobe_half_length_m > 0.0) || !(config.path_length_m > 0.0) ||
-      !(config.speed_m_per_s > 0.0) || !(config.scan_rate_hz > 0.0)) {
-    throw Error("flight: lobe half length, path length, speed and scan rate must be positive");
+      !(config.speed_m_per_s > 0.0) || !(config.scan_rate_hz > 0.0) ||
+      !(config.lap_length_m >= 0.0) || !(config.lap_blend_length_m > 0.0)) {
+    throw Error(
+        "flight: lobe half length, path length, speed, scan rate and lap blend length must be "
+        "positive, the lap length positive or 0");
   }
-  // The length grows with B: bisect for the B that gives the requested length.
+  // The length grows with B: bisect for the B that gives the requested lap length.
   double low = 0.05 * a_, high = 3.0 * a_;
-  if (lemniscate_length(a_, low) > config.path_length_m ||
-      lemniscate_length(a_, high) < config.path_length_m) {
-    throw Error("flight: a figure 8 of half length " + std::to_string(a_) + " m cannot be " +
-                std::to_string(config.path_length_m) + " m long; change the lobe half length");
+  const double shortest_m = lemniscate_length(a_, low), longest_m = lemniscate_length(a_, high);
+  double lap_m = 0.0;
+  bool whole_laps = false;
+  lap_count_ = plan_laps(config, longest_m, &lap_m, &whole_laps);
+  if (shortest_m > lap_m || longest_m < lap_m) {
+    // The length scales with A at a fixed B / A: the half lengths that can fly this lap.
+    char text[320];
+    std::snprintf(text, sizeof(text),
+                  "flight: a figure 8 of lobe half length %.1f m cannot fly a lap of %.1f m; "
+                  "change the lobe half length (--lobe-half-length-m, %.1f to %.1f m for this "
+                  "lap), the lap length (--lap-length-m) or the flight length (--path-length-m, "
+                  "--duration-s)",
+                  a_, lap_m, a_ * lap_m / longest_m, a_ * lap_m / shortest_m);
+    throw Error(text);
   }
   for (int iteration = 0; iteration < 60; ++iteration) {
     const double middle = 0.5 * (low + high);
-    (lemniscate_length(a_, middle) < config.path_length_m ? low : high) = middle;
+    (lemniscate_length(a_, middle) < lap_m ? low : high) = middle;
   }
   b_ = 0.5 * (low + high);
   theta_.resize(kPathSamples + 1);
@@ -99,34 +150,96 @@ Figure8Path::Figure8Path(const FlightConfig& config)
     arc_length_[i] = i == 0 ? 0.0 : arc_length_[i - 1] + (p - previous).norm();
     previous = p;
   }
+  length_m_ =
+      whole_laps ? static_cast<double>(lap_count_) * arc_length_.back() : config.path_length_m;
+  lap_offsets_.resize(lap_count_);
+  for (size_t lap = 1; lap < lap_count_; ++lap) {
+    Random random(stream_seed(config.variation_seed, 0x1A95, lap));
+    lap_offsets_[lap].lateral_m = config.lap_lateral_offset_m * random.uniform(-1.0, 1.0);
+    lap_offsets_[lap].altitude_m = config.lap_altitude_offset_m * random.uniform(-1.0, 1.0);
+  }
 }
 
-double Figure8Path::theta_at(double distance_m) const {
-  distance_m = std::clamp(distance_m, 0.0, length_m());
-  const size_t after = std::min<size_t>(
-      std::lower_bound(arc_length_.begin(), arc_length_.end(), distance_m) - arc_length_.begin(),
-      arc_length_.size() - 1);
+size_t Figure8Path::lap_at(double distance_m, double* into_lap_m) const {
+  const double lap_m = lap_length_m();
+  size_t lap = 0;
+  if (lap_count_ > 1 && distance_m > lap_m) {
+    lap = std::min(static_cast<size_t>(distance_m / lap_m), lap_count_ - 1);
+  }
+  *into_lap_m = distance_m - static_cast<double>(lap) * lap_m;
+  return lap;
+}
+
+double Figure8Path::theta_at(double lap_distance_m) const {
+  lap_distance_m = std::clamp(lap_distance_m, 0.0, lap_length_m());
+  const size_t after =
+      std::min<size_t>(std::lower_bound(arc_length_.begin(), arc_length_.end(), lap_distance_m) -
+                           arc_length_.begin(),
+                       arc_length_.size() - 1);
   if (after == 0) return theta_[0];
   const double fraction =
-      (distance_m - arc_length_[after - 1]) / (arc_length_[after] - arc_length_[after - 1]);
+      (lap_distance_m - arc_length_[after - 1]) / (arc_length_[after] - arc_length_[after - 1]);
   return theta_[after - 1] + fraction * (theta_[after] - theta_[after - 1]);
 }
 
-Eigen::Vector2d Figure8Path::position_m(double distance_m) const {
-  const double theta = theta_at(distance_m);
+Eigen::Vector2d Figure8Path::nominal_position_m(double lap_distance_m) const {
+  const double theta = theta_at(lap_distance_m);
   return Eigen::Vector2d(a_ * std::sin(theta), b_ * std::sin(theta) * std::cos(theta));
 }
 
-Eigen::Vector2d Figure8Path::direction(double distance_m) const {
-  const double theta = theta_at(distance_m);
+Eigen::Vector2d Figure8Path::nominal_direction(double lap_distance_m) const {
+  const double theta = theta_at(lap_distance_m);
   return Eigen::Vector2d(a_ * std::cos(theta), b_ * std::cos(2.0 * theta)).normalized();
 }
 
+double Figure8Path::indoor_blend(const Eigen::Vector2d& nominal_m) const {
+  const double d = (nominal_m - passage_centre_m()).norm();
+  return smoothstep((d - config_.indoor_radius_m) / config_.altitude_transition_m);
+}
+
+Figure8Path::LapOffset Figure8Path::offset_at(double distance_m) const {
+  double into_lap_m = 0.0;
+  const size_t lap = lap_at(distance_m, &into_lap_m);
+  if (lap == 0) return LapOffset();
+  // From the previous lap's offsets to this lap's, with zero slope at both ends of the blend:
+  // the path's direction is continuous across the lap boundary.
+  const double blend_m = std::min(config_.lap_blend_length_m, 0.125 * lap_length_m());
+  const double t = smoothstep(into_lap_m / blend_m);
+  const double near_passage = 0.25 + 0.75 * indoor_blend(nominal_position_m(into_lap_m));
+  const LapOffset& before = lap_offsets_[lap - 1];
+  const LapOffset& after = lap_offsets_[lap];
+  LapOffset offset;
+  offset.lateral_m = near_passage * (before.lateral_m + t * (after.lateral_m - before.lateral_m));
+  offset.altitude_m =
+      near_passage * (before.altitude_m + t * (after.altitude_m - before.altitude_m));
+  return offset;
+}
+
+Eigen::Vector2d Figure8Path::position_m(double distance_m) const {
+  double into_lap_m = 0.0;
+  const size_t lap = lap_at(distance_m, &into_lap_m);
+  const Eigen::Vector2d nominal = nominal_position_m(into_lap_m);
+  if (lap == 0) return nominal;
+  const Eigen::Vector2d tangent = nominal_direction(into_lap_m);
+  return nominal + offset_at(distance_m).lateral_m * Eigen::Vector2d(-tangent.y(), tangent.x());
+}
+
+Eigen::Vector2d Figure8Path::direction(double distance_m) const {
+  double into_lap_m = 0.0;
+  if (lap_at(distance_m, &into_lap_m) == 0) return nominal_direction(into_lap_m);
+  // The offset path's tangent by central differences (the offsets vary slowly along the lap).
+  const double h_m = 0.01;
+  const double ahead = std::min(distance_m + h_m, length_m_);
+  return (position_m(ahead) - position_m(ahead - 2.0 * h_m)).normalized();
+}
+
 double Figure8Path::altitude_m(double distance_m) const {
-  const double d = (position_m(distance_m) - passage_centre_m()).norm();
-  const double blend = smoothstep((d - config_.indoor_radius_m) / config_.altitude_transition_m);
-  return config_.indoor_altitude_m +
-         blend * (config_.cruise_altitude_m - config_.indoor_altitude_m);
+  double into_lap_m = 0.0;
+  const size_t lap = lap_at(distance_m, &into_lap_m);
+  const double blend = indoor_blend(nominal_position_m(into_lap_m));
+  const double altitude_m =
+      config_.indoor_altitude_m + blend * (config_.cruise_altitude_m - config_.indoor_altitude_m);
+  return lap == 0 ? altitude_m : altitude_m + offset_at(distance_m).altitude_m;
 }
 
 double Figure8Path::passage_x_at_m(double y_m) const {
@@ -186,12 +299,16 @@ DriftConfig DriftConfig::scaled(double factor) const {
   result.yaw_bias_deg_per_s *= factor;
   result.translation_random_walk_m_per_sqrt_s *= factor;
   result.yaw_random_walk_deg_per_sqrt_s *= factor;
-  if (factor == 0.0) result.min_final_drift_m = 0.0;
+  if (factor == 0.0) {
+    result.min_final_drift_m = 0.0;
+    result.final_drift_percent = 0.0;
+  }
   return result;
 }
 
 std::vector<StampedIsometry> simulate_odometry(const std::vector<StampedIsometry>& truth,
                                                const DriftConfig& config, uint64_t seed) {
+  if (config.final_drift_percent > 0.0) return odometry_drifting_by_percent(truth, config, seed);
   double scale = 1.0;
   std::vector<StampedIsometry> odometry = drifted(truth, config, seed, scale);
   // A few rescalings suffice: the final drift is close to linear in the scale.

@@ -6,6 +6,14 @@
 // Orientation: yaw along the direction of travel, roll and pitch from the horizontal acceleration
 // as a multicopter tilts to produce it.
 //
+// A flight longer than one figure 8 flies it as repeated laps, each starting and ending at the
+// crossing point (up to the offsets below). The first lap is the nominal figure 8; every later lap
+// is shifted sideways and in altitude by its own small offsets (deterministic from
+// `variation_seed`), blended in over the start of the lap so that position and direction stay
+// continuous, and shrunk to a quarter around the passage so that the drone still flies through its
+// doors. Distances along the flight are those of the nominal figure 8, so on a shifted lap the
+// speed varies by the offset over the turn radius (up to about 11 % in the tightest turn).
+//
 // Odometry = truth + drift, as visual-inertial odometry drifts in the four unobservable degrees
 // of freedom (x, y, z, yaw): a yaw error that grows as a random walk with a bias rotates every
 // later displacement, and the position picks up its own random walk with a bias.
@@ -20,7 +28,10 @@ namespace covox {
 namespace sim {
 
 struct FlightConfig {
-  double path_length_m = 400.0;
+  double path_length_m = 400.0;  // the whole flight, all laps
+  // One lap of the figure 8; 0: the path length split into the fewest whole laps of at most 9 A
+  // (A: the lobe half length below), so a longer flight repeats a figure 8 of the default's size.
+  double lap_length_m = 0.0;
   double speed_m_per_s = 2.0;
   double scan_rate_hz = 10.0;
   double lobe_half_length_m =
@@ -32,6 +43,12 @@ struct FlightConfig {
   double indoor_radius_m = 10.0;
   double altitude_transition_m = 12.0;
   double start_time_s = 1000.0;
+  // Per-lap offsets from the second lap on: uniform in [-max, max], a quarter of it at the
+  // passage.
+  double lap_lateral_offset_m = 1.0;
+  double lap_altitude_offset_m = 0.5;
+  double lap_blend_length_m = 40.0;  // offsets change over this much of a lap's start
+  uint64_t variation_seed = 1;
 };
 
 struct DriftConfig {
@@ -42,10 +59,14 @@ struct DriftConfig {
   // If the odometry ends closer than this to the truth, the whole drift (biases and random walks
   // alike) is scaled up until it does not: the default flight has at least this much drift.
   double min_final_drift_m = 3.0;
+  // > 0: instead of at least min_final_drift_m, the whole drift is scaled so that the odometry
+  // ends this percentage of the distance flown from the truth (odometry is commonly rated by its
+  // drift per distance travelled).
+  double final_drift_percent = 0.0;
 
   // Every rate (biases and random walks) multiplied by `factor` >= 0; factor 0 also drops the
-  // least final drift, so the odometry equals the truth (simulate_flight --drift-scale 0: the
-  // mapping's own error without drift to correct).
+  // least final drift and the drift percentage, so the odometry equals the truth
+  // (simulate_flight --drift-scale 0: the mapping's own error without drift to correct).
   DriftConfig scaled(double factor) const;
 };
 
@@ -56,11 +77,13 @@ struct StampedIsometry {
 
 class Figure8Path {
  public:
-  // Throws covox::Error when the length cannot be reached with the lobe half length (it must be
-  // more than about 4.1 A and less than about 9 A).
+  // Throws covox::Error when a lap length cannot be reached with the lobe half length (it must be
+  // more than about 4.1 A and less than about 13 A).
   explicit Figure8Path(const FlightConfig& config);
 
-  double length_m() const { return arc_length_.back(); }
+  double length_m() const { return length_m_; }  // the whole flight
+  double lap_length_m() const { return arc_length_.back(); }
+  size_t lap_count() const { return lap_count_; }  // the last one may be partial
   double lobe_half_length_m() const { return a_; }
   double lobe_width_m() const { return b_; }
   // The point where the path crosses y = 0 at the +x lobe end, and the x of the path at `y_m`
@@ -74,11 +97,25 @@ class Figure8Path {
   double altitude_m(double distance_m) const;
 
  private:
-  double theta_at(double distance_m) const;
+  struct LapOffset {
+    double lateral_m = 0.0, altitude_m = 0.0;
+  };
+  // The lap that `distance_m` falls in and the distance into that lap.
+  size_t lap_at(double distance_m, double* into_lap_m) const;
+  // The offsets at `distance_m`, blended between the previous lap's and this lap's, and scaled
+  // down near the passage.
+  LapOffset offset_at(double distance_m) const;
+  double indoor_blend(const Eigen::Vector2d& nominal_m) const;
+  double theta_at(double lap_distance_m) const;
+  Eigen::Vector2d nominal_position_m(double lap_distance_m) const;
+  Eigen::Vector2d nominal_direction(double lap_distance_m) const;
   FlightConfig config_;
   double a_ = 0.0, b_ = 0.0;
-  std::vector<double> theta_;       // dense samples of the parameter...
-  std::vector<double> arc_length_;  // ...and the length travelled up to each
+  double length_m_ = 0.0;
+  size_t lap_count_ = 1;
+  std::vector<LapOffset> lap_offsets_;  // one per lap; the first is zero
+  std::vector<double> theta_;           // dense samples of the parameter...
+  std::vector<double> arc_length_;      // ...and the length travelled up to each
 };
 
 // Ground-truth sensor poses at the scan rate, from the start to the end of the path.

@@ -20,6 +20,17 @@ Eigen::Isometry3d T_os1_sensor_os1_lidar() {
   return T;
 }
 
+std::vector<Eigen::Vector3f> to_os1_lidar(const std::vector<Vec3f>& points_sensor_m) {
+  // p_lidar = T_sensor_lidar^-1 p_sensor: the 180 degree yaw negates x and y.
+  const Eigen::Isometry3f T_lidar_sensor = T_os1_sensor_os1_lidar().inverse().cast<float>();
+  std::vector<Eigen::Vector3f> points_lidar_m(points_sensor_m.size());
+  for (size_t i = 0; i < points_sensor_m.size(); ++i) {
+    points_lidar_m[i] = T_lidar_sensor * Eigen::Vector3f(points_sensor_m[i].x, points_sensor_m[i].y,
+                                                         points_sensor_m[i].z);
+  }
+  return points_lidar_m;
+}
+
 FlightBagWriter::FlightBagWriter(const std::string& path, const ArcheBagLayout& layout)
     : layout_(layout), bag_(path) {
   tf_static_connection_ =
@@ -61,13 +72,7 @@ void FlightBagWriter::write_scan(double stamp_s, const Eigen::Isometry3d& truth,
   tf.transforms.push_back(odom);
   bag_.write(tf_connection_, stamp, rb::serialize(tf));
 
-  // p_lidar = T_sensor_lidar^-1 p_sensor: the 180 degree yaw negates x and y.
-  const Eigen::Isometry3f T_lidar_sensor = T_os1_sensor_os1_lidar().inverse().cast<float>();
-  std::vector<Eigen::Vector3f> points_lidar_m(points_sensor_m.size());
-  for (size_t i = 0; i < points_sensor_m.size(); ++i) {
-    points_lidar_m[i] = T_lidar_sensor * Eigen::Vector3f(points_sensor_m[i].x, points_sensor_m[i].y,
-                                                         points_sensor_m[i].z);
-  }
+  const std::vector<Eigen::Vector3f> points_lidar_m = to_os1_lidar(points_sensor_m);
   rb::Header cloud_header;
   cloud_header.seq = sequence_;
   cloud_header.stamp = stamp;

@@ -41,6 +41,10 @@ struct ArcheBagLayout {
 Eigen::Isometry3d T_imu_os1_sensor();
 Eigen::Isometry3d T_os1_sensor_os1_lidar();
 
+// Points of the os1_sensor frame in the os1_lidar frame, in single precision: what the bag's
+// clouds hold, bit for bit.
+std::vector<Eigen::Vector3f> to_os1_lidar(const std::vector<Vec3f>& points_sensor_m);
+
 class FlightBagWriter {
  public:
   // Writes the static transforms; throws covox::Error when the bag cannot be created.

@@ -1,0 +1,141 @@
+#include "sim_mission.h"
+
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
+#include "sim_random.h"
+
+namespace covox {
+namespace sim {
+
+const char kSimulationUsage[] =
+    "  --seed N                 world, lap, drift and noise seed (default 1)\n"
+    "  --columns N              LiDAR horizontal resolution (default 1024, OS1-64; 512 or 256 for "
+    "fast CPU runs)\n"
+    "  --rows N                 LiDAR beams (default 64)\n"
+    "  --range-noise-m S        range noise standard deviation (default 0.02)\n"
+    "  --dropout P              probability that a beam returns nothing (default 0.01)\n"
+    "  --max-range-m R          LiDAR range limit (default 120)\n"
+    "  --path-length-m L        flight length (default 400: one lap of the figure 8)\n"
+    "  --duration-s S           flight length as a duration at the speed (instead of "
+    "--path-length-m)\n"
+    "  --lobe-half-length-m A   half the figure 8's extent along x (default 55)\n"
+    "  --lap-length-m L         one lap (default: the flight split into the fewest whole laps\n"
+    "                           of at most 9 A; laps after the first are shifted by up to 1 m\n"
+    "                           sideways and 0.5 m in altitude)\n"
+    "  --speed-m-per-s V        flight speed (default 2)\n"
+    "  --min-drift-m D          least final odometry drift (default 3)\n"
+    "  --drift-percent P        odometry ends P % of the distance flown off the truth (instead "
+    "of\n"
+    "                           --min-drift-m; real LiDAR or visual odometry: 0.5 to 2)\n"
+    "  --drift-scale F          multiplies every drift rate (default 1; 0: odometry equals the "
+    "truth,\n"
+    "                           which isolates the mapping's own error)\n";
+
+namespace {
+
+void read_lidar_options(tools::CommandLine& args, LidarConfig* lidar) {
+  lidar->columns = static_cast<int>(args.positive_integer("--columns", lidar->columns));
+  lidar->rows = static_cast<int>(args.positive_integer("--rows", lidar->rows));
+  lidar->range_noise_m = args.number("--range-noise-m", lidar->range_noise_m);
+  lidar->dropout_probability = args.number("--dropout", lidar->dropout_probability);
+  lidar->max_range_m = args.number("--max-range-m", lidar->max_range_m);
+}
+
+void read_flight_options(tools::CommandLine& args, FlightConfig* flight) {
+  const double unset = std::numeric_limits<double>::quiet_NaN();
+  const double path_length_m = args.number("--path-length-m", unset);
+  const double duration_s = args.number("--duration-s", unset);
+  flight->speed_m_per_s = args.number("--speed-m-per-s", flight->speed_m_per_s);
+  flight->lobe_half_length_m = args.number("--lobe-half-length-m", flight->lobe_half_length_m);
+  flight->lap_length_m = args.number("--lap-length-m", flight->lap_length_m);
+  if (!(flight->speed_m_per_s > 0.0)) args.fail("--speed-m-per-s must be positive");
+  if (!(flight->lobe_half_length_m > 0.0)) args.fail("--lobe-half-length-m must be positive");
+  if (!(flight->lap_length_m >= 0.0)) args.fail("--lap-length-m must be positive");
+  if (!std::isnan(path_length_m) && !std::isnan(duration_s))
+    args.fail("give --path-length-m or --duration-s, not both");
+  if (!std::isnan(duration_s)) {
+    if (!(duration_s > 0.0 && std::isfinite(duration_s)))
+      args.fail("--duration-s must be positive");
+    flight->path_length_m = duration_s * flight->speed_m_per_s;
+  } else if (!std::isnan(path_length_m)) {
+    if (!(path_length_m > 0.0 && std::isfinite(path_length_m)))
+      args.fail("--path-length-m must be positive");
+    flight->path_length_m = path_length_m;
+  }
+}
+
+void read_drift_options(tools::CommandLine& args, SimulationOptions* options) {
+  const double unset = std::numeric_limits<double>::quiet_NaN();
+  DriftConfig& drift = options->drift;
+  const double min_drift_m = args.number("--min-drift-m", unset);
+  const double percent = args.number("--drift-percent", unset);
+  options->drift_scale = args.number("--drift-scale", options->drift_scale);
+  if (!(options->drift_scale >= 0.0 && std::isfinite(options->drift_scale)))
+    args.fail("--drift-scale must be a number >= 0");
+  if (!std::isnan(min_drift_m) && !std::isnan(percent))
+    args.fail("give --min-drift-m or --drift-percent, not both");
+  if (!std::isnan(min_drift_m)) {
+    if (!(min_drift_m >= 0.0)) args.fail("--min-drift-m must be >= 0");
+    drift.min_final_drift_m = min_drift_m;
+  }
+  if (!std::isnan(percent)) {
+    if (!(percent > 0.0 && percent < 100.0)) args.fail("--drift-percent must be in (0, 100)");
+    if (options->drift_scale == 0.0)
+      args.fail("--drift-scale 0 (odometry = truth) cannot end --drift-percent off");
+    drift.final_drift_percent = percent;
+  }
+}
+
+}  // namespace
+
+SimulationOptions read_simulation_options(tools::CommandLine& args) {
+  SimulationOptions options;
+  options.seed = static_cast<uint64_t>(args.integer("--seed", 1));
+  read_lidar_options(args, &options.lidar);
+  read_flight_options(args, &options.flight);
+  read_drift_options(args, &options);
+  options.flight.variation_seed = options.seed;
+  return options;
+}
+
+SimulatedMission::SimulatedMission(const SimulationOptions& options, size_t max_scans)
+    : options_(options), path_((validate(options.lidar), options.flight)) {
+  site_ = build_site(SiteConfig(), path_, options_.seed);
+  truth_ = simulate_truth(path_, options_.flight);
+  odometry_ = simulate_odometry(truth_, options_.drift.scaled(options_.drift_scale), options_.seed);
+  if (max_scans > 0 && max_scans < truth_.size()) {
+    truth_.resize(max_scans);
+    odometry_.resize(max_scans);
+  }
+}
+
+std::vector<Vec3f> SimulatedMission::scan(size_t k) const {
+  return simulate_scan(site_.world, options_.lidar, truth_.at(k).pose,
+                       stream_seed(options_.seed, 0x5CA7, k));
+}
+
+double SimulatedMission::distance_flown_m(size_t count) const {
+  double distance_m = 0.0;
+  for (size_t k = 1; k < std::min(count, truth_.size()); ++k)
+    distance_m += (truth_[k].pose.translation() - truth_[k - 1].pose.translation()).norm();
+  return distance_m;
+}
+
+std::string describe_flight(const SimulatedMission& mission) {
+  const Figure8Path& path = mission.path();
+  const SimulationOptions& options = mission.options();
+  char text[320];
+  std::snprintf(text, sizeof(text),
+                "%.1f m in %zu lap%s of a %.1f m figure 8 (lobes %.1f x %.1f m) at %.1f m/s, %zu "
+                "scans of %d x %d beams, seed %llu",
+                path.length_m(), path.lap_count(), path.lap_count() == 1 ? "" : "s",
+                path.lap_length_m(), 2.0 * path.lobe_half_length_m(), path.lobe_width_m(),
+                options.flight.speed_m_per_s, mission.size(), options.lidar.columns,
+                options.lidar.rows, static_cast<unsigned long long>(options.seed));
+  return text;
+}
+
+}  // namespace sim
+}  // namespace covox
