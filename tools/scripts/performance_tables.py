@@ -339,7 +339,8 @@ def mission_table(reports):
     lines = ["| mission time | wall time | " + " | ".join(label for _, label in MISSION_COLUMNS)
              + " |", "|---:|---:|" + "---:|" * len(MISSION_COLUMNS)]
     for case, values in samples.items():
-        shown = case[2:] + (" (after the final solve)" if case.endswith(" end") else "")
+        shown = f"{int(TIMELINE_CASE.match(case).group(1))} s" + (
+            " (after the final solve)" if case.endswith(" end") else "")
         cells = [number(values.get(metric)) for metric, _ in MISSION_COLUMNS]
         lines.append(f"| {shown} | {with_unit(values.get('wall time'), ' s')} | "
                      + " | ".join(cells) + " |")
