@@ -112,6 +112,45 @@ TEST_F(OfflineRunner, LibraryRunIntegratesEveryScanWithTheBagsOdometry) {
   EXPECT_EQ(evaluation.corrected.aligned.size(), kScans);
 }
 
+// The timeline's windows partition the run: every integrated scan's time and every submap are
+// in exactly one window, samples come at each interval of mission time, and the last sample's map
+// is the run's.
+TEST_F(OfflineRunner, TimelineWindowsPartitionTheScansAndSubmaps) {
+  BagScanSource source(bag(), BagScanOptions());
+  pipeline::SlamConfig config = pipeline::load_preset("arche_sim");
+  config.submaps.interval_s = 0.5;
+  SlamRunOptions options;
+  options.progress_bar = false;
+  options.timeline_interval_s = 0.5;
+  const SlamRunResult result = run_slam_system(source, config, options);
+  // Scans every 0.1 s over 1.9 s: samples near 0.5, 1.0 and 1.5 s, then one after finish().
+  ASSERT_EQ(result.timeline.size(), 4u);
+  int64_t scans = 0, submaps = 0;
+  for (size_t k = 0; k < result.timeline.size(); ++k) {
+    const TimelineSample& t = result.timeline[k];
+    // The first scan at or past each boundary (stamps are not exact tenths).
+    if (k < 3) {
+      EXPECT_GE(t.mission_s, 0.5 * (k + 1) - 1e-9) << "sample " << k;
+      EXPECT_LT(t.mission_s, 0.5 * (k + 1) + 0.1) << "sample " << k;
+    }
+    EXPECT_EQ(t.end, k == 3);
+    scans += t.window_scans;
+    submaps += t.window_submaps;
+    EXPECT_EQ(t.submaps, submaps) << "sample " << k;
+    if (k > 0) EXPECT_GE(t.wall_s, result.timeline[k - 1].wall_s);
+    if (t.window_scans > 0) {
+      EXPECT_LE(t.scan_p50_ms, t.scan_p95_ms);
+      EXPECT_LE(t.scan_p95_ms, t.scan_max_ms);
+    }
+    EXPECT_GT(t.host_rss_mb, 0.0);
+    EXPECT_GE(t.host_peak_rss_mb, t.host_rss_mb);
+  }
+  EXPECT_EQ(scans, static_cast<int64_t>(kScans));
+  EXPECT_EQ(submaps, static_cast<int64_t>(result.submaps.size()));
+  EXPECT_EQ(result.timeline.back().map_blocks, result.map_blocks);
+  EXPECT_DOUBLE_EQ(result.timeline.back().map_memory_mb, result.map_memory_mb);
+}
+
 // run_slam next to this test binary (plain CMake and catkin both put programs in one folder).
 fs::path run_slam_program() {
   return fs::read_symlink("/proc/self/exe").parent_path() / "run_slam";

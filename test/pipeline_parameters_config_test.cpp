@@ -123,6 +123,8 @@ std::map<std::string, Expectation> expectations() {
         }}},
       {"pose_graph.optimize_every_n_submaps",
        {"0", [](const SlamConfig& c) { return c.optimize_every_n_submaps == 0; }}},
+      {"pose_graph.optimize_spacing_fraction",
+       {"0.25", [](const SlamConfig& c) { return c.optimize_spacing_fraction == 0.25; }}},
       {"pose_graph.interpolate_trajectory_correction",
        {"false", [](const SlamConfig& c) { return !c.interpolate_trajectory_correction; }}},
       {"pose_graph.external_stamp_tolerance_s",

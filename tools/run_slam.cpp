@@ -27,6 +27,7 @@
 #include "covoxslam/io/mesh_ply.h"
 #include "covoxslam/io/trajectory_io.h"
 #include "dataset_scan_sources.h"
+#include "png_plot.h"
 #include "covoxslam/pipeline/slam_config_files.h"
 #include "covoxslam/pipeline/submap.h"
 #include "sim_scan_source.h"
@@ -103,6 +104,13 @@ const char kUsage[] =
     "  --json FILE                 write the results as a benchmark report (e.g. "
     "docs/benchmarks/pipeline.json)\n"
     "  --case NAME                 the report's case name (default: the input's file name)\n"
+    "  --timeline-interval-s S     a mission timeline sample every S s of sensor time (default "
+    "30;\n"
+    "                              0: none): memory, map blocks, scan-time percentiles and\n"
+    "                              per-submap registration and solve times, printed and in the\n"
+    "                              report as cases t=NNNNs\n"
+    "  --timeline-plot FILE.png    the timeline as a plot: memory, scan times and per-submap\n"
+    "                              times against mission time\n"
     "  --quiet                     no progress bar\n"
     "simulator (with --simulate; --drift-scale then scales the simulated odometry's drift):\n";
 
@@ -150,7 +158,8 @@ struct RunnerSettings {
   double sensor_queue, submap_queue;
   std::string policy_text;
   std::string trajectory_path, odometry_path, reference_path, mesh_path, graph_path, map_path;
-  std::string align_text, json_path, case_name;
+  std::string align_text, json_path, case_name, timeline_plot_path;
+  double timeline_interval_s = 30.0;
   double max_time_gap_s = 0.1;
   bool quiet = false;
   bool verify_constraints = false;
@@ -206,6 +215,8 @@ void read_output_options(tools::CommandLine& args, RunnerSettings* s) {
   s->max_time_gap_s = args.number("--max-time-gap-s", 0.1);
   s->json_path = args.text("--json", "");
   s->case_name = args.text("--case", "");
+  s->timeline_interval_s = args.number("--timeline-interval-s", s->timeline_interval_s);
+  s->timeline_plot_path = args.text("--timeline-plot", "");
   s->quiet = args.flag("--quiet");
   s->verify_constraints = args.flag("--verify-constraints");
   s->verify_tolerance_m = args.number("--verify-tolerance-m", s->verify_tolerance_m);
@@ -223,6 +234,9 @@ RunnerSettings read_settings(tools::CommandLine& args) {
   if (s.bag_path.empty() && s.dataset_path.empty() && !s.simulate)
     s.bag_path = "sim_flight/flight.bag";
   if (s.max_scans < 0) args.fail("--max-scans must be >= 0");
+  if (!(s.timeline_interval_s >= 0.0)) args.fail("--timeline-interval-s must be >= 0");
+  if (!s.timeline_plot_path.empty() && !(s.timeline_interval_s > 0.0))
+    args.fail("--timeline-plot needs --timeline-interval-s > 0");
   for (const double count : {s.max_blocks, s.sensor_queue, s.submap_queue}) {
     if (!std::isnan(count) && !(count >= 1.0 && count == std::floor(count))) {
       args.fail("--submap-max-blocks, --sensor-queue and --submap-queue take integers >= 1");
@@ -346,6 +360,64 @@ void add_memory_rows(tools::BenchmarkReport* report, const std::string& name,
   report->add(name, "submap spill failures", static_cast<double>(m.spill_failures), "");
 }
 
+// The timeline as report rows: one case per sample, named by its mission time ("t=0030s"; the
+// sample after finish() "t=0200s end"), after the summary case, which readers that take a
+// report's first case keep finding.
+void add_timeline_rows(tools::BenchmarkReport* report,
+                       const std::vector<tools::TimelineSample>& timeline) {
+  for (const tools::TimelineSample& t : timeline) {
+    char name[32];
+    std::snprintf(name, sizeof(name), "t=%04.0fs%s", t.mission_s, t.end ? " end" : "");
+    report->add(name, "mission time", t.mission_s, "s");
+    report->add(name, "wall time", t.wall_s, "s");
+    report->add(name, "host RSS", t.host_rss_mb, "MB");
+    report->add(name, "host peak RSS", t.host_peak_rss_mb, "MB");
+    if (std::isfinite(t.device_used_mb))
+      report->add(name, "device memory used", t.device_used_mb, "MB");
+    report->add(name, "map blocks", static_cast<double>(t.map_blocks), "");
+    report->add(name, "map memory", t.map_memory_mb, "MB");
+    report->add(name, "submaps", static_cast<double>(t.submaps), "");
+    report->add(name, "window scans", static_cast<double>(t.window_scans), "");
+    report->add(name, "scan time p50", t.scan_p50_ms, "ms");
+    report->add(name, "scan time p95", t.scan_p95_ms, "ms");
+    report->add(name, "scan time max", t.scan_max_ms, "ms");
+    report->add(name, "window submaps", static_cast<double>(t.window_submaps), "");
+    report->add(name, "registration per submap", t.registration_ms_per_submap, "ms");
+    report->add(name, "solve per submap", t.solve_ms_per_submap, "ms");
+    report->add(name, "window optimisations", static_cast<double>(t.window_optimizations), "");
+  }
+}
+
+// Memory, scan times and per-submap times against mission time, three panels.
+void write_timeline_plot(const std::string& path,
+                         const std::vector<tools::TimelineSample>& timeline) {
+  using Field = double tools::TimelineSample::*;
+  auto series = [&](const char* label, size_t colour, Field field) {
+    tools::PlotSeries line;
+    line.label = label;
+    line.colour = tools::series_colour(colour);
+    // The sample after finish() is left out: its window is the flush and the final solve.
+    for (const tools::TimelineSample& t : timeline)
+      if (!t.end) line.points.push_back(tools::PlotPoint{t.mission_s, t.*field});
+    return line;
+  };
+  std::vector<tools::PlotPanel> panels(3);
+  panels[0].title = "MEMORY (MB) OVER MISSION TIME (S)";
+  panels[0].series = {series("host RSS", 0, &tools::TimelineSample::host_rss_mb),
+                      series("map voxels", 1, &tools::TimelineSample::map_memory_mb)};
+  if (!timeline.empty() && std::isfinite(timeline.back().device_used_mb))
+    panels[0].series.push_back(series("GPU used", 2, &tools::TimelineSample::device_used_mb));
+  panels[1].title = "SCAN TIME (MS): P50, P95, MAX PER WINDOW";
+  panels[1].series = {series("p50", 0, &tools::TimelineSample::scan_p50_ms),
+                      series("p95", 1, &tools::TimelineSample::scan_p95_ms),
+                      series("max", 2, &tools::TimelineSample::scan_max_ms)};
+  panels[2].title = "PER SUBMAP (MS): REGISTRATION, POSE-GRAPH SOLVE";
+  panels[2].series = {series("registration", 0, &tools::TimelineSample::registration_ms_per_submap),
+                      series("solve", 1, &tools::TimelineSample::solve_ms_per_submap)};
+  tools::write_png(path, tools::render_stacked_panels(panels));
+  std::printf("timeline plot -> %s\n", path.c_str());
+}
+
 void write_report(const RunnerSettings& s, const pipeline::SlamConfig& config, int argc,
                   char** argv, const tools::SlamRunResult& result,
                   const tools::SlamRunEvaluation& evaluation, bool truth) {
@@ -368,6 +440,13 @@ void write_report(const RunnerSettings& s, const pipeline::SlamConfig& config, i
   report.add(name, "map blocks", static_cast<double>(result.map_blocks), "");
   report.add(name, "map memory", result.map_memory_mb, "MB");
   add_memory_rows(&report, name, result.counters.memory);
+
+  if (!result.timeline.empty())
+    report.add(name, "host peak RSS", result.timeline.back().host_peak_rss_mb, "MB");
+  if (!s.map_path.empty()) {
+    report.add(name, "map file size", result.map_file_mb, "MB");
+    report.add(name, "map save time", result.map_save_s, "s");
+  }
   report.add(
       name, "scans dropped",
       static_cast<double>(result.counters.scans_dropped_total() + result.scans_dropped_by_source),
@@ -377,6 +456,7 @@ void write_report(const RunnerSettings& s, const pipeline::SlamConfig& config, i
     report.add(name, metric + "odometry", evaluation.odometry.absolute_position_m.rmse, "m");
     report.add(name, metric + "covoxslam", evaluation.corrected.absolute_position_m.rmse, "m");
   }
+  add_timeline_rows(&report, result.timeline);
   report.write_json(s.json_path);
   std::printf("report -> %s\n", s.json_path.c_str());
 }
@@ -402,6 +482,7 @@ void run(RunnerSettings& s, int argc, char** argv) {
   options.max_scans = static_cast<size_t>(s.max_scans);
   options.progress_bar = !s.quiet;
   options.map_path = s.map_path;
+  options.timeline_interval_s = s.timeline_interval_s;
   const tools::SlamRunResult result = tools::run_slam_system(*source, config, options);
   write_outputs(s, *source, result);
 
@@ -412,11 +493,16 @@ void run(RunnerSettings& s, int argc, char** argv) {
         simulated->generation_s(), result.scans_given,
         result.scans_given > 0 ? 1000.0 * simulated->generation_s() / result.scans_given : 0.0);
   }
+  tools::print_timeline(result.timeline, stdout);
+  if (!s.timeline_plot_path.empty()) write_timeline_plot(s.timeline_plot_path, result.timeline);
   // With COVOX_PROFILE_STAGES=1: where each module's time went, stage by stage.
   if (StageProfiler::enabled()) std::printf("\n%s\n", StageProfiler::report().c_str());
   std::printf("mesh -> %s\ntrajectory: %zu poses -> %s\n", s.mesh_path.c_str(),
               result.corrected.size(), s.trajectory_path.c_str());
-  if (!s.map_path.empty()) std::printf("map -> %s\n", s.map_path.c_str());
+  if (!s.map_path.empty()) {
+    std::printf("map -> %s (%.1f MB, saved in %.2f s)\n", s.map_path.c_str(), result.map_file_mb,
+                result.map_save_s);
+  }
 
   const tools::SlamRunEvaluation evaluation =
       tools::evaluate_slam_run(*source, result, alignment, s.max_time_gap_s);

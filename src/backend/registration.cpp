@@ -394,6 +394,29 @@ Constraint4Dof make_registration_constraint(int32_t vertex_j, int32_t vertex_i,
   return make_relative_constraint_4dof(vertex_j, vertex_i, result.T_Sj_Si, information);
 }
 
+SubmapFootprint submap_footprint(const TsdfMap& map) {
+  SubmapFootprint footprint;
+  footprint.block_size_m = map.block_size_m();
+  const Stream stream(map.device());
+  Buffer<Index3D> indices(map.device());
+  Buffer<uint32_t> slots(map.device());
+  map.blocks().export_entries(&indices, &slots);
+  footprint.blocks = indices.to_host(stream);
+  footprint.keys.reserve(footprint.blocks.size() * 2);
+  for (const Index3D& b : footprint.blocks) footprint.keys.insert(pack_block_key(b));
+  if (footprint.blocks.empty()) return footprint;
+  footprint.block_min = footprint.block_max = footprint.blocks.front();
+  for (const Index3D& b : footprint.blocks) {
+    footprint.block_min =
+        Index3D(std::min(footprint.block_min.x, b.x), std::min(footprint.block_min.y, b.y),
+                std::min(footprint.block_min.z, b.z));
+    footprint.block_max =
+        Index3D(std::max(footprint.block_max.x, b.x), std::max(footprint.block_max.y, b.y),
+                std::max(footprint.block_max.z, b.z));
+  }
+  return footprint;
+}
+
 SubmapOverlap submap_overlap(const TsdfMap& map_i, const Pose4Dof& T_W_Si, const TsdfMap& map_j,
                              const Pose4Dof& T_W_Sj, int64_t min_shared_blocks) {
   check_finite_pose(T_W_Si, "T_W_Si");
@@ -403,64 +426,74 @@ SubmapOverlap submap_overlap(const TsdfMap& map_i, const Pose4Dof& T_W_Si, const
                 std::to_string(map_i.block_size_m()) + " and " +
                 std::to_string(map_j.block_size_m()) + " m)");
   }
+  return submap_overlap(submap_footprint(map_i), T_W_Si, submap_footprint(map_j), T_W_Sj,
+                        min_shared_blocks);
+}
+
+namespace {
+
+Eigen::Vector3d pose_4dof_apply(const Pose4Dof& pose, const Eigen::Vector3d& p) {
+  const double c = std::cos(pose.yaw), s = std::sin(pose.yaw);
+  return Eigen::Vector3d(c * p.x() - s * p.y() + pose.x, s * p.x() + c * p.y() + pose.y,
+                         p.z() + pose.z);
+}
+
+// World AABB of a footprint: the 8 corners of its block-index box, transformed.
+void footprint_world_box(const SubmapFootprint& footprint, const Pose4Dof& pose,
+                         Eigen::Vector3d* lo, Eigen::Vector3d* hi) {
+  const double block_m = footprint.block_size_m;
+  const Eigen::Vector3d block_lo(footprint.block_min.x * block_m, footprint.block_min.y * block_m,
+                                 footprint.block_min.z * block_m);
+  const Eigen::Vector3d block_hi =
+      Eigen::Vector3d(footprint.block_max.x * block_m, footprint.block_max.y * block_m,
+                      footprint.block_max.z * block_m) +
+      Eigen::Vector3d::Constant(block_m);
+  *lo = Eigen::Vector3d::Constant(1e300);
+  *hi = Eigen::Vector3d::Constant(-1e300);
+  for (int c = 0; c < 8; ++c) {
+    const Eigen::Vector3d corner((c & 1) ? block_hi.x() : block_lo.x(),
+                                 (c & 2) ? block_hi.y() : block_lo.y(),
+                                 (c & 4) ? block_hi.z() : block_lo.z());
+    const Eigen::Vector3d w = pose_4dof_apply(pose, corner);
+    *lo = lo->cwiseMin(w);
+    *hi = hi->cwiseMax(w);
+  }
+}
+
+}  // namespace
+
+SubmapOverlap submap_overlap(const SubmapFootprint& footprint_i, const Pose4Dof& T_W_Si,
+                             const SubmapFootprint& footprint_j, const Pose4Dof& T_W_Sj,
+                             int64_t min_shared_blocks) {
+  check_finite_pose(T_W_Si, "T_W_Si");
+  check_finite_pose(T_W_Sj, "T_W_Sj");
+  if (footprint_i.block_size_m != footprint_j.block_size_m) {
+    throw Error("submap_overlap: the submaps have different block sizes (" +
+                std::to_string(footprint_i.block_size_m) + " and " +
+                std::to_string(footprint_j.block_size_m) + " m)");
+  }
   SubmapOverlap overlap;
-  const Stream stream_i(map_i.device()), stream_j(map_j.device());
-  Buffer<Index3D> indices_i(map_i.device()), indices_j(map_j.device());
-  Buffer<uint32_t> slots_i(map_i.device()), slots_j(map_j.device());
-  map_i.blocks().export_entries(&indices_i, &slots_i);
-  map_j.blocks().export_entries(&indices_j, &slots_j);
-  const std::vector<Index3D> blocks_i = indices_i.to_host(stream_i);
-  const std::vector<Index3D> blocks_j = indices_j.to_host(stream_j);
-  if (blocks_i.empty() || blocks_j.empty()) return overlap;
-  const double block_m = map_i.block_size_m();
-  auto to_world = [](const Pose4Dof& pose, const Eigen::Vector3d& p) {
-    const double c = std::cos(pose.yaw), s = std::sin(pose.yaw);
-    return Eigen::Vector3d(c * p.x() - s * p.y() + pose.x, s * p.x() + c * p.y() + pose.y,
-                           p.z() + pose.z);
-  };
-  // World AABB of a submap: the 8 corners of its block-index AABB, transformed.
-  auto world_box = [&](const std::vector<Index3D>& blocks, const Pose4Dof& pose,
-                       Eigen::Vector3d* lo, Eigen::Vector3d* hi) {
-    Eigen::Vector3d block_lo(1e300, 1e300, 1e300), block_hi(-1e300, -1e300, -1e300);
-    for (const Index3D& b : blocks) {
-      const Eigen::Vector3d corner(b.x * block_m, b.y * block_m, b.z * block_m);
-      block_lo = block_lo.cwiseMin(corner);
-      block_hi = block_hi.cwiseMax(corner + Eigen::Vector3d::Constant(block_m));
-    }
-    *lo = Eigen::Vector3d::Constant(1e300);
-    *hi = Eigen::Vector3d::Constant(-1e300);
-    for (int c = 0; c < 8; ++c) {
-      const Eigen::Vector3d corner((c & 1) ? block_hi.x() : block_lo.x(),
-                                   (c & 2) ? block_hi.y() : block_lo.y(),
-                                   (c & 4) ? block_hi.z() : block_lo.z());
-      const Eigen::Vector3d w = to_world(pose, corner);
-      *lo = lo->cwiseMin(w);
-      *hi = hi->cwiseMax(w);
-    }
-  };
+  if (footprint_i.blocks.empty() || footprint_j.blocks.empty()) return overlap;
   Eigen::Vector3d lo_i, hi_i, lo_j, hi_j;
-  world_box(blocks_i, T_W_Si, &lo_i, &hi_i);
-  world_box(blocks_j, T_W_Sj, &lo_j, &hi_j);
+  footprint_world_box(footprint_i, T_W_Si, &lo_i, &hi_i);
+  footprint_world_box(footprint_j, T_W_Sj, &lo_j, &hi_j);
   overlap.bounding_boxes_intersect =
       (lo_i.array() <= hi_j.array()).all() && (lo_j.array() <= hi_i.array()).all();
   if (!overlap.bounding_boxes_intersect) return overlap;
   // Finer check: block centres of i, moved into frame j, landing in allocated blocks of j.
-  // Submaps hold thousands of blocks, not millions: a host set is enough here.
-  std::unordered_set<uint64_t> keys_j;
-  keys_j.reserve(blocks_j.size() * 2);
-  for (const Index3D& b : blocks_j) keys_j.insert(pack_block_key(b));
+  const double block_m = footprint_i.block_size_m;
   const double c = std::cos(T_W_Sj.yaw), s = std::sin(T_W_Sj.yaw);
-  for (const Index3D& b : blocks_i) {
+  for (const Index3D& b : footprint_i.blocks) {
     const Eigen::Vector3d centre((b.x + 0.5) * block_m, (b.y + 0.5) * block_m,
                                  (b.z + 0.5) * block_m);
-    const Eigen::Vector3d w = to_world(T_W_Si, centre);
+    const Eigen::Vector3d w = pose_4dof_apply(T_W_Si, centre);
     const Eigen::Vector3d d(w.x() - T_W_Sj.x, w.y() - T_W_Sj.y, w.z() - T_W_Sj.z);
     const Eigen::Vector3d in_j(c * d.x() + s * d.y(), -s * d.x() + c * d.y(), d.z());
     const Index3D block(static_cast<int32_t>(std::floor(in_j.x() / block_m)),
                         static_cast<int32_t>(std::floor(in_j.y() / block_m)),
                         static_cast<int32_t>(std::floor(in_j.z() / block_m)));
     const uint64_t key = pack_block_key(block);
-    if (key != kInvalidBlockKey && keys_j.count(key)) ++overlap.shared_blocks;
+    if (key != kInvalidBlockKey && footprint_j.keys.count(key)) ++overlap.shared_blocks;
   }
   overlap.overlapping = overlap.shared_blocks >= std::max<int64_t>(min_shared_blocks, 1);
   return overlap;

@@ -449,15 +449,30 @@ bool register_pair(const PairContext& context, const RegistrationPartner& partne
 
 std::vector<const RegistrationPartner*> overlapping_partners(
     const TsdfMap& map, const backend::Pose4Dof& pose,
-    const std::vector<RegistrationPartner>& earlier, const SubmapRegistrationConfig& config) {
+    const std::vector<RegistrationPartner>& earlier, const SubmapRegistrationConfig& config,
+    const backend::SubmapFootprint* footprint) {
   struct Candidate {
     const RegistrationPartner* partner;
     int64_t shared_blocks;
   };
   std::vector<Candidate> candidates;
+  if (earlier.empty()) return {};
+  // Every test reads the new map's blocks: exported once here unless the caller has them. A
+  // partner without a kept footprint gets one for its test only.
+  backend::SubmapFootprint own;
+  if (!footprint) {
+    own = backend::submap_footprint(map);
+    footprint = &own;
+  }
   for (const RegistrationPartner& partner : earlier) {
+    backend::SubmapFootprint partner_own;
+    const backend::SubmapFootprint* partner_footprint = partner.footprint;
+    if (!partner_footprint) {
+      partner_own = backend::submap_footprint(*partner.map);
+      partner_footprint = &partner_own;
+    }
     const backend::SubmapOverlap overlap = backend::submap_overlap(
-        map, pose, *partner.map, partner.pose, config.overlap.min_shared_blocks);
+        *footprint, pose, *partner_footprint, partner.pose, config.overlap.min_shared_blocks);
     if (overlap.overlapping) candidates.push_back(Candidate{&partner, overlap.shared_blocks});
   }
   std::stable_sort(
@@ -476,7 +491,8 @@ std::vector<SubmapConstraint> registration_constraints(
     int64_t id, const TsdfMap& map, const SubmapRegistrationPoints& points,
     const backend::Pose4Dof& pose, const std::vector<RegistrationPartner>& earlier,
     const SubmapRegistrationConfig& config, const Stream& stream, RegistrationCounts* counts,
-    WallMapCache* own_walls, const RegistrationOdometry& odometry) {
+    WallMapCache* own_walls, const RegistrationOdometry& odometry,
+    const backend::SubmapFootprint* footprint) {
   std::vector<SubmapConstraint> constraints;
   if (!config.enabled) return constraints;
   // Wall maps are built at the first revisit that needs them; without a caller's cache, the new
@@ -493,7 +509,8 @@ std::vector<SubmapConstraint> registration_constraints(
                             sqrt_mean_weight,
                             own_walls ? own_walls : &local_own_walls,
                             odometry};
-  for (const RegistrationPartner* partner : overlapping_partners(map, pose, earlier, config)) {
+  for (const RegistrationPartner* partner :
+       overlapping_partners(map, pose, earlier, config, footprint)) {
     SubmapConstraint constraint;
     if (register_pair(context, *partner, counts, &constraint)) constraints.push_back(constraint);
   }

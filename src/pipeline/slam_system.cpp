@@ -48,6 +48,10 @@ void validate(const SlamConfig& config) {
   require(std::isfinite(config.odometry_yaw_sigma_rad) && config.odometry_yaw_sigma_rad > 0.0,
           "pose_graph.odometry_yaw_sigma_rad must be positive, got " +
               std::to_string(config.odometry_yaw_sigma_rad));
+  require(std::isfinite(config.optimize_spacing_fraction) &&
+              config.optimize_spacing_fraction >= 0.0 && config.optimize_spacing_fraction <= 1.0,
+          "pose_graph.optimize_spacing_fraction must be in [0, 1], got " +
+              std::to_string(config.optimize_spacing_fraction));
   require(config.optimize_every_n_submaps >= 0,
           "pose_graph.optimize_every_n_submaps must be >= 0, got " +
               std::to_string(config.optimize_every_n_submaps));
@@ -62,6 +66,14 @@ void validate(const SlamConfig& config) {
         "SLAM configuration: device cuda was asked for but no usable GPU is available "
         "(use device auto or cpu)");
   }
+}
+
+int64_t submaps_between_optimizations(const SlamConfig& config, int64_t graph_submaps) {
+  const int64_t every = config.optimize_every_n_submaps;
+  if (every <= 0) return 0;
+  const double spaced = std::floor(config.optimize_spacing_fraction *
+                                   static_cast<double>(std::max<int64_t>(graph_submaps, 0)));
+  return std::max(every, static_cast<int64_t>(spaced));
 }
 
 namespace {
@@ -328,6 +340,8 @@ void SlamSystem::process_scan(const QueuedScan& queued) {
     return;
   }
   timings_.tsdf.add(integrate_s);
+  if (scan_durations_s_.size() == kScanDurationsKept) scan_durations_s_.pop_front();
+  scan_durations_s_.push_back(integrate_s);
   ++counters_.scans_integrated;
   counters_.points_integrated += stats.points_in;
   counters_.points_dropped_by_integrator += stats.dropped_total();
@@ -462,7 +476,12 @@ bool SlamSystem::process_submap(QueuedSubmap item) {
     vertices = pose_graph_.size();
   }
   const int every = config_.optimize_every_n_submaps;
-  return every > 0 && vertices % static_cast<size_t>(every) == 0;
+  const int64_t spacing = submaps_between_optimizations(config_, static_cast<int64_t>(vertices));
+  if (spacing <= 0) return false;
+  // Up to 1 / optimize_spacing_fraction submaps: every n-th, counted from the first.
+  if (spacing == every) return vertices % static_cast<size_t>(every) == 0;
+  return vertices < submaps_at_last_optimization_ ||
+         vertices - submaps_at_last_optimization_ >= static_cast<size_t>(spacing);
 }
 
 Eigen::Matrix4d SlamSystem::odometry_link_information(const SubmapStatistics& previous) const {
@@ -531,7 +550,8 @@ void SlamSystem::add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
                                   earlier.submap->pose(),
                                   earlier.walls.get(),
                                   earlier.registration_points.get(),
-                                  RegistrationOdometry()};
+                                  RegistrationOdometry(),
+                                  earlier.footprint.get()};
       if (!earlier.loaded) {
         partner.odometry = odometry_for_verification(*earlier.submap, path_m);
         path_m += earlier.submap->statistics().distance_travelled_m;
@@ -553,14 +573,17 @@ void SlamSystem::add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
   std::vector<SubmapConstraint> registrations;
   std::vector<int64_t> joint_pair_partners;
   auto walls = std::make_unique<WallMapCache>();
-  acquire_overlap_candidates_locked(*submap, guess);
+  auto footprint =
+      std::make_unique<backend::SubmapFootprint>(backend::submap_footprint(submap->map()));
+  acquire_partners_locked(
+      overlapping_partners(submap->map(), guess, partners, config_.registration, footprint.get()));
   if (points) {
     registrations = registration_constraints(submap->id(), submap->map(), *points, guess, partners,
                                              config_.registration, backend_stream_, &counts,
-                                             walls.get(), own_odometry);
+                                             walls.get(), own_odometry, footprint.get());
     if (config_.registration.enabled) {
-      for (const RegistrationPartner* partner :
-           overlapping_partners(submap->map(), guess, joint_partners, config_.registration)) {
+      for (const RegistrationPartner* partner : overlapping_partners(
+               submap->map(), guess, joint_partners, config_.registration, footprint.get())) {
         joint_pair_partners.push_back(partner->id);
       }
     }
@@ -577,8 +600,8 @@ void SlamSystem::add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
     joint_pairs_.push_back(JointPair{submap->id(), partner});
   counts.joint_pairs += static_cast<int64_t>(joint_pair_partners.size());
   counters_.registration.add(counts);
-  graph_submaps_.push_back(
-      GraphSubmap{std::move(submap), std::move(points), false, std::move(walls)});
+  graph_submaps_.push_back(GraphSubmap{std::move(submap), std::move(points), false,
+                                       std::move(walls), std::move(footprint)});
 }
 
 int SlamSystem::integrate_pending_constraints_locked(bool final) {
@@ -634,6 +657,10 @@ bool SlamSystem::solve_robust_locked() {
 }
 
 void SlamSystem::optimize_locked() {
+  {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    submaps_at_last_optimization_ = pose_graph_.size();
+  }
   const double max_residual_m = config_.registration.gate.max_residual_m;
   if (!(max_residual_m > 0.0)) {
     solve_robust_locked();
@@ -875,6 +902,13 @@ SlamCounters SlamSystem::counters() const {
 SlamTimings SlamSystem::timings() const {
   std::lock_guard<std::mutex> lock(state_mutex_);
   return timings_;
+}
+
+std::vector<double> SlamSystem::take_scan_durations() {
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  std::vector<double> taken(scan_durations_s_.begin(), scan_durations_s_.end());
+  scan_durations_s_.clear();
+  return taken;
 }
 
 backend::PoseGraphSolverSummary SlamSystem::last_solver_summary() const {

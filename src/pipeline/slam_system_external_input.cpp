@@ -261,7 +261,10 @@ void SlamSystem::load_submaps(std::vector<SubmapSnapshot> submaps) {
     std::unique_ptr<SubmapRegistrationPoints> points;
     if (config_.registration.enabled)
       points = prepare_registration_points(submap->map(), config_.registration, stream);
-    loaded.push_back(GraphSubmap{std::move(submap), std::move(points), true});
+    auto footprint =
+        std::make_unique<backend::SubmapFootprint>(backend::submap_footprint(submap->map()));
+    loaded.push_back(GraphSubmap{std::move(submap), std::move(points), true,
+                                 std::make_unique<WallMapCache>(), std::move(footprint)});
   }
 
   // New submaps (even one the frontend starts before the reset below) get ids after the loaded

@@ -50,27 +50,18 @@ void SlamSystem::enforce_budget_locked(int64_t keep) {
   store_->enforce(oldest_first, keep);
 }
 
-void SlamSystem::acquire_overlap_candidates_locked(const Submap& submap,
-                                                   const backend::Pose4Dof& pose) {
-  if (!store_->enabled() || submap.bounding_box_submap().isEmpty()) return;
-  const Eigen::Isometry3d T_world_submap = to_isometry(pose);
-  Eigen::AlignedBox3d box;
-  for (int corner = 0; corner < 8; ++corner) {
-    box.extend(T_world_submap * submap.bounding_box_submap().corner(
-                                    static_cast<Eigen::AlignedBox3d::CornerType>(corner)));
-  }
-  const double margin_m = submap.map().block_size_m();
-  box.min() -= Eigen::Vector3d::Constant(margin_m);
-  box.max() += Eigen::Vector3d::Constant(margin_m);
-  std::vector<Submap*> candidates;
+void SlamSystem::acquire_partners_locked(const std::vector<const RegistrationPartner*>& partners) {
+  if (!store_->enabled() || partners.empty()) return;
+  std::unordered_set<int64_t> wanted;
+  for (const RegistrationPartner* partner : partners) wanted.insert(partner->id);
+  std::vector<Submap*> chosen;
   {
     std::lock_guard<std::mutex> lock(state_mutex_);
     for (const GraphSubmap& entry : graph_submaps_) {
-      if (entry.submap && entry.submap->bounding_box_world().intersects(box))
-        candidates.push_back(entry.submap.get());
+      if (entry.submap && wanted.count(entry.submap->id())) chosen.push_back(entry.submap.get());
     }
   }
-  for (Submap* candidate : candidates) acquire_locked(*candidate);
+  for (Submap* submap : chosen) acquire_locked(*submap);
 }
 
 std::vector<SubmapSnapshot> SlamSystem::submap_snapshots() {

@@ -439,5 +439,42 @@ RgbImage render_trajectory_figure(const TrajectoryFigure& figure, int width_px) 
   return image;
 }
 
+RgbImage render_stacked_panels(const std::vector<PlotPanel>& panels, int width_px,
+                               int panel_height_px) {
+  if (panels.empty()) throw Error("stacked panels: nothing to draw");
+  if (width_px < 300) throw Error("stacked panels: width must be at least 300 px");
+  if (panel_height_px < 100) throw Error("stacked panels: panel height must be at least 100 px");
+  const int margin_left = 70, margin_right = 20, title_space = 36, label_space = 24;
+  // One x range over every panel, so that a time on one panel lies above the same time below.
+  Range x;
+  for (const PlotPanel& panel : panels) {
+    const Range own = x_range_of(panel.series);
+    if (own.valid()) {
+      x.add(own.min);
+      x.add(own.max);
+    }
+  }
+  pad(&x, 0.0);
+  const int block_px = title_space + panel_height_px + label_space;
+  RgbImage image(width_px, block_px * static_cast<int>(panels.size()) + 10, kWhite);
+  for (size_t k = 0; k < panels.size(); ++k) {
+    Range y = y_range_of(panels[k].series);
+    // Memory and latency are non-negative: the axis starts at zero so magnitudes read honestly.
+    const double top_value = y.valid() && y.max > 0.0 ? 1.1 * y.max : 1.0;
+    Panel frame;
+    frame.left = margin_left;
+    frame.top = static_cast<int>(k) * block_px + title_space;
+    frame.width = width_px - margin_left - margin_right;
+    frame.height = panel_height_px;
+    frame.x_min = x.min;
+    frame.x_max = x.max;
+    frame.y_min = 0.0;
+    frame.y_max = top_value;
+    draw_axes(&image, frame, panels[k].title);
+    draw_series(&image, frame, panels[k].series);
+  }
+  return image;
+}
+
 }  // namespace tools
 }  // namespace covox

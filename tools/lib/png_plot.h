@@ -87,5 +87,19 @@ struct TrajectoryFigure {
 
 RgbImage render_trajectory_figure(const TrajectoryFigure& figure, int width_px = 1000);
 
+// ---------------------------------------------------------------------------------------------
+// Panels stacked top to bottom that share the x axis (e.g. a mission timeline: memory above
+// latency against mission time), each with its own y range starting at zero.
+// ---------------------------------------------------------------------------------------------
+
+struct PlotPanel {
+  std::string title;
+  std::vector<PlotSeries> series;
+};
+
+// Throws covox::Error when there is no panel or the width is below 300 px.
+RgbImage render_stacked_panels(const std::vector<PlotPanel>& panels, int width_px = 1000,
+                               int panel_height_px = 220);
+
 }  // namespace tools
 }  // namespace covox

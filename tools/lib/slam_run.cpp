@@ -4,7 +4,14 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
+#include <limits>
+#include <sstream>
 #include <thread>
+
+#if COVOX_WITH_CUDA
+#include <cuda_runtime_api.h>
+#endif
 
 #include "covoxslam/core/error.h"
 #include "covoxslam/io/map_file.h"
@@ -46,7 +53,132 @@ void print_timing(FILE* out, const char* name, const pipeline::ModuleTiming& tim
                1000.0 * timing.max_s);
 }
 
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// The voxel payload of `blocks` TSDF blocks (TSDF, colour and ESDF voxels).
+double voxel_memory_mb(size_t blocks, const TsdfMapConfig& map) {
+  const size_t voxels_per_block =
+      static_cast<size_t>(map.voxels_per_side) * map.voxels_per_side * map.voxels_per_side;
+  return double(blocks) * voxels_per_block *
+         (sizeof(TsdfVoxel) + sizeof(ColorVoxel) + sizeof(EsdfVoxel)) / (1024.0 * 1024.0);
+}
+
+double device_used_mb(Device device) {
+#if COVOX_WITH_CUDA
+  size_t free_bytes = 0, total_bytes = 0;
+  if (device == Device::kCuda && cudaMemGetInfo(&free_bytes, &total_bytes) == cudaSuccess)
+    return double(total_bytes - free_bytes) / (1024.0 * 1024.0);
+#else
+  (void)device;
+#endif
+  return kNaN;
+}
+
+// Samples the mission every `interval_s` of sensor time. Window figures are differences of the
+// system's cumulative timings and counters between two samples, plus the scan times the
+// frontend recorded in between (SlamSystem::take_scan_durations).
+class TimelineRecorder {
+ public:
+  TimelineRecorder(double interval_s, const TsdfMapConfig& map, Device device,
+                   Clock::time_point start)
+      : interval_s_(interval_s), map_(map), device_(device), start_(start) {}
+
+  // Called after each scan is given: samples when `mission_s` reached the next boundary.
+  void after_scan(double mission_s, pipeline::SlamSystem& slam,
+                  std::vector<TimelineSample>* timeline) {
+    if (!(interval_s_ > 0.0) || mission_s < next_s_) return;
+    timeline->push_back(sample(mission_s, slam));
+    while (next_s_ <= mission_s) next_s_ += interval_s_;
+  }
+
+  TimelineSample sample(double mission_s, pipeline::SlamSystem& slam) {
+    TimelineSample s;
+    s.mission_s = mission_s;
+    s.wall_s = seconds_since(start_);
+    host_memory_mb(&s.host_rss_mb, &s.host_peak_rss_mb);
+    s.device_used_mb = device_used_mb(device_);
+    for (const pipeline::SubmapInfo& submap : slam.submaps())
+      s.map_blocks += submap.statistics.blocks;
+    s.map_memory_mb = voxel_memory_mb(s.map_blocks, map_);
+    std::vector<double> scans = slam.take_scan_durations();
+    s.window_scans = static_cast<int64_t>(scans.size());
+    s.scan_p50_ms = 1000.0 * nearest_rank_percentile(&scans, 50.0);
+    s.scan_p95_ms = 1000.0 * nearest_rank_percentile(&scans, 95.0);
+    s.scan_max_ms = 1000.0 * nearest_rank_percentile(&scans, 100.0);
+    const pipeline::SlamTimings timings = slam.timings();
+    const pipeline::SlamCounters counters = slam.counters();
+    s.submaps = timings.registration.calls;
+    s.window_submaps = timings.registration.calls - previous_.registration.calls;
+    const double submaps = static_cast<double>(s.window_submaps);
+    s.registration_ms_per_submap =
+        s.window_submaps > 0
+            ? 1000.0 * (timings.registration.total_s - previous_.registration.total_s) / submaps
+            : kNaN;
+    s.solve_ms_per_submap =
+        s.window_submaps > 0
+            ? 1000.0 * (timings.backend.total_s - previous_.backend.total_s) / submaps
+            : kNaN;
+    s.window_optimizations = counters.optimizations - previous_optimizations_;
+    previous_ = timings;
+    previous_optimizations_ = counters.optimizations;
+    return s;
+  }
+
+ private:
+  double interval_s_;
+  TsdfMapConfig map_;
+  Device device_;
+  Clock::time_point start_;
+  double next_s_ = interval_s_;  // nothing to measure at mission time 0
+  pipeline::SlamTimings previous_;
+  int64_t previous_optimizations_ = 0;
+};
+
+void save_map(pipeline::SlamSystem& slam, const TsdfMapConfig& map, const std::string& path,
+              SlamRunResult* result) {
+  const auto start = Clock::now();
+  io::MapFileContents contents;
+  contents.voxel_size_m = map.voxel_size_m;
+  contents.voxels_per_side = map.voxels_per_side;
+  contents.has_esdf = true;  // finishing a submap computes its ESDF
+  for (pipeline::SubmapSnapshot& snapshot : slam.submap_snapshots()) {
+    io::SubmapRecord record;
+    record.id = snapshot.id;
+    record.T_world_submap = snapshot.T_world_submap;
+    record.blocks = std::move(snapshot.blocks);
+    contents.submaps.push_back(std::move(record));
+  }
+  io::save_map_file(path, contents);
+  result->map_save_s = seconds_since(start);
+  std::ifstream file(path, std::ios::binary | std::ios::ate);
+  result->map_file_mb = file ? double(file.tellg()) / (1024.0 * 1024.0) : kNaN;
+}
+
 }  // namespace
+
+double nearest_rank_percentile(std::vector<double>* values, double percent) {
+  if (values->empty()) return kNaN;
+  const double n = static_cast<double>(values->size());
+  const size_t rank = static_cast<size_t>(std::max(1.0, std::ceil(percent / 100.0 * n)));
+  const size_t index = std::min(values->size(), rank) - 1;
+  std::nth_element(values->begin(), values->begin() + static_cast<std::ptrdiff_t>(index),
+                   values->end());
+  return (*values)[index];
+}
+
+void host_memory_mb(double* rss_mb, double* peak_rss_mb) {
+  *rss_mb = *peak_rss_mb = kNaN;
+  std::ifstream status("/proc/self/status");
+  std::string line;
+  while (std::getline(status, line)) {
+    std::istringstream fields(line);
+    std::string key;
+    double kib = 0.0;
+    if (!(fields >> key >> kib)) continue;
+    if (key == "VmRSS:") *rss_mb = kib / 1024.0;
+    if (key == "VmHWM:") *peak_rss_mb = kib / 1024.0;
+  }
+}
 
 SlamRunResult run_slam_system(ScanSource& source, const pipeline::SlamConfig& config,
                               const SlamRunOptions& options) {
@@ -55,6 +187,7 @@ SlamRunResult run_slam_system(ScanSource& source, const pipeline::SlamConfig& co
       options.max_scans > 0 ? std::min(options.max_scans, source.size()) : source.size();
   pipeline::SlamSystem slam(config);
   const auto start = Clock::now();
+  TimelineRecorder timeline(options.timeline_interval_s, config.map, config.device, start);
   SourceScan scan;
   double first_stamp_s = 0.0, last_stamp_s = 0.0;
   while (result.scans_given < total) {
@@ -81,6 +214,7 @@ SlamRunResult run_slam_system(ScanSource& source, const pipeline::SlamConfig& co
     input.colors = std::move(scan.colors);
     slam.add_scan(std::move(input));
     ++result.scans_given;
+    timeline.after_scan(last_stamp_s - first_stamp_s, slam, &result.timeline);
     if (options.progress_bar && (result.scans_given % 10 == 0 || result.scans_given == total)) {
       draw_progress(result.scans_given, total, seconds_since(start), slam);
     }
@@ -89,6 +223,9 @@ SlamRunResult run_slam_system(ScanSource& source, const pipeline::SlamConfig& co
   slam.finish();
   result.finish_s = seconds_since(finish_start);
   result.wall_s = seconds_since(start);
+  if (options.timeline_interval_s > 0.0 && result.scans_given > 0)
+    result.timeline.push_back(timeline.sample(last_stamp_s - first_stamp_s, slam));
+  if (!result.timeline.empty()) result.timeline.back().end = true;
   if (options.progress_bar) std::fprintf(stderr, "\n");
 
   result.scans_dropped_by_source = source.dropped();
@@ -106,23 +243,10 @@ SlamRunResult run_slam_system(ScanSource& source, const pipeline::SlamConfig& co
   result.timings = slam.timings();
   result.submaps = slam.submaps();
   result.constraints = slam.constraints();
-  const size_t voxels_per_block = static_cast<size_t>(config.map.voxels_per_side) *
-                                  config.map.voxels_per_side * config.map.voxels_per_side;
   for (const pipeline::SubmapInfo& submap : result.submaps)
     result.map_blocks += submap.statistics.blocks;
-  result.map_memory_mb = double(result.map_blocks) * voxels_per_block *
-                         (sizeof(TsdfVoxel) + sizeof(ColorVoxel) + sizeof(EsdfVoxel)) /
-                         (1024.0 * 1024.0);
-
-  if (!options.map_path.empty()) {
-    io::MapFileWriter writer(options.map_path, config.map.voxel_size_m, config.map.voxels_per_side,
-                             slam.map_distance_scale_m());
-    slam.write_submaps([&](int64_t id, const Eigen::Isometry3d& T_world_submap,
-                           const std::vector<uint8_t>& encoded) {
-      writer.add_submap(id, T_world_submap, encoded);
-    });
-    writer.commit();
-  }
+  result.map_memory_mb = voxel_memory_mb(result.map_blocks, config.map);
+  if (!options.map_path.empty()) save_map(slam, config.map, options.map_path, &result);
   return result;
 }
 
@@ -230,6 +354,19 @@ void print_slam_run(const SlamRunResult& result, FILE* out) {
   std::fprintf(out, "\nmap: %zu submaps, %zu TSDF blocks (%.1f MB of voxels), mesh %zu triangles\n",
                result.submaps.size(), result.map_blocks, result.map_memory_mb,
                result.mesh.triangle_count());
+}
+
+void print_timeline(const std::vector<TimelineSample>& timeline, FILE* out) {
+  if (timeline.empty()) return;
+  std::fprintf(out, "\n%9s %8s %9s %9s %8s %8s %7s %8s %8s %8s %9s %9s\n", "mission s", "wall s",
+               "RSS MB", "peak MB", "blocks", "map MB", "submaps", "scan p50", "scan p95",
+               "scan max", "reg ms/sm", "opt ms/sm");
+  for (const TimelineSample& s : timeline) {
+    std::fprintf(out, "%9.0f %8.1f %9.0f %9.0f %8zu %8.0f %7lld %8.1f %8.1f %8.1f %9.1f %9.1f\n",
+                 s.mission_s, s.wall_s, s.host_rss_mb, s.host_peak_rss_mb, s.map_blocks,
+                 s.map_memory_mb, static_cast<long long>(s.submaps), s.scan_p50_ms, s.scan_p95_ms,
+                 s.scan_max_ms, s.registration_ms_per_submap, s.solve_ms_per_submap);
+  }
 }
 
 }  // namespace tools

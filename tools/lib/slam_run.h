@@ -22,6 +22,39 @@ struct SlamRunOptions {
   size_t max_scans = 0;      // 0: all
   bool progress_bar = true;  // on stderr
   std::string map_path;      // non-empty: save the map (io/map_file.h) there
+  // A timeline sample every this many seconds of mission (sensor) time, and one at the end;
+  // 0: no timeline.
+  double timeline_interval_s = 0.0;
+};
+
+// The mission at one point of its sensor time: the state then (memory, map, graph) and what
+// happened in the window since the previous sample (scan and submap costs). A figure with
+// nothing to measure in its window (no scan, no submap) is NaN.
+struct TimelineSample {
+  double mission_s = 0.0;  // sensor seconds since the first scan
+  bool end = false;        // taken after finish(): its window holds the flush and final solve
+  double wall_s = 0.0;     // since the run began
+  // This process's resident and peak resident memory (/proc/self/status VmRSS and VmHWM); NaN
+  // where the file is missing.
+  double host_rss_mb = 0.0;
+  double host_peak_rss_mb = 0.0;
+  // CUDA: the GPU's memory in use (total minus free, every process's); NaN on the CPU.
+  double device_used_mb = 0.0;
+  size_t map_blocks = 0;       // TSDF blocks of the submaps in the pose graph
+  double map_memory_mb = 0.0;  // their voxel payload
+  int64_t submaps = 0;         // in the pose graph
+  // The window's scans: how many were integrated, and their frontend times (nearest rank).
+  int64_t window_scans = 0;
+  double scan_p50_ms = 0.0;
+  double scan_p95_ms = 0.0;
+  double scan_max_ms = 0.0;
+  // The window's submaps: how many entered the graph, the mean time of each one's registration,
+  // and the pose-graph solve time of the window divided by them (the optimisation cost a submap
+  // brings).
+  int64_t window_submaps = 0;
+  double registration_ms_per_submap = 0.0;
+  double solve_ms_per_submap = 0.0;
+  int64_t window_optimizations = 0;
 };
 
 struct SlamRunResult {
@@ -40,7 +73,10 @@ struct SlamRunResult {
   double throttle_s = 0.0;     // input held back while a queue was full
   double finish_s = 0.0;       // flush and final optimisation
   double wall_s = 0.0;
-  double input_duration_s = 0.0;  // sensor seconds covered
+  double input_duration_s = 0.0;         // sensor seconds covered
+  std::vector<TimelineSample> timeline;  // options.timeline_interval_s > 0
+  double map_save_s = 0.0;               // options.map_path: writing the map file
+  double map_file_mb = 0.0;              // ... and its size
   double real_time_factor() const { return wall_s > 0.0 ? input_duration_s / wall_s : 0.0; }
 };
 
@@ -69,6 +105,13 @@ TrajectoryShift trajectory_shift(const SlamRunResult& result);
 
 // The per-module timing table and the counters, as the runner prints them.
 void print_slam_run(const SlamRunResult& result, FILE* out);
+// The timeline as a table, one line per sample.
+void print_timeline(const std::vector<TimelineSample>& timeline, FILE* out);
+
+// The nearest-rank percentile (0 < percent <= 100) of `values`; NaN when empty. Reorders them.
+double nearest_rank_percentile(std::vector<double>* values, double percent);
+// VmRSS and VmHWM of /proc/self/status in MB (MiB); NaN when unreadable.
+void host_memory_mb(double* rss_mb, double* peak_rss_mb);
 
 }  // namespace tools
 }  // namespace covox

@@ -311,8 +311,47 @@ def pipeline_table(reports):
         return ["Not recorded: `tools/gpu_suite.sh build flight` writes `docs/benchmarks/"
                 "pipeline.json`."]
     lines = ["| metric | value |", "|---|---:|"]
+    # The run's own case; run_slam's timeline cases (t=NNNNs) follow it and have their own table.
+    first = report["results"][0]["case"] if report["results"] else None
     for row in report["results"]:
-        lines.append(f"| {row['metric']} | {number(row['value'])} {row['unit']} |")
+        if row["case"] == first:
+            lines.append(f"| {row['metric']} | {number(row['value'])} {row['unit']} |")
+    return lines
+
+
+TIMELINE_CASE = re.compile(r"^t=(\d+)s( end)?$")
+MISSION_COLUMNS = [("host RSS", "host RSS MB"), ("map memory", "map voxels MB"),
+                   ("submaps", "submaps"), ("scan time p50", "scan p50 ms"),
+                   ("scan time p95", "scan p95 ms"), ("scan time max", "scan max ms"),
+                   ("registration per submap", "registration ms per submap"),
+                   ("solve per submap", "solve ms per submap")]
+
+
+def mission_table(reports):
+    report = reports.get("mission_cpu.json")
+    if report is None:
+        return ["Not recorded: `run_slam --timeline-interval-s 30 --json "
+                "docs/benchmarks/mission_cpu.json` writes it."]
+    samples = {}
+    for row in report["results"]:
+        if TIMELINE_CASE.match(row["case"]):
+            samples.setdefault(row["case"], {})[row["metric"]] = row["value"]
+    lines = ["| mission time | wall time | " + " | ".join(label for _, label in MISSION_COLUMNS)
+             + " |", "|---:|---:|" + "---:|" * len(MISSION_COLUMNS)]
+    for case, values in samples.items():
+        shown = f"{int(TIMELINE_CASE.match(case).group(1))} s" + (
+            " (after the final solve)" if case.endswith(" end") else "")
+        cells = [number(values.get(metric)) for metric, _ in MISSION_COLUMNS]
+        lines.append(f"| {shown} | {with_unit(values.get('wall time'), ' s')} | "
+                     + " | ".join(cells) + " |")
+    first = report["results"][0]["case"] if report["results"] else None
+    summary = {row["metric"]: row["value"] for row in report["results"] if row["case"] == first}
+    lines.append("")
+    lines.append(f"Whole run ({first}): real-time factor "
+                 f"{with_unit(summary.get('real-time factor'), 'x')}, peak host memory "
+                 f"{with_unit(summary.get('host peak RSS'), ' MB')}, ATE "
+                 f"{with_unit(summary.get('ATE RMSE covoxslam'), ' m')} (odometry "
+                 f"{with_unit(summary.get('ATE RMSE odometry'), ' m')}).")
     return lines
 
 
@@ -333,6 +372,7 @@ BLOCKS = {
     "backend": backend_table,
     "accuracy": accuracy_table,
     "pipeline": pipeline_table,
+    "mission": mission_table,
     "sources": sources_table,
 }
 

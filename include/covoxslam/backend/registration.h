@@ -21,6 +21,7 @@
 // formulation: the ESDF only, target 0.
 #include <Eigen/Core>
 #include <cstdint>
+#include <unordered_set>
 #include <vector>
 
 #include "covoxslam/backend/pose_graph_types.h"
@@ -192,6 +193,22 @@ struct SubmapOverlap {
 };
 SubmapOverlap submap_overlap(const TsdfMap& map_i, const Pose4Dof& T_W_Si, const TsdfMap& map_j,
                              const Pose4Dof& T_W_Sj, int64_t min_shared_blocks);
+
+// What submap_overlap reads from a map, on the host: its allocated block indices, their keys as
+// a set, and the block-index bounding box. A finished submap's blocks never change, so its
+// footprint is computed once and every later overlap test is host arithmetic on it, with no
+// export of the map's hash table.
+struct SubmapFootprint {
+  double block_size_m = 0.0;
+  std::vector<Index3D> blocks;
+  std::unordered_set<uint64_t> keys;  // pack_block_key of each block
+  Index3D block_min, block_max;       // inclusive; meaningless when `blocks` is empty
+};
+SubmapFootprint submap_footprint(const TsdfMap& map);
+// The same test as above on footprints; the same result for the same maps.
+SubmapOverlap submap_overlap(const SubmapFootprint& footprint_i, const Pose4Dof& T_W_Si,
+                             const SubmapFootprint& footprint_j, const Pose4Dof& T_W_Sj,
+                             int64_t min_shared_blocks);
 
 }  // namespace backend
 }  // namespace covox

@@ -224,13 +224,18 @@ struct RegistrationPartner {
   // reverse half of symmetric registration; null: prepared again for each pair.
   const SubmapRegistrationPoints* points = nullptr;
   RegistrationOdometry odometry;  // for the verification; unknown: not verified
+  // The map's blocks on the host (backend::submap_footprint), kept by the caller for the
+  // overlap tests of every later submap; null: exported from the map at each test.
+  const backend::SubmapFootprint* footprint = nullptr;
 };
 
 // The earlier submaps that overlap the new one at `pose` (bounding boxes, then shared blocks),
-// most shared blocks first, at most max_partners.
+// most shared blocks first, at most max_partners. `footprint`: the new map's, when the caller
+// has it (null: computed here, once for all the earlier submaps).
 std::vector<const RegistrationPartner*> overlapping_partners(
     const TsdfMap& map, const backend::Pose4Dof& pose,
-    const std::vector<RegistrationPartner>& earlier, const SubmapRegistrationConfig& config);
+    const std::vector<RegistrationPartner>& earlier, const SubmapRegistrationConfig& config,
+    const backend::SubmapFootprint* footprint = nullptr);
 
 // The constraints (kind kRegistration, from each partner to `id`) for the new submap at `pose`.
 // `own_walls`: the new submap's wall map cache, kept by the caller for the revisits to come (null:
@@ -239,7 +244,8 @@ std::vector<SubmapConstraint> registration_constraints(
     int64_t id, const TsdfMap& map, const SubmapRegistrationPoints& points,
     const backend::Pose4Dof& pose, const std::vector<RegistrationPartner>& earlier,
     const SubmapRegistrationConfig& config, const Stream& stream, RegistrationCounts* counts,
-    WallMapCache* own_walls = nullptr, const RegistrationOdometry& odometry = {});
+    WallMapCache* own_walls = nullptr, const RegistrationOdometry& odometry = {},
+    const backend::SubmapFootprint* footprint = nullptr);
 
 }  // namespace pipeline
 }  // namespace covox

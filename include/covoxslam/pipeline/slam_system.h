@@ -33,6 +33,7 @@
 #include <atomic>
 #include <cstddef>
 #include <cstdint>
+#include <deque>
 #include <functional>
 #include <memory>
 #include <mutex>
@@ -96,6 +97,11 @@ struct SlamConfig {
   // Optimise after every n-th submap enters the graph, and when external constraints or
   // request_optimization() arrive; 0: only in finish() and on request_optimization().
   int optimize_every_n_submaps = 1;
+  // Long missions: a solve of the whole graph costs time in proportion to its size, so once the
+  // graph holds more than 1 / fraction submaps the optimisations are spaced by fraction x the
+  // graph's size (submaps_between_optimizations), which keeps the solve time per new submap
+  // bounded. Below that size nothing changes. 0: every n-th submap however large the graph.
+  double optimize_spacing_fraction = 1.0 / 32.0;
   // Corrected trajectory: true: a scan between the first scans of submap k and of the next
   // submap in the graph gets the correction blended linearly in time between the two submaps'
   // corrections (blend_corrected_pose), as odometry drift grows over the submap; the last submap
@@ -117,6 +123,11 @@ struct SlamConfig {
 
 // Throws covox::Error naming the first invalid parameter.
 void validate(const SlamConfig& config);
+
+// How many new submaps the backend lets enter a graph of `graph_submaps` submaps before it
+// optimises again: max(optimize_every_n_submaps, floor(optimize_spacing_fraction x
+// graph_submaps)); 0 when optimize_every_n_submaps is 0 (only on request and at the end).
+int64_t submaps_between_optimizations(const SlamConfig& config, int64_t graph_submaps);
 
 // One scan: points in the sensor frame and the sensor's odometry pose at the scan's stamp.
 struct Scan {
@@ -291,6 +302,12 @@ class SlamSystem {
   float map_distance_scale_m() const { return config_.tsdf.truncation_distance_m; }
   SlamCounters counters() const;
   SlamTimings timings() const;
+  // Each integrated scan's frontend time (seconds, the samples timings().tsdf sums) since the
+  // previous call, oldest first: what a caller needs for latency percentiles over a window. At
+  // most kScanDurationsKept wait between calls; older ones are dropped uncollected, so a caller
+  // that never asks costs a fixed amount of memory.
+  std::vector<double> take_scan_durations();
+  static constexpr size_t kScanDurationsKept = 8192;
   // The latest optimisation's summary (default-constructed before the first).
   backend::PoseGraphSolverSummary last_solver_summary() const;
   // Every constraint in the pose graph (submap ids), for diagnostics and drawing the graph.
@@ -378,6 +395,8 @@ class SlamSystem {
     bool loaded = false;
     // Its wall map for the revisit start (pipeline/wall_map.h), built when first needed.
     std::unique_ptr<WallMapCache> walls = std::make_unique<WallMapCache>();
+    // Its blocks on the host, for the overlap tests of every later submap (registration).
+    std::unique_ptr<backend::SubmapFootprint> footprint;
   };
 
   RegistrationOdometry odometry_for_verification(const Submap& submap, double path_m) const;
@@ -412,9 +431,9 @@ class SlamSystem {
       const SubmapPoseGraph::BackendGraph& graph) const;
   void reset_locked();
   // Memory budget (src/pipeline/slam_system_store.cpp); all need backend_mutex_.
-  // Brings back every earlier submap whose world box (a block's margin around it) meets the
-  // box of `submap` at `pose`: a superset of the partners registration can pick.
-  void acquire_overlap_candidates_locked(const Submap& submap, const backend::Pose4Dof& pose);
+  // Brings back the voxels of the partners registration will read (chosen from the kept
+  // footprints, so the choice itself needs no voxels).
+  void acquire_partners_locked(const std::vector<const RegistrationPartner*>& partners);
   void acquire_locked(Submap& submap);
   // Compacts and spills down to the budgets, oldest first; `keep` (an id, or -1) stays.
   void enforce_budget_locked(int64_t keep);
@@ -434,6 +453,8 @@ class SlamSystem {
   // Ids continue across resets, and after load_submaps() beyond the loaded ones.
   std::atomic<int64_t> next_submap_id_{0};
 
+  // The graph's size at the latest optimisation (backend_mutex_): the spacing on long missions.
+  size_t submaps_at_last_optimization_ = 0;
   // Frontend thread only.
   TsdfIntegrator tsdf_integrator_;
   Stream frontend_stream_;
@@ -502,6 +523,7 @@ class SlamSystem {
   std::vector<JointPair> joint_pairs_;
   backend::PoseGraphSolverSummary last_summary_;
   std::vector<TrajectoryEntry> trajectory_;
+  std::deque<double> scan_durations_s_;  // take_scan_durations()'s, at most kScanDurationsKept
 };
 
 }  // namespace pipeline
