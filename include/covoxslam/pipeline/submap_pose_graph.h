@@ -140,7 +140,8 @@ int set_aside_inconsistent_registrations(SubmapPoseGraph* graph, double max_resi
 
 // One round of the robust (Cauchy) loss on registration constraints: every active registration
 // constraint gets the weight 1 / (1 + r^2 / scale_sigmas^2) at the graph's current poses,
-// r^2 = e^T information e (e: the measurement's error in its own convention, yaw wrapped).
+// r^2 = e^T information e (scaled_information; e: the measurement's error in its own convention,
+// yaw wrapped).
 // Returns the largest change of a weight; solving and reweighting until it is small is
 // iteratively reweighted least squares.
 double reweight_registrations_cauchy(SubmapPoseGraph* graph, double scale_sigmas);
