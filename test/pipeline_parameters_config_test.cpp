@@ -111,6 +111,12 @@ std::map<std::string, Expectation> expectations() {
        {"0.07", [](const SlamConfig& c) { return c.odometry_drift_m_per_m == 0.07; }}},
       {"pose_graph.odometry_drift_deg_per_m",
        {"1.5", [](const SlamConfig& c) { return c.odometry_drift_deg_per_m == 1.5; }}},
+      {"pose_graph.estimate_odometry_noise",
+       {"true", [](const SlamConfig& c) { return c.estimate_odometry_noise; }}},
+      {"pose_graph.min_odometry_drift_m_per_m",
+       {"0.02", [](const SlamConfig& c) { return c.min_odometry_drift_m_per_m == 0.02; }}},
+      {"pose_graph.min_odometry_drift_deg_per_m",
+       {"0.3", [](const SlamConfig& c) { return c.min_odometry_drift_deg_per_m == 0.3; }}},
       {"pose_graph.registration_loss_scale_sigmas",
        {"2.5", [](const SlamConfig& c) { return c.registration_loss_scale_sigmas == 2.5; }}},
       {"registration.acceptance.max_residual_rms_vox",
@@ -344,7 +350,9 @@ std::string describe(const SlamConfig& config) {
        << c.registration.revisits.wall_search << ' ' << c.registration.gate.max_residual_m << ' '
        << c.registration.acceptance.max_residual_rms_vox << ' '
        << c.registration.verification.max_mahalanobis_sq << ' ' << c.odometry_drift_m_per_m << ' '
-       << c.odometry_drift_deg_per_m << ' ' << c.registration_loss_scale_sigmas;
+       << c.odometry_drift_deg_per_m << ' ' << c.registration_loss_scale_sigmas << ' '
+       << c.estimate_odometry_noise << ' ' << c.min_odometry_drift_m_per_m << ' '
+       << c.min_odometry_drift_deg_per_m;
   return text.str();
 }
 
@@ -427,6 +435,7 @@ TEST(SlamParameterFiles, PresetsGiveTheirDocumentedValues) {
   EXPECT_EQ(rgbd.odometry_drift_m_per_m, 0.1);
   EXPECT_EQ(rgbd.odometry_drift_deg_per_m, 2.0);
   EXPECT_EQ(rgbd.registration_loss_scale_sigmas, 3.0);
+  EXPECT_TRUE(rgbd.estimate_odometry_noise);
 
   const SlamConfig keyframes = load_preset("lidar_keyframes");
   EXPECT_EQ(keyframes.map.voxel_size_m, 0.5f);

@@ -8,6 +8,9 @@
 //   MulRan             Riverside02 keyframes, LiDAR-inertial odometry: distance to
 //                      optimized_poses.txt, another SLAM system's estimate ("distance to
 //                      reference", never accuracy)
+//   KITTI 07 keyframes the lidar-scans dump (5 keyframes, graph.txt poses, another SLAM system's
+//                      estimate): no drift (covoxslam must leave the given poses alone) and the
+//                      simulator's drift of >= 0.3 m (covoxslam must come closer than odometry)
 // All with translation + yaw alignment (the ARCHE protocol). The real data is read through
 // COVOX_DATA_DIR (default ../shared/data); a missing dataset is skipped with a message.
 // The real data is non-commercial (7-Scenes: Microsoft's terms; MulRan: its own terms).
@@ -38,9 +41,8 @@ using namespace covox;
 const char kUsage[] =
     "usage: benchmark_accuracy [options]\n"
     "  --device auto|cpu|cuda   (default auto)\n"
-    "  --cases LIST             comma-separated: sim,7scenes,7scenes-long,mulran (default all that "
-    "are "
-    "available)\n"
+    "  --cases LIST             comma-separated: sim,7scenes,7scenes-long,mulran,kitti07 (default "
+    "all that are available)\n"
     "  --bag FILE               simulated flight bag for the sim case (default "
     "demo_output/flight_seed1_256col/flight.bag)\n"
     "  --data-dir DIR           shared data (default: COVOX_DATA_DIR or ../shared/data)\n"
@@ -84,6 +86,23 @@ void add_kitchen_long_runs(const std::string& data_dir, Device device, std::vect
   }
 }
 
+// The lidar-scans KITTI 07 dump as keyframes 10 s apart (one submap each): no drift and seed 1.
+void add_kitti_keyframe_runs(const std::string& data_dir, Device device,
+                             std::vector<CaseRun>* runs) {
+  const std::string folder = data_dir + "/lidar-scans/kitti_07_dump";
+  if (!std::filesystem::exists(folder)) {
+    std::printf("skipping KITTI 07 keyframes: no folder '%s'\n", folder.c_str());
+    return;
+  }
+  for (double scale : {0.0, 1.0}) {
+    tools::LidarKeyframeScanOptions options;
+    options.drift_scale = scale;
+    runs->push_back({scale == 0.0 ? "KITTI 07 keyframes no drift" : "KITTI 07 keyframes seed 1",
+                     std::make_unique<tools::LidarKeyframeGraphScanSource>(folder, options),
+                     preset_config("lidar_keyframes", device)});
+  }
+}
+
 // The cases asked for whose inputs exist, each with its preset; a missing input is skipped with
 // a message.
 std::vector<CaseRun> collect_runs(const std::string& cases, const std::string& bag_path,
@@ -123,6 +142,7 @@ std::vector<CaseRun> collect_runs(const std::string& cases, const std::string& b
       std::printf("skipping MulRan: no folder '%s'\n", riverside.c_str());
     }
   }
+  if (wanted(cases, "kitti07")) add_kitti_keyframe_runs(data_dir, device, &runs);
   return runs;
 }
 

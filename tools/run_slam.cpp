@@ -54,9 +54,12 @@ const char kUsage[] =
     "  --pixel-stride N            RGB-D: every N-th pixel (default 2)\n"
     "  --frame-rate-hz F           RGB-D: frame rate for stamps (default 30)\n"
     "  --drift-m D                 RGB-D: least final odometry drift (default 0.3)\n"
-    "  --drift-seed N              RGB-D: drift seed (default 1)\n"
-    "  --drift-scale S             RGB-D: drift model and --drift-m times S (default 1; 0: "
-    "odometry = reference)\n"
+    "  --drift-seed N              RGB-D and keyframe graphs: drift seed (default 1)\n"
+    "  --drift-scale S             RGB-D and keyframe graphs: drift model and least drift times S\n"
+    "                              (default 1; 0: odometry = reference)\n"
+    "  --keyframe-drift-m D        keyframe graphs (graph.txt): least final odometry drift "
+    "(default "
+    "0.3)\n"
     "  --max-scans N               stop after N scans (0: all)\n"
     "  --simulate                  a simulated flight generated scan by scan in process, no bag\n"
     "                              (simulate_flight's scans for the same options; --min-range-m\n"
@@ -183,6 +186,9 @@ void read_input_options(tools::CommandLine& args, RunnerSettings* s) {
   rgbd.min_final_drift_m = args.number("--drift-m", rgbd.min_final_drift_m);
   rgbd.drift_seed = static_cast<uint64_t>(args.integer("--drift-seed", 1));
   rgbd.drift_scale = args.number("--drift-scale", rgbd.drift_scale);
+  s->lidar_options.min_final_drift_m = args.number("--keyframe-drift-m", 0.3);
+  s->lidar_options.drift_seed = rgbd.drift_seed;
+  s->lidar_options.drift_scale = rgbd.drift_scale;
   s->max_scans = args.integer("--max-scans", 0);
   s->simulate = args.flag("--simulate");
   if (s->simulate) s->simulation = sim::read_simulation_options(args);
@@ -270,7 +276,9 @@ pipeline::SlamConfig build_config(RunnerSettings& s, const tools::ScanSource& so
   if (s.preset.empty()) {
     s.preset = dynamic_cast<const tools::RgbdScanSource*>(&source)            ? "rgbd"
                : dynamic_cast<const tools::LidarKeyframeScanSource*>(&source) ? "lidar_keyframes"
-                                                                              : "arche_sim";
+               : dynamic_cast<const tools::LidarKeyframeGraphScanSource*>(&source)
+                   ? "lidar_keyframes"
+                   : "arche_sim";
   }
   pipeline::SlamConfig config = pipeline::load_preset(s.preset);
   if (!s.config_path.empty()) {

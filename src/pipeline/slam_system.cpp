@@ -59,6 +59,11 @@ void validate(const SlamConfig& config) {
       std::isfinite(config.external_stamp_tolerance_s) && config.external_stamp_tolerance_s >= 0.0,
       "pose_graph.external_stamp_tolerance_s must be >= 0, got " +
           std::to_string(config.external_stamp_tolerance_s));
+  require(std::isfinite(config.min_odometry_drift_m_per_m) &&
+              config.min_odometry_drift_m_per_m > 0.0 &&
+              std::isfinite(config.min_odometry_drift_deg_per_m) &&
+              config.min_odometry_drift_deg_per_m > 0.0,
+          "pose_graph.min_odometry_drift_m_per_m and _deg_per_m must be positive");
   validate(config.registration);
   validate(config.memory);
   if (config.device == Device::kCuda && !cuda_device_available()) {
@@ -656,6 +661,49 @@ bool SlamSystem::solve_robust_locked() {
   return solve_graph_locked();
 }
 
+bool SlamSystem::estimate_odometry_noise_locked() {
+  // The configured drift bounds the estimate from above: without it there is nothing to estimate.
+  if (!config_.estimate_odometry_noise || !(config_.odometry_drift_m_per_m > 0.0) ||
+      !(config_.odometry_drift_deg_per_m > 0.0)) {
+    return true;
+  }
+  const double floor_m =
+      std::min(1.0, config_.min_odometry_drift_m_per_m / config_.odometry_drift_m_per_m);
+  const double floor_deg =
+      std::min(1.0, config_.min_odometry_drift_deg_per_m / config_.odometry_drift_deg_per_m);
+  const auto bounded = [](double value, double low) { return std::min(1.0, std::max(low, value)); };
+  // Variance-component estimation: each round scales the odometry's factors by the residuals'
+  // ratios at the latest solution and solves again; the ratios tend to 1 as the factors settle.
+  // The bounds keep the factors where the configuration says the odometry can be.
+  const int max_rounds = 10;
+  for (int round = 0; round < max_rounds; ++round) {
+    bool settled = true;
+    {
+      std::lock_guard<std::mutex> lock(state_mutex_);
+      const VarianceRatios ratios = estimate_variance_ratios(pose_graph_);
+      const VarianceFactors old = pose_graph_.variance_factors(SubmapConstraintKind::kOdometry);
+      const VarianceFactors factors{
+          bounded(old.translation * ratios.odometry.translation, floor_m * floor_m),
+          bounded(old.yaw * ratios.odometry.yaw, floor_deg * floor_deg)};
+      pose_graph_.set_variance_factors(SubmapConstraintKind::kOdometry, factors);
+      log_message(LogLevel::kDebug, "SLAM backend: odometry variance factors ", factors.translation,
+                  " ", factors.yaw, " (redundancy ", ratios.odometry_redundancy.translation, " ",
+                  ratios.odometry_redundancy.yaw, "; registration ratios ",
+                  ratios.registration.translation, " ", ratios.registration.yaw, ")");
+      counters_.odometry_drift_estimate_m_per_m =
+          config_.odometry_drift_m_per_m * std::sqrt(factors.translation);
+      counters_.odometry_drift_estimate_deg_per_m =
+          config_.odometry_drift_deg_per_m * std::sqrt(factors.yaw);
+      // Standard deviations within 2 % of the last ones: the solution would barely move.
+      settled = std::abs(std::log(factors.translation / old.translation)) < 0.04 &&
+                std::abs(std::log(factors.yaw / old.yaw)) < 0.04;
+    }
+    if (settled) break;
+    if (!solve_robust_locked()) return false;
+  }
+  return true;
+}
+
 void SlamSystem::optimize_locked() {
   {
     std::lock_guard<std::mutex> lock(state_mutex_);
@@ -663,7 +711,7 @@ void SlamSystem::optimize_locked() {
   }
   const double max_residual_m = config_.registration.gate.max_residual_m;
   if (!(max_residual_m > 0.0)) {
-    solve_robust_locked();
+    if (solve_robust_locked()) estimate_odometry_noise_locked();
     return;
   }
   // The consistency gate: every optimisation starts from all registration constraints, so one set
@@ -692,6 +740,7 @@ void SlamSystem::optimize_locked() {
     if (now == 0) break;
     if (round + 1 == max_rounds) solve_robust_locked();  // without the last ones set aside
   }
+  estimate_odometry_noise_locked();
   std::lock_guard<std::mutex> lock(state_mutex_);
   counters_.registrations_set_aside = set_aside;
 }

@@ -1,5 +1,6 @@
 #include "dataset_scan_sources.h"
 
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -194,6 +195,115 @@ double LidarKeyframeScanSource::duration_s() const {
   return stamps_s_.size() < 2 ? 0.0 : stamps_s_.back() - stamps_s_.front();
 }
 
+namespace {
+
+// graph.txt: 'vN x y z qx qy qz qw' per keyframe, N counting from 0.
+std::vector<Eigen::Isometry3d> read_keyframe_graph(const std::string& path) {
+  std::ifstream file(path);
+  if (!file) throw Error("cannot open '" + path + "'");
+  std::vector<Eigen::Isometry3d> poses;
+  std::string line;
+  while (std::getline(file, line)) {
+    if (line.empty()) continue;
+    std::istringstream fields(line);
+    std::string name;
+    double x, y, z, qx, qy, qz, qw;
+    if (!(fields >> name >> x >> y >> z >> qx >> qy >> qz >> qw) ||
+        name != "v" + std::to_string(poses.size())) {
+      throw Error("'" + path + "': expected 'v" + std::to_string(poses.size()) +
+                  " x y z qx qy qz qw', got '" + line + "'");
+    }
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    pose.linear() = Eigen::Quaterniond(qw, qx, qy, qz).normalized().toRotationMatrix();
+    pose.translation() = Eigen::Vector3d(x, y, z);
+    poses.push_back(pose);
+  }
+  if (poses.empty()) throw Error("'" + path + "' holds no keyframe");
+  return poses;
+}
+
+}  // namespace
+
+LidarKeyframeGraphScanSource::LidarKeyframeGraphScanSource(const std::string& path,
+                                                           const LidarKeyframeScanOptions& options)
+    : path_(path), options_(options) {
+  if (!(options_.keyframe_interval_s > 0.0)) throw Error("keyframe interval must be positive");
+  const std::vector<Eigen::Isometry3d> given =
+      read_keyframe_graph((fs::path(path) / "graph.txt").string());
+  size_t count = given.size();
+  if (options_.max_scans > 0 && options_.max_scans < count) count = options_.max_scans;
+  std::vector<sim::StampedIsometry> truth(count);
+  for (size_t i = 0; i < count; ++i) {
+    truth[i].stamp_s = static_cast<double>(i) * options_.keyframe_interval_s;
+    truth[i].pose = given[i];
+    reference_.poses.push_back(to_stamped(truth[i].stamp_s, given[i]));
+  }
+  reference_.has_orientations = true;
+  reference_kind_ = ReferenceKind::kOtherEstimate;
+  // The simulator's odometry model as it is (a vehicle's odometry), scaled to the asked drift.
+  sim::DriftConfig drift;
+  drift.min_final_drift_m = options_.min_final_drift_m * options_.drift_scale;
+  drift = drift.scaled(options_.drift_scale);
+  for (const sim::StampedIsometry& pose :
+       sim::simulate_odometry(truth, drift, options_.drift_seed)) {
+    stamps_s_.push_back(pose.stamp_s);
+    odometry_.push_back(pose.pose);
+  }
+  std::vector<sim::StampedIsometry> odometry(count);
+  for (size_t i = 0; i < count; ++i) odometry[i] = sim::StampedIsometry{stamps_s_[i], odometry_[i]};
+  final_drift_m_ = sim::final_drift_m(truth, odometry);
+}
+
+bool LidarKeyframeGraphScanSource::next(SourceScan* scan) {
+  while (next_scan_ < odometry_.size()) {
+    const size_t index = next_scan_++;
+    const std::string cloud_path =
+        (fs::path(path_) / six_digits(static_cast<int>(index)) / "points.bin").string();
+    std::ifstream file(cloud_path, std::ios::binary);
+    std::vector<float> values;
+    if (file) {
+      file.seekg(0, std::ios::end);
+      const std::streamoff bytes = file.tellg();
+      file.seekg(0, std::ios::beg);
+      if (bytes > 0 && bytes % static_cast<std::streamoff>(3 * sizeof(float)) == 0) {
+        values.resize(static_cast<size_t>(bytes) / sizeof(float));
+        file.read(reinterpret_cast<char*>(values.data()), bytes);
+      }
+    }
+    if (values.empty() || !file) {
+      log_dropped_scan(++dropped_, "'" + cloud_path + "' is missing or not float32 x, y, z");
+      continue;
+    }
+    scan->stamp_s = stamps_s_[index];
+    scan->T_odom_sensor = odometry_[index];
+    scan->points_sensor_m.clear();
+    scan->colors.clear();
+    const double min_range_squared = options_.min_range_m * options_.min_range_m;
+    for (size_t k = 0; k + 2 < values.size(); k += 3) {
+      const Vec3f p(values[k], values[k + 1], values[k + 2]);
+      const double squared = static_cast<double>(p.x) * p.x + static_cast<double>(p.y) * p.y +
+                             static_cast<double>(p.z) * p.z;
+      if (std::isfinite(squared) && squared >= min_range_squared)
+        scan->points_sensor_m.push_back(p);
+    }
+    return true;
+  }
+  return false;
+}
+
+std::string LidarKeyframeGraphScanSource::describe() const {
+  std::ostringstream text;
+  text << "LiDAR keyframe graph " << path_ << ", " << odometry_.size() << " keyframes "
+       << options_.keyframe_interval_s << " s apart; odometry = graph.txt poses (not ground truth)"
+       << " with a drift of " << final_drift_m_ << " m at the end (seed " << options_.drift_seed
+       << ")";
+  return text.str();
+}
+
+double LidarKeyframeGraphScanSource::duration_s() const {
+  return static_cast<double>(stamps_s_.size()) * options_.keyframe_interval_s;
+}
+
 std::unique_ptr<ScanSource> open_dataset_scan_source(
     const std::string& path, const RgbdScanOptions& rgbd_options,
     const LidarKeyframeScanOptions& lidar_options) {
@@ -202,12 +312,16 @@ std::unique_ptr<ScanSource> open_dataset_scan_source(
   if (fs::exists(folder / "odom_poses.txt") && fs::is_directory(folder / "Scans")) {
     return std::make_unique<LidarKeyframeScanSource>(path, lidar_options);
   }
+  if (fs::exists(folder / "graph.txt") && fs::exists(folder / "000000" / "points.bin")) {
+    return std::make_unique<LidarKeyframeGraphScanSource>(path, lidar_options);
+  }
   // RgbdFolder::open names the RGB-D layouts it looked for when the folder holds neither.
   try {
     return std::make_unique<RgbdScanSource>(path, rgbd_options);
   } catch (const Error& error) {
     throw Error(std::string(error.what()) +
-                "; nor LiDAR keyframes (Scans/*.pcd with odom_poses.txt)");
+                "; nor LiDAR keyframes (Scans/*.pcd with odom_poses.txt, or NNNNNN/points.bin with "
+                "graph.txt)");
   }
 }
 

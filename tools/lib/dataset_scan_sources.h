@@ -12,6 +12,13 @@
 //    frame), `odom_poses.txt` (KITTI format, sensor-to-world odometry: the odometry),
 //    `optimized_poses.txt` (another SLAM system's estimate: the reference, NOT ground truth) and
 //    `times.txt` (one stamp per scan, seconds).
+//
+//  * LiDAR keyframe graphs (the lidar-scans dumps): `NNNNNN/points.bin` (float32 x, y, z per point
+//    in the sensor frame) and `graph.txt` (one line per keyframe, 'vN x y z qx qy qz qw', the
+//    sensor-to-world pose another SLAM system gave it: the reference, NOT ground truth). The
+//    keyframes carry no stamps: keyframe N is stamped N * keyframe_interval_s. The odometry is the
+//    given poses with the simulator's drift (as for RGB-D folders) of at least min_final_drift_m
+//    at the end, times drift_scale (0: the given poses themselves).
 #include <memory>
 #include <string>
 #include <vector>
@@ -56,6 +63,11 @@ class RgbdScanSource : public ScanSource {
 struct LidarKeyframeScanOptions {
   double min_range_m = 2.0;  // the car's own body and the sensor mount
   size_t max_scans = 0;      // 0: all
+  // Keyframe graphs only (the MulRan layout has its own odometry and stamps).
+  double keyframe_interval_s = 10.0;
+  double min_final_drift_m = 0.3;
+  uint64_t drift_seed = 1;
+  double drift_scale = 1.0;
 };
 
 class LidarKeyframeScanSource : public ScanSource {
@@ -75,7 +87,26 @@ class LidarKeyframeScanSource : public ScanSource {
   size_t next_scan_ = 0;
 };
 
-// Opens `path` as whichever dataset layout it holds (RGB-D folder or LiDAR keyframes); throws
+class LidarKeyframeGraphScanSource : public ScanSource {
+ public:
+  // Throws covox::Error naming the missing or inconsistent file.
+  LidarKeyframeGraphScanSource(const std::string& path, const LidarKeyframeScanOptions& options);
+  size_t size() const override { return odometry_.size(); }
+  bool next(SourceScan* scan) override;
+  std::string describe() const override;
+  double duration_s() const override;
+
+ private:
+  std::string path_;
+  LidarKeyframeScanOptions options_;
+  std::vector<double> stamps_s_;
+  std::vector<Eigen::Isometry3d> odometry_;
+  double final_drift_m_ = 0.0;
+  size_t next_scan_ = 0;
+};
+
+// Opens `path` as whichever dataset layout it holds (RGB-D folder, LiDAR keyframes or a LiDAR
+// keyframe graph); throws
 // covox::Error naming the folder and the layouts looked for otherwise.
 std::unique_ptr<ScanSource> open_dataset_scan_source(const std::string& path,
                                                      const RgbdScanOptions& rgbd_options,

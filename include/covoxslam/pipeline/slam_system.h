@@ -89,6 +89,16 @@ struct SlamConfig {
   // (registration.verification). 0 and 0: the sigmas alone.
   double odometry_drift_m_per_m = 0.0;
   double odometry_drift_deg_per_m = 0.0;
+  // True: the odometry's noise is estimated from the data after every optimisation (variance
+  // components, estimate_odometry_variance_ratios in submap_pose_graph.h): the odometry's
+  // variances in the solve (per-link sigmas and drift alike) are scaled by a factor fitted to its
+  // residuals against the registrations, with re-solves until the factor settles. The factor
+  // lies between (min_odometry_drift / odometry_drift)^2 and 1: the configured drift is the
+  // upper bound and stays what registrations are verified against. Off unless both drifts > 0;
+  // a floor above its drift holds the factor at 1.
+  bool estimate_odometry_noise = false;
+  double min_odometry_drift_m_per_m = 0.005;
+  double min_odometry_drift_deg_per_m = 0.1;
   // Robust loss on registration constraints in the pose-graph solve (Cauchy, by iteratively
   // reweighted solves): a constraint whose whitened residual r (r^2 = e^T information e at the
   // solution) is large gets its information times 1 / (1 + r^2 / c^2), c this scale in standard
@@ -182,6 +192,10 @@ struct SlamCounters {
   // odometry frame of the first submap).
   double correction_rms_m = 0.0;
   double correction_max_m = 0.0;
+  // pose_graph.estimate_odometry_noise: the drift per metre the latest optimisation used (the
+  // configured drift times the square root of the estimated variance factor); 0 when off.
+  double odometry_drift_estimate_m_per_m = 0.0;
+  double odometry_drift_estimate_deg_per_m = 0.0;
   RegistrationCounts registration;  // attempted, accepted and each reason for a rejection
   ExternalConstraintCounters loop_closures;
   ExternalConstraintCounters absolute_positions;
@@ -425,6 +439,9 @@ class SlamSystem {
   bool solve_graph_locked();
   // solve_graph_locked under the robust loss on registration constraints (above), if any.
   bool solve_robust_locked();
+  // pose_graph.estimate_odometry_noise: after a solve, estimates the odometry's variance factors
+  // and re-solves until they settle (false when a solve failed; true at once when off).
+  bool estimate_odometry_noise_locked();
   // kJoint: the dense registration terms of joint_pairs_ for `graph`; needs state_mutex_ (and
   // backend_mutex_ for the lifetime of the submaps they point to).
   std::vector<backend::RegistrationTerm> joint_terms_locked(

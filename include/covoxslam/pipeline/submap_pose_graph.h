@@ -63,6 +63,12 @@ struct SubmapConstraint {
   }
 };
 
+// Factors on the variances of one kind of constraint: x, y, z alike, and yaw.
+struct VarianceFactors {
+  double translation = 1.0;
+  double yaw = 1.0;
+};
+
 struct SubmapPoseGraphNode {
   int64_t id = 0;
   backend::Pose4Dof pose;  // corrected T_W_S
@@ -94,12 +100,22 @@ class SubmapPoseGraph {
   void set_active(size_t index, bool active);
   // Throws covox::Error for an unknown index or a weight outside (0, 1].
   void set_weight(size_t index, double weight);
+  // The solver sees every odometry (registration) constraint with its translation variances
+  // times factors.translation and its yaw variance times factors.yaw: information D^-1/2 I D^-1/2,
+  // D = diag(t, t, t, yaw). The noise as estimated from the data (estimate_variance_ratios); all 1
+  // at first. Throws covox::Error for another kind or a factor that is not positive and finite.
+  void set_variance_factors(SubmapConstraintKind kind, const VarianceFactors& factors);
+  VarianceFactors variance_factors(SubmapConstraintKind kind) const;
+  // The information the solver sees for `c`, before its weight: scaled by its kind's factors.
+  Eigen::Matrix4d scaled_information(const SubmapConstraint& c) const;
 
   // The backend graph at the current poses, and the mapping back (see apply_solution).
   struct BackendGraph {
     backend::PoseGraph4Dof graph;
     std::vector<int32_t> vertex_of_node;
     std::vector<backend::Pose4Dof> offset_of_node;  // T_vertex_submap
+    // For each of graph.constraints, its index in constraints().
+    std::vector<size_t> source_of_constraint;
   };
   BackendGraph to_backend_graph() const;
   // Moves every submap to its vertex's solved pose composed with its offset.
@@ -108,6 +124,8 @@ class SubmapPoseGraph {
  private:
   std::vector<SubmapPoseGraphNode> nodes_;
   std::vector<SubmapConstraint> constraints_;
+  VarianceFactors odometry_factors_;
+  VarianceFactors registration_factors_;
 };
 
 // The consistency gate's step (SubmapRegistrationConfig::gate.max_residual_m): sets aside the
@@ -122,10 +140,31 @@ int set_aside_inconsistent_registrations(SubmapPoseGraph* graph, double max_resi
 
 // One round of the robust (Cauchy) loss on registration constraints: every active registration
 // constraint gets the weight 1 / (1 + r^2 / scale_sigmas^2) at the graph's current poses,
-// r^2 = e^T information e (e: the measurement's error in its own convention, yaw wrapped).
+// r^2 = e^T information e (scaled_information; e: the measurement's error in its own convention,
+// yaw wrapped).
 // Returns the largest change of a weight; solving and reweighting until it is small is
 // iteratively reweighted least squares.
 double reweight_registrations_cauchy(SubmapPoseGraph* graph, double scale_sigmas);
+
+// Variance-component estimate of the odometry's and the registrations' noise at the graph's
+// current poses (a solution): for each kind, as the solver sees it (scaled_information and
+// weight), the sum of its squared whitened residual components over the sum of those components'
+// redundancies. The redundancy of a component is 1 - (J Sigma J^T)_cc, J its whitened Jacobian
+// row and Sigma the solution's covariance (the inverse of the whitened Gauss-Newton matrix of
+// every active constraint, gauge vertex held): the part of that residual the other constraints
+// can see. A ratio is 1 when the variances fit the residuals; the factors times the ratios are
+// the new estimate, and repeating estimate and solve is the fixed point of variance-component
+// estimation (Foerstner's). Translation rows (x, y, z) and the yaw row apart; the rows of a
+// registration's whitened residual mix its components where its information does, which the
+// split ignores. A ratio is 1 where its redundancy sums to under one (too little to judge) or
+// the matrix cannot be factorised.
+struct VarianceRatios {
+  VarianceFactors odometry;
+  VarianceFactors registration;
+  VarianceFactors odometry_redundancy{0.0, 0.0};
+  VarianceFactors registration_redundancy{0.0, 0.0};
+};
+VarianceRatios estimate_variance_ratios(const SubmapPoseGraph& graph);
 
 // 4-DoF pose algebra (x_a = Rz(yaw) x_b + t): a * b (the inverse is backend::inverse_pose_4dof).
 backend::Pose4Dof compose(const backend::Pose4Dof& a, const backend::Pose4Dof& b);
