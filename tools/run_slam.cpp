@@ -342,7 +342,15 @@ void add_backend_rows(tools::BenchmarkReport* report, const std::string& name,
       {"registrations rejected: too few points", r.rejected_too_few_points},
       {"registrations rejected: misfit", r.rejected_misfit},
       {"registrations rejected: disagree with odometry", r.rejected_by_odometry},
-      {"registrations set aside by the gate", result.counters.registrations_set_aside}};
+      {"registrations set aside by the gate", result.counters.registrations_set_aside},
+      {"place recognition candidates", result.counters.place_recognition.candidates},
+      {"place recognition verified", result.counters.place_recognition.verified},
+      {"place recognition accepted", result.counters.place_recognition.accepted},
+      {"place recognition rejected: descriptor",
+       result.counters.place_recognition.rejected_descriptor},
+      {"place recognition rejected: overlap", result.counters.place_recognition.rejected_overlap},
+      {"place recognition rejected: registration",
+       result.counters.place_recognition.verified - result.counters.place_recognition.accepted}};
   for (const auto& count : counts)
     report->add(name, count.first, static_cast<double>(count.second), "");
   const tools::TrajectoryShift shift = tools::trajectory_shift(result);

@@ -384,15 +384,18 @@ double verified_mahalanobis_sq(const PairContext& context, const RegistrationPar
 }
 
 // One overlapping pair: aligned, judged and counted; true with `constraint` when accepted.
+// `guess`: the relative pose T_Sj_Si to start from; null: the current poses' relative pose.
 bool register_pair(const PairContext& context, const RegistrationPartner& partner,
-                   RegistrationCounts* counts, SubmapConstraint* constraint) {
+                   RegistrationCounts* counts, SubmapConstraint* constraint,
+                   const backend::Pose4Dof* guess = nullptr) {
   const SubmapRegistrationConfig& config = *context.config;
   ++counts->attempted;
   if (context.points->points.points.size() < static_cast<size_t>(config.acceptance.min_points)) {
     ++counts->rejected_too_few_points;
     return false;
   }
-  const backend::Pose4Dof initial = relative_pose_4dof(partner.pose, context.pose);  // T_Sj_Si
+  const backend::Pose4Dof initial =
+      guess ? *guess : relative_pose_4dof(partner.pose, context.pose);  // T_Sj_Si
   // Symmetric: the partner's own registration points in the new submap's field as well, their
   // weights brought to the new submap's units (the ratio of the mean weights, see the header).
   std::unique_ptr<SubmapRegistrationPoints> prepared_partner_points;
@@ -515,6 +518,27 @@ std::vector<SubmapConstraint> registration_constraints(
     if (register_pair(context, *partner, counts, &constraint)) constraints.push_back(constraint);
   }
   return constraints;
+}
+
+bool registration_constraint_from_guess(
+    int64_t id, const TsdfMap& map, const SubmapRegistrationPoints& points,
+    const backend::Pose4Dof& pose, const RegistrationPartner& partner,
+    const backend::Pose4Dof& T_Sj_Si_guess, const SubmapRegistrationConfig& config,
+    const Stream& stream, RegistrationCounts* counts, WallMapCache* own_walls,
+    const RegistrationOdometry& odometry, SubmapConstraint* constraint) {
+  WallMapCache local_own_walls;
+  const double sqrt_mean_weight = std::sqrt(points.mean_weight);
+  const PairContext context{id,
+                            &map,
+                            &points,
+                            pose,
+                            &config,
+                            &stream,
+                            aligner_config(config, sqrt_mean_weight),
+                            sqrt_mean_weight,
+                            own_walls ? own_walls : &local_own_walls,
+                            odometry};
+  return register_pair(context, partner, counts, constraint, &T_Sj_Si_guess);
 }
 
 }  // namespace pipeline

@@ -373,6 +373,39 @@ void add_registration_constraint_parameters(std::vector<SlamParameter>* table) {
       });
 }
 
+std::string in_closed_unit_interval(double v) {
+  return v >= 0.0 && v <= 1.0 ? "" : "must be in [0, 1]";
+}
+
+// Place recognition over finished submaps (pipeline/place_recognition.h).
+void add_place_recognition_parameters(std::vector<SlamParameter>* table) {
+  table->insert(
+      table->end(),
+      {
+          bool_parameter("place_recognition.enabled", COVOX_FIELD(place_recognition.enabled)),
+          integer_parameter("place_recognition.rings", COVOX_FIELD(place_recognition.rings), 1,
+                            200),
+          integer_parameter("place_recognition.sectors", COVOX_FIELD(place_recognition.sectors), 4,
+                            720),
+          number_parameter("place_recognition.max_radius_m",
+                           COVOX_FIELD(place_recognition.max_radius_m), positive),
+          integer_parameter("place_recognition.candidates",
+                            COVOX_FIELD(place_recognition.candidates), 1, 1000),
+          integer_parameter("place_recognition.exclude_recent_submaps",
+                            COVOX_FIELD(place_recognition.exclude_recent_submaps), 0, 1000000),
+          number_parameter("place_recognition.max_descriptor_distance",
+                           COVOX_FIELD(place_recognition.max_descriptor_distance),
+                           in_closed_unit_interval),
+          number_parameter("place_recognition.translation_search_m",
+                           COVOX_FIELD(place_recognition.translation_search_m), non_negative),
+          number_parameter("place_recognition.min_overlap_score",
+                           COVOX_FIELD(place_recognition.min_overlap_score),
+                           in_closed_unit_interval),
+          number_parameter("place_recognition.max_residual_rms_vox",
+                           COVOX_FIELD(place_recognition.max_residual_rms_vox), positive),
+      });
+}
+
 const std::vector<SlamParameter>& slam_parameters() {
   static const std::vector<SlamParameter> table = [] {
     std::vector<SlamParameter> all;
@@ -382,6 +415,7 @@ const std::vector<SlamParameter>& slam_parameters() {
     add_pose_graph_parameters(&all);
     add_registration_alignment_parameters(&all);
     add_registration_constraint_parameters(&all);
+    add_place_recognition_parameters(&all);
     return all;
   }();
   return table;

@@ -66,6 +66,7 @@ void validate(const SlamConfig& config) {
           "pose_graph.min_odometry_drift_m_per_m and _deg_per_m must be positive");
   validate(config.registration);
   validate(config.memory);
+  validate(config.place_recognition);
   if (config.device == Device::kCuda && !cuda_device_available()) {
     throw NotAvailableError(
         "SLAM configuration: device cuda was asked for but no usable GPU is available "
@@ -102,7 +103,8 @@ SlamSystem::SlamSystem(const SlamConfig& config)
       restore_stream_(Stream::create(config.device)),
       esdf_integrator_(config.esdf),
       mesh_integrator_(config.mesh),
-      backend_stream_(Stream::create(config.device)) {
+      backend_stream_(Stream::create(config.device)),
+      place_recognizer_(config.place_recognition) {
   if (config_.start_threads) start();
 }
 
@@ -575,6 +577,7 @@ void SlamSystem::add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
   // Registration reads the earlier submaps without state_mutex_: only holders of backend_mutex_
   // (this thread now) change or replace them.
   RegistrationCounts counts;
+  PlaceRecognitionCounts recognition_counts;
   std::vector<SubmapConstraint> registrations;
   std::vector<int64_t> joint_pair_partners;
   auto walls = std::make_unique<WallMapCache>();
@@ -592,6 +595,9 @@ void SlamSystem::add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
         joint_pair_partners.push_back(partner->id);
       }
     }
+    propose_place_recognition_locked(*submap, *points, guess, partners, joint_partners,
+                                     joint_pair_partners, walls.get(), own_odometry, &registrations,
+                                     &recognition_counts);
   }
 
   std::lock_guard<std::mutex> lock(state_mutex_);
@@ -605,8 +611,28 @@ void SlamSystem::add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
     joint_pairs_.push_back(JointPair{submap->id(), partner});
   counts.joint_pairs += static_cast<int64_t>(joint_pair_partners.size());
   counters_.registration.add(counts);
+  counters_.place_recognition.add(recognition_counts);
   graph_submaps_.push_back(GraphSubmap{std::move(submap), std::move(points), false,
                                        std::move(walls), std::move(footprint)});
+}
+
+void SlamSystem::propose_place_recognition_locked(
+    const Submap& submap, const SubmapRegistrationPoints& points, const backend::Pose4Dof& guess,
+    const std::vector<RegistrationPartner>& partners,
+    const std::vector<RegistrationPartner>& joint_partners,
+    const std::vector<int64_t>& joint_pair_partners, WallMapCache* walls,
+    const RegistrationOdometry& odometry, std::vector<SubmapConstraint>* registrations,
+    PlaceRecognitionCounts* counts) {
+  if (!config_.place_recognition.enabled) return;
+  std::vector<RegistrationPartner> earlier = partners;
+  earlier.insert(earlier.end(), joint_partners.begin(), joint_partners.end());
+  std::vector<int64_t> linked = joint_pair_partners;
+  for (const SubmapConstraint& c : *registrations) linked.push_back(c.from_submap);
+  for (const SubmapConstraint& c :
+       place_recognizer_.propose(submap.id(), submap.map(), points, guess, earlier, linked,
+                                 config_.registration, backend_stream_, walls, odometry, counts)) {
+    registrations->push_back(c);
+  }
 }
 
 int SlamSystem::integrate_pending_constraints_locked(bool final) {

@@ -208,6 +208,7 @@ void SlamSystem::reset_locked() {
     pose_graph_.clear();
     pending_constraints_.clear();
     joint_pairs_.clear();
+    place_recognizer_.clear();
     trajectory_.clear();
     last_summary_ = backend::PoseGraphSolverSummary();
   }

@@ -44,6 +44,7 @@ void add_timing(diagnostic_msgs::DiagnosticStatus* status, const std::string& na
 void add_slam_counters(diagnostic_msgs::DiagnosticStatus* status,
                        const pipeline::SlamCounters& counters, int64_t sensor_queue_length,
                        int64_t submap_queue_length) {
+  const pipeline::PlaceRecognitionCounts& recognition = counters.place_recognition;
   const struct {
     const char* key;
     int64_t value;
@@ -77,6 +78,11 @@ void add_slam_counters(diagnostic_msgs::DiagnosticStatus* status,
                 {"registration_accepted", counters.registration.accepted},
                 {"registration_rejected_misfit", counters.registration.rejected_misfit},
                 {"registration_rejected_by_odometry", counters.registration.rejected_by_odometry},
+                {"place_recognition_candidates", recognition.candidates},
+                {"place_recognition_verified", recognition.verified},
+                {"place_recognition_accepted", recognition.accepted},
+                {"place_recognition_rejected_descriptor", recognition.rejected_descriptor},
+                {"place_recognition_rejected_overlap", recognition.rejected_overlap},
                 {"loop_closures_received", counters.loop_closures.received},
                 {"loop_closures_added", counters.loop_closures.added},
                 {"optimizations", counters.optimizations},

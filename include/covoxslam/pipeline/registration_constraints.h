@@ -247,5 +247,15 @@ std::vector<SubmapConstraint> registration_constraints(
     WallMapCache* own_walls = nullptr, const RegistrationOdometry& odometry = {},
     const backend::SubmapFootprint* footprint = nullptr);
 
+// One pair aligned from the relative pose `T_Sj_Si_guess` instead of the current poses' (place
+// recognition's candidates), with the same start from the walls, acceptance tests, verification
+// and counts as registration_constraints(); true with `constraint` when accepted.
+bool registration_constraint_from_guess(
+    int64_t id, const TsdfMap& map, const SubmapRegistrationPoints& points,
+    const backend::Pose4Dof& pose, const RegistrationPartner& partner,
+    const backend::Pose4Dof& T_Sj_Si_guess, const SubmapRegistrationConfig& config,
+    const Stream& stream, RegistrationCounts* counts, WallMapCache* own_walls,
+    const RegistrationOdometry& odometry, SubmapConstraint* constraint);
+
 }  // namespace pipeline
 }  // namespace covox

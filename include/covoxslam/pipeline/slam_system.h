@@ -58,6 +58,7 @@
 #include "covoxslam/map/tsdf_map.h"
 #include "covoxslam/pipeline/bounded_queue.h"
 #include "covoxslam/pipeline/external_constraints.h"
+#include "covoxslam/pipeline/place_recognition.h"
 #include "covoxslam/pipeline/registration_constraints.h"
 #include "covoxslam/pipeline/submap.h"
 #include "covoxslam/pipeline/submap_pose_graph.h"
@@ -121,6 +122,8 @@ struct SlamConfig {
   bool interpolate_trajectory_correction = true;
   // Registration constraints between overlapping submaps (the drift correction).
   SubmapRegistrationConfig registration;
+  // Loop closures by place recognition over finished submaps (pipeline/place_recognition.h).
+  PlaceRecognitionConfig place_recognition;
   // Loop closures, GNSS positions and heights name a scan by stamp: the nearest integrated scan
   // within this tolerance (a 10 Hz LiDAR: half the scan period covers every stamp in between).
   double external_stamp_tolerance_s = 0.05;
@@ -196,7 +199,8 @@ struct SlamCounters {
   // configured drift times the square root of the estimated variance factor); 0 when off.
   double odometry_drift_estimate_m_per_m = 0.0;
   double odometry_drift_estimate_deg_per_m = 0.0;
-  RegistrationCounts registration;  // attempted, accepted and each reason for a rejection
+  RegistrationCounts registration;           // attempted, accepted and each reason for a rejection
+  PlaceRecognitionCounts place_recognition;  // candidates, verified, accepted, rejections
   ExternalConstraintCounters loop_closures;
   ExternalConstraintCounters absolute_positions;
   ExternalConstraintCounters heights;
@@ -430,6 +434,17 @@ class SlamSystem {
   // The remaining helpers need backend_mutex_.
   void add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
                                 std::unique_ptr<SubmapRegistrationPoints> points);
+  // Place recognition's loop closures for a new submap (pipeline/place_recognition.h), appended
+  // to `registrations`; `partners` and `joint_partners` are every earlier submap.
+  void propose_place_recognition_locked(const Submap& submap,
+                                        const SubmapRegistrationPoints& points,
+                                        const backend::Pose4Dof& guess,
+                                        const std::vector<RegistrationPartner>& partners,
+                                        const std::vector<RegistrationPartner>& joint_partners,
+                                        const std::vector<int64_t>& joint_pair_partners,
+                                        WallMapCache* walls, const RegistrationOdometry& odometry,
+                                        std::vector<SubmapConstraint>* registrations,
+                                        PlaceRecognitionCounts* counts);
   // Moves waiting external constraints whose submaps are in the graph into it; `final`: no more
   // submaps will come, so those still waiting are dropped (counted). Returns how many entered.
   int integrate_pending_constraints_locked(bool final);
@@ -538,6 +553,7 @@ class SlamSystem {
     int64_t field_submap;
   };
   std::vector<JointPair> joint_pairs_;
+  PlaceRecognizer place_recognizer_;  // the finished submaps' descriptors (backend_mutex_)
   backend::PoseGraphSolverSummary last_summary_;
   std::vector<TrajectoryEntry> trajectory_;
   std::deque<double> scan_durations_s_;  // take_scan_durations()'s, at most kScanDurationsKept

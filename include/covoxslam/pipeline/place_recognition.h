@@ -1,0 +1,209 @@
+#pragma once
+// Place recognition over finished submaps: loop closures that do not depend on the current pose
+// estimate.
+//
+// Registration (registration_constraints.h) aligns a new submap only to the earlier submaps that
+// its current corrected pose makes it overlap, from that pose (plus the wall search of a few
+// metres around it). Once the odometry has drifted further than that, a revisit goes unnoticed.
+// Here every finished submap gets a descriptor of its geometry alone, and the earlier submaps
+// whose descriptors resemble the new one's are aligned to it from the relative pose the two
+// descriptors suggest, whatever the estimate says.
+//
+// Descriptor (Scan-Context-like). The submap's surface columns (voxel columns (x, y) holding a
+// TSDF surface voxel: weight > 0 and |distance| under the surface band) in the submap frame S,
+// which is gravity aligned, binned on a polar grid of `rings` x `sectors` around the submap's
+// origin out to max_radius_m. A cell holds the vertical extent of its surfaces (highest top
+// minus lowest bottom, metres) when it is at least half a metre, else 0: ground alone, which
+// every submap has around its origin, would make any two submaps alike. The extent does not
+// depend on the origin's height (which changes along a flight) or on the odometry's drift in z.
+// The ring key (each ring's mean over its sectors) does not change when the submap turns about
+// z, so it is what the index searches. The same columns on a Cartesian grid of the ring width
+// (the bird's-eye image) give the translation and the yaw: the polar shift alone is unreliable
+// once the two origins are metres apart.
+//
+// Search. The new ring key's nearest earlier keys (Euclidean, a k-d tree; the submaps of the
+// last exclude_recent_submaps ids are left out: they overlap the new one anyway and the
+// odometry links them) are scored by the full descriptor at its best sector shift: the distance
+// is 1 minus the mean cosine similarity of the sector columns over the sectors where either has
+// structure (one side empty: similarity 0); its shift is a first guess of the relative yaw. The
+// two bird's-eye images are then correlated over +-translation_search_m around the origins'
+// coincidence at every sector's yaw, starting from the shift's (which wins ties), and refined to
+// half a sector; the score is the overlap of the two extents, sum min(a, b) over the matched
+// cells divided by the smaller of the two totals.
+//
+// Verification. A candidate that passes max_descriptor_distance and min_overlap_score is aligned
+// by the registration's own aligner started from the matched relative pose (with its wall search
+// and every acceptance test, registration_constraint_from_guess), and an accepted alignment
+// enters the graph as a registration constraint, so the consistency gate and the robust loss
+// of the pose graph judge it like any other. Each rejection is counted by reason. The residual
+// test is made at least as strict as max_residual_rms_vox here. A submap of a different place
+// with the same kind of structure (two alike buildings) can still pass it: the consistency gate,
+// and registration.verification where the odometry's drift rates are set, are what reject such
+// a closure, since it disagrees with the odometry and the other constraints by far more than
+// the drift.
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "covoxslam/backend/pose_graph_types.h"
+#include "covoxslam/core/stream.h"
+#include "covoxslam/map/tsdf_map.h"
+#include "covoxslam/pipeline/registration_constraints.h"
+#include "covoxslam/pipeline/submap_pose_graph.h"
+
+namespace covox {
+namespace pipeline {
+
+// Section `place_recognition` of the configuration files (docs/parameters.md).
+struct PlaceRecognitionConfig {
+  bool enabled = false;
+  int rings = 20;
+  int sectors = 60;
+  double max_radius_m = 20.0;
+  // Earlier submaps scored by the full descriptor per new submap (nearest ring keys).
+  int candidates = 5;
+  // The submaps with the last this many ids before the new one are never candidates.
+  int exclude_recent_submaps = 6;
+  // Full-descriptor distance in [0, 1] above which a candidate is dropped.
+  double max_descriptor_distance = 0.4;
+  // The bird's-eye correlation covers offsets within this of the origins' coincidence (x and y).
+  double translation_search_m = 12.0;
+  // Least bird's-eye overlap score in [0, 1] for a candidate to be aligned.
+  double min_overlap_score = 0.3;
+  // The verifying alignment's residual RMS limit in voxels (registration.acceptance's
+  // max_residual_rms_vox, applied here even where the registration's own is off or looser).
+  double max_residual_rms_vox = 0.8;
+};
+
+// Throws covox::Error naming the first invalid parameter (prefix "place_recognition.").
+void validate(const PlaceRecognitionConfig& config);
+
+// A map column holding surface voxels: its centre in the map frame and the z of its lowest and
+// highest surface voxel centres.
+struct SurfaceColumn {
+  double x_m = 0.0, y_m = 0.0;
+  double bottom_m = 0.0, top_m = 0.0;
+};
+
+// Every surface column of `map` (|distance| < surface_band_m, weight > 0), in (x, y) order. Runs
+// on the map's device.
+std::vector<SurfaceColumn> surface_columns(const TsdfMap& map, double surface_band_m,
+                                           const Stream& stream);
+
+struct PlaceDescriptor {
+  int rings = 0;
+  int sectors = 0;
+  double max_radius_m = 0.0;
+  // rings x sectors, ring-major; the vertical extent of the cell's surfaces (m), 0 when empty.
+  std::vector<float> polar;
+  std::vector<float> ring_key;  // per ring: the mean of its sectors
+  // Bird's-eye image: (2 rings) x (2 rings) cells of max_radius_m / rings around the origin,
+  // row-major from (-max_radius_m, -max_radius_m); the extent of the cell's surfaces, 0 empty.
+  std::vector<float> bird_eye;
+  int64_t columns = 0;  // surface columns within max_radius_m
+  bool empty() const { return columns == 0; }
+};
+
+// The descriptor of the given columns (the surface band is a voxel).
+PlaceDescriptor place_descriptor(const std::vector<SurfaceColumn>& columns,
+                                 const PlaceRecognitionConfig& config);
+// The descriptor of a finished submap's map (its columns on the map's device, binned on the host).
+PlaceDescriptor place_descriptor(const TsdfMap& map, const PlaceRecognitionConfig& config,
+                                 const Stream& stream);
+
+struct DescriptorMatch {
+  double distance = 1.0;  // in [0, 1]; 1 when neither has structure
+  int shift = 0;          // sector s of `moving` matches sector s + shift of `fixed`
+  double yaw_rad = 0.0;   // the yaw of T_fixed_moving that the shift means, in (-pi, pi]
+};
+// Both descriptors must have the same grid.
+DescriptorMatch match_descriptors(const PlaceDescriptor& moving, const PlaceDescriptor& fixed);
+
+struct BirdEyeMatch {
+  backend::Pose4Dof T_fixed_moving;  // x, y and yaw; z 0
+  double score = 0.0;                // in [0, 1]
+};
+// The best overlap of the two bird's-eye images over offsets within +-translation_search_m and
+// every sector's yaw from `yaw_rad` on, refined to half a sector.
+BirdEyeMatch match_bird_eye(const PlaceDescriptor& moving, const PlaceDescriptor& fixed,
+                            double yaw_rad, const PlaceRecognitionConfig& config);
+
+// Ring keys of earlier submaps, searched for the nearest ones (Euclidean). A k-d tree over all
+// but the latest insertions, which are searched one by one and merged into the tree once there
+// are kMaxUnindexed of them: a query costs about the tree's depth plus kMaxUnindexed.
+class RingKeyIndex {
+ public:
+  static constexpr size_t kMaxUnindexed = 32;
+  void clear();
+  void add(int64_t id, const std::vector<float>& key);
+  size_t size() const { return keys_.size(); }
+  // The ids of at most `k` nearest keys among those with id <= max_id, nearest first (ties: the
+  // lower id first).
+  std::vector<int64_t> nearest(const std::vector<float>& key, size_t k, int64_t max_id) const;
+
+ private:
+  struct Node {
+    int32_t item = -1;
+    int32_t dimension = 0;
+    int32_t left = -1, right = -1;
+  };
+  struct Search;
+  int32_t build(std::vector<int32_t>& items, size_t begin, size_t end, int depth);
+  void search(int32_t node, Search* state) const;
+
+  std::vector<int64_t> ids_;
+  std::vector<std::vector<float>> keys_;
+  std::vector<Node> nodes_;
+  int32_t root_ = -1;
+  size_t indexed_ = 0;  // items [0, indexed_) are in the tree
+};
+
+// What place recognition did; the verification's own rejections are in `registration`.
+struct PlaceRecognitionCounts {
+  int64_t queries = 0;              // submaps searched for
+  int64_t candidates = 0;           // earlier submaps scored by the full descriptor
+  int64_t skipped_linked = 0;       // already constrained to the new submap by registration
+  int64_t rejected_descriptor = 0;  // distance above max_descriptor_distance
+  int64_t rejected_overlap = 0;     // bird's-eye score below min_overlap_score
+  int64_t verified = 0;             // aligned by the registration (registration.attempted)
+  int64_t accepted = 0;             // constraints added
+  RegistrationCounts registration;  // the alignments' counts (their rejections by reason)
+  int64_t rejected_total() const {
+    return rejected_descriptor + rejected_overlap + (verified - accepted);
+  }
+  void add(const PlaceRecognitionCounts& other);
+};
+
+// The descriptors of the finished submaps and their index.
+class PlaceRecognizer {
+ public:
+  explicit PlaceRecognizer(const PlaceRecognitionConfig& config);
+  const PlaceRecognitionConfig& config() const { return config_; }
+  void clear();
+  size_t size() const { return descriptors_.size(); }
+
+  // The loop-closure constraints (kind kRegistration, from an earlier submap to `id`) for a new
+  // finished submap, from the earlier submaps `earlier` (those without a descriptor here are not
+  // candidates); `linked`: ids already constrained to it. Adds the new submap's descriptor.
+  // Nothing (and no descriptor) when disabled.
+  std::vector<SubmapConstraint> propose(
+      int64_t id, const TsdfMap& map, const SubmapRegistrationPoints& points,
+      const backend::Pose4Dof& pose, const std::vector<RegistrationPartner>& earlier,
+      const std::vector<int64_t>& linked, const SubmapRegistrationConfig& registration,
+      const Stream& stream, WallMapCache* own_walls, const RegistrationOdometry& odometry,
+      PlaceRecognitionCounts* counts);
+
+ private:
+  struct Entry {
+    int64_t id;
+    PlaceDescriptor descriptor;
+  };
+  const Entry* find(int64_t id) const;
+
+  PlaceRecognitionConfig config_;
+  std::vector<Entry> descriptors_;  // in id order
+  RingKeyIndex index_;
+};
+
+}  // namespace pipeline
+}  // namespace covox
