@@ -7,7 +7,7 @@
 #include "covoxslam/core/buffer.h"
 #include "covoxslam/core/error.h"
 #include "covoxslam/core/log.h"
-#include "covoxslam/pipeline/internal/place_descriptor_impl.h"
+#include "covoxslam/pipeline/internal/place_descriptor.h"
 #include "covoxslam/pipeline/submap.h"
 
 namespace covox {
