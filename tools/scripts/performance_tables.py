@@ -320,28 +320,32 @@ def pipeline_table(reports):
 
 
 TIMELINE_CASE = re.compile(r"^t=(\d+)s( end)?$")
-MISSION_COLUMNS = [("host RSS", "host RSS MB"), ("map memory", "map voxels MB"),
+MISSION_COLUMNS = [("host RSS", "host RSS MB"), ("device memory used", "GPU used MB"),
+                   ("map memory", "map voxels MB (full size)"),
                    ("submaps", "submaps"), ("scan time p50", "scan p50 ms"),
                    ("scan time p95", "scan p95 ms"), ("scan time max", "scan max ms"),
                    ("registration per submap", "registration ms per submap"),
                    ("solve per submap", "solve ms per submap")]
 
 
-def mission_table(reports):
-    report = reports.get("mission_cpu.json")
+def mission_table(reports, name="mission_cpu.json"):
+    report = reports.get(name)
     if report is None:
-        return ["Not recorded: `run_slam --timeline-interval-s 30 --json "
-                "docs/benchmarks/mission_cpu.json` writes it."]
+        return [f"Not recorded: `run_slam --timeline-interval-s 30 --json "
+                f"docs/benchmarks/{name}` writes it."]
     samples = {}
     for row in report["results"]:
         if TIMELINE_CASE.match(row["case"]):
             samples.setdefault(row["case"], {})[row["metric"]] = row["value"]
-    lines = ["| mission time | wall time | " + " | ".join(label for _, label in MISSION_COLUMNS)
-             + " |", "|---:|---:|" + "---:|" * len(MISSION_COLUMNS)]
+    # Columns the report has (the GPU's memory only where the run was on a GPU).
+    columns = [c for c in MISSION_COLUMNS
+               if any(c[0] in values for values in samples.values())]
+    lines = ["| mission time | wall time | " + " | ".join(label for _, label in columns)
+             + " |", "|---:|---:|" + "---:|" * len(columns)]
     for case, values in samples.items():
         shown = f"{int(TIMELINE_CASE.match(case).group(1))} s" + (
             " (after the final solve)" if case.endswith(" end") else "")
-        cells = [number(values.get(metric)) for metric, _ in MISSION_COLUMNS]
+        cells = [number(values.get(metric)) for metric, _ in columns]
         lines.append(f"| {shown} | {with_unit(values.get('wall time'), ' s')} | "
                      + " | ".join(cells) + " |")
     first = report["results"][0]["case"] if report["results"] else None
@@ -352,6 +356,19 @@ def mission_table(reports):
                  f"{with_unit(summary.get('host peak RSS'), ' MB')}, ATE "
                  f"{with_unit(summary.get('ATE RMSE covoxslam'), ' m')} (odometry "
                  f"{with_unit(summary.get('ATE RMSE odometry'), ' m')}).")
+    if "submaps resident" in summary:
+        lines.append("")
+        lines.append(f"Finished submaps at the end: {number(summary.get('submaps resident'))} "
+                     f"resident ({with_unit(summary.get('resident submap memory'), ' MB')}), "
+                     f"{number(summary.get('submaps compact'))} compact "
+                     f"({with_unit(summary.get('compact submap memory'), ' MB')}), "
+                     f"{number(summary.get('submaps on disk'))} on disk; "
+                     f"{number(summary.get('submap restores'))} restores in "
+                     f"{with_unit(summary.get('submap restore time'), ' s')}.")
+    if "map file size" in summary:
+        lines.append("")
+        lines.append(f"Map file {with_unit(summary.get('map file size'), ' MB')}, saved in "
+                     f"{with_unit(summary.get('map save time'), ' s')}.")
     return lines
 
 
@@ -373,6 +390,7 @@ BLOCKS = {
     "accuracy": accuracy_table,
     "pipeline": pipeline_table,
     "mission": mission_table,
+    "mission_gpu": lambda reports: mission_table(reports, "mission_gpu.json"),
     "sources": sources_table,
 }
 
