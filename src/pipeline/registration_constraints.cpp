@@ -385,6 +385,24 @@ double verified_mahalanobis_sq(const PairContext& context, const RegistrationPar
 
 // One overlapping pair: aligned, judged and counted; true with `constraint` when accepted.
 // `guess`: the relative pose T_Sj_Si to start from; null: the current poses' relative pose.
+// What every pair of the new submap `id` shares: its map, points, pose, settings and walls.
+PairContext pair_context(int64_t id, const TsdfMap& map, const SubmapRegistrationPoints& points,
+                         const backend::Pose4Dof& pose, const SubmapRegistrationConfig& config,
+                         const Stream& stream, WallMapCache* walls,
+                         const RegistrationOdometry& odometry) {
+  const double sqrt_mean_weight = std::sqrt(points.mean_weight);
+  return PairContext{id,
+                     &map,
+                     &points,
+                     pose,
+                     &config,
+                     &stream,
+                     aligner_config(config, sqrt_mean_weight),
+                     sqrt_mean_weight,
+                     walls,
+                     odometry};
+}
+
 bool register_pair(const PairContext& context, const RegistrationPartner& partner,
                    RegistrationCounts* counts, SubmapConstraint* constraint,
                    const backend::Pose4Dof* guess = nullptr) {
@@ -501,17 +519,8 @@ std::vector<SubmapConstraint> registration_constraints(
   // Wall maps are built at the first revisit that needs them; without a caller's cache, the new
   // submap's lives for this call and a partner's for its pair.
   WallMapCache local_own_walls;
-  const double sqrt_mean_weight = std::sqrt(points.mean_weight);
-  const PairContext context{id,
-                            &map,
-                            &points,
-                            pose,
-                            &config,
-                            &stream,
-                            aligner_config(config, sqrt_mean_weight),
-                            sqrt_mean_weight,
-                            own_walls ? own_walls : &local_own_walls,
-                            odometry};
+  const PairContext context = pair_context(id, map, points, pose, config, stream,
+                                           own_walls ? own_walls : &local_own_walls, odometry);
   for (const RegistrationPartner* partner :
        overlapping_partners(map, pose, earlier, config, footprint)) {
     SubmapConstraint constraint;
@@ -527,17 +536,8 @@ bool registration_constraint_from_guess(
     const Stream& stream, RegistrationCounts* counts, WallMapCache* own_walls,
     const RegistrationOdometry& odometry, SubmapConstraint* constraint) {
   WallMapCache local_own_walls;
-  const double sqrt_mean_weight = std::sqrt(points.mean_weight);
-  const PairContext context{id,
-                            &map,
-                            &points,
-                            pose,
-                            &config,
-                            &stream,
-                            aligner_config(config, sqrt_mean_weight),
-                            sqrt_mean_weight,
-                            own_walls ? own_walls : &local_own_walls,
-                            odometry};
+  const PairContext context = pair_context(id, map, points, pose, config, stream,
+                                           own_walls ? own_walls : &local_own_walls, odometry);
   return register_pair(context, partner, counts, constraint, &T_Sj_Si_guess);
 }
 
