@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "covoxslam/core/error.h"
+#include "covoxslam/io/lidar_bin_reader.h"
 #include "covoxslam/io/pcd_reader.h"
 #include "covoxslam/io/pose_file_readers.h"
 #include "sim_flight.h"
@@ -157,6 +158,21 @@ LidarKeyframeScanSource::LidarKeyframeScanSource(const std::string& path,
   }
 }
 
+namespace {
+
+// The scan's points: those of `cloud` at least `min_range_m` from the sensor, without colours.
+void keep_points_beyond(const io::PointCloud& cloud, double min_range_m, SourceScan* scan) {
+  scan->points_sensor_m.clear();
+  scan->colors.clear();
+  const float min_range_squared = static_cast<float>(min_range_m * min_range_m);
+  for (const Eigen::Vector3f& p : cloud.points_m) {
+    if (p.squaredNorm() >= min_range_squared)
+      scan->points_sensor_m.emplace_back(p.x(), p.y(), p.z());
+  }
+}
+
+}  // namespace
+
 bool LidarKeyframeScanSource::next(SourceScan* scan) {
   while (next_scan_ < odometry_.size()) {
     const size_t index = next_scan_++;
@@ -166,14 +182,7 @@ bool LidarKeyframeScanSource::next(SourceScan* scan) {
       const io::PointCloud cloud = io::read_pcd(cloud_path);
       scan->stamp_s = stamps_s_[index];
       scan->T_odom_sensor = odometry_[index];
-      scan->points_sensor_m.clear();
-      scan->colors.clear();
-      const float min_range_squared =
-          static_cast<float>(options_.min_range_m * options_.min_range_m);
-      for (const Eigen::Vector3f& p : cloud.points_m) {
-        if (p.squaredNorm() >= min_range_squared)
-          scan->points_sensor_m.emplace_back(p.x(), p.y(), p.z());
-      }
+      keep_points_beyond(cloud, options_.min_range_m, scan);
       return true;
     } catch (const Error& error) {
       log_dropped_scan(++dropped_, error.what());
@@ -259,34 +268,15 @@ bool LidarKeyframeGraphScanSource::next(SourceScan* scan) {
     const size_t index = next_scan_++;
     const std::string cloud_path =
         (fs::path(path_) / six_digits(static_cast<int>(index)) / "points.bin").string();
-    std::ifstream file(cloud_path, std::ios::binary);
-    std::vector<float> values;
-    if (file) {
-      file.seekg(0, std::ios::end);
-      const std::streamoff bytes = file.tellg();
-      file.seekg(0, std::ios::beg);
-      if (bytes > 0 && bytes % static_cast<std::streamoff>(3 * sizeof(float)) == 0) {
-        values.resize(static_cast<size_t>(bytes) / sizeof(float));
-        file.read(reinterpret_cast<char*>(values.data()), bytes);
-      }
+    try {
+      const io::PointCloud cloud = io::read_lidar_bin(cloud_path, io::BinPointLayout::kXyz);
+      scan->stamp_s = stamps_s_[index];
+      scan->T_odom_sensor = odometry_[index];
+      keep_points_beyond(cloud, options_.min_range_m, scan);
+      return true;
+    } catch (const Error& error) {
+      log_dropped_scan(++dropped_, error.what());
     }
-    if (values.empty() || !file) {
-      log_dropped_scan(++dropped_, "'" + cloud_path + "' is missing or not float32 x, y, z");
-      continue;
-    }
-    scan->stamp_s = stamps_s_[index];
-    scan->T_odom_sensor = odometry_[index];
-    scan->points_sensor_m.clear();
-    scan->colors.clear();
-    const double min_range_squared = options_.min_range_m * options_.min_range_m;
-    for (size_t k = 0; k + 2 < values.size(); k += 3) {
-      const Vec3f p(values[k], values[k + 1], values[k + 2]);
-      const double squared = static_cast<double>(p.x) * p.x + static_cast<double>(p.y) * p.y +
-                             static_cast<double>(p.z) * p.z;
-      if (std::isfinite(squared) && squared >= min_range_squared)
-        scan->points_sensor_m.push_back(p);
-    }
-    return true;
   }
   return false;
 }
