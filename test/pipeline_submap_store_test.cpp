@@ -1,11 +1,16 @@
-// The memory budget: a small budget forces finished submaps out of memory (compact, then spilled
-// to disk) on a lap of the yard that revisits its start; the map saved at the end and every
-// registration are identical to an unbounded run whose submaps went through the same codec.
+// The memory budget on a lap of the yard that revisits its start. A budget the run never reaches
+// changes nothing against no budget at all. A small budget forces finished submaps out of memory
+// (compact, then spilled to disk) and back for the revisits: the map saved at the end is the
+// unbounded run's byte for byte, and the registrations and the trajectory differ from it only by
+// what quantising the restored partners moves them.
 #include <gtest/gtest.h>
 
 #include <unistd.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
+#include <iostream>
 #include <string>
 #include <vector>
 
@@ -58,36 +63,61 @@ LapResult run_lap(const MemoryBudgetConfig& memory) {
   return result;
 }
 
-void expect_same_run(const LapResult& a, const LapResult& b) {
+// `tolerance_m`: how far constraint translations and trajectory positions (m) and yaws (rad) may
+// differ; 0: bit for bit.
+void expect_same_run(const LapResult& a, const LapResult& b, double tolerance_m) {
   EXPECT_EQ(a.ids, b.ids);
   ASSERT_EQ(a.saved.size(), b.saved.size());
   for (size_t k = 0; k < a.saved.size(); ++k) EXPECT_TRUE(a.saved[k] == b.saved[k]) << k;
   ASSERT_EQ(a.constraints.size(), b.constraints.size());
+  double worst_constraint = 0.0, worst_position = 0.0;
   for (size_t k = 0; k < a.constraints.size(); ++k) {
     const SubmapConstraint& x = a.constraints[k];
     const SubmapConstraint& y = b.constraints[k];
     EXPECT_EQ(x.kind, y.kind);
     EXPECT_EQ(x.from_submap, y.from_submap);
     EXPECT_EQ(x.to_submap, y.to_submap);
-    EXPECT_EQ(x.measurement.x, y.measurement.x);
-    EXPECT_EQ(x.measurement.y, y.measurement.y);
-    EXPECT_EQ(x.measurement.z, y.measurement.z);
-    EXPECT_EQ(x.measurement.yaw, y.measurement.yaw);
-    EXPECT_EQ(x.information, y.information);
+    const double differences[] = {x.measurement.x - y.measurement.x,
+                                  x.measurement.y - y.measurement.y,
+                                  x.measurement.z - y.measurement.z,
+                                  x.measurement.yaw - y.measurement.yaw};
+    for (double d : differences) worst_constraint = std::max(worst_constraint, std::abs(d));
+    if (tolerance_m == 0.0) EXPECT_EQ(x.information, y.information);
   }
   ASSERT_EQ(a.trajectory.size(), b.trajectory.size());
-  for (size_t k = 0; k < a.trajectory.size(); ++k)
-    EXPECT_EQ(a.trajectory[k].T_world_sensor.matrix(), b.trajectory[k].T_world_sensor.matrix());
+  for (size_t k = 0; k < a.trajectory.size(); ++k) {
+    const Eigen::Isometry3d& p = a.trajectory[k].T_world_sensor;
+    const Eigen::Isometry3d& q = b.trajectory[k].T_world_sensor;
+    worst_position = std::max(worst_position, (p.translation() - q.translation()).norm());
+    if (tolerance_m == 0.0) EXPECT_EQ(p.matrix(), q.matrix());
+  }
+  std::cout << "largest differences: constraint " << worst_constraint << ", position "
+            << worst_position << "\n";
+  EXPECT_LE(worst_constraint, tolerance_m);
+  EXPECT_LE(worst_position, tolerance_m);
   EXPECT_EQ(a.slice_points, b.slice_points);
 }
 
-TEST(SubmapStore, SmallBudgetSpillsAndGivesTheUnboundedRunsMapAndRegistrations) {
+MemoryBudgetConfig unbounded_budget() {
   MemoryBudgetConfig unbounded;
   unbounded.device_budget_mb = 1e6;
   unbounded.host_budget_mb = 1e6;
-  const LapResult reference = run_lap(unbounded);
-  EXPECT_EQ(reference.counters.memory.compactions, 0);
-  EXPECT_GT(reference.counters.registration.accepted, 0);
+  return unbounded;
+}
+
+TEST(SubmapStore, ABudgetNeverReachedChangesNothing) {
+  MemoryBudgetConfig none;
+  none.device_budget_mb = 0.0;  // no store at all
+  const LapResult reference = run_lap(none);
+  const LapResult unbounded = run_lap(unbounded_budget());
+  EXPECT_EQ(unbounded.counters.memory.compactions, 0);
+  EXPECT_EQ(unbounded.counters.memory.compact_bytes, 0);
+  EXPECT_GT(unbounded.counters.registration.accepted, 0);
+  expect_same_run(unbounded, reference, 0.0);
+}
+
+TEST(SubmapStore, SmallBudgetSpillsAndKeepsTheUnboundedRunsMapAndRegistrations) {
+  const LapResult reference = run_lap(unbounded_budget());
 
   MemoryBudgetConfig small;
   small.device_budget_mb = 1.0;  // one or two 8-voxel-block submaps of the yard
@@ -109,7 +139,9 @@ TEST(SubmapStore, SmallBudgetSpillsAndGivesTheUnboundedRunsMapAndRegistrations) 
   EXPECT_LE(memory.resident_bytes, static_cast<int64_t>(1.0 * 1024 * 1024) + 600000);
   EXPECT_EQ(memory.submaps_resident + memory.submaps_compact + memory.submaps_on_disk,
             static_cast<int64_t>(bounded.ids.size()));
-  expect_same_run(bounded, reference);
+  // Quantised distances are within truncation / 2^15 of the originals and weights within 2^-11
+  // of theirs: a restored partner moves an alignment by far less than a millimetre.
+  expect_same_run(bounded, reference, 1e-3);
 }
 
 TEST(SubmapStore, AFailedSpillKeepsTheSubmapInMemory) {

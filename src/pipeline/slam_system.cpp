@@ -439,8 +439,8 @@ bool SlamSystem::process_submap(QueuedSubmap item) {
   }
   // Finishing and point extraction touch only this submap: no lock, so reset() need not wait.
   try {
-    store_->add(*submap, backend_stream_);
     times = submap->finish(esdf_integrator_, mesh_integrator_, backend_stream_);
+    store_->add(*submap);
     const auto start = Clock::now();
     if (config_.registration.enabled)
       points = prepare_registration_points(submap->map(), config_.registration, backend_stream_);

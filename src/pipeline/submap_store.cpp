@@ -47,9 +47,9 @@ SubmapStore::~SubmapStore() {
   if (spill_fd_ >= 0) ::close(spill_fd_);
 }
 
-void SubmapStore::add(Submap& submap, const Stream& stream) {
+void SubmapStore::add(const Submap& submap) {
   if (!enabled()) return;
-  adopt(submap, quantize(submap, stream));
+  adopt(submap, {});
 }
 
 std::vector<uint8_t> SubmapStore::quantize(Submap& submap, const Stream& stream) const {
@@ -111,6 +111,11 @@ void SubmapStore::enforce(const std::vector<Submap*>& oldest_first, int64_t keep
     auto it = entries_.find(submap->id());
     if (submap->id() == keep || it == entries_.end() || !it->second.resident) continue;
     Entry& entry = it->second;
+    if (entry.size == 0) {  // first compaction: the one lossy step (see the header)
+      entry.bytes = io::encode_submap(submap->map(), distance_scale_m_);
+      entry.size = entry.bytes.size();
+      counters_.compact_bytes += static_cast<int64_t>(entry.size);
+    }
     // An empty map of the same configuration: the pools' memory is freed with the old one.
     submap->map() = TsdfMap(submap->map().device(), submap->map().config());
     entry.resident = false;
@@ -200,7 +205,7 @@ void SubmapStore::open_spill_file_locked() {
 std::vector<uint8_t> SubmapStore::encoded(int64_t id) {
   std::lock_guard<std::mutex> lock(mutex_);
   auto it = entries_.find(id);
-  if (it == entries_.end()) return {};
+  if (it == entries_.end() || it->second.size == 0) return {};
   if (!it->second.bytes.empty()) return it->second.bytes;
   return read_back_locked(id, it->second);
 }

@@ -1,15 +1,17 @@
 #pragma once
 // SubmapStore: where finished submaps' voxels live under a memory budget.
 //
-// Every finished submap goes through the compact codec once (io/submap_codec.h) before its ESDF,
-// mesh and registration points are computed, so its voxels are the decoded compact form from then
-// on. That makes leaving memory lossless: a submap is in one of three places,
+// A submap is in one of three places,
 //   resident - its full TsdfMap (TSDF, colour, ESDF) on the map's device,
-//   compact  - only its compact bytes, in host memory,
-//   on disk  - its compact bytes in the spill file (spill_directory),
-// and coming back (decode, load, ESDF recomputed by EsdfIntegrator::update_all) rebuilds exactly
-// the map it had when it was finished. Once the resident maps exceed device_budget_mb, the oldest
-// resident submaps (graph order) are compacted; once the compact bytes in memory exceed
+//   compact  - only its compact bytes (io/submap_codec.h), in host memory,
+//   on disk  - its compact bytes in the spill file (spill_directory).
+// Finished submaps stay resident with their voxels as integrated until the resident maps exceed
+// device_budget_mb; then the oldest resident submaps (graph order) are encoded and released.
+// Encoding quantises (int16 distance, half weights), so a submap's first compaction is the one
+// step that changes it: it comes back (decode, load, ESDF recomputed by
+// EsdfIntegrator::update_all) as the decoded compact form, and later compactions reuse the bytes
+// it came back from, so leaving and coming back again is lossless. A flight whose finished
+// submaps fit the budget is never quantised. Once the compact bytes in memory exceed
 // host_budget_mb, the oldest compact submaps go to disk. A failed spill write is logged and
 // counted, and the submap stays in memory: nothing is ever lost.
 //
@@ -67,16 +69,16 @@ class SubmapStore {
   SubmapStore(const SubmapStore&) = delete;
   SubmapStore& operator=(const SubmapStore&) = delete;
 
-  // False with device_budget_mb 0: the store does nothing and submaps stay as integrated.
+  // False with device_budget_mb 0: the store does nothing and submaps stay resident.
   bool enabled() const { return config_.device_budget_mb > 0.0; }
 
-  // A submap about to be finished: replaces its voxels by their compact form decoded, and keeps
-  // the compact bytes. Call before Submap::finish().
-  void add(Submap& submap, const Stream& stream);
-  // add() in two steps, for submaps built before they can be registered (load_submaps): the
-  // quantisation (returns the compact bytes; the submap's voxels become their decoded form) and
-  // taking the resident submap with its bytes into the store. With the store disabled, quantize()
-  // returns nothing and leaves the voxels, and adopt() does nothing.
+  // A finished submap (after Submap::finish()), resident with its voxels as integrated; it is
+  // encoded when it is first compacted.
+  void add(const Submap& submap);
+  // A loaded submap, already decoded from a map file: quantize() returns its compact bytes and
+  // makes its voxels their decoded form, adopt() takes the resident submap with those bytes, so
+  // it leaves memory losslessly from the start. With the store disabled, quantize() returns
+  // nothing and leaves the voxels, and adopt() does nothing.
   std::vector<uint8_t> quantize(Submap& submap, const Stream& stream) const;
   void adopt(const Submap& submap, std::vector<uint8_t> bytes);
   // Makes the submap's voxels resident again (decoded, ESDF recomputed); a no-op if they are.
@@ -86,7 +88,8 @@ class SubmapStore {
   // fit the host budget. `keep` (an id, or -1) stays resident.
   void enforce(const std::vector<Submap*>& oldest_first, int64_t keep);
   // The compact form of a submap the store holds (read back from the spill file if needed);
-  // empty when the store does not know the id.
+  // empty when the store does not know the id or the submap has never been compacted (its
+  // voxels are resident: encode them).
   std::vector<uint8_t> encoded(int64_t id);
   // Forgets every submap (reset, load): their bytes and the spill file's contents.
   void clear();
@@ -96,8 +99,8 @@ class SubmapStore {
 
  private:
   struct Entry {
-    std::vector<uint8_t> bytes;  // empty while on disk only
-    uint64_t size = 0;           // of the compact form
+    std::vector<uint8_t> bytes;  // empty while on disk only, or before the first compaction
+    uint64_t size = 0;           // of the compact form; 0 until the first compaction encodes it
     int64_t file_offset = -1;    // in the spill file, once written there
     bool resident = true;
     int64_t resident_bytes = 0;
