@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdint>
 #include <iostream>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -77,10 +78,9 @@ void expect_same_run(const LapResult& a, const LapResult& b, double tolerance_m)
     EXPECT_EQ(x.kind, y.kind);
     EXPECT_EQ(x.from_submap, y.from_submap);
     EXPECT_EQ(x.to_submap, y.to_submap);
-    const double differences[] = {x.measurement.x - y.measurement.x,
-                                  x.measurement.y - y.measurement.y,
-                                  x.measurement.z - y.measurement.z,
-                                  x.measurement.yaw - y.measurement.yaw};
+    const double differences[] = {
+        x.measurement.x - y.measurement.x, x.measurement.y - y.measurement.y,
+        x.measurement.z - y.measurement.z, x.measurement.yaw - y.measurement.yaw};
     for (double d : differences) worst_constraint = std::max(worst_constraint, std::abs(d));
     if (tolerance_m == 0.0) EXPECT_EQ(x.information, y.information);
   }
@@ -142,6 +142,49 @@ TEST(SubmapStore, SmallBudgetSpillsAndKeepsTheUnboundedRunsMapAndRegistrations) 
   // Quantised distances are within truncation / 2^15 of the originals and weights within 2^-11
   // of theirs: a restored partner moves an alignment by far less than a millimetre.
   expect_same_run(bounded, reference, 1e-3);
+}
+
+// A submap of `blocks` observed blocks of 8^3 voxels on the CPU.
+std::unique_ptr<Submap> submap_of_blocks(int64_t id, int blocks) {
+  TsdfMapConfig config;
+  config.voxels_per_side = 8;
+  auto submap = std::make_unique<Submap>(id, Device::kCpu, config, Eigen::Isometry3d::Identity());
+  std::vector<HostBlock> host(static_cast<size_t>(blocks));
+  for (int k = 0; k < blocks; ++k) {
+    host[k].index = Index3D(k, 0, 0);
+    host[k].tsdf.assign(512, TsdfVoxel{0.05f * (k + 1), 2.0f});
+    host[k].color.assign(512, ColorVoxel{});
+    host[k].esdf.assign(512, EsdfVoxel{});
+  }
+  submap->map().load_blocks(host, Stream());
+  return submap;
+}
+
+TEST(SubmapStore, TheLeastRecentlyUsedSubmapLeavesFirst) {
+  std::vector<std::unique_ptr<Submap>> submaps;
+  for (int64_t id = 0; id < 3; ++id) submaps.push_back(submap_of_blocks(id, 4));
+  const int64_t one_submap = voxel_pool_bytes(submaps[0]->map());
+  ASSERT_GT(one_submap, 0);
+  MemoryBudgetConfig budget;  // room for two of the three
+  budget.device_budget_mb = 2.5 * static_cast<double>(one_submap) / (1024.0 * 1024.0);
+  SubmapStore store(budget, 0.4f);
+  std::vector<Submap*> graph_order;
+  for (auto& submap : submaps) graph_order.push_back(submap.get());
+  EsdfIntegrator esdf{EsdfIntegratorConfig{}};
+  store.add(*submaps[0]);
+  store.add(*submaps[1]);
+  store.acquire(*submaps[0], esdf, Stream());  // submap 0 used again: 1 is now the least recent
+  store.add(*submaps[2]);
+  store.enforce(graph_order, -1);
+  EXPECT_EQ(store.counters().compactions, 1);
+  EXPECT_GT(submaps[0]->map().block_count(), 0);
+  EXPECT_EQ(submaps[1]->map().block_count(), 0);
+  EXPECT_GT(submaps[2]->map().block_count(), 0);
+  // Back for a revisit, then 2 is the least recently used.
+  store.acquire(*submaps[1], esdf, Stream());
+  store.enforce(graph_order, -1);
+  EXPECT_EQ(submaps[1]->map().block_count(), 4);
+  EXPECT_EQ(submaps[2]->map().block_count(), 0);
 }
 
 TEST(SubmapStore, AFailedSpillKeepsTheSubmapInMemory) {

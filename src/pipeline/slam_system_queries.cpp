@@ -63,7 +63,7 @@ std::vector<SlicePoint> SlamSystem::esdf_slice_world(double height_m) {
   std::unordered_map<uint64_t, SlicePoint> cells;
   const Stream stream = Stream::create(config_.device);
   for (const auto& [submap, T_world_submap] : submaps) {
-    acquire_locked(*submap);  // leaves again below, oldest first, to keep the budget
+    acquire_locked(*submap);  // leaves again below, least recently used first, to keep the budget
     enforce_budget_locked(submap->id());
     for (const SlicePoint& point :
          world_slice_of(submap->map(), T_world_submap, height_m, stream)) {

@@ -36,7 +36,7 @@ void SlamSystem::acquire_locked(Submap& submap) {
 
 void SlamSystem::enforce_budget_locked(int64_t keep) {
   if (!store_->enabled()) return;
-  std::vector<Submap*> oldest_first;
+  std::vector<Submap*> candidates;
   {
     std::lock_guard<std::mutex> lock(state_mutex_);
     // kJoint solves read the field submaps of its pairs at every optimisation: they stay.
@@ -44,10 +44,10 @@ void SlamSystem::enforce_budget_locked(int64_t keep) {
     for (const JointPair& pair : joint_pairs_) pinned.insert(pair.field_submap);
     for (const GraphSubmap& entry : graph_submaps_) {
       if (entry.submap && !pinned.count(entry.submap->id()))
-        oldest_first.push_back(entry.submap.get());
+        candidates.push_back(entry.submap.get());
     }
   }
-  store_->enforce(oldest_first, keep);
+  store_->enforce(candidates, keep);
 }
 
 void SlamSystem::acquire_partners_locked(const std::vector<const RegistrationPartner*>& partners) {

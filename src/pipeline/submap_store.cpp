@@ -3,12 +3,15 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "covoxslam/core/error.h"
 #include "covoxslam/core/log.h"
@@ -68,6 +71,7 @@ void SubmapStore::adopt(const Submap& submap, std::vector<uint8_t> bytes) {
   entry.size = entry.bytes.size();
   entry.resident_bytes = voxel_pool_bytes(submap.map());
   std::lock_guard<std::mutex> lock(mutex_);
+  entry.last_use = ++use_clock_;
   auto [it, inserted] = entries_.emplace(submap.id(), std::move(entry));
   if (!inserted) throw Error("SubmapStore: submap " + std::to_string(submap.id()) + " added twice");
   ++counters_.submaps_resident;
@@ -79,8 +83,10 @@ void SubmapStore::acquire(Submap& submap, EsdfIntegrator& esdf, const Stream& st
   if (!enabled()) return;
   std::lock_guard<std::mutex> lock(mutex_);
   auto it = entries_.find(submap.id());
-  if (it == entries_.end() || it->second.resident) return;
+  if (it == entries_.end()) return;
   Entry& entry = it->second;
+  entry.last_use = ++use_clock_;
+  if (entry.resident) return;
   const auto start = std::chrono::steady_clock::now();
   const bool from_disk = entry.bytes.empty();
   const std::vector<uint8_t> bytes = from_disk ? read_back_locked(submap.id(), entry) : entry.bytes;
@@ -102,39 +108,49 @@ void SubmapStore::acquire(Submap& submap, EsdfIntegrator& esdf, const Stream& st
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-void SubmapStore::enforce(const std::vector<Submap*>& oldest_first, int64_t keep) {
+void SubmapStore::enforce(const std::vector<Submap*>& candidates, int64_t keep) {
   if (!enabled()) return;
   std::lock_guard<std::mutex> lock(mutex_);
-  const double device_budget = config_.device_budget_mb * kBytesPerMb;
-  for (Submap* submap : oldest_first) {
-    if (static_cast<double>(counters_.resident_bytes) <= device_budget) break;
+  std::vector<std::pair<Submap*, Entry*>> least_recent_first;
+  least_recent_first.reserve(candidates.size());
+  for (Submap* submap : candidates) {
     auto it = entries_.find(submap->id());
-    if (submap->id() == keep || it == entries_.end() || !it->second.resident) continue;
-    Entry& entry = it->second;
-    if (entry.size == 0) {  // first compaction: the one lossy step (see the header)
-      entry.bytes = io::encode_submap(submap->map(), distance_scale_m_);
-      entry.size = entry.bytes.size();
-      counters_.compact_bytes += static_cast<int64_t>(entry.size);
-    }
-    // An empty map of the same configuration: the pools' memory is freed with the old one.
-    submap->map() = TsdfMap(submap->map().device(), submap->map().config());
-    entry.resident = false;
-    counters_.resident_bytes -= entry.resident_bytes;
-    entry.resident_bytes = 0;
-    --counters_.submaps_resident;
-    ++counters_.compactions;
-    if (entry.bytes.empty()) {
-      ++counters_.submaps_on_disk;  // came back from disk for a while; its copy there is current
-    } else {
-      ++counters_.submaps_compact;
-    }
+    if (submap->id() != keep && it != entries_.end())
+      least_recent_first.emplace_back(submap, &it->second);
+  }
+  std::stable_sort(
+      least_recent_first.begin(), least_recent_first.end(),
+      [](const auto& a, const auto& b) { return a.second->last_use < b.second->last_use; });
+  const double device_budget = config_.device_budget_mb * kBytesPerMb;
+  for (auto& [submap, entry] : least_recent_first) {
+    if (static_cast<double>(counters_.resident_bytes) <= device_budget) break;
+    if (entry->resident) compact_locked(*submap, *entry);
   }
   const double host_budget = config_.host_budget_mb * kBytesPerMb;
-  for (Submap* submap : oldest_first) {
+  for (auto& [submap, entry] : least_recent_first) {
     if (static_cast<double>(counters_.compact_bytes) <= host_budget) break;
-    auto it = entries_.find(submap->id());
-    if (it == entries_.end() || it->second.resident || it->second.bytes.empty()) continue;
-    if (!spill_locked(submap->id(), it->second)) break;  // no disk: keep everything in memory
+    if (entry->resident || entry->bytes.empty()) continue;
+    if (!spill_locked(submap->id(), *entry)) break;  // no disk: keep everything in memory
+  }
+}
+
+void SubmapStore::compact_locked(Submap& submap, Entry& entry) {
+  if (entry.size == 0) {  // first compaction: the one lossy step (see the header)
+    entry.bytes = io::encode_submap(submap.map(), distance_scale_m_);
+    entry.size = entry.bytes.size();
+    counters_.compact_bytes += static_cast<int64_t>(entry.size);
+  }
+  // An empty map of the same configuration: the pools' memory is freed with the old one.
+  submap.map() = TsdfMap(submap.map().device(), submap.map().config());
+  entry.resident = false;
+  counters_.resident_bytes -= entry.resident_bytes;
+  entry.resident_bytes = 0;
+  --counters_.submaps_resident;
+  ++counters_.compactions;
+  if (entry.bytes.empty()) {
+    ++counters_.submaps_on_disk;  // came back from disk for a while; its copy there is current
+  } else {
+    ++counters_.submaps_compact;
   }
 }
 

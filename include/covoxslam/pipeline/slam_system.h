@@ -467,7 +467,8 @@ class SlamSystem {
   // footprints, so the choice itself needs no voxels).
   void acquire_partners_locked(const std::vector<const RegistrationPartner*>& partners);
   void acquire_locked(Submap& submap);
-  // Compacts and spills down to the budgets, oldest first; `keep` (an id, or -1) stays.
+  // Compacts and spills down to the budgets, least recently used first; `keep` (an id, or -1)
+  // stays.
   void enforce_budget_locked(int64_t keep);
   void join_threads();
   // The correction T_W_odom for scans of submap `submap_id`; needs state_mutex_.

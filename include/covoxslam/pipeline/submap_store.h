@@ -6,14 +6,15 @@
 //   compact  - only its compact bytes (io/submap_codec.h), in host memory,
 //   on disk  - its compact bytes in the spill file (spill_directory).
 // Finished submaps stay resident with their voxels as integrated until the resident maps exceed
-// device_budget_mb; then the oldest resident submaps (graph order) are encoded and released.
+// device_budget_mb; then the least recently used resident submaps (added or acquired longest
+// ago) are encoded and released, so the partners of a revisit stay while it goes on.
 // Encoding quantises (int16 distance, half weights), so a submap's first compaction is the one
 // step that changes it: it comes back (decode, load, ESDF recomputed by
 // EsdfIntegrator::update_all) as the decoded compact form, and later compactions reuse the bytes
 // it came back from, so leaving and coming back again is lossless. A flight whose finished
 // submaps fit the budget is never quantised. Once the compact bytes in memory exceed
-// host_budget_mb, the oldest compact submaps go to disk. A failed spill write is logged and
-// counted, and the submap stays in memory: nothing is ever lost.
+// host_budget_mb, the least recently used compact submaps go to disk. A failed spill write is
+// logged and counted, and the submap stays in memory: nothing is ever lost.
 //
 // The store is driven by SlamSystem under its backend_mutex_ (every call that changes a submap's
 // voxels), and keeps its own mutex for the counters and the bytes it holds.
@@ -34,7 +35,8 @@ struct MemoryBudgetConfig {
   // Full (resident) finished submaps, in MiB of voxel pools on the map's device. 0: no budget and
   // no compact form: finished submaps keep their voxels exactly as integrated.
   double device_budget_mb = 1536.0;
-  // Compact submaps held in host memory, MiB; beyond it the oldest go to the spill file.
+  // Compact submaps held in host memory, MiB; beyond it the least recently used go to the spill
+  // file.
   double host_budget_mb = 1536.0;
   // Folder of the spill file (created when first needed, removed from the folder at once so it
   // disappears with the process). Empty: the system's temporary folder.
@@ -81,12 +83,13 @@ class SubmapStore {
   // nothing and leaves the voxels, and adopt() does nothing.
   std::vector<uint8_t> quantize(Submap& submap, const Stream& stream) const;
   void adopt(const Submap& submap, std::vector<uint8_t> bytes);
-  // Makes the submap's voxels resident again (decoded, ESDF recomputed); a no-op if they are.
+  // Makes the submap's voxels resident again (decoded, ESDF recomputed; a no-op if they are) and
+  // marks it used.
   void acquire(Submap& submap, EsdfIntegrator& esdf, const Stream& stream);
-  // Compacts resident submaps, oldest (first in `oldest_first`) first, until the resident bytes
-  // fit the device budget, then spills the oldest compact ones until the bytes in host memory
-  // fit the host budget. `keep` (an id, or -1) stays resident.
-  void enforce(const std::vector<Submap*>& oldest_first, int64_t keep);
+  // Compacts resident submaps among `candidates`, least recently used first, until the resident
+  // bytes fit the device budget, then spills compact ones, least recently used first, until the
+  // bytes in host memory fit the host budget. `keep` (an id, or -1) stays resident.
+  void enforce(const std::vector<Submap*>& candidates, int64_t keep);
   // The compact form of a submap the store holds (read back from the spill file if needed);
   // empty when the store does not know the id or the submap has never been compacted (its
   // voxels are resident: encode them).
@@ -104,7 +107,10 @@ class SubmapStore {
     int64_t file_offset = -1;    // in the spill file, once written there
     bool resident = true;
     int64_t resident_bytes = 0;
+    uint64_t last_use = 0;  // use_clock_ at the latest add or acquire
   };
+  // Encodes the submap on its first compaction and releases its voxels.
+  void compact_locked(Submap& submap, Entry& entry);
   // Appends the entry's bytes to the spill file; false (logged, counted) when that fails.
   bool spill_locked(int64_t id, Entry& entry);
   std::vector<uint8_t> read_back_locked(int64_t id, const Entry& entry);
@@ -115,6 +121,7 @@ class SubmapStore {
   mutable std::mutex mutex_;
   std::unordered_map<int64_t, Entry> entries_;
   SubmapStoreCounters counters_;
+  uint64_t use_clock_ = 0;
   int spill_fd_ = -1;
   int64_t spill_end_ = 0;
 };
