@@ -43,7 +43,7 @@ using testing_support::relative_difference;
 // solvers' paths (+-10 cm, +-1.5 degrees about the truth and the initial guess), which makes the
 // objective continuous where the comparison with Ceres happens.
 struct RoomGraph {
-  std::vector<std::unique_ptr<TsdfMap>> maps;
+  std::vector<std::unique_ptr<map::TsdfMap>> maps;
   std::vector<std::unique_ptr<RegistrationPoints>> points;  // per term (filtered as above)
   std::vector<RegistrationTerm> terms;
   std::vector<Pose4Dof> truth;
@@ -67,7 +67,8 @@ std::vector<Pose4Dof> perturbed_guess(const std::vector<Pose4Dof>& truth) {
 
 // The points of `all` that are valid against map_j at every pose pair (pose_i, pose_j) from the
 // given lists with pose_i also moved by +-10 cm along each axis and +-1.5 degrees of yaw.
-RegistrationPoints points_inside_neighbourhood(const RegistrationPoints& all, const TsdfMap& map_j,
+RegistrationPoints points_inside_neighbourhood(const RegistrationPoints& all,
+                                               const map::TsdfMap& map_j,
                                                const std::vector<Pose4Dof>& poses_i,
                                                const std::vector<Pose4Dof>& poses_j,
                                                const RegistrationResidualConfig& config,

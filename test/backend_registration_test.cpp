@@ -34,7 +34,7 @@ constexpr float kVoxelM = 0.1f;
 // submap j's frame is the world, submap i's frame is its sensor pose (voxgraph puts a submap's
 // origin at the robot), so the true T_Sj_Si is the second sensor pose.
 struct SubmapPair {
-  std::unique_ptr<TsdfMap> map_i, map_j;
+  std::unique_ptr<map::TsdfMap> map_i, map_j;
   Pose4Dof true_T_Sj_Si;
 };
 

@@ -50,10 +50,10 @@ std::vector<Index3D> random_blocks(size_t count, size_t distinct, uint32_t seed,
 struct ActivateOutput {
   std::vector<uint32_t> slots;
   std::vector<uint8_t> is_new;
-  ActivateResult result;
+  map::ActivateResult result;
 };
 
-ActivateOutput activate(BlockHashTable& table, const std::vector<Index3D>& keys) {
+ActivateOutput activate(map::BlockHashTable& table, const std::vector<Index3D>& keys) {
   auto keys_device = Buffer<Index3D>::from_host(table.device(), keys);
   Buffer<uint32_t> slots(table.device(), keys.size());
   Buffer<uint8_t> is_new(table.device(), keys.size());
@@ -64,14 +64,14 @@ ActivateOutput activate(BlockHashTable& table, const std::vector<Index3D>& keys)
   return output;
 }
 
-std::vector<uint32_t> find(const BlockHashTable& table, const std::vector<Index3D>& keys) {
+std::vector<uint32_t> find(const map::BlockHashTable& table, const std::vector<Index3D>& keys) {
   auto keys_device = Buffer<Index3D>::from_host(table.device(), keys);
   Buffer<uint32_t> slots(table.device(), keys.size());
   table.find(keys_device.data(), keys.size(), slots.data());
   return slots.to_host();
 }
 
-int64_t erase(BlockHashTable& table, const std::vector<Index3D>& keys) {
+int64_t erase(map::BlockHashTable& table, const std::vector<Index3D>& keys) {
   auto keys_device = Buffer<Index3D>::from_host(table.device(), keys);
   return table.erase(keys_device.data(), keys.size());
 }
@@ -79,7 +79,7 @@ int64_t erase(BlockHashTable& table, const std::vector<Index3D>& keys) {
 // Applies one activate batch to the reference and checks the table's answer against it:
 // known keys keep their slot, each new key is flagged new exactly once, every occurrence of a
 // key in the batch gets the same slot, and no two live keys share a slot.
-void activate_and_check(BlockHashTable& table, ReferenceMap& reference,
+void activate_and_check(map::BlockHashTable& table, ReferenceMap& reference,
                         const std::vector<Index3D>& keys) {
   const ActivateOutput output = activate(table, keys);
   ASSERT_TRUE(output.result.ok());
@@ -87,7 +87,7 @@ void activate_and_check(BlockHashTable& table, ReferenceMap& reference,
   int64_t flagged_new = 0;
   for (size_t i = 0; i < keys.size(); ++i) {
     const uint32_t slot = output.slots[i];
-    ASSERT_NE(slot, kInvalidSlot) << "key " << i;
+    ASSERT_NE(slot, map::kInvalidSlot) << "key " << i;
     auto known = reference.find(keys[i]);
     if (known != reference.end()) {
       ASSERT_EQ(slot, known->second) << "a known key changed its slot";
@@ -113,7 +113,7 @@ void activate_and_check(BlockHashTable& table, ReferenceMap& reference,
   }
 }
 
-void expect_table_matches(const BlockHashTable& table, const ReferenceMap& reference) {
+void expect_table_matches(const map::BlockHashTable& table, const ReferenceMap& reference) {
   std::vector<Index3D> keys;
   std::vector<uint32_t> expected;
   for (const auto& entry : reference) {
@@ -127,7 +127,7 @@ void expect_table_matches(const BlockHashTable& table, const ReferenceMap& refer
 class BlockHashTableTest : public DeviceTest {};
 
 TEST_P(BlockHashTableTest, MatchesUnorderedMapOnAMillionDuplicatedKeys) {
-  BlockHashTable table(device(), BlockHashTableConfig{1 << 12, 0.75, true});
+  map::BlockHashTable table(device(), map::BlockHashTableConfig{1 << 12, 0.75, true});
   ReferenceMap reference;
   const auto keys = random_blocks(1200000, 150000, 1);  // each key about 8 times
   const size_t batch = 200000;
@@ -143,13 +143,13 @@ TEST_P(BlockHashTableTest, MatchesUnorderedMapOnAMillionDuplicatedKeys) {
   const auto absent_slots = find(table, absent);
   for (size_t i = 0; i < absent.size(); ++i) {
     if (!reference.count(absent[i])) {
-      ASSERT_EQ(absent_slots[i], kInvalidSlot);
+      ASSERT_EQ(absent_slots[i], map::kInvalidSlot);
     }
   }
 }
 
 TEST_P(BlockHashTableTest, OneBatchOfOneKeyRepeatedRacesToASingleInsert) {
-  BlockHashTable table(device());
+  map::BlockHashTable table(device());
   const std::vector<Index3D> keys(100000, Index3D(-3, 7, 11));
   const ActivateOutput output = activate(table, keys);
   EXPECT_EQ(output.result.num_new, 1);
@@ -160,7 +160,7 @@ TEST_P(BlockHashTableTest, OneBatchOfOneKeyRepeatedRacesToASingleInsert) {
 }
 
 TEST_P(BlockHashTableTest, EraseAndReinsertCyclesReuseSlots) {
-  BlockHashTable table(device(), BlockHashTableConfig{1 << 10, 0.75, true});
+  map::BlockHashTable table(device(), map::BlockHashTableConfig{1 << 10, 0.75, true});
   ReferenceMap reference;
   const auto universe = random_blocks(60000, 60000, 3);  // distinct
   activate_and_check(table, reference, universe);
@@ -181,7 +181,7 @@ TEST_P(BlockHashTableTest, EraseAndReinsertCyclesReuseSlots) {
     const auto gone =
         find(table, std::vector<Index3D>(distinct_erased.begin(), distinct_erased.end()));
     EXPECT_TRUE(
-        std::all_of(gone.begin(), gone.end(), [](uint32_t s) { return s == kInvalidSlot; }));
+        std::all_of(gone.begin(), gone.end(), [](uint32_t s) { return s == map::kInvalidSlot; }));
     // Re-insert everything (mix of present and absent keys).
     activate_and_check(table, reference, universe);
     // Freed slots are reused: the slot range never exceeds the live maximum.
@@ -190,7 +190,7 @@ TEST_P(BlockHashTableTest, EraseAndReinsertCyclesReuseSlots) {
 }
 
 TEST_P(BlockHashTableTest, GrowsThroughSeveralRehashesKeepingSlots) {
-  BlockHashTable table(device(), BlockHashTableConfig{64, 0.7, true});
+  map::BlockHashTable table(device(), map::BlockHashTableConfig{64, 0.7, true});
   ReferenceMap reference;
   const auto keys = random_blocks(300000, 100000, 7);
   for (size_t begin = 0; begin < keys.size(); begin += 25000) {
@@ -206,7 +206,7 @@ TEST_P(BlockHashTableTest, StaysCorrectAtHighLoadFactorsWithoutGrowth) {
   for (const double load : {0.5, 0.7, 0.85, 0.9}) {
     const size_t key_count = 200000;
     const uint64_t buckets = static_cast<uint64_t>(key_count / load);
-    BlockHashTable table(device(), BlockHashTableConfig{buckets, 0.5, false});
+    map::BlockHashTable table(device(), map::BlockHashTableConfig{buckets, 0.5, false});
     ReferenceMap reference;
     const auto keys = random_blocks(key_count, key_count, 11);  // distinct
     activate_and_check(table, reference, keys);
@@ -217,7 +217,7 @@ TEST_P(BlockHashTableTest, StaysCorrectAtHighLoadFactorsWithoutGrowth) {
 }
 
 TEST_P(BlockHashTableTest, FullTableFailsCleanlyAndSaysSo) {
-  BlockHashTable table(device(), BlockHashTableConfig{1000, 0.5, false});
+  map::BlockHashTable table(device(), map::BlockHashTableConfig{1000, 0.5, false});
   const auto keys = random_blocks(1500, 1500, 13);
   const ActivateOutput output = activate(table, keys);
   EXPECT_EQ(output.result.num_new, 1000);
@@ -231,28 +231,29 @@ TEST_P(BlockHashTableTest, FullTableFailsCleanlyAndSaysSo) {
 }
 
 TEST_P(BlockHashTableTest, RejectsOutOfRangeKeysWithoutWrapping) {
-  BlockHashTable table(device());
+  map::BlockHashTable table(device());
   const std::vector<Index3D> keys = {
-      Index3D(kMaxBlockIndex, kMinBlockIndex, 0),  // the extremes are valid
-      Index3D(kMaxBlockIndex + 1, 0, 0),           // would wrap onto kMinBlockIndex
-      Index3D(0, kMinBlockIndex - 1, 0), Index3D(0, 0, 1 << 30), Index3D(kMinBlockIndex, 0, 0)};
+      Index3D(map::kMaxBlockIndex, map::kMinBlockIndex, 0),  // the extremes are valid
+      Index3D(map::kMaxBlockIndex + 1, 0, 0),                // would wrap onto kMinBlockIndex
+      Index3D(0, map::kMinBlockIndex - 1, 0), Index3D(0, 0, 1 << 30),
+      Index3D(map::kMinBlockIndex, 0, 0)};
   const ActivateOutput output = activate(table, keys);
   EXPECT_EQ(output.result.num_out_of_range, 3);
   EXPECT_EQ(output.result.num_new, 2);
   EXPECT_EQ(table.total_out_of_range(), 3);
-  EXPECT_NE(output.slots[0], kInvalidSlot);
-  EXPECT_EQ(output.slots[1], kInvalidSlot);
-  EXPECT_EQ(output.slots[2], kInvalidSlot);
-  EXPECT_EQ(output.slots[3], kInvalidSlot);
-  EXPECT_NE(output.slots[4], kInvalidSlot);
+  EXPECT_NE(output.slots[0], map::kInvalidSlot);
+  EXPECT_EQ(output.slots[1], map::kInvalidSlot);
+  EXPECT_EQ(output.slots[2], map::kInvalidSlot);
+  EXPECT_EQ(output.slots[3], map::kInvalidSlot);
+  EXPECT_NE(output.slots[4], map::kInvalidSlot);
   EXPECT_NE(output.slots[4], output.slots[0]);
   // An out-of-range key is never found, not even as its wrapped twin.
-  const auto found = find(table, {Index3D(kMaxBlockIndex + 1, 0, 0)});
-  EXPECT_EQ(found[0], kInvalidSlot);
+  const auto found = find(table, {Index3D(map::kMaxBlockIndex + 1, 0, 0)});
+  EXPECT_EQ(found[0], map::kInvalidSlot);
 }
 
 TEST_P(BlockHashTableTest, ExportListsEveryLiveEntry) {
-  BlockHashTable table(device());
+  map::BlockHashTable table(device());
   ReferenceMap reference;
   activate_and_check(table, reference, random_blocks(5000, 3000, 17));
   erase(table, {reference.begin()->first});
@@ -268,12 +269,12 @@ TEST_P(BlockHashTableTest, ExportListsEveryLiveEntry) {
 }
 
 TEST(BlockKey, PacksAndUnpacksTheWholeRange) {
-  for (int32_t v : {kMinBlockIndex, -1, 0, 1, kMaxBlockIndex}) {
-    const Index3D index(v, -v - 1 >= kMinBlockIndex ? -v - 1 : v, v / 2);
-    EXPECT_EQ(unpack_block_key(pack_block_key(index)), index);
-    EXPECT_LT(pack_block_key(index), kInvalidBlockKey);
+  for (int32_t v : {map::kMinBlockIndex, -1, 0, 1, map::kMaxBlockIndex}) {
+    const Index3D index(v, -v - 1 >= map::kMinBlockIndex ? -v - 1 : v, v / 2);
+    EXPECT_EQ(map::unpack_block_key(map::pack_block_key(index)), index);
+    EXPECT_LT(map::pack_block_key(index), map::kInvalidBlockKey);
   }
-  EXPECT_EQ(pack_block_key(Index3D(kMaxBlockIndex + 1, 0, 0)), kInvalidBlockKey);
+  EXPECT_EQ(map::pack_block_key(Index3D(map::kMaxBlockIndex + 1, 0, 0)), map::kInvalidBlockKey);
 }
 
 // activate_queued + finish_queued_activation against activate() on a twin table: the first
@@ -284,17 +285,17 @@ TEST(BlockKey, PacksAndUnpacksTheWholeRange) {
 // the same set of slots as activate() hands out, entries past the count get kInvalidSlot; other
 // calls are refused until the activation is finished.
 TEST_P(BlockHashTableTest, QueuedActivationMatchesActivate) {
-  const BlockHashTableConfig config{1 << 14, 0.75, true};
-  BlockHashTable queued(device(), config), direct(device(), config);
+  const map::BlockHashTableConfig config{1 << 14, 0.75, true};
+  map::BlockHashTable queued(device(), config), direct(device(), config);
   const auto first = random_blocks(3000, 3000, 5);
-  for (BlockHashTable* table : {&queued, &direct}) {
+  for (map::BlockHashTable* table : {&queued, &direct}) {
     activate(*table, first);
     erase(*table, std::vector<Index3D>(first.begin(), first.begin() + 500));  // slots to reuse
   }
   std::vector<Index3D> keys = random_blocks(6000, 2500, 6);
   keys.insert(keys.begin() + 10, first.begin() + 100,
-              first.begin() + 1100);             // erased and live keys
-  keys[20] = Index3D(kMaxBlockIndex + 1, 0, 0);  // rejected
+              first.begin() + 1100);                  // erased and live keys
+  keys[20] = Index3D(map::kMaxBlockIndex + 1, 0, 0);  // rejected
   const int64_t count = 5200, bound = static_cast<int64_t>(keys.size());
   const std::vector<Index3D> counted(keys.begin(), keys.begin() + count);
   const std::vector<uint32_t> before = find(queued, counted);
@@ -310,7 +311,7 @@ TEST_P(BlockHashTableTest, QueuedActivationMatchesActivate) {
   EXPECT_THROW(erase(queued, counted), Error);
   stream.synchronize();
   const std::vector<uint32_t> host_totals = totals.to_host();
-  const ActivateResult result =
+  const map::ActivateResult result =
       queued.finish_queued_activation(host_totals[0], host_totals[1], stream);
   const ActivateOutput expected = activate(direct, counted);
   EXPECT_EQ(result.num_new, expected.result.num_new);
@@ -324,10 +325,10 @@ TEST_P(BlockHashTableTest, QueuedActivationMatchesActivate) {
   int64_t flagged = 0;
   for (int64_t i = 0; i < count; ++i) {
     if (i == 20) {
-      ASSERT_EQ(host_slots[i], kInvalidSlot);
+      ASSERT_EQ(host_slots[i], map::kInvalidSlot);
       continue;
     }
-    if (before[i] != kInvalidSlot) {
+    if (before[i] != map::kInvalidSlot) {
       ASSERT_EQ(host_slots[i], before[i]) << "a known key changed its slot, key " << i;
       ASSERT_EQ(host_is_new[i], 0) << "key " << i;
       continue;
@@ -340,7 +341,7 @@ TEST_P(BlockHashTableTest, QueuedActivationMatchesActivate) {
   EXPECT_EQ(flagged, static_cast<int64_t>(new_slots.size()));
   EXPECT_EQ(result.num_new, static_cast<int64_t>(new_slots.size()));
   for (int64_t i = count; i < bound; ++i) {
-    ASSERT_EQ(host_slots[i], kInvalidSlot) << "key " << i;
+    ASSERT_EQ(host_slots[i], map::kInvalidSlot) << "key " << i;
     ASSERT_EQ(host_is_new[i], 0) << "key " << i;
   }
   std::set<uint32_t> queued_new, direct_new;
@@ -357,7 +358,7 @@ TEST_P(BlockHashTableTest, QueuedActivationMatchesActivate) {
 }
 
 TEST_P(BlockHashTableTest, QueuedActivationDeclinesWhenTheTableMightGrow) {
-  BlockHashTable table(device(), BlockHashTableConfig{1024, 0.75, true});
+  map::BlockHashTable table(device(), map::BlockHashTableConfig{1024, 0.75, true});
   const auto keys = random_blocks(1000, 1000, 8);
   auto keys_device = Buffer<Index3D>::from_host(device(), keys);
   auto count_device = Buffer<uint32_t>::from_host(device(), {10u});
@@ -378,20 +379,20 @@ TEST_P(BlockHashTableTest, QueuedActivationDeclinesWhenTheTableMightGrow) {
 // (freed ones first), a key outside the key range is rejected and counted, and the table is
 // locked until the totals are handed back.
 TEST(BlockActivatorTest, InKernelActivationMatchesActivate) {
-  const BlockHashTableConfig config{1 << 14, 0.75, true};
-  BlockHashTable in_kernel(Device::kCpu, config), direct(Device::kCpu, config);
+  const map::BlockHashTableConfig config{1 << 14, 0.75, true};
+  map::BlockHashTable in_kernel(Device::kCpu, config), direct(Device::kCpu, config);
   const auto first = random_blocks(3000, 3000, 5);
-  for (BlockHashTable* table : {&in_kernel, &direct}) {
+  for (map::BlockHashTable* table : {&in_kernel, &direct}) {
     activate(*table, first);
     erase(*table, std::vector<Index3D>(first.begin(), first.begin() + 500));  // slots to reuse
   }
   std::vector<Index3D> keys(first.begin() + 100, first.begin() + 1100);  // erased and live keys
   for (const Index3D& key : random_blocks(2500, 2500, 6, 100000)) keys.push_back(key);
-  keys.push_back(Index3D(kMaxBlockIndex + 1, 0, 0));  // rejected
+  keys.push_back(Index3D(map::kMaxBlockIndex + 1, 0, 0));  // rejected
   const std::vector<uint32_t> before = find(in_kernel, keys);
 
   const Stream stream(Device::kCpu);
-  BlockActivator activator;
+  map::BlockActivator activator;
   ASSERT_TRUE(
       in_kernel.begin_in_kernel_activation(static_cast<int64_t>(keys.size()), &activator, stream));
   EXPECT_THROW(activate(in_kernel, keys), Error);
@@ -405,7 +406,7 @@ TEST(BlockActivatorTest, InKernelActivationMatchesActivate) {
   }
   uint32_t totals[3];
   activator.hand_over_totals(totals);
-  const ActivateResult result =
+  const map::ActivateResult result =
       in_kernel.finish_in_kernel_activation(totals[0], totals[1], totals[2]);
   const ActivateOutput expected = activate(direct, keys);
   EXPECT_EQ(result.num_new, expected.result.num_new);
@@ -414,10 +415,10 @@ TEST(BlockActivatorTest, InKernelActivationMatchesActivate) {
   std::set<uint32_t> in_kernel_new, direct_new;
   for (size_t i = 0; i < keys.size(); ++i) {
     if (i + 1 == keys.size()) {
-      EXPECT_EQ(slots[i], kInvalidSlot);
+      EXPECT_EQ(slots[i], map::kInvalidSlot);
       continue;
     }
-    if (before[i] != kInvalidSlot) {
+    if (before[i] != map::kInvalidSlot) {
       ASSERT_EQ(slots[i], before[i]) << "a known key changed its slot, key " << i;
       ASSERT_EQ(is_new[i], 0) << "key " << i;
     } else {
@@ -443,10 +444,10 @@ TEST(BlockActivatorTest, InKernelActivationMatchesActivate) {
 // in-kernel or queued: the table takes later calls, and the keys inserted so far keep the slots
 // they got, none of which is handed out again.
 TEST(BlockActivatorTest, AnAbandonedActivationLeavesTheTableConsistent) {
-  BlockHashTable table(Device::kCpu, BlockHashTableConfig{1 << 12, 0.75, true});
+  map::BlockHashTable table(Device::kCpu, map::BlockHashTableConfig{1 << 12, 0.75, true});
   const auto keys = random_blocks(600, 600, 9);
   const Stream stream(Device::kCpu);
-  BlockActivator activator;
+  map::BlockActivator activator;
   ASSERT_TRUE(
       table.begin_in_kernel_activation(static_cast<int64_t>(keys.size()), &activator, stream));
   std::vector<uint32_t> slots(300);
@@ -483,8 +484,9 @@ TEST(BlockActivatorTest, AnAbandonedActivationLeavesTheTableConsistent) {
 }
 
 TEST(BlockHashTableConfigCheck, RejectsBadParameters) {
-  EXPECT_THROW(BlockHashTable(Device::kCpu, BlockHashTableConfig{1024, 1.5, true}), Error);
-  EXPECT_THROW(BlockHashTable(Device::kCpu, BlockHashTableConfig{0, 0.5, true}), Error);
+  EXPECT_THROW(map::BlockHashTable(Device::kCpu, map::BlockHashTableConfig{1024, 1.5, true}),
+               Error);
+  EXPECT_THROW(map::BlockHashTable(Device::kCpu, map::BlockHashTableConfig{0, 0.5, true}), Error);
 }
 
 COVOX_INSTANTIATE_ON_ALL_DEVICES(BlockHashTableTest);
@@ -493,8 +495,8 @@ COVOX_INSTANTIATE_ON_ALL_DEVICES(BlockHashTableTest);
 // the input order of new keys), and with duplicated batches both map keys to slots one-to-one.
 TEST(BlockHashTableParity, CpuAndCudaAssignConsistentSlots) {
   COVOX_SKIP_WITHOUT_GPU();
-  BlockHashTable cpu(Device::kCpu, BlockHashTableConfig{256, 0.75, true});
-  BlockHashTable gpu(Device::kCuda, BlockHashTableConfig{256, 0.75, true});
+  map::BlockHashTable cpu(Device::kCpu, map::BlockHashTableConfig{256, 0.75, true});
+  map::BlockHashTable gpu(Device::kCuda, map::BlockHashTableConfig{256, 0.75, true});
   const auto distinct = random_blocks(200000, 200000, 21);
   const auto cpu_distinct = activate(cpu, distinct);
   const auto gpu_distinct = activate(gpu, distinct);

@@ -23,13 +23,13 @@ constexpr float kMaxDistance = 0.5f;
 
 struct ObservedVoxel {
   float tsdf;
-  EsdfVoxel esdf;
+  map::EsdfVoxel esdf;
 };
 
-std::map<Index3D, ObservedVoxel> observed_voxels(const TsdfMap& map, float min_weight) {
+std::map<Index3D, ObservedVoxel> observed_voxels(const map::TsdfMap& map, float min_weight) {
   std::map<Index3D, ObservedVoxel> voxels;
   const int side = map.voxels_per_side();
-  for (const HostBlock& block : map.snapshot()) {
+  for (const map::HostBlock& block : map.snapshot()) {
     for (int k = 0; k < side * side * side; ++k) {
       if (block.tsdf[k].weight < min_weight) continue;
       const Index3D global(block.index.x * side + k % side,
@@ -44,7 +44,8 @@ std::map<Index3D, ObservedVoxel> observed_voxels(const TsdfMap& map, float min_w
 // The reference: for every observed voxel, the distance to the nearest site found by checking
 // every voxel within the maximum distance, signed by the TSDF, clamped like the ESDF.
 // Returns the largest absolute difference to the ESDF.
-double max_error_against_brute_force(const TsdfMap& map, const EsdfIntegratorConfig& config,
+double max_error_against_brute_force(const map::TsdfMap& map,
+                                     const integrators::EsdfIntegratorConfig& config,
                                      int64_t* checked) {
   const auto voxels = observed_voxels(map, config.min_weight);
   const float site_threshold = config.site_distance_threshold_vox * map.voxel_size_m();
@@ -87,16 +88,16 @@ std::vector<Eigen::Isometry3d> poses_outside(const ObstacleScene& scene) {
   return poses;
 }
 
-void integrate_scene(TsdfIntegrator& integrator, TsdfMap& map, const ObstacleScene& scene,
-                     int repeats) {
+void integrate_scene(integrators::TsdfIntegrator& integrator, map::TsdfMap& map,
+                     const ObstacleScene& scene, int repeats) {
   for (int r = 0; r < repeats; ++r) {
     for (const auto& pose : poses_outside(scene))
       integrator.integrate(map, scene.lidar(pose, 360, 90), {}, pose);
   }
 }
 
-TsdfIntegratorConfig tsdf_config() {
-  TsdfIntegratorConfig config;
+integrators::TsdfIntegratorConfig tsdf_config() {
+  integrators::TsdfIntegratorConfig config;
   config.truncation_distance_m = 3 * kVoxelSize;
   config.max_ray_length_m = 10.0f;
   config.use_const_weight = true;
@@ -104,8 +105,8 @@ TsdfIntegratorConfig tsdf_config() {
   return config;
 }
 
-EsdfIntegratorConfig esdf_config() {
-  EsdfIntegratorConfig config;
+integrators::EsdfIntegratorConfig esdf_config() {
+  integrators::EsdfIntegratorConfig config;
   config.esdf_max_distance_m = kMaxDistance;
   return config;
 }
@@ -115,12 +116,12 @@ class EsdfIntegratorTest : public DeviceTest {};
 TEST_P(EsdfIntegratorTest, MatchesBruteForceOnRandomObstacleScenes) {
   for (uint32_t seed : {1u, 2u}) {
     const ObstacleScene scene = ObstacleScene::random(seed, 4, 4);
-    TsdfMap map(device(), TsdfMapConfig{kVoxelSize, 8, {}});
-    TsdfIntegrator tsdf(tsdf_config());
+    map::TsdfMap map(device(), map::TsdfMapConfig{kVoxelSize, 8, {}});
+    integrators::TsdfIntegrator tsdf(tsdf_config());
     integrate_scene(tsdf, map, scene, 1);
-    EsdfIntegrator esdf(esdf_config());
+    integrators::EsdfIntegrator esdf(esdf_config());
     const Stream stream(device());
-    const EsdfUpdateStats stats = esdf.update(map, stream);
+    const integrators::EsdfUpdateStats stats = esdf.update(map, stream);
     EXPECT_EQ(stats.changed_blocks, map.block_count());
     int64_t checked = 0;
     EXPECT_LE(max_error_against_brute_force(map, esdf.config(), &checked), 1e-4) << "seed " << seed;
@@ -131,9 +132,9 @@ TEST_P(EsdfIntegratorTest, MatchesBruteForceOnRandomObstacleScenes) {
 TEST_P(EsdfIntegratorTest, IncrementalUpdatesEqualBatchAfterAddingAndRemovingObjects) {
   ObstacleScene empty_room;
   const ObstacleScene furnished = ObstacleScene::random(7, 3, 3);
-  TsdfMap map(device(), TsdfMapConfig{kVoxelSize, 8, {}});
-  TsdfIntegrator tsdf(tsdf_config());
-  EsdfIntegrator esdf(esdf_config());
+  map::TsdfMap map(device(), map::TsdfMapConfig{kVoxelSize, 8, {}});
+  integrators::TsdfIntegrator tsdf(tsdf_config());
+  integrators::EsdfIntegrator esdf(esdf_config());
   const Stream stream(device());
 
   auto check_against_batch = [&](const char* stage) {
@@ -151,7 +152,7 @@ TEST_P(EsdfIntegratorTest, IncrementalUpdatesEqualBatchAfterAddingAndRemovingObj
   integrate_scene(tsdf, map, empty_room, 1);
   esdf.update(map, stream);
   integrate_scene(tsdf, map, furnished, 2);  // objects appear: distances drop near them
-  const EsdfUpdateStats added = esdf.update(map, stream);
+  const integrators::EsdfUpdateStats added = esdf.update(map, stream);
   EXPECT_GT(added.changed_blocks, 0);
   check_against_batch("after adding objects");
   int sites_with_objects = 0;
@@ -171,9 +172,9 @@ TEST_P(EsdfIntegratorTest, IncrementalUpdatesEqualBatchAfterAddingAndRemovingObj
 }
 
 TEST(EsdfIntegratorConfigCheck, RejectsBadParameters) {
-  EsdfIntegratorConfig config;
+  integrators::EsdfIntegratorConfig config;
   config.esdf_max_distance_m = 0.0f;
-  EXPECT_THROW(EsdfIntegrator{config}, Error);
+  EXPECT_THROW(integrators::EsdfIntegrator{config}, Error);
 }
 
 COVOX_INSTANTIATE_ON_ALL_DEVICES(EsdfIntegratorTest);
@@ -183,10 +184,10 @@ TEST(EsdfIntegratorParity, CpuAndCudaAgree) {
   const ObstacleScene scene = ObstacleScene::random(3, 4, 4);
   std::vector<std::map<Index3D, ObservedVoxel>> results;
   for (Device device : {Device::kCpu, Device::kCuda}) {
-    TsdfMap map(device, TsdfMapConfig{kVoxelSize, 8, {}});
-    TsdfIntegrator tsdf(tsdf_config());
+    map::TsdfMap map(device, map::TsdfMapConfig{kVoxelSize, 8, {}});
+    integrators::TsdfIntegrator tsdf(tsdf_config());
     integrate_scene(tsdf, map, scene, 1);
-    EsdfIntegrator esdf(esdf_config());
+    integrators::EsdfIntegrator esdf(esdf_config());
     esdf.update(map, Stream(device));
     results.push_back(observed_voxels(map, 1e-4f));
   }

@@ -25,19 +25,19 @@ class EsdfQueriesTest : public DeviceTest {
   void SetUp() override {
     DeviceTest::SetUp();
     if (IsSkipped()) return;
-    map_ = std::make_unique<TsdfMap>(device(), TsdfMapConfig{kVoxel, 8, {}});
-    TsdfIntegratorConfig tsdf_config;
+    map_ = std::make_unique<map::TsdfMap>(device(), map::TsdfMapConfig{kVoxel, 8, {}});
+    integrators::TsdfIntegratorConfig tsdf_config;
     tsdf_config.truncation_distance_m = 0.3f;
     tsdf_config.max_ray_length_m = 10.0f;
-    TsdfIntegrator tsdf(tsdf_config);
+    integrators::TsdfIntegrator tsdf(tsdf_config);
     const ObstacleScene scene = ObstacleScene::random(5, 2, 2);
     Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
     pose.translation() = Eigen::Vector3d(0.05, 0.02, 0.01);
     tsdf.integrate(*map_, scene.lidar(pose, 360, 90), {}, pose);
-    EsdfIntegratorConfig esdf_config;
+    integrators::EsdfIntegratorConfig esdf_config;
     esdf_config.esdf_max_distance_m = 1.0f;
-    EsdfIntegrator(esdf_config).update(*map_, Stream(device()));
-    for (const HostBlock& block : map_->snapshot()) {
+    integrators::EsdfIntegrator(esdf_config).update(*map_, Stream(device()));
+    for (const map::HostBlock& block : map_->snapshot()) {
       for (int k = 0; k < 512; ++k) {
         if (!block.esdf[k].observed) continue;
         const Index3D v(block.index.x * 8 + k % 8, block.index.y * 8 + (k / 8) % 8,
@@ -46,7 +46,7 @@ class EsdfQueriesTest : public DeviceTest {
       }
     }
   }
-  std::unique_ptr<TsdfMap> map_;
+  std::unique_ptr<map::TsdfMap> map_;
   std::map<Index3D, float> observed_;
 };
 
@@ -82,7 +82,7 @@ TEST_P(EsdfQueriesTest, TrilinearSamplesMatchVoxelsAtCentresAndInterpolateBetwee
     if (points.size() >= 20000) break;
   }
   ASSERT_GT(points.size(), 1000u);
-  const auto samples = query_esdf(*map_, points);
+  const auto samples = integrators::query_esdf(*map_, points);
   for (size_t i = 0; i < points.size(); ++i) {
     ASSERT_TRUE(samples[i].valid);
     ASSERT_NEAR(samples[i].distance_m, expected[i], 1e-5f);
@@ -91,14 +91,14 @@ TEST_P(EsdfQueriesTest, TrilinearSamplesMatchVoxelsAtCentresAndInterpolateBetwee
     ASSERT_NEAR(samples[i].gradient.z, expected_gradient[i].z, 1e-3f);
   }
   // Far outside the map: invalid.
-  const auto outside = query_esdf(*map_, {Vec3f(500.0f, 500.0f, 500.0f)});
+  const auto outside = integrators::query_esdf(*map_, {Vec3f(500.0f, 500.0f, 500.0f)});
   EXPECT_FALSE(outside[0].valid);
 }
 
 TEST_P(EsdfQueriesTest, SlicesHoldTheLayerAndTheBandMinimum) {
   const float z = 0.27f;
   const int32_t layer = static_cast<int32_t>(std::floor(z / kVoxel));
-  const auto slice = esdf_slice(*map_, z, Stream(device()));
+  const auto slice = integrators::esdf_slice(*map_, z, Stream(device()));
   std::map<std::pair<int, int>, float> expected_layer, expected_band;
   for (const auto& [v, d] : observed_) {
     if (v.z == layer) expected_layer[{v.x, v.y}] = d;
@@ -108,20 +108,20 @@ TEST_P(EsdfQueriesTest, SlicesHoldTheLayerAndTheBandMinimum) {
     }
   }
   ASSERT_EQ(slice.size(), expected_layer.size());
-  for (const SlicePoint& p : slice) {
+  for (const integrators::SlicePoint& p : slice) {
     const int x = static_cast<int>(std::floor(p.position_m.x / kVoxel));
     const int y = static_cast<int>(std::floor(p.position_m.y / kVoxel));
     ASSERT_EQ(p.distance_m, expected_layer.at({x, y}));
     ASSERT_NEAR(p.position_m.z, (layer + 0.5f) * kVoxel, 1e-6f);
   }
-  const auto band = esdf_squashed_slice(*map_, -0.45f, 0.45f, Stream(device()));
+  const auto band = integrators::esdf_squashed_slice(*map_, -0.45f, 0.45f, Stream(device()));
   ASSERT_EQ(band.size(), expected_band.size());
-  for (const SlicePoint& p : band) {
+  for (const integrators::SlicePoint& p : band) {
     const int x = static_cast<int>(std::floor(p.position_m.x / kVoxel));
     const int y = static_cast<int>(std::floor(p.position_m.y / kVoxel));
     ASSERT_EQ(p.distance_m, expected_band.at({x, y}));
   }
-  EXPECT_THROW(esdf_squashed_slice(*map_, 1.0f, 0.0f, Stream(device())), Error);
+  EXPECT_THROW(integrators::esdf_squashed_slice(*map_, 1.0f, 0.0f, Stream(device())), Error);
 }
 
 COVOX_INSTANTIATE_ON_ALL_DEVICES(EsdfQueriesTest);

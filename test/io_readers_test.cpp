@@ -837,7 +837,7 @@ TEST(IoRgbdFolder, MissingFilesFailNamingThem) {
 
 TEST(IoPly, WriterOutputReadsBackExactly) {
   ScratchFolder scratch;
-  Mesh mesh;
+  map::Mesh mesh;
   for (int i = 0; i < 30; ++i) {
     mesh.vertices_m.push_back(Vec3f(0.1f * i, std::sin(0.3f * i), -1.5f + 0.01f * i));
     mesh.colors.push_back(Rgb8{uint8_t(i * 8), uint8_t(255 - i), uint8_t(i)});
@@ -846,7 +846,7 @@ TEST(IoPly, WriterOutputReadsBackExactly) {
     mesh.triangles.insert(mesh.triangles.end(), {t, t + 1, t + 2});
   const std::string path = scratch.file("mesh.ply");
   io::write_mesh_ply(path, mesh);
-  const Mesh read = io::read_mesh_ply(path);
+  const map::Mesh read = io::read_mesh_ply(path);
   ASSERT_EQ(read.vertices_m.size(), mesh.vertices_m.size());
   for (size_t v = 0; v < mesh.vertices_m.size(); ++v) {
     EXPECT_EQ(read.vertices_m[v].x, mesh.vertices_m[v].x);
@@ -934,7 +934,7 @@ TEST(IoPly, AsciiWithPolygonsExtraPropertiesAndElements) {
              "0 0 0 0.5 2 7 7\n1 0 0 0.5 0\n1 1 0 0.5 1 9\n0 1 0.25 0.5 0\n2 2 2 1 0\n"
              "4 0 1 2 3 0.9\n3 1 4 2 0.1\n"
              "0 1\n");
-  const Mesh mesh = io::read_mesh_ply(path);
+  const map::Mesh mesh = io::read_mesh_ply(path);
   ASSERT_EQ(mesh.vertices_m.size(), 5u);
   EXPECT_TRUE(mesh.colors.empty());
   EXPECT_EQ(mesh.vertices_m[3].z, 0.25f);
@@ -959,7 +959,7 @@ TEST(IoPly, AsciiWithPolygonsExtraPropertiesAndElements) {
 
 TEST(IoPly, ReplicaGroundTruthMesh) {
   COVOX_DATA_OR_SKIP(path, "nvblox-testdata/replica/office0_mesh.ply");
-  const Mesh mesh = io::read_mesh_ply(path);
+  const map::Mesh mesh = io::read_mesh_ply(path);
   EXPECT_EQ(mesh.vertices_m.size(), 25149u);
   EXPECT_EQ(mesh.triangle_count(), 50000u);
   EXPECT_EQ(mesh.colors.size(), mesh.vertices_m.size());

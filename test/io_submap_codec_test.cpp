@@ -27,12 +27,12 @@ constexpr float kTruncationM = 0.6f;
 class SubmapCodecTest : public DeviceTest {
  protected:
   // A few LiDAR scans of the yard, coloured by height, integrated into one 8-voxel-block map.
-  void integrate_yard(TsdfMap* map) {
+  void integrate_yard(map::TsdfMap* map) {
     const sim::World world = pipeline::test_scene::make_yard();
     const sim::LidarConfig lidar = pipeline::test_scene::small_lidar();
-    TsdfIntegratorConfig config = pipeline::test_scene::yard_config().tsdf;
+    integrators::TsdfIntegratorConfig config = pipeline::test_scene::yard_config().tsdf;
     config.truncation_distance_m = kTruncationM;
-    TsdfIntegrator integrator(config);
+    integrators::TsdfIntegrator integrator(config);
     const Stream stream(device());
     Buffer<Vec3f> points(device());
     Buffer<Rgb8> colors(device());
@@ -46,7 +46,7 @@ class SubmapCodecTest : public DeviceTest {
       }
       points.copy_from_host(cloud, stream);
       colors.copy_from_host(rgb, stream);
-      PointCloudView view;
+      integrators::PointCloudView view;
       view.points = points.data();
       view.colors = k % 2 == 0 ? colors.data() : nullptr;  // colour from half of the scans
       view.count = static_cast<int64_t>(cloud.size());
@@ -78,19 +78,19 @@ TEST(HalfFloat, RoundsToNearestAndRoundTripsEveryHalf) {
 }
 
 TEST_P(SubmapCodecTest, ErrorWithinTheBoundAndUnobservedBlocksDropped) {
-  TsdfMap map(device(), TsdfMapConfig{0.2f, 8, {}});
+  map::TsdfMap map(device(), map::TsdfMapConfig{0.2f, 8, {}});
   integrate_yard(&map);
-  const std::vector<HostBlock> original = map.snapshot();
+  const std::vector<map::HostBlock> original = map.snapshot();
   const std::vector<uint8_t> bytes = io::encode_submap(map, kTruncationM);
-  const std::vector<HostBlock> decoded = io::decode_submap(bytes, "test");
+  const std::vector<map::HostBlock> decoded = io::decode_submap(bytes, "test");
 
-  std::map<Index3D, const HostBlock*> by_index;
-  for (const HostBlock& block : decoded) by_index[block.index] = &block;
+  std::map<Index3D, const map::HostBlock*> by_index;
+  for (const map::HostBlock& block : decoded) by_index[block.index] = &block;
   // Half a quantisation step, plus the float rounding of the decoded value.
   const double distance_bound = kTruncationM / 65534.0 + kTruncationM * std::ldexp(1.0, -23);
   double max_distance_error = 0.0;
   int64_t dropped = 0, colored_voxels = 0;
-  for (const HostBlock& block : original) {
+  for (const map::HostBlock& block : original) {
     const auto it = by_index.find(block.index);
     if (it == by_index.end()) {
       ++dropped;
@@ -100,7 +100,7 @@ TEST_P(SubmapCodecTest, ErrorWithinTheBoundAndUnobservedBlocksDropped) {
       }
       continue;
     }
-    const HostBlock& back = *it->second;
+    const map::HostBlock& back = *it->second;
     for (size_t k = 0; k < block.tsdf.size(); ++k) {
       const double error = std::abs(double(back.tsdf[k].distance_m) - block.tsdf[k].distance_m);
       max_distance_error = std::max(max_distance_error, error);
@@ -126,15 +126,15 @@ TEST_P(SubmapCodecTest, ErrorWithinTheBoundAndUnobservedBlocksDropped) {
 }
 
 TEST_P(SubmapCodecTest, EncodingIsIdempotent) {
-  TsdfMap map(device(), TsdfMapConfig{0.2f, 8, {}});
+  map::TsdfMap map(device(), map::TsdfMapConfig{0.2f, 8, {}});
   integrate_yard(&map);
   const std::vector<uint8_t> once = io::encode_submap(map, kTruncationM);
-  TsdfMap back(device(), TsdfMapConfig{0.2f, 8, {}});
+  map::TsdfMap back(device(), map::TsdfMapConfig{0.2f, 8, {}});
   io::load_encoded_submap(once, &back, Stream(device()));
   const std::vector<uint8_t> twice = io::encode_submap(back, kTruncationM);
   EXPECT_EQ(once, twice);
   // Through the device map once more (a submap that left and came back twice).
-  TsdfMap again(device(), TsdfMapConfig{0.2f, 8, {}});
+  map::TsdfMap again(device(), map::TsdfMapConfig{0.2f, 8, {}});
   io::load_encoded_submap(twice, &again, Stream(device()));
   EXPECT_EQ(io::encode_submap(again, kTruncationM), once);
 }
@@ -143,35 +143,35 @@ TEST_P(SubmapCodecTest, EncodingIsIdempotent) {
 // equals, voxel for voxel, the ESDF computed from the same quantised TSDF with those blocks still
 // allocated (what a pipeline that kept them would compute).
 TEST_P(SubmapCodecTest, EsdfFromDecodedTsdfMatchesTheFullMapsEsdf) {
-  TsdfMap map(device(), TsdfMapConfig{0.2f, 8, {}});
+  map::TsdfMap map(device(), map::TsdfMapConfig{0.2f, 8, {}});
   integrate_yard(&map);
   const std::vector<uint8_t> bytes = io::encode_submap(map, kTruncationM);
-  const std::vector<HostBlock> decoded = io::decode_submap(bytes, "test");
-  std::map<Index3D, const HostBlock*> by_index;
-  for (const HostBlock& block : decoded) by_index[block.index] = &block;
+  const std::vector<map::HostBlock> decoded = io::decode_submap(bytes, "test");
+  std::map<Index3D, const map::HostBlock*> by_index;
+  for (const map::HostBlock& block : decoded) by_index[block.index] = &block;
   // The full block set, each voxel replaced by its quantised value (zero in dropped blocks).
-  std::vector<HostBlock> full = map.snapshot();
-  for (HostBlock& block : full) {
+  std::vector<map::HostBlock> full = map.snapshot();
+  for (map::HostBlock& block : full) {
     block.esdf.clear();
     const auto it = by_index.find(block.index);
     for (size_t k = 0; k < block.tsdf.size(); ++k) {
-      block.tsdf[k] = it == by_index.end() ? TsdfVoxel() : it->second->tsdf[k];
-      block.color[k] = it == by_index.end() ? ColorVoxel() : it->second->color[k];
+      block.tsdf[k] = it == by_index.end() ? map::TsdfVoxel() : it->second->tsdf[k];
+      block.color[k] = it == by_index.end() ? map::ColorVoxel() : it->second->color[k];
     }
   }
   const Stream stream(device());
-  TsdfMap full_map(device(), map.config());
+  map::TsdfMap full_map(device(), map.config());
   full_map.load_blocks(full, stream);
-  EsdfIntegrator(EsdfIntegratorConfig{}).update_all(full_map, stream);
-  TsdfMap decoded_map(device(), map.config());
+  integrators::EsdfIntegrator(integrators::EsdfIntegratorConfig{}).update_all(full_map, stream);
+  map::TsdfMap decoded_map(device(), map.config());
   io::load_encoded_submap(bytes, &decoded_map, stream);
-  EsdfIntegrator(EsdfIntegratorConfig{}).update_all(decoded_map, stream);
+  integrators::EsdfIntegrator(integrators::EsdfIntegratorConfig{}).update_all(decoded_map, stream);
 
-  std::map<Index3D, HostBlock> full_esdf;
-  for (HostBlock& block : full_map.snapshot()) full_esdf[block.index] = std::move(block);
+  std::map<Index3D, map::HostBlock> full_esdf;
+  for (map::HostBlock& block : full_map.snapshot()) full_esdf[block.index] = std::move(block);
   int64_t observed = 0;
-  for (const HostBlock& block : decoded_map.snapshot()) {
-    const HostBlock& reference = full_esdf.at(block.index);
+  for (const map::HostBlock& block : decoded_map.snapshot()) {
+    const map::HostBlock& reference = full_esdf.at(block.index);
     for (size_t k = 0; k < block.esdf.size(); ++k) {
       EXPECT_EQ(block.esdf[k].observed, reference.esdf[k].observed);
       EXPECT_EQ(block.esdf[k].is_site, reference.esdf[k].is_site);
@@ -185,12 +185,12 @@ TEST_P(SubmapCodecTest, EsdfFromDecodedTsdfMatchesTheFullMapsEsdf) {
   // The dropped blocks' ESDF voxels are unobserved in the full map too.
   for (const auto& [index, block] : full_esdf) {
     if (by_index.count(index)) continue;
-    for (const EsdfVoxel& v : block.esdf) EXPECT_EQ(v.observed, 0);
+    for (const map::EsdfVoxel& v : block.esdf) EXPECT_EQ(v.observed, 0);
   }
 }
 
 TEST_P(SubmapCodecTest, DamagedBytesAreRejected) {
-  TsdfMap map(device(), TsdfMapConfig{0.2f, 8, {}});
+  map::TsdfMap map(device(), map::TsdfMapConfig{0.2f, 8, {}});
   integrate_yard(&map);
   const std::vector<uint8_t> good = io::encode_submap(map, kTruncationM);
   EXPECT_NO_THROW(io::validate_encoded_submap(good.data(), good.size(), "test"));
@@ -205,7 +205,7 @@ TEST_P(SubmapCodecTest, DamagedBytesAreRejected) {
   std::vector<uint8_t> count = good;
   count[16] = 0xff;  // the block count's low byte
   EXPECT_THROW(io::decode_submap(count, "test"), Error);
-  TsdfMap other(device(), TsdfMapConfig{0.2f, 16, {}});
+  map::TsdfMap other(device(), map::TsdfMapConfig{0.2f, 16, {}});
   EXPECT_THROW(io::load_encoded_submap(good, &other, Stream(device())), Error);
 }
 

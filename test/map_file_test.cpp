@@ -37,7 +37,7 @@ void write_bytes(const std::string& path, const std::vector<unsigned char>& byte
              static_cast<std::streamsize>(bytes.size()));
 }
 
-bool same_blocks(const std::vector<HostBlock>& a, const std::vector<HostBlock>& b) {
+bool same_blocks(const std::vector<map::HostBlock>& a, const std::vector<map::HostBlock>& b) {
   if (a.size() != b.size()) return false;
   for (size_t i = 0; i < a.size(); ++i) {
     if (!(a[i].index == b[i].index)) return false;
@@ -65,12 +65,13 @@ class MapFileTest : public DeviceTest {
     contents.voxels_per_side = 8;
     contents.has_esdf = true;
     for (int s = 0; s < 2; ++s) {
-      TsdfMap map(device(), TsdfMapConfig{0.1f, 8, {}});
+      map::TsdfMap map(device(), map::TsdfMapConfig{0.1f, 8, {}});
       const Eigen::Vector3d centre(0.3 * s, 0.1, -0.2);
       testing_support::fill_tsdf(
           map, Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(1, 1, 1), 0.4f,
           [&](const Eigen::Vector3d& p) { return (p - centre).norm() - 0.6; });
-      EsdfIntegrator(EsdfIntegratorConfig{}).update(map, Stream(device()));
+      integrators::EsdfIntegrator(integrators::EsdfIntegratorConfig{})
+          .update(map, Stream(device()));
       io::SubmapRecord record;
       record.id = 10 + s;
       record.T_world_submap.translation() = Eigen::Vector3d(1.5 * s, -2.0, 0.25);
@@ -97,13 +98,13 @@ TEST_P(MapFileTest, SaveThenLoadKeepsTheQuantisedMapAndSavesTheSameBytes) {
     EXPECT_EQ(loaded.submaps[s].id, saved.submaps[s].id);
     EXPECT_EQ(loaded.submaps[s].T_world_submap.matrix(), saved.submaps[s].T_world_submap.matrix());
     // Exactly what the codec gives back for the saved blocks.
-    const std::vector<HostBlock> expected = io::decode_submap(
+    const std::vector<map::HostBlock> expected = io::decode_submap(
         io::encode_submap(saved.submaps[s].blocks, 8, loaded.distance_scale_m), "expected");
     ASSERT_EQ(loaded.submaps[s].blocks.size(), expected.size());
     for (size_t b = 0; b < expected.size(); ++b) {
       EXPECT_TRUE(loaded.submaps[s].blocks[b].index == expected[b].index);
       EXPECT_EQ(0, std::memcmp(loaded.submaps[s].blocks[b].tsdf.data(), expected[b].tsdf.data(),
-                               expected[b].tsdf.size() * sizeof(TsdfVoxel)));
+                               expected[b].tsdf.size() * sizeof(map::TsdfVoxel)));
     }
   }
   // save -> load -> save gives the same file, byte for byte.

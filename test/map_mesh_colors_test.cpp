@@ -19,34 +19,34 @@ int brightest_channel(const Rgb8& c) { return std::max({int(c.r), int(c.g), int(
 bool same(const Rgb8& a, const Rgb8& b) { return a.r == b.r && a.g == b.g && a.b == b.b; }
 
 TEST(MeshColors, HeightColorMapIsNeverDarkAndClampsOutsideItsRange) {
-  const HeightColorRange range{-2.0f, 8.0f};
+  const map::HeightColorRange range{-2.0f, 8.0f};
   for (int i = -50; i <= 150; ++i) {
-    const Rgb8 c = height_color(-2.0f + 0.1f * i, range);
+    const Rgb8 c = map::height_color(-2.0f + 0.1f * i, range);
     EXPECT_GE(brightest_channel(c), 200) << "height " << -2.0f + 0.1f * i;
   }
   // Below the range is the low end (blue dominates), above it the high end (red dominates).
-  const Rgb8 low = height_color(-100.0f, range), high = height_color(100.0f, range);
-  EXPECT_TRUE(same(low, height_color(-2.0f, range)));
-  EXPECT_TRUE(same(high, height_color(8.0f, range)));
+  const Rgb8 low = map::height_color(-100.0f, range), high = map::height_color(100.0f, range);
+  EXPECT_TRUE(same(low, map::height_color(-2.0f, range)));
+  EXPECT_TRUE(same(high, map::height_color(8.0f, range)));
   EXPECT_GT(low.b, low.r);
   EXPECT_GT(high.r, high.b);
   // Neighbouring heights get neighbouring colours (linear pieces: at most a few levels per cm).
   for (int i = 0; i < 1000; ++i) {
-    const Rgb8 a = height_color(-2.0f + 0.01f * i, range);
-    const Rgb8 b = height_color(-2.0f + 0.01f * (i + 1), range);
+    const Rgb8 a = map::height_color(-2.0f + 0.01f * i, range);
+    const Rgb8 b = map::height_color(-2.0f + 0.01f * (i + 1), range);
     EXPECT_LE(std::abs(int(a.r) - int(b.r)) + std::abs(int(a.g) - int(b.g)) +
                   std::abs(int(a.b) - int(b.b)),
               6)
         << i;
   }
   // Degenerate input still gives a bright colour.
-  EXPECT_GE(brightest_channel(height_color(NAN, range)), 200);
-  EXPECT_GE(brightest_channel(height_color(1.0f, HeightColorRange{3.0f, 3.0f})), 200);
+  EXPECT_GE(brightest_channel(map::height_color(NAN, range)), 200);
+  EXPECT_GE(brightest_channel(map::height_color(1.0f, map::HeightColorRange{3.0f, 3.0f})), 200);
 }
 
 // Three vertices at heights 0, 1 and 2 m in the mesh frame; the middle one has a fused colour.
-Mesh three_vertex_mesh() {
-  Mesh mesh;
+map::Mesh three_vertex_mesh() {
+  map::Mesh mesh;
   mesh.vertices_m = {Vec3f(0.0f, 0.0f, 0.0f), Vec3f(1.0f, 0.0f, 1.0f), Vec3f(0.0f, 1.0f, 2.0f)};
   mesh.colors = {Rgb8{0, 0, 0}, Rgb8{10, 20, 30}, Rgb8{0, 0, 0}};
   mesh.triangles = {0, 1, 2};
@@ -54,43 +54,43 @@ Mesh three_vertex_mesh() {
 }
 
 TEST(MeshColors, BlackVerticesTakeTheColourOfTheirWorldHeight) {
-  const Mesh mesh = three_vertex_mesh();
-  const HeightColorRange range{0.0f, 10.0f};
+  const map::Mesh mesh = three_vertex_mesh();
+  const map::HeightColorRange range{0.0f, 10.0f};
   // The mesh frame sits 4 m up, turned about z (which keeps heights).
   Eigen::Isometry3d T_world_mesh = Eigen::Isometry3d::Identity();
   T_world_mesh.linear() = Eigen::AngleAxisd(0.7, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   T_world_mesh.translation() = Eigen::Vector3d(5.0, -3.0, 4.0);
-  const std::vector<Rgb8> colors = display_colors(mesh, T_world_mesh, range);
+  const std::vector<Rgb8> colors = map::display_colors(mesh, T_world_mesh, range);
   ASSERT_EQ(colors.size(), 3u);
-  EXPECT_TRUE(same(colors[0], height_color(4.0f, range)));
+  EXPECT_TRUE(same(colors[0], map::height_color(4.0f, range)));
   EXPECT_TRUE(same(colors[1], mesh.colors[1]));  // fused colour kept, however dark
-  EXPECT_TRUE(same(colors[2], height_color(6.0f, range)));
+  EXPECT_TRUE(same(colors[2], map::height_color(6.0f, range)));
   EXPECT_FALSE(same(colors[0], colors[2]));
   // A pitched frame: the world height mixes the vertex's x and z.
   Eigen::Isometry3d pitched = Eigen::Isometry3d::Identity();
   pitched.linear() = Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitY()).toRotationMatrix();
   // Rotating (1, 0, 1) by +90 degrees about y gives (1, 0, -1).
-  EXPECT_TRUE(same(display_colors(mesh, pitched, HeightColorRange{-1.0f, 1.0f})[0],
-                   height_color(0.0f, HeightColorRange{-1.0f, 1.0f})));
-  Mesh uncolored = mesh;
+  EXPECT_TRUE(same(map::display_colors(mesh, pitched, map::HeightColorRange{-1.0f, 1.0f})[0],
+                   map::height_color(0.0f, map::HeightColorRange{-1.0f, 1.0f})));
+  map::Mesh uncolored = mesh;
   uncolored.colors.clear();
-  const std::vector<Rgb8> by_height = display_colors(uncolored, T_world_mesh, range);
-  EXPECT_TRUE(same(by_height[1], height_color(5.0f, range)));
+  const std::vector<Rgb8> by_height = map::display_colors(uncolored, T_world_mesh, range);
+  EXPECT_TRUE(same(by_height[1], map::height_color(5.0f, range)));
 }
 
 TEST(MeshColors, PlyWriterColoursBlackVerticesByTheMeshHeights) {
-  const Mesh mesh = three_vertex_mesh();
+  const map::Mesh mesh = three_vertex_mesh();
   const std::string path = ::testing::TempDir() + "/covox_mesh_colors.ply";
   io::write_mesh_ply(path, mesh);
-  const Mesh read = io::read_mesh_ply(path);
+  const map::Mesh read = io::read_mesh_ply(path);
   ASSERT_EQ(read.colors.size(), 3u);
-  const HeightColorRange range = vertex_height_range(mesh);
+  const map::HeightColorRange range = map::vertex_height_range(mesh);
   EXPECT_FLOAT_EQ(range.min_height_m, 0.0f);
   EXPECT_FLOAT_EQ(range.max_height_m, 2.0f);
-  EXPECT_TRUE(same(read.colors[0], height_color(0.0f, range)));
+  EXPECT_TRUE(same(read.colors[0], map::height_color(0.0f, range)));
   EXPECT_TRUE(same(read.colors[1], mesh.colors[1]));
-  EXPECT_TRUE(same(read.colors[2], height_color(2.0f, range)));
-  for (const Rgb8& c : read.colors) EXPECT_FALSE(is_unobserved_color(c));
+  EXPECT_TRUE(same(read.colors[2], map::height_color(2.0f, range)));
+  for (const Rgb8& c : read.colors) EXPECT_FALSE(map::is_unobserved_color(c));
 }
 
 }  // namespace

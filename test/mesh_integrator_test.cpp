@@ -45,7 +45,7 @@ double distance_to_box_edge(const Eigen::Vector3d& p) {
 
 // Every undirected edge used by exactly two triangles, and in opposite directions (consistent
 // orientation).
-void expect_closed_and_consistent(const Mesh& mesh) {
+void expect_closed_and_consistent(const map::Mesh& mesh) {
   std::map<std::pair<uint32_t, uint32_t>, int> directed;
   for (size_t t = 0; t < mesh.triangle_count(); ++t) {
     for (int k = 0; k < 3; ++k) {
@@ -64,11 +64,11 @@ void expect_closed_and_consistent(const Mesh& mesh) {
   EXPECT_EQ(inconsistent, 0);
 }
 
-Mesh mesh_of(Device device, double (*sdf)(const Eigen::Vector3d&)) {
-  TsdfMap map(device, TsdfMapConfig{kVoxel, 8, {}});
+map::Mesh mesh_of(Device device, double (*sdf)(const Eigen::Vector3d&)) {
+  map::TsdfMap map(device, map::TsdfMapConfig{kVoxel, 8, {}});
   testing_support::fill_tsdf(map, Eigen::Vector3d(-0.7, -0.7, -0.7), Eigen::Vector3d(0.7, 0.7, 0.7),
                              4 * kVoxel, sdf);
-  MeshIntegrator integrator;
+  integrators::MeshIntegrator integrator;
   return integrator.extract_all(map, Stream(device));
 }
 
@@ -76,7 +76,7 @@ class MeshIntegratorTest : public DeviceTest {};
 
 TEST_P(MeshIntegratorTest, SphereAndBoxVerticesLieOnTheSurfaceAndMeshesAreClosed) {
   for (auto* sdf : {&sphere_sdf, &box_sdf}) {
-    const Mesh mesh = mesh_of(device(), sdf);
+    const map::Mesh mesh = mesh_of(device(), sdf);
     ASSERT_GT(mesh.triangle_count(), 1000u);
     // Marching cubes interpolates linearly between samples, which is exact on smooth surfaces but
     // cannot reproduce a sharp edge: on the box, vertices within a voxel of an edge are allowed
@@ -112,7 +112,7 @@ TEST_P(MeshIntegratorTest, SphereAndBoxVerticesLieOnTheSurfaceAndMeshesAreClosed
 
 // The block of the cube a triangle came from: its centroid lies inside the cube, whose first
 // corner is the voxel centre just below the centroid.
-Index3D block_of_triangle(const Mesh& mesh, size_t t, int side) {
+Index3D block_of_triangle(const map::Mesh& mesh, size_t t, int side) {
   Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
   for (int k = 0; k < 3; ++k) {
     const Vec3f& v = mesh.vertices_m[mesh.triangles[3 * t + k]];
@@ -126,7 +126,8 @@ Index3D block_of_triangle(const Mesh& mesh, size_t t, int side) {
 
 using TriangleCorners = std::array<float, 9>;
 // The triangles of `mesh` as corner positions (so meshes with different vertex numbering compare).
-std::vector<TriangleCorners> corner_triangles(const Mesh& mesh, const std::vector<size_t>& which) {
+std::vector<TriangleCorners> corner_triangles(const map::Mesh& mesh,
+                                              const std::vector<size_t>& which) {
   std::vector<TriangleCorners> out;
   for (size_t t : which) {
     TriangleCorners c;
@@ -139,7 +140,7 @@ std::vector<TriangleCorners> corner_triangles(const Mesh& mesh, const std::vecto
   std::sort(out.begin(), out.end());
   return out;
 }
-std::vector<size_t> all_triangles(const Mesh& mesh) {
+std::vector<size_t> all_triangles(const map::Mesh& mesh) {
   std::vector<size_t> all(mesh.triangle_count());
   for (size_t t = 0; t < all.size(); ++t) all[t] = t;
   return all;
@@ -147,8 +148,8 @@ std::vector<size_t> all_triangles(const Mesh& mesh) {
 
 // Each block mesh of the incremental path holds exactly the triangles of the full (globally
 // welded) extraction whose cubes lie in that block, its vertices are each used, and none repeats.
-void expect_block_meshes_match(const std::map<Index3D, Mesh>& block_meshes, const Mesh& full,
-                               int side) {
+void expect_block_meshes_match(const std::map<Index3D, map::Mesh>& block_meshes,
+                               const map::Mesh& full, int side) {
   std::map<Index3D, std::vector<size_t>> by_block;
   for (size_t t = 0; t < full.triangle_count(); ++t)
     by_block[block_of_triangle(full, t, side)].push_back(t);
@@ -156,7 +157,7 @@ void expect_block_meshes_match(const std::map<Index3D, Mesh>& block_meshes, cons
   for (const auto& [block, triangles] : by_block) {
     const auto it = block_meshes.find(block);
     ASSERT_NE(it, block_meshes.end()) << "block " << block.x << " " << block.y << " " << block.z;
-    const Mesh& mesh = it->second;
+    const map::Mesh& mesh = it->second;
     EXPECT_EQ(corner_triangles(mesh, all_triangles(mesh)), corner_triangles(full, triangles));
     ASSERT_EQ(mesh.colors.size(), mesh.vertices_m.size());
     std::vector<int> uses(mesh.vertices_m.size(), 0);
@@ -174,15 +175,15 @@ void expect_block_meshes_match(const std::map<Index3D, Mesh>& block_meshes, cons
 }
 
 TEST_P(MeshIntegratorTest, IncrementalBlockMeshesMatchTheFullExtraction) {
-  TsdfMap map(device(), TsdfMapConfig{kVoxel, 8, {}});
+  map::TsdfMap map(device(), map::TsdfMapConfig{kVoxel, 8, {}});
   testing_support::fill_tsdf(map, Eigen::Vector3d(-0.7, -0.7, -0.7), Eigen::Vector3d(0.7, 0.7, 0.7),
                              4 * kVoxel, sphere_sdf);
-  MeshIntegrator integrator;
+  integrators::MeshIntegrator integrator;
   const Stream stream(device());
-  const MeshUpdateStats first = integrator.update(map, stream);
+  const integrators::MeshUpdateStats first = integrator.update(map, stream);
   EXPECT_EQ(first.blocks_meshed, map.block_count());
   EXPECT_EQ(static_cast<int64_t>(integrator.last_updated_blocks(stream).size()), map.block_count());
-  const Mesh sphere = integrator.extract_all(map, stream);
+  const map::Mesh sphere = integrator.extract_all(map, stream);
   EXPECT_EQ(integrator.combined_block_meshes(stream).triangle_count(), sphere.triangle_count());
   EXPECT_EQ(first.triangles, static_cast<int64_t>(sphere.triangle_count()));
   expect_block_meshes_match(integrator.block_meshes(stream), sphere, 8);
@@ -193,7 +194,7 @@ TEST_P(MeshIntegratorTest, IncrementalBlockMeshesMatchTheFullExtraction) {
   testing_support::fill_tsdf(map, Eigen::Vector3d(-0.7, -0.7, -0.7), Eigen::Vector3d(0.7, 0.7, 0.7),
                              4 * kVoxel, box_sdf);
   integrator.update(map, stream);
-  const Mesh box = integrator.extract_all(map, stream);
+  const map::Mesh box = integrator.extract_all(map, stream);
   EXPECT_EQ(integrator.combined_block_meshes(stream).triangle_count(), box.triangle_count());
   expect_block_meshes_match(integrator.block_meshes(stream), box, 8);
   testing_support::fill_tsdf(map, Eigen::Vector3d(-0.7, -0.7, -0.7), Eigen::Vector3d(0.7, 0.7, 0.7),
@@ -208,13 +209,13 @@ TEST_P(MeshIntegratorTest, IncrementalBlockMeshesMatchTheFullExtraction) {
 
 // The two per-block welds (edge table, sorted keys) number vertices the same way.
 TEST_P(MeshIntegratorTest, WeldTableAndSortedWeldGiveTheSameBlockMeshes) {
-  TsdfMap map(device(), TsdfMapConfig{kVoxel, 8, {}});
+  map::TsdfMap map(device(), map::TsdfMapConfig{kVoxel, 8, {}});
   testing_support::fill_tsdf(map, Eigen::Vector3d(-0.7, -0.7, -0.7), Eigen::Vector3d(0.7, 0.7, 0.7),
                              4 * kVoxel, box_sdf);
   const Stream stream(device());
-  MeshIntegratorConfig sorted_config;
+  integrators::MeshIntegratorConfig sorted_config;
   sorted_config.max_weld_table_entries = 0;
-  MeshIntegrator with_table, with_sort(sorted_config);
+  integrators::MeshIntegrator with_table, with_sort(sorted_config);
   with_table.update(map, stream);
   testing_support::fill_tsdf(map, Eigen::Vector3d(-0.7, -0.7, -0.7), Eigen::Vector3d(0.7, 0.7, 0.7),
                              4 * kVoxel,
@@ -225,7 +226,7 @@ TEST_P(MeshIntegratorTest, WeldTableAndSortedWeldGiveTheSameBlockMeshes) {
   ASSERT_EQ(a.size(), b.size());
   ASSERT_FALSE(a.empty());
   for (const auto& [block, mesh] : a) {
-    const Mesh& other = b.at(block);
+    const map::Mesh& other = b.at(block);
     EXPECT_EQ(mesh.triangles, other.triangles);
     ASSERT_EQ(mesh.vertices_m.size(), other.vertices_m.size());
     for (size_t i = 0; i < mesh.vertices_m.size(); ++i) {
@@ -237,7 +238,7 @@ TEST_P(MeshIntegratorTest, WeldTableAndSortedWeldGiveTheSameBlockMeshes) {
 }
 
 TEST_P(MeshIntegratorTest, BinaryPlyHoldsEveryVertexAndFace) {
-  const Mesh mesh = mesh_of(device(), &sphere_sdf);
+  const map::Mesh mesh = mesh_of(device(), &sphere_sdf);
   const std::string path = ::testing::TempDir() + "/covox_sphere.ply";
   io::write_mesh_ply(path, mesh);
   std::ifstream file(path, std::ios::binary);
@@ -262,8 +263,8 @@ COVOX_INSTANTIATE_ON_ALL_DEVICES(MeshIntegratorTest);
 
 TEST(MeshIntegratorParity, CpuAndCudaGiveTheSameMesh) {
   COVOX_SKIP_WITHOUT_GPU();
-  const Mesh cpu = mesh_of(Device::kCpu, &sphere_sdf);
-  const Mesh gpu = mesh_of(Device::kCuda, &sphere_sdf);
+  const map::Mesh cpu = mesh_of(Device::kCpu, &sphere_sdf);
+  const map::Mesh gpu = mesh_of(Device::kCuda, &sphere_sdf);
   ASSERT_EQ(cpu.triangles, gpu.triangles);
   ASSERT_EQ(cpu.vertices_m.size(), gpu.vertices_m.size());
   for (size_t i = 0; i < cpu.vertices_m.size(); ++i) {
@@ -275,20 +276,20 @@ TEST(MeshIntegratorParity, CpuAndCudaGiveTheSameMesh) {
 
 TEST(MeshIntegratorParity, CpuAndCudaGiveTheSameBlockMeshes) {
   COVOX_SKIP_WITHOUT_GPU();
-  std::map<Index3D, Mesh> meshes[2];
+  std::map<Index3D, map::Mesh> meshes[2];
   const Device devices[2] = {Device::kCpu, Device::kCuda};
   for (int d = 0; d < 2; ++d) {
-    TsdfMap map(devices[d], TsdfMapConfig{kVoxel, 8, {}});
+    map::TsdfMap map(devices[d], map::TsdfMapConfig{kVoxel, 8, {}});
     testing_support::fill_tsdf(map, Eigen::Vector3d(-0.7, -0.7, -0.7),
                                Eigen::Vector3d(0.7, 0.7, 0.7), 4 * kVoxel, box_sdf);
-    MeshIntegrator integrator;
+    integrators::MeshIntegrator integrator;
     const Stream stream = Stream::create(devices[d]);
     integrator.update(map, stream);
     meshes[d] = integrator.block_meshes(stream);
   }
   ASSERT_EQ(meshes[0].size(), meshes[1].size());
   for (const auto& [block, cpu] : meshes[0]) {
-    const Mesh& gpu = meshes[1].at(block);
+    const map::Mesh& gpu = meshes[1].at(block);
     ASSERT_EQ(cpu.triangles, gpu.triangles);
     ASSERT_EQ(cpu.colors.size(), gpu.colors.size());
     ASSERT_EQ(cpu.vertices_m.size(), gpu.vertices_m.size());

@@ -31,8 +31,8 @@ using backend::Pose4Dof;
 using BlockSet = std::set<std::tuple<int, int, int>>;
 
 // A map with exactly `blocks` allocated (voxels untouched: the overlap test reads blocks only).
-std::unique_ptr<TsdfMap> map_with_blocks(Device device, const BlockSet& blocks) {
-  auto map = std::make_unique<TsdfMap>(device, TsdfMapConfig());
+std::unique_ptr<map::TsdfMap> map_with_blocks(Device device, const BlockSet& blocks) {
+  auto map = std::make_unique<map::TsdfMap>(device, map::TsdfMapConfig());
   std::vector<Index3D> keys;
   for (const auto& b : blocks) keys.emplace_back(std::get<0>(b), std::get<1>(b), std::get<2>(b));
   const Stream stream(device);
@@ -119,7 +119,7 @@ TEST_P(MissionCostTest, CandidatesAreTheBestOverlappingAtMostMaxPartners) {
   const Pose4Dof pose{0.5, -0.2, 0.0, 0.1};
   // Earlier submaps along a line: the farther, the fewer blocks they share with the new one.
   std::vector<BlockSet> blocks;
-  std::vector<std::unique_ptr<TsdfMap>> maps;
+  std::vector<std::unique_ptr<map::TsdfMap>> maps;
   std::vector<backend::SubmapFootprint> footprints;
   for (int k = 0; k < 14; ++k) {
     blocks.push_back(random_blocks(&rng, k - 2, 10));

@@ -54,7 +54,9 @@ std::map<std::string, Expectation> expectations() {
        {"false", [](const SlamConfig& c) { return !c.map.block_table.allow_growth; }}},
       {"tsdf.method",
        {"simple",
-        [](const SlamConfig& c) { return c.tsdf.method == TsdfIntegrationMethod::kSimple; }}},
+        [](const SlamConfig& c) {
+          return c.tsdf.method == integrators::TsdfIntegrationMethod::kSimple;
+        }}},
       {"tsdf.truncation_distance_m",
        {"0.45", [](const SlamConfig& c) { return c.tsdf.truncation_distance_m == 0.45f; }}},
       {"tsdf.max_weight", {"77", [](const SlamConfig& c) { return c.tsdf.max_weight == 77.0f; }}},

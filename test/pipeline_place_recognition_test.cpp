@@ -29,15 +29,15 @@ using testing_support::kDegToRad;
 
 // The surface columns by a plain walk over the host copy of every block: (x, y) -> (lowest,
 // highest) layer of a voxel with weight > 0 and |distance| < band.
-std::map<std::pair<int32_t, int32_t>, std::pair<int32_t, int32_t>> host_columns(const TsdfMap& map,
-                                                                                float band_m) {
+std::map<std::pair<int32_t, int32_t>, std::pair<int32_t, int32_t>> host_columns(
+    const map::TsdfMap& map, float band_m) {
   std::map<std::pair<int32_t, int32_t>, std::pair<int32_t, int32_t>> columns;
   const int side = map.voxels_per_side();
-  for (const HostBlock& block : map.snapshot()) {
+  for (const map::HostBlock& block : map.snapshot()) {
     for (int z = 0; z < side; ++z) {
       for (int y = 0; y < side; ++y) {
         for (int x = 0; x < side; ++x) {
-          const TsdfVoxel& v = block.tsdf[static_cast<size_t>(x + side * (y + side * z))];
+          const map::TsdfVoxel& v = block.tsdf[static_cast<size_t>(x + side * (y + side * z))];
           if (!(v.weight > 0.0f) || !(std::abs(v.distance_m) < band_m)) continue;
           const std::pair<int32_t, int32_t> key(block.index.x * side + x, block.index.y * side + y);
           const int32_t layer = block.index.z * side + z;
@@ -59,7 +59,7 @@ class PlaceRecognitionTest : public DeviceTest {};
 
 TEST_P(PlaceRecognitionTest, SurfaceColumnsAreTheVoxelsSurfaceColumns) {
   const testing_support::AnalyticScene room = testing_support::registration_room();
-  const std::unique_ptr<TsdfMap> map =
+  const std::unique_ptr<map::TsdfMap> map =
       testing_support::scan_room_submap(device(), room, Pose4Dof{0.3, -0.2, 0.0, 0.2}, 0.1f);
   const float band_m = map->voxel_size_m();
   const std::vector<SurfaceColumn> columns = surface_columns(*map, band_m, Stream(device()));
@@ -86,7 +86,7 @@ TEST(PlaceRecognitionParity, CpuAndCudaGiveTheSameColumns) {
   std::vector<SurfaceColumn> per_device[2];
   const Device devices[2] = {Device::kCpu, Device::kCuda};
   for (int d = 0; d < 2; ++d) {
-    const std::unique_ptr<TsdfMap> map =
+    const std::unique_ptr<map::TsdfMap> map =
         testing_support::scan_room_submap(devices[d], room, Pose4Dof{}, 0.1f);
     per_device[d] = surface_columns(*map, map->voxel_size_m(), Stream(devices[d]));
   }
@@ -206,9 +206,9 @@ std::unique_ptr<Submap> yard_submap(int64_t id, const sim::World& yard,
                                     const Eigen::Isometry3d& T_world_sensor,
                                     const Eigen::Isometry3d& T_odom_world, const Stream& stream) {
   const SlamConfig config = test_scene::yard_config();
-  TsdfIntegrator integrator(config.tsdf);
-  EsdfIntegrator esdf(config.esdf);
-  MeshIntegrator mesher;
+  integrators::TsdfIntegrator integrator(config.tsdf);
+  integrators::EsdfIntegrator esdf(config.esdf);
+  integrators::MeshIntegrator mesher;
   auto submap = std::make_unique<Submap>(id, Device::kCpu, config.map,
                                          gravity_aligned(T_odom_world * T_world_sensor));
   for (int k = 0; k < 4; ++k) {
@@ -217,7 +217,7 @@ std::unique_ptr<Submap> yard_submap(int64_t id, const sim::World& yard,
     const std::vector<Vec3f> points =
         sim::simulate_scan(yard, test_scene::small_lidar(), pose, 100 * id + k);
     Buffer<Vec3f> device_points = Buffer<Vec3f>::from_host(Device::kCpu, points, stream);
-    PointCloudView view;
+    integrators::PointCloudView view;
     view.points = device_points.data();
     view.count = static_cast<int64_t>(points.size());
     submap->integrate(integrator, view, T_odom_world * pose, 0.1 * (10 * id + k), stream);

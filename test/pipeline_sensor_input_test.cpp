@@ -110,7 +110,7 @@ TEST(SlamParameters, ReadsEveryNamedParameter) {
   EXPECT_FLOAT_EQ(config.tsdf.truncation_distance_m, 0.3f);
   EXPECT_FLOAT_EQ(config.tsdf.max_ray_length_m, 12.5f);
   EXPECT_TRUE(config.tsdf.use_const_weight);
-  EXPECT_EQ(config.tsdf.method, TsdfIntegrationMethod::kSimple);
+  EXPECT_EQ(config.tsdf.method, integrators::TsdfIntegrationMethod::kSimple);
   EXPECT_EQ(config.submaps.policy, SubmapCreationPolicy::kDistanceTravelled);
   EXPECT_DOUBLE_EQ(config.submaps.distance_m, 7.0);
   EXPECT_EQ(config.sensor_queue_size, 3u);

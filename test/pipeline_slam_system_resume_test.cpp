@@ -43,7 +43,7 @@ TEST(PipelineSlamSystemResume, MappingContinuesInNewSubmapsAfterFinish) {
   EXPECT_FALSE(slam.running());
   const std::vector<SubmapInfo> frozen = slam.submaps();
   ASSERT_GE(frozen.size(), 2u);
-  const Mesh frozen_mesh = slam.combined_mesh();
+  const map::Mesh frozen_mesh = slam.combined_mesh();
   const int64_t frozen_triangles = static_cast<int64_t>(frozen_mesh.triangle_count());
 
   ASSERT_TRUE(slam.resume());

@@ -163,7 +163,7 @@ TEST(PipelineSlamSystem, FinishFlushesBothQueuesAndEveryScanIsIntegratedOrCounte
   for (const SubmapInfo& submap : submaps) {
     EXPECT_TRUE(submap.T_world_submap.isApprox(submap.T_odom_submap, 1e-6)) << submap.id;
   }
-  const Mesh mesh = slam.combined_mesh();
+  const map::Mesh mesh = slam.combined_mesh();
   EXPECT_GT(mesh.triangle_count(), 0u);
   EXPECT_EQ(mesh.colors.size(), mesh.vertices_m.size());
   const SlamTimings timings = slam.timings();

@@ -146,15 +146,15 @@ TEST(SubmapStore, SmallBudgetSpillsAndKeepsTheUnboundedRunsMapAndRegistrations) 
 
 // A submap of `blocks` observed blocks of 8^3 voxels on the CPU.
 std::unique_ptr<Submap> submap_of_blocks(int64_t id, int blocks) {
-  TsdfMapConfig config;
+  map::TsdfMapConfig config;
   config.voxels_per_side = 8;
   auto submap = std::make_unique<Submap>(id, Device::kCpu, config, Eigen::Isometry3d::Identity());
-  std::vector<HostBlock> host(static_cast<size_t>(blocks));
+  std::vector<map::HostBlock> host(static_cast<size_t>(blocks));
   for (int k = 0; k < blocks; ++k) {
     host[k].index = Index3D(k, 0, 0);
-    host[k].tsdf.assign(512, TsdfVoxel{0.05f * (k + 1), 2.0f});
-    host[k].color.assign(512, ColorVoxel{});
-    host[k].esdf.assign(512, EsdfVoxel{});
+    host[k].tsdf.assign(512, map::TsdfVoxel{0.05f * (k + 1), 2.0f});
+    host[k].color.assign(512, map::ColorVoxel{});
+    host[k].esdf.assign(512, map::EsdfVoxel{});
   }
   submap->map().load_blocks(host, Stream());
   return submap;
@@ -170,7 +170,7 @@ TEST(SubmapStore, TheLeastRecentlyUsedSubmapLeavesFirst) {
   SubmapStore store(budget, 0.4f);
   std::vector<Submap*> graph_order;
   for (auto& submap : submaps) graph_order.push_back(submap.get());
-  EsdfIntegrator esdf{EsdfIntegratorConfig{}};
+  integrators::EsdfIntegrator esdf{integrators::EsdfIntegratorConfig{}};
   store.add(*submaps[0]);
   store.add(*submaps[1]);
   store.acquire(*submaps[0], esdf, Stream());  // submap 0 used again: 1 is now the least recent

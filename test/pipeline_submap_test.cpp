@@ -155,16 +155,16 @@ TEST(PipelineSubmap, IntegratedScansAreCountedAndFinishingGivesMeshEsdfAndBox) {
   testing_support::AnalyticScene scene;
   scene.shape = testing_support::Shape::kSphere;
   scene.radius = 3.0;
-  TsdfMapConfig map_config;
+  map::TsdfMapConfig map_config;
   map_config.voxel_size_m = 0.2f;
   map_config.voxels_per_side = 8;
-  TsdfIntegratorConfig tsdf_config;
+  integrators::TsdfIntegratorConfig tsdf_config;
   tsdf_config.max_ray_length_m = 8.0f;
-  TsdfIntegrator integrator(tsdf_config);
-  EsdfIntegratorConfig esdf_config;
+  integrators::TsdfIntegrator integrator(tsdf_config);
+  integrators::EsdfIntegratorConfig esdf_config;
   esdf_config.esdf_max_distance_m = 1.0f;
-  EsdfIntegrator esdf(esdf_config);
-  MeshIntegrator mesher;
+  integrators::EsdfIntegrator esdf(esdf_config);
+  integrators::MeshIntegrator mesher;
   const Stream stream(Device::kCpu);
 
   Eigen::Isometry3d first = Eigen::Isometry3d::Identity();
@@ -177,7 +177,7 @@ TEST(PipelineSubmap, IntegratedScansAreCountedAndFinishingGivesMeshEsdfAndBox) {
     const std::vector<Vec3f> points =
         testing_support::simulate_lidar(scene, pose, 64, 16, 60.0, 10.0);
     Buffer<Vec3f> device_points = Buffer<Vec3f>::from_host(Device::kCpu, points, stream);
-    PointCloudView view;
+    integrators::PointCloudView view;
     view.points = device_points.data();
     view.count = static_cast<int64_t>(points.size());
     submap.integrate(integrator, view, pose, 10.0 + k, stream);
@@ -203,8 +203,8 @@ TEST(PipelineSubmap, IntegratedScansAreCountedAndFinishingGivesMeshEsdfAndBox) {
             2 * 3.0 + 4 * map_config.voxel_size_m * map_config.voxels_per_side);
   // Some ESDF voxel got a finite, non-clamped distance.
   bool esdf_written = false;
-  for (const HostBlock& block : submap.map().snapshot()) {
-    for (const EsdfVoxel& voxel : block.esdf) {
+  for (const map::HostBlock& block : submap.map().snapshot()) {
+    for (const map::EsdfVoxel& voxel : block.esdf) {
       if (voxel.observed && std::abs(voxel.distance_m) > 0.1f && std::abs(voxel.distance_m) < 0.9f)
         esdf_written = true;
     }
@@ -212,7 +212,7 @@ TEST(PipelineSubmap, IntegratedScansAreCountedAndFinishingGivesMeshEsdfAndBox) {
   EXPECT_TRUE(esdf_written);
   // A finished submap is frozen.
   Buffer<Vec3f> one(Device::kCpu, 1);
-  PointCloudView view;
+  integrators::PointCloudView view;
   view.points = one.data();
   view.count = 0;
   EXPECT_THROW(submap.integrate(integrator, view, first, 20.0, stream), Error);

@@ -103,7 +103,7 @@ class WallMapTest : public DeviceTest {};
 
 TEST_P(WallMapTest, TheRoomsWallsAreItsWallColumns) {
   const testing_support::AnalyticScene room = testing_support::registration_room();
-  const std::unique_ptr<TsdfMap> map =
+  const std::unique_ptr<map::TsdfMap> map =
       testing_support::scan_room_submap(device(), room, Pose4Dof{}, 0.1f);
   const WallMap wall = WallMap::from_map(*map, 1.0, Stream(device()));
   ASSERT_GT(wall.columns().size(), 100u);
@@ -130,9 +130,9 @@ TEST_P(WallMapTest, ARevisitStartedFromTheWallsEndsAtTheTruth) {
   const testing_support::AnalyticScene room = testing_support::registration_room();
   const Pose4Dof T_W_Sj{0.0, 0.0, 0.0, 0.0};
   const Pose4Dof T_W_Si{0.6, -0.4, 0.05, 4.0 * kDegToRad};
-  const std::unique_ptr<TsdfMap> map_j =
+  const std::unique_ptr<map::TsdfMap> map_j =
       testing_support::scan_room_submap(device(), room, T_W_Sj, 0.1f);
-  const std::unique_ptr<TsdfMap> map_i =
+  const std::unique_ptr<map::TsdfMap> map_i =
       testing_support::scan_room_submap(device(), room, T_W_Si, 0.1f);
   SubmapRegistrationConfig config;
   config.revisits.wall_search = true;

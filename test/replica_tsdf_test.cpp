@@ -53,15 +53,15 @@ void check_replica_surface_accuracy(Device device) {
 
   const io::RgbdFolder replica = io::RgbdFolder::open(folder);
   ASSERT_EQ(replica.size(), 4u);
-  TsdfMap map(device, TsdfMapConfig{kVoxelSizeM, 8, {}});
-  TsdfIntegratorConfig config;
+  map::TsdfMap map(device, map::TsdfMapConfig{kVoxelSizeM, 8, {}});
+  integrators::TsdfIntegratorConfig config;
   config.truncation_distance_m = 4.0f * kVoxelSizeM;
   config.max_ray_length_m = 12.0f;
   // Noise-free renders: only the band matters here, and carving the free space of 800k rays of
   // up to 10 m would cost most of the run time.
   config.voxel_carving_enabled = false;
   config.integrate_color = false;
-  TsdfIntegrator integrator(config);
+  integrators::TsdfIntegrator integrator(config);
   const Stream stream(device);
 
   int64_t rays = 0;
@@ -76,24 +76,24 @@ void check_replica_surface_accuracy(Device device) {
         depth_m[v * width + u] = frame.depth.at(v * kPixelStride, u * kPixelStride);
     }
     const Buffer<float> depth_device = Buffer<float>::from_host(device, depth_m);
-    DepthImageView image;
+    integrators::DepthImageView image;
     image.depth_m = depth_device.data();
-    image.intrinsics = PinholeIntrinsics{float(frame.intrinsics.fx / kPixelStride),
-                                         float(frame.intrinsics.fy / kPixelStride),
-                                         float(frame.intrinsics.cx / kPixelStride),
-                                         float(frame.intrinsics.cy / kPixelStride),
-                                         width,
-                                         height};
-    const IntegrationStats stats =
+    image.intrinsics = integrators::PinholeIntrinsics{float(frame.intrinsics.fx / kPixelStride),
+                                                      float(frame.intrinsics.fy / kPixelStride),
+                                                      float(frame.intrinsics.cx / kPixelStride),
+                                                      float(frame.intrinsics.cy / kPixelStride),
+                                                      width,
+                                                      height};
+    const integrators::IntegrationStats stats =
         integrator.integrate_depth(map, image, frame.T_world_camera, stream);
     rays += stats.surface_rays;
   }
 
-  MeshIntegrator mesher;
-  const Mesh reconstructed = mesher.extract_all(map, stream);
+  integrators::MeshIntegrator mesher;
+  const map::Mesh reconstructed = mesher.extract_all(map, stream);
   ASSERT_GT(reconstructed.vertices_m.size(), 10000u);
 
-  const Mesh truth = io::read_mesh_ply(truth_path);
+  const map::Mesh truth = io::read_mesh_ply(truth_path);
   // 10 cm cells: a query meets a few dozen triangles of Replica's dense mesh, not thousands.
   const tools::MeshDistance truth_distance(truth, 0.1);
   constexpr double kFarM = 0.5;  // beyond this a vertex counts as "far" (no truth surface near)

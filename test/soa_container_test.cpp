@@ -18,10 +18,10 @@ namespace {
 
 using testing_support::DeviceTest;
 
-std::vector<ColoredTsdfVoxel> random_voxels(size_t count, uint32_t seed) {
+std::vector<map::ColoredTsdfVoxel> random_voxels(size_t count, uint32_t seed) {
   std::mt19937 random(seed);
   std::uniform_real_distribution<float> distance(-0.3f, 0.3f), weight(0.0f, 20.0f);
-  std::vector<ColoredTsdfVoxel> voxels(count);
+  std::vector<map::ColoredTsdfVoxel> voxels(count);
   for (auto& v : voxels) {
     v.distance_m = distance(random);
     v.weight = weight(random);
@@ -33,7 +33,7 @@ std::vector<ColoredTsdfVoxel> random_voxels(size_t count, uint32_t seed) {
   return voxels;
 }
 
-bool same_bits(const ColoredTsdfVoxel& a, const ColoredTsdfVoxel& b) {
+bool same_bits(const map::ColoredTsdfVoxel& a, const map::ColoredTsdfVoxel& b) {
   return std::memcmp(&a.distance_m, &b.distance_m, 4) == 0 &&
          std::memcmp(&a.weight, &b.weight, 4) == 0 && a.r == b.r && a.g == b.g && a.b == b.b &&
          std::memcmp(&a.color_weight, &b.color_weight, 4) == 0;
@@ -41,18 +41,18 @@ bool same_bits(const ColoredTsdfVoxel& a, const ColoredTsdfVoxel& b) {
 
 template <Layout L>
 struct LayoutRun {
-  std::vector<ColoredTsdfVoxel> voxels_after_blend;
+  std::vector<map::ColoredTsdfVoxel> voxels_after_blend;
   std::vector<float> gathered;
 };
 
 template <Layout L>
-LayoutRun<L> run_layout(Device device, const std::vector<ColoredTsdfVoxel>& initial,
+LayoutRun<L> run_layout(Device device, const std::vector<map::ColoredTsdfVoxel>& initial,
                         const std::vector<uint32_t>& update_indices,
                         const std::vector<float>& update_distances,
                         const std::vector<float>& update_weights,
                         const std::vector<uint32_t>& query_indices) {
   Stream stream(device);
-  VoxelStorage<ColoredTsdfVoxel, L> storage(device);
+  VoxelStorage<map::ColoredTsdfVoxel, L> storage(device);
   storage.copy_from_host(initial);
   auto indices = Buffer<uint32_t>::from_host(device, update_indices);
   auto distances = Buffer<float>::from_host(device, update_distances);
@@ -60,10 +60,10 @@ LayoutRun<L> run_layout(Device device, const std::vector<ColoredTsdfVoxel>& init
   auto queries = Buffer<uint32_t>::from_host(device, query_indices);
   Buffer<float> gathered(device, query_indices.size());
   dispatch(device, [&](auto backend) {
-    blend_tsdf_updates(backend, stream, storage.view(), indices.data(), distances.data(),
-                       weights.data(), update_indices.size(), 50.0f);
-    gather_voxel_distances(backend, stream, storage.view(), queries.data(), query_indices.size(),
-                           gathered.data());
+    map::blend_tsdf_updates(backend, stream, storage.view(), indices.data(), distances.data(),
+                            weights.data(), update_indices.size(), 50.0f);
+    map::gather_voxel_distances(backend, stream, storage.view(), queries.data(),
+                                query_indices.size(), gathered.data());
   });
   stream.synchronize();
   return {storage.to_host(), gathered.to_host()};
@@ -98,7 +98,7 @@ TEST_P(VoxelLayoutTest, SoaAndAosGiveIdenticalResults) {
   EXPECT_EQ(soa.gathered, aos.gathered);
 
   // And against the arithmetic done here on the host.
-  std::vector<ColoredTsdfVoxel> expected = initial;
+  std::vector<map::ColoredTsdfVoxel> expected = initial;
   for (size_t i = 0; i < update_indices.size(); ++i) {
     auto& v = expected[update_indices[i]];
     const float combined = v.weight + weights[i];
@@ -118,22 +118,22 @@ TEST_P(VoxelLayoutTest, SoaAndAosGiveIdenticalResults) {
 
 TEST_P(VoxelLayoutTest, ResizeKeepsContentsAndZeroesNewVoxels) {
   const auto initial = random_voxels(1000, 5);
-  VoxelStorage<ColoredTsdfVoxel, Layout::kSoA> soa(device());
-  VoxelStorage<ColoredTsdfVoxel, Layout::kAoS> aos(device());
+  VoxelStorage<map::ColoredTsdfVoxel, Layout::kSoA> soa(device());
+  VoxelStorage<map::ColoredTsdfVoxel, Layout::kAoS> aos(device());
   soa.copy_from_host(initial);
   aos.copy_from_host(initial);
   soa.resize(2500);
   aos.resize(2500);
   const auto soa_host = soa.to_host();
   const auto aos_host = aos.to_host();
-  const ColoredTsdfVoxel zero{};
+  const map::ColoredTsdfVoxel zero{};
   for (size_t i = 0; i < 2500; ++i) {
-    const ColoredTsdfVoxel& expected = i < 1000 ? initial[i] : zero;
+    const map::ColoredTsdfVoxel& expected = i < 1000 ? initial[i] : zero;
     ASSERT_TRUE(same_bits(soa_host[i], expected)) << i;
     ASSERT_TRUE(same_bits(aos_host[i], expected)) << i;
   }
   EXPECT_EQ(soa.bytes_per_voxel(), 4u + 4u + 1u + 1u + 1u + 4u);  // no padding in SoA
-  EXPECT_EQ(aos.bytes_per_voxel(), sizeof(ColoredTsdfVoxel));
+  EXPECT_EQ(aos.bytes_per_voxel(), sizeof(map::ColoredTsdfVoxel));
 }
 
 COVOX_INSTANTIATE_ON_ALL_DEVICES(VoxelLayoutTest);

@@ -202,7 +202,7 @@ TEST(ReconstructionEvaluation, ExactAndShiftedSurfacesScoreAsExpected) {
   sim::Box box;
   box.half_extent_m = Eigen::Vector3d(2.0, 1.5, 1.0);
   world.add(box);
-  const Mesh truth = world.to_mesh();
+  const map::Mesh truth = world.to_mesh();
   ReconstructionEvaluationOptions options;
   options.thresholds_m = {0.1, 0.2};
   options.sample_spacing_m = 0.05;
@@ -211,7 +211,7 @@ TEST(ReconstructionEvaluation, ExactAndShiftedSurfacesScoreAsExpected) {
   EXPECT_DOUBLE_EQ(exact.accuracy_fraction[0], 1.0);
   EXPECT_NEAR(exact.completeness_fraction[0], 1.0, 1e-9);
   // Shifted by 0.15 m along z: the top and bottom faces are 0.15 m off, the side faces overlap.
-  Mesh shifted = truth;
+  map::Mesh shifted = truth;
   for (Vec3f& v : shifted.vertices_m) v.z += 0.15f;
   const ReconstructionEvaluation moved = evaluate_reconstruction(shifted, truth, options);
   EXPECT_NEAR(moved.accuracy_fraction[1], 1.0, 1e-9);
@@ -228,7 +228,7 @@ TEST(ReconstructionEvaluation, ExactAndShiftedSurfacesScoreAsExpected) {
 TEST(MeshDistance, MatchesBruteForceWithinTheRadiusAndIsInfiniteBeyond) {
   std::mt19937 random(7);
   std::uniform_real_distribution<float> coordinate(-2.0f, 2.0f), offset(-0.4f, 0.4f);
-  Mesh mesh;
+  map::Mesh mesh;
   for (uint32_t t = 0; t < 200; ++t) {
     const Vec3f corner(coordinate(random), coordinate(random), coordinate(random));
     for (int k = 0; k < 3; ++k) {
@@ -268,7 +268,7 @@ TEST(MeshDistance, MatchesBruteForceWithinTheRadiusAndIsInfiniteBeyond) {
 }
 
 TEST(MeshDistance, MeshWithoutTrianglesIsAPointSetAndBadInputsAreClearErrors) {
-  Mesh points;
+  map::Mesh points;
   points.vertices_m = {Vec3f(0.0f, 0.0f, 0.0f), Vec3f(1.0f, 0.0f, 0.0f)};
   const MeshDistance distance(points, 0.5);
   EXPECT_EQ(distance.element_count(), 2u);
@@ -278,7 +278,7 @@ TEST(MeshDistance, MeshWithoutTrianglesIsAPointSetAndBadInputsAreClearErrors) {
   EXPECT_THROW(distance.distance_m(Eigen::Vector3d::Zero(), -1.0), Error);
   EXPECT_THROW(distance.distance_m(Eigen::Vector3d::Zero(), 1e6), Error);  // far too many cells
   EXPECT_THROW(distance.distance_m(Eigen::Vector3d::Constant(std::nan("")), 1.0), Error);
-  Mesh broken = points;
+  map::Mesh broken = points;
   broken.triangles = {0, 1, 5};
   EXPECT_THROW(MeshDistance(broken, 0.5), Error);
 }

@@ -13,7 +13,8 @@ namespace {
 
 void expect_round_trip(const Index3D& low, const Index3D& high, int32_t voxels_per_side,
                        int samples) {
-  const tsdf::FrameKeyCodec codec = tsdf::make_frame_key_codec(low, high, voxels_per_side);
+  const integrators::tsdf::FrameKeyCodec codec =
+      integrators::tsdf::make_frame_key_codec(low, high, voxels_per_side);
   std::mt19937 random(7);
   std::uniform_int_distribution<int32_t> x(low.x, high.x), y(low.y, high.y), z(low.z, high.z);
   for (int i = 0; i < samples; ++i) {
@@ -39,7 +40,7 @@ TEST(TsdfFrameKeyCodec, VoxelInvertsKeyForShortKeys) {
     SCOPED_TRACE(side);
     const Index3D low(-81, -80, -25),
         high(80, 83, 22);  // a 16 m LiDAR frame at 0.2 m, around the origin
-    ASSERT_LE(tsdf::make_frame_key_codec(low, high, side).key_bits, 32);
+    ASSERT_LE(integrators::tsdf::make_frame_key_codec(low, high, side).key_bits, 32);
     expect_round_trip(low, high, side, 20000);
   }
 }
@@ -49,7 +50,7 @@ TEST(TsdfFrameKeyCodec, VoxelInvertsKeyForLongKeys) {
     SCOPED_TRACE(side);
     const Index3D low(-20000, 5000, -3000),
         high(26000, 61000, 2500);  // far from the origin, hundreds of metres
-    ASSERT_GT(tsdf::make_frame_key_codec(low, high, side).key_bits, 32);
+    ASSERT_GT(integrators::tsdf::make_frame_key_codec(low, high, side).key_bits, 32);
     expect_round_trip(low, high, side, 20000);
   }
 }

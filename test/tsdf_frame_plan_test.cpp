@@ -26,8 +26,8 @@ namespace {
 constexpr uint64_t kBoxBlocks = 12 * 12 * 12;
 constexpr uint64_t kBoxCells = kBoxBlocks * 512;
 
-tsdf::FrameRays frame_rays(int64_t rays, int64_t visits) {
-  tsdf::FrameRays frame;
+integrators::tsdf::FrameRays frame_rays(int64_t rays, int64_t visits) {
+  integrators::tsdf::FrameRays frame;
   frame.count = rays;
   frame.tally.voxels = visits;
   for (int axis = 0; axis < 3; ++axis) {
@@ -37,75 +37,77 @@ tsdf::FrameRays frame_rays(int64_t rays, int64_t visits) {
   return frame;
 }
 
-tsdf::TsdfFramePlan plan_of(Device backend, const tsdf::FrameStrategy& strategy, int budget_mb,
-                            bool colored, int64_t visits, int64_t last_listed_blocks = -1) {
-  const TsdfMap map(Device::kCpu, TsdfMapConfig{0.1f, 8, {}});
-  TsdfIntegratorConfig config;  // truncation 0.6 m: 6 voxels
+integrators::tsdf::TsdfFramePlan plan_of(Device backend,
+                                         const integrators::tsdf::FrameStrategy& strategy,
+                                         int budget_mb, bool colored, int64_t visits,
+                                         int64_t last_listed_blocks = -1) {
+  const map::TsdfMap map(Device::kCpu, map::TsdfMapConfig{0.1f, 8, {}});
+  integrators::TsdfIntegratorConfig config;  // truncation 0.6 m: 6 voxels
   config.fixed_point_sums_max_scratch_mb = budget_mb;
-  tsdf::TsdfFramePlan plan;
+  integrators::tsdf::TsdfFramePlan plan;
   plan.has_color = colored;
-  tsdf::plan_visits(&plan, config, strategy, backend, frame_rays(1000, visits), map,
-                    last_listed_blocks);
+  integrators::tsdf::plan_visits(&plan, config, strategy, backend, frame_rays(1000, visits), map,
+                                 last_listed_blocks);
   return plan;
 }
 
 TEST(TsdfFramePlan, BoxFiguresFollowTheTally) {
-  const tsdf::TsdfFramePlan plan =
-      plan_of(Device::kCuda, tsdf::FrameStrategy{}, 512, true, int64_t(1) << 22);
+  const integrators::tsdf::TsdfFramePlan plan =
+      plan_of(Device::kCuda, integrators::tsdf::FrameStrategy{}, 512, true, int64_t(1) << 22);
   EXPECT_EQ(plan.box_blocks, static_cast<int64_t>(kBoxBlocks));
   EXPECT_EQ(plan.box_cells, kBoxCells);
   EXPECT_TRUE(plan.short_keys);  // the cells and the two drop keys are below 2^20
   EXPECT_TRUE(plan.marks_blocks);
-  EXPECT_EQ(plan.cell_words, tsdf::kSumCellWords);
+  EXPECT_EQ(plan.cell_words, integrators::tsdf::kSumCellWords);
   // 1000 rays of at most floor(sqrt(3) (2 x 6 + 1)) + 6 = 28 band visits each.
   EXPECT_EQ(plan.band_bound, 28000);
-  EXPECT_EQ(plan.piece_bound, (int64_t(1) << 22) / tsdf::kVoxelsPerPiece + 1000);
+  EXPECT_EQ(plan.piece_bound, (int64_t(1) << 22) / integrators::tsdf::kVoxelsPerPiece + 1000);
 }
 
 TEST(TsdfFramePlan, ShippedStrategySumsOnTheGpuWhenTheBudgetAllows) {
-  const tsdf::FrameStrategy shipped;
+  const integrators::tsdf::FrameStrategy shipped;
   const int64_t many = int64_t(1) << 22, few = int64_t(1) << 19;
   // Every visit's cells: 48 bytes each with colour (42.5 MB), 16 without (14.2 MB).
   EXPECT_EQ(plan_of(Device::kCuda, shipped, 512, true, few).visits,
-            tsdf::VisitMerging::kSumEveryVisit);
+            integrators::tsdf::VisitMerging::kSumEveryVisit);
   EXPECT_EQ(plan_of(Device::kCuda, shipped, 40, true, many).visits,
-            tsdf::VisitMerging::kSumFreeSpace);
+            integrators::tsdf::VisitMerging::kSumFreeSpace);
   EXPECT_EQ(plan_of(Device::kCuda, shipped, 40, false, many).visits,
-            tsdf::VisitMerging::kSumEveryVisit);
+            integrators::tsdf::VisitMerging::kSumEveryVisit);
   // Free space alone (8 bytes a cell, 7.1 MB) only for frames of enough visits.
   EXPECT_EQ(plan_of(Device::kCuda, shipped, 40, true, few).visits,
-            tsdf::VisitMerging::kSortEveryVisit);
+            integrators::tsdf::VisitMerging::kSortEveryVisit);
   EXPECT_EQ(plan_of(Device::kCuda, shipped, 6, true, many).visits,
-            tsdf::VisitMerging::kSortEveryVisit);
+            integrators::tsdf::VisitMerging::kSortEveryVisit);
   EXPECT_EQ(plan_of(Device::kCuda, shipped, 0, false, many).visits,
-            tsdf::VisitMerging::kSortEveryVisit);
+            integrators::tsdf::VisitMerging::kSortEveryVisit);
   // The CPU twin never sums with the shipped strategy, and groups by block instead of sorting.
-  const tsdf::TsdfFramePlan cpu = plan_of(Device::kCpu, shipped, 512, true, many);
-  EXPECT_EQ(cpu.visits, tsdf::VisitMerging::kSortEveryVisit);
+  const integrators::tsdf::TsdfFramePlan cpu = plan_of(Device::kCpu, shipped, 512, true, many);
+  EXPECT_EQ(cpu.visits, integrators::tsdf::VisitMerging::kSortEveryVisit);
   EXPECT_TRUE(cpu.groups_on_cpu);
   EXPECT_FALSE(plan_of(Device::kCuda, shipped, 0, true, many).groups_on_cpu);
 }
 
 TEST(TsdfFramePlan, TestStrategiesReachEveryPath) {
-  tsdf::FrameStrategy strategy;
+  integrators::tsdf::FrameStrategy strategy;
   strategy.cpu_twin_sums_in_fixed_point = true;
   strategy.free_space_sums_min_visits = 0;
   const int64_t few = int64_t(1) << 19;
-  const tsdf::TsdfFramePlan cpu = plan_of(Device::kCpu, strategy, 512, true, few);
-  EXPECT_EQ(cpu.visits, tsdf::VisitMerging::kSumEveryVisit);
+  const integrators::tsdf::TsdfFramePlan cpu = plan_of(Device::kCpu, strategy, 512, true, few);
+  EXPECT_EQ(cpu.visits, integrators::tsdf::VisitMerging::kSumEveryVisit);
   EXPECT_FALSE(cpu.groups_on_cpu);
   EXPECT_EQ(plan_of(Device::kCpu, strategy, 40, true, few).visits,
-            tsdf::VisitMerging::kSumFreeSpace);
+            integrators::tsdf::VisitMerging::kSumFreeSpace);
   strategy.sum_band_in_fixed_point = false;
   EXPECT_EQ(plan_of(Device::kCuda, strategy, 512, true, few).visits,
-            tsdf::VisitMerging::kSumFreeSpace);
+            integrators::tsdf::VisitMerging::kSumFreeSpace);
   strategy.sum_free_space_in_fixed_point = false;
   EXPECT_EQ(plan_of(Device::kCuda, strategy, 512, true, few).visits,
-            tsdf::VisitMerging::kSortEveryVisit);
+            integrators::tsdf::VisitMerging::kSortEveryVisit);
 }
 
 TEST(TsdfFramePlan, SmallFramesDeferTheirBlockCount) {
-  const tsdf::FrameStrategy shipped;
+  const integrators::tsdf::FrameStrategy shipped;
   const int64_t visits = int64_t(1) << 22;
   // Unknown last frame: wait. 2^21 cells = 4096 blocks of 512: defer up to there.
   EXPECT_FALSE(plan_of(Device::kCuda, shipped, 512, true, visits, -1).defers_block_count);
@@ -116,17 +118,17 @@ TEST(TsdfFramePlan, SmallFramesDeferTheirBlockCount) {
 }
 
 TEST(TsdfFramePlan, LargeBoxesAreMarkedOnlyWithAsManyVisits) {
-  EXPECT_TRUE(tsdf::marks_blocks(int64_t(1) << 16, 10));
-  EXPECT_FALSE(tsdf::marks_blocks((int64_t(1) << 16) + 1, 10));
-  EXPECT_TRUE(tsdf::marks_blocks(int64_t(1) << 20, int64_t(1) << 20));
-  EXPECT_FALSE(tsdf::marks_blocks(int64_t(1) << 31, int64_t(1) << 40));
+  EXPECT_TRUE(integrators::tsdf::marks_blocks(int64_t(1) << 16, 10));
+  EXPECT_FALSE(integrators::tsdf::marks_blocks((int64_t(1) << 16) + 1, 10));
+  EXPECT_TRUE(integrators::tsdf::marks_blocks(int64_t(1) << 20, int64_t(1) << 20));
+  EXPECT_FALSE(integrators::tsdf::marks_blocks(int64_t(1) << 31, int64_t(1) << 40));
 }
 
 // The scan of a box's marks lists each marked block at its rank, clears its mark and starts the
 // frame's results with the count.
 TEST(TsdfFrameKernels, ListMarkedBlockListsTheMarkedBlocksInBoxOrder) {
-  const tsdf::FrameKeyCodec codec =
-      tsdf::make_frame_key_codec(Index3D(-30, -20, -10), Index3D(40, 25, 33), 8);
+  const integrators::tsdf::FrameKeyCodec codec =
+      integrators::tsdf::make_frame_key_codec(Index3D(-30, -20, -10), Index3D(40, 25, 33), 8);
   const int64_t box_blocks = static_cast<int64_t>(codec.size_x) * codec.size_y * codec.size_z;
   std::mt19937 random(7);
   std::vector<uint32_t> marks(static_cast<size_t>(box_blocks) + 1, 0u);
@@ -142,13 +144,14 @@ TEST(TsdfFrameKernels, ListMarkedBlockListsTheMarkedBlocksInBoxOrder) {
   }
   std::vector<uint32_t> ranks(marks.size());
   std::vector<Index3D> listed(static_cast<size_t>(box_blocks));
-  tsdf::FrameResults results{};
+  integrators::tsdf::FrameResults results{};
   results.zero_weight_first = 5u;
   const Stream stream(Device::kCpu);
-  exclusive_scan_of(
-      CpuBackend{}, stream, box_blocks + 1, tsdf::IsMarkedBlock{marks.data()},
-      tsdf::ListMarkedBlock{ranks.data(), box_blocks, &results, marks.data(), codec, listed.data(),
-                            false, nullptr, BlockActivator{}, nullptr});
+  exclusive_scan_of(CpuBackend{}, stream, box_blocks + 1,
+                    integrators::tsdf::IsMarkedBlock{marks.data()},
+                    integrators::tsdf::ListMarkedBlock{ranks.data(), box_blocks, &results,
+                                                       marks.data(), codec, listed.data(), false,
+                                                       nullptr, map::BlockActivator{}, nullptr});
   ASSERT_EQ(results.blocks, expected.size());
   EXPECT_EQ(results.zero_weight_first, 0u);
   for (size_t k = 0; k < expected.size(); ++k) EXPECT_EQ(listed[k], expected[k]) << k;
@@ -159,8 +162,8 @@ TEST(TsdfFrameKernels, ListMarkedBlockListsTheMarkedBlocksInBoxOrder) {
 // From sorted keys: one listed block per distinct block part of the kept keys (those below the
 // out-of-range key), in key order.
 TEST(TsdfFrameKernels, SortedRecordsListTheirDistinctBlocks) {
-  const tsdf::FrameKeyCodec codec =
-      tsdf::make_frame_key_codec(Index3D(-30, -20, -10), Index3D(40, 25, 33), 8);
+  const integrators::tsdf::FrameKeyCodec codec =
+      integrators::tsdf::make_frame_key_codec(Index3D(-30, -20, -10), Index3D(40, 25, 33), 8);
   std::mt19937 random(11);
   std::uniform_int_distribution<int32_t> x(-30, 40), y(-20, 25), z(-10, 33);
   std::vector<uint32_t> keys;
@@ -178,17 +181,17 @@ TEST(TsdfFrameKernels, SortedRecordsListTheirDistinctBlocks) {
   const int64_t count = static_cast<int64_t>(keys.size());
   std::vector<uint32_t> flags(keys.size() + 1), ranks(keys.size() + 1);
   std::vector<Index3D> listed(keys.size());
-  tsdf::FrameResults results{};
+  integrators::tsdf::FrameResults results{};
   const Stream stream(Device::kCpu);
   parallel_for(
       CpuBackend{}, stream, count + 1,
-      tsdf::FlagBlockStarts<uint32_t>{
+      integrators::tsdf::FlagBlockStarts<uint32_t>{
           keys.data(), count, static_cast<uint32_t>(codec.out_of_range_key), codec, flags.data()});
   exclusive_scan(CpuBackend{}, stream, static_cast<const uint32_t*>(flags.data()), count + 1,
                  ranks.data());
   parallel_for(CpuBackend{}, stream, count + 1,
-               tsdf::ListSortedBlocks<uint32_t>{flags.data(), ranks.data(), keys.data(), count,
-                                                codec, listed.data(), &results});
+               integrators::tsdf::ListSortedBlocks<uint32_t>{
+                   flags.data(), ranks.data(), keys.data(), count, codec, listed.data(), &results});
   ASSERT_EQ(results.blocks, expected.size());
   for (size_t k = 0; k < expected.size(); ++k) EXPECT_EQ(listed[k], expected[k]) << k;
 }
@@ -196,34 +199,37 @@ TEST(TsdfFrameKernels, SortedRecordsListTheirDistinctBlocks) {
 // The simple method's rays: each point's ray as make_ray makes it, its piece count, and a zero
 // after the last for the scan.
 TEST(TsdfFrameKernels, WritePointRaysWritesEachPointsRay) {
-  tsdf::RayParameters parameters{Transform3f{}, 0.1f, 0.3f, 0.2f, 5.0f, true, true};
+  integrators::tsdf::RayParameters parameters{Transform3f{}, 0.1f, 0.3f, 0.2f, 5.0f, true, true};
   const std::vector<Vec3f> points = {Vec3f(1.0f, 2.0f, 0.5f), Vec3f(0.0f, 0.0f, 0.0f),
                                      Vec3f(9.0f, -1.0f, 0.0f), Vec3f(0.05f, 0.0f, 0.0f)};
   const int64_t n = static_cast<int64_t>(points.size());
-  std::vector<tsdf::RaySegment> rays(points.size());
+  std::vector<integrators::tsdf::RaySegment> rays(points.size());
   std::vector<uint32_t> pieces(points.size() + 1, 77u);
-  parallel_for(
-      CpuBackend{}, Stream(Device::kCpu), n + 1,
-      tsdf::WritePointRays{parameters, 10.0f, points.data(), n, rays.data(), pieces.data()});
+  parallel_for(CpuBackend{}, Stream(Device::kCpu), n + 1,
+               integrators::tsdf::WritePointRays{parameters, 10.0f, points.data(), n, rays.data(),
+                                                 pieces.data()});
   for (size_t i = 0; i < points.size(); ++i) {
-    const tsdf::RaySegment ray = tsdf::make_ray(parameters, points[i]);
+    const integrators::tsdf::RaySegment ray = integrators::tsdf::make_ray(parameters, points[i]);
     EXPECT_EQ(rays[i].kind, ray.kind) << i;
     // A ray's voxels from its start voxel to its end voxel, one step per crossed grid line.
     uint32_t voxels = 0;
-    if (ray.kind <= tsdf::kClearingRay) {
+    if (ray.kind <= integrators::tsdf::kClearingRay) {
       EXPECT_EQ(rays[i].end.x, ray.end.x) << i;
       EXPECT_EQ(rays[i].start.y, ray.start.y) << i;
-      const Index3D a = tsdf::voxel_of(ray.start, 10.0f), b = tsdf::voxel_of(ray.end, 10.0f);
+      const Index3D a = integrators::tsdf::voxel_of(ray.start, 10.0f),
+                    b = integrators::tsdf::voxel_of(ray.end, 10.0f);
       voxels = 1u + static_cast<uint32_t>(std::abs(b.x - a.x) + std::abs(b.y - a.y) +
                                           std::abs(b.z - a.z));
     }
-    EXPECT_EQ(pieces[i], (voxels + tsdf::kVoxelsPerPiece - 1) / tsdf::kVoxelsPerPiece) << i;
+    EXPECT_EQ(pieces[i], (voxels + integrators::tsdf::kVoxelsPerPiece - 1) /
+                             integrators::tsdf::kVoxelsPerPiece)
+        << i;
   }
   EXPECT_EQ(pieces[points.size()], 0u);
-  EXPECT_EQ(rays[0].kind, tsdf::kSurfaceRay);
-  EXPECT_EQ(rays[1].kind, tsdf::kDroppedZero);
-  EXPECT_EQ(rays[2].kind, tsdf::kClearingRay);
-  EXPECT_EQ(rays[3].kind, tsdf::kDroppedTooClose);
+  EXPECT_EQ(rays[0].kind, integrators::tsdf::kSurfaceRay);
+  EXPECT_EQ(rays[1].kind, integrators::tsdf::kDroppedZero);
+  EXPECT_EQ(rays[2].kind, integrators::tsdf::kClearingRay);
+  EXPECT_EQ(rays[3].kind, integrators::tsdf::kDroppedTooClose);
   EXPECT_GT(pieces[0], 1u);
 }
 

@@ -16,13 +16,14 @@ namespace {
 
 struct Record {
   uint32_t key;
-  tsdf::DistanceUpdate update;
+  integrators::tsdf::DistanceUpdate update;
 };
 
 void expect_grouping_matches_sorted_sums(int32_t voxels_per_side, int64_t count) {
   const Index3D low(-40, -25, -7), high(30, 12, 20);
-  const tsdf::FrameKeyCodec codec = tsdf::make_frame_key_codec(low, high, voxels_per_side);
-  ASSERT_TRUE(tsdf::dense_grouping_fits(codec));
+  const integrators::tsdf::FrameKeyCodec codec =
+      integrators::tsdf::make_frame_key_codec(low, high, voxels_per_side);
+  ASSERT_TRUE(integrators::tsdf::dense_grouping_fits(codec));
   ASSERT_LE(codec.key_bits, 32);
   std::mt19937 random(static_cast<uint32_t>(voxels_per_side * 1000 + count));
   // Few distinct voxels for many records, so that most voxels repeat.
@@ -43,7 +44,7 @@ void expect_grouping_matches_sorted_sums(int32_t voxels_per_side, int64_t count)
   std::stable_sort(sorted.begin(), sorted.end(),
                    [](const Record& a, const Record& b) { return a.key < b.key; });
   std::vector<uint32_t> expected_keys;
-  std::vector<tsdf::DistanceUpdate> expected_sums;
+  std::vector<integrators::tsdf::DistanceUpdate> expected_sums;
   uint32_t zero_weight = 0, out_of_range = 0;
   for (const Record& r : sorted) {
     if (r.key == codec.zero_weight_key) {
@@ -51,7 +52,7 @@ void expect_grouping_matches_sorted_sums(int32_t voxels_per_side, int64_t count)
     } else if (r.key == codec.out_of_range_key) {
       ++out_of_range;
     } else if (!expected_keys.empty() && expected_keys.back() == r.key) {
-      expected_sums.back() = tsdf::MergeUpdates()(expected_sums.back(), r.update);
+      expected_sums.back() = integrators::tsdf::MergeUpdates()(expected_sums.back(), r.update);
     } else {
       expected_keys.push_back(r.key);
       expected_sums.push_back(r.update);
@@ -59,17 +60,17 @@ void expect_grouping_matches_sorted_sums(int32_t voxels_per_side, int64_t count)
   }
 
   std::vector<uint32_t> keys(records.size()), keys_alt(records.size()), merged_keys(records.size());
-  std::vector<tsdf::DistanceUpdate> values(records.size()), values_alt(records.size()),
+  std::vector<integrators::tsdf::DistanceUpdate> values(records.size()), values_alt(records.size()),
       merged(records.size());
   for (size_t i = 0; i < records.size(); ++i) {
     keys[i] = records[i].key;
     values[i] = records[i].update;
   }
-  const tsdf::DistanceUpdate* moved = values_alt.data();
-  const tsdf::GroupCounts counts = tsdf::group_updates_by_voxel_cpu(
+  const integrators::tsdf::DistanceUpdate* moved = values_alt.data();
+  const integrators::tsdf::GroupCounts counts = integrators::tsdf::group_updates_by_voxel_cpu(
       codec, keys.data(), values.data(), count, keys_alt.data(), values_alt.data(),
       merged_keys.data(), merged.data(), [moved](int64_t j) { return moved[j]; },
-      tsdf::MergeUpdates());
+      integrators::tsdf::MergeUpdates());
 
   ASSERT_EQ(counts.voxels, expected_keys.size());
   EXPECT_EQ(counts.zero_weight, zero_weight);

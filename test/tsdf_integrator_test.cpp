@@ -39,14 +39,15 @@ struct BandError {
 
 // Compares every observed voxel with the analytic SDF at its centre, and every zero crossing
 // between two observed neighbouring voxels (where a mesh vertex would go) with the true surface.
-BandError compare_with_scene(const TsdfMap& map, const AnalyticScene& scene, float truncation_m) {
+BandError compare_with_scene(const map::TsdfMap& map, const AnalyticScene& scene,
+                             float truncation_m) {
   BandError error;
   double squared = 0.0;
   const int side = map.voxels_per_side();
   const double voxel = map.voxel_size_m();
   const auto blocks = map.snapshot();
-  std::map<Index3D, const TsdfVoxel*> by_voxel;
-  for (const HostBlock& block : blocks) {
+  std::map<Index3D, const map::TsdfVoxel*> by_voxel;
+  for (const map::HostBlock& block : blocks) {
     for (int k = 0; k < side * side * side; ++k) {
       const Index3D global(block.index.x * side + k % side,
                            block.index.y * side + (k / side) % side,
@@ -73,11 +74,11 @@ BandError compare_with_scene(const TsdfMap& map, const AnalyticScene& scene, flo
   }
   error.zero_crossing_rmse_voxels =
       error.zero_crossings ? std::sqrt(crossing_squared / error.zero_crossings) / voxel : 0.0;
-  for (const HostBlock& block : blocks) {
+  for (const map::HostBlock& block : blocks) {
     for (int z = 0; z < side; ++z) {
       for (int y = 0; y < side; ++y) {
         for (int x = 0; x < side; ++x) {
-          const TsdfVoxel& v = block.tsdf[x + side * (y + side * z)];
+          const map::TsdfVoxel& v = block.tsdf[x + side * (y + side * z)];
           if (v.weight <= 0.0f) continue;
           const Eigen::Vector3d center((block.index.x * side + x + 0.5) * voxel,
                                        (block.index.y * side + y + 0.5) * voxel,
@@ -125,8 +126,8 @@ std::vector<Eigen::Isometry3d> viewpoints() {
   return poses;
 }
 
-TsdfIntegratorConfig analytic_config(float voxel_size_m) {
-  TsdfIntegratorConfig config;
+integrators::TsdfIntegratorConfig analytic_config(float voxel_size_m) {
+  integrators::TsdfIntegratorConfig config;
   config.truncation_distance_m = 3.0f * voxel_size_m;
   config.max_ray_length_m = 10.0f;
   config.use_const_weight = false;
@@ -138,8 +139,9 @@ class TsdfIntegratorTest : public DeviceTest {};
 // The frame strategy that takes the fixed-point paths on both backends (the CPU twin's shipped
 // strategy never does) and on the GPU for small frames too; `sum_free_space` and `sum_band` as
 // tsdf::FrameStrategy has them.
-tsdf::FrameStrategy summing_strategy(bool sum_free_space = true, bool sum_band = true) {
-  tsdf::FrameStrategy strategy;
+integrators::tsdf::FrameStrategy summing_strategy(bool sum_free_space = true,
+                                                  bool sum_band = true) {
+  integrators::tsdf::FrameStrategy strategy;
   strategy.sum_free_space_in_fixed_point = sum_free_space;
   strategy.sum_band_in_fixed_point = sum_band;
   strategy.free_space_sums_min_visits = 0;
@@ -157,7 +159,7 @@ constexpr double kBandIncidenceDeg = 25.0;
 // One case of the analytic comparisons: integration method, scene, voxel size and the largest
 // incidence angle of the simulated returns.
 struct AnalyticCase {
-  TsdfIntegrationMethod method;
+  integrators::TsdfIntegrationMethod method;
   Shape shape;
   float voxel_size_m;
   double max_incidence_deg;
@@ -166,8 +168,8 @@ struct AnalyticCase {
 // Every combination, method outermost.
 std::vector<AnalyticCase> analytic_cases() {
   std::vector<AnalyticCase> cases;
-  for (TsdfIntegrationMethod method :
-       {TsdfIntegrationMethod::kMerged, TsdfIntegrationMethod::kSimple}) {
+  for (integrators::TsdfIntegrationMethod method :
+       {integrators::TsdfIntegrationMethod::kMerged, integrators::TsdfIntegrationMethod::kSimple}) {
     for (Shape shape : {Shape::kPlane, Shape::kSphere, Shape::kBox}) {
       for (float voxel_size : {0.05f, 0.1f, 0.2f}) {
         for (double max_incidence : {kBandIncidenceDeg, 90.0}) {
@@ -179,8 +181,8 @@ std::vector<AnalyticCase> analytic_cases() {
   return cases;
 }
 
-TsdfIntegratorConfig analytic_config(const AnalyticCase& c) {
-  TsdfIntegratorConfig config = analytic_config(c.voxel_size_m);
+integrators::TsdfIntegratorConfig analytic_config(const AnalyticCase& c) {
+  integrators::TsdfIntegratorConfig config = analytic_config(c.voxel_size_m);
   config.method = c.method;
   return config;
 }
@@ -196,8 +198,8 @@ struct CoverageMinimum {
 // The map of one case against the analytic SDF: the band within 0.3 voxel RMSE when the returns
 // are near normal incidence, the zero crossings always, and no free voxel with a non-positive
 // distance.
-void expect_matches_scene(const TsdfMap& map, const AnalyticScene& scene, const AnalyticCase& c,
-                          const CoverageMinimum& minimum) {
+void expect_matches_scene(const map::TsdfMap& map, const AnalyticScene& scene,
+                          const AnalyticCase& c, const CoverageMinimum& minimum) {
   const BandError error = compare_with_scene(map, scene, 3.0f * c.voxel_size_m);
   SCOPED_TRACE(std::string(to_string(c.method)) + " " + shape_name(c.shape) + " at " +
                std::to_string(c.voxel_size_m) + " m, incidence up to " +
@@ -217,8 +219,8 @@ void expect_matches_scene(const TsdfMap& map, const AnalyticScene& scene, const 
 TEST_P(TsdfIntegratorTest, SimulatedLidarMatchesAnalyticSdf) {
   for (const AnalyticCase& c : analytic_cases()) {
     const AnalyticScene scene = make_scene(c.shape);
-    TsdfMap map(device(), TsdfMapConfig{c.voxel_size_m, 8, {}});
-    TsdfIntegrator integrator(analytic_config(c));
+    map::TsdfMap map(device(), map::TsdfMapConfig{c.voxel_size_m, 8, {}});
+    integrators::TsdfIntegrator integrator(analytic_config(c));
     for (const auto& pose : viewpoints()) {
       // Tilt the spin axis for the ground plane, so that some beams look straight down.
       const Eigen::Isometry3d sensor =
@@ -226,7 +228,7 @@ TEST_P(TsdfIntegratorTest, SimulatedLidarMatchesAnalyticSdf) {
                                    : pose;
       const auto points =
           testing_support::simulate_lidar(scene, sensor, 720, 64, 90.0, 9.5, c.max_incidence_deg);
-      const IntegrationStats stats = integrator.integrate(map, points, {}, sensor);
+      const integrators::IntegrationStats stats = integrator.integrate(map, points, {}, sensor);
       ASSERT_EQ(stats.surface_rays, static_cast<int64_t>(points.size()));
     }
     expect_matches_scene(map, scene, c, CoverageMinimum{500, 100, 50});
@@ -238,8 +240,8 @@ TEST_P(TsdfIntegratorTest, SimulatedDepthCameraMatchesAnalyticSdf) {
   const double f = 140.0;
   for (const AnalyticCase& c : analytic_cases()) {
     const AnalyticScene scene = make_scene(c.shape);
-    TsdfMap map(device(), TsdfMapConfig{c.voxel_size_m, 8, {}});
-    TsdfIntegrator integrator(analytic_config(c));
+    map::TsdfMap map(device(), map::TsdfMapConfig{c.voxel_size_m, 8, {}});
+    integrators::TsdfIntegrator integrator(analytic_config(c));
     const Stream stream(device());
     const auto viewpoints_list = viewpoints();
     for (const auto& pose : viewpoints_list) {
@@ -256,14 +258,14 @@ TEST_P(TsdfIntegratorTest, SimulatedDepthCameraMatchesAnalyticSdf) {
       std::vector<float> depth_metres(depth.size());
       for (size_t p = 0; p < depth.size(); ++p) depth_metres[p] = depth[p] * 1e-3f;
       auto depth_metres_device = Buffer<float>::from_host(device(), depth_metres);
-      DepthImageView image;
+      integrators::DepthImageView image;
       if (&pose - &viewpoints_list[0] == 1 || &pose - &viewpoints_list[0] == 3) {
         image.depth_m = depth_metres_device.data();
       } else {
         image.depth = depth_device.data();
       }
-      image.intrinsics =
-          PinholeIntrinsics{float(f), float(f), width / 2.0f, height / 2.0f, width, height};
+      image.intrinsics = integrators::PinholeIntrinsics{float(f),      float(f), width / 2.0f,
+                                                        height / 2.0f, width,    height};
       image.depth_units_per_m = 1000.0f;
       image.invalid_value = 65535;
       integrator.integrate_depth(map, image, camera, stream);
@@ -274,14 +276,15 @@ TEST_P(TsdfIntegratorTest, SimulatedDepthCameraMatchesAnalyticSdf) {
 
 // One ray along +x hits a point at range 1.97 m: every voxel it crosses gets exactly one update, so
 // the stored weight is the weighting function itself and the distance is the ray distance.
-std::map<int, TsdfVoxel> single_ray_voxels(Device device, const TsdfIntegratorConfig& config) {
-  TsdfMap map(device, TsdfMapConfig{0.1f, 8, {}});
-  TsdfIntegrator integrator(config);
+std::map<int, map::TsdfVoxel> single_ray_voxels(Device device,
+                                                const integrators::TsdfIntegratorConfig& config) {
+  map::TsdfMap map(device, map::TsdfMapConfig{0.1f, 8, {}});
+  integrators::TsdfIntegrator integrator(config);
   integrator.integrate(map, {Vec3f(1.97f, 0.05f, 0.05f)}, {}, Eigen::Isometry3d::Identity());
-  std::map<int, TsdfVoxel> along_x;
-  for (const HostBlock& block : map.snapshot()) {
+  std::map<int, map::TsdfVoxel> along_x;
+  for (const map::HostBlock& block : map.snapshot()) {
     for (int x = 0; x < 8; ++x) {
-      const TsdfVoxel& v = block.tsdf[x];  // y = z = 0 inside the block
+      const map::TsdfVoxel& v = block.tsdf[x];  // y = z = 0 inside the block
       if (block.index.y == 0 && block.index.z == 0 && v.weight > 0.0f)
         along_x[block.index.x * 8 + x] = v;
     }
@@ -290,7 +293,7 @@ std::map<int, TsdfVoxel> single_ray_voxels(Device device, const TsdfIntegratorCo
 }
 
 TEST_P(TsdfIntegratorTest, WeightingFunctionsFollowVoxbloxDefinitions) {
-  TsdfIntegratorConfig config;
+  integrators::TsdfIntegratorConfig config;
   config.truncation_distance_m = 0.4f;
   config.max_ray_length_m = 10.0f;
   config.min_ray_length_m = 0.0f;
@@ -329,9 +332,9 @@ TEST_P(TsdfIntegratorTest, WeightingFunctionsFollowVoxbloxDefinitions) {
 }
 
 // Every observed voxel of a map, by its block index and voxel-in-block position.
-std::map<std::pair<Index3D, int>, TsdfVoxel> observed_voxels(const TsdfMap& map) {
-  std::map<std::pair<Index3D, int>, TsdfVoxel> voxels;
-  for (const HostBlock& block : map.snapshot()) {
+std::map<std::pair<Index3D, int>, map::TsdfVoxel> observed_voxels(const map::TsdfMap& map) {
+  std::map<std::pair<Index3D, int>, map::TsdfVoxel> voxels;
+  for (const map::HostBlock& block : map.snapshot()) {
     for (size_t v = 0; v < block.tsdf.size(); ++v) {
       if (block.tsdf[v].weight > 0.0f) voxels[{block.index, static_cast<int>(v)}] = block.tsdf[v];
     }
@@ -340,12 +343,13 @@ std::map<std::pair<Index3D, int>, TsdfVoxel> observed_voxels(const TsdfMap& map)
 }
 
 // The same blocks with the same TSDF voxels, bit for bit.
-void expect_bit_identical_tsdf(const std::vector<HostBlock>& a, const std::vector<HostBlock>& b) {
+void expect_bit_identical_tsdf(const std::vector<map::HostBlock>& a,
+                               const std::vector<map::HostBlock>& b) {
   ASSERT_EQ(a.size(), b.size());
   for (size_t k = 0; k < a.size(); ++k) {
     ASSERT_EQ(a[k].index, b[k].index);
-    ASSERT_EQ(0,
-              std::memcmp(a[k].tsdf.data(), b[k].tsdf.data(), a[k].tsdf.size() * sizeof(TsdfVoxel)))
+    ASSERT_EQ(0, std::memcmp(a[k].tsdf.data(), b[k].tsdf.data(),
+                             a[k].tsdf.size() * sizeof(map::TsdfVoxel)))
         << "block " << k;
   }
 }
@@ -360,12 +364,12 @@ std::vector<Vec3f> dense_sphere_scan(const Eigen::Isometry3d& sensor) {
 // summed weight. Checked against the simple integrator, which is its own independent path.
 TEST_P(TsdfIntegratorTest, MergedRaysBundleThePointsOfOneVoxel) {
   const float voxel_size = 0.1f;
-  TsdfIntegratorConfig simple = analytic_config(voxel_size);
-  simple.method = TsdfIntegrationMethod::kSimple;
+  integrators::TsdfIntegratorConfig simple = analytic_config(voxel_size);
+  simple.method = integrators::TsdfIntegrationMethod::kSimple;
   simple.use_const_weight = true;
   simple.max_weight = 1e9f;  // no clamping: weights are compared as sums
-  TsdfIntegratorConfig merged = simple;
-  merged.method = TsdfIntegrationMethod::kMerged;
+  integrators::TsdfIntegratorConfig merged = simple;
+  merged.method = integrators::TsdfIntegrationMethod::kMerged;
   const Eigen::Isometry3d sensor = viewpoints()[1];
   std::vector<Vec3f> points;  // those that become surface rays (inside the range limits)
   for (const Vec3f& p : dense_sphere_scan(sensor)) {
@@ -382,8 +386,9 @@ TEST_P(TsdfIntegratorTest, MergedRaysBundleThePointsOfOneVoxel) {
                                   static_cast<int32_t>(std::floor(world.z() / voxel_size))));
   }
   {
-    TsdfMap map(device(), TsdfMapConfig{voxel_size, 8, {}});
-    const IntegrationStats stats = TsdfIntegrator(merged).integrate(map, points, {}, sensor);
+    map::TsdfMap map(device(), map::TsdfMapConfig{voxel_size, 8, {}});
+    const integrators::IntegrationStats stats =
+        integrators::TsdfIntegrator(merged).integrate(map, points, {}, sensor);
     EXPECT_EQ(stats.surface_rays, static_cast<int64_t>(points.size()));
     // A point right on a voxel face may land on either side after the float transform.
     EXPECT_NEAR(static_cast<double>(stats.rays_cast), static_cast<double>(surface_voxels.size()),
@@ -408,10 +413,10 @@ TEST_P(TsdfIntegratorTest, MergedRaysBundleThePointsOfOneVoxel) {
   }
   std::vector<Vec3f> one_tripled;
   for (const Vec3f& p : one_per_voxel) one_tripled.insert(one_tripled.end(), {p, p, p});
-  TsdfMap merged_map(device(), TsdfMapConfig{voxel_size, 8, {}});
-  TsdfMap simple_map(device(), TsdfMapConfig{voxel_size, 8, {}});
-  TsdfIntegrator(merged).integrate(merged_map, one_tripled, {}, sensor);
-  TsdfIntegrator(simple).integrate(simple_map, one_per_voxel, {}, sensor);
+  map::TsdfMap merged_map(device(), map::TsdfMapConfig{voxel_size, 8, {}});
+  map::TsdfMap simple_map(device(), map::TsdfMapConfig{voxel_size, 8, {}});
+  integrators::TsdfIntegrator(merged).integrate(merged_map, one_tripled, {}, sensor);
+  integrators::TsdfIntegrator(simple).integrate(simple_map, one_per_voxel, {}, sensor);
   const auto merged_voxels = observed_voxels(merged_map);
   const auto simple_voxels = observed_voxels(simple_map);
   ASSERT_EQ(merged_voxels.size(), simple_voxels.size());
@@ -425,21 +430,21 @@ TEST_P(TsdfIntegratorTest, MergedRaysBundleThePointsOfOneVoxel) {
 }
 
 TEST_P(TsdfIntegratorTest, ColorIsAveragedInsideTheBand) {
-  TsdfIntegratorConfig config;
+  integrators::TsdfIntegratorConfig config;
   config.truncation_distance_m = 0.3f;
   config.use_const_weight = true;
   config.use_weight_dropoff = false;
-  TsdfMap map(device(), TsdfMapConfig{0.1f, 8, {}});
-  TsdfIntegrator integrator(config);
+  map::TsdfMap map(device(), map::TsdfMapConfig{0.1f, 8, {}});
+  integrators::TsdfIntegrator integrator(config);
   const std::vector<Vec3f> point = {Vec3f(1.0f, 0.05f, 0.05f)};
   integrator.integrate(map, point, {Rgb8{100, 10, 0}}, Eigen::Isometry3d::Identity());
   integrator.integrate(map, point, {Rgb8{200, 30, 255}}, Eigen::Isometry3d::Identity());
   int coloured = 0;
-  for (const HostBlock& block : map.snapshot()) {
+  for (const map::HostBlock& block : map.snapshot()) {
     for (int x = 0; x < 8; ++x) {
       const double sdf = 1.0 - ((block.index.x * 8 + x) + 0.5) * 0.1;
       if (block.index.y != 0 || block.index.z != 0 || block.tsdf[x].weight == 0.0f) continue;
-      const ColorVoxel& c = block.color[x];
+      const map::ColorVoxel& c = block.color[x];
       if (std::abs(sdf) < 0.3 - 1e-4) {
         EXPECT_EQ(c.r, 150);
         EXPECT_EQ(c.g, 20);
@@ -455,18 +460,18 @@ TEST_P(TsdfIntegratorTest, ColorIsAveragedInsideTheBand) {
 }
 
 TEST_P(TsdfIntegratorTest, IntensityIsFusedAsGreyWhenThereIsNoColour) {
-  TsdfIntegratorConfig config;
+  integrators::TsdfIntegratorConfig config;
   config.truncation_distance_m = 0.3f;
-  TsdfMap map(device(), TsdfMapConfig{0.1f, 8, {}});
-  TsdfIntegrator integrator(config);
+  map::TsdfMap map(device(), map::TsdfMapConfig{0.1f, 8, {}});
+  integrators::TsdfIntegrator integrator(config);
   const Stream stream(device());
   auto points = Buffer<Vec3f>::from_host(device(), {Vec3f(1.0f, 0.05f, 0.05f)});
   auto intensities = Buffer<float>::from_host(device(), {50.0f});
-  PointCloudView cloud{points.data(), nullptr, 1, intensities.data(), 100.0f};
+  integrators::PointCloudView cloud{points.data(), nullptr, 1, intensities.data(), 100.0f};
   integrator.integrate(map, cloud, Eigen::Isometry3d::Identity(), stream);
   int grey = 0;
-  for (const HostBlock& block : map.snapshot()) {
-    for (const ColorVoxel& c : block.color) {
+  for (const map::HostBlock& block : map.snapshot()) {
+    for (const map::ColorVoxel& c : block.color) {
       if (c.weight == 0.0f) continue;
       EXPECT_EQ(c.r, 127);
       EXPECT_EQ(c.g, 127);
@@ -479,10 +484,10 @@ TEST_P(TsdfIntegratorTest, IntensityIsFusedAsGreyWhenThereIsNoColour) {
 
 TEST_P(TsdfIntegratorTest, SameInputTwiceGivesBitIdenticalMaps) {
   const AnalyticScene scene = make_scene(Shape::kBox);
-  std::vector<std::vector<HostBlock>> snapshots;
+  std::vector<std::vector<map::HostBlock>> snapshots;
   for (int run = 0; run < 2; ++run) {
-    TsdfMap map(device(), TsdfMapConfig{0.1f, 16, {}});
-    TsdfIntegrator integrator(analytic_config(0.1f));
+    map::TsdfMap map(device(), map::TsdfMapConfig{0.1f, 16, {}});
+    integrators::TsdfIntegrator integrator(analytic_config(0.1f));
     for (const auto& pose : viewpoints()) {
       integrator.integrate(map, testing_support::simulate_lidar(scene, pose, 512, 32, 60.0, 9.5),
                            {}, pose);
@@ -513,11 +518,12 @@ TEST_P(TsdfIntegratorTest, DepthImagesMatchHostUnprojectedPoints) {
   std::vector<Rgb8> colours(depth.size());
   for (size_t p = 0; p < colours.size(); ++p)
     colours[p] = Rgb8{uint8_t(p), uint8_t(p / 3), uint8_t(p * 5)};
-  for (const TsdfIntegrationMethod method :
-       {TsdfIntegrationMethod::kMerged, TsdfIntegrationMethod::kSimple}) {
+  for (const integrators::TsdfIntegrationMethod method :
+       {integrators::TsdfIntegrationMethod::kMerged, integrators::TsdfIntegrationMethod::kSimple}) {
     for (const bool metres : {false, true}) {
-      SCOPED_TRACE(std::string(method == TsdfIntegrationMethod::kMerged ? "merged" : "simple") +
-                   (metres ? ", metres" : ", raw units"));
+      SCOPED_TRACE(
+          std::string(method == integrators::TsdfIntegrationMethod::kMerged ? "merged" : "simple") +
+          (metres ? ", metres" : ", raw units"));
       // The host's points: ((u - cx) z / fx, (v - cy) z / fy, z), the zero point for no
       // measurement.
       std::vector<Vec3f> points(depth.size());
@@ -529,46 +535,49 @@ TEST_P(TsdfIntegratorTest, DepthImagesMatchHostUnprojectedPoints) {
               metres ? (std::isfinite(depth_metres[p]) && depth_metres[p] > 0.0f ? depth_metres[p]
                                                                                  : 0.0f)
                      : (depth[p] == 0 || depth[p] == 65535 ? 0.0f : depth[p] * (1.0f / 1000.0f));
-          const size_t place = static_cast<size_t>(tsdf::pixel_tile_order(u, v, width, height));
+          const size_t place =
+              static_cast<size_t>(integrators::tsdf::pixel_tile_order(u, v, width, height));
           points[place] = z == 0.0f
                               ? Vec3f(0.0f, 0.0f, 0.0f)
                               : Vec3f((u - cx) * z * (1.0f / fx), (v - cy) * z * (1.0f / fy), z);
           point_colours[place] = colours[p];
         }
       }
-      TsdfIntegratorConfig config = analytic_config(0.05f);
+      integrators::TsdfIntegratorConfig config = analytic_config(0.05f);
       config.method = method;
-      TsdfIntegrator in_place(config), from_points(config);
-      TsdfMap a(device(), TsdfMapConfig{0.05f, 8, {}}), b(device(), TsdfMapConfig{0.05f, 8, {}});
+      integrators::TsdfIntegrator in_place(config), from_points(config);
+      map::TsdfMap a(device(), map::TsdfMapConfig{0.05f, 8, {}}),
+          b(device(), map::TsdfMapConfig{0.05f, 8, {}});
       const auto depth_device = Buffer<uint16_t>::from_host(device(), depth);
       const auto metres_device = Buffer<float>::from_host(device(), depth_metres);
       const auto colours_device = Buffer<Rgb8>::from_host(device(), colours);
-      DepthImageView image;
+      integrators::DepthImageView image;
       if (metres) {
         image.depth_m = metres_device.data();
       } else {
         image.depth = depth_device.data();
       }
       image.colors = colours_device.data();
-      image.intrinsics = PinholeIntrinsics{fx, fy, cx, cy, width, height};
+      image.intrinsics = integrators::PinholeIntrinsics{fx, fy, cx, cy, width, height};
       image.depth_units_per_m = 1000.0f;
       image.invalid_value = 65535;
       const Stream stream(device());
-      const IntegrationStats read = in_place.integrate_depth(a, image, camera, stream);
-      const IntegrationStats unprojected = from_points.integrate(b, points, point_colours, camera);
+      const integrators::IntegrationStats read = in_place.integrate_depth(a, image, camera, stream);
+      const integrators::IntegrationStats unprojected =
+          from_points.integrate(b, points, point_colours, camera);
       EXPECT_EQ(read.points_in, unprojected.points_in);
       EXPECT_EQ(read.dropped_zero, unprojected.dropped_zero);
       EXPECT_GT(read.dropped_zero, static_cast<int64_t>(depth.size() / 8));
       EXPECT_EQ(read.rays_cast, unprojected.rays_cast);
       EXPECT_EQ(read.voxel_updates, unprojected.voxel_updates);
       EXPECT_EQ(read.voxels_updated, unprojected.voxels_updated);
-      const std::vector<HostBlock> map_a = a.snapshot(), map_b = b.snapshot();
+      const std::vector<map::HostBlock> map_a = a.snapshot(), map_b = b.snapshot();
       ASSERT_GT(map_a.size(), 10u);
       expect_bit_identical_tsdf(map_a, map_b);
       for (size_t k = 0; k < map_a.size() && k < map_b.size(); ++k) {
         for (size_t v = 0; v < map_a[k].color.size(); ++v) {
-          const ColorVoxel& x = map_a[k].color[v];
-          const ColorVoxel& y = map_b[k].color[v];
+          const map::ColorVoxel& x = map_a[k].color[v];
+          const map::ColorVoxel& y = map_b[k].color[v];
           ASSERT_TRUE(x.r == y.r && x.g == y.g && x.b == y.b && x.weight == y.weight)
               << "colour of voxel " << v << " of block " << k;
         }
@@ -587,10 +596,11 @@ TEST_P(TsdfIntegratorTest, ErasedBlocksComeBackEmpty) {
   const auto poses = viewpoints();
   for (const bool every_visit_summed : {false, true}) {
     SCOPED_TRACE(every_visit_summed ? "every visit summed" : "default path");
-    TsdfIntegrator integrator(analytic_config(0.1f));
-    if (every_visit_summed) tsdf::IntegratorInternals::set_strategy(integrator, summing_strategy());
-    TsdfMap reused(device(), TsdfMapConfig{0.1f, 8, {}});
-    TsdfMap fresh(device(), TsdfMapConfig{0.1f, 8, {}});
+    integrators::TsdfIntegrator integrator(analytic_config(0.1f));
+    if (every_visit_summed)
+      integrators::tsdf::IntegratorInternals::set_strategy(integrator, summing_strategy());
+    map::TsdfMap reused(device(), map::TsdfMapConfig{0.1f, 8, {}});
+    map::TsdfMap fresh(device(), map::TsdfMapConfig{0.1f, 8, {}});
     const std::vector<Vec3f> last =
         testing_support::simulate_lidar(scene, poses[0], 512, 32, 60.0, 9.5);
     const std::vector<Rgb8> last_colours(last.size(), Rgb8{20, 140, 230});
@@ -600,22 +610,24 @@ TEST_P(TsdfIntegratorTest, ErasedBlocksComeBackEmpty) {
       integrator.integrate(reused, points, std::vector<Rgb8>(points.size(), Rgb8{250, 5, 5}), pose);
     }
     std::vector<Index3D> keys;
-    for (const HostBlock& block : reused.snapshot()) keys.push_back(block.index);
+    for (const map::HostBlock& block : reused.snapshot()) keys.push_back(block.index);
     ASSERT_GT(keys.size(), 10u);
     const Buffer<Index3D> device_keys = Buffer<Index3D>::from_host(device(), keys);
     ASSERT_EQ(reused.blocks().erase(device_keys.data(), static_cast<int64_t>(keys.size())),
               static_cast<int64_t>(keys.size()));
     ASSERT_EQ(reused.block_count(), 0);
-    const IntegrationStats again = integrator.integrate(reused, last, last_colours, poses[0]);
-    const IntegrationStats once = integrator.integrate(fresh, last, last_colours, poses[0]);
+    const integrators::IntegrationStats again =
+        integrator.integrate(reused, last, last_colours, poses[0]);
+    const integrators::IntegrationStats once =
+        integrator.integrate(fresh, last, last_colours, poses[0]);
     EXPECT_EQ(again.blocks_allocated, once.blocks_allocated);
     EXPECT_EQ(again.voxels_updated, once.voxels_updated);
-    const std::vector<HostBlock> a = reused.snapshot(), b = fresh.snapshot();
+    const std::vector<map::HostBlock> a = reused.snapshot(), b = fresh.snapshot();
     expect_bit_identical_tsdf(a, b);
     for (size_t k = 0; k < a.size() && k < b.size(); ++k) {
       for (size_t v = 0; v < a[k].color.size(); ++v) {  // (field by field: the struct has padding)
-        const ColorVoxel& x = a[k].color[v];
-        const ColorVoxel& y = b[k].color[v];
+        const map::ColorVoxel& x = a[k].color[v];
+        const map::ColorVoxel& y = b[k].color[v];
         ASSERT_TRUE(x.r == y.r && x.g == y.g && x.b == y.b && x.weight == y.weight)
             << "colour of voxel " << v << " of block " << k << ": " << int(x.r) << " " << int(x.g)
             << " " << int(x.b) << " weight " << x.weight << " against " << int(y.r) << " "
@@ -636,18 +648,19 @@ TEST_P(TsdfIntegratorTest, MergeTableLeavesNoTraceBetweenFrames) {
   std::vector<Rgb8> earlier_colours(earlier.size(), Rgb8{200, 10, 30});
   const std::vector<Vec3f> frame =
       testing_support::simulate_lidar(scene, poses[0], 512, 32, 60.0, 9.5);
-  TsdfIntegratorConfig config = analytic_config(0.1f);
-  ASSERT_EQ(config.method, TsdfIntegrationMethod::kMerged);
-  TsdfIntegrator used(config);
-  TsdfMap other(device(), TsdfMapConfig{0.1f, 16, {}});
+  integrators::TsdfIntegratorConfig config = analytic_config(0.1f);
+  ASSERT_EQ(config.method, integrators::TsdfIntegrationMethod::kMerged);
+  integrators::TsdfIntegrator used(config);
+  map::TsdfMap other(device(), map::TsdfMapConfig{0.1f, 16, {}});
   // A larger cloud with colour from elsewhere (the table grows), then the frame itself (the same
   // keys hashed the same way: a slot left behind would double its bundle).
   used.integrate(other, earlier, earlier_colours, poses[1]);
   used.integrate(other, frame, std::vector<Rgb8>(frame.size(), Rgb8{9, 99, 199}), poses[0]);
-  TsdfMap after_others(device(), TsdfMapConfig{0.1f, 16, {}});
-  const IntegrationStats stats = used.integrate(after_others, frame, {}, poses[0]);
-  TsdfMap fresh(device(), TsdfMapConfig{0.1f, 16, {}});
-  const IntegrationStats fresh_stats = TsdfIntegrator(config).integrate(fresh, frame, {}, poses[0]);
+  map::TsdfMap after_others(device(), map::TsdfMapConfig{0.1f, 16, {}});
+  const integrators::IntegrationStats stats = used.integrate(after_others, frame, {}, poses[0]);
+  map::TsdfMap fresh(device(), map::TsdfMapConfig{0.1f, 16, {}});
+  const integrators::IntegrationStats fresh_stats =
+      integrators::TsdfIntegrator(config).integrate(fresh, frame, {}, poses[0]);
   EXPECT_EQ(stats.rays_cast, fresh_stats.rays_cast);
   EXPECT_LT(stats.rays_cast, stats.surface_rays);  // bundles did form
   expect_bit_identical_tsdf(after_others.snapshot(), fresh.snapshot());
@@ -659,12 +672,12 @@ TEST_P(TsdfIntegratorTest, MergeTableLeavesNoTraceBetweenFrames) {
 // tiles a reduction by the value's size, so the two update types group the sums differently).
 TEST_P(TsdfIntegratorTest, ColourDoesNotChangeDistancesOrWeights) {
   const AnalyticScene scene = make_scene(Shape::kBox);
-  std::vector<std::vector<HostBlock>> snapshots;
+  std::vector<std::vector<map::HostBlock>> snapshots;
   for (const bool with_colour : {true, false}) {
-    TsdfIntegratorConfig config = analytic_config(0.1f);
+    integrators::TsdfIntegratorConfig config = analytic_config(0.1f);
     config.integrate_color = with_colour;
-    TsdfMap map(device(), TsdfMapConfig{0.1f, 16, {}});
-    TsdfIntegrator integrator(config);
+    map::TsdfMap map(device(), map::TsdfMapConfig{0.1f, 16, {}});
+    integrators::TsdfIntegrator integrator(config);
     for (const auto& pose : viewpoints()) {
       const std::vector<Vec3f> points =
           testing_support::simulate_lidar(scene, pose, 512, 32, 60.0, 9.5);
@@ -682,16 +695,16 @@ TEST_P(TsdfIntegratorTest, ColourDoesNotChangeDistancesOrWeights) {
     ASSERT_EQ(snapshots[0][b].index, snapshots[1][b].index);
     if (device() == Device::kCpu) {
       ASSERT_EQ(0, std::memcmp(snapshots[0][b].tsdf.data(), snapshots[1][b].tsdf.data(),
-                               snapshots[0][b].tsdf.size() * sizeof(TsdfVoxel)));
+                               snapshots[0][b].tsdf.size() * sizeof(map::TsdfVoxel)));
     }
     for (size_t v = 0; v < snapshots[0][b].tsdf.size(); ++v) {
-      const TsdfVoxel& a = snapshots[0][b].tsdf[v];
-      const TsdfVoxel& c = snapshots[1][b].tsdf[v];
+      const map::TsdfVoxel& a = snapshots[0][b].tsdf[v];
+      const map::TsdfVoxel& c = snapshots[1][b].tsdf[v];
       ASSERT_NEAR(a.distance_m, c.distance_m, 1e-5f);
       ASSERT_NEAR(a.weight, c.weight, 1e-5f * a.weight);
     }
-    for (const ColorVoxel& c : snapshots[0][b].color) coloured += c.weight > 0.0f;
-    for (const ColorVoxel& c : snapshots[1][b].color) EXPECT_EQ(c.weight, 0.0f);
+    for (const map::ColorVoxel& c : snapshots[0][b].color) coloured += c.weight > 0.0f;
+    for (const map::ColorVoxel& c : snapshots[1][b].color) EXPECT_EQ(c.weight, 0.0f);
   }
   EXPECT_GT(coloured, 100);  // the colour run did fuse colour
 }
@@ -704,25 +717,25 @@ TEST_P(TsdfIntegratorTest, FixedPointSumsMatchEveryVisitSorted) {
   const AnalyticScene scene = make_scene(Shape::kBox);
   const int width = 160, height = 120;
   const double f = 140.0;
-  std::vector<std::vector<HostBlock>> snapshots;
-  std::vector<IntegrationStats> totals;
+  std::vector<std::vector<map::HostBlock>> snapshots;
+  std::vector<integrators::IntegrationStats> totals;
   // kSmallBudget: every visit asked for, but the scratch budget (36 MB) holds every visit's sums
   // (48 bytes per voxel of the box) only for the smaller boxes (0.68 and 0.72 M voxels) and the
   // free-space sums (8 bytes) for the others (0.8 to 2.3 M voxels): one integrator takes both
   // paths, in turn, with one scratch buffer.
   enum Sums { kEveryVisit, kFreeSpace, kSmallBudget, kNone };
   for (const Sums sums : {kEveryVisit, kFreeSpace, kSmallBudget, kNone}) {
-    TsdfIntegratorConfig config = analytic_config(0.05f);
+    integrators::TsdfIntegratorConfig config = analytic_config(0.05f);
     config.max_ray_length_m = 8.0f;
     if (sums == kSmallBudget) config.fixed_point_sums_max_scratch_mb = 36;
-    TsdfMap map(device(), TsdfMapConfig{0.05f, 8, {}});
-    TsdfIntegrator integrator(config);
+    map::TsdfMap map(device(), map::TsdfMapConfig{0.05f, 8, {}});
+    integrators::TsdfIntegrator integrator(config);
     // (these small frames too)
-    tsdf::IntegratorInternals::set_strategy(integrator,
-                                            summing_strategy(sums != kNone, sums != kFreeSpace));
+    integrators::tsdf::IntegratorInternals::set_strategy(
+        integrator, summing_strategy(sums != kNone, sums != kFreeSpace));
     const Stream stream(device());
-    IntegrationStats total;
-    const auto add = [&](const IntegrationStats& s) {
+    integrators::IntegrationStats total;
+    const auto add = [&](const integrators::IntegrationStats& s) {
       total.voxel_updates += s.voxel_updates;
       total.voxels_updated += s.voxels_updated;
       total.records_grouped += s.records_grouped;
@@ -743,11 +756,11 @@ TEST_P(TsdfIntegratorTest, FixedPointSumsMatchEveryVisitSorted) {
         colours[p] = Rgb8{uint8_t(p % 251), uint8_t(p % 13), 200};
       auto depth_device = Buffer<uint16_t>::from_host(device(), depth);
       auto colour_device = Buffer<Rgb8>::from_host(device(), colours);
-      DepthImageView image;
+      integrators::DepthImageView image;
       image.depth = depth_device.data();
       image.colors = colour_device.data();
-      image.intrinsics =
-          PinholeIntrinsics{float(f), float(f), width / 2.0f, height / 2.0f, width, height};
+      image.intrinsics = integrators::PinholeIntrinsics{float(f),      float(f), width / 2.0f,
+                                                        height / 2.0f, width,    height};
       image.depth_units_per_m = 1000.0f;
       image.invalid_value = 65535;
       add(integrator.integrate_depth(map, image, camera, stream));
@@ -766,7 +779,7 @@ TEST_P(TsdfIntegratorTest, FixedPointSumsMatchEveryVisitSorted) {
   }
   // The free-space sums sorted only the band's records, the reference every visit, and with
   // every visit summed none was.
-  const IntegrationStats& reference = totals[kNone];
+  const integrators::IntegrationStats& reference = totals[kNone];
   EXPECT_EQ(reference.records_grouped, reference.voxel_updates);
   EXPECT_EQ(reference.dropped_total(), 8 * static_cast<int64_t>(viewpoints().size()));
   EXPECT_LT(totals[kFreeSpace].records_grouped, totals[kFreeSpace].voxel_updates / 2);
@@ -783,22 +796,22 @@ TEST_P(TsdfIntegratorTest, FixedPointSumsMatchEveryVisitSorted) {
     EXPECT_EQ(totals[sums].voxels_out_of_range, reference.voxels_out_of_range);
     EXPECT_EQ(totals[sums].dropped_total(), reference.dropped_total());
     EXPECT_EQ(totals[sums].surface_rays, reference.surface_rays);
-    const std::vector<HostBlock>& summed = snapshots[sums];
-    const std::vector<HostBlock>& sorted = snapshots[kNone];
+    const std::vector<map::HostBlock>& summed = snapshots[sums];
+    const std::vector<map::HostBlock>& sorted = snapshots[kNone];
     ASSERT_EQ(summed.size(), sorted.size());
     ASSERT_GT(summed.size(), 50u);
     int observed = 0, coloured = 0;
     for (size_t b = 0; b < summed.size(); ++b) {
       ASSERT_EQ(summed[b].index, sorted[b].index);
       for (size_t v = 0; v < summed[b].tsdf.size(); ++v) {
-        const TsdfVoxel& a = summed[b].tsdf[v];
-        const TsdfVoxel& c = sorted[b].tsdf[v];
+        const map::TsdfVoxel& a = summed[b].tsdf[v];
+        const map::TsdfVoxel& c = sorted[b].tsdf[v];
         ASSERT_EQ(a.weight > 0.0f, c.weight > 0.0f);
         ASSERT_NEAR(a.distance_m, c.distance_m, 1e-5f);
         ASSERT_NEAR(a.weight, c.weight, 1e-5f * c.weight + 1e-6f);
         observed += a.weight > 0.0f;
-        const ColorVoxel& ca = summed[b].color[v];
-        const ColorVoxel& cc = sorted[b].color[v];
+        const map::ColorVoxel& ca = summed[b].color[v];
+        const map::ColorVoxel& cc = sorted[b].color[v];
         ASSERT_NEAR(ca.weight, cc.weight, 1e-5f * cc.weight + 1e-6f);
         ASSERT_LE(std::abs(int(ca.r) - int(cc.r)), 1);
         ASSERT_LE(std::abs(int(ca.g) - int(cc.g)), 1);
@@ -812,17 +825,17 @@ TEST_P(TsdfIntegratorTest, FixedPointSumsMatchEveryVisitSorted) {
 }
 
 TEST_P(TsdfIntegratorTest, BadPointsAreDroppedAndCounted) {
-  TsdfIntegratorConfig config;
+  integrators::TsdfIntegratorConfig config;
   config.max_ray_length_m = 5.0f;
   config.min_ray_length_m = 0.5f;
   config.allow_clear = false;
-  TsdfMap map(device(), TsdfMapConfig{0.1f, 8, {}});
-  TsdfIntegrator integrator(config);
+  map::TsdfMap map(device(), map::TsdfMapConfig{0.1f, 8, {}});
+  integrators::TsdfIntegrator integrator(config);
   const float nan = std::numeric_limits<float>::quiet_NaN(),
               inf = std::numeric_limits<float>::infinity();
   const std::vector<Vec3f> points = {Vec3f(nan, 0, 0),  Vec3f(1, inf, 0), Vec3f(0, 0, 0),
                                      Vec3f(0.1f, 0, 0), Vec3f(50, 0, 0),  Vec3f(2, 0, 0)};
-  const IntegrationStats stats =
+  const integrators::IntegrationStats stats =
       integrator.integrate(map, points, {}, Eigen::Isometry3d::Identity());
   EXPECT_EQ(stats.dropped_non_finite, 2);
   EXPECT_EQ(stats.dropped_zero, 1);
@@ -832,8 +845,8 @@ TEST_P(TsdfIntegratorTest, BadPointsAreDroppedAndCounted) {
   EXPECT_GT(map.block_count(), 0);
   // With allow_clear the far point carves free space instead.
   config.allow_clear = true;
-  TsdfIntegrator clearing(config);
-  const IntegrationStats clear_stats =
+  integrators::TsdfIntegrator clearing(config);
+  const integrators::IntegrationStats clear_stats =
       clearing.integrate(map, points, {}, Eigen::Isometry3d::Identity());
   EXPECT_EQ(clear_stats.clearing_rays, 1);
   EXPECT_EQ(clear_stats.dropped_too_far, 0);
@@ -849,7 +862,7 @@ TEST_P(TsdfIntegratorTest, BadPointsAreDroppedAndCounted) {
 // bundle per reason and clearing rays stay alone, so its counts must equal the simple method's,
 // point for point, on a cloud with every kind of point and many points per voxel.
 TEST_P(TsdfIntegratorTest, MergedAndSimpleCountEveryPointAlike) {
-  TsdfIntegratorConfig config;
+  integrators::TsdfIntegratorConfig config;
   config.max_ray_length_m = 5.0f;
   config.min_ray_length_m = 0.5f;
   config.allow_clear = true;
@@ -866,20 +879,22 @@ TEST_P(TsdfIntegratorTest, MergedAndSimpleCountEveryPointAlike) {
     if (i % 13 == 0) points.push_back(Vec3f(0.1f, 0.05f * (i % 3), 0.0f));      // too close
     if (i % 14 == 0) points.push_back(Vec3f(20.0f, 0.5f * std::sin(a), 1.0f));  // clears
   }
-  IntegrationStats by_method[2];
+  integrators::IntegrationStats by_method[2];
   for (int m = 0; m < 2; ++m) {
-    config.method = m == 0 ? TsdfIntegrationMethod::kSimple : TsdfIntegrationMethod::kMerged;
-    TsdfMap map(device(), TsdfMapConfig{0.1f, 8, {}});
-    by_method[m] = TsdfIntegrator(config).integrate(map, points, {}, Eigen::Isometry3d::Identity());
+    config.method = m == 0 ? integrators::TsdfIntegrationMethod::kSimple
+                           : integrators::TsdfIntegrationMethod::kMerged;
+    map::TsdfMap map(device(), map::TsdfMapConfig{0.1f, 8, {}});
+    by_method[m] = integrators::TsdfIntegrator(config).integrate(map, points, {},
+                                                                 Eigen::Isometry3d::Identity());
   }
-  const IntegrationStats& simple = by_method[0];
-  const IntegrationStats& merged = by_method[1];
+  const integrators::IntegrationStats& simple = by_method[0];
+  const integrators::IntegrationStats& merged = by_method[1];
   EXPECT_EQ(simple.dropped_non_finite, 40 + 37);
   EXPECT_EQ(simple.dropped_zero, 34);
   EXPECT_EQ(simple.dropped_too_close, 31);
   EXPECT_EQ(simple.clearing_rays, 29);
   EXPECT_EQ(simple.surface_rays, 400);
-  for (const IntegrationStats& stats : by_method) {
+  for (const integrators::IntegrationStats& stats : by_method) {
     EXPECT_EQ(stats.points_in, static_cast<int64_t>(points.size()));
     EXPECT_EQ(stats.surface_rays + stats.clearing_rays + stats.dropped_total(), stats.points_in);
   }
@@ -902,14 +917,14 @@ TEST_P(TsdfIntegratorTest, MergeBoxSizeDoesNotChangeTheMap) {
   std::vector<Vec3f> points;  // every return twice, so that bundles form at 2 cm too
   for (const Vec3f& p : testing_support::simulate_lidar(scene, pose, 256, 16, 60.0, 9.5))
     points.insert(points.end(), {p, p});
-  std::vector<std::vector<HostBlock>> snapshots;
-  std::vector<IntegrationStats> stats;
+  std::vector<std::vector<map::HostBlock>> snapshots;
+  std::vector<integrators::IntegrationStats> stats;
   for (float max_ray_length_m : {10.0f, 900.0f}) {  // 0.02 m voxels: 900 m needs > 32-bit keys
-    TsdfIntegratorConfig config = analytic_config(0.02f);
+    integrators::TsdfIntegratorConfig config = analytic_config(0.02f);
     config.max_ray_length_m = max_ray_length_m;
     config.allow_clear = false;
-    TsdfMap map(device(), TsdfMapConfig{0.02f, 8, {}});
-    stats.push_back(TsdfIntegrator(config).integrate(map, points, {}, pose));
+    map::TsdfMap map(device(), map::TsdfMapConfig{0.02f, 8, {}});
+    stats.push_back(integrators::TsdfIntegrator(config).integrate(map, points, {}, pose));
     snapshots.push_back(map.snapshot());
   }
   EXPECT_EQ(stats[0].rays_cast, stats[1].rays_cast);
@@ -923,20 +938,22 @@ TEST_P(TsdfIntegratorTest, MergeBoxSizeDoesNotChangeTheMap) {
 // frames must give the same map: equal voxels, distances and weights up to the rounding of one
 // weighted average against three.
 TEST_P(TsdfIntegratorTest, LongKeysAndShortKeysBuildTheSameMap) {
-  TsdfIntegratorConfig config;
-  config.method = TsdfIntegrationMethod::kSimple;
+  integrators::TsdfIntegratorConfig config;
+  config.method = integrators::TsdfIntegrationMethod::kSimple;
   config.truncation_distance_m = 0.06f;
   config.max_ray_length_m = 50.0f;
   config.use_const_weight = true;
   const std::vector<Vec3f> rays = {Vec3f(40.0f, 0.3f, 0.2f), Vec3f(-0.2f, 40.0f, 0.1f),
                                    Vec3f(0.1f, -0.3f, -40.0f)};
   const Eigen::Isometry3d pose = viewpoints()[2];
-  TsdfMap together(device(), TsdfMapConfig{0.02f, 8, {}});
-  TsdfMap apart(device(), TsdfMapConfig{0.02f, 8, {}});
-  const IntegrationStats stats = TsdfIntegrator(config).integrate(together, rays, {}, pose);
+  map::TsdfMap together(device(), map::TsdfMapConfig{0.02f, 8, {}});
+  map::TsdfMap apart(device(), map::TsdfMapConfig{0.02f, 8, {}});
+  const integrators::IntegrationStats stats =
+      integrators::TsdfIntegrator(config).integrate(together, rays, {}, pose);
   int64_t updates_apart = 0;
   for (const Vec3f& ray : rays)
-    updates_apart += TsdfIntegrator(config).integrate(apart, {ray}, {}, pose).voxel_updates;
+    updates_apart +=
+        integrators::TsdfIntegrator(config).integrate(apart, {ray}, {}, pose).voxel_updates;
   EXPECT_EQ(stats.voxel_updates, updates_apart);
   EXPECT_GT(stats.voxel_updates, 3 * 1900);
   const auto voxels_together = observed_voxels(together);
@@ -952,25 +969,26 @@ TEST_P(TsdfIntegratorTest, LongKeysAndShortKeysBuildTheSameMap) {
 }
 
 TEST_P(TsdfIntegratorTest, RejectsInvalidParametersByName) {
-  TsdfIntegratorConfig config;
+  integrators::TsdfIntegratorConfig config;
   config.truncation_distance_m = -1.0f;
-  TsdfMap map(device(), TsdfMapConfig{0.1f, 8, {}});
-  TsdfIntegrator integrator(config);
+  map::TsdfMap map(device(), map::TsdfMapConfig{0.1f, 8, {}});
+  integrators::TsdfIntegrator integrator(config);
   try {
     integrator.integrate(map, {Vec3f(1, 0, 0)}, {}, Eigen::Isometry3d::Identity());
     FAIL() << "expected an error";
   } catch (const Error& error) {
     EXPECT_NE(std::string(error.what()).find("truncation_distance_m"), std::string::npos);
   }
-  config = TsdfIntegratorConfig{};
+  config = integrators::TsdfIntegratorConfig{};
   config.fixed_point_sums_max_scratch_mb = -1;
   try {
-    TsdfIntegrator(config).integrate(map, {Vec3f(1, 0, 0)}, {}, Eigen::Isometry3d::Identity());
+    integrators::TsdfIntegrator(config).integrate(map, {Vec3f(1, 0, 0)}, {},
+                                                  Eigen::Isometry3d::Identity());
     FAIL() << "expected an error";
   } catch (const Error& error) {
     EXPECT_NE(std::string(error.what()).find("fixed_point_sums_max_scratch_mb"), std::string::npos);
   }
-  EXPECT_THROW(TsdfMap(device(), TsdfMapConfig{0.1f, 12, {}}), Error);
+  EXPECT_THROW(map::TsdfMap(device(), map::TsdfMapConfig{0.1f, 12, {}}), Error);
 }
 
 COVOX_INSTANTIATE_ON_ALL_DEVICES(TsdfIntegratorTest);
@@ -988,13 +1006,13 @@ INSTANTIATE_TEST_SUITE_P(FixedPointSums, TsdfIntegratorParity,
 TEST_P(TsdfIntegratorParity, CpuAndCudaBuildTheSameMap) {
   COVOX_SKIP_WITHOUT_GPU();
   const AnalyticScene scene = make_scene(Shape::kBox);
-  std::vector<std::vector<HostBlock>> snapshots;
-  std::vector<std::vector<IntegrationStats>> stats(2);
+  std::vector<std::vector<map::HostBlock>> snapshots;
+  std::vector<std::vector<integrators::IntegrationStats>> stats(2);
   for (Device device : {Device::kCpu, Device::kCuda}) {
-    TsdfMap map(device, TsdfMapConfig{0.05f, 8, {}});
-    TsdfIntegrator integrator(analytic_config(0.05f));
+    map::TsdfMap map(device, map::TsdfMapConfig{0.05f, 8, {}});
+    integrators::TsdfIntegrator integrator(analytic_config(0.05f));
     if (GetParam() != ParityPaths::kDefaults) {  // the CPU's too
-      tsdf::IntegratorInternals::set_strategy(
+      integrators::tsdf::IntegratorInternals::set_strategy(
           integrator, summing_strategy(true, GetParam() != ParityPaths::kFreeSpaceSummed));
     }
     for (const auto& pose : viewpoints()) {
@@ -1010,8 +1028,8 @@ TEST_P(TsdfIntegratorParity, CpuAndCudaBuildTheSameMap) {
   // the dropped records' runs in its sorted keys), agree exactly.
   ASSERT_EQ(stats[0].size(), stats[1].size());
   for (size_t f = 0; f < stats[0].size(); ++f) {
-    const IntegrationStats& cpu = stats[0][f];
-    const IntegrationStats& gpu = stats[1][f];
+    const integrators::IntegrationStats& cpu = stats[0][f];
+    const integrators::IntegrationStats& gpu = stats[1][f];
     EXPECT_EQ(cpu.surface_rays, gpu.surface_rays) << "frame " << f;
     EXPECT_EQ(cpu.clearing_rays, gpu.clearing_rays) << "frame " << f;
     EXPECT_EQ(cpu.dropped_total(), gpu.dropped_total()) << "frame " << f;
@@ -1032,8 +1050,8 @@ TEST_P(TsdfIntegratorParity, CpuAndCudaBuildTheSameMap) {
   for (size_t b = 0; b < snapshots[0].size(); ++b) {
     ASSERT_EQ(snapshots[0][b].index, snapshots[1][b].index);
     for (size_t v = 0; v < snapshots[0][b].tsdf.size(); ++v) {
-      const TsdfVoxel& cpu = snapshots[0][b].tsdf[v];
-      const TsdfVoxel& gpu = snapshots[1][b].tsdf[v];
+      const map::TsdfVoxel& cpu = snapshots[0][b].tsdf[v];
+      const map::TsdfVoxel& gpu = snapshots[1][b].tsdf[v];
       ASSERT_NEAR(cpu.distance_m, gpu.distance_m, 1e-4f);
       // Weights are float sums of thousands of per-update weights; the CUDA segmented reduce
       // adds them in a different (fixed) order than the CPU's sequential one, so they agree to a

@@ -18,7 +18,7 @@ TEST(TsdfPixelOrder, EveryPixelGetsItsOwnPlace) {
     std::vector<int> hits(static_cast<size_t>(width) * height, 0);
     for (int v = 0; v < height; ++v) {
       for (int u = 0; u < width; ++u) {
-        const int64_t place = tsdf::pixel_tile_order(u, v, width, height);
+        const int64_t place = integrators::tsdf::pixel_tile_order(u, v, width, height);
         ASSERT_GE(place, 0) << width << "x" << height << " pixel " << u << "," << v;
         ASSERT_LT(place, static_cast<int64_t>(hits.size()))
             << width << "x" << height << " pixel " << u << "," << v;
@@ -36,8 +36,8 @@ TEST(TsdfPixelOrder, EveryPlaceLeadsBackToItsPixel) {
     const int width = size.first, height = size.second;
     for (int v = 0; v < height; ++v) {
       for (int u = 0; u < width; ++u) {
-        const int64_t place = tsdf::pixel_tile_order(u, v, width, height);
-        ASSERT_EQ(tsdf::pixel_at_tile_place(place, width, height),
+        const int64_t place = integrators::tsdf::pixel_tile_order(u, v, width, height);
+        ASSERT_EQ(integrators::tsdf::pixel_at_tile_place(place, width, height),
                   static_cast<int64_t>(v) * width + u)
             << width << "x" << height << " pixel " << u << "," << v << " place " << place;
       }
@@ -48,11 +48,12 @@ TEST(TsdfPixelOrder, EveryPlaceLeadsBackToItsPixel) {
 TEST(TsdfPixelOrder, AFullTileIsOneRunOfThirtyTwo) {
   const int width = 640, height = 480;
   // The tile of pixels (16..23, 8..11): band 2, column 2.
-  const int64_t first = tsdf::pixel_tile_order(16, 8, width, height);
+  const int64_t first = integrators::tsdf::pixel_tile_order(16, 8, width, height);
   EXPECT_EQ(first, 2 * 4 * width + 2 * 8 * 4);
   for (int v = 8; v < 12; ++v) {
     for (int u = 16; u < 24; ++u) {
-      EXPECT_EQ(tsdf::pixel_tile_order(u, v, width, height), first + (v - 8) * 8 + (u - 16));
+      EXPECT_EQ(integrators::tsdf::pixel_tile_order(u, v, width, height),
+                first + (v - 8) * 8 + (u - 16));
     }
   }
 }

@@ -15,17 +15,18 @@
 namespace covox {
 namespace {
 
-using tsdf::RaySegment;
+using integrators::tsdf::RaySegment;
 
 std::vector<Index3D> walk_in_pieces(const RaySegment& ray, float inverse_voxel_size) {
-  const uint32_t pieces = tsdf::ray_piece_count(tsdf::ray_voxel_count(ray, inverse_voxel_size));
+  const uint32_t pieces = integrators::tsdf::ray_piece_count(
+      integrators::tsdf::ray_voxel_count(ray, inverse_voxel_size));
   std::vector<Index3D> voxels;
   for (uint32_t k = 0; k < pieces; ++k) {
     const size_t before = voxels.size();
-    tsdf::traverse_ray_piece(ray, k, pieces, inverse_voxel_size,
-                             [&](const Index3D& v) { voxels.push_back(v); });
+    integrators::tsdf::traverse_ray_piece(ray, k, pieces, inverse_voxel_size,
+                                          [&](const Index3D& v) { voxels.push_back(v); });
     EXPECT_EQ(voxels.size() - before,
-              tsdf::ray_piece_voxel_count(ray, k, pieces, inverse_voxel_size))
+              integrators::tsdf::ray_piece_voxel_count(ray, k, pieces, inverse_voxel_size))
         << "piece " << k;
   }
   return voxels;
@@ -34,33 +35,39 @@ std::vector<Index3D> walk_in_pieces(const RaySegment& ray, float inverse_voxel_s
 void expect_valid_walk(const RaySegment& ray, float voxel_size) {
   const float inverse = 1.0f / voxel_size;
   const std::vector<Index3D> voxels = walk_in_pieces(ray, inverse);
-  ASSERT_EQ(voxels.size(), tsdf::ray_voxel_count(ray, inverse));
+  ASSERT_EQ(voxels.size(), integrators::tsdf::ray_voxel_count(ray, inverse));
   ASSERT_FALSE(voxels.empty());
-  EXPECT_EQ(voxels.front(), tsdf::voxel_of(ray.start, inverse));
-  EXPECT_EQ(voxels.back(), tsdf::voxel_of(ray.end, inverse));
+  EXPECT_EQ(voxels.front(), integrators::tsdf::voxel_of(ray.start, inverse));
+  EXPECT_EQ(voxels.back(), integrators::tsdf::voxel_of(ray.end, inverse));
   std::set<std::tuple<int, int, int>> distinct;
   for (size_t i = 0; i < voxels.size(); ++i) {
     distinct.insert({voxels[i].x, voxels[i].y, voxels[i].z});
     if (i > 0) {
       const Index3D d = voxels[i] - voxels[i - 1];
-      EXPECT_EQ(tsdf::abs_i32(d.x) + tsdf::abs_i32(d.y) + tsdf::abs_i32(d.z), 1) << "step " << i;
+      EXPECT_EQ(integrators::tsdf::abs_i32(d.x) + integrators::tsdf::abs_i32(d.y) +
+                    integrators::tsdf::abs_i32(d.z),
+                1)
+          << "step " << i;
     }
   }
   EXPECT_EQ(distinct.size(), voxels.size()) << "a voxel was visited twice";
   // One thread per whole ray visits the same number of voxels (the path may differ only where
   // rounding at a cut picks the other of two equally valid neighbours).
   size_t whole = 0;
-  tsdf::traverse_ray(ray, inverse, [&](const Index3D&) { ++whole; });
+  integrators::tsdf::traverse_ray(ray, inverse, [&](const Index3D&) { ++whole; });
   EXPECT_EQ(whole, voxels.size());
   // The CPU twin's piece table (cuts computed once, in order) has the cuts and counts that the
   // GPU computes piece by piece.
-  const uint32_t pieces = tsdf::ray_piece_count(tsdf::ray_voxel_count(ray, inverse));
+  const uint32_t pieces =
+      integrators::tsdf::ray_piece_count(integrators::tsdf::ray_voxel_count(ray, inverse));
   uint32_t listed = 0;
-  tsdf::for_each_ray_piece(
+  integrators::tsdf::for_each_ray_piece(
       ray, pieces, inverse, [&](uint32_t k, const Index3D& first, uint32_t count) {
         EXPECT_EQ(k, listed++);
-        EXPECT_EQ(first, tsdf::ray_cut_voxel(ray, k, pieces, inverse)) << "piece " << k;
-        EXPECT_EQ(count, tsdf::ray_piece_voxel_count(ray, k, pieces, inverse)) << "piece " << k;
+        EXPECT_EQ(first, integrators::tsdf::ray_cut_voxel(ray, k, pieces, inverse))
+            << "piece " << k;
+        EXPECT_EQ(count, integrators::tsdf::ray_piece_voxel_count(ray, k, pieces, inverse))
+            << "piece " << k;
       });
   EXPECT_EQ(listed, pieces);
 }
@@ -69,7 +76,7 @@ RaySegment segment(const Vec3f& start, const Vec3f& end) {
   RaySegment ray;
   ray.start = start;
   ray.end = end;
-  ray.kind = tsdf::kSurfaceRay;
+  ray.kind = integrators::tsdf::kSurfaceRay;
   return ray;
 }
 

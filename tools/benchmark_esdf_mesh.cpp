@@ -55,19 +55,19 @@ struct Reports {
 // Integrates frame (i mod frame_count) `updates` times; after each, times the incremental ESDF
 // and mesh updates. The first pass over the frames is a warm-up and not recorded.
 template <class IntegrateFrame>
-void run_case(const std::string& name, const Stream& stream, TsdfMap& map, size_t frame_count,
+void run_case(const std::string& name, const Stream& stream, map::TsdfMap& map, size_t frame_count,
               int updates, float esdf_max_distance_m, IntegrateFrame&& integrate_frame,
               const Reports& reports) {
-  EsdfIntegratorConfig esdf_config;
+  integrators::EsdfIntegratorConfig esdf_config;
   esdf_config.esdf_max_distance_m = esdf_max_distance_m;
-  EsdfIntegrator esdf(esdf_config);
-  MeshIntegrator mesh;
+  integrators::EsdfIntegrator esdf(esdf_config);
+  integrators::MeshIntegrator mesh;
   std::vector<double> esdf_ms, mesh_ms, mesh_download_ms, changed_blocks, meshed_blocks;
   const int warm_up = static_cast<int>(frame_count);
   for (int i = 0; i < warm_up + updates; ++i) {
     integrate_frame(static_cast<size_t>(i) % frame_count);
-    EsdfUpdateStats esdf_stats;
-    MeshUpdateStats mesh_stats;
+    integrators::EsdfUpdateStats esdf_stats;
+    integrators::MeshUpdateStats mesh_stats;
     const double e =
         tools::stream_milliseconds(stream, [&] { esdf_stats = esdf.update(map, stream); });
     const double m =
@@ -105,16 +105,16 @@ void run_case(const std::string& name, const Stream& stream, TsdfMap& map, size_
 void benchmark_lidar(Device device, const Options& options, const Reports& reports) {
   const Stream stream(device);
   const tools::DeviceScans scans = tools::load_ouster_scans(options.data, device);
-  TsdfMapConfig map_config;
+  map::TsdfMapConfig map_config;
   map_config.voxel_size_m = 0.2f;
-  TsdfMap map(device, map_config);
-  TsdfIntegratorConfig config;  // voxgraph's ARCHE setting, as in benchmark_tsdf
+  map::TsdfMap map(device, map_config);
+  integrators::TsdfIntegratorConfig config;  // voxgraph's ARCHE setting, as in benchmark_tsdf
   config.truncation_distance_m = 0.6f;
   config.max_ray_length_m = 16.0f;
   config.use_const_weight = true;
   config.use_sparsity_compensation_factor = true;
   config.sparsity_compensation_factor = 20.0f;
-  TsdfIntegrator integrator(config);
+  integrators::TsdfIntegrator integrator(config);
   run_case(
       std::string(to_string(device)) + " OS1-64 0.2 m, ESDF 2 m", stream, map, scans.size(),
       options.updates, 2.0f,
@@ -127,14 +127,14 @@ void benchmark_lidar(Device device, const Options& options, const Reports& repor
 void benchmark_rgbd(Device device, const Options& options, const Reports& reports) {
   const Stream stream(device);
   const tools::DeviceRgbdFrames frames = tools::load_7scenes_frames(options.data, 70, device);
-  TsdfMapConfig map_config;
+  map::TsdfMapConfig map_config;
   map_config.voxel_size_m = 0.05f;
   map_config.voxels_per_side = 8;
-  TsdfMap map(device, map_config);
-  TsdfIntegratorConfig config;
+  map::TsdfMap map(device, map_config);
+  integrators::TsdfIntegratorConfig config;
   config.truncation_distance_m = 0.2f;  // 4 voxels, nvblox's default
   config.max_ray_length_m = 5.0f;
-  TsdfIntegrator integrator(config);
+  integrators::TsdfIntegrator integrator(config);
   run_case(
       std::string(to_string(device)) + " 7-Scenes 5 cm, ESDF 2 m", stream, map, frames.size(),
       options.updates, 2.0f,

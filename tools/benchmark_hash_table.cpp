@@ -93,7 +93,7 @@ void benchmark_table(Device device, const Options& options, const std::vector<In
   const int64_t n = options.keys;
   for (double load_factor : options.load_factors) {
     const uint64_t buckets = static_cast<uint64_t>(static_cast<double>(n) / load_factor);
-    BlockHashTable table(device, BlockHashTableConfig{buckets, 0.95, false});
+    map::BlockHashTable table(device, map::BlockHashTableConfig{buckets, 0.95, false});
     std::ostringstream name;
     name << to_string(device) << " load " << load_factor;
     bool all_ok = true;
@@ -156,8 +156,8 @@ void benchmark_layout(Device device, const Options& options, const std::string& 
     for (auto* queries : {&random_device, &block_device}) {
       const double ms = median_milliseconds(options.repeats, stream, [&](int) {
         dispatch(device, [&](auto backend) {
-          gather_voxel_distances(backend, stream, storage.view(), queries->data(), options.lookups,
-                                 out.data());
+          map::gather_voxel_distances(backend, stream, storage.view(), queries->data(),
+                                      options.lookups, out.data());
         });
       });
       const char* pattern = queries == &random_device ? "random voxels" : "block-coherent";
@@ -188,8 +188,8 @@ int main(int argc, char** argv) {
       std::cout << "hash table on " << describe_device(device) << "..." << std::endl;
       benchmark_table(device, options, keys, &report);
       std::cout << "voxel layouts on " << describe_device(device) << "..." << std::endl;
-      benchmark_layout<TsdfVoxel>(device, options, "TsdfVoxel(8B)", &report);
-      benchmark_layout<ColoredTsdfVoxel>(device, options, "ColoredTsdfVoxel(16B)", &report);
+      benchmark_layout<map::TsdfVoxel>(device, options, "TsdfVoxel(8B)", &report);
+      benchmark_layout<map::ColoredTsdfVoxel>(device, options, "ColoredTsdfVoxel(16B)", &report);
     }
     tools::publish_reports({&report}, options.output);
   });

@@ -76,8 +76,8 @@ struct Timing {
 // Integrates frames round-robin into one map `integrations` times; the first pass over the
 // frames is a warm-up (allocation of blocks and scratch), neither timed nor profiled.
 template <class IntegrateFrame>
-Timing time_integrations(const Stream& stream, size_t frame_count, int integrations, TsdfMap& map,
-                         IntegrateFrame&& integrate_frame) {
+Timing time_integrations(const Stream& stream, size_t frame_count, int integrations,
+                         map::TsdfMap& map, IntegrateFrame&& integrate_frame) {
   for (size_t f = 0; f < frame_count; ++f) integrate_frame(f);
   stream.synchronize();
   // The stage profile (COVOX_PROFILE_STAGES) of the timed frames only: the warm-up's first frame
@@ -88,7 +88,7 @@ Timing time_integrations(const Stream& stream, size_t frame_count, int integrati
   int64_t rays = 0;
   double total_ms = 0.0;
   for (int i = 0; i < integrations; ++i) {
-    IntegrationStats stats;
+    integrators::IntegrationStats stats;
     const double ms = tools::stream_milliseconds(
         stream, [&] { stats = integrate_frame(static_cast<size_t>(i) % frame_count); });
     times.push_back(ms);
@@ -112,15 +112,15 @@ void add_rows(tools::BenchmarkReport* report, const std::string& name, const Tim
 
 void benchmark_lidar(Device device, const Options& options, const std::string& label,
                      const tools::DeviceScans& scans, float voxel_size, float max_ray_m,
-                     TsdfIntegrationMethod method, tools::BenchmarkReport* report) {
+                     integrators::TsdfIntegrationMethod method, tools::BenchmarkReport* report) {
   const std::string name = std::string(to_string(device)) + " " + label + ", " + to_string(method);
   if (!options.runs(name)) return;
   const Stream stream(device);
-  TsdfMapConfig map_config;
+  map::TsdfMapConfig map_config;
   map_config.voxel_size_m = voxel_size;
   map_config.voxels_per_side = 16;
-  TsdfMap map(device, map_config);
-  TsdfIntegratorConfig config;
+  map::TsdfMap map(device, map_config);
+  integrators::TsdfIntegratorConfig config;
   config.truncation_distance_m = 3.0f * voxel_size;
   config.max_ray_length_m = max_ray_m;
   config.use_const_weight = true;  // voxgraph's ARCHE configuration
@@ -128,7 +128,7 @@ void benchmark_lidar(Device device, const Options& options, const std::string& l
   config.use_sparsity_compensation_factor = true;
   config.sparsity_compensation_factor = 20.0f;
   config.method = method;
-  TsdfIntegrator integrator(config);
+  integrators::TsdfIntegrator integrator(config);
   const Timing timing =
       time_integrations(stream, scans.size(), options.integrations, map, [&](size_t f) {
         return integrator.integrate(map, scans.view(f), Eigen::Isometry3d::Identity(), stream);
@@ -145,15 +145,15 @@ void benchmark_rgbd(Device device, const Options& options, const tools::DeviceRg
                            (carving ? " carving" : " band only");
   if (!options.runs(name)) return;
   const Stream stream(device);
-  TsdfMapConfig map_config;
+  map::TsdfMapConfig map_config;
   map_config.voxel_size_m = voxel_size;
   map_config.voxels_per_side = 8;
-  TsdfMap map(device, map_config);
-  TsdfIntegratorConfig config;
+  map::TsdfMap map(device, map_config);
+  integrators::TsdfIntegratorConfig config;
   config.truncation_distance_m = 4.0f * voxel_size;  // nvblox's default truncation
   config.max_ray_length_m = 5.0f;
   config.voxel_carving_enabled = carving;
-  TsdfIntegrator integrator(config);
+  integrators::TsdfIntegrator integrator(config);
   const Timing timing =
       time_integrations(stream, frames.size(), options.integrations, map, [&](size_t f) {
         return integrator.integrate_depth(map, frames.view(f), frames.T_world_camera[f], stream);
@@ -175,7 +175,8 @@ int main(int argc, char** argv) {
       if (!options.skip_lidar) {
         const tools::DeviceScans ouster = tools::load_ouster_scans(options.data, device);
         const tools::DeviceScans kitti = tools::load_kitti_scans(options.data, device);
-        const auto merged = TsdfIntegrationMethod::kMerged, simple = TsdfIntegrationMethod::kSimple;
+        const auto merged = integrators::TsdfIntegrationMethod::kMerged,
+                   simple = integrators::TsdfIntegrationMethod::kSimple;
         benchmark_lidar(device, options, "OS1-64 0.2 m, 16 m rays", ouster, 0.2f, 16.0f, merged,
                         &report);
         benchmark_lidar(device, options, "OS1-64 0.2 m, 16 m rays", ouster, 0.2f, 16.0f, simple,

@@ -130,8 +130,8 @@ void evaluate_mesh(tools::CommandLine& args, const std::string& mesh_path,
   options.thresholds_m = args.numbers("--thresholds-m", {0.1, 0.2, 0.5});
   options.sample_spacing_m = args.number("--sample-spacing-m", 0.1);
   args.finish();
-  const Mesh reconstruction = io::read_mesh_ply(mesh_path);
-  const Mesh truth = io::read_mesh_ply(truth_path);
+  const map::Mesh reconstruction = io::read_mesh_ply(mesh_path);
+  const map::Mesh truth = io::read_mesh_ply(truth_path);
   const tools::ReconstructionEvaluation evaluation =
       tools::evaluate_reconstruction(reconstruction, truth, options);
   tools::print_reconstruction_evaluation(std::cout, evaluation);

@@ -108,16 +108,16 @@ Options parse_options(int argc, char** argv) {
   return o;
 }
 
-TsdfMapConfig map_config(const Options& o) {
-  TsdfMapConfig config;
+map::TsdfMapConfig map_config(const Options& o) {
+  map::TsdfMapConfig config;
   config.voxel_size_m = static_cast<float>(o.voxel_size_m);
   config.voxels_per_side = 16;
   return config;
 }
 
 // voxgraph's ARCHE configuration: constant weight with drop-off, sparsity compensation.
-TsdfIntegratorConfig tsdf_config(const Options& o) {
-  TsdfIntegratorConfig config;
+integrators::TsdfIntegratorConfig tsdf_config(const Options& o) {
+  integrators::TsdfIntegratorConfig config;
   config.truncation_distance_m = static_cast<float>(o.truncation_m);
   config.max_ray_length_m = static_cast<float>(o.max_ray_m);
   config.use_const_weight = true;
@@ -133,12 +133,12 @@ struct Mapper {
   Mapper(Device device, const Options& o)
       : map(device, map_config(o)),
         tsdf(tsdf_config(o)),
-        esdf(EsdfIntegratorConfig{}),
+        esdf(integrators::EsdfIntegratorConfig{}),
         stream(device) {}
-  TsdfMap map;
-  TsdfIntegrator tsdf;
-  EsdfIntegrator esdf;
-  MeshIntegrator mesher;
+  map::TsdfMap map;
+  integrators::TsdfIntegrator tsdf;
+  integrators::EsdfIntegrator esdf;
+  integrators::MeshIntegrator mesher;
   const Stream stream;
   ModuleTimer read_timer{"read scan"}, tsdf_timer{"tsdf integrate"}, esdf_timer{"esdf update"},
       mesh_timer{"mesh update"}, final_timer{"final mesh"};
@@ -150,7 +150,7 @@ struct FlightRun {
   io::Trajectory odometry;
   int64_t points = 0;
   int64_t scans_without_truth = 0;
-  Mesh mesh;
+  map::Mesh mesh;
   double wall_s = 0.0;
 };
 
@@ -246,7 +246,8 @@ void print_report(const Options& o, Device device, const tools::BagScanSource& r
                 static_cast<long long>(reader.dropped()));
   }
   print_timings(m, run.wall_s, flight_s);
-  const double voxel_bytes = sizeof(TsdfVoxel) + sizeof(ColorVoxel) + sizeof(EsdfVoxel);
+  const double voxel_bytes =
+      sizeof(map::TsdfVoxel) + sizeof(map::ColorVoxel) + sizeof(map::EsdfVoxel);
   std::printf(
       "\nmap: %lld blocks of %d^3 voxels at %.2f m (%.1f MiB of voxels); mesh %zu triangles -> "
       "%s\n",

@@ -193,7 +193,7 @@ struct Inputs {
   io::MapFileContents contents;
   std::map<int64_t, double> stamps;
   io::Trajectory truth;
-  std::vector<std::unique_ptr<TsdfMap>> maps;
+  std::vector<std::unique_ptr<map::TsdfMap>> maps;
 };
 
 Inputs load_inputs(const Options& o, Device device) {
@@ -209,7 +209,8 @@ Inputs load_inputs(const Options& o, Device device) {
   in.maps = io::make_maps(in.contents, device);
   // Version 2 map files store no ESDF: it is recomputed from the TSDF, as loading a map does.
   if (!in.contents.has_esdf) {
-    for (auto& map : in.maps) EsdfIntegrator(in.config.esdf).update_all(*map, Stream(device));
+    for (auto& map : in.maps)
+      integrators::EsdfIntegrator(in.config.esdf).update_all(*map, Stream(device));
   }
   return in;
 }
@@ -240,7 +241,7 @@ backend::Pose4Dof start_pose(const backend::Pose4Dof& truth_k, size_t k, const O
 struct NewSubmap {
   int64_t id;
   size_t k;
-  TsdfMap* map;
+  map::TsdfMap* map;
   const pipeline::SubmapRegistrationPoints* points;
   pipeline::WallMapCache* walls;
   backend::Pose4Dof truth;

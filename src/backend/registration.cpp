@@ -23,7 +23,7 @@ void check_finite_pose(const Pose4Dof& pose, const char* what) {
   }
 }
 
-void check_same_device(const RegistrationPoints& points_i, const TsdfMap& map_j) {
+void check_same_device(const RegistrationPoints& points_i, const map::TsdfMap& map_j) {
   if (points_i.points.device() != map_j.device()) {
     throw Error(std::string("registration: the points of submap i live on ") +
                 to_string(points_i.points.device()) + " but submap j on " +
@@ -54,12 +54,13 @@ bool registration_uses_tsdf_target(const RegistrationResidualConfig& config) {
 }
 
 // The kernels read the map; their views are non-const because kernels share one view type.
-RegistrationDistanceLookup make_registration_lookup(const TsdfMap& map,
+RegistrationDistanceLookup make_registration_lookup(const map::TsdfMap& map,
                                                     const RegistrationResidualConfig& config) {
-  auto& mutable_map = const_cast<TsdfMap&>(map);
+  auto& mutable_map = const_cast<map::TsdfMap&>(map);
   RegistrationDistanceLookup lookup;
-  lookup.esdf = EsdfLookup{BlockVoxelIndexer{map.blocks().device_view(), map.voxels_per_side()},
-                           mutable_map.esdf().view(), map.voxel_size_m()};
+  lookup.esdf = integrators::EsdfLookup{
+      map::BlockVoxelIndexer{map.blocks().device_view(), map.voxels_per_side()},
+      mutable_map.esdf().view(), map.voxel_size_m()};
   lookup.tsdf = mutable_map.tsdf().view();
   lookup.tsdf_band_m = registration_uses_tsdf_target(config) ? config.tsdf_band_m : 0.0f;
   lookup.min_tsdf_weight = config.min_tsdf_weight;
@@ -67,7 +68,7 @@ RegistrationDistanceLookup make_registration_lookup(const TsdfMap& map,
   return lookup;
 }
 
-RegistrationPoints extract_registration_points(const TsdfMap& map,
+RegistrationPoints extract_registration_points(const map::TsdfMap& map,
                                                const RegistrationPointsConfig& config,
                                                const Stream& stream) {
   if (!(config.sampling_ratio > 0.0f && config.sampling_ratio <= 1.0f)) {
@@ -98,7 +99,7 @@ RegistrationPoints extract_registration_points(const TsdfMap& map,
   }
   auto device_indices = Buffer<Index3D>::from_host(map.device(), sorted_indices, stream);
   auto device_slots = Buffer<uint32_t>::from_host(map.device(), sorted_slots, stream);
-  auto& mutable_map = const_cast<TsdfMap&>(map);
+  auto& mutable_map = const_cast<map::TsdfMap&>(map);
   result.surface_voxels = dispatch(map.device(), [&](auto backend) {
     return registration_collect_points(
         backend, mutable_map.tsdf().view(), device_indices.data(), device_slots.data(),
@@ -108,7 +109,7 @@ RegistrationPoints extract_registration_points(const TsdfMap& map,
   return result;
 }
 
-void evaluate_registration_residuals(const RegistrationPoints& points_i, const TsdfMap& map_j,
+void evaluate_registration_residuals(const RegistrationPoints& points_i, const map::TsdfMap& map_j,
                                      const Pose4Dof& T_W_Si, const Pose4Dof& T_W_Sj,
                                      const RegistrationResidualConfig& config,
                                      Buffer<RegistrationResidual>* residuals,
@@ -134,7 +135,7 @@ void evaluate_registration_residuals(const RegistrationPoints& points_i, const T
 }
 
 std::vector<RegistrationResidual> evaluate_registration_residuals(
-    const RegistrationPoints& points_i, const TsdfMap& map_j, const Pose4Dof& T_W_Si,
+    const RegistrationPoints& points_i, const map::TsdfMap& map_j, const Pose4Dof& T_W_Si,
     const Pose4Dof& T_W_Sj, const RegistrationResidualConfig& config) {
   const Stream stream(map_j.device());
   Buffer<RegistrationResidual> residuals(map_j.device());
@@ -145,7 +146,7 @@ std::vector<RegistrationResidual> evaluate_registration_residuals(
 namespace {
 
 RegistrationNormalEquations normal_equations_into(const RegistrationPoints& points_i,
-                                                  const TsdfMap& map_j, const Pose4Dof& T_W_Si,
+                                                  const map::TsdfMap& map_j, const Pose4Dof& T_W_Si,
                                                   const Pose4Dof& T_W_Sj,
                                                   const RegistrationResidualConfig& config,
                                                   Buffer<RegistrationResidual>* scratch,
@@ -174,7 +175,7 @@ RegistrationNormalEquations normal_equations_into(const RegistrationPoints& poin
 }  // namespace
 
 RegistrationNormalEquations registration_normal_equations(
-    const RegistrationPoints& points_i, const TsdfMap& map_j, const Pose4Dof& T_W_Si,
+    const RegistrationPoints& points_i, const map::TsdfMap& map_j, const Pose4Dof& T_W_Si,
     const Pose4Dof& T_W_Sj, const RegistrationResidualConfig& config, const Stream& stream) {
   Buffer<RegistrationResidual> scratch(map_j.device());
   return normal_equations_into(points_i, map_j, T_W_Si, T_W_Sj, config, &scratch, stream);
@@ -332,7 +333,7 @@ RegistrationResult run_coarse_to_fine(const Pose4Dof& initial_T_Sj_Si,
 
 }  // namespace
 
-RegistrationResult align_submaps(const RegistrationPoints& points_i, const TsdfMap& map_j,
+RegistrationResult align_submaps(const RegistrationPoints& points_i, const map::TsdfMap& map_j,
                                  const Pose4Dof& initial_T_Sj_Si,
                                  const RegistrationAlignerConfig& config, const Stream& stream) {
   // Submap j is the reference frame: T_W_Sj = identity, so T_W_Si is the relative pose itself.
@@ -394,7 +395,7 @@ Constraint4Dof make_registration_constraint(int32_t vertex_j, int32_t vertex_i,
   return make_relative_constraint_4dof(vertex_j, vertex_i, result.T_Sj_Si, information);
 }
 
-SubmapFootprint submap_footprint(const TsdfMap& map) {
+SubmapFootprint submap_footprint(const map::TsdfMap& map) {
   SubmapFootprint footprint;
   footprint.block_size_m = map.block_size_m();
   const Stream stream(map.device());
@@ -403,7 +404,7 @@ SubmapFootprint submap_footprint(const TsdfMap& map) {
   map.blocks().export_entries(&indices, &slots);
   footprint.blocks = indices.to_host(stream);
   footprint.keys.reserve(footprint.blocks.size() * 2);
-  for (const Index3D& b : footprint.blocks) footprint.keys.insert(pack_block_key(b));
+  for (const Index3D& b : footprint.blocks) footprint.keys.insert(map::pack_block_key(b));
   if (footprint.blocks.empty()) return footprint;
   footprint.block_min = footprint.block_max = footprint.blocks.front();
   for (const Index3D& b : footprint.blocks) {
@@ -417,8 +418,9 @@ SubmapFootprint submap_footprint(const TsdfMap& map) {
   return footprint;
 }
 
-SubmapOverlap submap_overlap(const TsdfMap& map_i, const Pose4Dof& T_W_Si, const TsdfMap& map_j,
-                             const Pose4Dof& T_W_Sj, int64_t min_shared_blocks) {
+SubmapOverlap submap_overlap(const map::TsdfMap& map_i, const Pose4Dof& T_W_Si,
+                             const map::TsdfMap& map_j, const Pose4Dof& T_W_Sj,
+                             int64_t min_shared_blocks) {
   check_finite_pose(T_W_Si, "T_W_Si");
   check_finite_pose(T_W_Sj, "T_W_Sj");
   if (map_i.block_size_m() != map_j.block_size_m()) {
@@ -492,8 +494,8 @@ SubmapOverlap submap_overlap(const SubmapFootprint& footprint_i, const Pose4Dof&
     const Index3D block(static_cast<int32_t>(std::floor(in_j.x() / block_m)),
                         static_cast<int32_t>(std::floor(in_j.y() / block_m)),
                         static_cast<int32_t>(std::floor(in_j.z() / block_m)));
-    const uint64_t key = pack_block_key(block);
-    if (key != kInvalidBlockKey && footprint_j.keys.count(key)) ++overlap.shared_blocks;
+    const uint64_t key = map::pack_block_key(block);
+    if (key != map::kInvalidBlockKey && footprint_j.keys.count(key)) ++overlap.shared_blocks;
   }
   overlap.overlapping = overlap.shared_blocks >= std::max<int64_t>(min_shared_blocks, 1);
   return overlap;

@@ -5,7 +5,7 @@
 
 #include "covoxslam/core/error.h"
 
-namespace covox {
+namespace covox::integrators {
 
 struct EsdfIntegrator::Scratch {
   explicit Scratch(Device device) : buffers(device) {}
@@ -29,14 +29,14 @@ EsdfIntegrator::~EsdfIntegrator() = default;
 EsdfIntegrator::EsdfIntegrator(EsdfIntegrator&&) noexcept = default;
 EsdfIntegrator& EsdfIntegrator::operator=(EsdfIntegrator&&) noexcept = default;
 
-EsdfUpdateStats EsdfIntegrator::update(TsdfMap& map, const Stream& stream) {
+EsdfUpdateStats EsdfIntegrator::update(map::TsdfMap& map, const Stream& stream) {
   return run(map, false, stream);
 }
-EsdfUpdateStats EsdfIntegrator::update_all(TsdfMap& map, const Stream& stream) {
+EsdfUpdateStats EsdfIntegrator::update_all(map::TsdfMap& map, const Stream& stream) {
   return run(map, true, stream);
 }
 
-EsdfUpdateStats EsdfIntegrator::run(TsdfMap& map, bool all_blocks, const Stream& stream) {
+EsdfUpdateStats EsdfIntegrator::run(map::TsdfMap& map, bool all_blocks, const Stream& stream) {
   if (!scratch_ || scratch_->buffers.squared.device() != map.device()) {
     scratch_ = std::make_unique<Scratch>(map.device());
   }
@@ -45,4 +45,4 @@ EsdfUpdateStats EsdfIntegrator::run(TsdfMap& map, bool all_blocks, const Stream&
   });
 }
 
-}  // namespace covox
+}  // namespace covox::integrators

@@ -1,6 +1,6 @@
 // CPU (OpenMP) instantiation of the ESDF update.
 #include "covoxslam/integrators/internal/esdf_integrator_impl.h"
 
-namespace covox {
+namespace covox::integrators {
 COVOX_INSTANTIATE_ESDF_INTEGRATOR(CpuBackend)
-}  // namespace covox
+}  // namespace covox::integrators

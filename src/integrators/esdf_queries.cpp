@@ -5,19 +5,19 @@
 #include "covoxslam/core/error.h"
 #include "covoxslam/integrators/internal/esdf_queries_ops.h"
 
-namespace covox {
+namespace covox::integrators {
 namespace {
 
 // Queries only read the map; the views are non-const because kernels share one view type.
-EsdfLookup make_lookup(const TsdfMap& map) {
-  auto& mutable_map = const_cast<TsdfMap&>(map);
-  return EsdfLookup{BlockVoxelIndexer{map.blocks().device_view(), map.voxels_per_side()},
+EsdfLookup make_lookup(const map::TsdfMap& map) {
+  auto& mutable_map = const_cast<map::TsdfMap&>(map);
+  return EsdfLookup{map::BlockVoxelIndexer{map.blocks().device_view(), map.voxels_per_side()},
                     mutable_map.esdf().view(), map.voxel_size_m()};
 }
 
-std::vector<SlicePoint> collect_slice(const TsdfMap& map, int32_t layer_min, int32_t layer_max,
+std::vector<SlicePoint> collect_slice(const map::TsdfMap& map, int32_t layer_min, int32_t layer_max,
                                       float z_m, const Stream& stream) {
-  auto& mutable_map = const_cast<TsdfMap&>(map);
+  auto& mutable_map = const_cast<map::TsdfMap&>(map);
   Buffer<Index3D> block_indices(map.device());
   Buffer<uint32_t> block_slots(map.device());
   map.blocks().export_entries(&block_indices, &block_slots);
@@ -44,7 +44,7 @@ std::vector<SlicePoint> collect_slice(const TsdfMap& map, int32_t layer_min, int
 
 }  // namespace
 
-void query_esdf(const TsdfMap& map, const Vec3f* points_m, int64_t count, EsdfSample* samples,
+void query_esdf(const map::TsdfMap& map, const Vec3f* points_m, int64_t count, EsdfSample* samples,
                 const Stream& stream) {
   const EsdfLookup lookup = make_lookup(map);
   dispatch(map.device(), [&](auto backend) {
@@ -52,7 +52,7 @@ void query_esdf(const TsdfMap& map, const Vec3f* points_m, int64_t count, EsdfSa
   });
 }
 
-std::vector<EsdfSample> query_esdf(const TsdfMap& map, const std::vector<Vec3f>& points_m) {
+std::vector<EsdfSample> query_esdf(const map::TsdfMap& map, const std::vector<Vec3f>& points_m) {
   const Stream stream(map.device());
   auto points = Buffer<Vec3f>::from_host(map.device(), points_m, stream);
   Buffer<EsdfSample> samples(map.device(), points_m.size());
@@ -60,12 +60,12 @@ std::vector<EsdfSample> query_esdf(const TsdfMap& map, const std::vector<Vec3f>&
   return samples.to_host(stream);
 }
 
-std::vector<SlicePoint> esdf_slice(const TsdfMap& map, float z_m, const Stream& stream) {
+std::vector<SlicePoint> esdf_slice(const map::TsdfMap& map, float z_m, const Stream& stream) {
   const int32_t layer = static_cast<int32_t>(std::floor(z_m / map.voxel_size_m()));
   return collect_slice(map, layer, layer, (layer + 0.5f) * map.voxel_size_m(), stream);
 }
 
-std::vector<SlicePoint> esdf_squashed_slice(const TsdfMap& map, float z_min_m, float z_max_m,
+std::vector<SlicePoint> esdf_squashed_slice(const map::TsdfMap& map, float z_min_m, float z_max_m,
                                             const Stream& stream) {
   if (!(z_max_m >= z_min_m)) {
     throw Error("esdf_squashed_slice: z_max_m (" + std::to_string(z_max_m) +
@@ -76,4 +76,4 @@ std::vector<SlicePoint> esdf_squashed_slice(const TsdfMap& map, float z_min_m, f
   return collect_slice(map, layer_min, layer_max, 0.5f * (z_min_m + z_max_m), stream);
 }
 
-}  // namespace covox
+}  // namespace covox::integrators

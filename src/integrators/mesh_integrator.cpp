@@ -6,7 +6,7 @@
 #include "covoxslam/core/stage_profiler.h"
 #include "covoxslam/integrators/pending_block_meshes.h"
 
-namespace covox {
+namespace covox::integrators {
 
 struct MeshIntegrator::Scratch {
   explicit Scratch(Device device) : buffers(device) {}
@@ -18,7 +18,7 @@ MeshIntegrator::~MeshIntegrator() = default;
 MeshIntegrator::MeshIntegrator(MeshIntegrator&&) noexcept = default;
 MeshIntegrator& MeshIntegrator::operator=(MeshIntegrator&&) noexcept = default;
 
-Mesh MeshIntegrator::extract_all(TsdfMap& map, const Stream& stream) {
+map::Mesh MeshIntegrator::extract_all(map::TsdfMap& map, const Stream& stream) {
   if (!scratch_ || scratch_->buffers.blocks.device() != map.device())
     scratch_ = std::make_unique<Scratch>(map.device());
   MeshScratchBuffers& scratch = scratch_->buffers;
@@ -28,7 +28,7 @@ Mesh MeshIntegrator::extract_all(TsdfMap& map, const Stream& stream) {
     return mesh_extract(backend, map, config_.min_weight, MeshWeld::kGlobal, scratch, &vertex_count,
                         stream, config_.max_weld_table_entries);
   });
-  Mesh mesh;
+  map::Mesh mesh;
   if (triangles == 0) return mesh;
   mesh.vertices_m = scratch.vertices.to_host(stream);
   mesh.colors = scratch.vertex_colors.to_host(stream);
@@ -36,7 +36,7 @@ Mesh MeshIntegrator::extract_all(TsdfMap& map, const Stream& stream) {
   return mesh;
 }
 
-MeshUpdateStats MeshIntegrator::update(TsdfMap& map, const Stream& stream) {
+MeshUpdateStats MeshIntegrator::update(map::TsdfMap& map, const Stream& stream) {
   if (!scratch_ || scratch_->buffers.blocks.device() != map.device())
     scratch_ = std::make_unique<Scratch>(map.device());
   if (!pending_) pending_ = std::make_unique<PendingBlockMeshes>(map.device());
@@ -62,7 +62,7 @@ void MeshIntegrator::download_pending(const Stream& stream) {
   last_updated_ = pending_->apply_to(&block_meshes_, stream);
 }
 
-const std::map<Index3D, Mesh>& MeshIntegrator::block_meshes(const Stream& stream) {
+const std::map<Index3D, map::Mesh>& MeshIntegrator::block_meshes(const Stream& stream) {
   download_pending(stream);
   return block_meshes_;
 }
@@ -72,8 +72,8 @@ const std::vector<Index3D>& MeshIntegrator::last_updated_blocks(const Stream& st
   return last_updated_;
 }
 
-Mesh MeshIntegrator::combined_block_meshes(const Stream& stream) {
-  Mesh combined;
+map::Mesh MeshIntegrator::combined_block_meshes(const Stream& stream) {
+  map::Mesh combined;
   for (const auto& [block, mesh] : block_meshes(stream)) {
     const uint32_t base = static_cast<uint32_t>(combined.vertices_m.size());
     combined.vertices_m.insert(combined.vertices_m.end(), mesh.vertices_m.begin(),
@@ -84,4 +84,4 @@ Mesh MeshIntegrator::combined_block_meshes(const Stream& stream) {
   return combined;
 }
 
-}  // namespace covox
+}  // namespace covox::integrators

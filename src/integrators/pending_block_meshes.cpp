@@ -4,7 +4,7 @@
 
 #include "covoxslam/core/memory.h"
 
-namespace covox {
+namespace covox::integrators {
 
 namespace {
 
@@ -61,7 +61,7 @@ void PendingBlockMeshes::append(const MeshScratchBuffers& extraction, int64_t ve
                 stream);
 }
 
-std::vector<Index3D> PendingBlockMeshes::apply_to(std::map<Index3D, Mesh>* block_meshes,
+std::vector<Index3D> PendingBlockMeshes::apply_to(std::map<Index3D, map::Mesh>* block_meshes,
                                                   const Stream& stream) {
   std::vector<Index3D> last_blocks;
   if (updates_.empty()) return last_blocks;
@@ -86,7 +86,7 @@ std::vector<Index3D> PendingBlockMeshes::apply_to(std::map<Index3D, Mesh>* block
         continue;
       }
       // assign() refills the block's previous vectors, keeping their capacity.
-      Mesh& mesh = (*block_meshes)[block];
+      map::Mesh& mesh = (*block_meshes)[block];
       mesh.vertices_m.assign(vertices.begin() + v0, vertices.begin() + v1);
       mesh.colors.assign(colors.begin() + v0, colors.begin() + v1);
       mesh.triangles.assign(triangles.begin() + 3 * t0, triangles.begin() + 3 * t1);
@@ -100,4 +100,4 @@ std::vector<Index3D> PendingBlockMeshes::apply_to(std::map<Index3D, Mesh>* block
   return last_blocks;
 }
 
-}  // namespace covox
+}  // namespace covox::integrators

@@ -10,7 +10,7 @@
 #include "covoxslam/integrators/internal/tsdf_frame_strategy.h"
 #include "covoxslam/integrators/internal/tsdf_integrator_ops.h"
 
-namespace covox {
+namespace covox::integrators {
 
 namespace {
 void require(bool condition, const std::string& message) {
@@ -139,7 +139,7 @@ void log_drops(const IntegrationStats& stats) {
 }
 }  // namespace
 
-IntegrationStats TsdfIntegrator::integrate(TsdfMap& map, const PointCloudView& cloud,
+IntegrationStats TsdfIntegrator::integrate(map::TsdfMap& map, const PointCloudView& cloud,
                                            const Eigen::Isometry3d& T_map_sensor,
                                            const Stream& stream) {
   validate(config_, map.voxel_size_m());
@@ -158,7 +158,7 @@ IntegrationStats TsdfIntegrator::integrate(TsdfMap& map, const PointCloudView& c
   return stats;
 }
 
-IntegrationStats TsdfIntegrator::integrate(TsdfMap& map, const std::vector<Vec3f>& points,
+IntegrationStats TsdfIntegrator::integrate(map::TsdfMap& map, const std::vector<Vec3f>& points,
                                            const std::vector<Rgb8>& colors,
                                            const Eigen::Isometry3d& T_map_sensor) {
   if (!colors.empty() && colors.size() != points.size()) {
@@ -177,7 +177,7 @@ IntegrationStats TsdfIntegrator::integrate(TsdfMap& map, const std::vector<Vec3f
   return integrate(map, view, T_map_sensor, stream);
 }
 
-IntegrationStats TsdfIntegrator::integrate_depth(TsdfMap& map, const DepthImageView& image,
+IntegrationStats TsdfIntegrator::integrate_depth(map::TsdfMap& map, const DepthImageView& image,
                                                  const Eigen::Isometry3d& T_map_camera,
                                                  const Stream& stream) {
   const PinholeIntrinsics& k = image.intrinsics;
@@ -216,4 +216,4 @@ IntegrationStats TsdfIntegrator::integrate_depth(TsdfMap& map, const DepthImageV
   return stats;
 }
 
-}  // namespace covox
+}  // namespace covox::integrators

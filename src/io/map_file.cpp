@@ -88,19 +88,19 @@ class Reader {
 
 // Voxels are written field by field, not as structs, so padding bytes never reach the file and
 // the format does not depend on the compiler's struct layout.
-void put_voxels(Writer& w, const HostBlock& block, bool esdf) {
-  for (const TsdfVoxel& v : block.tsdf) {
+void put_voxels(Writer& w, const map::HostBlock& block, bool esdf) {
+  for (const map::TsdfVoxel& v : block.tsdf) {
     w.put(v.distance_m);
     w.put(v.weight);
   }
-  for (const ColorVoxel& v : block.color) {
+  for (const map::ColorVoxel& v : block.color) {
     w.put(v.r);
     w.put(v.g);
     w.put(v.b);
     w.put(v.weight);
   }
   if (esdf) {
-    for (const EsdfVoxel& v : block.esdf) {
+    for (const map::EsdfVoxel& v : block.esdf) {
       w.put(v.distance_m);
       w.put(v.observed);
       w.put(v.is_site);
@@ -108,14 +108,14 @@ void put_voxels(Writer& w, const HostBlock& block, bool esdf) {
   }
 }
 
-void get_voxels(Reader& r, HostBlock* block, size_t per_block, bool esdf) {
+void get_voxels(Reader& r, map::HostBlock* block, size_t per_block, bool esdf) {
   block->tsdf.resize(per_block);
   block->color.resize(per_block);
-  for (TsdfVoxel& v : block->tsdf) {
+  for (map::TsdfVoxel& v : block->tsdf) {
     v.distance_m = r.get<float>("TSDF voxels");
     v.weight = r.get<float>("TSDF voxels");
   }
-  for (ColorVoxel& v : block->color) {
+  for (map::ColorVoxel& v : block->color) {
     v.r = r.get<uint8_t>("colour voxels");
     v.g = r.get<uint8_t>("colour voxels");
     v.b = r.get<uint8_t>("colour voxels");
@@ -123,7 +123,7 @@ void get_voxels(Reader& r, HostBlock* block, size_t per_block, bool esdf) {
   }
   if (esdf) {
     block->esdf.resize(per_block);
-    for (EsdfVoxel& v : block->esdf) {
+    for (map::EsdfVoxel& v : block->esdf) {
       v.distance_m = r.get<float>("ESDF voxels");
       v.observed = r.get<uint8_t>("ESDF voxels");
       v.is_site = r.get<uint8_t>("ESDF voxels");
@@ -148,7 +148,7 @@ void save_map_file_version1(const std::string& path, const MapFileContents& cont
     const Eigen::Matrix4d pose = submap.T_world_submap.matrix();
     for (int i = 0; i < 16; ++i) w.put(pose(i / 4, i % 4));
     w.put(static_cast<uint64_t>(submap.blocks.size()));
-    for (const HostBlock& block : submap.blocks) {
+    for (const map::HostBlock& block : submap.blocks) {
       if (block.tsdf.size() != per_block || block.color.size() != per_block ||
           (contents.has_esdf && block.esdf.size() != per_block)) {
         throw Error("save_map_file: a block of submap " + std::to_string(submap.id) +
@@ -207,7 +207,7 @@ MapFileContents load_version1(const std::string& path) {
       throw Error("map file " + path + ": block count larger than the file");
     }
     submap.blocks.resize(blocks);
-    for (HostBlock& block : submap.blocks) {
+    for (map::HostBlock& block : submap.blocks) {
       block.index = r.get<Index3D>("block index");
       get_voxels(r, &block, per_block, contents.has_esdf);
     }
@@ -337,8 +337,9 @@ MapFileContents load_version2(std::ifstream& file, uint64_t file_size, const std
 float largest_distance_m(const MapFileContents& contents) {
   float largest = 0.0f;
   for (const SubmapRecord& submap : contents.submaps) {
-    for (const HostBlock& block : submap.blocks) {
-      for (const TsdfVoxel& v : block.tsdf) largest = std::max(largest, std::abs(v.distance_m));
+    for (const map::HostBlock& block : submap.blocks) {
+      for (const map::TsdfVoxel& v : block.tsdf)
+        largest = std::max(largest, std::abs(v.distance_m));
     }
   }
   return largest > 0.0f ? largest : 1.0f;
@@ -473,11 +474,12 @@ MapFileContents load_map_file(const std::string& path) {
   return load_version2(file, file_size, path);
 }
 
-std::vector<std::unique_ptr<TsdfMap>> make_maps(const MapFileContents& contents, Device device) {
-  std::vector<std::unique_ptr<TsdfMap>> maps;
+std::vector<std::unique_ptr<map::TsdfMap>> make_maps(const MapFileContents& contents,
+                                                     Device device) {
+  std::vector<std::unique_ptr<map::TsdfMap>> maps;
   for (const SubmapRecord& submap : contents.submaps) {
-    auto map = std::make_unique<TsdfMap>(
-        device, TsdfMapConfig{contents.voxel_size_m, contents.voxels_per_side, {}});
+    auto map = std::make_unique<map::TsdfMap>(
+        device, map::TsdfMapConfig{contents.voxel_size_m, contents.voxels_per_side, {}});
     map->load_blocks(submap.blocks, Stream(device));
     maps.push_back(std::move(map));
   }

@@ -8,13 +8,14 @@
 namespace covox {
 namespace io {
 
-void write_mesh_ply(const std::string& path, const Mesh& mesh) {
+void write_mesh_ply(const std::string& path, const map::Mesh& mesh) {
   const bool has_color = mesh.colors.size() == mesh.vertices_m.size();
   // Vertices without a fused colour (black) are written in their height's colour, spread over
   // the mesh's own heights.
   const std::vector<Rgb8> colors =
-      has_color ? display_colors(mesh, Eigen::Isometry3d::Identity(), vertex_height_range(mesh))
-                : std::vector<Rgb8>();
+      has_color
+          ? map::display_colors(mesh, Eigen::Isometry3d::Identity(), map::vertex_height_range(mesh))
+          : std::vector<Rgb8>();
   write_file_replacing(path, "write_mesh_ply", /*binary=*/true, [&](std::ostream& file) {
     file << "ply\nformat binary_little_endian 1.0\ncomment written by covoxslam\n"
          << "element vertex " << mesh.vertices_m.size() << "\n"

@@ -289,7 +289,7 @@ void read_row(ValueReader& reader, const PlyElement& element, int indices, size_
 }
 
 void append_vertex(const PlyElement& element, const MeshColumns& columns,
-                   const std::vector<double>& values, size_t row, Mesh& mesh,
+                   const std::vector<double>& values, size_t row, map::Mesh& mesh,
                    const std::string& path) {
   const Vec3f vertex(static_cast<float>(values[columns.x]), static_cast<float>(values[columns.y]),
                      static_cast<float>(values[columns.z]));
@@ -306,7 +306,7 @@ void append_vertex(const PlyElement& element, const MeshColumns& columns,
 
 // Polygons become a fan around their first corner; degenerate faces (< 3 corners) are skipped,
 // as viewers do.
-void append_face(const std::vector<uint32_t>& corners, Mesh& mesh) {
+void append_face(const std::vector<uint32_t>& corners, map::Mesh& mesh) {
   for (size_t corner = 2; corner < corners.size(); ++corner) {
     mesh.triangles.insert(mesh.triangles.end(), {corners[0], corners[corner - 1], corners[corner]});
   }
@@ -317,7 +317,7 @@ void append_face(const std::vector<uint32_t>& corners, Mesh& mesh) {
 // count cannot make us reserve more than the body could hold. `values` is the row buffer, shared
 // by all elements.
 void read_element(ValueReader& reader, const PlyElement& element, size_t max_rows,
-                  std::vector<double>& values, Mesh& mesh, const std::string& path) {
+                  std::vector<double>& values, map::Mesh& mesh, const std::string& path) {
   const bool is_vertex = element.name == "vertex";
   const bool is_face = element.name == "face";
   MeshColumns columns;
@@ -344,7 +344,7 @@ void read_element(ValueReader& reader, const PlyElement& element, size_t max_row
   }
 }
 
-void check_face_indices(const Mesh& mesh, const std::string& path) {
+void check_face_indices(const map::Mesh& mesh, const std::string& path) {
   for (uint32_t index : mesh.triangles) {
     if (index >= mesh.vertices_m.size()) {
       throw Error("'" + path + "': face refers to vertex " + std::to_string(index) +
@@ -355,12 +355,12 @@ void check_face_indices(const Mesh& mesh, const std::string& path) {
 
 }  // namespace
 
-Mesh read_mesh_ply(const std::string& path) {
+map::Mesh read_mesh_ply(const std::string& path) {
   const std::vector<uint8_t> bytes = read_file_bytes(path);
   const PlyHeader header = parse_header(bytes, path);
   ValueReader reader(bytes, header.data_offset_bytes, header.format, path);
   const size_t max_rows = bytes.size() - header.data_offset_bytes;
-  Mesh mesh;
+  map::Mesh mesh;
   bool have_vertices = false;
   std::vector<double> values;
   for (const PlyElement& element : header.elements) {

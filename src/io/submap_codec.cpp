@@ -37,7 +37,7 @@ float dequantise_distance(int16_t distance, float scale_m) {
   return static_cast<float>(distance) * (scale_m / static_cast<float>(kDistanceSteps));
 }
 
-QuantisedVoxel quantise(const TsdfVoxel& tsdf, const ColorVoxel& color, double scale_m) {
+QuantisedVoxel quantise(const map::TsdfVoxel& tsdf, const map::ColorVoxel& color, double scale_m) {
   QuantisedVoxel q;
   q.distance = quantise_distance(tsdf.distance_m, scale_m);
   q.weight = float_to_half(tsdf.weight);
@@ -54,7 +54,7 @@ void append(std::vector<uint8_t>* out, const T& value) {
   out->insert(out->end(), bytes, bytes + sizeof(T));
 }
 
-void encode_block(const HostBlock& block, size_t per_block, double scale_m,
+void encode_block(const map::HostBlock& block, size_t per_block, double scale_m,
                   std::vector<QuantisedVoxel>* scratch, std::vector<uint8_t>* out) {
   std::vector<QuantisedVoxel>& voxels = *scratch;
   voxels.clear();
@@ -148,7 +148,7 @@ size_t popcount(const uint8_t* mask, size_t bytes) {
 // Reads one block; fills `block` when it is not null. `previous` is the index of the block
 // before (null for the first): indices must increase.
 Index3D read_block(ByteReader& r, const EncodedSubmapInfo& info, const Index3D* previous,
-                   HostBlock* block) {
+                   map::HostBlock* block) {
   const size_t per_block =
       static_cast<size_t>(info.voxels_per_side) * info.voxels_per_side * info.voxels_per_side;
   Index3D index;
@@ -168,8 +168,8 @@ Index3D read_block(ByteReader& r, const EncodedSubmapInfo& info, const Index3D* 
   const uint8_t* color_weights = color ? r.take(n * 2, "colour weights") : nullptr;
   if (!block) return index;
   block->index = index;
-  block->tsdf.assign(per_block, TsdfVoxel());
-  block->color.assign(per_block, ColorVoxel());
+  block->tsdf.assign(per_block, map::TsdfVoxel());
+  block->color.assign(per_block, map::ColorVoxel());
   block->esdf.clear();
   size_t j = 0;
   for (size_t k = 0; k < per_block; ++k) {
@@ -194,7 +194,7 @@ Index3D read_block(ByteReader& r, const EncodedSubmapInfo& info, const Index3D* 
 }
 
 EncodedSubmapInfo walk(const uint8_t* data, size_t size, const char* what,
-                       std::vector<HostBlock>* blocks) {
+                       std::vector<map::HostBlock>* blocks) {
   ByteReader r(data, size, what);
   const EncodedSubmapInfo info = read_header(r);
   if (blocks) blocks->resize(info.blocks);
@@ -252,7 +252,7 @@ float half_to_float(uint16_t half) {
   return value;
 }
 
-std::vector<uint8_t> encode_submap(const std::vector<HostBlock>& blocks, int voxels_per_side,
+std::vector<uint8_t> encode_submap(const std::vector<map::HostBlock>& blocks, int voxels_per_side,
                                    float distance_scale_m) {
   if (voxels_per_side != 8 && voxels_per_side != 16)
     throw Error("encode_submap: voxels per side must be 8 or 16");
@@ -269,7 +269,7 @@ std::vector<uint8_t> encode_submap(const std::vector<HostBlock>& blocks, int vox
   uint64_t stored = 0;
   std::vector<QuantisedVoxel> scratch;
   for (size_t b = 0; b < blocks.size(); ++b) {
-    const HostBlock& block = blocks[b];
+    const map::HostBlock& block = blocks[b];
     if (block.tsdf.size() != per_block || block.color.size() != per_block)
       throw Error("encode_submap: a block has the wrong voxel count");
     if (b > 0 && !(blocks[b - 1].index < block.index))
@@ -282,7 +282,7 @@ std::vector<uint8_t> encode_submap(const std::vector<HostBlock>& blocks, int vox
   return out;
 }
 
-std::vector<uint8_t> encode_submap(const TsdfMap& map, float distance_scale_m) {
+std::vector<uint8_t> encode_submap(const map::TsdfMap& map, float distance_scale_m) {
   return encode_submap(map.snapshot(), map.voxels_per_side(), distance_scale_m);
 }
 
@@ -291,19 +291,20 @@ EncodedSubmapInfo validate_encoded_submap(const uint8_t* data, size_t size, cons
   return walk(data, size, what, nullptr);
 }
 
-std::vector<HostBlock> decode_submap(const uint8_t* data, size_t size, const char* what) {
-  std::vector<HostBlock> blocks;
+std::vector<map::HostBlock> decode_submap(const uint8_t* data, size_t size, const char* what) {
+  std::vector<map::HostBlock> blocks;
   walk(data, size, what, &blocks);
   return blocks;
 }
 
-void load_encoded_submap(const std::vector<uint8_t>& bytes, TsdfMap* map, const Stream& stream) {
+void load_encoded_submap(const std::vector<uint8_t>& bytes, map::TsdfMap* map,
+                         const Stream& stream) {
   const EncodedSubmapInfo info =
       validate_encoded_submap(bytes.data(), bytes.size(), "load_encoded_submap");
   if (info.voxels_per_side != map->voxels_per_side())
     throw Error("load_encoded_submap: the submap has " + std::to_string(info.voxels_per_side) +
                 " voxels per side, the map " + std::to_string(map->voxels_per_side()));
-  const std::vector<HostBlock> blocks = decode_submap(bytes, "load_encoded_submap");
+  const std::vector<map::HostBlock> blocks = decode_submap(bytes, "load_encoded_submap");
   map->clear();
   map->load_blocks(blocks, stream);
 }

@@ -9,7 +9,7 @@
 #include "covoxslam/core/memory.h"
 #include "covoxslam/map/internal/block_hash_table_ops.h"
 
-namespace covox {
+namespace covox::map {
 namespace {
 
 void validate(const BlockHashTableConfig& config) {
@@ -112,8 +112,7 @@ ActivateResult BlockHashTable::finish_in_kernel_activation(uint32_t num_new,
   }
   state_.pending_count = -1;
   state_.pending_in_kernel = false;
-  return hash_table_detail::activate_finish_counted(state_, num_new, num_out_of_range,
-                                                    num_table_full);
+  return internal::activate_finish_counted(state_, num_new, num_out_of_range, num_table_full);
 }
 
 void BlockHashTable::require_nothing_queued(const char* operation) const {
@@ -186,7 +185,7 @@ double BlockHashTable::occupancy() const {
   return static_cast<double>(state_.occupied_count) / static_cast<double>(bucket_count());
 }
 
-namespace hash_table_detail {
+namespace internal {
 ActivateResult activate_finish_counted(BlockHashTableState& state, int64_t num_new,
                                        int64_t num_out_of_range, int64_t num_failed_full) {
   ActivateResult result;
@@ -214,6 +213,6 @@ ActivateResult activate_finish_counted(BlockHashTableState& state, int64_t num_n
   }
   return result;
 }
-}  // namespace hash_table_detail
+}  // namespace internal
 
-}  // namespace covox
+}  // namespace covox::map

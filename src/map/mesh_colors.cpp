@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
-namespace covox {
+namespace covox::map {
 
 namespace {
 
@@ -76,4 +76,4 @@ HeightColorRange vertex_height_range(const Mesh& mesh) {
   return range;
 }
 
-}  // namespace covox
+}  // namespace covox::map

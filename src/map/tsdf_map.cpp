@@ -6,7 +6,7 @@
 
 #include "covoxslam/core/error.h"
 
-namespace covox {
+namespace covox::map {
 
 TsdfMap::TsdfMap(Device device, const TsdfMapConfig& config)
     : config_(config),
@@ -122,4 +122,4 @@ void TsdfMap::clear() {
   block_changed_.resize(0);
 }
 
-}  // namespace covox
+}  // namespace covox::map

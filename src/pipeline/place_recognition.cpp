@@ -47,10 +47,10 @@ void validate(const PlaceRecognitionConfig& config) {
           "min_overlap_score must be in [0, 1]");
 }
 
-std::vector<SurfaceColumn> surface_columns(const TsdfMap& map, double surface_band_m,
+std::vector<SurfaceColumn> surface_columns(const map::TsdfMap& map, double surface_band_m,
                                            const Stream& stream) {
   // The kernel only reads the map; the view is non-const because kernels share one view type.
-  auto& mutable_map = const_cast<TsdfMap&>(map);
+  auto& mutable_map = const_cast<map::TsdfMap&>(map);
   Buffer<Index3D> block_indices(map.device());
   Buffer<uint32_t> block_slots(map.device());
   map.blocks().export_entries(&block_indices, &block_slots);
@@ -145,7 +145,7 @@ PlaceDescriptor place_descriptor(const std::vector<SurfaceColumn>& columns,
   return d;
 }
 
-PlaceDescriptor place_descriptor(const TsdfMap& map, const PlaceRecognitionConfig& config,
+PlaceDescriptor place_descriptor(const map::TsdfMap& map, const PlaceRecognitionConfig& config,
                                  const Stream& stream) {
   return place_descriptor(surface_columns(map, map.voxel_size_m(), stream), config);
 }
@@ -303,7 +303,7 @@ const PlaceRecognizer::Entry* PlaceRecognizer::find(int64_t id) const {
 }
 
 std::vector<SubmapConstraint> PlaceRecognizer::propose(
-    int64_t id, const TsdfMap& map, const SubmapRegistrationPoints& points,
+    int64_t id, const map::TsdfMap& map, const SubmapRegistrationPoints& points,
     const backend::Pose4Dof& pose, const std::vector<RegistrationPartner>& earlier,
     const std::vector<int64_t>& linked, const SubmapRegistrationConfig& registration,
     const Stream& stream, WallMapCache* own_walls, const RegistrationOdometry& odometry,

@@ -221,7 +221,7 @@ void RegistrationCounts::add(const RegistrationCounts& other) {
 }
 
 std::unique_ptr<SubmapRegistrationPoints> prepare_registration_points(
-    const TsdfMap& map, const SubmapRegistrationConfig& config, const Stream& stream) {
+    const map::TsdfMap& map, const SubmapRegistrationConfig& config, const Stream& stream) {
   auto result = std::make_unique<SubmapRegistrationPoints>(map.device());
   backend::RegistrationPointsConfig points_config;
   points_config.sampling_ratio = config.sampling.ratio;
@@ -245,7 +245,7 @@ struct Attempt {
 
 // One alignment from `start`, judged against the guess `initial`.
 // `reverse`: the symmetric pair (registration.h) when the partner's points are used too, else null.
-Attempt attempt_alignment(const SubmapRegistrationPoints& points, const TsdfMap& map_j,
+Attempt attempt_alignment(const SubmapRegistrationPoints& points, const map::TsdfMap& map_j,
                           const backend::Pose4Dof& initial, const backend::Pose4Dof& start,
                           const backend::RegistrationAlignerConfig& aligner,
                           const SubmapRegistrationConfig::Acceptance& acceptance,
@@ -288,7 +288,7 @@ Attempt attempt_alignment(const SubmapRegistrationPoints& points, const TsdfMap&
 // units, and the new submap's wall map.
 struct PairContext {
   int64_t id;
-  const TsdfMap* map;
+  const map::TsdfMap* map;
   const SubmapRegistrationPoints* points;
   backend::Pose4Dof pose;
   const SubmapRegistrationConfig* config;
@@ -386,10 +386,10 @@ double verified_mahalanobis_sq(const PairContext& context, const RegistrationPar
 // One overlapping pair: aligned, judged and counted; true with `constraint` when accepted.
 // `guess`: the relative pose T_Sj_Si to start from; null: the current poses' relative pose.
 // What every pair of the new submap `id` shares: its map, points, pose, settings and walls.
-PairContext pair_context(int64_t id, const TsdfMap& map, const SubmapRegistrationPoints& points,
-                         const backend::Pose4Dof& pose, const SubmapRegistrationConfig& config,
-                         const Stream& stream, WallMapCache* walls,
-                         const RegistrationOdometry& odometry) {
+PairContext pair_context(int64_t id, const map::TsdfMap& map,
+                         const SubmapRegistrationPoints& points, const backend::Pose4Dof& pose,
+                         const SubmapRegistrationConfig& config, const Stream& stream,
+                         WallMapCache* walls, const RegistrationOdometry& odometry) {
   const double sqrt_mean_weight = std::sqrt(points.mean_weight);
   return PairContext{id,
                      &map,
@@ -469,7 +469,7 @@ bool register_pair(const PairContext& context, const RegistrationPartner& partne
 }  // namespace
 
 std::vector<const RegistrationPartner*> overlapping_partners(
-    const TsdfMap& map, const backend::Pose4Dof& pose,
+    const map::TsdfMap& map, const backend::Pose4Dof& pose,
     const std::vector<RegistrationPartner>& earlier, const SubmapRegistrationConfig& config,
     const backend::SubmapFootprint* footprint) {
   struct Candidate {
@@ -509,7 +509,7 @@ std::vector<const RegistrationPartner*> overlapping_partners(
 }
 
 std::vector<SubmapConstraint> registration_constraints(
-    int64_t id, const TsdfMap& map, const SubmapRegistrationPoints& points,
+    int64_t id, const map::TsdfMap& map, const SubmapRegistrationPoints& points,
     const backend::Pose4Dof& pose, const std::vector<RegistrationPartner>& earlier,
     const SubmapRegistrationConfig& config, const Stream& stream, RegistrationCounts* counts,
     WallMapCache* own_walls, const RegistrationOdometry& odometry,
@@ -530,7 +530,7 @@ std::vector<SubmapConstraint> registration_constraints(
 }
 
 bool registration_constraint_from_guess(
-    int64_t id, const TsdfMap& map, const SubmapRegistrationPoints& points,
+    int64_t id, const map::TsdfMap& map, const SubmapRegistrationPoints& points,
     const backend::Pose4Dof& pose, const RegistrationPartner& partner,
     const backend::Pose4Dof& T_Sj_Si_guess, const SubmapRegistrationConfig& config,
     const Stream& stream, RegistrationCounts* counts, WallMapCache* own_walls,

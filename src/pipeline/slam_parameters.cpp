@@ -209,7 +209,8 @@ void add_tsdf_parameters(std::vector<SlamParameter>* table) {
   table->insert(
       table->end(),
       {
-          text_parameter("tsdf.method", COVOX_FIELD(tsdf.method), parse_tsdf_integration_method),
+          text_parameter("tsdf.method", COVOX_FIELD(tsdf.method),
+                         integrators::parse_tsdf_integration_method),
           number_parameter("tsdf.truncation_distance_m", COVOX_FIELD(tsdf.truncation_distance_m),
                            positive),
           number_parameter("tsdf.max_weight", COVOX_FIELD(tsdf.max_weight), positive),

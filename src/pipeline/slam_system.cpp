@@ -329,11 +329,11 @@ void SlamSystem::process_scan(const QueuedScan& queued) {
   const auto start = Clock::now();
   points_buffer_.copy_from_host(scan.points_sensor_m, frontend_stream_);
   colors_buffer_.copy_from_host(scan.colors, frontend_stream_);
-  PointCloudView view;
+  integrators::PointCloudView view;
   view.points = points_buffer_.data();
   view.colors = scan.colors.empty() ? nullptr : colors_buffer_.data();
   view.count = static_cast<int64_t>(scan.points_sensor_m.size());
-  const IntegrationStats stats = active_submap_->integrate(
+  const integrators::IntegrationStats stats = active_submap_->integrate(
       tsdf_integrator_, view, scan.T_odom_sensor, scan.stamp_s, frontend_stream_);
   // Drained before timing and before the next scan overwrites the upload buffers.
   frontend_stream_.synchronize();
@@ -943,12 +943,12 @@ std::vector<StampedPose> SlamSystem::corrected_trajectory() const {
   return trajectory;
 }
 
-Mesh SlamSystem::combined_mesh() const {
+map::Mesh SlamSystem::combined_mesh() const {
   std::lock_guard<std::mutex> lock(state_mutex_);
-  Mesh combined;
+  map::Mesh combined;
   for (const GraphSubmap& entry : graph_submaps_) {
     const Submap& submap = *entry.submap;
-    const Mesh& mesh = submap.mesh();
+    const map::Mesh& mesh = submap.mesh();
     const Eigen::Isometry3f T_world_submap = submap.T_world_submap().cast<float>();
     const uint32_t offset = static_cast<uint32_t>(combined.vertices_m.size());
     for (const Vec3f& v : mesh.vertices_m) {

@@ -243,8 +243,8 @@ void SlamSystem::load_submaps(std::vector<SubmapSnapshot> submaps) {
   // The heavy part (voxels to the device, ESDF, mesh, registration points) before anything is
   // replaced, on this thread with its own integrators: a bad submap leaves the map as it was.
   const Stream stream(config_.device);
-  EsdfIntegrator esdf(config_.esdf);
-  MeshIntegrator mesher(config_.mesh);
+  integrators::EsdfIntegrator esdf(config_.esdf);
+  integrators::MeshIntegrator mesher(config_.mesh);
   std::vector<GraphSubmap> loaded;
   std::vector<std::vector<uint8_t>> loaded_bytes;  // compact forms, for the store after the reset
   loaded.reserve(submaps.size());

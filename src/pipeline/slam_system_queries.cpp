@@ -16,12 +16,13 @@ namespace {
 // The ESDF slice of one submap at world height `height_m`, moved into the world frame. Submap
 // frames are gravity aligned (x, y, z, yaw), so a horizontal world plane is a horizontal plane of
 // the submap at height_m - t_z.
-std::vector<SlicePoint> world_slice_of(const TsdfMap& map, const Eigen::Isometry3d& T_world_submap,
-                                       double height_m, const Stream& stream) {
+std::vector<integrators::SlicePoint> world_slice_of(const map::TsdfMap& map,
+                                                    const Eigen::Isometry3d& T_world_submap,
+                                                    double height_m, const Stream& stream) {
   const float z_submap_m = static_cast<float>(height_m - T_world_submap.translation().z());
-  std::vector<SlicePoint> slice = esdf_slice(map, z_submap_m, stream);
+  std::vector<integrators::SlicePoint> slice = integrators::esdf_slice(map, z_submap_m, stream);
   const Eigen::Isometry3f T = T_world_submap.cast<float>();
-  for (SlicePoint& point : slice) {
+  for (integrators::SlicePoint& point : slice) {
     const Eigen::Vector3f world =
         T * Eigen::Vector3f(point.position_m.x, point.position_m.y, point.position_m.z);
     point.position_m = Vec3f(world.x(), world.y(), static_cast<float>(height_m));
@@ -31,7 +32,7 @@ std::vector<SlicePoint> world_slice_of(const TsdfMap& map, const Eigen::Isometry
 
 }  // namespace
 
-bool SlamSystem::submap_mesh(int64_t id, Mesh* mesh_submap,
+bool SlamSystem::submap_mesh(int64_t id, map::Mesh* mesh_submap,
                              Eigen::Isometry3d* T_world_submap) const {
   std::lock_guard<std::mutex> lock(state_mutex_);
   for (const GraphSubmap& entry : graph_submaps_) {
@@ -44,7 +45,7 @@ bool SlamSystem::submap_mesh(int64_t id, Mesh* mesh_submap,
   return false;
 }
 
-std::vector<SlicePoint> SlamSystem::esdf_slice_world(double height_m) {
+std::vector<integrators::SlicePoint> SlamSystem::esdf_slice_world(double height_m) {
   std::lock_guard<std::mutex> structure_lock(backend_mutex_);
   std::vector<std::pair<Submap*, Eigen::Isometry3d>> submaps;
   {
@@ -60,18 +61,18 @@ std::vector<SlicePoint> SlamSystem::esdf_slice_world(double height_m) {
     const int64_t j = static_cast<int64_t>(std::floor(p.y / cell_m));
     return (static_cast<uint64_t>(static_cast<uint32_t>(i)) << 32) | static_cast<uint32_t>(j);
   };
-  std::unordered_map<uint64_t, SlicePoint> cells;
+  std::unordered_map<uint64_t, integrators::SlicePoint> cells;
   const Stream stream = Stream::create(config_.device);
   for (const auto& [submap, T_world_submap] : submaps) {
     acquire_locked(*submap);  // leaves again below, least recently used first, to keep the budget
     enforce_budget_locked(submap->id());
-    for (const SlicePoint& point :
+    for (const integrators::SlicePoint& point :
          world_slice_of(submap->map(), T_world_submap, height_m, stream)) {
       const uint64_t key = key_of(point.position_m);
       auto it = cells.find(key);
       if (it == cells.end()) {
         // Reported at the cell centre, so overlapping submaps give one point per cell.
-        SlicePoint centred = point;
+        integrators::SlicePoint centred = point;
         const double i = std::floor(point.position_m.x / cell_m),
                      j = std::floor(point.position_m.y / cell_m);
         centred.position_m.x = static_cast<float>((i + 0.5) * cell_m);
@@ -83,13 +84,14 @@ std::vector<SlicePoint> SlamSystem::esdf_slice_world(double height_m) {
     }
   }
   enforce_budget_locked(-1);
-  std::vector<SlicePoint> merged;
+  std::vector<integrators::SlicePoint> merged;
   merged.reserve(cells.size());
   for (const auto& cell : cells) merged.push_back(cell.second);
   return merged;
 }
 
-std::vector<SlicePoint> SlamSystem::esdf_slice_newest_submap(double height_m, int64_t* submap_id) {
+std::vector<integrators::SlicePoint> SlamSystem::esdf_slice_newest_submap(double height_m,
+                                                                          int64_t* submap_id) {
   std::lock_guard<std::mutex> structure_lock(backend_mutex_);
   Submap* newest = nullptr;
   Eigen::Isometry3d T_world_submap = Eigen::Isometry3d::Identity();
@@ -105,12 +107,14 @@ std::vector<SlicePoint> SlamSystem::esdf_slice_newest_submap(double height_m, in
   if (!newest) return {};
   acquire_locked(*newest);
   const Stream stream = Stream::create(config_.device);
-  std::vector<SlicePoint> slice = world_slice_of(newest->map(), T_world_submap, height_m, stream);
+  std::vector<integrators::SlicePoint> slice =
+      world_slice_of(newest->map(), T_world_submap, height_m, stream);
   enforce_budget_locked(-1);
   return slice;
 }
 
-std::vector<SlicePoint> SlamSystem::esdf_slice_active_submap(double height_m, int64_t* submap_id) {
+std::vector<integrators::SlicePoint> SlamSystem::esdf_slice_active_submap(double height_m,
+                                                                          int64_t* submap_id) {
   *submap_id = -1;
   // The next copy, for the next call; an idle frontend takes it at once.
   active_copy_requested_.store(true);
@@ -133,11 +137,11 @@ std::vector<SlicePoint> SlamSystem::esdf_slice_active_submap(double height_m, in
   const double reach_m = config_.esdf.esdf_max_distance_m + config_.map.voxel_size_m;
   const double block_m =
       static_cast<double>(config_.map.voxel_size_m) * config_.map.voxels_per_side;
-  std::vector<HostBlock> slab;
-  for (const HostBlock& block : copy->blocks) {
+  std::vector<map::HostBlock> slab;
+  for (const map::HostBlock& block : copy->blocks) {
     const double bottom_m = block.index.z * block_m;
     if (bottom_m <= z_submap_m + reach_m && bottom_m + block_m >= z_submap_m - reach_m) {
-      HostBlock without_esdf;
+      map::HostBlock without_esdf;
       without_esdf.index = block.index;
       without_esdf.tsdf = block.tsdf;
       without_esdf.color = block.color;
@@ -147,9 +151,9 @@ std::vector<SlicePoint> SlamSystem::esdf_slice_active_submap(double height_m, in
   *submap_id = copy->id;
   if (slab.empty()) return {};
   const Stream stream = Stream::create(config_.device);
-  TsdfMap map(config_.device, config_.map);
+  map::TsdfMap map(config_.device, config_.map);
   map.load_blocks(slab, stream);
-  EsdfIntegrator(config_.esdf).update_all(map, stream);
+  integrators::EsdfIntegrator(config_.esdf).update_all(map, stream);
   return world_slice_of(map, T_world_submap, height_m, stream);
 }
 

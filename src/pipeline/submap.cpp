@@ -142,7 +142,7 @@ bool should_start_new_submap(const SubmapPolicyConfig& config, const SubmapStati
   return false;
 }
 
-Submap::Submap(int64_t id, Device device, const TsdfMapConfig& map_config,
+Submap::Submap(int64_t id, Device device, const map::TsdfMapConfig& map_config,
                const Eigen::Isometry3d& T_odom_submap)
     : id_(id),
       map_(device, map_config),
@@ -154,14 +154,15 @@ Submap::Submap(int64_t id, Device device, const TsdfMapConfig& map_config,
   }
 }
 
-IntegrationStats Submap::integrate(TsdfIntegrator& integrator, const PointCloudView& cloud,
-                                   const Eigen::Isometry3d& T_odom_sensor, double stamp_s,
-                                   const Stream& stream) {
+integrators::IntegrationStats Submap::integrate(integrators::TsdfIntegrator& integrator,
+                                                const integrators::PointCloudView& cloud,
+                                                const Eigen::Isometry3d& T_odom_sensor,
+                                                double stamp_s, const Stream& stream) {
   if (finished_) {
     throw Error("submap " + std::to_string(id_) +
                 ": cannot integrate a scan into a finished submap");
   }
-  const IntegrationStats stats =
+  const integrators::IntegrationStats stats =
       integrator.integrate(map_, cloud, submap_from_odometry(T_odom_sensor), stream);
   const Eigen::Vector3d position_m = T_odom_sensor.translation();
   if (statistics_.scans == 0) {
@@ -178,8 +179,8 @@ IntegrationStats Submap::integrate(TsdfIntegrator& integrator, const PointCloudV
   return stats;
 }
 
-SubmapFinishTimes Submap::finish(EsdfIntegrator& esdf, MeshIntegrator& mesher,
-                                 const Stream& stream) {
+SubmapFinishTimes Submap::finish(integrators::EsdfIntegrator& esdf,
+                                 integrators::MeshIntegrator& mesher, const Stream& stream) {
   SubmapFinishTimes times;
   if (finished_) return times;
 

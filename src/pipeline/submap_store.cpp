@@ -37,7 +37,7 @@ void validate(const MemoryBudgetConfig& config) {
     throw Error("memory.host_budget_mb must be >= 0, got " + std::to_string(config.host_budget_mb));
 }
 
-int64_t voxel_pool_bytes(const TsdfMap& map) {
+int64_t voxel_pool_bytes(const map::TsdfMap& map) {
   return map.pool_slots() * map.voxels_per_block() * kVoxelBytes;
 }
 
@@ -59,7 +59,7 @@ std::vector<uint8_t> SubmapStore::quantize(Submap& submap, const Stream& stream)
   if (!enabled()) return {};
   std::vector<uint8_t> bytes = io::encode_submap(submap.map(), distance_scale_m_);
   // Rebuilt in a fresh map, as every later restore is, so its block slots are laid out alike.
-  submap.map() = TsdfMap(submap.map().device(), submap.map().config());
+  submap.map() = map::TsdfMap(submap.map().device(), submap.map().config());
   io::load_encoded_submap(bytes, &submap.map(), stream);
   return bytes;
 }
@@ -79,7 +79,7 @@ void SubmapStore::adopt(const Submap& submap, std::vector<uint8_t> bytes) {
   counters_.compact_bytes += static_cast<int64_t>(it->second.size);
 }
 
-void SubmapStore::acquire(Submap& submap, EsdfIntegrator& esdf, const Stream& stream) {
+void SubmapStore::acquire(Submap& submap, integrators::EsdfIntegrator& esdf, const Stream& stream) {
   if (!enabled()) return;
   std::lock_guard<std::mutex> lock(mutex_);
   auto it = entries_.find(submap.id());
@@ -90,7 +90,7 @@ void SubmapStore::acquire(Submap& submap, EsdfIntegrator& esdf, const Stream& st
   const auto start = std::chrono::steady_clock::now();
   const bool from_disk = entry.bytes.empty();
   const std::vector<uint8_t> bytes = from_disk ? read_back_locked(submap.id(), entry) : entry.bytes;
-  submap.map() = TsdfMap(submap.map().device(), submap.map().config());
+  submap.map() = map::TsdfMap(submap.map().device(), submap.map().config());
   io::load_encoded_submap(bytes, &submap.map(), stream);
   esdf.update_all(submap.map(), stream);
   stream.synchronize();
@@ -141,7 +141,7 @@ void SubmapStore::compact_locked(Submap& submap, Entry& entry) {
     counters_.compact_bytes += static_cast<int64_t>(entry.size);
   }
   // An empty map of the same configuration: the pools' memory is freed with the old one.
-  submap.map() = TsdfMap(submap.map().device(), submap.map().config());
+  submap.map() = map::TsdfMap(submap.map().device(), submap.map().config());
   entry.resident = false;
   counters_.resident_bytes -= entry.resident_bytes;
   entry.resident_bytes = 0;

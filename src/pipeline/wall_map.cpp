@@ -67,7 +67,7 @@ WallMap WallMap::from_columns(const std::vector<Eigen::Vector2d>& columns_m, dou
   return wall;
 }
 
-WallMap WallMap::from_map(const TsdfMap& map, double cap_m, const Stream& stream) {
+WallMap WallMap::from_map(const map::TsdfMap& map, double cap_m, const Stream& stream) {
   // Every surface voxel, and its gradient in its own map: the registration residual of the map
   // against itself at the identity carries d(distance)/d(x, y, z) in its Jacobian.
   backend::RegistrationPointsConfig all;
@@ -98,7 +98,7 @@ WallMap WallMap::from_map(const TsdfMap& map, double cap_m, const Stream& stream
   return from_columns(columns, map.voxel_size_m(), cap_m);
 }
 
-const WallMap& WallMapCache::get(const TsdfMap& map, const Stream& stream) {
+const WallMap& WallMapCache::get(const map::TsdfMap& map, const Stream& stream) {
   std::lock_guard<std::mutex> lock(mutex_);
   if (!walls_) walls_ = std::make_unique<WallMap>(WallMap::from_map(map, kCapM, stream));
   return *walls_;

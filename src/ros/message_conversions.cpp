@@ -74,7 +74,7 @@ geometry_msgs::Pose to_pose_msg(const Eigen::Isometry3d& pose) {
   return msg;
 }
 
-visualization_msgs::Marker mesh_marker(const Mesh& mesh, const std::vector<Rgb8>& colors,
+visualization_msgs::Marker mesh_marker(const map::Mesh& mesh, const std::vector<Rgb8>& colors,
                                        const Eigen::Isometry3d& pose, const std::string& frame,
                                        const ros::Time& stamp, const std::string& ns, int id) {
   visualization_msgs::Marker marker;
@@ -124,9 +124,12 @@ visualization_msgs::Marker deletion_marker(const std::string& frame, const ros::
   return marker;
 }
 
-std::vector<visualization_msgs::Marker> height_band_markers(
-    const Mesh& mesh, const Eigen::Isometry3d& T_world_mesh, const HeightColorRange& range,
-    int bands, const std::string& frame, const ros::Time& stamp, const std::string& ns, int id) {
+std::vector<visualization_msgs::Marker> height_band_markers(const map::Mesh& mesh,
+                                                            const Eigen::Isometry3d& T_world_mesh,
+                                                            const map::HeightColorRange& range,
+                                                            int bands, const std::string& frame,
+                                                            const ros::Time& stamp,
+                                                            const std::string& ns, int id) {
   std::vector<visualization_msgs::Marker> markers;
   for (int band = 0; band < bands; ++band) {
     visualization_msgs::Marker marker =
@@ -135,7 +138,8 @@ std::vector<visualization_msgs::Marker> height_band_markers(
     marker.pose.orientation.w = 1.0;
     marker.scale.x = marker.scale.y = marker.scale.z = 1.0;
     const float width_m = range.max_height_m - range.min_height_m;
-    const Rgb8 color = height_color(range.min_height_m + (band + 0.5f) * width_m / bands, range);
+    const Rgb8 color =
+        map::height_color(range.min_height_m + (band + 0.5f) * width_m / bands, range);
     marker.color.r = color.r / 255.0f;
     marker.color.g = color.g / 255.0f;
     marker.color.b = color.b / 255.0f;
@@ -297,8 +301,8 @@ visualization_msgs::MarkerArray pose_graph_markers(
   return array;
 }
 
-sensor_msgs::PointCloud2 slice_cloud(const std::vector<SlicePoint>& slice, const std::string& frame,
-                                     const ros::Time& stamp) {
+sensor_msgs::PointCloud2 slice_cloud(const std::vector<integrators::SlicePoint>& slice,
+                                     const std::string& frame, const ros::Time& stamp) {
   sensor_msgs::PointCloud2 cloud;
   cloud.header.frame_id = frame;
   cloud.header.stamp = stamp;
@@ -319,7 +323,7 @@ sensor_msgs::PointCloud2 slice_cloud(const std::vector<SlicePoint>& slice, const
   cloud.is_dense = true;
   cloud.data.resize(cloud.row_step);
   uint8_t* out = cloud.data.data();
-  for (const SlicePoint& point : slice) {
+  for (const integrators::SlicePoint& point : slice) {
     const float values[4] = {point.position_m.x, point.position_m.y, point.position_m.z,
                              point.distance_m};
     std::memcpy(out, values, sizeof(values));

@@ -202,8 +202,8 @@ visualization_msgs::MarkerArray SlamNode::submap_mesh_markers(const std::vector<
                                                               const std::vector<int64_t>& removed,
                                                               const ros::Time& stamp) {
   visualization_msgs::MarkerArray markers;
-  const HeightColorRange range{static_cast<float>(options_.mesh_height_color_min_m),
-                               static_cast<float>(options_.mesh_height_color_max_m)};
+  const map::HeightColorRange range{static_cast<float>(options_.mesh_height_color_min_m),
+                                    static_cast<float>(options_.mesh_height_color_max_m)};
   for (int64_t id : removed) {
     markers.markers.push_back(
         deletion_marker(submap_frame(id), stamp, kMeshNamespace, static_cast<int>(id)));
@@ -214,19 +214,19 @@ visualization_msgs::MarkerArray SlamNode::submap_mesh_markers(const std::vector<
     }
   }
   for (int64_t id : ids) {
-    Mesh mesh;
+    map::Mesh mesh;
     Eigen::Isometry3d T_world_submap;
     if (!slam_->submap_mesh(id, &mesh, &T_world_submap)) continue;
     // Vertices in the submap's own frame, which tf places: moving the submap moves the marker.
     // Heights for the colours are taken at the submap's pose of now. A mesh with fused colours
     // is one marker with per-vertex colours (black vertices by height); one without is sent as
     // height slices of one colour each. Either way the other form is deleted.
-    const bool colored = has_observed_colors(mesh);
+    const bool colored = map::has_observed_colors(mesh);
     std::vector<visualization_msgs::Marker> bands =
-        height_band_markers(colored ? Mesh() : mesh, T_world_submap, range, kHeightBands,
+        height_band_markers(colored ? map::Mesh() : mesh, T_world_submap, range, kHeightBands,
                             submap_frame(id), stamp, kMeshNamespace, static_cast<int>(id));
     visualization_msgs::Marker vertex_colored =
-        colored ? mesh_marker(mesh, display_colors(mesh, T_world_submap, range),
+        colored ? mesh_marker(mesh, map::display_colors(mesh, T_world_submap, range),
                               Eigen::Isometry3d::Identity(), submap_frame(id), stamp,
                               kMeshNamespace, static_cast<int>(id))
                 : deletion_marker(submap_frame(id), stamp, kMeshNamespace, static_cast<int>(id));
@@ -290,12 +290,12 @@ void SlamNode::publish_map(bool resend_meshes, bool with_combined_mesh) {
   // The combined mesh holds every triangle in the world frame, so any moved submap changes it:
   // it is published on request only (finish_map, generate_mesh, reset, load_map), latched.
   if (options_.publish_combined_mesh && with_combined_mesh) {
-    const Mesh combined = slam_->combined_mesh();
-    const HeightColorRange range{static_cast<float>(options_.mesh_height_color_min_m),
-                                 static_cast<float>(options_.mesh_height_color_max_m)};
+    const map::Mesh combined = slam_->combined_mesh();
+    const map::HeightColorRange range{static_cast<float>(options_.mesh_height_color_min_m),
+                                      static_cast<float>(options_.mesh_height_color_max_m)};
     const Eigen::Isometry3d identity = Eigen::Isometry3d::Identity();
     combined_mesh_publisher_.publish(
-        mesh_marker(combined, display_colors(combined, identity, range), identity,
+        mesh_marker(combined, map::display_colors(combined, identity, range), identity,
                     options_.mission_frame, stamp, "combined_mesh", 0));
   }
   bounding_boxes_publisher_.publish(bounding_box_markers(submaps, options_.mission_frame, stamp));
@@ -316,7 +316,7 @@ void SlamNode::publish_active_submap_slice(const ros::WallTimerEvent&) {
   // Costs a copy of the active submap and an ESDF of its slab: only for a listener.
   if (active_submap_esdf_slice_publisher_.getNumSubscribers() == 0) return;
   int64_t active_id = -1;
-  std::vector<SlicePoint> slice;
+  std::vector<integrators::SlicePoint> slice;
   try {
     slice = slam_->esdf_slice_active_submap(options_.esdf_slice_height_m, &active_id);
   } catch (const std::exception& error) {

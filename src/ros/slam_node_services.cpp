@@ -131,7 +131,7 @@ bool SlamNode::save_mesh(covoxslam::FilePath::Request& request,
                          covoxslam::FilePath::Response& response) {
   return answer("save_mesh", response, [&] {
     const std::string path = require_path(request.file_path);
-    const Mesh mesh = slam_->combined_mesh();
+    const map::Mesh mesh = slam_->combined_mesh();
     io::write_mesh_ply(path, mesh);
     return "saved " + std::to_string(mesh.triangle_count()) + " triangles (PLY) to " + path;
   });

@@ -17,7 +17,7 @@ namespace testing_support {
 
 // Allocates every block overlapping [min, max] (metres) and sets each voxel's distance to
 // sdf(centre) (clamped to +-truncation), weight 1 and colour by position.
-inline void fill_tsdf(TsdfMap& map, const Eigen::Vector3d& min, const Eigen::Vector3d& max,
+inline void fill_tsdf(map::TsdfMap& map, const Eigen::Vector3d& min, const Eigen::Vector3d& max,
                       float truncation_m,
                       const std::function<double(const Eigen::Vector3d&)>& sdf) {
   const double block = map.block_size_m();
@@ -46,13 +46,13 @@ inline void fill_tsdf(TsdfMap& map, const Eigen::Vector3d& min, const Eigen::Vec
                                    (blocks[b].z * side + k / (side * side) + 0.5) * voxel);
       const double d = std::max<double>(-truncation_m, std::min<double>(truncation_m, sdf(centre)));
       const size_t index = size_t(host_slots[b]) * side * side * side + k;
-      tsdf[index] = TsdfVoxel{static_cast<float>(d), 1.0f};
-      color[index] = ColorVoxel{uint8_t(100 + 10 * (k % 3)), 50, 200, 1.0f};
+      tsdf[index] = map::TsdfVoxel{static_cast<float>(d), 1.0f};
+      color[index] = map::ColorVoxel{uint8_t(100 + 10 * (k % 3)), 50, 200, 1.0f};
     }
   }
   map.tsdf().copy_from_host(tsdf, stream);
   map.color().copy_from_host(color, stream);
-  map.block_changed().fill_bytes(kAllPending, stream);
+  map.block_changed().fill_bytes(map::kAllPending, stream);
   stream.synchronize();
 }
 

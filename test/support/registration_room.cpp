@@ -22,20 +22,20 @@ AnalyticScene registration_room() {
   return room;
 }
 
-std::unique_ptr<TsdfMap> scan_room_submap(Device device, const AnalyticScene& room,
-                                          const backend::Pose4Dof& T_W_S, float voxel_size_m,
-                                          float esdf_max_distance_m) {
-  auto map = std::make_unique<TsdfMap>(device, TsdfMapConfig{voxel_size_m, 8, {}});
-  TsdfIntegratorConfig tsdf_config;
+std::unique_ptr<map::TsdfMap> scan_room_submap(Device device, const AnalyticScene& room,
+                                               const backend::Pose4Dof& T_W_S, float voxel_size_m,
+                                               float esdf_max_distance_m) {
+  auto map = std::make_unique<map::TsdfMap>(device, map::TsdfMapConfig{voxel_size_m, 8, {}});
+  integrators::TsdfIntegratorConfig tsdf_config;
   tsdf_config.truncation_distance_m = 0.3f;
   tsdf_config.max_ray_length_m = 10.0f;
   // The scene is seen from the sensor's world pose; the points go into the submap's own frame.
-  TsdfIntegrator(tsdf_config)
+  integrators::TsdfIntegrator(tsdf_config)
       .integrate(*map, simulate_lidar(room, isometry_of(T_W_S), 720, 64, 90.0, 9.5), {},
                  Eigen::Isometry3d::Identity());
-  EsdfIntegratorConfig esdf_config;
+  integrators::EsdfIntegratorConfig esdf_config;
   esdf_config.esdf_max_distance_m = esdf_max_distance_m;
-  EsdfIntegrator(esdf_config).update_all(*map, Stream(device));
+  integrators::EsdfIntegrator(esdf_config).update_all(*map, Stream(device));
   return map;
 }
 

@@ -26,15 +26,15 @@ AnalyticScene registration_room();
 // One submap with voxels of `voxel_size_m`: a single 720 x 64 beam scan of `room` from the sensor
 // at T_W_S, integrated with the sensor at the submap's origin (truncation 0.3 m, 10 m rays), with
 // its ESDF up to esdf_max_distance_m (1 m unless given).
-std::unique_ptr<TsdfMap> scan_room_submap(Device device, const AnalyticScene& room,
-                                          const backend::Pose4Dof& T_W_S, float voxel_size_m,
-                                          float esdf_max_distance_m = 1.0f);
+std::unique_ptr<map::TsdfMap> scan_room_submap(Device device, const AnalyticScene& room,
+                                               const backend::Pose4Dof& T_W_S, float voxel_size_m,
+                                               float esdf_max_distance_m = 1.0f);
 
 // Two scans of one scene as submaps j (sensor at the origin) and i (sensor at true_T_Sj_Si),
 // each with its registration points (sampling ratio 0.25): the set-up of the pairwise and
 // symmetric registration tests.
 struct ScannedSubmapPair {
-  std::unique_ptr<TsdfMap> map_i, map_j;
+  std::unique_ptr<map::TsdfMap> map_i, map_j;
   std::unique_ptr<backend::RegistrationPoints> points_i, points_j;
   backend::Pose4Dof true_T_Sj_Si;
 

@@ -28,15 +28,15 @@ DeviceScans load_scans(const std::vector<std::string>& paths, Device device) {
 
 }  // namespace
 
-PointCloudView DeviceScans::view(size_t i) const {
-  PointCloudView cloud;
+integrators::PointCloudView DeviceScans::view(size_t i) const {
+  integrators::PointCloudView cloud;
   cloud.points = points[i].data();
   cloud.count = static_cast<int64_t>(points[i].size());
   return cloud;
 }
 
-DepthImageView DeviceRgbdFrames::view(size_t i) const {
-  DepthImageView image;
+integrators::DepthImageView DeviceRgbdFrames::view(size_t i) const {
+  integrators::DepthImageView image;
   image.depth_m = depth_m[i].data();
   image.colors = color[i].size() > 0 ? color[i].data() : nullptr;
   image.intrinsics = intrinsics;
@@ -59,12 +59,12 @@ DeviceRgbdFrames load_7scenes_frames(const std::string& data_directory, size_t c
   const io::RgbdFolder folder = io::RgbdFolder::open(data_directory + "/7scenes-redkitchen");
   DeviceRgbdFrames frames;
   const io::CameraIntrinsics& k = folder.intrinsics();
-  frames.intrinsics = PinholeIntrinsics{static_cast<float>(k.fx),
-                                        static_cast<float>(k.fy),
-                                        static_cast<float>(k.cx),
-                                        static_cast<float>(k.cy),
-                                        k.width,
-                                        k.height};
+  frames.intrinsics = integrators::PinholeIntrinsics{static_cast<float>(k.fx),
+                                                     static_cast<float>(k.fy),
+                                                     static_cast<float>(k.cx),
+                                                     static_cast<float>(k.cy),
+                                                     k.width,
+                                                     k.height};
   io::ReadStats stats;
   for (size_t f = 0; f < std::min(count, folder.size()); ++f) {
     const io::RgbdFrame frame = folder.read_frame(f, &stats, with_color);

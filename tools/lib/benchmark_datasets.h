@@ -18,7 +18,7 @@ namespace tools {
 struct DeviceScans {
   std::vector<Buffer<Vec3f>> points;
   size_t size() const { return points.size(); }
-  PointCloudView view(size_t i) const;
+  integrators::PointCloudView view(size_t i) const;
 };
 
 // RGB-D frames (depth in metres, colour, camera-to-world pose), on a device.
@@ -26,9 +26,9 @@ struct DeviceRgbdFrames {
   std::vector<Buffer<float>> depth_m;
   std::vector<Buffer<Rgb8>> color;  // empty buffers when loaded without colour
   std::vector<Eigen::Isometry3d> T_world_camera;
-  PinholeIntrinsics intrinsics;
+  integrators::PinholeIntrinsics intrinsics;
   size_t size() const { return depth_m.size(); }
-  DepthImageView view(size_t i) const;
+  integrators::DepthImageView view(size_t i) const;
 };
 
 // Newer College Ouster OS1-64 deskewed scans (lidar-scans/newer_06, 3 scans).

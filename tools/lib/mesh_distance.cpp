@@ -45,7 +45,7 @@ Eigen::Vector3d closest_point_on_triangle(const Eigen::Vector3d& p, const Eigen:
   return a + ab * (vb / denominator) + ac * (vc / denominator);
 }
 
-MeshDistance::MeshDistance(const Mesh& mesh, double cell_size_m) : cell_m_(cell_size_m) {
+MeshDistance::MeshDistance(const map::Mesh& mesh, double cell_size_m) : cell_m_(cell_size_m) {
   if (!(cell_size_m > 0.0) || !std::isfinite(cell_size_m)) {
     throw Error("mesh distance: the cell size must be positive and finite, got " +
                 std::to_string(cell_size_m));

@@ -28,7 +28,7 @@ class MeshDistance {
   // size trades build cost and memory (small cells list a large triangle many times) against
   // query cost (large cells hold many triangles); about the usual query radius is a good choice.
   // Throws covox::Error when cell_size_m is not positive and finite.
-  MeshDistance(const Mesh& mesh, double cell_size_m);
+  MeshDistance(const map::Mesh& mesh, double cell_size_m);
 
   // Distance from p to the nearest triangle (or vertex, for a point set) when that is at most
   // max_distance_m, exactly; +infinity when nothing lies that close. Throws covox::Error when

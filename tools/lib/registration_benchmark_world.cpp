@@ -123,13 +123,13 @@ RegistrationWorld build_registration_world(const RegistrationWorldConfig& config
   sim::LidarConfig lidar;
   lidar.columns = config.lidar_columns;
   lidar.max_range_m = config.max_range_m;
-  TsdfIntegratorConfig tsdf_config;
+  integrators::TsdfIntegratorConfig tsdf_config;
   tsdf_config.truncation_distance_m = 3.0f * config.voxel_size_m;
   tsdf_config.max_ray_length_m = static_cast<float>(config.max_range_m);
-  TsdfIntegrator integrator(tsdf_config);
-  EsdfIntegratorConfig esdf_config;
+  integrators::TsdfIntegrator integrator(tsdf_config);
+  integrators::EsdfIntegratorConfig esdf_config;
   esdf_config.esdf_max_distance_m = 2.0f;
-  EsdfIntegrator esdf(esdf_config);
+  integrators::EsdfIntegrator esdf(esdf_config);
   const Stream stream(device);
   for (int m = 0; m < config.distinct_submaps; ++m) {
     const backend::Pose4Dof pose = distinct_pose(config, m);
@@ -137,7 +137,8 @@ RegistrationWorld build_registration_world(const RegistrationWorldConfig& config
     // The submap frame is the gravity-aligned sensor pose at its scan: points in that frame.
     const std::vector<Vec3f> scan =
         sim::simulate_scan(world, lidar, isometry_of(pose), sim::stream_seed(config.seed, m));
-    auto map = std::make_unique<TsdfMap>(device, TsdfMapConfig{config.voxel_size_m, 8, {}});
+    auto map =
+        std::make_unique<map::TsdfMap>(device, map::TsdfMapConfig{config.voxel_size_m, 8, {}});
     integrator.integrate(*map, scan, {}, Eigen::Isometry3d::Identity());
     esdf.update_all(*map, stream);
     // Sample about points_per_submap of the surface voxels.

@@ -39,7 +39,7 @@ struct RegistrationWorld {
   RegistrationWorldConfig config;
   double period_m = 0.0;
   std::vector<backend::Pose4Dof> poses;  // of the distinct submaps within one period
-  std::vector<std::unique_ptr<TsdfMap>> maps;
+  std::vector<std::unique_ptr<map::TsdfMap>> maps;
   std::vector<std::unique_ptr<backend::RegistrationPoints>> points;
   double build_time_s = 0.0;
 };

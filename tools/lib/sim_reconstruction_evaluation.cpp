@@ -18,7 +18,8 @@ Eigen::Vector3d to_eigen(const Vec3f& v) { return Eigen::Vector3d(v.x, v.y, v.z)
 
 }  // namespace
 
-ReconstructionEvaluation evaluate_reconstruction(const Mesh& reconstruction, const Mesh& truth,
+ReconstructionEvaluation evaluate_reconstruction(const map::Mesh& reconstruction,
+                                                 const map::Mesh& truth,
                                                  const ReconstructionEvaluationOptions& options) {
   if (options.thresholds_m.empty()) throw Error("reconstruction evaluation: no thresholds given");
   for (double t : options.thresholds_m) {

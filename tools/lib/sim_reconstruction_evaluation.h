@@ -39,7 +39,8 @@ struct ReconstructionEvaluation {
 
 // Throws covox::Error when a threshold or the spacing is not positive or the truth has no
 // triangles. A reconstruction without triangles is treated as a point set.
-ReconstructionEvaluation evaluate_reconstruction(const Mesh& reconstruction, const Mesh& truth,
+ReconstructionEvaluation evaluate_reconstruction(const map::Mesh& reconstruction,
+                                                 const map::Mesh& truth,
                                                  const ReconstructionEvaluationOptions& options);
 
 void print_reconstruction_evaluation(std::ostream& output,

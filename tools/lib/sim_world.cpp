@@ -38,7 +38,7 @@ struct BuildItem {
   uint32_t reference;
 };
 
-void append_triangle(Mesh* mesh, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+void append_triangle(map::Mesh* mesh, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
                      const Eigen::Vector3d& c, const SurfaceColour& colour) {
   for (const Eigen::Vector3d* p : {&a, &b, &c}) {
     mesh->triangles.push_back(static_cast<uint32_t>(mesh->vertices_m.size()));
@@ -48,7 +48,7 @@ void append_triangle(Mesh* mesh, const Eigen::Vector3d& a, const Eigen::Vector3d
   }
 }
 
-void append_quad(Mesh* mesh, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+void append_quad(map::Mesh* mesh, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
                  const Eigen::Vector3d& c, const Eigen::Vector3d& d, const SurfaceColour& colour) {
   append_triangle(mesh, a, b, c, colour);
   append_triangle(mesh, a, c, d, colour);
@@ -285,9 +285,9 @@ double World::intersect(const Eigen::Vector3d& origin, const Eigen::Vector3d& di
   return best < max_range_m ? best : kNoHit;
 }
 
-Mesh World::to_mesh(int segments) const {
+map::Mesh World::to_mesh(int segments) const {
   segments = std::max(segments, 6);
-  Mesh mesh;
+  map::Mesh mesh;
   for (const Plane& plane : planes_) {
     // Any two unit vectors spanning the plane, ordered so the quad faces along the normal.
     const Eigen::Vector3d helper =

@@ -101,7 +101,7 @@ class World {
                    double max_range_m = kNoHit) const;
 
   // Every surface as triangles, outward-facing, coloured by object kind.
-  Mesh to_mesh(int segments = 24) const;
+  map::Mesh to_mesh(int segments = 24) const;
 
   size_t primitive_count() const {
     return planes_.size() + boxes_.size() + cylinders_.size() + spheres_.size() + triangles_.size();

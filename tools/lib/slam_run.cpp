@@ -56,11 +56,12 @@ void print_timing(FILE* out, const char* name, const pipeline::ModuleTiming& tim
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 // The voxel payload of `blocks` TSDF blocks (TSDF, colour and ESDF voxels).
-double voxel_memory_mb(size_t blocks, const TsdfMapConfig& map) {
+double voxel_memory_mb(size_t blocks, const map::TsdfMapConfig& map) {
   const size_t voxels_per_block =
       static_cast<size_t>(map.voxels_per_side) * map.voxels_per_side * map.voxels_per_side;
   return double(blocks) * voxels_per_block *
-         (sizeof(TsdfVoxel) + sizeof(ColorVoxel) + sizeof(EsdfVoxel)) / (1024.0 * 1024.0);
+         (sizeof(map::TsdfVoxel) + sizeof(map::ColorVoxel) + sizeof(map::EsdfVoxel)) /
+         (1024.0 * 1024.0);
 }
 
 double device_used_mb(Device device) {
@@ -79,7 +80,7 @@ double device_used_mb(Device device) {
 // frontend recorded in between (SlamSystem::take_scan_durations).
 class TimelineRecorder {
  public:
-  TimelineRecorder(double interval_s, const TsdfMapConfig& map, Device device,
+  TimelineRecorder(double interval_s, const map::TsdfMapConfig& map, Device device,
                    Clock::time_point start)
       : interval_s_(interval_s), map_(map), device_(device), start_(start) {}
 
@@ -126,7 +127,7 @@ class TimelineRecorder {
 
  private:
   double interval_s_;
-  TsdfMapConfig map_;
+  map::TsdfMapConfig map_;
   Device device_;
   Clock::time_point start_;
   double next_s_ = interval_s_;  // nothing to measure at mission time 0
@@ -134,7 +135,7 @@ class TimelineRecorder {
   int64_t previous_optimizations_ = 0;
 };
 
-void save_map(pipeline::SlamSystem& slam, const TsdfMapConfig& map, const std::string& path,
+void save_map(pipeline::SlamSystem& slam, const map::TsdfMapConfig& map, const std::string& path,
               SlamRunResult* result) {
   const auto start = Clock::now();
   io::MapFileContents contents;

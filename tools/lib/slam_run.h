@@ -60,7 +60,7 @@ struct TimelineSample {
 struct SlamRunResult {
   io::Trajectory corrected;  // covoxslam's sensor poses at the integrated scans' stamps
   io::Trajectory odometry;   // the odometry's sensor poses at the same scans (every scan given)
-  Mesh mesh;                 // combined mesh at the corrected poses
+  map::Mesh mesh;            // combined mesh at the corrected poses
   pipeline::SlamCounters counters;
   pipeline::SlamTimings timings;
   std::vector<pipeline::SubmapInfo> submaps;

@@ -85,17 +85,17 @@ class RegistrationPairCost : public ceres::CostFunction {
 // Host copies of the terms' fields: CPU maps are used as they are, device maps are copied once.
 class HostRegistrationFields {
  public:
-  const TsdfMap& host_map(const TsdfMap* map) {
+  const map::TsdfMap& host_map(const map::TsdfMap* map) {
     if (map->device() == Device::kCpu) return *map;
     auto found = copies_.find(map);
     if (found != copies_.end()) return *found->second;
-    auto copy = std::make_unique<TsdfMap>(Device::kCpu, map->config());
+    auto copy = std::make_unique<map::TsdfMap>(Device::kCpu, map->config());
     copy->load_blocks(map->snapshot(), Stream(Device::kCpu));
     return *copies_.emplace(map, std::move(copy)).first->second;
   }
 
  private:
-  std::map<const TsdfMap*, std::unique_ptr<TsdfMap>> copies_;
+  std::map<const map::TsdfMap*, std::unique_ptr<map::TsdfMap>> copies_;
 };
 
 // Solves `graph` (constraints and registration terms) in place with Ceres. `fields` keeps the

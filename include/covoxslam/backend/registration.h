@@ -57,7 +57,7 @@ struct RegistrationPoints {
 };
 
 // Throws covox::Error on a bad configuration.
-RegistrationPoints extract_registration_points(const TsdfMap& map,
+RegistrationPoints extract_registration_points(const map::TsdfMap& map,
                                                const RegistrationPointsConfig& config,
                                                const Stream& stream);
 
@@ -100,13 +100,13 @@ struct RegistrationResidual {
 };
 
 // Residuals of points of submap i (in map_j's device memory) against submap j.
-void evaluate_registration_residuals(const RegistrationPoints& points_i, const TsdfMap& map_j,
+void evaluate_registration_residuals(const RegistrationPoints& points_i, const map::TsdfMap& map_j,
                                      const Pose4Dof& T_W_Si, const Pose4Dof& T_W_Sj,
                                      const RegistrationResidualConfig& config,
                                      Buffer<RegistrationResidual>* residuals, const Stream& stream);
 // Host convenience (tests).
 std::vector<RegistrationResidual> evaluate_registration_residuals(
-    const RegistrationPoints& points_i, const TsdfMap& map_j, const Pose4Dof& T_W_Si,
+    const RegistrationPoints& points_i, const map::TsdfMap& map_j, const Pose4Dof& T_W_Si,
     const Pose4Dof& T_W_Sj, const RegistrationResidualConfig& config);
 
 // Sums over the valid points, reduced on the device: the IRLS normal equations of pose i
@@ -119,7 +119,7 @@ struct RegistrationNormalEquations {
   int64_t skipped_points = 0;  // outside submap j's observed field
 };
 RegistrationNormalEquations registration_normal_equations(
-    const RegistrationPoints& points_i, const TsdfMap& map_j, const Pose4Dof& T_W_Si,
+    const RegistrationPoints& points_i, const map::TsdfMap& map_j, const Pose4Dof& T_W_Si,
     const Pose4Dof& T_W_Sj, const RegistrationResidualConfig& config, const Stream& stream);
 
 struct RegistrationAlignerConfig {
@@ -149,7 +149,7 @@ struct RegistrationResult {
 
 // Aligns submap i (its registration points) to submap j, starting at initial_T_Sj_Si.
 // Throws covox::Error when fewer than min_used_points points overlap submap j's field.
-RegistrationResult align_submaps(const RegistrationPoints& points_i, const TsdfMap& map_j,
+RegistrationResult align_submaps(const RegistrationPoints& points_i, const map::TsdfMap& map_j,
                                  const Pose4Dof& initial_T_Sj_Si,
                                  const RegistrationAlignerConfig& config, const Stream& stream);
 
@@ -159,9 +159,9 @@ RegistrationResult align_submaps(const RegistrationPoints& points_i, const TsdfM
 // other); in one solve over both, neither direction's biases decide the result alone.
 struct SymmetricRegistrationPair {
   const RegistrationPoints* points_i = nullptr;
-  const TsdfMap* map_j = nullptr;
+  const map::TsdfMap* map_j = nullptr;
   const RegistrationPoints* points_j = nullptr;  // on map_i's device
-  const TsdfMap* map_i = nullptr;
+  const map::TsdfMap* map_i = nullptr;
   // The j-in-i terms (cost, gradient, Hessian) are multiplied by this, as if each of their
   // residuals were multiplied by its square root (the robust loss sees them so scaled too): it
   // brings the two submaps' TSDF weights to common units (the ratio of their mean weights).
@@ -191,8 +191,9 @@ struct SubmapOverlap {
   int64_t shared_blocks = 0;
   bool overlapping = false;
 };
-SubmapOverlap submap_overlap(const TsdfMap& map_i, const Pose4Dof& T_W_Si, const TsdfMap& map_j,
-                             const Pose4Dof& T_W_Sj, int64_t min_shared_blocks);
+SubmapOverlap submap_overlap(const map::TsdfMap& map_i, const Pose4Dof& T_W_Si,
+                             const map::TsdfMap& map_j, const Pose4Dof& T_W_Sj,
+                             int64_t min_shared_blocks);
 
 // What submap_overlap reads from a map, on the host: its allocated block indices, their keys as
 // a set, and the block-index bounding box. A finished submap's blocks never change, so its
@@ -204,7 +205,7 @@ struct SubmapFootprint {
   std::unordered_set<uint64_t> keys;  // pack_block_key of each block
   Index3D block_min, block_max;       // inclusive; meaningless when `blocks` is empty
 };
-SubmapFootprint submap_footprint(const TsdfMap& map);
+SubmapFootprint submap_footprint(const map::TsdfMap& map);
 // The same test as above on footprints; the same result for the same maps.
 SubmapOverlap submap_overlap(const SubmapFootprint& footprint_i, const Pose4Dof& T_W_Si,
                              const SubmapFootprint& footprint_j, const Pose4Dof& T_W_Sj,

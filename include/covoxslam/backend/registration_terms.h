@@ -23,7 +23,7 @@ struct RegistrationTerm {
   int32_t vertex_i = 0;                          // the points' submap
   int32_t vertex_j = 0;                          // the field's submap
   const RegistrationPoints* points_i = nullptr;  // not owned; on the solver's device
-  const TsdfMap* map_j = nullptr;                // not owned; on the solver's device; ESDF computed
+  const map::TsdfMap* map_j = nullptr;           // not owned; on the solver's device; ESDF computed
   RegistrationResidualConfig residual;
   // The residuals (and Jacobians) are divided by this before the robust loss: the noise of one
   // point's residual in registration.h's units (metres times sqrt(TSDF weight)), which sets how

@@ -50,7 +50,7 @@ COVOX_HD_INLINE uint64_t atomic_add(uint64_t* address, uint64_t value) {
 #endif
 }
 
-namespace detail {
+namespace internal {
 // The host's atomic minimum / maximum: a CAS loop that stops once the stored value is no longer
 // worse than `value`. Returns the previous value.
 template <class T, class Better>
@@ -62,28 +62,29 @@ inline T host_atomic_extreme(T* address, T value, Better better) {
   }
   return current;
 }
-}  // namespace detail
+}  // namespace internal
 
 // Atomic minimum / maximum; return the previous value.
 COVOX_HD_INLINE uint32_t atomic_min(uint32_t* address, uint32_t value) {
 #if COVOX_DEVICE_CODE
   return atomicMin(reinterpret_cast<unsigned int*>(address), value);
 #else
-  return detail::host_atomic_extreme(address, value, [](uint32_t a, uint32_t b) { return a < b; });
+  return internal::host_atomic_extreme(address, value,
+                                       [](uint32_t a, uint32_t b) { return a < b; });
 #endif
 }
 COVOX_HD_INLINE int32_t atomic_min(int32_t* address, int32_t value) {
 #if COVOX_DEVICE_CODE
   return atomicMin(reinterpret_cast<int*>(address), value);
 #else
-  return detail::host_atomic_extreme(address, value, [](int32_t a, int32_t b) { return a < b; });
+  return internal::host_atomic_extreme(address, value, [](int32_t a, int32_t b) { return a < b; });
 #endif
 }
 COVOX_HD_INLINE int32_t atomic_max(int32_t* address, int32_t value) {
 #if COVOX_DEVICE_CODE
   return atomicMax(reinterpret_cast<int*>(address), value);
 #else
-  return detail::host_atomic_extreme(address, value, [](int32_t a, int32_t b) { return a > b; });
+  return internal::host_atomic_extreme(address, value, [](int32_t a, int32_t b) { return a > b; });
 #endif
 }
 

@@ -15,19 +15,19 @@ void set_log_sink(LogSink sink);
 void set_min_log_level(LogLevel level);
 void log_line(LogLevel level, const std::string& message);
 
-namespace detail {
+namespace internal {
 inline void append_all(std::ostringstream&) {}
 template <class T, class... Rest>
 void append_all(std::ostringstream& stream, const T& first, const Rest&... rest) {
   stream << first;
   append_all(stream, rest...);
 }
-}  // namespace detail
+}  // namespace internal
 
 template <class... Parts>
 void log_message(LogLevel level, const Parts&... parts) {
   std::ostringstream stream;
-  detail::append_all(stream, parts...);
+  internal::append_all(stream, parts...);
   log_line(level, stream.str());
 }
 template <class... Parts>

@@ -61,22 +61,22 @@ void parallel_for(CpuBackend, const Stream&, int64_t count, const Functor& funct
 }
 
 #if defined(__CUDACC__)
-namespace detail {
+namespace internal {
 template <class Functor>
 __global__ void parallel_for_kernel(int64_t count, Functor functor) {
   const int64_t i = static_cast<int64_t>(blockIdx.x) * blockDim.x + threadIdx.x;
   if (i < count) functor(i);
 }
-}  // namespace detail
+}  // namespace internal
 
 template <class Functor>
 void parallel_for(CudaBackend, const Stream& stream, int64_t count, const Functor& functor) {
   if (count <= 0) return;
   constexpr int kThreadsPerBlock = 256;
   const int64_t blocks = (count + kThreadsPerBlock - 1) / kThreadsPerBlock;
-  detail::parallel_for_kernel<<<static_cast<unsigned>(blocks), kThreadsPerBlock, 0,
-                                static_cast<cudaStream_t>(stream.native_handle())>>>(count,
-                                                                                     functor);
+  internal::parallel_for_kernel<<<static_cast<unsigned>(blocks), kThreadsPerBlock, 0,
+                                  static_cast<cudaStream_t>(stream.native_handle())>>>(count,
+                                                                                       functor);
   cuda_check(cudaGetLastError(), "parallel_for kernel launch");
 }
 #endif
@@ -134,7 +134,7 @@ template <class T>
 void exclusive_scan(CudaBackend backend, const Stream& stream, const T* in, int64_t count, T* out) {
   if (count <= 0) return;
   if constexpr (std::is_same<T, uint32_t>::value) {
-    exclusive_scan_of(backend, stream, count, single_pass_scan_detail::ArrayValues{in}, out);
+    exclusive_scan_of(backend, stream, count, internal::ArrayValues{in}, out);
   } else {
     const auto cuda_stream = static_cast<cudaStream_t>(stream.native_handle());
     size_t temporary_bytes = 0;

@@ -51,7 +51,7 @@ COVOX_HD_INLINE void scan_output(const Output& out, int64_t i, uint32_t prefix) 
 }
 
 #if defined(__CUDACC__)
-namespace single_pass_scan_detail {
+namespace internal {
 
 constexpr int kThreads = 256;
 
@@ -166,12 +166,12 @@ __global__ void __launch_bounds__(kThreads)
   }
 }
 
-}  // namespace single_pass_scan_detail
+}  // namespace internal
 
 template <int kItems = kScanItemsPerThread, class ValueOf, class Output>
 void exclusive_scan_of(CudaBackend, const Stream& stream, int64_t count, const ValueOf& value_of,
                        Output out) {
-  using namespace single_pass_scan_detail;
+  using namespace internal;
   constexpr int64_t kTile = int64_t(kThreads) * kItems;
   if (count <= 0) return;
   const int64_t tiles = (count + kTile - 1) / kTile;

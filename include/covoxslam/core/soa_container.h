@@ -33,7 +33,7 @@ struct FieldList {};
 template <class Voxel>
 struct VoxelFields;
 
-namespace soa_detail {
+namespace internal {
 
 template <class MemberPointer>
 struct member_pointer_traits;
@@ -63,7 +63,7 @@ constexpr int field_index() {
   return found;
 }
 
-}  // namespace soa_detail
+}  // namespace internal
 
 template <class Voxel, Layout L, class Fields = typename VoxelFields<Voxel>::type>
 struct VoxelView;
@@ -76,10 +76,10 @@ struct VoxelView<Voxel, Layout::kSoA, FieldList<Members...>> {
   int64_t size = 0;
 
   template <auto Member>
-  COVOX_HD_INLINE soa_detail::field_type<Member>& get(int64_t i) const {
-    constexpr int kIndex = soa_detail::field_index<Member, Members...>();
+  COVOX_HD_INLINE internal::field_type<Member>& get(int64_t i) const {
+    constexpr int kIndex = internal::field_index<Member, Members...>();
     static_assert(kIndex >= 0, "this member is not listed in VoxelFields<Voxel>");
-    return static_cast<soa_detail::field_type<Member>*>(fields[kIndex])[i];
+    return static_cast<internal::field_type<Member>*>(fields[kIndex])[i];
   }
   COVOX_HD_INLINE Voxel load(int64_t i) const {
     Voxel voxel;
@@ -98,7 +98,7 @@ struct VoxelView<Voxel, Layout::kAoS, FieldList<Members...>> {
   int64_t size = 0;
 
   template <auto Member>
-  COVOX_HD_INLINE soa_detail::field_type<Member>& get(int64_t i) const {
+  COVOX_HD_INLINE internal::field_type<Member>& get(int64_t i) const {
     return voxels[i].*Member;
   }
   COVOX_HD_INLINE Voxel load(int64_t i) const { return voxels[i]; }
@@ -122,13 +122,13 @@ class VoxelStorage<Voxel, Layout::kSoA, FieldList<Members...>> {
 
   Device device() const { return device_; }
   size_t size() const { return size_; }
-  size_t bytes_per_voxel() const { return (sizeof(soa_detail::field_type<Members>) + ...); }
+  size_t bytes_per_voxel() const { return (sizeof(internal::field_type<Members>) + ...); }
 
   // Keeps the first min(old, new) voxels; new voxels are zero (the default voxel).
   void resize(size_t size, const Stream& stream = Stream()) {
     const size_t old_size = size_;
     size_t f = 0;
-    ((resize_field(fields_[f++], size, old_size, sizeof(soa_detail::field_type<Members>), stream)),
+    ((resize_field(fields_[f++], size, old_size, sizeof(internal::field_type<Members>), stream)),
      ...);
     size_ = size;
   }
@@ -155,7 +155,7 @@ class VoxelStorage<Voxel, Layout::kSoA, FieldList<Members...>> {
   // Replaces the contents with `voxels` (size changes to voxels.size()).
   void copy_from_host(const std::vector<Voxel>& voxels, const Stream& stream = Stream()) {
     std::vector<std::vector<unsigned char>> host_fields{
-        std::vector<unsigned char>(voxels.size() * sizeof(soa_detail::field_type<Members>))...};
+        std::vector<unsigned char>(voxels.size() * sizeof(internal::field_type<Members>))...};
     View host_view;
     for (int f = 0; f < View::kFieldCount; ++f) host_view.fields[f] = host_fields[f].data();
     for (size_t i = 0; i < voxels.size(); ++i) host_view.store(static_cast<int64_t>(i), voxels[i]);

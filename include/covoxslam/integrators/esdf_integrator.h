@@ -21,7 +21,7 @@
 #include "covoxslam/core/stream.h"
 #include "covoxslam/map/tsdf_map.h"
 
-namespace covox {
+namespace covox::integrators {
 
 struct EsdfIntegratorConfig {
   // Distances are exact up to this and clamped to it beyond (voxblox's default 2 m).
@@ -50,13 +50,13 @@ class EsdfIntegrator {
   const EsdfIntegratorConfig& config() const { return config_; }
 
   // Recomputes the ESDF around blocks whose TSDF changed since the last update.
-  EsdfUpdateStats update(TsdfMap& map, const Stream& stream);
+  EsdfUpdateStats update(map::TsdfMap& map, const Stream& stream);
   // Recomputes the ESDF of the whole map.
-  EsdfUpdateStats update_all(TsdfMap& map, const Stream& stream);
+  EsdfUpdateStats update_all(map::TsdfMap& map, const Stream& stream);
 
  private:
   struct Scratch;
-  EsdfUpdateStats run(TsdfMap& map, bool all_blocks, const Stream& stream);
+  EsdfUpdateStats run(map::TsdfMap& map, bool all_blocks, const Stream& stream);
   EsdfIntegratorConfig config_;
   std::unique_ptr<Scratch> scratch_;
 };
@@ -79,7 +79,7 @@ struct EsdfScratchBuffers {
 };
 
 template <class Backend>
-EsdfUpdateStats esdf_update(Backend backend, const EsdfIntegratorConfig& config, TsdfMap& map,
+EsdfUpdateStats esdf_update(Backend backend, const EsdfIntegratorConfig& config, map::TsdfMap& map,
                             bool all_blocks, EsdfScratchBuffers& scratch, const Stream& stream);
 
-}  // namespace covox
+}  // namespace covox::integrators

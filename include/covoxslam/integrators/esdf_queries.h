@@ -9,7 +9,7 @@
 #include "covoxslam/core/vec3.h"
 #include "covoxslam/map/tsdf_map.h"
 
-namespace covox {
+namespace covox::integrators {
 
 // One query answer. `valid` is 0 when one of the 8 voxels around the point is unobserved or
 // unallocated: then distance and gradient mean nothing.
@@ -20,10 +20,10 @@ struct EsdfSample {
 };
 
 // Trilinear distance and its gradient at `count` points (device memory of the map's device).
-void query_esdf(const TsdfMap& map, const Vec3f* points_m, int64_t count, EsdfSample* samples,
+void query_esdf(const map::TsdfMap& map, const Vec3f* points_m, int64_t count, EsdfSample* samples,
                 const Stream& stream);
 // Host convenience.
-std::vector<EsdfSample> query_esdf(const TsdfMap& map, const std::vector<Vec3f>& points_m);
+std::vector<EsdfSample> query_esdf(const map::TsdfMap& map, const std::vector<Vec3f>& points_m);
 
 // A point of a slice: the centre of a voxel column (x, y), the slice height, and the distance.
 struct SlicePoint {
@@ -32,11 +32,11 @@ struct SlicePoint {
 };
 
 // Every observed voxel of the layer holding height z_m.
-std::vector<SlicePoint> esdf_slice(const TsdfMap& map, float z_m, const Stream& stream);
+std::vector<SlicePoint> esdf_slice(const map::TsdfMap& map, float z_m, const Stream& stream);
 // For every (x, y) column with an observed voxel in [z_min_m, z_max_m], the smallest distance in
 // that band (a 2-D map for a ground robot or a drone at a fixed height band), reported at
 // height (z_min_m + z_max_m) / 2.
-std::vector<SlicePoint> esdf_squashed_slice(const TsdfMap& map, float z_min_m, float z_max_m,
+std::vector<SlicePoint> esdf_squashed_slice(const map::TsdfMap& map, float z_min_m, float z_max_m,
                                             const Stream& stream);
 
-}  // namespace covox
+}  // namespace covox::integrators

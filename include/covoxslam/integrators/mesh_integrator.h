@@ -13,7 +13,7 @@
 #include "covoxslam/map/mesh.h"
 #include "covoxslam/map/tsdf_map.h"
 
-namespace covox {
+namespace covox::integrators {
 
 struct MeshIntegratorConfig {
   // Cubes with a corner of less TSDF weight are not meshed (unobserved space has no surface).
@@ -49,19 +49,19 @@ class MeshIntegrator {
   MeshIntegrator& operator=(MeshIntegrator&&) noexcept;
 
   // The mesh of the whole map, welded everywhere.
-  Mesh extract_all(TsdfMap& map, const Stream& stream);
+  map::Mesh extract_all(map::TsdfMap& map, const Stream& stream);
   // Re-meshes the blocks whose TSDF changed since the last update (and the blocks whose cubes
   // reach into them), one mesh per block for incremental publishing. The new block meshes stay
   // in device memory until block_meshes() or last_updated_blocks() asks for them (or about
   // kMaxPendingVertices have piled up), so a per-frame update makes no host copies.
-  MeshUpdateStats update(TsdfMap& map, const Stream& stream);
+  MeshUpdateStats update(map::TsdfMap& map, const Stream& stream);
   // One mesh per block, vertices welded inside the block. Brings pending updates to the host
   // first; `stream` is the one update() ran on (its copies are waited for).
-  const std::map<Index3D, Mesh>& block_meshes(const Stream& stream);
+  const std::map<Index3D, map::Mesh>& block_meshes(const Stream& stream);
   // Blocks re-meshed by the last update().
   const std::vector<Index3D>& last_updated_blocks(const Stream& stream);
   // All block meshes as one mesh (vertices are not shared across block borders).
-  Mesh combined_block_meshes(const Stream& stream);
+  map::Mesh combined_block_meshes(const Stream& stream);
 
   // Pending device vertices above which update() brings the block meshes to the host itself.
   static constexpr int64_t kMaxPendingVertices = int64_t(1) << 24;
@@ -72,7 +72,7 @@ class MeshIntegrator {
   MeshIntegratorConfig config_;
   std::unique_ptr<Scratch> scratch_;
   std::unique_ptr<PendingBlockMeshes> pending_;
-  std::map<Index3D, Mesh> block_meshes_;
+  std::map<Index3D, map::Mesh> block_meshes_;
   std::vector<Index3D> last_updated_;
 };
 
@@ -130,7 +130,7 @@ struct MeshScratchBuffers {
 // arrays), and by sorting the corners' block-local edge keys beyond: same result, the table
 // needs no sort.
 template <class Backend>
-int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshWeld weld,
+int64_t mesh_extract(Backend backend, map::TsdfMap& map, float min_weight, MeshWeld weld,
                      MeshScratchBuffers& scratch, int64_t* vertex_count, const Stream& stream,
                      int64_t max_weld_table_entries);
 
@@ -138,7 +138,7 @@ int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshWeld w
 // those with kMeshPending set and the allocated blocks just below them; clears their
 // kMeshPending bits on the device. Returns how many.
 template <class Backend>
-int64_t mesh_select_blocks(Backend backend, TsdfMap& map, MeshScratchBuffers& scratch,
+int64_t mesh_select_blocks(Backend backend, map::TsdfMap& map, MeshScratchBuffers& scratch,
                            const Stream& stream);
 
-}  // namespace covox
+}  // namespace covox::integrators

@@ -13,7 +13,7 @@
 #include "covoxslam/core/stream.h"
 #include "covoxslam/integrators/mesh_integrator.h"
 
-namespace covox {
+namespace covox::integrators {
 
 class PendingBlockMeshes {
  public:
@@ -27,7 +27,7 @@ class PendingBlockMeshes {
 
   // Replays the pending updates into `block_meshes` (a block whose new mesh is empty is erased),
   // returns the blocks of the last update, and empties the log.
-  std::vector<Index3D> apply_to(std::map<Index3D, Mesh>* block_meshes, const Stream& stream);
+  std::vector<Index3D> apply_to(std::map<Index3D, map::Mesh>* block_meshes, const Stream& stream);
 
  private:
   struct Update {
@@ -43,4 +43,4 @@ class PendingBlockMeshes {
   std::vector<Update> updates_;
 };
 
-}  // namespace covox
+}  // namespace covox::integrators

@@ -51,7 +51,7 @@
 #include "covoxslam/integrators/tsdf_integrator_config.h"
 #include "covoxslam/map/tsdf_map.h"
 
-namespace covox {
+namespace covox::integrators {
 
 namespace tsdf {
 struct FrameStrategy;
@@ -119,15 +119,15 @@ class TsdfIntegrator {
   const TsdfIntegratorConfig& config() const { return config_; }
 
   // Integrates a cloud taken at pose T_map_sensor. Device memory of map.device().
-  IntegrationStats integrate(TsdfMap& map, const PointCloudView& cloud,
+  IntegrationStats integrate(map::TsdfMap& map, const PointCloudView& cloud,
                              const Eigen::Isometry3d& T_map_sensor, const Stream& stream);
   // Host-memory convenience: uploads, then integrates.
-  IntegrationStats integrate(TsdfMap& map, const std::vector<Vec3f>& points,
+  IntegrationStats integrate(map::TsdfMap& map, const std::vector<Vec3f>& points,
                              const std::vector<Rgb8>& colors,
                              const Eigen::Isometry3d& T_map_sensor);
   // Unprojects a depth image on the device (its points and colours in tiles of 8 x 4 pixels:
   // tsdf::pixel_tile_order), then integrates the points.
-  IntegrationStats integrate_depth(TsdfMap& map, const DepthImageView& image,
+  IntegrationStats integrate_depth(map::TsdfMap& map, const DepthImageView& image,
                                    const Eigen::Isometry3d& T_map_camera, const Stream& stream);
 
  private:
@@ -139,4 +139,4 @@ class TsdfIntegrator {
   std::unique_ptr<tsdf::FrameStrategy> strategy_;
 };
 
-}  // namespace covox
+}  // namespace covox::integrators

@@ -4,7 +4,7 @@
 #include <cstdint>
 #include <string>
 
-namespace covox {
+namespace covox::integrators {
 
 // How points become rays (voxblox's `method`).
 enum class TsdfIntegrationMethod {
@@ -57,4 +57,4 @@ const char* to_string(TsdfIntegrationMethod method);
 // Throws covox::Error naming the first invalid parameter.
 void validate(const TsdfIntegratorConfig& config, float voxel_size_m);
 
-}  // namespace covox
+}  // namespace covox::integrators

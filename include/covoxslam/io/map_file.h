@@ -37,7 +37,7 @@ constexpr uint32_t kMapFileVersion = 2;
 struct SubmapRecord {
   int64_t id = 0;
   Eigen::Isometry3d T_world_submap = Eigen::Isometry3d::Identity();
-  std::vector<HostBlock> blocks;  // as TsdfMap::snapshot() returns them
+  std::vector<map::HostBlock> blocks;  // as TsdfMap::snapshot() returns them
 };
 
 struct MapFileContents {
@@ -95,7 +95,8 @@ void save_map_file_version1(const std::string& path, const MapFileContents& cont
 MapFileContents load_map_file(const std::string& path);
 
 // Builds device maps from loaded contents.
-std::vector<std::unique_ptr<TsdfMap>> make_maps(const MapFileContents& contents, Device device);
+std::vector<std::unique_ptr<map::TsdfMap>> make_maps(const MapFileContents& contents,
+                                                     Device device);
 
 }  // namespace io
 }  // namespace covox

@@ -10,7 +10,7 @@
 namespace covox {
 namespace io {
 
-void write_mesh_ply(const std::string& path, const Mesh& mesh);
+void write_mesh_ply(const std::string& path, const map::Mesh& mesh);
 
 }  // namespace io
 }  // namespace covox

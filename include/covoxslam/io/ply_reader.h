@@ -13,7 +13,7 @@ namespace io {
 
 // Throws covox::Error naming the file for: not a PLY, binary_big_endian, a header without
 // vertex x/y/z, truncated data, a non-finite vertex, or a face index out of range.
-Mesh read_mesh_ply(const std::string& path);
+map::Mesh read_mesh_ply(const std::string& path);
 
 }  // namespace io
 }  // namespace covox

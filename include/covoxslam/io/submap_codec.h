@@ -44,10 +44,10 @@ float half_to_float(uint16_t half);
 // Encodes `blocks` (as TsdfMap::snapshot() returns them: sorted by index, voxels_per_side^3 TSDF
 // and colour voxels each; ESDF voxels are ignored). Throws covox::Error for a block of the wrong
 // size, unsorted or repeated indices, or a scale that is not a positive finite number.
-std::vector<uint8_t> encode_submap(const std::vector<HostBlock>& blocks, int voxels_per_side,
+std::vector<uint8_t> encode_submap(const std::vector<map::HostBlock>& blocks, int voxels_per_side,
                                    float distance_scale_m);
 // encode_submap() of a map's blocks.
-std::vector<uint8_t> encode_submap(const TsdfMap& map, float distance_scale_m);
+std::vector<uint8_t> encode_submap(const map::TsdfMap& map, float distance_scale_m);
 
 struct EncodedSubmapInfo {
   int voxels_per_side = 0;
@@ -58,14 +58,16 @@ struct EncodedSubmapInfo {
 // covox::Error saying what is wrong (prefixed with `what`).
 EncodedSubmapInfo validate_encoded_submap(const uint8_t* data, size_t size, const char* what);
 // The blocks, sorted by index, with empty ESDF vectors; validates as above.
-std::vector<HostBlock> decode_submap(const uint8_t* data, size_t size, const char* what);
-inline std::vector<HostBlock> decode_submap(const std::vector<uint8_t>& bytes, const char* what) {
+std::vector<map::HostBlock> decode_submap(const uint8_t* data, size_t size, const char* what);
+inline std::vector<map::HostBlock> decode_submap(const std::vector<uint8_t>& bytes,
+                                                 const char* what) {
   return decode_submap(bytes.data(), bytes.size(), what);
 }
 
 // Rebuilds `map` (cleared first) from encoded bytes; throws covox::Error when the bytes do not
 // decode or their voxels per side differ from the map's.
-void load_encoded_submap(const std::vector<uint8_t>& bytes, TsdfMap* map, const Stream& stream);
+void load_encoded_submap(const std::vector<uint8_t>& bytes, map::TsdfMap* map,
+                         const Stream& stream);
 
 }  // namespace io
 }  // namespace covox

@@ -19,7 +19,7 @@
 #include "covoxslam/map/block_hash_table_view.h"
 #include "covoxslam/map/block_key.h"
 
-namespace covox {
+namespace covox::map {
 
 struct BlockActivator {
   BlockHashTableView table;
@@ -62,4 +62,4 @@ struct BlockActivator {
   }
 };
 
-}  // namespace covox
+}  // namespace covox::map

@@ -18,7 +18,7 @@
 #include "covoxslam/map/block_activator.h"
 #include "covoxslam/map/block_hash_table_state.h"
 
-namespace covox {
+namespace covox::map {
 
 class BlockHashTable {
  public:
@@ -116,4 +116,4 @@ class BlockHashTable {
   Stream default_stream_;
 };
 
-}  // namespace covox
+}  // namespace covox::map

@@ -7,7 +7,7 @@
 #include "covoxslam/core/device.h"
 #include "covoxslam/map/block_hash_table_view.h"
 
-namespace covox {
+namespace covox::map {
 
 struct BlockHashTableConfig {
   // Buckets allocated up front. Size it for the expected number of blocks / max_load_factor to
@@ -88,4 +88,4 @@ struct BlockHashTableState {
   BlockHashTableView view() { return BlockHashTableView{keys.data(), slots.data(), keys.size()}; }
 };
 
-}  // namespace covox
+}  // namespace covox::map

@@ -14,7 +14,7 @@
 #include "covoxslam/core/atomics.h"
 #include "covoxslam/map/block_key.h"
 
-namespace covox {
+namespace covox::map {
 
 constexpr uint64_t kNoBucket = ~uint64_t(0);             // key not present / out of range
 constexpr uint64_t kTableFullBucket = ~uint64_t(0) - 1;  // probed every bucket, none free
@@ -78,4 +78,4 @@ struct BlockHashTableView {
   }
 };
 
-}  // namespace covox
+}  // namespace covox::map

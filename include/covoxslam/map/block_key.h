@@ -11,7 +11,7 @@
 #include "covoxslam/core/index3d.h"
 #include "covoxslam/core/macros.h"
 
-namespace covox {
+namespace covox::map {
 
 constexpr int kBlockKeyBitsPerAxis = 21;
 constexpr int32_t kMinBlockIndex = -(1 << (kBlockKeyBitsPerAxis - 1));     // -1048576
@@ -67,4 +67,4 @@ COVOX_HD_INLINE uint64_t home_bucket(uint64_t hash, uint64_t bucket_count) {
 #endif
 }
 
-}  // namespace covox
+}  // namespace covox::map

@@ -7,7 +7,7 @@
 #include "covoxslam/core/macros.h"
 #include "covoxslam/map/block_hash_table_view.h"
 
-namespace covox {
+namespace covox::map {
 
 // Voxel k of a block (x fastest): its coordinates inside the block, and its global index.
 COVOX_HD_INLINE Index3D local_voxel(int64_t k, int32_t side) {
@@ -35,4 +35,4 @@ struct BlockVoxelIndexer {
   }
 };
 
-}  // namespace covox
+}  // namespace covox::map

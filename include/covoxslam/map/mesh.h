@@ -7,7 +7,7 @@
 
 #include "covoxslam/core/vec3.h"
 
-namespace covox {
+namespace covox::map {
 
 // Triangle t uses vertices triangles[3t], [3t+1], [3t+2]; `colors` is empty or one per vertex.
 struct Mesh {
@@ -18,4 +18,4 @@ struct Mesh {
   bool empty() const { return triangles.empty(); }
 };
 
-}  // namespace covox
+}  // namespace covox::map

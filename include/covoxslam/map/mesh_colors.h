@@ -11,7 +11,7 @@
 #include "covoxslam/core/vec3.h"
 #include "covoxslam/map/mesh.h"
 
-namespace covox {
+namespace covox::map {
 
 // The heights mapped to the two ends of the colour map; heights outside are clamped to the ends.
 struct HeightColorRange {
@@ -40,4 +40,4 @@ std::vector<Rgb8> display_colors(const Mesh& mesh, const Eigen::Isometry3d& T_wo
 // spreads a whole map's heights over the colour map with it.
 HeightColorRange vertex_height_range(const Mesh& mesh);
 
-}  // namespace covox
+}  // namespace covox::map

@@ -13,7 +13,7 @@
 #include "covoxslam/map/block_hash_table.h"
 #include "covoxslam/map/voxels.h"
 
-namespace covox {
+namespace covox::map {
 
 struct TsdfMapConfig {
   float voxel_size_m = 0.2f;  // edge length of one voxel
@@ -89,4 +89,4 @@ class TsdfMap {
   Buffer<uint8_t> block_changed_;
 };
 
-}  // namespace covox
+}  // namespace covox::map

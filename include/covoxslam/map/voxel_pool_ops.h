@@ -8,7 +8,7 @@
 #include "covoxslam/core/stream.h"
 #include "covoxslam/map/voxels.h"
 
-namespace covox {
+namespace covox::map {
 
 // distances_out[i] = distance_m of voxel voxel_indices[i]: reads one field only, which is where
 // the SoA layout pays off.
@@ -24,4 +24,4 @@ void blend_tsdf_updates(Backend backend, const Stream& stream, VoxelView<Voxel, 
                         const uint32_t* voxel_indices, const float* distances_m,
                         const float* weights, int64_t count, float max_weight);
 
-}  // namespace covox
+}  // namespace covox::map

@@ -5,16 +5,12 @@
 
 #include "covoxslam/core/soa_container.h"
 
-namespace covox {
+namespace covox::map {
 
 // Truncated signed distance (metres, positive in front of the surface) and its fusion weight.
 struct TsdfVoxel {
   float distance_m = 0.0f;
   float weight = 0.0f;
-};
-template <>
-struct VoxelFields<TsdfVoxel> {
-  using type = FieldList<&TsdfVoxel::distance_m, &TsdfVoxel::weight>;
 };
 
 // Running average colour and its weight.
@@ -23,10 +19,6 @@ struct ColorVoxel {
   uint8_t g = 0;
   uint8_t b = 0;
   float weight = 0.0f;
-};
-template <>
-struct VoxelFields<ColorVoxel> {
-  using type = FieldList<&ColorVoxel::r, &ColorVoxel::g, &ColorVoxel::b, &ColorVoxel::weight>;
 };
 
 // TSDF and colour in one voxel (16 bytes in AoS): the layout benchmark's "TSDF-like voxel" and
@@ -39,12 +31,6 @@ struct ColoredTsdfVoxel {
   uint8_t b = 0;
   float color_weight = 0.0f;
 };
-template <>
-struct VoxelFields<ColoredTsdfVoxel> {
-  using type =
-      FieldList<&ColoredTsdfVoxel::distance_m, &ColoredTsdfVoxel::weight, &ColoredTsdfVoxel::r,
-                &ColoredTsdfVoxel::g, &ColoredTsdfVoxel::b, &ColoredTsdfVoxel::color_weight>;
-};
 
 // Euclidean signed distance (metres) to the nearest surface site, positive in free space.
 // `observed` is 0 where the TSDF never saw the voxel: its distance means nothing there.
@@ -53,9 +39,34 @@ struct EsdfVoxel {
   uint8_t observed = 0;
   uint8_t is_site = 0;
 };
+
+}  // namespace covox::map
+
+// The field lists specialise core's VoxelFields, so they live in its namespace.
+namespace covox {
+
 template <>
-struct VoxelFields<EsdfVoxel> {
-  using type = FieldList<&EsdfVoxel::distance_m, &EsdfVoxel::observed, &EsdfVoxel::is_site>;
+struct VoxelFields<map::TsdfVoxel> {
+  using type = FieldList<&map::TsdfVoxel::distance_m, &map::TsdfVoxel::weight>;
+};
+
+template <>
+struct VoxelFields<map::ColorVoxel> {
+  using type = FieldList<&map::ColorVoxel::r, &map::ColorVoxel::g, &map::ColorVoxel::b,
+                         &map::ColorVoxel::weight>;
+};
+
+template <>
+struct VoxelFields<map::ColoredTsdfVoxel> {
+  using type = FieldList<&map::ColoredTsdfVoxel::distance_m, &map::ColoredTsdfVoxel::weight,
+                         &map::ColoredTsdfVoxel::r, &map::ColoredTsdfVoxel::g,
+                         &map::ColoredTsdfVoxel::b, &map::ColoredTsdfVoxel::color_weight>;
+};
+
+template <>
+struct VoxelFields<map::EsdfVoxel> {
+  using type =
+      FieldList<&map::EsdfVoxel::distance_m, &map::EsdfVoxel::observed, &map::EsdfVoxel::is_site>;
 };
 
 }  // namespace covox

@@ -87,7 +87,7 @@ struct SurfaceColumn {
 
 // Every surface column of `map` (|distance| < surface_band_m, weight > 0), in (x, y) order. Runs
 // on the map's device.
-std::vector<SurfaceColumn> surface_columns(const TsdfMap& map, double surface_band_m,
+std::vector<SurfaceColumn> surface_columns(const map::TsdfMap& map, double surface_band_m,
                                            const Stream& stream);
 
 struct PlaceDescriptor {
@@ -108,7 +108,7 @@ struct PlaceDescriptor {
 PlaceDescriptor place_descriptor(const std::vector<SurfaceColumn>& columns,
                                  const PlaceRecognitionConfig& config);
 // The descriptor of a finished submap's map (its columns on the map's device, binned on the host).
-PlaceDescriptor place_descriptor(const TsdfMap& map, const PlaceRecognitionConfig& config,
+PlaceDescriptor place_descriptor(const map::TsdfMap& map, const PlaceRecognitionConfig& config,
                                  const Stream& stream);
 
 struct DescriptorMatch {
@@ -187,7 +187,7 @@ class PlaceRecognizer {
   // candidates); `linked`: ids already constrained to it. Adds the new submap's descriptor.
   // Nothing (and no descriptor) when disabled.
   std::vector<SubmapConstraint> propose(
-      int64_t id, const TsdfMap& map, const SubmapRegistrationPoints& points,
+      int64_t id, const map::TsdfMap& map, const SubmapRegistrationPoints& points,
       const backend::Pose4Dof& pose, const std::vector<RegistrationPartner>& earlier,
       const std::vector<int64_t>& linked, const SubmapRegistrationConfig& registration,
       const Stream& stream, WallMapCache* own_walls, const RegistrationOdometry& odometry,

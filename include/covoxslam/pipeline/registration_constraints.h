@@ -199,7 +199,7 @@ struct SubmapRegistrationPoints {
   double mean_weight = 1.0;
 };
 std::unique_ptr<SubmapRegistrationPoints> prepare_registration_points(
-    const TsdfMap& map, const SubmapRegistrationConfig& config, const Stream& stream);
+    const map::TsdfMap& map, const SubmapRegistrationConfig& config, const Stream& stream);
 
 struct RegistrationCounts {
   int64_t attempted = 0;                // overlapping pairs aligned
@@ -217,7 +217,7 @@ struct RegistrationCounts {
 // An earlier submap to align to, at its current corrected pose.
 struct RegistrationPartner {
   int64_t id = 0;
-  const TsdfMap* map = nullptr;
+  const map::TsdfMap* map = nullptr;
   backend::Pose4Dof pose;
   WallMapCache* walls = nullptr;  // the map's wall map cache; null: built for each revisit
   // The map's registration points (prepare_registration_points with the same config), for the
@@ -233,7 +233,7 @@ struct RegistrationPartner {
 // most shared blocks first, at most max_partners. `footprint`: the new map's, when the caller
 // has it (null: computed here, once for all the earlier submaps).
 std::vector<const RegistrationPartner*> overlapping_partners(
-    const TsdfMap& map, const backend::Pose4Dof& pose,
+    const map::TsdfMap& map, const backend::Pose4Dof& pose,
     const std::vector<RegistrationPartner>& earlier, const SubmapRegistrationConfig& config,
     const backend::SubmapFootprint* footprint = nullptr);
 
@@ -241,7 +241,7 @@ std::vector<const RegistrationPartner*> overlapping_partners(
 // `own_walls`: the new submap's wall map cache, kept by the caller for the revisits to come (null:
 // built for this call only).
 std::vector<SubmapConstraint> registration_constraints(
-    int64_t id, const TsdfMap& map, const SubmapRegistrationPoints& points,
+    int64_t id, const map::TsdfMap& map, const SubmapRegistrationPoints& points,
     const backend::Pose4Dof& pose, const std::vector<RegistrationPartner>& earlier,
     const SubmapRegistrationConfig& config, const Stream& stream, RegistrationCounts* counts,
     WallMapCache* own_walls = nullptr, const RegistrationOdometry& odometry = {},
@@ -251,7 +251,7 @@ std::vector<SubmapConstraint> registration_constraints(
 // recognition's candidates), with the same start from the walls, acceptance tests, verification
 // and counts as registration_constraints(); true with `constraint` when accepted.
 bool registration_constraint_from_guess(
-    int64_t id, const TsdfMap& map, const SubmapRegistrationPoints& points,
+    int64_t id, const map::TsdfMap& map, const SubmapRegistrationPoints& points,
     const backend::Pose4Dof& pose, const RegistrationPartner& partner,
     const backend::Pose4Dof& T_Sj_Si_guess, const SubmapRegistrationConfig& config,
     const Stream& stream, RegistrationCounts* counts, WallMapCache* own_walls,

@@ -71,10 +71,10 @@ namespace pipeline {
 // docs/parameters.md lists each with its name, unit and default).
 struct SlamConfig {
   Device device = Device::kCpu;
-  TsdfMapConfig map;
-  TsdfIntegratorConfig tsdf;
-  EsdfIntegratorConfig esdf;
-  MeshIntegratorConfig mesh;
+  map::TsdfMapConfig map;
+  integrators::TsdfIntegratorConfig tsdf;
+  integrators::EsdfIntegratorConfig esdf;
+  integrators::MeshIntegratorConfig mesh;
   SubmapPolicyConfig submaps;
   // Scans waiting for the frontend; at 10 Hz, 20 scans absorb a 2 s stall of the frontend.
   size_t sensor_queue_size = 20;
@@ -251,7 +251,7 @@ struct StampedPose {
 struct SubmapSnapshot {
   int64_t id = 0;
   Eigen::Isometry3d T_world_submap = Eigen::Isometry3d::Identity();
-  std::vector<HostBlock> blocks;  // TSDF, colour and ESDF, as TsdfMap::snapshot() returns them
+  std::vector<map::HostBlock> blocks;  // TSDF, colour and ESDF, as TsdfMap::snapshot() returns them
 };
 
 // A finished submap in the pose graph, as the outside sees it.
@@ -306,7 +306,7 @@ class SlamSystem {
   // (see SlamConfig).
   std::vector<StampedPose> corrected_trajectory() const;
   // The finished submaps' meshes moved to their corrected poses, as one mesh.
-  Mesh combined_mesh() const;
+  map::Mesh combined_mesh() const;
   // The finished submaps (TSDF, colour, ESDF) at their corrected poses.
   std::vector<SubmapSnapshot> submap_snapshots();
   // Hands each finished submap, in graph order, to `write` in its compact form
@@ -369,15 +369,16 @@ class SlamSystem {
   //
   // A finished submap's mesh in its own frame and its corrected pose T_W_S; false when no
   // submap in the graph has this id.
-  bool submap_mesh(int64_t id, Mesh* mesh_submap, Eigen::Isometry3d* T_world_submap) const;
+  bool submap_mesh(int64_t id, map::Mesh* mesh_submap, Eigen::Isometry3d* T_world_submap) const;
   // The ESDF of every finished submap at world height `height_m`, on a world-aligned grid of the
   // voxel size; where submaps overlap, a cell keeps the smallest distance (conservative for
   // planners). Points are reported at `height_m`.
-  std::vector<SlicePoint> esdf_slice_world(double height_m);
+  std::vector<integrators::SlicePoint> esdf_slice_world(double height_m);
   // The ESDF slice at world height `height_m` of the newest finished submap (the active submap
   // gets its ESDF only when it is finished), in world coordinates; `submap_id` receives its id,
   // -1 when there is none.
-  std::vector<SlicePoint> esdf_slice_newest_submap(double height_m, int64_t* submap_id);
+  std::vector<integrators::SlicePoint> esdf_slice_newest_submap(double height_m,
+                                                                int64_t* submap_id);
   // The ESDF slice at world height `height_m` of the ACTIVE submap (still being integrated), at
   // its current corrected pose; `submap_id` receives its id, -1 when there is none yet. The
   // active submap has no ESDF while mapping, so this computes one without touching it: each call
@@ -387,7 +388,8 @@ class SlamSystem {
   // esdf_max_distance_m of the slice height only. Never waits for the frontend: the result is
   // the copy requested by the previous call, so call it periodically; the first call returns
   // nothing. Exact (the same distances the finished submap will have) for the copied TSDF.
-  std::vector<SlicePoint> esdf_slice_active_submap(double height_m, int64_t* submap_id);
+  std::vector<integrators::SlicePoint> esdf_slice_active_submap(double height_m,
+                                                                int64_t* submap_id);
 
  private:
   struct TrajectoryEntry {
@@ -489,7 +491,7 @@ class SlamSystem {
   // The graph's size at the latest optimisation (backend_mutex_): the spacing on long missions.
   size_t submaps_at_last_optimization_ = 0;
   // Frontend thread only.
-  TsdfIntegrator tsdf_integrator_;
+  integrators::TsdfIntegrator tsdf_integrator_;
   Stream frontend_stream_;
   Buffer<Vec3f> points_buffer_;
   Buffer<Rgb8> colors_buffer_;
@@ -503,7 +505,7 @@ class SlamSystem {
     int64_t id = -1;
     uint64_t generation = 0;
     Eigen::Isometry3d T_odom_submap = Eigen::Isometry3d::Identity();
-    std::vector<HostBlock> blocks;
+    std::vector<map::HostBlock> blocks;
   };
   std::atomic<bool> active_copy_requested_{false};
   std::mutex active_copy_mutex_;
@@ -512,12 +514,12 @@ class SlamSystem {
   // Finished submaps' voxels under the memory budget, and what brings them back (all used
   // under backend_mutex_).
   std::unique_ptr<SubmapStore> store_;
-  EsdfIntegrator restore_esdf_;
+  integrators::EsdfIntegrator restore_esdf_;
   Stream restore_stream_;
 
   // Backend thread only (and finish() after the threads have joined).
-  EsdfIntegrator esdf_integrator_;
-  MeshIntegrator mesh_integrator_;
+  integrators::EsdfIntegrator esdf_integrator_;
+  integrators::MeshIntegrator mesh_integrator_;
   Stream backend_stream_;
 
   // Caller side of add_scan.

@@ -99,12 +99,12 @@ struct SubmapFinishTimes {
 class Submap {
  public:
   // `T_odom_submap` must be gravity aligned (see gravity_aligned()).
-  Submap(int64_t id, Device device, const TsdfMapConfig& map_config,
+  Submap(int64_t id, Device device, const map::TsdfMapConfig& map_config,
          const Eigen::Isometry3d& T_odom_submap);
 
   int64_t id() const { return id_; }
-  TsdfMap& map() { return map_; }
-  const TsdfMap& map() const { return map_; }
+  map::TsdfMap& map() { return map_; }
+  const map::TsdfMap& map() const { return map_; }
 
   const backend::Pose4Dof& odometry_pose() const { return odometry_pose_; }
   Eigen::Isometry3d T_odom_submap() const { return to_isometry(odometry_pose_); }
@@ -118,20 +118,22 @@ class Submap {
   // Integrates a scan taken at odometry pose T_odom_sensor (device memory of the map's device)
   // at its pose in the submap frame, and updates the statistics. Throws covox::Error after
   // finish().
-  IntegrationStats integrate(TsdfIntegrator& integrator, const PointCloudView& cloud,
-                             const Eigen::Isometry3d& T_odom_sensor, double stamp_s,
-                             const Stream& stream);
+  integrators::IntegrationStats integrate(integrators::TsdfIntegrator& integrator,
+                                          const integrators::PointCloudView& cloud,
+                                          const Eigen::Isometry3d& T_odom_sensor, double stamp_s,
+                                          const Stream& stream);
   // T_S_sensor for a scan at odometry pose T_odom_sensor.
   Eigen::Isometry3d submap_from_odometry(const Eigen::Isometry3d& T_odom_sensor) const {
     return T_odom_submap().inverse() * T_odom_sensor;
   }
 
   // Freezes the submap: computes the whole ESDF, the mesh and the bounding box. Idempotent.
-  SubmapFinishTimes finish(EsdfIntegrator& esdf, MeshIntegrator& mesher, const Stream& stream);
+  SubmapFinishTimes finish(integrators::EsdfIntegrator& esdf, integrators::MeshIntegrator& mesher,
+                           const Stream& stream);
   bool finished() const { return finished_; }
 
   // Mesh in the submap frame (empty before finish()).
-  const Mesh& mesh() const { return mesh_; }
+  const map::Mesh& mesh() const { return mesh_; }
   // Axis-aligned box of the allocated blocks in the submap frame (empty before finish()).
   const Eigen::AlignedBox3d& bounding_box_submap() const { return bounding_box_submap_; }
   // The same box's corners moved by T_W_S, boxed again in the world frame.
@@ -139,13 +141,13 @@ class Submap {
 
  private:
   int64_t id_;
-  TsdfMap map_;
+  map::TsdfMap map_;
   backend::Pose4Dof odometry_pose_;
   backend::Pose4Dof pose_;
   SubmapStatistics statistics_;
   Eigen::Vector3d last_position_odom_m_ = Eigen::Vector3d::Zero();
   bool finished_ = false;
-  Mesh mesh_;
+  map::Mesh mesh_;
   Eigen::AlignedBox3d bounding_box_submap_;
 };
 

@@ -62,7 +62,7 @@ struct SubmapStoreCounters {
 };
 
 // The bytes of a map's voxel pools (TSDF, colour and ESDF voxels of every slot).
-int64_t voxel_pool_bytes(const TsdfMap& map);
+int64_t voxel_pool_bytes(const map::TsdfMap& map);
 
 class SubmapStore {
  public:
@@ -85,7 +85,7 @@ class SubmapStore {
   void adopt(const Submap& submap, std::vector<uint8_t> bytes);
   // Makes the submap's voxels resident again (decoded, ESDF recomputed; a no-op if they are) and
   // marks it used.
-  void acquire(Submap& submap, EsdfIntegrator& esdf, const Stream& stream);
+  void acquire(Submap& submap, integrators::EsdfIntegrator& esdf, const Stream& stream);
   // Compacts resident submaps among `candidates`, least recently used first, until the resident
   // bytes fit the device budget, then spills compact ones, least recently used first, until the
   // bytes in host memory fit the host budget. `keep` (an id, or -1) stays resident.

@@ -36,7 +36,7 @@ class WallMap {
  public:
   WallMap() = default;
   // Wall columns of `map` on a grid of cell_m (the map's voxel size), distances capped at cap_m.
-  static WallMap from_map(const TsdfMap& map, double cap_m, const Stream& stream);
+  static WallMap from_map(const map::TsdfMap& map, double cap_m, const Stream& stream);
   // From given wall column centres (tests); same grid and cap rules.
   static WallMap from_columns(const std::vector<Eigen::Vector2d>& columns_m, double cell_m,
                               double cap_m);
@@ -62,7 +62,7 @@ class WallMapCache {
   // Distances capped at this (m): beyond three Gaussian sigmas of the search a column scores 0.
   static constexpr double kCapM = 1.0;
   // The wall map of `map` (the same map at every call).
-  const WallMap& get(const TsdfMap& map, const Stream& stream);
+  const WallMap& get(const map::TsdfMap& map, const Stream& stream);
 
  private:
   std::mutex mutex_;

@@ -33,7 +33,7 @@ geometry_msgs::Pose to_pose_msg(const Eigen::Isometry3d& pose);
 
 // A triangle list (three points per triangle) in `frame` at `pose`, each point coloured by
 // `colors` (one per mesh vertex, e.g. map/mesh_colors.h's display_colors()).
-visualization_msgs::Marker mesh_marker(const Mesh& mesh, const std::vector<Rgb8>& colors,
+visualization_msgs::Marker mesh_marker(const map::Mesh& mesh, const std::vector<Rgb8>& colors,
                                        const Eigen::Isometry3d& pose, const std::string& frame,
                                        const ros::Time& stamp, const std::string& ns, int id);
 // The triangles of `mesh` (in `frame`, at the identity) grouped by the world height of their
@@ -42,9 +42,12 @@ visualization_msgs::Marker mesh_marker(const Mesh& mesh, const std::vector<Rgb8>
 // per-vertex colours a triangle costs 72 bytes instead of 120, for meshes without fused colour.
 // Slice k is marker `id` in namespace "<ns>_height_<k>"; an empty slice gives a DELETE there, so
 // that re-sending a mesh leaves no stale slice behind.
-std::vector<visualization_msgs::Marker> height_band_markers(
-    const Mesh& mesh, const Eigen::Isometry3d& T_world_mesh, const HeightColorRange& range,
-    int bands, const std::string& frame, const ros::Time& stamp, const std::string& ns, int id);
+std::vector<visualization_msgs::Marker> height_band_markers(const map::Mesh& mesh,
+                                                            const Eigen::Isometry3d& T_world_mesh,
+                                                            const map::HeightColorRange& range,
+                                                            int bands, const std::string& frame,
+                                                            const ros::Time& stamp,
+                                                            const std::string& ns, int id);
 // A DELETE of marker `id` in namespace `ns`.
 visualization_msgs::Marker deletion_marker(const std::string& frame, const ros::Time& stamp,
                                            const std::string& ns, int id);
@@ -61,8 +64,8 @@ visualization_msgs::MarkerArray pose_graph_markers(
     const std::vector<pipeline::SubmapConstraint>& constraints, const std::string& frame,
     const ros::Time& stamp);
 // x, y, z and intensity (the signed distance in metres), all FLOAT32, unorganised.
-sensor_msgs::PointCloud2 slice_cloud(const std::vector<SlicePoint>& slice, const std::string& frame,
-                                     const ros::Time& stamp);
+sensor_msgs::PointCloud2 slice_cloud(const std::vector<integrators::SlicePoint>& slice,
+                                     const std::string& frame, const ros::Time& stamp);
 
 }  // namespace ros_layer
 }  // namespace covox

@@ -11,7 +11,7 @@ namespace covox {
 namespace backend {
 
 template <class Backend>
-int64_t registration_collect_points(Backend backend, VoxelView<TsdfVoxel, Layout::kSoA> tsdf,
+int64_t registration_collect_points(Backend backend, VoxelView<map::TsdfVoxel, Layout::kSoA> tsdf,
                                     const Index3D* block_indices, const uint32_t* block_slots,
                                     int64_t block_count, int32_t side, float voxel_size_m,
                                     const RegistrationPointsConfig& config,
@@ -34,14 +34,14 @@ int64_t registration_collect_points(Backend backend, VoxelView<TsdfVoxel, Layout
   const uint32_t seed = config.sampling_seed;
   parallel_for(backend, stream, total, [=] COVOX_HD(int64_t i) {
     const int64_t b = i / per_block, k = i % per_block;
-    const TsdfVoxel voxel = tsdf.load(static_cast<int64_t>(block_slots[b]) * per_block + k);
+    const map::TsdfVoxel voxel = tsdf.load(static_cast<int64_t>(block_slots[b]) * per_block + k);
     const bool is_surface = voxel.weight >= min_weight && fabsf(voxel.distance_m) < threshold_m;
     surface_flags[i] = is_surface ? 1 : 0;
     if (!is_surface) {
       sampled[i] = 0;
       return;
     }
-    const Index3D v = global_voxel(block_indices[b], k, side);
+    const Index3D v = map::global_voxel(block_indices[b], k, side);
     sampled[i] = registration_sample_uniform(v.x, v.y, v.z, seed) < ratio ? 1 : 0;
   });
   const int64_t surface_count =
@@ -57,8 +57,8 @@ int64_t registration_collect_points(Backend backend, VoxelView<TsdfVoxel, Layout
     const int64_t next = i + 1 < total ? sampled[i + 1] : kept;
     if (next == sampled[i]) return;
     const int64_t b = i / per_block, k = i % per_block;
-    const Index3D v = global_voxel(block_indices[b], k, side);
-    const TsdfVoxel voxel = tsdf.load(static_cast<int64_t>(block_slots[b]) * per_block + k);
+    const Index3D v = map::global_voxel(block_indices[b], k, side);
+    const map::TsdfVoxel voxel = tsdf.load(static_cast<int64_t>(block_slots[b]) * per_block + k);
     RegistrationPoint p;
     p.position_m = Vec3f((v.x + 0.5f) * voxel_size_m, (v.y + 0.5f) * voxel_size_m,
                          (v.z + 0.5f) * voxel_size_m);
@@ -90,7 +90,7 @@ RegistrationSums registration_reduce(Backend backend, const RegistrationResidual
 
 #define COVOX_INSTANTIATE_REGISTRATION(Backend)                                                    \
   template int64_t registration_collect_points<Backend>(                                           \
-      Backend, VoxelView<TsdfVoxel, Layout::kSoA>, const Index3D*, const uint32_t*, int64_t,       \
+      Backend, VoxelView<map::TsdfVoxel, Layout::kSoA>, const Index3D*, const uint32_t*, int64_t,  \
       int32_t, float, const RegistrationPointsConfig&, Buffer<RegistrationPoint>*, const Stream&); \
   template void registration_evaluate<Backend>(                                                    \
       Backend, const RegistrationPoint*, int64_t, RegistrationDistanceLookup,                      \

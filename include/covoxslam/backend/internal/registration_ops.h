@@ -14,8 +14,8 @@ namespace backend {
 // Distance field of submap j as the residual sees it: ESDF corners through EsdfLookup, replaced by
 // TSDF corners near the surface when tsdf_band_m > 0 (see registration.h for why).
 struct RegistrationDistanceLookup {
-  EsdfLookup esdf;
-  VoxelView<TsdfVoxel, Layout::kSoA> tsdf;
+  integrators::EsdfLookup esdf;
+  VoxelView<map::TsdfVoxel, Layout::kSoA> tsdf;
   float tsdf_band_m = 0.0f;  // 0: ESDF only (voxgraph)
   float min_tsdf_weight = 1e-4f;
   int32_t stride_vox = 1;  // corners every this many voxels (coarse levels: ESDF only, band 0)
@@ -24,7 +24,7 @@ struct RegistrationDistanceLookup {
     if (tsdf_band_m > 0.0f) {
       const int64_t index = esdf.indexer.pool_index(v);
       if (index < 0) return false;
-      const TsdfVoxel voxel = tsdf.load(index);
+      const map::TsdfVoxel voxel = tsdf.load(index);
       if (voxel.weight >= min_tsdf_weight && fabsf(voxel.distance_m) < tsdf_band_m) {
         *distance_m = voxel.distance_m;
         return true;
@@ -209,7 +209,7 @@ struct AddRegistrationSums {
 // (registration.cpp). Throws covox::Error on a bad configuration.
 void validate_registration_residual_config(const RegistrationResidualConfig& config);
 // The lookup of map_j's field for kernels on map_j's device (tsdf_band_m from `config`).
-RegistrationDistanceLookup make_registration_lookup(const TsdfMap& map_j,
+RegistrationDistanceLookup make_registration_lookup(const map::TsdfMap& map_j,
                                                     const RegistrationResidualConfig& config);
 
 // A deterministic uniform number in [0, 1) per voxel (and seed): the sampling decision.
@@ -230,7 +230,7 @@ COVOX_HD_INLINE double registration_sample_uniform(int32_t x, int32_t y, int32_t
 // Surface voxels of the blocks (given in a fixed order) compacted into `points`; returns the
 // number of surface voxels before sampling.
 template <class Backend>
-int64_t registration_collect_points(Backend backend, VoxelView<TsdfVoxel, Layout::kSoA> tsdf,
+int64_t registration_collect_points(Backend backend, VoxelView<map::TsdfVoxel, Layout::kSoA> tsdf,
                                     const Index3D* block_indices, const uint32_t* block_slots,
                                     int64_t block_count, int32_t side, float voxel_size_m,
                                     const RegistrationPointsConfig& config,

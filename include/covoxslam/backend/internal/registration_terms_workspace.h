@@ -22,7 +22,7 @@ class RegistrationTermsWorkspace {
     const Device device = Backend::kDevice;
     term_count_ = static_cast<int64_t>(terms.size());
     // One lookup per distinct map: a kernel reaches every submap's field through this array.
-    std::map<const TsdfMap*, int32_t> field_of_map;
+    std::map<const map::TsdfMap*, int32_t> field_of_map;
     std::vector<RegistrationDistanceLookup> fields;
     std::vector<RegistrationTermView> views;
     std::vector<int64_t> point_offsets{0}, chunk_offsets{0}, term_chunk_offsets{0};

@@ -52,7 +52,7 @@ constexpr int kRunSumItems = 4;      // consecutive records per GPU thread
 constexpr int kRunSumBlocksPerSm = 3;
 constexpr int64_t kRunSumTile = int64_t(kRunSumThreads) * kRunSumItems;
 
-namespace run_sums_detail {
+namespace internal {
 
 constexpr uint32_t kNoRun = 0xFFFFFFFFu;
 
@@ -256,7 +256,7 @@ void sum_tiles(CudaBackend, const Stream& stream, const KeyT* keys, int64_t coun
 }
 #endif
 
-}  // namespace run_sums_detail
+}  // namespace internal
 
 // See the top of the file. Needs count < 2^32 - 1; `scratch` holds the tiles' parts (resized
 // here, on the backend's device). `run_count`, when given (memory of the backend's device), is
@@ -268,7 +268,7 @@ void consume_run_sums(Backend backend, const Stream& stream, const KeyT* keys, i
                       const Term& term, const Op& op, const Consume& consume,
                       Buffer<uint64_t>& scratch, uint32_t* run_count = nullptr,
                       const uint32_t* live_count = nullptr) {
-  using namespace run_sums_detail;
+  using namespace internal;
   if (count <= 0) return;
   if (count >= static_cast<int64_t>(kNoRun)) {
     throw Error("consume_run_sums: " + std::to_string(count) +

@@ -13,7 +13,7 @@
 
 namespace covox {
 
-namespace detail {
+namespace internal {
 #if COVOX_DEVICE_CODE
 // sm_80 and later reduce over a warp in one instruction; before that, every lane reads every
 // other lane's value in turn (a shuffle with the same mask in every lane, valid for any mask).
@@ -44,7 +44,7 @@ struct FoldMax {
   }
 };
 #endif
-}  // namespace detail
+}  // namespace internal
 
 // The lanes running this call together (the host: lane 0 alone).
 COVOX_HD_INLINE uint32_t warp_lanes() {
@@ -111,7 +111,7 @@ COVOX_HD_INLINE T warp_broadcast(uint32_t lanes, T value, int source) {
 #if COVOX_DEVICE_CODE && __CUDA_ARCH__ >= 800
 #define COVOX_WARP_REDUCE_32(intrinsic, fold) return intrinsic(lanes, value)
 #elif COVOX_DEVICE_CODE
-#define COVOX_WARP_REDUCE_32(intrinsic, fold) return detail::warp_fold(lanes, value, fold{})
+#define COVOX_WARP_REDUCE_32(intrinsic, fold) return internal::warp_fold(lanes, value, fold{})
 #else
 #define COVOX_WARP_REDUCE_32(intrinsic, fold) \
   (void)lanes;                                \
@@ -120,15 +120,15 @@ COVOX_HD_INLINE T warp_broadcast(uint32_t lanes, T value, int source) {
 template <class T>
 COVOX_HD_INLINE T warp_min(uint32_t lanes, T value) {
   static_assert(sizeof(T) == 4, "warp_min: 32-bit values");
-  COVOX_WARP_REDUCE_32(__reduce_min_sync, detail::FoldMin);
+  COVOX_WARP_REDUCE_32(__reduce_min_sync, internal::FoldMin);
 }
 template <class T>
 COVOX_HD_INLINE T warp_max(uint32_t lanes, T value) {
   static_assert(sizeof(T) == 4, "warp_max: 32-bit values");
-  COVOX_WARP_REDUCE_32(__reduce_max_sync, detail::FoldMax);
+  COVOX_WARP_REDUCE_32(__reduce_max_sync, internal::FoldMax);
 }
 COVOX_HD_INLINE uint32_t warp_sum(uint32_t lanes, uint32_t value) {
-  COVOX_WARP_REDUCE_32(__reduce_add_sync, detail::FoldAdd);
+  COVOX_WARP_REDUCE_32(__reduce_add_sync, internal::FoldAdd);
 }
 #undef COVOX_WARP_REDUCE_32
 
@@ -137,7 +137,7 @@ COVOX_HD_INLINE uint32_t warp_sum(uint32_t lanes, uint32_t value) {
 // carry out of 32 bits.
 COVOX_HD_INLINE uint64_t warp_sum(uint32_t lanes, uint64_t value) {
 #if COVOX_DEVICE_CODE && __CUDA_ARCH__ < 800
-  return detail::warp_fold(lanes, value, detail::FoldAdd{});
+  return internal::warp_fold(lanes, value, internal::FoldAdd{});
 #elif COVOX_DEVICE_CODE
   uint64_t sum = 0;
   for (int piece = 0; piece < 4; ++piece) {

@@ -12,8 +12,8 @@
 #include "covoxslam/integrators/esdf_integrator.h"
 #include "covoxslam/map/block_voxel_indexer.h"
 
-namespace covox {
-namespace esdf_detail {
+namespace covox::integrators {
+namespace internal {
 
 constexpr int32_t kFar = 0x7fffffff;  // no site on this line (squared distance "infinity")
 
@@ -42,7 +42,7 @@ struct BoundsOfBlock {
   bool all;
   COVOX_HD_INLINE BlockBounds operator()(int64_t b) const {
     BlockBounds bounds;
-    if (!all && !(changed[slots[b]] & kEsdfPending)) return bounds;
+    if (!all && !(changed[slots[b]] & map::kEsdfPending)) return bounds;
     const Index3D i = indices[b];
     bounds.lo[0] = bounds.hi[0] = i.x;
     bounds.lo[1] = bounds.hi[1] = i.y;
@@ -186,7 +186,7 @@ struct BlockVoxels {
   COVOX_HD_INLINE Index3D voxel(int64_t i, int64_t* pool_index) const {
     const int64_t b = i / voxels_per_block, k = i % voxels_per_block;
     *pool_index = static_cast<int64_t>(slots[b]) * voxels_per_block + k;
-    return global_voxel(indices[b], k, side);
+    return map::global_voxel(indices[b], k, side);
   }
 };
 
@@ -199,7 +199,7 @@ struct FillFar {
 // Kernel: sites are the window's observed voxels close to the surface (squared distance 0).
 struct MarkSites {
   BlockVoxels walk;
-  TsdfMap::TsdfStorage::View tsdf;
+  map::TsdfMap::TsdfStorage::View tsdf;
   VoxelBox window;
   int32_t* squared;
   float site_threshold_m;
@@ -208,7 +208,7 @@ struct MarkSites {
     int64_t index;
     const Index3D v = walk.voxel(i, &index);
     if (!window.contains(v)) return;
-    const TsdfVoxel voxel = tsdf.load(index);
+    const map::TsdfVoxel voxel = tsdf.load(index);
     if (voxel.weight >= min_weight && fabsf(voxel.distance_m) <= site_threshold_m)
       squared[window.offset_of(v)] = 0;
   }
@@ -262,8 +262,8 @@ struct EnvelopesAlongZ {
 // maximum; unobserved voxels are stored as unobserved.
 struct WriteDistances {
   BlockVoxels walk;
-  TsdfMap::TsdfStorage::View tsdf;
-  TsdfMap::EsdfStorage::View esdf;
+  map::TsdfMap::TsdfStorage::View tsdf;
+  map::TsdfMap::EsdfStorage::View esdf;
   VoxelBox write_region;
   VoxelBox window;
   const int32_t* squared;
@@ -274,8 +274,8 @@ struct WriteDistances {
     int64_t index;
     const Index3D v = walk.voxel(i, &index);
     if (!write_region.contains(v)) return;
-    const TsdfVoxel voxel = tsdf.load(index);
-    EsdfVoxel out;
+    const map::TsdfVoxel voxel = tsdf.load(index);
+    map::EsdfVoxel out;
     out.observed = voxel.weight >= min_weight ? 1 : 0;
     if (out.observed) {
       const int32_t d2 = squared[window.offset_of(v)];
@@ -293,7 +293,7 @@ struct ClearEsdfPending {
   const uint32_t* slots;
   uint8_t* changed;
   COVOX_HD_INLINE void operator()(int64_t b) const {
-    changed[slots[b]] &= static_cast<uint8_t>(~kEsdfPending);
+    changed[slots[b]] &= static_cast<uint8_t>(~map::kEsdfPending);
   }
 };
 
@@ -321,12 +321,12 @@ void distance_transform(Backend backend, const Stream& stream, const WindowArray
                EnvelopesAlongZ{arrays});
 }
 
-}  // namespace esdf_detail
+}  // namespace internal
 
 template <class Backend>
-EsdfUpdateStats esdf_update(Backend backend, const EsdfIntegratorConfig& config, TsdfMap& map,
+EsdfUpdateStats esdf_update(Backend backend, const EsdfIntegratorConfig& config, map::TsdfMap& map,
                             bool all_blocks, EsdfScratchBuffers& scratch, const Stream& stream) {
-  using namespace esdf_detail;
+  using namespace internal;
   EsdfUpdateStats stats;
   map.blocks().export_entries(&scratch.block_indices, &scratch.block_slots);
   const int64_t block_count = static_cast<int64_t>(scratch.block_indices.size());
@@ -367,8 +367,9 @@ EsdfUpdateStats esdf_update(Backend backend, const EsdfIntegratorConfig& config,
   return stats;
 }
 
-#define COVOX_INSTANTIATE_ESDF_INTEGRATOR(Backend)                                              \
-  template EsdfUpdateStats esdf_update<Backend>(Backend, const EsdfIntegratorConfig&, TsdfMap&, \
-                                                bool, EsdfScratchBuffers&, const Stream&);
+#define COVOX_INSTANTIATE_ESDF_INTEGRATOR(Backend)                                        \
+  template EsdfUpdateStats esdf_update<Backend>(Backend, const EsdfIntegratorConfig&,     \
+                                                map::TsdfMap&, bool, EsdfScratchBuffers&, \
+                                                const Stream&);
 
-}  // namespace covox
+}  // namespace covox::integrators

@@ -6,7 +6,7 @@
 #include "covoxslam/integrators/internal/esdf_queries_ops.h"
 #include "covoxslam/map/block_voxel_indexer.h"
 
-namespace covox {
+namespace covox::integrators {
 
 template <class Backend>
 void esdf_query_points(Backend backend, EsdfLookup lookup, const Vec3f* points, int64_t count,
@@ -19,7 +19,7 @@ void esdf_query_points(Backend backend, EsdfLookup lookup, const Vec3f* points, 
 // Per voxel of every block: a slice point if the voxel is observed and its layer is in
 // [layer_min, layer_max]; the (x, y) column key for squashing.
 template <class Backend>
-int64_t esdf_collect_layer(Backend backend, VoxelView<EsdfVoxel, Layout::kSoA> esdf,
+int64_t esdf_collect_layer(Backend backend, VoxelView<map::EsdfVoxel, Layout::kSoA> esdf,
                            const Index3D* block_indices, const uint32_t* block_slots,
                            int64_t block_count, int32_t side, int32_t layer_min, int32_t layer_max,
                            Buffer<uint64_t>* column_keys, Buffer<float>* distances,
@@ -32,12 +32,12 @@ int64_t esdf_collect_layer(Backend backend, VoxelView<EsdfVoxel, Layout::kSoA> e
   float* values = distances->data();
   parallel_for(backend, stream, total, [=] COVOX_HD(int64_t i) {
     const int64_t b = i / per_block, k = i % per_block;
-    const Index3D v = global_voxel(block_indices[b], k, side);
+    const Index3D v = map::global_voxel(block_indices[b], k, side);
     const int64_t index = static_cast<int64_t>(block_slots[b]) * per_block + k;
     keys[i] = ~uint64_t(0);
-    if (v.z < layer_min || v.z > layer_max || !esdf.get<&EsdfVoxel::observed>(index)) return;
+    if (v.z < layer_min || v.z > layer_max || !esdf.get<&map::EsdfVoxel::observed>(index)) return;
     keys[i] = esdf_column_key(v.x, v.y);
-    values[i] = esdf.get<&EsdfVoxel::distance_m>(index);
+    values[i] = esdf.get<&map::EsdfVoxel::distance_m>(index);
   });
   // Group by column, take the minimum distance of each; unused entries sort last.
   sort_by_key(backend, stream, keys, values, total);
@@ -51,11 +51,11 @@ int64_t esdf_collect_layer(Backend backend, VoxelView<EsdfVoxel, Layout::kSoA> e
   return runs - (has_unused ? 1 : 0);
 }
 
-#define COVOX_INSTANTIATE_ESDF_QUERIES(Backend)                                              \
-  template void esdf_query_points<Backend>(Backend, EsdfLookup, const Vec3f*, int64_t,       \
-                                           EsdfSample*, const Stream&);                      \
-  template int64_t esdf_collect_layer<Backend>(                                              \
-      Backend, VoxelView<EsdfVoxel, Layout::kSoA>, const Index3D*, const uint32_t*, int64_t, \
+#define COVOX_INSTANTIATE_ESDF_QUERIES(Backend)                                                   \
+  template void esdf_query_points<Backend>(Backend, EsdfLookup, const Vec3f*, int64_t,            \
+                                           EsdfSample*, const Stream&);                           \
+  template int64_t esdf_collect_layer<Backend>(                                                   \
+      Backend, VoxelView<map::EsdfVoxel, Layout::kSoA>, const Index3D*, const uint32_t*, int64_t, \
       int32_t, int32_t, int32_t, Buffer<uint64_t>*, Buffer<float>*, const Stream&);
 
-}  // namespace covox
+}  // namespace covox::integrators

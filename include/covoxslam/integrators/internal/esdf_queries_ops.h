@@ -9,19 +9,19 @@
 #include "covoxslam/map/block_voxel_indexer.h"
 #include "covoxslam/map/voxels.h"
 
-namespace covox {
+namespace covox::integrators {
 
 // What a kernel needs to look a voxel up by its global index.
 struct EsdfLookup {
-  BlockVoxelIndexer indexer;
-  VoxelView<EsdfVoxel, Layout::kSoA> esdf;
+  map::BlockVoxelIndexer indexer;
+  VoxelView<map::EsdfVoxel, Layout::kSoA> esdf;
   float voxel_size;
 
   // Returns false for unallocated or unobserved voxels.
   COVOX_HD_INLINE bool voxel(const Index3D& v, float* distance) const {
     const int64_t index = indexer.pool_index(v);
-    if (index < 0 || !esdf.get<&EsdfVoxel::observed>(index)) return false;
-    *distance = esdf.get<&EsdfVoxel::distance_m>(index);
+    if (index < 0 || !esdf.get<&map::EsdfVoxel::observed>(index)) return false;
+    *distance = esdf.get<&map::EsdfVoxel::distance_m>(index);
     return true;
   }
 
@@ -68,10 +68,10 @@ void esdf_query_points(Backend backend, EsdfLookup lookup, const Vec3f* points, 
                        EsdfSample* out, const Stream& stream);
 
 template <class Backend>
-int64_t esdf_collect_layer(Backend backend, VoxelView<EsdfVoxel, Layout::kSoA> esdf,
+int64_t esdf_collect_layer(Backend backend, VoxelView<map::EsdfVoxel, Layout::kSoA> esdf,
                            const Index3D* block_indices, const uint32_t* block_slots,
                            int64_t block_count, int32_t side, int32_t layer_min, int32_t layer_max,
                            Buffer<uint64_t>* column_keys, Buffer<float>* distances,
                            const Stream& stream);
 
-}  // namespace covox
+}  // namespace covox::integrators

@@ -11,8 +11,7 @@
 #include "covoxslam/core/macros.h"
 #include "covoxslam/core/vec3.h"
 
-namespace covox {
-namespace marching_cubes {
+namespace covox::integrators::marching_cubes {
 
 // Corner c of a cube sits at offset (c & 1, (c >> 1) & 1, (c >> 2) & 1).
 // Edge e runs along axis e / 4 from corner kEdgeStart[e] to kEdgeStart[e] + (1 << axis).
@@ -162,5 +161,4 @@ COVOX_HD_INLINE bool needs_flip(const float* values, int a, int b, int c) {
   return normal.dot(centre_gradient(values)) < 0.0f;
 }
 
-}  // namespace marching_cubes
-}  // namespace covox
+}  // namespace covox::integrators::marching_cubes

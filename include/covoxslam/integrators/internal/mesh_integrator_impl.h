@@ -9,8 +9,8 @@
 #include "covoxslam/integrators/mesh_integrator.h"
 #include "covoxslam/map/block_voxel_indexer.h"
 
-namespace covox {
-namespace mesh_detail {
+namespace covox::integrators {
+namespace internal {
 
 // A cube edge named globally: the voxel its start corner is, and its axis. Neighbouring cubes
 // name a shared edge identically, which is what welds their vertices.
@@ -41,8 +41,8 @@ inline int local_edge_bits(int32_t side) {
 struct CubeReader {
   const BlockNeighbourSlots* neighbours;
   int32_t side;
-  VoxelView<TsdfVoxel, Layout::kSoA> tsdf;
-  VoxelView<ColorVoxel, Layout::kSoA> color;
+  VoxelView<map::TsdfVoxel, Layout::kSoA> tsdf;
+  VoxelView<map::ColorVoxel, Layout::kSoA> color;
   float min_weight;
 
   // Corner values and colours of the cube whose first corner is voxel `local` of the input's
@@ -58,13 +58,13 @@ struct CubeReader {
       if (y == side) y = 0, which |= 2;
       if (z == side) z = 0, which |= 4;
       const uint32_t slot = around.slots[which];
-      if (slot == kInvalidSlot) return false;
+      if (slot == map::kInvalidSlot) return false;
       const int64_t index =
           static_cast<int64_t>(slot) * per_block + x + side * (y + static_cast<int64_t>(side) * z);
-      const TsdfVoxel voxel = tsdf.load(index);
+      const map::TsdfVoxel voxel = tsdf.load(index);
       if (voxel.weight < min_weight) return false;
       values[c] = voxel.distance_m;
-      const ColorVoxel cv = color.load(index);
+      const map::ColorVoxel cv = color.load(index);
       colors[c] = Rgb8{cv.r, cv.g, cv.b};
     }
     return true;
@@ -139,7 +139,7 @@ struct CountCubeTriangles {
     if (i == cubes) return;
     float values[8];
     Rgb8 colors[8];
-    if (!reader.read(i / per_block, local_voxel(i % per_block, side), values, colors)) return;
+    if (!reader.read(i / per_block, map::local_voxel(i % per_block, side), values, colors)) return;
     counts[i] = static_cast<uint32_t>(marching_cubes::polygonize(values, [](int, int, int) {}));
   }
 };
@@ -192,7 +192,7 @@ struct EmitCubeCorners {
   COVOX_HD_INLINE void operator()(int64_t i) const {
     if (counts[i] == 0) return;
     const int64_t block = i / per_block;
-    const Index3D local = local_voxel(i % per_block, side);
+    const Index3D local = map::local_voxel(i % per_block, side);
     const Index3D origin(blocks[block].x * side + local.x, blocks[block].y * side + local.y,
                          blocks[block].z * side + local.z);
     float values[8];
@@ -236,7 +236,7 @@ struct MarkClaimedEntries {
   uint32_t* claimed;
   int64_t table_entries;
   COVOX_HD_INLINE void operator()(int64_t e) const {
-    claimed[e] = e < table_entries && table[e] != kInvalidSlot ? 1u : 0u;
+    claimed[e] = e < table_entries && table[e] != map::kInvalidSlot ? 1u : 0u;
   }
 };
 
@@ -302,7 +302,7 @@ struct WriteSortedMesh {
   }
 };
 
-inline ExtractShape extract_shape(const TsdfMap& map, const MeshScratchBuffers& scratch) {
+inline ExtractShape extract_shape(const map::TsdfMap& map, const MeshScratchBuffers& scratch) {
   ExtractShape shape;
   shape.block_count = static_cast<int64_t>(scratch.blocks.size());
   shape.side = map.voxels_per_side();
@@ -442,16 +442,16 @@ int64_t weld_by_sorting(Backend backend, const Stream& stream, const ExtractShap
   return vertices;
 }
 
-}  // namespace mesh_detail
+}  // namespace internal
 
 template <class Backend>
-void mesh_find_neighbour_slots(Backend backend, TsdfMap& map, MeshScratchBuffers& scratch,
+void mesh_find_neighbour_slots(Backend backend, map::TsdfMap& map, MeshScratchBuffers& scratch,
                                const Stream& stream) {
   const int64_t block_count = static_cast<int64_t>(scratch.blocks.size());
   scratch.neighbours.resize_discard(block_count);
   const Index3D* blocks = scratch.blocks.data();
   BlockNeighbourSlots* neighbours = scratch.neighbours.data();
-  const BlockHashTableView table = map.blocks().device_view();
+  const map::BlockHashTableView table = map.blocks().device_view();
   parallel_for(backend, stream, 8 * block_count, [=] COVOX_HD(int64_t i) {
     const int c = static_cast<int>(i % 8);
     neighbours[i / 8].slots[c] =
@@ -460,10 +460,10 @@ void mesh_find_neighbour_slots(Backend backend, TsdfMap& map, MeshScratchBuffers
 }
 
 template <class Backend>
-int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshWeld weld,
+int64_t mesh_extract(Backend backend, map::TsdfMap& map, float min_weight, MeshWeld weld,
                      MeshScratchBuffers& scratch, int64_t* vertex_count, const Stream& stream,
                      int64_t max_weld_table_entries) {
-  using namespace mesh_detail;
+  using namespace internal;
   *vertex_count = 0;
   const ExtractShape shape = extract_shape(map, scratch);
   const bool per_block_weld = weld == MeshWeld::kPerBlock;
@@ -489,9 +489,9 @@ int64_t mesh_extract(Backend backend, TsdfMap& map, float min_weight, MeshWeld w
 }
 
 template <class Backend>
-int64_t mesh_select_blocks(Backend backend, TsdfMap& map, MeshScratchBuffers& scratch,
+int64_t mesh_select_blocks(Backend backend, map::TsdfMap& map, MeshScratchBuffers& scratch,
                            const Stream& stream) {
-  const BlockHashTableView table = map.blocks().device_view();
+  const map::BlockHashTableView table = map.blocks().device_view();
   const int64_t buckets = static_cast<int64_t>(table.bucket_count);
   const int64_t slot_count = map.blocks().slot_count();
   if (map.block_count() == 0 || slot_count == 0) {
@@ -506,16 +506,16 @@ int64_t mesh_select_blocks(Backend backend, TsdfMap& map, MeshScratchBuffers& sc
   uint8_t* changed = map.block_changed().data();
   parallel_for(backend, stream, buckets, [=] COVOX_HD(int64_t b) {
     const uint64_t key = table.keys[b];
-    if (!is_live_block_key(key)) return;
+    if (!map::is_live_block_key(key)) return;
     const uint32_t slot = table.slots[b];
-    if (!(changed[slot] & kMeshPending)) return;
-    changed[slot] = static_cast<uint8_t>(changed[slot] & ~kMeshPending);
+    if (!(changed[slot] & map::kMeshPending)) return;
+    changed[slot] = static_cast<uint8_t>(changed[slot] & ~map::kMeshPending);
     // A cube reads the block of its first corner and its +x/+y/+z neighbours, so a changed
     // block also changes the meshes of the seven blocks just below it.
-    const Index3D block = unpack_block_key(key);
+    const Index3D block = map::unpack_block_key(key);
     for (int c = 0; c < 8; ++c) {
       const uint32_t below = table.slot_of(block - Index3D(c & 1, (c >> 1) & 1, (c >> 2) & 1));
-      if (below != kInvalidSlot) atomic_add(&affected[below], 1u);
+      if (below != map::kInvalidSlot) atomic_add(&affected[below], 1u);
     }
   });
   // Compact to the affected blocks, in bucket order (each block's mesh depends only on the
@@ -524,8 +524,9 @@ int64_t mesh_select_blocks(Backend backend, TsdfMap& map, MeshScratchBuffers& sc
   scratch.vertex_ids.resize_discard(buckets + 1);
   uint32_t* flags = scratch.flags.data();
   parallel_for(backend, stream, buckets + 1, [=] COVOX_HD(int64_t b) {
-    flags[b] =
-        b < buckets && is_live_block_key(table.keys[b]) && affected[table.slots[b]] > 0 ? 1u : 0u;
+    flags[b] = b < buckets && map::is_live_block_key(table.keys[b]) && affected[table.slots[b]] > 0
+                   ? 1u
+                   : 0u;
   });
   exclusive_scan(backend, stream, flags, buckets + 1, scratch.vertex_ids.data());
   const int64_t selected = scratch.vertex_ids.element(buckets, stream);
@@ -533,15 +534,15 @@ int64_t mesh_select_blocks(Backend backend, TsdfMap& map, MeshScratchBuffers& sc
   Index3D* blocks = scratch.blocks.data();
   const uint32_t* ranks = scratch.vertex_ids.data();
   parallel_for(backend, stream, buckets, [=] COVOX_HD(int64_t b) {
-    if (flags[b]) blocks[ranks[b]] = unpack_block_key(table.keys[b]);
+    if (flags[b]) blocks[ranks[b]] = map::unpack_block_key(table.keys[b]);
   });
   return selected;
 }
 
-#define COVOX_INSTANTIATE_MESH_INTEGRATOR(Backend)                                                \
-  template int64_t mesh_extract<Backend>(Backend, TsdfMap&, float, MeshWeld, MeshScratchBuffers&, \
-                                         int64_t*, const Stream&, int64_t);                       \
-  template int64_t mesh_select_blocks<Backend>(Backend, TsdfMap&, MeshScratchBuffers&,            \
+#define COVOX_INSTANTIATE_MESH_INTEGRATOR(Backend)                                               \
+  template int64_t mesh_extract<Backend>(Backend, map::TsdfMap&, float, MeshWeld,                \
+                                         MeshScratchBuffers&, int64_t*, const Stream&, int64_t); \
+  template int64_t mesh_select_blocks<Backend>(Backend, map::TsdfMap&, MeshScratchBuffers&,      \
                                                const Stream&);
 
-}  // namespace covox
+}  // namespace covox::integrators

@@ -18,8 +18,7 @@
 #include "covoxslam/integrators/internal/tsdf_kernels.h"
 #include "covoxslam/map/tsdf_map.h"
 
-namespace covox {
-namespace tsdf {
+namespace covox::integrators::tsdf {
 
 // What every stage of a frame works with.
 template <class Backend>
@@ -27,7 +26,7 @@ struct FrameContext {
   Backend backend;
   const Stream& stream;
   const TsdfIntegratorConfig& config;
-  TsdfMap& map;
+  map::TsdfMap& map;
   TsdfScratchBuffers& scratch;
   StageProfiler::Scope& profile;
 };
@@ -165,7 +164,7 @@ inline TsdfFramePlan plan_rays(const TsdfIntegratorConfig& config, const FramePo
 // box do not fit the records' fields.
 inline void plan_visits(TsdfFramePlan* plan, const TsdfIntegratorConfig& config,
                         const FrameStrategy& strategy, Device backend, const FrameRays& rays,
-                        const TsdfMap& map, int64_t last_listed_blocks) {
+                        const map::TsdfMap& map, int64_t last_listed_blocks) {
   plan->total_updates = rays.tally.voxels;
   plan->ray_count = rays.count;
   if (plan->has_color && rays.count >= static_cast<int64_t>(ColorVisit::kBandVisitBit)) {
@@ -201,5 +200,4 @@ inline void plan_visits(TsdfFramePlan* plan, const TsdfIntegratorConfig& config,
       plan->sums_every_visit() && defers_block_count(last_listed_blocks, map.voxels_per_block());
 }
 
-}  // namespace tsdf
-}  // namespace covox
+}  // namespace covox::integrators::tsdf

@@ -10,8 +10,7 @@
 #include "covoxslam/core/memory.h"
 #include "covoxslam/core/stream.h"
 
-namespace covox {
-namespace tsdf {
+namespace covox::integrators::tsdf {
 
 struct FrameResults {
   // The frame's distinct blocks (written by the kernel that lists them), then a queued
@@ -84,5 +83,4 @@ inline DroppedRecords dropped_records(const FrameResults& results, int64_t recor
   return dropped;
 }
 
-}  // namespace tsdf
-}  // namespace covox
+}  // namespace covox::integrators::tsdf

@@ -11,7 +11,7 @@
 // a unit weight) whatever order the visits arrive in.
 #include <cstdint>
 
-namespace covox {
+namespace covox::integrators {
 
 class TsdfIntegrator;
 
@@ -42,4 +42,4 @@ class IntegratorInternals {
 };
 
 }  // namespace tsdf
-}  // namespace covox
+}  // namespace covox::integrators

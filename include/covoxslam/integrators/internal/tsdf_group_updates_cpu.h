@@ -18,8 +18,7 @@
 
 #include "covoxslam/integrators/internal/tsdf_kernels.h"
 
-namespace covox {
-namespace tsdf {
+namespace covox::integrators::tsdf {
 
 // More blocks than this in a frame's box (only boxes of 64-bit keys come near it) and the
 // per-thread block histograms would cost more than the radix sort they replace.
@@ -195,5 +194,4 @@ GroupCounts group_updates_by_voxel_cpu(const FrameKeyCodec& codec, const KeyT* k
   return counts;
 }
 
-}  // namespace tsdf
-}  // namespace covox
+}  // namespace covox::integrators::tsdf

@@ -19,7 +19,7 @@
 #include "covoxslam/integrators/internal/tsdf_stage_write_voxels.h"
 #include "covoxslam/integrators/internal/tsdf_integrator_ops.h"
 
-namespace covox {
+namespace covox::integrators {
 namespace tsdf {
 
 // Stages 2b to 5 with the frame's record types: KeyT 32-bit when the frame's box allows (almost
@@ -116,7 +116,7 @@ inline WeightParameters weight_parameters_of(const TsdfIntegratorConfig& config,
 // stages 2b to 5.
 template <class Backend>
 IntegrationStats integrate_frame(Backend backend, const TsdfIntegratorConfig& config,
-                                 const FrameStrategy& strategy, TsdfMap& map,
+                                 const FrameStrategy& strategy, map::TsdfMap& map,
                                  const FramePoints& points, const Eigen::Isometry3d& T_map_sensor,
                                  TsdfScratchBuffers& scratch, const Stream& stream) {
   IntegrationStats stats;
@@ -159,7 +159,7 @@ IntegrationStats integrate_frame(Backend backend, const TsdfIntegratorConfig& co
 
 template <class Backend>
 IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConfig& config,
-                                       const tsdf::FrameStrategy& strategy, TsdfMap& map,
+                                       const tsdf::FrameStrategy& strategy, map::TsdfMap& map,
                                        const PointCloudView& cloud,
                                        const Eigen::Isometry3d& T_map_sensor,
                                        TsdfScratchBuffers& scratch, const Stream& stream) {
@@ -170,7 +170,7 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
 
 template <class Backend>
 IntegrationStats tsdf_integrate_depth_image(Backend backend, const TsdfIntegratorConfig& config,
-                                            const tsdf::FrameStrategy& strategy, TsdfMap& map,
+                                            const tsdf::FrameStrategy& strategy, map::TsdfMap& map,
                                             const tsdf::DepthImagePoints& image,
                                             const Eigen::Isometry3d& T_map_camera,
                                             TsdfScratchBuffers& scratch, const Stream& stream) {
@@ -194,13 +194,13 @@ void tsdf_unproject_depth(Backend backend, const tsdf::DepthImagePoints& image,
 
 #define COVOX_INSTANTIATE_TSDF_INTEGRATOR(Backend)                                          \
   template IntegrationStats tsdf_integrate_points<Backend>(                                 \
-      Backend, const TsdfIntegratorConfig&, const tsdf::FrameStrategy&, TsdfMap&,           \
+      Backend, const TsdfIntegratorConfig&, const tsdf::FrameStrategy&, map::TsdfMap&,      \
       const PointCloudView&, const Eigen::Isometry3d&, TsdfScratchBuffers&, const Stream&); \
   template IntegrationStats tsdf_integrate_depth_image<Backend>(                            \
-      Backend, const TsdfIntegratorConfig&, const tsdf::FrameStrategy&, TsdfMap&,           \
+      Backend, const TsdfIntegratorConfig&, const tsdf::FrameStrategy&, map::TsdfMap&,      \
       const tsdf::DepthImagePoints&, const Eigen::Isometry3d&, TsdfScratchBuffers&,         \
       const Stream&);                                                                       \
   template void tsdf_unproject_depth<Backend>(Backend, const tsdf::DepthImagePoints&,       \
                                               TsdfScratchBuffers&, const Stream&);
 
-}  // namespace covox
+}  // namespace covox::integrators

@@ -10,11 +10,11 @@
 #include "covoxslam/integrators/tsdf_integrator.h"
 #include "covoxslam/integrators/internal/tsdf_kernels.h"
 
-namespace covox {
+namespace covox::integrators {
 
 template <class Backend>
 IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConfig& config,
-                                       const tsdf::FrameStrategy& strategy, TsdfMap& map,
+                                       const tsdf::FrameStrategy& strategy, map::TsdfMap& map,
                                        const PointCloudView& cloud,
                                        const Eigen::Isometry3d& T_map_sensor,
                                        TsdfScratchBuffers& scratch, const Stream& stream);
@@ -25,7 +25,7 @@ IntegrationStats tsdf_integrate_points(Backend backend, const TsdfIntegratorConf
 // than unprojecting first); the simple method has the image unprojected first.
 template <class Backend>
 IntegrationStats tsdf_integrate_depth_image(Backend backend, const TsdfIntegratorConfig& config,
-                                            const tsdf::FrameStrategy& strategy, TsdfMap& map,
+                                            const tsdf::FrameStrategy& strategy, map::TsdfMap& map,
                                             const tsdf::DepthImagePoints& image,
                                             const Eigen::Isometry3d& T_map_camera,
                                             TsdfScratchBuffers& scratch, const Stream& stream);
@@ -37,4 +37,4 @@ template <class Backend>
 void tsdf_unproject_depth(Backend backend, const tsdf::DepthImagePoints& image,
                           TsdfScratchBuffers& scratch, const Stream& stream);
 
-}  // namespace covox
+}  // namespace covox::integrators

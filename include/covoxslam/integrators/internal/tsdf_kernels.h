@@ -11,8 +11,7 @@
 #include "covoxslam/core/internal/warp_reduce.h"
 #include "covoxslam/integrators/tsdf_integrator_config.h"
 
-namespace covox {
-namespace tsdf {
+namespace covox::integrators::tsdf {
 
 // Update keys name a voxel relative to the frame's bounding box of blocks: the block's position
 // in the box (x fastest), then the voxel within the block. Sorting by key therefore groups a
@@ -656,5 +655,4 @@ COVOX_HD_INLINE float update_weight(const WeightParameters& p, float range_m, fl
   return weight;
 }
 
-}  // namespace tsdf
-}  // namespace covox
+}  // namespace covox::integrators::tsdf

@@ -16,8 +16,7 @@
 #include "covoxslam/core/vec3.h"
 #include "covoxslam/integrators/internal/tsdf_kernels.h"
 
-namespace covox {
-namespace tsdf {
+namespace covox::integrators::tsdf {
 
 // 2^30 units per metre: every float coordinate of magnitude >= 2^-7 m is a whole number of units
 // (its ulp is at least 2^-30), so the mean of identical points is the point itself; and 64-bit
@@ -210,5 +209,4 @@ COVOX_HD_INLINE MergeTallyStripe sum_merge_tally_stripes(const MergeTallyStripe*
   return sum;
 }
 
-}  // namespace tsdf
-}  // namespace covox
+}  // namespace covox::integrators::tsdf

@@ -9,8 +9,7 @@
 #include "covoxslam/core/macros.h"
 #include "covoxslam/integrators/internal/tsdf_kernels.h"
 
-namespace covox {
-namespace tsdf {
+namespace covox::integrators::tsdf {
 
 struct RayTally {
   int64_t kinds[6] = {0, 0, 0, 0, 0, 0};  // input points, by what became of them
@@ -63,5 +62,4 @@ struct AddTallies {
   }
 };
 
-}  // namespace tsdf
-}  // namespace covox
+}  // namespace covox::integrators::tsdf

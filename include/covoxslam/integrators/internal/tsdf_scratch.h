@@ -14,7 +14,7 @@
 #include "covoxslam/integrators/internal/tsdf_kernels.h"
 #include "covoxslam/integrators/internal/tsdf_ray_merging.h"
 
-namespace covox {
+namespace covox::integrators {
 
 struct TsdfScratchBuffers {
   // The frame's points when they are not the caller's: depth images unprojected (or read in place
@@ -188,4 +188,4 @@ T* clean_frame_scratch(Buffer<T>& buffer, bool& clean, size_t needed, const Stre
 }
 
 }  // namespace tsdf
-}  // namespace covox
+}  // namespace covox::integrators

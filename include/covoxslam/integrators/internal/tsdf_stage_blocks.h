@@ -19,8 +19,7 @@
 #include "covoxslam/integrators/internal/tsdf_stage_walk_visits.h"
 #include "covoxslam/map/block_activator.h"
 
-namespace covox {
-namespace tsdf {
+namespace covox::integrators::tsdf {
 
 // The frame's listed blocks and their activation.
 struct BlockListing {
@@ -36,11 +35,11 @@ struct BlockListing {
   bool queued = false;  // an activation queued on the device (activate_queued)
   std::optional<PendingReadBack> queued_totals;  // its totals, on their way while the sort runs
   bool activates_while_listing = false;          // an in-kernel activation (BlockActivator)
-  BlockActivator activator;
+  map::BlockActivator activator;
   // With the in-kernel activation and a small frame: the pass that writes the voxels reads the
   // listed blocks' count on the device (TsdfFramePlan::defers_block_count).
   bool pass_counted_on_device = false;
-  ActivateResult activation;
+  map::ActivateResult activation;
   FrameResults results{};   // the device's figures as last read back
   uint32_t pool_slots = 0;  // the slots below this one have voxels in the pool
 };
@@ -51,14 +50,15 @@ struct BlockListing {
 // every later frame's blocks.
 class PendingActivationGuard {
  public:
-  PendingActivationGuard(BlockHashTable& table, const uint32_t* queued_totals, const Stream& stream)
+  PendingActivationGuard(map::BlockHashTable& table, const uint32_t* queued_totals,
+                         const Stream& stream)
       : table_(table), queued_totals_(queued_totals), stream_(stream) {}
   PendingActivationGuard(const PendingActivationGuard&) = delete;
   PendingActivationGuard& operator=(const PendingActivationGuard&) = delete;
   ~PendingActivationGuard() { table_.abandon_pending_activation(queued_totals_, stream_); }
 
  private:
-  BlockHashTable& table_;
+  map::BlockHashTable& table_;
   const uint32_t* queued_totals_;
   const Stream& stream_;
 };
@@ -112,7 +112,7 @@ struct ListMarkedBlock {
   Index3D* block_indices;
   bool activate_here;
   uint32_t* slots;
-  BlockActivator activator;
+  map::BlockActivator activator;
   uint8_t* is_new;
   COVOX_HD_INLINE void operator()(int64_t b, uint32_t rank) const {
     marked_ranks[b] = rank;
@@ -246,7 +246,7 @@ int64_t finish_activation(const FrameContext<Backend>& frame, const TsdfFramePla
   frame.map.ensure_pool_capacity(frame.stream);
   // (with the activation deferred, new slots past the pool wait for a second pass)
   listing->pool_slots =
-      static_cast<uint32_t>(std::min<int64_t>(frame.map.pool_slots(), kInvalidSlot));
+      static_cast<uint32_t>(std::min<int64_t>(frame.map.pool_slots(), map::kInvalidSlot));
   frame.profile.mark("4c pool capacity");
   return listing->activation.num_new;
 }
@@ -254,19 +254,19 @@ int64_t finish_activation(const FrameContext<Backend>& frame, const TsdfFramePla
 // A new block may reuse the slot of an erased one: its voxels cleared. (The voxel writes mark the
 // blocks changed, for the ESDF and the mesh.)
 struct ClearNewBlocks {
-  TsdfMap::TsdfStorage::View tsdf_view;
-  TsdfMap::ColorStorage::View color_view;
-  TsdfMap::EsdfStorage::View esdf_view;
+  map::TsdfMap::TsdfStorage::View tsdf_view;
+  map::TsdfMap::ColorStorage::View color_view;
+  map::TsdfMap::EsdfStorage::View esdf_view;
   const uint8_t* is_new;
   const uint32_t* slots;
   int64_t voxels_per_block;
   COVOX_HD_INLINE void operator()(int64_t i) const {
     const int64_t b = i / voxels_per_block;
-    if (!is_new[b] || slots[b] == kInvalidSlot) return;
+    if (!is_new[b] || slots[b] == map::kInvalidSlot) return;
     const int64_t index = static_cast<int64_t>(slots[b]) * voxels_per_block + i % voxels_per_block;
-    tsdf_view.store(index, TsdfVoxel{});
-    color_view.store(index, ColorVoxel{});
-    esdf_view.store(index, EsdfVoxel{});
+    tsdf_view.store(index, map::TsdfVoxel{});
+    color_view.store(index, map::ColorVoxel{});
+    esdf_view.store(index, map::EsdfVoxel{});
   }
 };
 
@@ -275,12 +275,11 @@ struct ClearNewBlocks {
 template <class Backend>
 void clear_new_blocks(const FrameContext<Backend>& frame, const BlockListing& listing) {
   if (listing.activation.num_new <= 0) return;
-  TsdfMap& map = frame.map;
+  map::TsdfMap& map = frame.map;
   const int64_t voxels_per_block = map.voxels_per_block();
   parallel_for(frame.backend, frame.stream, int64_t(listing.results.blocks) * voxels_per_block,
                ClearNewBlocks{map.tsdf().view(), map.color().view(), map.esdf().view(),
                               listing.is_new, listing.slots, voxels_per_block});
 }
 
-}  // namespace tsdf
-}  // namespace covox
+}  // namespace covox::integrators::tsdf

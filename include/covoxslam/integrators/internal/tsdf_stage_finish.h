@@ -8,8 +8,7 @@
 #include "covoxslam/core/parallel.h"
 #include "covoxslam/integrators/internal/tsdf_stage_write_voxels.h"
 
-namespace covox {
-namespace tsdf {
+namespace covox::integrators::tsdf {
 
 // Whether record j starts a voxel whose block the hash table rejected.
 template <class KeyT>
@@ -22,8 +21,9 @@ struct FlagRejectedVoxels {
     const KeyT key = record_keys[j];
     const bool voxel_start = j == 0 || key != record_keys[j - 1];
     rejected[j] =
-        voxel_start && key < out_of_range_key && record_slots.slot_of(j, key) == kInvalidSlot ? 1u
-                                                                                              : 0u;
+        voxel_start && key < out_of_range_key && record_slots.slot_of(j, key) == map::kInvalidSlot
+            ? 1u
+            : 0u;
   }
 };
 struct IsFlagged {
@@ -49,7 +49,7 @@ void count_frame_voxels(const FrameContext<Backend>& frame, const TsdfFramePlan&
   stats->voxels_out_of_range =
       (records.grouped ? records.grouping.out_of_range : dropped.out_of_range) +
       results.free_out_of_range + results.free_rejected;
-  const ActivateResult& activation = listing.activation;
+  const map::ActivateResult& activation = listing.activation;
   if (activation.num_out_of_range + activation.num_failed_full > 0 && record_count > 0) {
     // Rare: count the voxels whose block the hash table rejected (outside its key range, or full).
     // (The rays' piece counts are dead by now: their buffer holds the flags.)
@@ -64,5 +64,4 @@ void count_frame_voxels(const FrameContext<Backend>& frame, const TsdfFramePlan&
   }
 }
 
-}  // namespace tsdf
-}  // namespace covox
+}  // namespace covox::integrators::tsdf

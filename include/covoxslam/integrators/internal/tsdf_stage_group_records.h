@@ -11,8 +11,7 @@
 #include "covoxslam/core/internal/radix_sort.h"
 #include "covoxslam/integrators/internal/tsdf_stage_walk_visits.h"
 
-namespace covox {
-namespace tsdf {
+namespace covox::integrators::tsdf {
 
 // Step 5's terms when the records are sums already (no colour, or the CPU twin's merged voxels).
 template <class SumT>
@@ -65,5 +64,4 @@ void sort_records(const FrameContext<Backend>& frame, const TsdfFramePlan& plan,
   records->record_keys = records->keys;  // the sort may have swapped the buffers
 }
 
-}  // namespace tsdf
-}  // namespace covox
+}  // namespace covox::integrators::tsdf

@@ -17,8 +17,7 @@
 #include "covoxslam/integrators/internal/tsdf_ray_tally.h"
 #include "covoxslam/integrators/internal/tsdf_ray_merging.h"
 
-namespace covox {
-namespace tsdf {
+namespace covox::integrators::tsdf {
 
 // Frees one slot of the merge table.
 struct FreeMergeSlot {
@@ -518,5 +517,4 @@ FrameRays merge_rays(const FrameContext<Backend>& frame, const FramePoints& poin
   return rays;
 }
 
-}  // namespace tsdf
-}  // namespace covox
+}  // namespace covox::integrators::tsdf

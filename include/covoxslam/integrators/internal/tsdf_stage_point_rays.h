@@ -7,8 +7,7 @@
 #include "covoxslam/integrators/internal/tsdf_frame_plan.h"
 #include "covoxslam/integrators/internal/tsdf_ray_tally.h"
 
-namespace covox {
-namespace tsdf {
+namespace covox::integrators::tsdf {
 
 // One thread per place in tile order: the stores are contiguous, the reads 32 pixels of a tile.
 struct UnprojectPixels {
@@ -95,5 +94,4 @@ FrameRays point_rays(const FrameContext<Backend>& frame, const FramePoints& poin
   return rays;
 }
 
-}  // namespace tsdf
-}  // namespace covox
+}  // namespace covox::integrators::tsdf

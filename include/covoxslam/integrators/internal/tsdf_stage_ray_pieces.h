@@ -10,8 +10,7 @@
 #include "covoxslam/core/internal/sorted_search.h"
 #include "covoxslam/integrators/internal/tsdf_frame_plan.h"
 
-namespace covox {
-namespace tsdf {
+namespace covox::integrators::tsdf {
 
 // The frame's visits as the walk sees them, without a piece table.
 inline FrameUpdates frame_updates(const TsdfFramePlan& plan, const FrameRays& rays,
@@ -140,5 +139,4 @@ FrameUpdates ray_pieces_frame(const FrameContext<Backend>& frame, const TsdfFram
   return updates;
 }
 
-}  // namespace tsdf
-}  // namespace covox
+}  // namespace covox::integrators::tsdf

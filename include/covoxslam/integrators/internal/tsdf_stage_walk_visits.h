@@ -10,8 +10,7 @@
 #include "covoxslam/integrators/internal/tsdf_group_updates_cpu.h"
 #include "covoxslam/integrators/internal/tsdf_traverse.h"
 
-namespace covox {
-namespace tsdf {
+namespace covox::integrators::tsdf {
 
 // A voxel's sum of visits: with colour (the records are ColorVisit) a VoxelUpdate.
 template <class ValueT>
@@ -121,5 +120,4 @@ void walk_visits(const FrameContext<Backend>& frame, const TsdfFramePlan& plan,
   records->record_keys = records->keys;
 }
 
-}  // namespace tsdf
-}  // namespace covox
+}  // namespace covox::integrators::tsdf

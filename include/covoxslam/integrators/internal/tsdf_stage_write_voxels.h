@@ -14,8 +14,7 @@
 #include "covoxslam/integrators/internal/tsdf_stage_group_records.h"
 #include "covoxslam/integrators/internal/tsdf_stage_merge_rays.h"
 
-namespace covox {
-namespace tsdf {
+namespace covox::integrators::tsdf {
 
 // A voxel's free-space sum (fixed point, tsdf_kernels.h) added to its band visits' sum.
 template <class SumT>
@@ -32,7 +31,7 @@ template <class ColorView>
 COVOX_HD_INLINE void blend_color(const ColorView& color_view, int64_t index,
                                  const VoxelUpdate& update, float max_weight) {
   if (update.color_weight <= 0.0f) return;
-  ColorVoxel color = color_view.load(index);
+  map::ColorVoxel color = color_view.load(index);
   const float color_combined = color.weight + update.color_weight;
   const float old_part = color.weight / color_combined;
   const float inverse_new = 1.0f / color_combined;
@@ -50,13 +49,13 @@ COVOX_HD_INLINE void blend_color(const ColorView& color_view, int64_t index,
 // visits (DistanceUpdate, or VoxelUpdate with colour). Holds the pools' views: taken again after
 // the pools grow.
 struct VoxelMerge {
-  TsdfMap::TsdfStorage::View tsdf_view;
-  TsdfMap::ColorStorage::View color_view;
+  map::TsdfMap::TsdfStorage::View tsdf_view;
+  map::TsdfMap::ColorStorage::View color_view;
   float truncation;
   float max_weight;
   template <class SumT>
   COVOX_HD_INLINE void operator()(int64_t index, const SumT& update) const {
-    TsdfVoxel voxel = tsdf_view.load(index);
+    map::TsdfVoxel voxel = tsdf_view.load(index);
     const float combined = voxel.weight + update.weight;
     float distance = (voxel.distance_m * voxel.weight + update.weighted_distance) / combined;
     distance =
@@ -120,9 +119,9 @@ struct WriteVoxelRun {
     }
     const FrameKeyCodec& codec = record_slots.codec;
     const uint32_t slot = record_slots.slot_of(j, key);
-    if (slot == kInvalidSlot) return;
+    if (slot == map::kInvalidSlot) return;
     if (j == 0 || codec.block_part(record_keys[j - 1]) != codec.block_part(key)) {
-      block_changed[slot] = kAllPending;  // once per block: its first voxel
+      block_changed[slot] = map::kAllPending;  // once per block: its first voxel
     }
     if (update.weight <= 0.0f) return;
     merge_into_voxel(static_cast<int64_t>(slot) * voxels_per_block + codec.voxel_in_block(key),
@@ -139,7 +138,7 @@ void write_record_voxels(const FrameContext<Backend>& frame, const TsdfFramePlan
                          const BlockListing& listing) {
   using SumT = VisitSumOf<ValueT>;
   TsdfScratchBuffers& scratch = frame.scratch;
-  TsdfMap& map = frame.map;
+  map::TsdfMap& map = frame.map;
   const float truncation = frame.config.truncation_distance_m;
   const KeyT out_of_range_key = static_cast<KeyT>(plan.codec.out_of_range_key);
   FrameResults* results = scratch.results.data();
@@ -204,7 +203,7 @@ struct WriteListedCells {
   FrameResults* results;
   uint64_t* free_out_of_range;
   bool hands_over_activation;
-  BlockActivator activator;
+  map::BlockActivator activator;
   MergeTallyStripe* tally_stripes;
   bool first_pass;
   uint32_t slot_begin;
@@ -217,9 +216,9 @@ struct WriteListedCells {
   VoxelSumCells sum_cells;
   uint64_t* free_space_sums;
   float truncation;
-  TsdfMap::TsdfStorage::View tsdf_view;
-  TsdfMap::ColorStorage::View color_view;
-  TsdfMap::EsdfStorage::View esdf_view;
+  map::TsdfMap::TsdfStorage::View tsdf_view;
+  map::TsdfMap::ColorStorage::View color_view;
+  map::TsdfMap::EsdfStorage::View esdf_view;
   VoxelMerge merge_into_voxel;
   uint8_t* block_changed;
 
@@ -246,18 +245,18 @@ struct WriteListedCells {
     const int32_t voxels_per_side = codec.voxels_per_side;
     const int64_t b = i >> voxel_bits;
     const uint32_t slot = slots[b];
-    if (slot == kInvalidSlot ? !first_pass : (slot < slot_begin || slot >= slot_end)) return;
+    if (slot == map::kInvalidSlot ? !first_pass : (slot < slot_begin || slot >= slot_end)) return;
     const Index3D block = block_indices[b];
     const uint64_t block_key = codec.key(
         Index3D(block.x * voxels_per_side, block.y * voxels_per_side, block.z * voxels_per_side));
     const uint64_t key = block_key | static_cast<uint64_t>(i & (voxels_per_block - 1));
     const int64_t index =
         static_cast<int64_t>(slot) * voxels_per_block + (key & ((uint64_t(1) << voxel_bits) - 1));
-    if (sums_every_visit && slot != kInvalidSlot &&
+    if (sums_every_visit && slot != map::kInvalidSlot &&
         is_new[b]) {  // a new block may reuse an erased one's slot
-      tsdf_view.store(index, TsdfVoxel{});
-      color_view.store(index, ColorVoxel{});
-      esdf_view.store(index, EsdfVoxel{});
+      tsdf_view.store(index, map::TsdfVoxel{});
+      color_view.store(index, map::ColorVoxel{});
+      esdf_view.store(index, map::EsdfVoxel{});
     }
     SumT update{};
     bool visited = false;
@@ -268,14 +267,14 @@ struct WriteListedCells {
       add_free_space_sum(update, units, truncation);
       visited = true;
     }
-    if (visited && slot == kInvalidSlot) ++*rejected;
-    if (visited && slot != kInvalidSlot) {
+    if (visited && slot == map::kInvalidSlot) ++*rejected;
+    if (visited && slot != map::kInvalidSlot) {
       ++*written;
       merge_into_voxel(index, update);
     }
     // Every listed block has a kept visit, so it changes (the band's writes mark theirs too).
-    if ((i & (voxels_per_block - 1)) == 0 && slot != kInvalidSlot)
-      block_changed[slot] = kAllPending;
+    if ((i & (voxels_per_block - 1)) == 0 && slot != map::kInvalidSlot)
+      block_changed[slot] = map::kAllPending;
   }
   COVOX_HD_INLINE void operator()(int64_t t) const {
     // the cells first (a warp's 32 cells aligned), then the extra items
@@ -306,7 +305,7 @@ void write_listed_cells(const FrameContext<Backend>& frame, const TsdfFramePlan&
                         bool first_pass, int64_t blocks, const uint32_t* device_blocks,
                         uint32_t slot_begin, uint32_t slot_end) {
   TsdfScratchBuffers& scratch = frame.scratch;
-  TsdfMap& map = frame.map;
+  map::TsdfMap& map = frame.map;
   const int64_t voxels_per_block = map.voxels_per_block();
   const float truncation = frame.config.truncation_distance_m;
   // (the pools' views taken now: the second pass runs after they grew)
@@ -364,7 +363,7 @@ void write_summed_cells(const FrameContext<Backend>& frame, const TsdfFramePlan&
                        listing.pool_slots);
   } else {
     write_listed_cells(frame, plan, records, listing, true, listing.results.blocks, nullptr, 0u,
-                       kInvalidSlot);
+                       map::kInvalidSlot);
   }
 }
 
@@ -385,7 +384,7 @@ int64_t read_frame_end(const FrameContext<Backend>& frame, const TsdfFramePlan& 
     if (frame.map.blocks().slot_count() > listing->pool_slots) {  // past the pool: grown, written
       frame.map.ensure_pool_capacity(frame.stream);
       write_listed_cells(frame, plan, records, *listing, false, listing->results.blocks, nullptr,
-                         listing->pool_slots, kInvalidSlot);
+                         listing->pool_slots, map::kInvalidSlot);
       listing->results = read_frame_results(scratch.results, frame.stream);
     }
   }
@@ -393,5 +392,4 @@ int64_t read_frame_end(const FrameContext<Backend>& frame, const TsdfFramePlan& 
   return listing->activation.num_new;
 }
 
-}  // namespace tsdf
-}  // namespace covox
+}  // namespace covox::integrators::tsdf

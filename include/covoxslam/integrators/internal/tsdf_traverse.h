@@ -36,8 +36,7 @@
 #include "covoxslam/core/stream.h"
 #include "covoxslam/integrators/internal/tsdf_kernels.h"
 
-namespace covox {
-namespace tsdf {
+namespace covox::integrators::tsdf {
 
 // Ray i's weight factor (1 unless the frame gives one per ray, as merged rays do).
 COVOX_HD_INLINE float ray_weight_of(const FrameUpdates& frame, uint32_t i) {
@@ -400,7 +399,7 @@ __device__ uint32_t band_place(uint32_t own, const BandRecords<KeyT, ValueT>& ba
   uint32_t thread_offset = 0, block_total = 0;
   BlockScan(scan_storage).ExclusiveSum(own, thread_offset, block_total);
   if (threadIdx.x < 32) {
-    const uint32_t prefix = single_pass_scan_detail::look_back_tile_prefix(
+    const uint32_t prefix = covox::internal::look_back_tile_prefix(
         descriptors.words, descriptors.epoch, blockIdx.x, block_total);
     if (threadIdx.x == 0) {
       block_prefix = prefix;
@@ -511,5 +510,4 @@ void traverse_pieces(CudaBackend, const Stream& stream, int64_t piece_bound, int
 }
 #endif
 
-}  // namespace tsdf
-}  // namespace covox
+}  // namespace covox::integrators::tsdf

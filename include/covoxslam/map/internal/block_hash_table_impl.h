@@ -22,8 +22,8 @@
 #include "covoxslam/map/internal/block_hash_table_ops.h"
 #include "covoxslam/map/block_hash_table_state.h"
 
-namespace covox {
-namespace hash_table_detail {
+namespace covox::map {
+namespace internal {
 
 // Ranks flagged items (exclusive scan) and returns how many are flagged. `flags` must hold
 // count + 1 elements: the extra one is set to 0 so that the scan's last element is the total,
@@ -48,7 +48,7 @@ inline uint64_t buckets_for(int64_t live_keys, double max_load_factor) {
   return static_cast<uint64_t>(std::ceil(static_cast<double>(live_keys) / max_load_factor)) + 1;
 }
 
-}  // namespace hash_table_detail
+}  // namespace internal
 
 template <class Backend>
 void hash_table_rehash(Backend backend, BlockHashTableState& state, uint64_t new_bucket_count,
@@ -59,7 +59,7 @@ void hash_table_rehash(Backend backend, BlockHashTableState& state, uint64_t new
   }
   Buffer<uint64_t> new_keys(state.device, new_bucket_count);
   Buffer<uint32_t> new_slots(state.device, new_bucket_count);
-  hash_table_detail::fill_empty(backend, stream, &new_keys);
+  internal::fill_empty(backend, stream, &new_keys);
   const BlockHashTableView from = state.view();
   const BlockHashTableView to{new_keys.data(), new_slots.data(), new_bucket_count};
   parallel_for(backend, stream, static_cast<int64_t>(from.bucket_count), [=] COVOX_HD(int64_t b) {
@@ -112,7 +112,7 @@ void hash_table_grow_for_batch(Backend backend, BlockHashTableState& state, cons
   hash_table_rehash(backend, state, buckets, stream);
 }
 
-namespace hash_table_detail {
+namespace internal {
 
 // Steps 1 to 3 for the first `count` keys, or, when `count_on_device` is given, for the first
 // *count_on_device of them (`count` is then a bound; the keys past it get no bucket), in one
@@ -202,7 +202,7 @@ ActivateResult activate_finish(Backend backend, BlockHashTableState& state, int6
   return activate_finish_counted(state, num_new, failed - full, full);
 }
 
-}  // namespace hash_table_detail
+}  // namespace internal
 
 template <class Backend>
 ActivateResult hash_table_activate(Backend backend, BlockHashTableState& state, const Index3D* keys,
@@ -210,14 +210,13 @@ ActivateResult hash_table_activate(Backend backend, BlockHashTableState& state, 
                                    const Stream& stream) {
   if (count <= 0) return ActivateResult{};
   if (state.config.allow_growth) hash_table_grow_for_batch(backend, state, keys, count, stream);
-  hash_table_detail::activate_insert_rank_and_assign(backend, state, keys, count, nullptr, stream);
+  internal::activate_insert_rank_and_assign(backend, state, keys, count, nullptr, stream);
   uint32_t* totals_on_device = state.activation_failures(stream) + 1;
-  hash_table_detail::activate_gather(backend, state, count, slots_out, is_new_out, totals_on_device,
-                                     stream);
+  internal::activate_gather(backend, state, count, slots_out, is_new_out, totals_on_device, stream);
   uint32_t totals[2];
   copy_bytes(totals, Device::kCpu, totals_on_device, state.activation_words.device(),
              sizeof(totals), stream);
-  return hash_table_detail::activate_finish(backend, state, count, totals[0], totals[1], stream);
+  return internal::activate_finish(backend, state, count, totals[0], totals[1], stream);
 }
 
 template <class Backend>
@@ -229,10 +228,9 @@ bool hash_table_activate_queued(Backend backend, BlockHashTableState& state, con
     throw Error("BlockHashTable::activate_queued: the previous one is not finished");
   // Growth needs the exact count of new keys: the caller takes the synchronous path then.
   if (count_bound <= 0 || state.might_grow_for(count_bound)) return false;
-  hash_table_detail::activate_insert_rank_and_assign(backend, state, keys, count_bound,
-                                                     count_on_device, stream);
-  hash_table_detail::activate_gather(backend, state, count_bound, slots_out, is_new_out, totals_out,
-                                     stream);
+  internal::activate_insert_rank_and_assign(backend, state, keys, count_bound, count_on_device,
+                                            stream);
+  internal::activate_gather(backend, state, count_bound, slots_out, is_new_out, totals_out, stream);
   state.pending_count = count_bound;
   return true;
 }
@@ -244,7 +242,7 @@ ActivateResult hash_table_finish_queued(Backend backend, BlockHashTableState& st
     throw Error("BlockHashTable::finish_queued_activation: no activation is queued");
   const int64_t count = state.pending_count;
   state.pending_count = -1;
-  return hash_table_detail::activate_finish(backend, state, count, num_new, failed, stream);
+  return internal::activate_finish(backend, state, count, num_new, failed, stream);
 }
 
 template <class Backend>
@@ -280,8 +278,8 @@ int64_t hash_table_erase(Backend backend, BlockHashTableState& state, const Inde
       table.slots[bucket] = kInvalidSlot;
     }
   });
-  const int64_t num_erased = hash_table_detail::rank_flags(backend, stream, state.scratch_flags,
-                                                           &state.scratch_ranks, count);
+  const int64_t num_erased =
+      internal::rank_flags(backend, stream, state.scratch_flags, &state.scratch_ranks, count);
   if (num_erased == 0) return 0;
   const size_t needed = static_cast<size_t>(state.free_count) + static_cast<size_t>(num_erased);
   if (state.free_slots.size() < needed) {
@@ -311,8 +309,7 @@ void hash_table_export(Backend backend, BlockHashTableState& state, Buffer<Index
   parallel_for(backend, stream, buckets, [=] COVOX_HD(int64_t b) {
     live_flags[b] = is_live_block_key(table.keys[b]) ? 1u : 0u;
   });
-  hash_table_detail::rank_flags(backend, stream, state.scratch_flags, &state.scratch_ranks,
-                                buckets);
+  internal::rank_flags(backend, stream, state.scratch_flags, &state.scratch_ranks, buckets);
   const uint32_t* ranks = state.scratch_ranks.data();
   Index3D* out_keys = keys_out->data();
   uint32_t* out_slots = slots_out->data();
@@ -342,4 +339,4 @@ void hash_table_export(Backend backend, BlockHashTableState& state, Buffer<Index
   template void hash_table_export<Backend>(Backend, BlockHashTableState&, Buffer<Index3D>*,        \
                                            Buffer<uint32_t>*, const Stream&);
 
-}  // namespace covox
+}  // namespace covox::map

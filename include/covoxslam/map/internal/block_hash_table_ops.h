@@ -8,14 +8,14 @@
 #include "covoxslam/core/stream.h"
 #include "covoxslam/map/block_hash_table_state.h"
 
-namespace covox {
+namespace covox::map {
 
-namespace hash_table_detail {
+namespace internal {
 // An activation's host part once its totals are known: slot bookkeeping, the failure totals and
 // their warnings (block_hash_table.cpp).
 ActivateResult activate_finish_counted(BlockHashTableState& state, int64_t num_new,
                                        int64_t num_out_of_range, int64_t num_failed_full);
-}  // namespace hash_table_detail
+}  // namespace internal
 
 template <class Backend>
 void hash_table_rehash(Backend backend, BlockHashTableState& state, uint64_t new_bucket_count,
@@ -42,4 +42,4 @@ template <class Backend>
 void hash_table_export(Backend backend, BlockHashTableState& state, Buffer<Index3D>* keys_out,
                        Buffer<uint32_t>* slots_out, const Stream& stream);
 
-}  // namespace covox
+}  // namespace covox::map

@@ -3,7 +3,7 @@
 #include "covoxslam/core/parallel.h"
 #include "covoxslam/map/voxel_pool_ops.h"
 
-namespace covox {
+namespace covox::map {
 
 template <class Backend, class Voxel, Layout L>
 void gather_voxel_distances(Backend backend, const Stream& stream, VoxelView<Voxel, L> voxels,
@@ -42,4 +42,4 @@ void blend_tsdf_updates(Backend backend, const Stream& stream, VoxelView<Voxel, 
   COVOX_INSTANTIATE_VOXEL_POOL_OPS_FOR(Backend, ColoredTsdfVoxel, Layout::kSoA) \
   COVOX_INSTANTIATE_VOXEL_POOL_OPS_FOR(Backend, ColoredTsdfVoxel, Layout::kAoS)
 
-}  // namespace covox
+}  // namespace covox::map

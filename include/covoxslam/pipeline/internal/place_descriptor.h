@@ -43,7 +43,7 @@ inline void place_unpack_span(uint64_t span, int32_t* top, int32_t* bottom) {
 // Fills `keys` and `spans` with one entry per map column that holds a surface voxel, in key
 // order; returns their number.
 template <class Backend>
-int64_t place_surface_columns(Backend backend, VoxelView<TsdfVoxel, Layout::kSoA> tsdf,
+int64_t place_surface_columns(Backend backend, VoxelView<map::TsdfVoxel, Layout::kSoA> tsdf,
                               const Index3D* block_indices, const uint32_t* block_slots,
                               int64_t block_count, int32_t side, float surface_band_m,
                               Buffer<uint64_t>* keys, Buffer<uint64_t>* spans,

@@ -20,7 +20,7 @@ struct PlaceSpanMerge {
 // One (block, column of the block): the highest and lowest layer of that column holding a surface
 // voxel, as a column key and a packed span; ~0 as the key when the column holds none.
 struct PlaceColumnSpan {
-  VoxelView<TsdfVoxel, Layout::kSoA> tsdf;
+  VoxelView<map::TsdfVoxel, Layout::kSoA> tsdf;
   const Index3D* block_indices;
   const uint32_t* block_slots;
   int32_t side;
@@ -37,8 +37,8 @@ struct PlaceColumnSpan {
     bool any = false;
     for (int32_t z = 0; z < side; ++z) {
       const int64_t index = base + static_cast<int64_t>(z) * per_block;
-      const float weight = tsdf.template get<&TsdfVoxel::weight>(index);
-      const float distance = tsdf.template get<&TsdfVoxel::distance_m>(index);
+      const float weight = tsdf.template get<&map::TsdfVoxel::weight>(index);
+      const float distance = tsdf.template get<&map::TsdfVoxel::distance_m>(index);
       if (!(weight > 0.0f) || !(distance < surface_band_m && distance > -surface_band_m)) continue;
       const int32_t layer = block.z * side + z;
       if (!any) bottom = layer;
@@ -55,7 +55,7 @@ struct PlaceColumnSpan {
 };
 
 template <class Backend>
-int64_t place_surface_columns(Backend backend, VoxelView<TsdfVoxel, Layout::kSoA> tsdf,
+int64_t place_surface_columns(Backend backend, VoxelView<map::TsdfVoxel, Layout::kSoA> tsdf,
                               const Index3D* block_indices, const uint32_t* block_slots,
                               int64_t block_count, int32_t side, float surface_band_m,
                               Buffer<uint64_t>* keys, Buffer<uint64_t>* spans,
@@ -80,9 +80,9 @@ int64_t place_surface_columns(Backend backend, VoxelView<TsdfVoxel, Layout::kSoA
   return runs - (has_unused ? 1 : 0);
 }
 
-#define COVOX_INSTANTIATE_PLACE_DESCRIPTOR(Backend)                                          \
-  template int64_t place_surface_columns<Backend>(                                           \
-      Backend, VoxelView<TsdfVoxel, Layout::kSoA>, const Index3D*, const uint32_t*, int64_t, \
+#define COVOX_INSTANTIATE_PLACE_DESCRIPTOR(Backend)                                               \
+  template int64_t place_surface_columns<Backend>(                                                \
+      Backend, VoxelView<map::TsdfVoxel, Layout::kSoA>, const Index3D*, const uint32_t*, int64_t, \
       int32_t, float, Buffer<uint64_t>*, Buffer<uint64_t>*, const Stream&);
 
 }  // namespace pipeline
