@@ -4,7 +4,8 @@
 # ATE RMSE against the ground truth (translation + yaw alignment, as run_slam reports it).
 #   tools/accuracy_sweep.sh [-b BUILD_DIR] [-o OUTPUT_DIR] SEED...
 # Environment: SWEEP_COLUMNS (LiDAR columns, default 256 as make demo), SWEEP_DEVICE
-# (auto|cpu|cuda, default auto).
+# (auto|cpu|cuda, default auto), SWEEP_ARGS (more run_slam arguments, e.g. "--config F" to map
+# the flights with settings of F over the preset's).
 set -euo pipefail
 build=build
 out=sweep_output
@@ -19,6 +20,7 @@ shift $((OPTIND - 1))
 [ $# -gt 0 ] || { echo "usage: $0 [-b BUILD_DIR] [-o OUTPUT_DIR] SEED..." >&2; exit 2; }
 columns=${SWEEP_COLUMNS:-256}
 device=${SWEEP_DEVICE:-auto}
+read -r -a extra_args <<< "${SWEEP_ARGS:-}"
 
 bin=""
 for candidate in "$build" "$build/devel/lib/covoxslam"; do
@@ -35,7 +37,7 @@ for seed in "$@"; do
       > "$out/simulate_seed$seed.txt" 2>&1
   fi
   log="$out/run_slam_seed$seed.txt"
-  "$bin/run_slam" --bag "$flight/flight.bag" --device "$device" --quiet \
+  "$bin/run_slam" --bag "$flight/flight.bag" --device "$device" --quiet "${extra_args[@]}" \
     --trajectory "$out/covoxslam_seed$seed.tum" --mesh "$out/mesh_seed$seed.ply" > "$log"
   odometry=$(sed -n 's/^  odometry alone *\([0-9.]*\) m RMSE.*/\1/p' "$log")
   covoxslam=$(sed -n 's/^  covoxslam *\([0-9.]*\) m RMSE.*/\1/p' "$log")
