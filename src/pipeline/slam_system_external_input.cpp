@@ -246,7 +246,6 @@ void SlamSystem::load_submaps(std::vector<SubmapSnapshot> submaps) {
   integrators::EsdfIntegrator esdf(config_.esdf);
   integrators::MeshIntegrator mesher(config_.mesh);
   std::vector<GraphSubmap> loaded;
-  std::vector<std::vector<uint8_t>> loaded_bytes;  // compact forms, for the store after the reset
   loaded.reserve(submaps.size());
   for (SubmapSnapshot& snapshot : submaps) {
     auto submap =
@@ -257,7 +256,6 @@ void SlamSystem::load_submaps(std::vector<SubmapSnapshot> submaps) {
       throw Error("load_submaps: submap " + std::to_string(snapshot.id) + ": " + error.what());
     }
     snapshot.blocks.clear();
-    loaded_bytes.push_back(store_->quantize(*submap, stream));
     submap->finish(esdf, mesher, stream);
     std::unique_ptr<SubmapRegistrationPoints> points;
     if (config_.registration.enabled)
@@ -280,9 +278,8 @@ void SlamSystem::load_submaps(std::vector<SubmapSnapshot> submaps) {
   reset_locked();
   {
     std::lock_guard<std::mutex> lock(state_mutex_);
-    for (size_t k = 0; k < loaded.size(); ++k) {
-      GraphSubmap& entry = loaded[k];
-      store_->adopt(*entry.submap, std::move(loaded_bytes[k]));
+    for (GraphSubmap& entry : loaded) {
+      store_->add(*entry.submap);
       pose_graph_.add_submap(entry.submap->id(), entry.submap->pose(), /*loaded=*/true);
       graph_submaps_.push_back(std::move(entry));
     }

@@ -52,31 +52,15 @@ SubmapStore::~SubmapStore() {
 
 void SubmapStore::add(const Submap& submap) {
   if (!enabled()) return;
-  adopt(submap, {});
-}
-
-std::vector<uint8_t> SubmapStore::quantize(Submap& submap, const Stream& stream) const {
-  if (!enabled()) return {};
-  std::vector<uint8_t> bytes = io::encode_submap(submap.map(), distance_scale_m_);
-  // Rebuilt in a fresh map, as every later restore is, so its block slots are laid out alike.
-  submap.map() = map::TsdfMap(submap.map().device(), submap.map().config());
-  io::load_encoded_submap(bytes, &submap.map(), stream);
-  return bytes;
-}
-
-void SubmapStore::adopt(const Submap& submap, std::vector<uint8_t> bytes) {
-  if (!enabled()) return;
   Entry entry;
-  entry.bytes = std::move(bytes);
-  entry.size = entry.bytes.size();
   entry.resident_bytes = voxel_pool_bytes(submap.map());
   std::lock_guard<std::mutex> lock(mutex_);
   entry.last_use = ++use_clock_;
-  auto [it, inserted] = entries_.emplace(submap.id(), std::move(entry));
-  if (!inserted) throw Error("SubmapStore: submap " + std::to_string(submap.id()) + " added twice");
+  const int64_t resident_bytes = entry.resident_bytes;
+  if (!entries_.emplace(submap.id(), std::move(entry)).second)
+    throw Error("SubmapStore: submap " + std::to_string(submap.id()) + " added twice");
   ++counters_.submaps_resident;
-  counters_.resident_bytes += it->second.resident_bytes;
-  counters_.compact_bytes += static_cast<int64_t>(it->second.size);
+  counters_.resident_bytes += resident_bytes;
 }
 
 void SubmapStore::acquire(Submap& submap, integrators::EsdfIntegrator& esdf, const Stream& stream) {

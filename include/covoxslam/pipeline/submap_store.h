@@ -74,15 +74,9 @@ class SubmapStore {
   // False with device_budget_mb 0: the store does nothing and submaps stay resident.
   bool enabled() const { return config_.device_budget_mb > 0.0; }
 
-  // A finished submap (after Submap::finish()), resident with its voxels as integrated; it is
-  // encoded when it is first compacted.
+  // A finished or loaded submap (after Submap::finish()), resident with its voxels as they are; it
+  // is encoded when it is first compacted.
   void add(const Submap& submap);
-  // A loaded submap, already decoded from a map file: quantize() returns its compact bytes and
-  // makes its voxels their decoded form, adopt() takes the resident submap with those bytes, so
-  // it leaves memory losslessly from the start. With the store disabled, quantize() returns
-  // nothing and leaves the voxels, and adopt() does nothing.
-  std::vector<uint8_t> quantize(Submap& submap, const Stream& stream) const;
-  void adopt(const Submap& submap, std::vector<uint8_t> bytes);
   // Makes the submap's voxels resident again (decoded, ESDF recomputed; a no-op if they are) and
   // marks it used.
   void acquire(Submap& submap, integrators::EsdfIntegrator& esdf, const Stream& stream);
