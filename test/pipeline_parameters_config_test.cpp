@@ -241,6 +241,17 @@ std::map<std::string, Expectation> expectations() {
       {"place_recognition.max_residual_rms_vox",
        {"0.6",
         [](const SlamConfig& c) { return c.place_recognition.max_residual_rms_vox == 0.6; }}},
+      {"place_recognition.odometry_drift_m_per_m",
+       {"0.05",
+        [](const SlamConfig& c) { return c.place_recognition.odometry_drift_m_per_m == 0.05; }}},
+      {"place_recognition.odometry_drift_deg_per_m",
+       {"0.3",
+        [](const SlamConfig& c) { return c.place_recognition.odometry_drift_deg_per_m == 0.3; }}},
+      {"place_recognition.max_odometry_mahalanobis_sq",
+       {"9",
+        [](const SlamConfig& c) {
+          return c.place_recognition.max_odometry_mahalanobis_sq == 9.0;
+        }}},
   };
 }
 

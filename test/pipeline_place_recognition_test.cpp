@@ -286,6 +286,46 @@ TEST(PlaceRecognizer, ClosesARevisitWhoseEstimateIsMetresAndDegreesOff) {
   EXPECT_EQ(recent.candidates, 1);
 }
 
+TEST(PlaceRecognizer, AClosureTheOdometryCannotExplainIsRejected) {
+  const sim::World yard = test_scene::make_yard();
+  const Stream stream(Device::kCpu);
+  // The revisit of the test above: the right closure moves submap 10 about 9 m and 30 degrees
+  // from where its odometry puts it. After 1000 m of path the odometry may have drifted that far
+  // (2 % per metre: 20 m); after 50 m it cannot (1 m), so the same alignment is then rejected.
+  const Eigen::Isometry3d truth_0 = test_scene::pose_4dof(-2.0, 1.0, 1.5, 0.3);
+  const Eigen::Isometry3d truth_10 = test_scene::pose_4dof(-1.0, -0.2, 1.5, 0.3 + 1.2217);
+  const Eigen::Isometry3d drift = test_scene::pose_4dof(7.0, -5.5, 0.1, 30.0 * kDegToRad);
+  const std::unique_ptr<Submap> submap_0 =
+      yard_submap(0, yard, truth_0, Eigen::Isometry3d::Identity(), stream);
+  const std::unique_ptr<Submap> submap_10 = yard_submap(10, yard, truth_10, drift, stream);
+  const SubmapRegistrationConfig registration = test_scene::yard_config().registration;
+  const auto points_0 = prepare_registration_points(submap_0->map(), registration, stream);
+  const auto points_10 = prepare_registration_points(submap_10->map(), registration, stream);
+  auto closures_after = [&](double path_m, PlaceRecognitionCounts* counts) {
+    PlaceRecognitionConfig config;
+    config.enabled = true;
+    config.max_descriptor_distance = 1.0;
+    PlaceRecognizer recognizer(config);
+    RegistrationOdometry odometry_0, odometry_10;
+    odometry_0.known = odometry_10.known = true;
+    odometry_0.pose = submap_0->odometry_pose();
+    odometry_10.pose = submap_10->odometry_pose();
+    odometry_10.path_m = path_m;
+    recognizer.propose(0, submap_0->map(), *points_0, submap_0->pose(), {}, {}, registration,
+                       stream, nullptr, odometry_0, counts);
+    const std::vector<RegistrationPartner> earlier{RegistrationPartner{
+        0, &submap_0->map(), submap_0->pose(), nullptr, points_0.get(), odometry_0}};
+    return recognizer.propose(10, submap_10->map(), *points_10, submap_10->pose(), earlier, {},
+                              registration, stream, nullptr, odometry_10, counts);
+  };
+  PlaceRecognitionCounts long_path, short_path;
+  EXPECT_EQ(closures_after(1000.0, &long_path).size(), 1u);
+  EXPECT_EQ(long_path.registration.rejected_by_odometry, 0);
+  EXPECT_TRUE(closures_after(50.0, &short_path).empty());
+  EXPECT_EQ(short_path.verified, 1);
+  EXPECT_EQ(short_path.registration.rejected_by_odometry, 1);
+}
+
 TEST(PlaceRecognitionConfig, ValidationNamesTheParameter) {
   PlaceRecognitionConfig config;
   EXPECT_NO_THROW(validate(config));

@@ -45,6 +45,13 @@ void validate(const PlaceRecognitionConfig& config) {
   require(std::isfinite(config.min_overlap_score) && config.min_overlap_score >= 0.0 &&
               config.min_overlap_score <= 1.0,
           "min_overlap_score must be in [0, 1]");
+  require(std::isfinite(config.odometry_drift_m_per_m) && config.odometry_drift_m_per_m >= 0.0,
+          "odometry_drift_m_per_m must be finite and >= 0");
+  require(std::isfinite(config.odometry_drift_deg_per_m) && config.odometry_drift_deg_per_m >= 0.0,
+          "odometry_drift_deg_per_m must be finite and >= 0");
+  require(std::isfinite(config.max_odometry_mahalanobis_sq) &&
+              config.max_odometry_mahalanobis_sq >= 0.0,
+          "max_odometry_mahalanobis_sq must be finite and >= 0 (0: off)");
 }
 
 std::vector<SurfaceColumn> surface_columns(const map::TsdfMap& map, double surface_band_m,
@@ -296,6 +303,36 @@ void PlaceRecognizer::clear() {
   index_.clear();
 }
 
+SubmapRegistrationConfig PlaceRecognizer::closure_checks(
+    const SubmapRegistrationConfig& registration) const {
+  // The registration's tests, at least as strict as max_residual_rms_vox and
+  // max_odometry_mahalanobis_sq: a candidate's alignment starts from a guess, not from a pose the
+  // odometry vouches for.
+  SubmapRegistrationConfig checked = registration;
+  double& max_rms_vox = checked.acceptance.max_residual_rms_vox;
+  if (!(max_rms_vox > 0.0) || max_rms_vox > config_.max_residual_rms_vox) {
+    max_rms_vox = config_.max_residual_rms_vox;
+  }
+  double& max_sq = checked.verification.max_mahalanobis_sq;
+  if (config_.max_odometry_mahalanobis_sq > 0.0 &&
+      (!(max_sq > 0.0) || max_sq > config_.max_odometry_mahalanobis_sq)) {
+    max_sq = config_.max_odometry_mahalanobis_sq;
+  }
+  return checked;
+}
+
+RegistrationOdometry PlaceRecognizer::with_closure_drift(RegistrationOdometry odometry) const {
+  odometry.drift_m_per_m = std::max(odometry.drift_m_per_m, config_.odometry_drift_m_per_m);
+  odometry.drift_rad_per_m =
+      std::max(odometry.drift_rad_per_m, config_.odometry_drift_deg_per_m * kPi / 180.0);
+  return odometry;
+}
+
+RegistrationPartner PlaceRecognizer::with_closure_drift(RegistrationPartner partner) const {
+  partner.odometry = with_closure_drift(partner.odometry);
+  return partner;
+}
+
 const PlaceRecognizer::Entry* PlaceRecognizer::find(int64_t id) const {
   const auto it = std::lower_bound(descriptors_.begin(), descriptors_.end(), id,
                                    [](const Entry& e, int64_t value) { return e.id < value; });
@@ -317,13 +354,8 @@ std::vector<SubmapConstraint> PlaceRecognizer::propose(
       descriptor.empty()
           ? std::vector<int64_t>()
           : index_.nearest(descriptor.ring_key, static_cast<size_t>(config_.candidates), max_id);
-  // The registration's tests, with the residual test at least as strict as max_residual_rms_vox:
-  // a candidate's alignment starts from a guess, not from a pose the odometry vouches for.
-  SubmapRegistrationConfig checked = registration;
-  double& max_rms_vox = checked.acceptance.max_residual_rms_vox;
-  if (!(max_rms_vox > 0.0) || max_rms_vox > config_.max_residual_rms_vox) {
-    max_rms_vox = config_.max_residual_rms_vox;
-  }
+  SubmapRegistrationConfig checked = closure_checks(registration);
+  const RegistrationOdometry closure_odometry = with_closure_drift(odometry);
   for (int64_t candidate : nearest) {
     const Entry* entry = find(candidate);
     const auto partner =
@@ -356,9 +388,9 @@ std::vector<SubmapConstraint> PlaceRecognizer::propose(
     guess.z = relative_pose_4dof(partner->pose, pose).z;
     ++counts->verified;
     SubmapConstraint constraint;
-    if (registration_constraint_from_guess(id, map, points, pose, *partner, guess, checked, stream,
-                                           &counts->registration, own_walls, odometry,
-                                           &constraint)) {
+    if (registration_constraint_from_guess(id, map, points, pose, with_closure_drift(*partner),
+                                           guess, checked, stream, &counts->registration, own_walls,
+                                           closure_odometry, &constraint)) {
       ++counts->accepted;
       constraints.push_back(constraint);
     }

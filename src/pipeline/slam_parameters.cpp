@@ -404,6 +404,13 @@ void add_place_recognition_parameters(std::vector<SlamParameter>* table) {
                            in_closed_unit_interval),
           number_parameter("place_recognition.max_residual_rms_vox",
                            COVOX_FIELD(place_recognition.max_residual_rms_vox), positive),
+          number_parameter("place_recognition.odometry_drift_m_per_m",
+                           COVOX_FIELD(place_recognition.odometry_drift_m_per_m), non_negative),
+          number_parameter("place_recognition.odometry_drift_deg_per_m",
+                           COVOX_FIELD(place_recognition.odometry_drift_deg_per_m), non_negative),
+          number_parameter("place_recognition.max_odometry_mahalanobis_sq",
+                           COVOX_FIELD(place_recognition.max_odometry_mahalanobis_sq),
+                           non_negative),
       });
 }
 

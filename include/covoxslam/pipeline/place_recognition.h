@@ -73,6 +73,16 @@ struct PlaceRecognitionConfig {
   // The verifying alignment's residual RMS limit in voxels (registration.acceptance's
   // max_residual_rms_vox, applied here even where the registration's own is off or looser).
   double max_residual_rms_vox = 0.8;
+  // Closures are checked against the odometry as registration.verification checks alignments
+  // (odometry_mahalanobis_sq), with at least this drift per metre of path between the two
+  // submaps where the pose graph's own odometry drift is smaller or 0: the most the odometry can
+  // plausibly drift, so that a revisit far from its estimate passes and an alike place whose
+  // offset the odometry cannot explain does not.
+  double odometry_drift_m_per_m = 0.02;
+  double odometry_drift_deg_per_m = 0.1;
+  // The check's threshold on the squared Mahalanobis distance (x, y, z, yaw), applied where
+  // registration.verification's is off or looser; 0: closures are not checked.
+  double max_odometry_mahalanobis_sq = 16.0;
 };
 
 // Throws covox::Error naming the first invalid parameter (prefix "place_recognition.").
@@ -199,6 +209,11 @@ class PlaceRecognizer {
     PlaceDescriptor descriptor;
   };
   const Entry* find(int64_t id) const;
+  // The registration's tests as closures need them (see PlaceRecognitionConfig).
+  SubmapRegistrationConfig closure_checks(const SubmapRegistrationConfig& registration) const;
+  // The odometry with at least the closures' drift per metre.
+  RegistrationOdometry with_closure_drift(RegistrationOdometry odometry) const;
+  RegistrationPartner with_closure_drift(RegistrationPartner partner) const;
 
   PlaceRecognitionConfig config_;
   std::vector<Entry> descriptors_;  // in id order
