@@ -1,6 +1,9 @@
 #include "covoxslam/pipeline/submap_store.h"
 
 #include <fcntl.h>
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 #include <unistd.h>
 
 #include <algorithm>
@@ -26,6 +29,16 @@ constexpr double kBytesPerMb = 1024.0 * 1024.0;
 
 // Bytes of one voxel across the three SoA pools (fields only: SoA stores no padding).
 constexpr int64_t kVoxelBytes = (4 + 4) + (1 + 1 + 1 + 4) + (4 + 1 + 1);
+
+// Hands the heap's free pages back to the system. A compaction frees a map's pools (host memory
+// on the CPU backend) and the encoder's per-block temporaries, but glibc keeps freed heap memory
+// that lies below live allocations (the compact bytes themselves), so without this the process's
+// resident memory would keep what the budget released.
+void return_freed_host_memory() {
+#if defined(__GLIBC__)
+  malloc_trim(0);
+#endif
+}
 
 }  // namespace
 
@@ -105,6 +118,7 @@ void SubmapStore::enforce(const std::vector<Submap*>& candidates, int64_t keep) 
   std::stable_sort(
       least_recent_first.begin(), least_recent_first.end(),
       [](const auto& a, const auto& b) { return a.second->last_use < b.second->last_use; });
+  const int64_t compactions_before = counters_.compactions;
   const double device_budget = config_.device_budget_mb * kBytesPerMb;
   for (auto& [submap, entry] : least_recent_first) {
     if (static_cast<double>(counters_.resident_bytes) <= device_budget) break;
@@ -116,6 +130,7 @@ void SubmapStore::enforce(const std::vector<Submap*>& candidates, int64_t keep) 
     if (entry->resident || entry->bytes.empty()) continue;
     if (!spill_locked(submap->id(), *entry)) break;  // no disk: keep everything in memory
   }
+  if (counters_.compactions != compactions_before) return_freed_host_memory();
 }
 
 void SubmapStore::compact_locked(Submap& submap, Entry& entry) {
