@@ -226,18 +226,31 @@ std::unique_ptr<Submap> yard_submap(int64_t id, const sim::World& yard,
   return submap;
 }
 
-TEST(PlaceRecognizer, ClosesARevisitWhoseEstimateIsMetresAndDegreesOff) {
+// Submap 10 revisits submap 0's place in the yard 1.5 m away, turned by 70 degrees; its odometry
+// has drifted 9 m and 30 degrees, so the estimate shares no block with submap 0.
+struct YardRevisit {
+  explicit YardRevisit(const Stream& stream)
+      : submap_0(yard_submap(0, yard, truth_0, Eigen::Isometry3d::Identity(), stream)),
+        submap_10(yard_submap(10, yard, truth_10, drift, stream)),
+        points_0(prepare_registration_points(submap_0->map(), registration, stream)),
+        points_10(prepare_registration_points(submap_10->map(), registration, stream)) {}
   const sim::World yard = test_scene::make_yard();
-  const Stream stream(Device::kCpu);
-  // Submap 10 revisits submap 0's place 1.5 m away, turned by 70 degrees; its odometry has
-  // drifted 9 m and 30 degrees, so the estimate shares no block with submap 0.
   const Eigen::Isometry3d truth_0 = test_scene::pose_4dof(-2.0, 1.0, 1.5, 0.3);
   const Eigen::Isometry3d truth_10 = test_scene::pose_4dof(-1.0, -0.2, 1.5, 0.3 + 1.2217);
   const Eigen::Isometry3d drift = test_scene::pose_4dof(7.0, -5.5, 0.1, 30.0 * kDegToRad);
-  const std::unique_ptr<Submap> submap_0 =
-      yard_submap(0, yard, truth_0, Eigen::Isometry3d::Identity(), stream);
-  const std::unique_ptr<Submap> submap_10 = yard_submap(10, yard, truth_10, drift, stream);
-  SubmapRegistrationConfig registration = test_scene::yard_config().registration;
+  const SubmapRegistrationConfig registration = test_scene::yard_config().registration;
+  const std::unique_ptr<Submap> submap_0, submap_10;
+  const std::unique_ptr<SubmapRegistrationPoints> points_0, points_10;
+};
+
+TEST(PlaceRecognizer, ClosesARevisitWhoseEstimateIsMetresAndDegreesOff) {
+  const Stream stream(Device::kCpu);
+  const YardRevisit revisit(stream);
+  const Submap* submap_0 = revisit.submap_0.get();
+  const Submap* submap_10 = revisit.submap_10.get();
+  const SubmapRegistrationPoints* points_0 = revisit.points_0.get();
+  const SubmapRegistrationPoints* points_10 = revisit.points_10.get();
+  const SubmapRegistrationConfig& registration = revisit.registration;
   PlaceRecognitionConfig config;
   config.enabled = true;
   // The polar descriptor is around each submap's origin, and the origins are 1.5 m apart: here
@@ -245,14 +258,12 @@ TEST(PlaceRecognizer, ClosesARevisitWhoseEstimateIsMetresAndDegreesOff) {
   config.max_descriptor_distance = 1.0;
   PlaceRecognizer recognizer(config);
   PlaceRecognitionCounts counts;
-  const auto points_0 = prepare_registration_points(submap_0->map(), registration, stream);
-  const auto points_10 = prepare_registration_points(submap_10->map(), registration, stream);
   EXPECT_TRUE(recognizer
                   .propose(0, submap_0->map(), *points_0, submap_0->pose(), {}, {}, registration,
                            stream, nullptr, {}, &counts)
                   .empty());
   const std::vector<RegistrationPartner> earlier{RegistrationPartner{
-      0, &submap_0->map(), submap_0->pose(), nullptr, points_0.get(), RegistrationOdometry()}};
+      0, &submap_0->map(), submap_0->pose(), nullptr, points_0, RegistrationOdometry()}};
   const std::vector<SubmapConstraint> constraints =
       recognizer.propose(10, submap_10->map(), *points_10, submap_10->pose(), earlier, {},
                          registration, stream, nullptr, {}, &counts);
@@ -270,8 +281,8 @@ TEST(PlaceRecognizer, ClosesARevisitWhoseEstimateIsMetresAndDegreesOff) {
   ASSERT_EQ(constraints.size(), 1u);
   EXPECT_EQ(counts.accepted, 1);
   // The true relative pose of the two submap frames (each the gravity-aligned first scan).
-  const Pose4Dof expected =
-      relative_pose_4dof(pose_4dof_from_isometry(truth_0), pose_4dof_from_isometry(truth_10));
+  const Pose4Dof expected = relative_pose_4dof(pose_4dof_from_isometry(revisit.truth_0),
+                                               pose_4dof_from_isometry(revisit.truth_10));
   const Pose4Dof& m = constraints[0].measurement;
   std::printf("[ place    ] measured (%.3f, %.3f, %.2f deg), true (%.3f, %.3f, %.2f deg)\n", m.x,
               m.y, m.yaw / kDegToRad, expected.x, expected.y, expected.yaw / kDegToRad);
@@ -287,20 +298,16 @@ TEST(PlaceRecognizer, ClosesARevisitWhoseEstimateIsMetresAndDegreesOff) {
 }
 
 TEST(PlaceRecognizer, AClosureTheOdometryCannotExplainIsRejected) {
-  const sim::World yard = test_scene::make_yard();
-  const Stream stream(Device::kCpu);
   // The revisit of the test above: the right closure moves submap 10 about 9 m and 30 degrees
   // from where its odometry puts it. After 1000 m of path the odometry may have drifted that far
   // (2 % per metre: 20 m); after 50 m it cannot (1 m), so the same alignment is then rejected.
-  const Eigen::Isometry3d truth_0 = test_scene::pose_4dof(-2.0, 1.0, 1.5, 0.3);
-  const Eigen::Isometry3d truth_10 = test_scene::pose_4dof(-1.0, -0.2, 1.5, 0.3 + 1.2217);
-  const Eigen::Isometry3d drift = test_scene::pose_4dof(7.0, -5.5, 0.1, 30.0 * kDegToRad);
-  const std::unique_ptr<Submap> submap_0 =
-      yard_submap(0, yard, truth_0, Eigen::Isometry3d::Identity(), stream);
-  const std::unique_ptr<Submap> submap_10 = yard_submap(10, yard, truth_10, drift, stream);
-  const SubmapRegistrationConfig registration = test_scene::yard_config().registration;
-  const auto points_0 = prepare_registration_points(submap_0->map(), registration, stream);
-  const auto points_10 = prepare_registration_points(submap_10->map(), registration, stream);
+  const Stream stream(Device::kCpu);
+  const YardRevisit revisit(stream);
+  const Submap* submap_0 = revisit.submap_0.get();
+  const Submap* submap_10 = revisit.submap_10.get();
+  const SubmapRegistrationPoints* points_0 = revisit.points_0.get();
+  const SubmapRegistrationPoints* points_10 = revisit.points_10.get();
+  const SubmapRegistrationConfig& registration = revisit.registration;
   auto closures_after = [&](double path_m, PlaceRecognitionCounts* counts) {
     PlaceRecognitionConfig config;
     config.enabled = true;
@@ -313,8 +320,8 @@ TEST(PlaceRecognizer, AClosureTheOdometryCannotExplainIsRejected) {
     odometry_10.path_m = path_m;
     recognizer.propose(0, submap_0->map(), *points_0, submap_0->pose(), {}, {}, registration,
                        stream, nullptr, odometry_0, counts);
-    const std::vector<RegistrationPartner> earlier{RegistrationPartner{
-        0, &submap_0->map(), submap_0->pose(), nullptr, points_0.get(), odometry_0}};
+    const std::vector<RegistrationPartner> earlier{
+        RegistrationPartner{0, &submap_0->map(), submap_0->pose(), nullptr, points_0, odometry_0}};
     return recognizer.propose(10, submap_10->map(), *points_10, submap_10->pose(), earlier, {},
                               registration, stream, nullptr, odometry_10, counts);
   };

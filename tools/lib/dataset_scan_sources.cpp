@@ -171,24 +171,39 @@ void keep_points_beyond(const io::PointCloud& cloud, double min_range_m, SourceS
   }
 }
 
-}  // namespace
-
-bool LidarKeyframeScanSource::next(SourceScan* scan) {
-  while (next_scan_ < odometry_.size()) {
-    const size_t index = next_scan_++;
-    const std::string cloud_path =
-        (fs::path(path_) / "Scans" / (six_digits(static_cast<int>(index)) + ".pcd")).string();
+// The next keyframe of a folder of keyframes: its cloud from `read_cloud(index)`, its stamp and
+// odometry pose, its points beyond `min_range_m`. A cloud that cannot be read drops its keyframe
+// (logged, counted in `dropped`) and the next one is tried; false when none is left.
+template <class ReadCloud>
+bool next_keyframe(const std::vector<double>& stamps_s,
+                   const std::vector<Eigen::Isometry3d>& odometry, double min_range_m,
+                   size_t* next_index, int64_t* dropped, const ReadCloud& read_cloud,
+                   SourceScan* scan) {
+  while (*next_index < odometry.size()) {
+    const size_t index = (*next_index)++;
     try {
-      const io::PointCloud cloud = io::read_pcd(cloud_path);
-      scan->stamp_s = stamps_s_[index];
-      scan->T_odom_sensor = odometry_[index];
-      keep_points_beyond(cloud, options_.min_range_m, scan);
+      const io::PointCloud cloud = read_cloud(index);
+      scan->stamp_s = stamps_s[index];
+      scan->T_odom_sensor = odometry[index];
+      keep_points_beyond(cloud, min_range_m, scan);
       return true;
     } catch (const Error& error) {
-      log_dropped_scan(++dropped_, error.what());
+      log_dropped_scan(++*dropped, error.what());
     }
   }
   return false;
+}
+
+}  // namespace
+
+bool LidarKeyframeScanSource::next(SourceScan* scan) {
+  return next_keyframe(
+      stamps_s_, odometry_, options_.min_range_m, &next_scan_, &dropped_,
+      [&](size_t index) {
+        return io::read_pcd(
+            (fs::path(path_) / "Scans" / (six_digits(static_cast<int>(index)) + ".pcd")).string());
+      },
+      scan);
 }
 
 std::string LidarKeyframeScanSource::describe() const {
@@ -264,21 +279,14 @@ LidarKeyframeGraphScanSource::LidarKeyframeGraphScanSource(const std::string& pa
 }
 
 bool LidarKeyframeGraphScanSource::next(SourceScan* scan) {
-  while (next_scan_ < odometry_.size()) {
-    const size_t index = next_scan_++;
-    const std::string cloud_path =
-        (fs::path(path_) / six_digits(static_cast<int>(index)) / "points.bin").string();
-    try {
-      const io::PointCloud cloud = io::read_lidar_bin(cloud_path, io::BinPointLayout::kXyz);
-      scan->stamp_s = stamps_s_[index];
-      scan->T_odom_sensor = odometry_[index];
-      keep_points_beyond(cloud, options_.min_range_m, scan);
-      return true;
-    } catch (const Error& error) {
-      log_dropped_scan(++dropped_, error.what());
-    }
-  }
-  return false;
+  return next_keyframe(
+      stamps_s_, odometry_, options_.min_range_m, &next_scan_, &dropped_,
+      [&](size_t index) {
+        return io::read_lidar_bin(
+            (fs::path(path_) / six_digits(static_cast<int>(index)) / "points.bin").string(),
+            io::BinPointLayout::kXyz);
+      },
+      scan);
 }
 
 std::string LidarKeyframeGraphScanSource::describe() const {
