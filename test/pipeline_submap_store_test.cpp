@@ -212,6 +212,15 @@ TEST(SubmapStore, TheLeastRecentlyUsedSubmapLeavesFirst) {
   EXPECT_EQ(submaps[0]->map().block_count(), 0);
   EXPECT_EQ(submaps[1]->map().block_count(), 4);
   EXPECT_EQ(submaps[2]->map().block_count(), 4);
+  // A sweep (a slice) brings 0 back without marking it used: it leaves first again, and the
+  // resident 1 and 2 stay.
+  store.acquire(*submaps[0], esdf, Stream(), /*mark_used=*/false);
+  EXPECT_EQ(submaps[0]->map().block_count(), 4);
+  store.enforce(graph_order, -1);
+  EXPECT_EQ(store.counters().compactions, 3);
+  EXPECT_EQ(submaps[0]->map().block_count(), 0);
+  EXPECT_EQ(submaps[1]->map().block_count(), 4);
+  EXPECT_EQ(submaps[2]->map().block_count(), 4);
 }
 
 TEST(SubmapStore, AFailedSpillKeepsTheSubmapInMemory) {

@@ -64,7 +64,8 @@ std::vector<integrators::SlicePoint> SlamSystem::esdf_slice_world(double height_
   std::unordered_map<uint64_t, integrators::SlicePoint> cells;
   const Stream stream = Stream::create(config_.device);
   for (const auto& [submap, T_world_submap] : submaps) {
-    acquire_locked(*submap);  // leaves again below, least recently used first, to keep the budget
+    // A sweep: brought back for this slice only, it is the first to leave again below.
+    acquire_locked(*submap, /*mark_used=*/false);
     enforce_budget_locked(submap->id());
     for (const integrators::SlicePoint& point :
          world_slice_of(submap->map(), T_world_submap, height_m, stream)) {

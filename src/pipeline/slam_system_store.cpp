@@ -30,8 +30,8 @@ void SlamSystem::write_submaps(const EncodedSubmapSink& write) {
   }
 }
 
-void SlamSystem::acquire_locked(Submap& submap) {
-  store_->acquire(submap, restore_esdf_, restore_stream_);
+void SlamSystem::acquire_locked(Submap& submap, bool mark_used) {
+  store_->acquire(submap, restore_esdf_, restore_stream_, mark_used);
 }
 
 void SlamSystem::enforce_budget_locked(int64_t keep) {
@@ -75,7 +75,7 @@ std::vector<SubmapSnapshot> SlamSystem::submap_snapshots() {
   std::vector<SubmapSnapshot> snapshots;
   snapshots.reserve(submaps.size());
   for (const auto& [submap, T_world_submap] : submaps) {
-    acquire_locked(*submap);
+    acquire_locked(*submap, /*mark_used=*/false);
     snapshots.push_back(SubmapSnapshot{submap->id(), T_world_submap, submap->map().snapshot()});
     enforce_budget_locked(submap->id());
   }

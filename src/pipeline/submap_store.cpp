@@ -76,13 +76,14 @@ void SubmapStore::add(const Submap& submap) {
   counters_.resident_bytes += resident_bytes;
 }
 
-void SubmapStore::acquire(Submap& submap, integrators::EsdfIntegrator& esdf, const Stream& stream) {
+void SubmapStore::acquire(Submap& submap, integrators::EsdfIntegrator& esdf, const Stream& stream,
+                          bool mark_used) {
   if (!enabled()) return;
   std::lock_guard<std::mutex> lock(mutex_);
   auto it = entries_.find(submap.id());
   if (it == entries_.end()) return;
   Entry& entry = it->second;
-  entry.last_use = ++use_clock_;
+  if (mark_used) entry.last_use = ++use_clock_;
   if (entry.resident) return;
   const auto start = std::chrono::steady_clock::now();
   const bool from_disk = entry.bytes.empty();

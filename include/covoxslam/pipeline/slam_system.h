@@ -468,7 +468,8 @@ class SlamSystem {
   // Brings back the voxels of the partners registration will read (chosen from the kept
   // footprints, so the choice itself needs no voxels).
   void acquire_partners_locked(const std::vector<const RegistrationPartner*>& partners);
-  void acquire_locked(Submap& submap);
+  // `mark_used` false: for sweeps over every submap (SubmapStore::acquire).
+  void acquire_locked(Submap& submap, bool mark_used = true);
   // Compacts and spills down to the budgets, least recently used first; `keep` (an id, or -1)
   // stays.
   void enforce_budget_locked(int64_t keep);

@@ -77,9 +77,12 @@ class SubmapStore {
   // A finished or loaded submap (after Submap::finish()), resident with its voxels as they are; it
   // is encoded when it is first compacted.
   void add(const Submap& submap);
-  // Makes the submap's voxels resident again (decoded, ESDF recomputed; a no-op if they are) and
-  // marks it used.
-  void acquire(Submap& submap, integrators::EsdfIntegrator& esdf, const Stream& stream);
+  // Makes the submap's voxels resident again (decoded, ESDF recomputed; a no-op if they are) and,
+  // with `mark_used`, marks it used. A sweep over every submap (a slice, a snapshot) passes false:
+  // a submap brought back only for the sweep keeps its old use, so it is the first to leave
+  // again, and the resident ones the sweep has yet to read stay.
+  void acquire(Submap& submap, integrators::EsdfIntegrator& esdf, const Stream& stream,
+               bool mark_used = true);
   // Compacts resident submaps among `candidates`, least recently used first, until the resident
   // bytes fit the device budget, then spills compact ones, least recently used first, until the
   // bytes in host memory fit the host budget. `keep` (an id, or -1) stays resident.
