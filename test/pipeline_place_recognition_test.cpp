@@ -246,11 +246,6 @@ struct YardRevisit {
 TEST(PlaceRecognizer, ClosesARevisitWhoseEstimateIsMetresAndDegreesOff) {
   const Stream stream(Device::kCpu);
   const YardRevisit revisit(stream);
-  const Submap* submap_0 = revisit.submap_0.get();
-  const Submap* submap_10 = revisit.submap_10.get();
-  const SubmapRegistrationPoints* points_0 = revisit.points_0.get();
-  const SubmapRegistrationPoints* points_10 = revisit.points_10.get();
-  const SubmapRegistrationConfig& registration = revisit.registration;
   PlaceRecognitionConfig config;
   config.enabled = true;
   // The polar descriptor is around each submap's origin, and the origins are 1.5 m apart: here
@@ -259,14 +254,15 @@ TEST(PlaceRecognizer, ClosesARevisitWhoseEstimateIsMetresAndDegreesOff) {
   PlaceRecognizer recognizer(config);
   PlaceRecognitionCounts counts;
   EXPECT_TRUE(recognizer
-                  .propose(0, submap_0->map(), *points_0, submap_0->pose(), {}, {}, registration,
-                           stream, nullptr, {}, &counts)
+                  .propose(0, revisit.submap_0->map(), *revisit.points_0, revisit.submap_0->pose(),
+                           {}, {}, revisit.registration, stream, nullptr, {}, &counts)
                   .empty());
-  const std::vector<RegistrationPartner> earlier{RegistrationPartner{
-      0, &submap_0->map(), submap_0->pose(), nullptr, points_0, RegistrationOdometry()}};
-  const std::vector<SubmapConstraint> constraints =
-      recognizer.propose(10, submap_10->map(), *points_10, submap_10->pose(), earlier, {},
-                         registration, stream, nullptr, {}, &counts);
+  const std::vector<RegistrationPartner> earlier{
+      RegistrationPartner{0, &revisit.submap_0->map(), revisit.submap_0->pose(), nullptr,
+                          revisit.points_0.get(), RegistrationOdometry()}};
+  const std::vector<SubmapConstraint> constraints = recognizer.propose(
+      10, revisit.submap_10->map(), *revisit.points_10, revisit.submap_10->pose(), earlier, {},
+      revisit.registration, stream, nullptr, {}, &counts);
   std::printf(
       "[ place    ] candidates %lld, rejected: descriptor %lld, overlap %lld; verified "
       "%lld (too far %lld, too few points %lld, misfit %lld, failed %lld)\n",
@@ -292,8 +288,8 @@ TEST(PlaceRecognizer, ClosesARevisitWhoseEstimateIsMetresAndDegreesOff) {
   EXPECT_LT(std::abs(std::remainder(m.yaw - expected.yaw, 2.0 * test_scene::kPi)), 1.0 * kDegToRad);
   // A recent submap is never a candidate: for submap 11, only submap 0 is (10 is excluded).
   PlaceRecognitionCounts recent;
-  recognizer.propose(11, submap_10->map(), *points_10, submap_10->pose(), earlier, {}, registration,
-                     stream, nullptr, {}, &recent);
+  recognizer.propose(11, revisit.submap_10->map(), *revisit.points_10, revisit.submap_10->pose(),
+                     earlier, {}, revisit.registration, stream, nullptr, {}, &recent);
   EXPECT_EQ(recent.candidates, 1);
 }
 
@@ -303,11 +299,6 @@ TEST(PlaceRecognizer, AClosureTheOdometryCannotExplainIsRejected) {
   // (2 % per metre: 20 m); after 50 m it cannot (1 m), so the same alignment is then rejected.
   const Stream stream(Device::kCpu);
   const YardRevisit revisit(stream);
-  const Submap* submap_0 = revisit.submap_0.get();
-  const Submap* submap_10 = revisit.submap_10.get();
-  const SubmapRegistrationPoints* points_0 = revisit.points_0.get();
-  const SubmapRegistrationPoints* points_10 = revisit.points_10.get();
-  const SubmapRegistrationConfig& registration = revisit.registration;
   auto closures_after = [&](double path_m, PlaceRecognitionCounts* counts) {
     PlaceRecognitionConfig config;
     config.enabled = true;
@@ -315,15 +306,17 @@ TEST(PlaceRecognizer, AClosureTheOdometryCannotExplainIsRejected) {
     PlaceRecognizer recognizer(config);
     RegistrationOdometry odometry_0, odometry_10;
     odometry_0.known = odometry_10.known = true;
-    odometry_0.pose = submap_0->odometry_pose();
-    odometry_10.pose = submap_10->odometry_pose();
+    odometry_0.pose = revisit.submap_0->odometry_pose();
+    odometry_10.pose = revisit.submap_10->odometry_pose();
     odometry_10.path_m = path_m;
-    recognizer.propose(0, submap_0->map(), *points_0, submap_0->pose(), {}, {}, registration,
-                       stream, nullptr, odometry_0, counts);
+    recognizer.propose(0, revisit.submap_0->map(), *revisit.points_0, revisit.submap_0->pose(), {},
+                       {}, revisit.registration, stream, nullptr, odometry_0, counts);
     const std::vector<RegistrationPartner> earlier{
-        RegistrationPartner{0, &submap_0->map(), submap_0->pose(), nullptr, points_0, odometry_0}};
-    return recognizer.propose(10, submap_10->map(), *points_10, submap_10->pose(), earlier, {},
-                              registration, stream, nullptr, odometry_10, counts);
+        RegistrationPartner{0, &revisit.submap_0->map(), revisit.submap_0->pose(), nullptr,
+                            revisit.points_0.get(), odometry_0}};
+    return recognizer.propose(10, revisit.submap_10->map(), *revisit.points_10,
+                              revisit.submap_10->pose(), earlier, {}, revisit.registration, stream,
+                              nullptr, odometry_10, counts);
   };
   PlaceRecognitionCounts long_path, short_path;
   EXPECT_EQ(closures_after(1000.0, &long_path).size(), 1u);
