@@ -131,7 +131,7 @@ std::string RgbdScanSource::describe() const {
 
 LidarKeyframeScanSource::LidarKeyframeScanSource(const std::string& path,
                                                  const LidarKeyframeScanOptions& options)
-    : path_(path), options_(options) {
+    : KeyframeFolderScanSource(path, options) {
   const fs::path folder(path);
   const std::vector<Eigen::Isometry3d> odometry =
       io::read_kitti_pose_file((folder / "odom_poses.txt").string());
@@ -171,39 +171,27 @@ void keep_points_beyond(const io::PointCloud& cloud, double min_range_m, SourceS
   }
 }
 
-// The next keyframe of a folder of keyframes: its cloud from `read_cloud(index)`, its stamp and
-// odometry pose, its points beyond `min_range_m`. A cloud that cannot be read drops its keyframe
-// (logged, counted in `dropped`) and the next one is tried; false when none is left.
-template <class ReadCloud>
-bool next_keyframe(const std::vector<double>& stamps_s,
-                   const std::vector<Eigen::Isometry3d>& odometry, double min_range_m,
-                   size_t* next_index, int64_t* dropped, const ReadCloud& read_cloud,
-                   SourceScan* scan) {
-  while (*next_index < odometry.size()) {
-    const size_t index = (*next_index)++;
+}  // namespace
+
+bool KeyframeFolderScanSource::next(SourceScan* scan) {
+  while (next_scan_ < odometry_.size()) {
+    const size_t index = next_scan_++;
     try {
       const io::PointCloud cloud = read_cloud(index);
-      scan->stamp_s = stamps_s[index];
-      scan->T_odom_sensor = odometry[index];
-      keep_points_beyond(cloud, min_range_m, scan);
+      scan->stamp_s = stamps_s_[index];
+      scan->T_odom_sensor = odometry_[index];
+      keep_points_beyond(cloud, options_.min_range_m, scan);
       return true;
     } catch (const Error& error) {
-      log_dropped_scan(++*dropped, error.what());
+      log_dropped_scan(++dropped_, error.what());
     }
   }
   return false;
 }
 
-}  // namespace
-
-bool LidarKeyframeScanSource::next(SourceScan* scan) {
-  return next_keyframe(
-      stamps_s_, odometry_, options_.min_range_m, &next_scan_, &dropped_,
-      [&](size_t index) {
-        return io::read_pcd(
-            (fs::path(path_) / "Scans" / (six_digits(static_cast<int>(index)) + ".pcd")).string());
-      },
-      scan);
+io::PointCloud LidarKeyframeScanSource::read_cloud(size_t index) const {
+  return io::read_pcd(
+      (fs::path(path_) / "Scans" / (six_digits(static_cast<int>(index)) + ".pcd")).string());
 }
 
 std::string LidarKeyframeScanSource::describe() const {
@@ -250,7 +238,7 @@ std::vector<Eigen::Isometry3d> read_keyframe_graph(const std::string& path) {
 
 LidarKeyframeGraphScanSource::LidarKeyframeGraphScanSource(const std::string& path,
                                                            const LidarKeyframeScanOptions& options)
-    : path_(path), options_(options) {
+    : KeyframeFolderScanSource(path, options) {
   if (!(options_.keyframe_interval_s > 0.0)) throw Error("keyframe interval must be positive");
   const std::vector<Eigen::Isometry3d> given =
       read_keyframe_graph((fs::path(path) / "graph.txt").string());
@@ -278,15 +266,10 @@ LidarKeyframeGraphScanSource::LidarKeyframeGraphScanSource(const std::string& pa
   final_drift_m_ = sim::final_drift_m(truth, odometry);
 }
 
-bool LidarKeyframeGraphScanSource::next(SourceScan* scan) {
-  return next_keyframe(
-      stamps_s_, odometry_, options_.min_range_m, &next_scan_, &dropped_,
-      [&](size_t index) {
-        return io::read_lidar_bin(
-            (fs::path(path_) / six_digits(static_cast<int>(index)) / "points.bin").string(),
-            io::BinPointLayout::kXyz);
-      },
-      scan);
+io::PointCloud LidarKeyframeGraphScanSource::read_cloud(size_t index) const {
+  return io::read_lidar_bin(
+      (fs::path(path_) / six_digits(static_cast<int>(index)) / "points.bin").string(),
+      io::BinPointLayout::kXyz);
 }
 
 std::string LidarKeyframeGraphScanSource::describe() const {

@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "covoxslam/io/rgbd_folder.h"
+#include "covoxslam/io/sensor_data.h"
 #include "scan_source.h"
 
 namespace covox {
@@ -70,16 +71,20 @@ struct LidarKeyframeScanOptions {
   double drift_scale = 1.0;
 };
 
-class LidarKeyframeScanSource : public ScanSource {
+// A folder of LiDAR keyframes: the stamps and odometry poses its constructor reads, and one cloud
+// per keyframe read by read_cloud(). A cloud that cannot be read drops its keyframe (logged and
+// counted) and the next one is read.
+class KeyframeFolderScanSource : public ScanSource {
  public:
-  // Throws covox::Error naming the missing or inconsistent file.
-  LidarKeyframeScanSource(const std::string& path, const LidarKeyframeScanOptions& options);
   size_t size() const override { return odometry_.size(); }
   bool next(SourceScan* scan) override;
-  std::string describe() const override;
-  double duration_s() const override;
 
- private:
+ protected:
+  KeyframeFolderScanSource(const std::string& path, const LidarKeyframeScanOptions& options)
+      : path_(path), options_(options) {}
+  // The keyframe's points in the sensor frame; throws covox::Error when they cannot be read.
+  virtual io::PointCloud read_cloud(size_t index) const = 0;
+
   std::string path_;
   LidarKeyframeScanOptions options_;
   std::vector<double> stamps_s_;
@@ -87,22 +92,29 @@ class LidarKeyframeScanSource : public ScanSource {
   size_t next_scan_ = 0;
 };
 
-class LidarKeyframeGraphScanSource : public ScanSource {
+// MulRan's layout: Scans/NNNNNN.pcd, stamps and odom_poses.txt (optimized_poses.txt the reference).
+class LidarKeyframeScanSource : public KeyframeFolderScanSource {
  public:
   // Throws covox::Error naming the missing or inconsistent file.
-  LidarKeyframeGraphScanSource(const std::string& path, const LidarKeyframeScanOptions& options);
-  size_t size() const override { return odometry_.size(); }
-  bool next(SourceScan* scan) override;
+  LidarKeyframeScanSource(const std::string& path, const LidarKeyframeScanOptions& options);
   std::string describe() const override;
   double duration_s() const override;
 
  private:
-  std::string path_;
-  LidarKeyframeScanOptions options_;
-  std::vector<double> stamps_s_;
-  std::vector<Eigen::Isometry3d> odometry_;
+  io::PointCloud read_cloud(size_t index) const override;
+};
+
+// A keyframe graph: graph.txt poses and NNNNNN/points.bin clouds, odometry drifted from the poses.
+class LidarKeyframeGraphScanSource : public KeyframeFolderScanSource {
+ public:
+  // Throws covox::Error naming the missing or inconsistent file.
+  LidarKeyframeGraphScanSource(const std::string& path, const LidarKeyframeScanOptions& options);
+  std::string describe() const override;
+  double duration_s() const override;
+
+ private:
+  io::PointCloud read_cloud(size_t index) const override;
   double final_drift_m_ = 0.0;
-  size_t next_scan_ = 0;
 };
 
 // Opens `path` as whichever dataset layout it holds (RGB-D folder, LiDAR keyframes or a LiDAR
