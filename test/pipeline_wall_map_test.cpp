@@ -99,6 +99,57 @@ TEST(WallMap, SearchRecoversAKnownOffsetFromAPartialView) {
   EXPECT_EQ(again.T_fixed_moving.z, 0.7);
 }
 
+// The score of one pose evaluated on its own: every moving column turned and moved, its distance
+// looked up and scored.
+double direct_score(const WallMap& moving, const WallMap& fixed, double x, double y, double yaw,
+                    double sigma_m) {
+  const double c = std::cos(yaw), s = std::sin(yaw);
+  double score = 0.0;
+  for (const Eigen::Vector2d& column : moving.columns()) {
+    const double px = c * column.x() - s * column.y(), py = s * column.x() + c * column.y();
+    const double d = fixed.distance_m(px + x, py + y);
+    if (d < 3.0 * sigma_m) score += std::exp(-d * d / (2.0 * sigma_m * sigma_m));
+  }
+  return score;
+}
+
+TEST(WallMap, SearchReturnsTheBestPoseOfAPoseByPoseEvaluation) {
+  // Moving columns scattered beyond the fixed map's edges, a guess away from the origin: the
+  // search's best score and pose are those of scoring every grid pose on its own.
+  std::mt19937 random(11);
+  std::uniform_real_distribution<double> coordinate(-9.0, 9.0);
+  std::vector<Eigen::Vector2d> moving_columns;
+  for (int k = 0; k < 300; ++k) moving_columns.emplace_back(coordinate(random), coordinate(random));
+  const WallMap fixed = WallMap::from_columns(yard(), 0.2, 1.0);
+  const WallMap moving = WallMap::from_columns(moving_columns, 0.2, 1.0);
+  WallSearchConfig config;
+  config.range_m = 1.0;
+  config.yaw_range_rad = 2.0 * kDegToRad;
+  config.yaw_step_rad = 1.0 * kDegToRad;
+  const Pose4Dof guess{0.7, -1.3, 0.0, 5.0 * kDegToRad};
+  const WallMatch match = match_walls(moving, fixed, guess, config);
+  double best = -1.0;
+  Pose4Dof best_pose;
+  for (int a = -2; a <= 2; ++a) {
+    for (int cy = -10; cy <= 10; ++cy) {
+      for (int cx = -10; cx <= 10; ++cx) {
+        const Pose4Dof pose{guess.x + cx * config.step_m, guess.y + cy * config.step_m, 0.0,
+                            guess.yaw + a * config.yaw_step_rad};
+        const double score = direct_score(moving, fixed, pose.x, pose.y, pose.yaw, config.sigma_m);
+        if (score > best) {
+          best = score;
+          best_pose = pose;
+        }
+      }
+    }
+  }
+  ASSERT_GT(best, 1.0);
+  EXPECT_NEAR(match.score, best, 1e-9 * best);
+  EXPECT_NEAR(match.T_fixed_moving.x, best_pose.x, 1e-12);
+  EXPECT_NEAR(match.T_fixed_moving.y, best_pose.y, 1e-12);
+  EXPECT_NEAR(match.T_fixed_moving.yaw, best_pose.yaw, 1e-12);
+}
+
 class WallMapTest : public DeviceTest {};
 
 TEST_P(WallMapTest, TheRoomsWallsAreItsWallColumns) {

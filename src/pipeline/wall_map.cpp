@@ -111,6 +111,39 @@ double WallMap::distance_m(double x, double y) const {
   return distance_[static_cast<size_t>(iy) * size_x_ + static_cast<size_t>(ix)];
 }
 
+namespace {
+
+// Per grid offset along one axis, the table cell a moved coordinate falls in (as distance_m
+// computes it), -1 outside the table.
+void cells_along_axis(double coordinate_m, const std::vector<double>& offsets_m, double cell_m,
+                      int32_t origin, int32_t size, std::vector<int64_t>* cells) {
+  for (size_t k = 0; k < offsets_m.size(); ++k) {
+    const int64_t cell =
+        static_cast<int64_t>(std::floor((coordinate_m + offsets_m[k]) / cell_m)) - origin;
+    (*cells)[k] = cell >= 0 && cell < size ? cell : -1;
+  }
+}
+
+// Adds one moved column's score at every grid offset: offset (cx, cy) reads the table at
+// (xs[cx], ys[cy]). Scores accumulate column by column in the columns' order, so every offset's
+// sum is the same sequence of additions as evaluating that offset on its own.
+void add_column_scores(const WallMap::CellTable& table, const std::vector<int64_t>& xs,
+                       const std::vector<int64_t>& ys, std::vector<double>* scores) {
+  const size_t side = xs.size();
+  for (size_t cy = 0; cy < side; ++cy) {
+    double* row_scores = scores->data() + cy * side;
+    if (ys[cy] < 0) {
+      for (size_t cx = 0; cx < side; ++cx) row_scores[cx] += table.outside;
+      continue;
+    }
+    const double* row = table.inside.data() + static_cast<size_t>(ys[cy]) * table.size_x;
+    for (size_t cx = 0; cx < side; ++cx)
+      row_scores[cx] += xs[cx] >= 0 ? row[xs[cx]] : table.outside;
+  }
+}
+
+}  // namespace
+
 WallMatch match_walls(const WallMap& moving, const WallMap& fixed, const backend::Pose4Dof& guess,
                       const WallSearchConfig& config) {
   if (!(config.range_m >= 0.0) || !(config.step_m > 0.0) || !(config.yaw_range_rad >= 0.0) ||
@@ -128,28 +161,34 @@ WallMatch match_walls(const WallMap& moving, const WallMap& fixed, const backend
   const int32_t yaws = 2 * m + 1, side = 2 * n + 1;
   const double inverse_two_sigma2 = 1.0 / (2.0 * config.sigma_m * config.sigma_m);
   const double cutoff_m = 3.0 * config.sigma_m;
-  // Per yaw step its best grid pose; the reduction over yaws is sequential (deterministic).
+  // A column scores exp(-d^2 / (2 sigma^2)) at distance d from the nearest wall, 0 from the
+  // cutoff on: evaluated once per cell of the fixed map instead of once per look-up.
+  const WallMap::CellTable table = fixed.cell_table(
+      [&](double d) { return d < cutoff_m ? std::exp(-d * d * inverse_two_sigma2) : 0.0; });
+  std::vector<double> offsets_x(side), offsets_y(side);
+  for (int32_t k = 0; k < side; ++k) {
+    offsets_x[k] = guess.x + (k - n) * config.step_m;
+    offsets_y[k] = guess.y + (k - n) * config.step_m;
+  }
+  // Per yaw step its best grid pose (cell = cy * side + cx); the reduction over yaws is
+  // sequential (deterministic).
   std::vector<double> best_score(yaws, -1.0);
   std::vector<int64_t> best_cell(yaws, 0);
 #pragma omp parallel for schedule(dynamic, 1)
   for (int32_t a = 0; a < yaws; ++a) {
     const double yaw = guess.yaw + (a - m) * config.yaw_step_rad;
     const double c = std::cos(yaw), s = std::sin(yaw);
-    std::vector<Eigen::Vector2d> turned(columns.size());
-    for (size_t k = 0; k < columns.size(); ++k) {
-      turned[k] = Eigen::Vector2d(c * columns[k].x() - s * columns[k].y(),
-                                  s * columns[k].x() + c * columns[k].y());
+    std::vector<double> scores(static_cast<size_t>(side) * side, 0.0);
+    std::vector<int64_t> xs(side), ys(side);
+    for (const Eigen::Vector2d& column : columns) {
+      const Eigen::Vector2d p(c * column.x() - s * column.y(), s * column.x() + c * column.y());
+      cells_along_axis(p.x(), offsets_x, fixed.cell_m(), table.origin_x, table.size_x, &xs);
+      cells_along_axis(p.y(), offsets_y, fixed.cell_m(), table.origin_y, table.size_y, &ys);
+      add_column_scores(table, xs, ys, &scores);
     }
     for (int64_t cell = 0; cell < int64_t(side) * side; ++cell) {
-      const double tx = guess.x + (cell % side - n) * config.step_m;
-      const double ty = guess.y + (cell / side - n) * config.step_m;
-      double score = 0.0;
-      for (const Eigen::Vector2d& p : turned) {
-        const double d = fixed.distance_m(p.x() + tx, p.y() + ty);
-        if (d < cutoff_m) score += std::exp(-d * d * inverse_two_sigma2);
-      }
-      if (score > best_score[a]) {
-        best_score[a] = score;
+      if (scores[cell] > best_score[a]) {
+        best_score[a] = scores[cell];
         best_cell[a] = cell;
       }
     }

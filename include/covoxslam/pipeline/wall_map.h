@@ -14,8 +14,8 @@
 // (a Gaussian of the distance). The search covers the whole offset range at once, so its result
 // does not depend on a basin, and the aligner then refines from inside its own.
 //
-// The search runs on the host (a few million look-ups per pair, OpenMP over the yaw steps) and is
-// deterministic: the best score wins, ties go to the first grid pose.
+// The search runs on the host (tens of millions of table look-ups per pair, OpenMP over the yaw
+// steps) and is deterministic: the best score wins, ties go to the first grid pose.
 #include <cstdint>
 #include <memory>
 #include <mutex>
@@ -45,6 +45,27 @@ class WallMap {
   double cell_m() const { return cell_m_; }
   // Distance (m) from (x, y) to the nearest wall column, cap_m where none is nearer or outside.
   double distance_m(double x, double y) const;
+
+  // A value of every distance cell and of every point outside the grid, in the grid's layout:
+  // what a search looks up instead of evaluating a function of distance_m at every look-up.
+  struct CellTable {
+    std::vector<double> inside;  // row-major, size_x columns, size_y rows
+    double outside = 0.0;
+    int32_t origin_x = 0, origin_y = 0, size_x = 0, size_y = 0;
+  };
+  // `value` of each cell's distance (as distance_m returns it) and of the cap.
+  template <typename Value>
+  CellTable cell_table(Value value) const {
+    CellTable table;
+    table.inside.reserve(distance_.size());
+    for (const float d : distance_) table.inside.push_back(value(static_cast<double>(d)));
+    table.outside = value(cap_m_);
+    table.origin_x = origin_x_;
+    table.origin_y = origin_y_;
+    table.size_x = size_x_;
+    table.size_y = size_y_;
+    return table;
+  }
 
  private:
   std::vector<Eigen::Vector2d> columns_;
