@@ -139,6 +139,47 @@ TEST_P(SubmapCodecTest, EncodingIsIdempotent) {
   EXPECT_EQ(io::encode_submap(again, kTruncationM), once);
 }
 
+// Decoding side by side (what a restore loads) gives the voxels of decoding block by block, in
+// the same order, and a map loaded either way holds the same blocks; arrays of the wrong length
+// are refused.
+TEST_P(SubmapCodecTest, SideBySideDecodingMatchesBlockByBlock) {
+  map::TsdfMap map(device(), map::TsdfMapConfig{0.2f, 8, {}});
+  integrate_yard(&map);
+  const std::vector<uint8_t> bytes = io::encode_submap(map, kTruncationM);
+  const std::vector<map::HostBlock> blocks = io::decode_submap(bytes, "test");
+  map::HostVoxels voxels;
+  const io::EncodedSubmapInfo info =
+      io::decode_submap_voxels(bytes.data(), bytes.size(), "test", &voxels);
+  ASSERT_EQ(info.blocks, blocks.size());
+  ASSERT_EQ(voxels.indices.size(), blocks.size());
+  const size_t per_block = 8 * 8 * 8;
+  ASSERT_EQ(voxels.tsdf.size(), blocks.size() * per_block);
+  ASSERT_EQ(voxels.color.size(), blocks.size() * per_block);
+  EXPECT_TRUE(voxels.esdf.empty());
+  for (size_t b = 0; b < blocks.size(); ++b) {
+    ASSERT_EQ(voxels.indices[b], blocks[b].index);
+    for (size_t k = 0; k < per_block; ++k) {
+      const map::TsdfVoxel& a = voxels.tsdf[b * per_block + k];
+      const map::ColorVoxel& c = voxels.color[b * per_block + k];
+      ASSERT_EQ(a.distance_m, blocks[b].tsdf[k].distance_m);
+      ASSERT_EQ(a.weight, blocks[b].tsdf[k].weight);
+      ASSERT_EQ(c.r, blocks[b].color[k].r);
+      ASSERT_EQ(c.weight, blocks[b].color[k].weight);
+    }
+  }
+  map::TsdfMap from_blocks(device(), map::TsdfMapConfig{0.2f, 8, {}});
+  from_blocks.load_blocks(blocks, Stream(device()));
+  map::TsdfMap from_bytes(device(), map::TsdfMapConfig{0.2f, 8, {}});
+  io::load_encoded_submap(bytes, &from_bytes, Stream(device()));
+  EXPECT_EQ(io::encode_submap(from_blocks, kTruncationM),
+            io::encode_submap(from_bytes, kTruncationM));
+  map::HostVoxels short_color = voxels;
+  short_color.color.pop_back();
+  map::TsdfMap refused(device(), map::TsdfMapConfig{0.2f, 8, {}});
+  EXPECT_THROW(refused.load_voxels(short_color, Stream(device())), Error);
+  EXPECT_EQ(refused.block_count(), 0);
+}
+
 // The blocks the codec drops hold no observed voxel, so the ESDF computed from the decoded map
 // equals, voxel for voxel, the ESDF computed from the same quantised TSDF with those blocks still
 // allocated (what a pipeline that kept them would compute).

@@ -145,10 +145,77 @@ size_t popcount(const uint8_t* mask, size_t bytes) {
   return count;
 }
 
-// Reads one block; fills `block` when it is not null. `previous` is the index of the block
-// before (null for the first): indices must increase.
+// Where a decoded block's voxels go (per_block of each, zeroed beforehand).
+struct VoxelDestination {
+  map::TsdfVoxel* tsdf;
+  map::ColorVoxel* color;
+};
+
+// Decodes into one HostBlock per block.
+struct BlockListSink {
+  std::vector<map::HostBlock>* blocks;
+  size_t per_block = 0;
+  void begin(const EncodedSubmapInfo& info, size_t voxels_per_block) {
+    per_block = voxels_per_block;
+    blocks->resize(info.blocks);
+  }
+  VoxelDestination block(uint64_t b, const Index3D& index) {
+    map::HostBlock& block = (*blocks)[b];
+    block.index = index;
+    block.tsdf.assign(per_block, map::TsdfVoxel());
+    block.color.assign(per_block, map::ColorVoxel());
+    block.esdf.clear();
+    return {block.tsdf.data(), block.color.data()};
+  }
+};
+
+// Decodes into voxels side by side (map::HostVoxels).
+struct FlatSink {
+  map::HostVoxels* voxels;
+  size_t per_block = 0;
+  void begin(const EncodedSubmapInfo& info, size_t voxels_per_block) {
+    per_block = voxels_per_block;
+    voxels->indices.assign(info.blocks, Index3D());
+    voxels->tsdf.assign(info.blocks * per_block, map::TsdfVoxel());
+    voxels->color.assign(info.blocks * per_block, map::ColorVoxel());
+    voxels->esdf.clear();
+  }
+  VoxelDestination block(uint64_t b, const Index3D& index) {
+    voxels->indices[b] = index;
+    return {voxels->tsdf.data() + b * per_block, voxels->color.data() + b * per_block};
+  }
+};
+
+// Writes the n observed voxels of a block into `to` (zeroed) at the mask's set bits.
+void decode_voxels(const uint8_t* mask, size_t per_block, const uint8_t* distances,
+                   const uint8_t* weights, const uint8_t* rgb, const uint8_t* color_weights,
+                   float distance_scale_m, const VoxelDestination& to) {
+  size_t j = 0;
+  for (size_t k = 0; k < per_block; ++k) {
+    if (((mask[k / 8] >> (k % 8)) & 1u) == 0) continue;
+    int16_t distance;
+    uint16_t weight;
+    std::memcpy(&distance, distances + 2 * j, 2);
+    std::memcpy(&weight, weights + 2 * j, 2);
+    to.tsdf[k].distance_m = dequantise_distance(distance, distance_scale_m);
+    to.tsdf[k].weight = half_to_float(weight);
+    if (rgb) {
+      uint16_t color_weight;
+      std::memcpy(&color_weight, color_weights + 2 * j, 2);
+      to.color[k].r = rgb[3 * j];
+      to.color[k].g = rgb[3 * j + 1];
+      to.color[k].b = rgb[3 * j + 2];
+      to.color[k].weight = half_to_float(color_weight);
+    }
+    ++j;
+  }
+}
+
+// Reads block `b`; hands its voxels to `sink` when it is not null. `previous` is the index of
+// the block before (null for the first): indices must increase.
+template <typename Sink>
 Index3D read_block(ByteReader& r, const EncodedSubmapInfo& info, const Index3D* previous,
-                   map::HostBlock* block) {
+                   uint64_t b, Sink* sink) {
   const size_t per_block =
       static_cast<size_t>(info.voxels_per_side) * info.voxels_per_side * info.voxels_per_side;
   Index3D index;
@@ -166,41 +233,24 @@ Index3D read_block(ByteReader& r, const EncodedSubmapInfo& info, const Index3D* 
   const uint8_t* weights = r.take(n * 2, "weights");
   const uint8_t* rgb = color ? r.take(n * 3, "colours") : nullptr;
   const uint8_t* color_weights = color ? r.take(n * 2, "colour weights") : nullptr;
-  if (!block) return index;
-  block->index = index;
-  block->tsdf.assign(per_block, map::TsdfVoxel());
-  block->color.assign(per_block, map::ColorVoxel());
-  block->esdf.clear();
-  size_t j = 0;
-  for (size_t k = 0; k < per_block; ++k) {
-    if (((mask[k / 8] >> (k % 8)) & 1u) == 0) continue;
-    int16_t distance;
-    uint16_t weight;
-    std::memcpy(&distance, distances + 2 * j, 2);
-    std::memcpy(&weight, weights + 2 * j, 2);
-    block->tsdf[k].distance_m = dequantise_distance(distance, info.distance_scale_m);
-    block->tsdf[k].weight = half_to_float(weight);
-    if (color) {
-      uint16_t color_weight;
-      std::memcpy(&color_weight, color_weights + 2 * j, 2);
-      block->color[k].r = rgb[3 * j];
-      block->color[k].g = rgb[3 * j + 1];
-      block->color[k].b = rgb[3 * j + 2];
-      block->color[k].weight = half_to_float(color_weight);
-    }
-    ++j;
+  if (sink) {
+    decode_voxels(mask, per_block, distances, weights, rgb, color_weights, info.distance_scale_m,
+                  sink->block(b, index));
   }
   return index;
 }
 
-EncodedSubmapInfo walk(const uint8_t* data, size_t size, const char* what,
-                       std::vector<map::HostBlock>* blocks) {
+template <typename Sink>
+EncodedSubmapInfo walk(const uint8_t* data, size_t size, const char* what, Sink* sink) {
   ByteReader r(data, size, what);
   const EncodedSubmapInfo info = read_header(r);
-  if (blocks) blocks->resize(info.blocks);
+  if (sink) {
+    sink->begin(info, static_cast<size_t>(info.voxels_per_side) * info.voxels_per_side *
+                          info.voxels_per_side);
+  }
   Index3D previous;
   for (uint64_t b = 0; b < info.blocks; ++b) {
-    previous = read_block(r, info, b > 0 ? &previous : nullptr, blocks ? &(*blocks)[b] : nullptr);
+    previous = read_block(r, info, b > 0 ? &previous : nullptr, b, sink);
   }
   if (r.remaining() != 0) r.fail("unexpected bytes after the last block");
   return info;
@@ -288,25 +338,33 @@ std::vector<uint8_t> encode_submap(const map::TsdfMap& map, float distance_scale
 
 EncodedSubmapInfo validate_encoded_submap(const uint8_t* data, size_t size, const char* what) {
   if (size < kHeaderBytes) throw Error(std::string(what) + ": truncated submap header");
-  return walk(data, size, what, nullptr);
+  return walk(data, size, what, static_cast<BlockListSink*>(nullptr));
 }
 
 std::vector<map::HostBlock> decode_submap(const uint8_t* data, size_t size, const char* what) {
   std::vector<map::HostBlock> blocks;
-  walk(data, size, what, &blocks);
+  BlockListSink sink{&blocks};
+  walk(data, size, what, &sink);
   return blocks;
+}
+
+EncodedSubmapInfo decode_submap_voxels(const uint8_t* data, size_t size, const char* what,
+                                       map::HostVoxels* voxels) {
+  FlatSink sink{voxels};
+  return walk(data, size, what, &sink);
 }
 
 void load_encoded_submap(const std::vector<uint8_t>& bytes, map::TsdfMap* map,
                          const Stream& stream) {
+  // Decoded straight into the arrays the pools are filled from: no block-by-block copies.
+  map::HostVoxels voxels;
   const EncodedSubmapInfo info =
-      validate_encoded_submap(bytes.data(), bytes.size(), "load_encoded_submap");
+      decode_submap_voxels(bytes.data(), bytes.size(), "load_encoded_submap", &voxels);
   if (info.voxels_per_side != map->voxels_per_side())
     throw Error("load_encoded_submap: the submap has " + std::to_string(info.voxels_per_side) +
                 " voxels per side, the map " + std::to_string(map->voxels_per_side()));
-  const std::vector<map::HostBlock> blocks = decode_submap(bytes, "load_encoded_submap");
   map->clear();
-  map->load_blocks(blocks, stream);
+  map->load_voxels(voxels, stream);
 }
 
 }  // namespace io

@@ -69,33 +69,52 @@ std::vector<HostBlock> TsdfMap::snapshot() const {
 void TsdfMap::load_blocks(const std::vector<HostBlock>& blocks, const Stream& stream) {
   if (block_count() != 0) throw Error("TsdfMap::load_blocks: the map is not empty");
   const size_t per_block = static_cast<size_t>(voxels_per_block());
-  std::vector<Index3D> indices;
-  std::vector<TsdfVoxel> tsdf;
-  std::vector<ColorVoxel> color;
-  std::vector<EsdfVoxel> esdf;
+  const bool with_esdf = std::any_of(blocks.begin(), blocks.end(),
+                                     [](const HostBlock& block) { return !block.esdf.empty(); });
+  HostVoxels voxels;
+  voxels.indices.reserve(blocks.size());
+  voxels.tsdf.reserve(blocks.size() * per_block);
+  voxels.color.reserve(blocks.size() * per_block);
+  if (with_esdf) voxels.esdf.reserve(blocks.size() * per_block);
   for (const HostBlock& block : blocks) {
     if (block.tsdf.size() != per_block || block.color.size() != per_block ||
         (!block.esdf.empty() && block.esdf.size() != per_block)) {
       throw Error("TsdfMap::load_blocks: a block does not have " + std::to_string(per_block) +
                   " voxels");
     }
-    indices.push_back(block.index);
-    tsdf.insert(tsdf.end(), block.tsdf.begin(), block.tsdf.end());
-    color.insert(color.end(), block.color.begin(), block.color.end());
+    voxels.indices.push_back(block.index);
+    voxels.tsdf.insert(voxels.tsdf.end(), block.tsdf.begin(), block.tsdf.end());
+    voxels.color.insert(voxels.color.end(), block.color.begin(), block.color.end());
+    if (!with_esdf) continue;
     if (block.esdf.empty()) {
-      esdf.resize(esdf.size() + per_block);
+      voxels.esdf.resize(voxels.esdf.size() + per_block);
     } else {
-      esdf.insert(esdf.end(), block.esdf.begin(), block.esdf.end());
+      voxels.esdf.insert(voxels.esdf.end(), block.esdf.begin(), block.esdf.end());
     }
   }
-  auto keys = Buffer<Index3D>::from_host(device(), indices, stream);
-  Buffer<uint32_t> slots(device(), indices.size());
-  blocks_.reserve(static_cast<int64_t>(indices.size()));
-  const ActivateResult result = blocks_.activate(keys.data(), static_cast<int64_t>(indices.size()),
-                                                 slots.data(), nullptr, stream);
-  if (!result.ok() || result.num_new != static_cast<int64_t>(indices.size())) {
+  load_voxels(voxels, stream);
+}
+
+void TsdfMap::load_voxels(const HostVoxels& voxels, const Stream& stream) {
+  if (block_count() != 0) throw Error("TsdfMap::load_voxels: the map is not empty");
+  const size_t count = voxels.indices.size();
+  const size_t pool = count * static_cast<size_t>(voxels_per_block());
+  if (voxels.tsdf.size() != pool || voxels.color.size() != pool ||
+      (!voxels.esdf.empty() && voxels.esdf.size() != pool)) {
+    throw Error("TsdfMap::load_voxels: " + std::to_string(count) + " blocks need " +
+                std::to_string(pool) + " voxels per layer, got " +
+                std::to_string(voxels.tsdf.size()) + " TSDF, " +
+                std::to_string(voxels.color.size()) + " colour, " +
+                std::to_string(voxels.esdf.size()) + " ESDF");
+  }
+  auto keys = Buffer<Index3D>::from_host(device(), voxels.indices, stream);
+  Buffer<uint32_t> slots(device(), count);
+  blocks_.reserve(static_cast<int64_t>(count));
+  const ActivateResult result =
+      blocks_.activate(keys.data(), static_cast<int64_t>(count), slots.data(), nullptr, stream);
+  if (!result.ok() || result.num_new != static_cast<int64_t>(count)) {
     clear();
-    throw Error("TsdfMap::load_blocks: the blocks are not distinct valid block indices");
+    throw Error("TsdfMap::load_voxels: the blocks are not distinct valid block indices");
   }
   // In an empty table distinct keys take slots 0..n-1 in input order, so the voxels can be
   // copied as one array. Checked, not assumed.
@@ -103,13 +122,18 @@ void TsdfMap::load_blocks(const std::vector<HostBlock>& blocks, const Stream& st
   for (size_t i = 0; i < host_slots.size(); ++i) {
     if (host_slots[i] != i) {
       clear();
-      throw Error("TsdfMap::load_blocks: unexpected slot order");
+      throw Error("TsdfMap::load_voxels: unexpected slot order");
     }
   }
-  tsdf_.copy_from_host(tsdf, stream);
-  color_.copy_from_host(color, stream);
-  esdf_.copy_from_host(esdf, stream);
-  block_changed_.resize(indices.size(), stream);
+  tsdf_.copy_from_host(voxels.tsdf, stream);
+  color_.copy_from_host(voxels.color, stream);
+  if (voxels.esdf.empty()) {
+    esdf_.resize(0, stream);
+    esdf_.resize(pool, stream);  // zero
+  } else {
+    esdf_.copy_from_host(voxels.esdf, stream);
+  }
+  block_changed_.resize(count, stream);
   block_changed_.fill_bytes(kAllPending, stream);
   stream.synchronize();
 }

@@ -64,6 +64,11 @@ inline std::vector<map::HostBlock> decode_submap(const std::vector<uint8_t>& byt
   return decode_submap(bytes.data(), bytes.size(), what);
 }
 
+// The blocks' voxels side by side (map::HostVoxels, empty ESDF), in stored order; validates as
+// above.
+EncodedSubmapInfo decode_submap_voxels(const uint8_t* data, size_t size, const char* what,
+                                       map::HostVoxels* voxels);
+
 // Rebuilds `map` (cleared first) from encoded bytes; throws covox::Error when the bytes do not
 // decode or their voxels per side differ from the map's.
 void load_encoded_submap(const std::vector<uint8_t>& bytes, map::TsdfMap* map,

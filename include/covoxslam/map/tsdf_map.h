@@ -29,6 +29,15 @@ struct HostBlock {
   std::vector<EsdfVoxel> esdf;
 };
 
+// Blocks' voxels side by side: block k (index indices[k]) owns voxels [k * n, (k + 1) * n) of each
+// array, n the voxels per block. What a map is filled from without one allocation per block.
+struct HostVoxels {
+  std::vector<Index3D> indices;
+  std::vector<TsdfVoxel> tsdf;
+  std::vector<ColorVoxel> color;
+  std::vector<EsdfVoxel> esdf;  // empty: every ESDF voxel zero
+};
+
 // Bits of TsdfMap::block_changed(): integration sets all of them, each consumer clears its own.
 enum BlockChange : uint8_t {
   kEsdfPending = 1,
@@ -77,6 +86,9 @@ class TsdfMap {
   // Fills an empty map with `blocks` (as snapshot() returns them); throws covox::Error if the map
   // is not empty or a block has the wrong number of voxels. ESDF voxels are optional.
   void load_blocks(const std::vector<HostBlock>& blocks, const Stream& stream);
+  // The same from voxels side by side (distinct block indices in any order); throws covox::Error
+  // if the map is not empty or an array's length does not match the indices.
+  void load_voxels(const HostVoxels& voxels, const Stream& stream);
 
   void clear();
 
