@@ -44,11 +44,11 @@ namespace {
 namespace fs = std::filesystem;
 
 // The shared-data path of `relative`, or "" after GTEST_SKIP when it is missing.
-#define COVOX_DATA_OR_SKIP(variable, relative)                                          \
-  const std::string variable = io::data_directory() + "/" + (relative);                 \
-  if (!fs::exists(variable)) {                                                          \
-    GTEST_SKIP() << "shared data not found at '" << variable                            \
-                 << "' (set COVOX_DATA_DIR to the folder of ../shared/data/README.md)"; \
+#define COVOX_DATA_OR_SKIP(variable, relative)                          \
+  const std::string variable = io::data_directory() + "/" + (relative); \
+  if (!fs::exists(variable)) {                                          \
+    GTEST_SKIP() << "shared data not found at '" << variable            \
+                 << "' (set COVOX_DATA_DIR to the shared data folder)"; \
   }
 
 #define COVOX_SKIP_WITHOUT_PNG() \

@@ -3,7 +3,7 @@
 // the ground-truth mesh office0_mesh.ply by its exact distance to the nearest triangle. Replica
 // renders are noise-free, so the error is what integration and marching cubes add: the median
 // must stay below one voxel.
-// Data: Replica research license (see ../shared/data/README.md).
+// Data: Replica research license (see the data folder's README.md).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -47,7 +47,7 @@ void check_replica_surface_accuracy(Device device) {
   const std::string truth_path = io::data_directory() + "/nvblox-testdata/replica/office0_mesh.ply";
   if (!std::filesystem::exists(folder) || !std::filesystem::exists(truth_path)) {
     GTEST_SKIP() << "shared data not found at '" << folder << "' / '" << truth_path
-                 << "' (set COVOX_DATA_DIR to the folder of ../shared/data/README.md)";
+                 << "' (set COVOX_DATA_DIR to the shared data folder)";
   }
   if (!io::png_reader_available()) GTEST_SKIP() << "built without libpng (install libpng-dev)";
 

@@ -12,7 +12,7 @@
 //                      estimate): no drift (covoxslam must leave the given poses alone) and the
 //                      simulator's drift of >= 0.3 m (covoxslam must come closer than odometry)
 // All with translation + yaw alignment (the ARCHE protocol). The real data is read through
-// COVOX_DATA_DIR (default ../shared/data); a missing dataset is skipped with a message.
+// COVOX_DATA_DIR (io::data_directory()); a missing dataset is skipped with a message.
 // The real data is non-commercial (7-Scenes: Microsoft's terms; MulRan: its own terms).
 #include <cctype>
 #include <cmath>
@@ -45,7 +45,7 @@ const char kUsage[] =
     "all that are available)\n"
     "  --bag FILE               simulated flight bag for the sim case (default "
     "demo_output/flight_seed1_256col/flight.bag)\n"
-    "  --data-dir DIR           shared data (default: COVOX_DATA_DIR or ../shared/data)\n"
+    "  --data-dir DIR           shared data (default: COVOX_DATA_DIR or the build's default)\n"
     "  --trajectories-dir DIR   also write each case's trajectories as TUM files there\n"
     "  --output FILE            report (default docs/benchmarks/accuracy.json)\n";
 

@@ -1,6 +1,6 @@
 #pragma once
-// The real-data inputs the benchmarks share (../shared/data, see its README), loaded once from
-// disk and uploaded to a device, so that only integration, not file reading, is timed.
+// The real-data inputs the benchmarks share (the COVOX_DATA_DIR folder, see its README), loaded
+// once from disk and uploaded to a device, so that only integration, not file reading, is timed.
 #include <Eigen/Geometry>
 
 #include <string>

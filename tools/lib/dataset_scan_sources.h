@@ -1,5 +1,5 @@
 #pragma once
-// Scans from the dataset folders of the shared data (../shared/data/README.md):
+// Scans from the dataset folders of the shared data (the data folder's README.md):
 //
 //  * RGB-D folders (7-Scenes, 3DMatch, Replica; io/rgbd_folder.h): each depth image back-projected
 //    into a point cloud in the camera frame (every `pixel_stride`-th pixel in both directions,

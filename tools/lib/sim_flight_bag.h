@@ -1,7 +1,7 @@
 #pragma once
-// A simulated flight as a ROS bag with the ARCHE topic layout (../shared/reference/peers.md), so
-// that the offline runner, `rosbag play` + the nodelet (launch/arche.launch) and any tool made
-// for the real flights take it unchanged:
+// A simulated flight as a ROS bag with the ARCHE topic layout (that of the ARCHE flights voxgraph
+// was evaluated on), so that the offline runner, `rosbag play` + the nodelet (launch/arche.launch)
+// and any tool made for the real flights take it unchanged:
 //
 //   /penguin/os1_cloud_node/points   sensor_msgs/PointCloud2, frame os1_lidar, float32 x y z
 //   /tf                              odom -> imu from the drifting odometry, at every scan stamp

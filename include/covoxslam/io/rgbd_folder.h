@@ -1,5 +1,5 @@
 #pragma once
-// RGB-D dataset folders as the shared data holds them (../shared/data/README.md):
+// RGB-D dataset folders as the shared data holds them (the data folder's README.md):
 //  * 7-Scenes / 3DMatch: `frame-NNNNNN.depth.png` (uint16 millimetres; 0 and 65535 invalid),
 //    `frame-NNNNNN.color.jpg` or `.color.png`, `frame-NNNNNN.pose.txt` (4x4 camera-to-world),
 //    and `camera-intrinsics.txt` (3x3 K) in the folder or its parent (3DMatch keeps it one level
