@@ -49,7 +49,8 @@ step_build() {
   [ -n "${COVOX_GTEST_SOURCE_DIR:-}" ] && extra+=(-DCOVOX_GTEST_SOURCE_DIR="$COVOX_GTEST_SOURCE_DIR")
   echo "== build ($BUILD, CUDA architectures $CUDA_ARCH)"
   cmake -S . -B "$BUILD" -DCMAKE_BUILD_TYPE=Release -DCOVOX_WITH_CUDA=ON \
-    -DCOVOX_CUDA_ARCHITECTURES="$CUDA_ARCH" -DCOVOX_BUILD_ROS=OFF "${extra[@]}" \
+    -DCOVOX_CUDA_ARCHITECTURES="$CUDA_ARCH" -DCOVOX_BUILD_ROS=OFF -DCOVOX_BUILD_TESTS=ON \
+    "${extra[@]}" \
     > "$OUT/configure.log" 2>&1 || { tail -30 "$OUT/configure.log"; return 1; }
   local start=$SECONDS
   cmake --build "$BUILD" -j "$JOBS" > "$OUT/build.log" 2>&1 ||
@@ -67,6 +68,11 @@ step_test() {
     > "$OUT/ctest.log" 2>&1)
   local status=$?
   grep -E "tests passed|tests failed|\(Failed\)|\(Timeout\)|\*\*\*" "$OUT/ctest.log" | head -40
+  # A build folder configured without tests (by hand) runs nothing: that is a failure, not a pass.
+  if grep -q "No tests were found" "$OUT/ctest.log"; then
+    echo "no tests in $BUILD (configured with COVOX_BUILD_TESTS=OFF?)"
+    return 1
+  fi
   return $status
 }
 
