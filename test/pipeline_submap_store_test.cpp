@@ -1,18 +1,21 @@
 // The memory budget on a lap of the yard that revisits its start. A budget the run never reaches
 // changes nothing against no budget at all. A small budget forces finished submaps out of memory
 // (compact, then spilled to disk) and back for the revisits: the map saved at the end is the
-// unbounded run's byte for byte, and the registrations and the trajectory differ from it only by
-// what quantising the restored partners moves them.
+// unbounded run's byte for byte, the submaps' meshes are its meshes to within their encoding's
+// grid, and the registrations and the trajectory differ from it only by what quantising the
+// restored partners moves them.
 #include <gtest/gtest.h>
 
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <iostream>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "covoxslam/io/submap_codec.h"
@@ -29,6 +32,8 @@ struct LapResult {
   std::vector<int64_t> ids;
   std::vector<SubmapConstraint> constraints;
   std::vector<StampedPose> trajectory;
+  std::vector<map::Mesh> meshes;  // submap_mesh() of each id, in the submap's frame
+  size_t combined_triangles = 0;
   SlamCounters counters;
   size_t slice_points = 0;
 };
@@ -58,6 +63,13 @@ LapResult run_lap(const MemoryBudgetConfig& memory) {
     result.ids.push_back(id);
     result.saved.push_back(bytes);
   });
+  for (int64_t id : result.ids) {
+    map::Mesh mesh;
+    Eigen::Isometry3d T_world_submap;
+    EXPECT_TRUE(slam.submap_mesh(id, &mesh, &T_world_submap)) << id;
+    result.meshes.push_back(std::move(mesh));
+  }
+  result.combined_triangles = slam.combined_mesh().triangle_count();
   result.constraints = slam.constraints();
   result.trajectory = slam.corrected_trajectory();
   result.counters = slam.counters();
@@ -109,6 +121,42 @@ double error_from_truth_m(const std::vector<StampedPose>& trajectory) {
   return trajectory.empty() ? 0.0 : std::sqrt(sum / static_cast<double>(trajectory.size()));
 }
 
+// A mesh's triangles as the grid points (multiples of step_m) nearest their corners, each
+// triangle starting at its smallest corner with its orientation kept, sorted: what stays of a
+// mesh on its encoding's grid, whatever the order of its vertices (the mesher's global weld
+// numbers vertices in the order its threads reach them).
+std::vector<std::array<int64_t, 9>> triangles_on_grid(const map::Mesh& mesh, double step_m) {
+  std::vector<std::array<int64_t, 9>> triangles;
+  for (size_t t = 0; t < mesh.triangle_count(); ++t) {
+    std::array<std::array<int64_t, 3>, 3> corners;
+    for (int c = 0; c < 3; ++c) {
+      const Vec3f& v = mesh.vertices_m[mesh.triangles[3 * t + c]];
+      corners[c] = {std::llround(v.x / step_m), std::llround(v.y / step_m),
+                    std::llround(v.z / step_m)};
+    }
+    const auto first = std::min_element(corners.begin(), corners.end());
+    std::rotate(corners.begin(), first, corners.end());
+    std::array<int64_t, 9> key;
+    for (int c = 0; c < 3; ++c)
+      for (int axis = 0; axis < 3; ++axis) key[3 * c + axis] = corners[c][axis];
+    triangles.push_back(key);
+  }
+  std::sort(triangles.begin(), triangles.end());
+  return triangles;
+}
+
+// The runs' submap meshes (in each submap's frame, which depends only on its scans and
+// odometry) have the same triangles on the grid of step_m.
+void expect_same_meshes(const LapResult& a, const LapResult& b, double step_m) {
+  ASSERT_EQ(a.meshes.size(), b.meshes.size());
+  for (size_t k = 0; k < a.meshes.size(); ++k) {
+    EXPECT_GT(a.meshes[k].triangle_count(), 0u) << k;
+    EXPECT_EQ(a.meshes[k].vertices_m.size(), b.meshes[k].vertices_m.size()) << k;
+    EXPECT_TRUE(triangles_on_grid(a.meshes[k], step_m) == triangles_on_grid(b.meshes[k], step_m))
+        << "submap " << a.ids[k];
+  }
+}
+
 MemoryBudgetConfig unbounded_budget() {
   MemoryBudgetConfig unbounded;
   unbounded.device_budget_mb = 1e6;
@@ -128,6 +176,9 @@ TEST(SubmapStore, ABudgetNeverReachedChangesNothing) {
   EXPECT_EQ(differences.constraint, 0.0);
   EXPECT_EQ(differences.position, 0.0);
   EXPECT_EQ(unbounded.slice_points, reference.slice_points);
+  expect_same_meshes(unbounded, reference, yard_config().map.voxel_size_m / 256.0);
+  EXPECT_GT(reference.combined_triangles, 0u);
+  EXPECT_EQ(unbounded.combined_triangles, reference.combined_triangles);
 }
 
 TEST(SubmapStore, SmallBudgetSpillsAndKeepsTheUnboundedRunsMapAndRegistrations) {
@@ -167,6 +218,12 @@ TEST(SubmapStore, SmallBudgetSpillsAndKeepsTheUnboundedRunsMapAndRegistrations) 
   EXPECT_LE(bounded_error_m, reference_error_m + 0.01);
   EXPECT_NEAR(static_cast<double>(bounded.slice_points),
               static_cast<double>(reference.slice_points), 0.01 * reference.slice_points);
+  // The meshes left with their submaps (encoded on a grid of 1/256 voxel, spilled, read back)
+  // and came back as the meshes made, rounded to that grid.
+  expect_same_meshes(bounded, reference, yard_config().map.voxel_size_m / 256.0);
+  EXPECT_EQ(bounded.combined_triangles, reference.combined_triangles);
+  EXPECT_EQ(memory.mesh_bytes, 0);  // every submap, its mesh with it, is in the spill file
+  EXPECT_GT(reference.counters.memory.mesh_bytes, 0);
 }
 
 // A submap of `blocks` observed blocks of 8^3 voxels on the CPU.
@@ -192,7 +249,7 @@ TEST(SubmapStore, TheLeastRecentlyUsedSubmapLeavesFirst) {
   ASSERT_GT(one_submap, 0);
   MemoryBudgetConfig budget;  // room for two of the three
   budget.device_budget_mb = 2.5 * static_cast<double>(one_submap) / (1024.0 * 1024.0);
-  SubmapStore store(budget, 0.4f);
+  SubmapStore store(budget, 0.4f, 0.001f);
   std::vector<Submap*> graph_order;
   for (auto& submap : submaps) graph_order.push_back(submap.get());
   integrators::EsdfIntegrator esdf{integrators::EsdfIntegratorConfig{}};

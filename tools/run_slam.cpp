@@ -368,6 +368,7 @@ void add_memory_rows(tools::BenchmarkReport* report, const std::string& name,
   report->add(name, "resident submap memory", static_cast<double>(m.resident_bytes) / mb, "MB");
   report->add(name, "compact submap memory", static_cast<double>(m.compact_bytes) / mb, "MB");
   report->add(name, "spilled submap bytes", static_cast<double>(m.disk_bytes) / mb, "MB");
+  report->add(name, "submap mesh memory", static_cast<double>(m.mesh_bytes) / mb, "MB");
   report->add(name, "submap compactions", static_cast<double>(m.compactions), "");
   report->add(name, "submap restores", static_cast<double>(m.restores), "");
   report->add(name, "submap restore time", m.restore_s, "s");

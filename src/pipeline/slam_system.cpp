@@ -83,6 +83,10 @@ int64_t submaps_between_optimizations(const SlamConfig& config, int64_t graph_su
 }
 
 namespace {
+// An encoded mesh keeps its vertices on a grid of 1/256 voxel: far finer than the surface that
+// marching cubes interpolates from the quantised TSDF.
+constexpr float kMeshStepsPerVoxel = 256.0f;
+
 // Validates before any member is built, so a bad configuration fails with its own message.
 const SlamConfig& validated(const SlamConfig& config) {
   validate(config);
@@ -98,7 +102,8 @@ SlamSystem::SlamSystem(const SlamConfig& config)
       frontend_stream_(Stream::create(config.device)),
       points_buffer_(config.device),
       colors_buffer_(config.device),
-      store_(std::make_unique<SubmapStore>(config.memory, config.tsdf.truncation_distance_m)),
+      store_(std::make_unique<SubmapStore>(config.memory, config.tsdf.truncation_distance_m,
+                                           config.map.voxel_size_m / kMeshStepsPerVoxel)),
       restore_esdf_(config.esdf),
       restore_stream_(Stream::create(config.device)),
       esdf_integrator_(config.esdf),
@@ -903,7 +908,7 @@ std::vector<SubmapInfo> SlamSystem::submaps() const {
     info.T_odom_submap = submap.T_odom_submap();
     info.statistics = submap.statistics();
     info.bounding_box_world = submap.bounding_box_world();
-    info.mesh_triangles = static_cast<int64_t>(submap.mesh().triangle_count());
+    info.mesh_triangles = submap.mesh_triangles();
     info.loaded = entry.loaded;
     infos.push_back(info);
   }
@@ -944,12 +949,17 @@ std::vector<StampedPose> SlamSystem::corrected_trajectory() const {
 }
 
 map::Mesh SlamSystem::combined_mesh() const {
-  std::lock_guard<std::mutex> lock(state_mutex_);
+  std::vector<std::pair<int64_t, Eigen::Isometry3f>> submaps;
+  {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    for (const GraphSubmap& entry : graph_submaps_)
+      submaps.emplace_back(entry.submap->id(), entry.submap->T_world_submap().cast<float>());
+  }
   map::Mesh combined;
-  for (const GraphSubmap& entry : graph_submaps_) {
-    const Submap& submap = *entry.submap;
-    const map::Mesh& mesh = submap.mesh();
-    const Eigen::Isometry3f T_world_submap = submap.T_world_submap().cast<float>();
+  map::Mesh mesh;
+  for (const auto& [id, T_world_submap] : submaps) {
+    // The store holds the meshes under its own lock; one removed since (a reset) is skipped.
+    if (!store_->mesh(id, &mesh)) continue;
     const uint32_t offset = static_cast<uint32_t>(combined.vertices_m.size());
     for (const Vec3f& v : mesh.vertices_m) {
       const Eigen::Vector3f p = T_world_submap * Eigen::Vector3f(v.x, v.y, v.z);

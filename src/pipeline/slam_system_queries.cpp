@@ -2,6 +2,7 @@
 // ESDF slices at a world height. Finished submaps are frozen, so their voxels can be read while
 // backend_mutex_ keeps the graph's structure (and with it the submaps' lifetime) unchanged;
 // state_mutex_ is held only to copy poses and pointers, so the frontend never waits for a slice.
+#include <algorithm>
 #include <cmath>
 #include <unordered_map>
 #include <utility>
@@ -34,15 +35,15 @@ std::vector<integrators::SlicePoint> world_slice_of(const map::TsdfMap& map,
 
 bool SlamSystem::submap_mesh(int64_t id, map::Mesh* mesh_submap,
                              Eigen::Isometry3d* T_world_submap) const {
-  std::lock_guard<std::mutex> lock(state_mutex_);
-  for (const GraphSubmap& entry : graph_submaps_) {
-    if (entry.submap && entry.submap->id() == id) {
-      *mesh_submap = entry.submap->mesh();
-      *T_world_submap = entry.submap->T_world_submap();
-      return true;
-    }
+  {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    auto it = std::find_if(graph_submaps_.begin(), graph_submaps_.end(),
+                           [id](const GraphSubmap& entry) { return entry.submap->id() == id; });
+    if (it == graph_submaps_.end()) return false;
+    *T_world_submap = it->submap->T_world_submap();
   }
-  return false;
+  // The store holds the mesh under its own lock (decoded if the submap was compacted).
+  return store_->mesh(id, mesh_submap);
 }
 
 std::vector<integrators::SlicePoint> SlamSystem::esdf_slice_world(double height_m) {

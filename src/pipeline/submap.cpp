@@ -193,6 +193,7 @@ SubmapFinishTimes Submap::finish(integrators::EsdfIntegrator& esdf,
 
   start = Clock::now();
   mesh_ = mesher.extract_all(map_, stream);
+  mesh_triangles_ = static_cast<int64_t>(mesh_.triangle_count());
   stream.synchronize();
   times.mesh_s = seconds_since(start);
 

@@ -18,6 +18,7 @@
 
 #include "covoxslam/core/error.h"
 #include "covoxslam/core/log.h"
+#include "covoxslam/io/mesh_codec.h"
 #include "covoxslam/io/submap_codec.h"
 
 namespace covox {
@@ -54,8 +55,9 @@ int64_t voxel_pool_bytes(const map::TsdfMap& map) {
   return map.pool_slots() * map.voxels_per_block() * kVoxelBytes;
 }
 
-SubmapStore::SubmapStore(const MemoryBudgetConfig& config, float distance_scale_m)
-    : config_(config), distance_scale_m_(distance_scale_m) {
+SubmapStore::SubmapStore(const MemoryBudgetConfig& config, float distance_scale_m,
+                         float mesh_step_m)
+    : config_(config), distance_scale_m_(distance_scale_m), mesh_step_m_(mesh_step_m) {
   validate(config_);
 }
 
@@ -63,10 +65,11 @@ SubmapStore::~SubmapStore() {
   if (spill_fd_ >= 0) ::close(spill_fd_);
 }
 
-void SubmapStore::add(const Submap& submap) {
-  if (!enabled()) return;
+void SubmapStore::add(Submap& submap) {
   Entry entry;
   entry.resident_bytes = voxel_pool_bytes(submap.map());
+  entry.mesh = submap.take_mesh();
+  const int64_t mesh_bytes = static_cast<int64_t>(io::mesh_bytes_in_memory(entry.mesh));
   std::lock_guard<std::mutex> lock(mutex_);
   entry.last_use = ++use_clock_;
   const int64_t resident_bytes = entry.resident_bytes;
@@ -74,6 +77,23 @@ void SubmapStore::add(const Submap& submap) {
     throw Error("SubmapStore: submap " + std::to_string(submap.id()) + " added twice");
   ++counters_.submaps_resident;
   counters_.resident_bytes += resident_bytes;
+  counters_.mesh_bytes += mesh_bytes;
+}
+
+bool SubmapStore::mesh(int64_t id, map::Mesh* mesh) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  auto it = entries_.find(id);
+  if (it == entries_.end()) return false;
+  const Entry& entry = it->second;
+  if (entry.mesh_size == 0) {
+    *mesh = entry.mesh;
+  } else if (!entry.mesh_bytes.empty()) {
+    *mesh = io::decode_mesh(entry.mesh_bytes, "a submap's encoded mesh");
+  } else {
+    *mesh = io::decode_mesh(read_back_locked(id, entry, entry.size, entry.mesh_size),
+                            "a submap's mesh from the spill file");
+  }
+  return true;
 }
 
 void SubmapStore::acquire(Submap& submap, integrators::EsdfIntegrator& esdf, const Stream& stream,
@@ -87,7 +107,8 @@ void SubmapStore::acquire(Submap& submap, integrators::EsdfIntegrator& esdf, con
   if (entry.resident) return;
   const auto start = std::chrono::steady_clock::now();
   const bool from_disk = entry.bytes.empty();
-  const std::vector<uint8_t> bytes = from_disk ? read_back_locked(submap.id(), entry) : entry.bytes;
+  const std::vector<uint8_t> bytes =
+      from_disk ? read_back_locked(submap.id(), entry, 0, entry.size) : entry.bytes;
   submap.map() = map::TsdfMap(submap.map().device(), submap.map().config());
   io::load_encoded_submap(bytes, &submap.map(), stream);
   esdf.update_all(submap.map(), stream);
@@ -138,7 +159,12 @@ void SubmapStore::compact_locked(Submap& submap, Entry& entry) {
   if (entry.size == 0) {  // first compaction: the one lossy step (see the header)
     entry.bytes = io::encode_submap(submap.map(), distance_scale_m_);
     entry.size = entry.bytes.size();
-    counters_.compact_bytes += static_cast<int64_t>(entry.size);
+    counters_.mesh_bytes -= static_cast<int64_t>(io::mesh_bytes_in_memory(entry.mesh));
+    entry.mesh_bytes = io::encode_mesh(entry.mesh, mesh_step_m_);
+    entry.mesh_size = entry.mesh_bytes.size();
+    entry.mesh = map::Mesh();
+    counters_.mesh_bytes += static_cast<int64_t>(entry.mesh_size);
+    counters_.compact_bytes += static_cast<int64_t>(entry.size + entry.mesh_size);
   }
   // An empty map of the same configuration: the pools' memory is freed with the old one.
   submap.map() = map::TsdfMap(submap.map().device(), submap.map().config());
@@ -158,17 +184,12 @@ bool SubmapStore::spill_locked(int64_t id, Entry& entry) {
   try {
     if (entry.file_offset < 0) {
       open_spill_file_locked();
-      size_t done = 0;
-      while (done < entry.bytes.size()) {
-        const ssize_t wrote = ::pwrite(spill_fd_, entry.bytes.data() + done,
-                                       entry.bytes.size() - done, spill_end_ + done);
-        if (wrote < 0 && errno == EINTR) continue;
-        if (wrote <= 0) throw Error(std::string("write failed: ") + std::strerror(errno));
-        done += static_cast<size_t>(wrote);
-      }
+      write_at_locked(entry.bytes, spill_end_);
+      write_at_locked(entry.mesh_bytes, spill_end_ + static_cast<int64_t>(entry.size));
       entry.file_offset = spill_end_;
-      spill_end_ += static_cast<int64_t>(entry.size);
-      counters_.disk_bytes += static_cast<int64_t>(entry.size);
+      const int64_t written = static_cast<int64_t>(entry.size + entry.mesh_size);
+      spill_end_ += written;
+      counters_.disk_bytes += written;
       ++counters_.spills;
     }
   } catch (const std::exception& error) {
@@ -180,19 +201,34 @@ bool SubmapStore::spill_locked(int64_t id, Entry& entry) {
               counters_.spill_failures, " such failures)");
     return false;
   }
-  counters_.compact_bytes -= static_cast<int64_t>(entry.size);
+  counters_.compact_bytes -= static_cast<int64_t>(entry.size + entry.mesh_size);
+  counters_.mesh_bytes -= static_cast<int64_t>(entry.mesh_size);
   std::vector<uint8_t>().swap(entry.bytes);
+  std::vector<uint8_t>().swap(entry.mesh_bytes);
   --counters_.submaps_compact;
   ++counters_.submaps_on_disk;
   return true;
 }
 
-std::vector<uint8_t> SubmapStore::read_back_locked(int64_t id, const Entry& entry) {
-  std::vector<uint8_t> bytes(static_cast<size_t>(entry.size));
+void SubmapStore::write_at_locked(const std::vector<uint8_t>& bytes, int64_t offset) {
   size_t done = 0;
   while (done < bytes.size()) {
-    const ssize_t got =
-        ::pread(spill_fd_, bytes.data() + done, bytes.size() - done, entry.file_offset + done);
+    const ssize_t wrote = ::pwrite(spill_fd_, bytes.data() + done, bytes.size() - done,
+                                   offset + static_cast<int64_t>(done));
+    if (wrote < 0 && errno == EINTR) continue;
+    if (wrote <= 0) throw Error(std::string("write failed: ") + std::strerror(errno));
+    done += static_cast<size_t>(wrote);
+  }
+}
+
+std::vector<uint8_t> SubmapStore::read_back_locked(int64_t id, const Entry& entry, uint64_t offset,
+                                                   uint64_t size) {
+  std::vector<uint8_t> bytes(static_cast<size_t>(size));
+  const int64_t start = entry.file_offset + static_cast<int64_t>(offset);
+  size_t done = 0;
+  while (done < bytes.size()) {
+    const ssize_t got = ::pread(spill_fd_, bytes.data() + done, bytes.size() - done,
+                                start + static_cast<int64_t>(done));
     if (got < 0 && errno == EINTR) continue;
     if (got <= 0)
       throw Error("SLAM memory: reading submap " + std::to_string(id) +
@@ -223,7 +259,7 @@ std::vector<uint8_t> SubmapStore::encoded(int64_t id) {
   auto it = entries_.find(id);
   if (it == entries_.end() || it->second.size == 0) return {};
   if (!it->second.bytes.empty()) return it->second.bytes;
-  return read_back_locked(id, it->second);
+  return read_back_locked(id, it->second, 0, it->second.size);
 }
 
 void SubmapStore::remove(int64_t id) {
@@ -239,7 +275,10 @@ void SubmapStore::remove(int64_t id) {
   } else {
     --counters_.submaps_compact;
   }
-  if (!entry.bytes.empty()) counters_.compact_bytes -= static_cast<int64_t>(entry.size);
+  if (!entry.bytes.empty())
+    counters_.compact_bytes -= static_cast<int64_t>(entry.size + entry.mesh_size);
+  counters_.mesh_bytes -= static_cast<int64_t>(
+      entry.mesh_size == 0 ? io::mesh_bytes_in_memory(entry.mesh) : entry.mesh_bytes.size());
   entries_.erase(it);
 }
 

@@ -369,7 +369,9 @@ def mission_table(reports, name="mission_cpu.json"):
                      f"({with_unit(summary.get('compact submap memory'), ' MB')}), "
                      f"{number(summary.get('submaps on disk'))} on disk; "
                      f"{number(summary.get('submap restores'))} restores in "
-                     f"{with_unit(summary.get('submap restore time'), ' s')}.")
+                     f"{with_unit(summary.get('submap restore time'), ' s')}"
+                     + (f"; meshes {with_unit(summary.get('submap mesh memory'), ' MB')} in "
+                        "host memory." if "submap mesh memory" in summary else "."))
     if "map file size" in summary:
         lines.append("")
         lines.append(f"Map file {with_unit(summary.get('map file size'), ' MB')}, saved in "

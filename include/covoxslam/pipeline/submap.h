@@ -13,6 +13,7 @@
 // backend through the submap queue; SlamSystem guards the pose that both sides read.
 #include <cstdint>
 #include <string>
+#include <utility>
 
 #include <Eigen/Geometry>
 
@@ -132,8 +133,13 @@ class Submap {
                            const Stream& stream);
   bool finished() const { return finished_; }
 
-  // Mesh in the submap frame (empty before finish()).
+  // Mesh in the submap frame (empty before finish() and after take_mesh()).
   const map::Mesh& mesh() const { return mesh_; }
+  // Moves the mesh out (to the SubmapStore, which holds finished submaps' meshes); the triangle
+  // count stays.
+  map::Mesh take_mesh() { return std::move(mesh_); }
+  // Triangles of the mesh finish() made, whoever holds it now.
+  int64_t mesh_triangles() const { return mesh_triangles_; }
   // Axis-aligned box of the allocated blocks in the submap frame (empty before finish()).
   const Eigen::AlignedBox3d& bounding_box_submap() const { return bounding_box_submap_; }
   // The same box's corners moved by T_W_S, boxed again in the world frame.
@@ -148,6 +154,7 @@ class Submap {
   Eigen::Vector3d last_position_odom_m_ = Eigen::Vector3d::Zero();
   bool finished_ = false;
   map::Mesh mesh_;
+  int64_t mesh_triangles_ = 0;
   Eigen::AlignedBox3d bounding_box_submap_;
 };
 

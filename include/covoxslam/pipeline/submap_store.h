@@ -1,5 +1,5 @@
 #pragma once
-// SubmapStore: where finished submaps' voxels live under a memory budget.
+// SubmapStore: where finished submaps' voxels and meshes live under a memory budget.
 //
 // A submap is in one of three places,
 //   resident - its full TsdfMap (TSDF, colour, ESDF) on the map's device,
@@ -15,6 +15,13 @@
 // submaps fit the budget is never quantised. Once the compact bytes in memory exceed
 // host_budget_mb, the least recently used compact submaps go to disk. A failed spill write is
 // logged and counted, and the submap stays in memory: nothing is ever lost.
+//
+// The store also holds every finished submap's mesh (taken from the submap when it is added, so
+// the ROS queries read it under the store's mutex while the backend compacts). A resident
+// submap's mesh is kept as the mesher made it; at the first compaction it is encoded with
+// io/mesh_codec.h (vertices on a grid of mesh_step_m), its bytes counted with the compact form's
+// against host_budget_mb and spilled with it, and mesh() decodes them. Without a budget
+// (device_budget_mb 0) the meshes are held as made and nothing else is done.
 //
 // The store is driven by SlamSystem under its backend_mutex_ (every call that changes a submap's
 // voxels), and keeps its own mutex for the counters and the bytes it holds.
@@ -51,7 +58,8 @@ struct SubmapStoreCounters {
   int64_t submaps_compact = 0;  // compact bytes in host memory only
   int64_t submaps_on_disk = 0;
   int64_t resident_bytes = 0;  // voxel pools of the resident submaps
-  int64_t compact_bytes = 0;   // compact forms held in host memory (resident ones' included)
+  int64_t compact_bytes = 0;   // compact forms held in host memory (resident ones' included),
+                               // their encoded meshes included
   int64_t disk_bytes = 0;      // compact forms written to the spill file
   int64_t compactions = 0;     // a resident submap's voxels released
   int64_t restores = 0;        // a submap's voxels rebuilt from its compact form
@@ -59,6 +67,7 @@ struct SubmapStoreCounters {
   int64_t spill_reads = 0;     // compact forms read back from it
   int64_t spill_failures = 0;  // spill writes that failed (the submap stayed in memory)
   double restore_s = 0.0;      // wall time spent rebuilding submaps (decode, load, ESDF)
+  int64_t mesh_bytes = 0;      // meshes in host memory: as made (resident submaps) and encoded
 };
 
 // The bytes of a map's voxel pools (TSDF, colour and ESDF voxels of every slot).
@@ -66,7 +75,8 @@ int64_t voxel_pool_bytes(const map::TsdfMap& map);
 
 class SubmapStore {
  public:
-  SubmapStore(const MemoryBudgetConfig& config, float distance_scale_m);
+  // `mesh_step_m`: the grid an encoded mesh's vertices are rounded to (io/mesh_codec.h).
+  SubmapStore(const MemoryBudgetConfig& config, float distance_scale_m, float mesh_step_m);
   ~SubmapStore();
   SubmapStore(const SubmapStore&) = delete;
   SubmapStore& operator=(const SubmapStore&) = delete;
@@ -75,8 +85,11 @@ class SubmapStore {
   bool enabled() const { return config_.device_budget_mb > 0.0; }
 
   // A finished or loaded submap (after Submap::finish()), resident with its voxels as they are; it
-  // is encoded when it is first compacted.
-  void add(const Submap& submap);
+  // is encoded when it is first compacted. Takes the submap's mesh (Submap::take_mesh()).
+  void add(Submap& submap);
+  // A copy of the submap's mesh (decoded, read back from the spill file if needed); false when
+  // the store does not know the id.
+  bool mesh(int64_t id, map::Mesh* mesh);
   // Makes the submap's voxels resident again (decoded, ESDF recomputed; a no-op if they are) and,
   // with `mark_used`, marks it used. A sweep over every submap (a slice, a snapshot) passes false:
   // a submap brought back only for the sweep keeps its old use, so it is the first to leave
@@ -101,7 +114,10 @@ class SubmapStore {
   struct Entry {
     std::vector<uint8_t> bytes;  // empty while on disk only, or before the first compaction
     uint64_t size = 0;           // of the compact form; 0 until the first compaction encodes it
-    int64_t file_offset = -1;    // in the spill file, once written there
+    map::Mesh mesh;              // as made, until the first compaction encodes it
+    std::vector<uint8_t> mesh_bytes;  // the encoded mesh, held and spilled beside `bytes`
+    uint64_t mesh_size = 0;           // of the encoded mesh; 0 until encoded
+    int64_t file_offset = -1;  // in the spill file, once written there: `bytes`, then the mesh's
     bool resident = true;
     int64_t resident_bytes = 0;
     uint64_t last_use = 0;  // use_clock_ at the latest add or acquire
@@ -110,11 +126,16 @@ class SubmapStore {
   void compact_locked(Submap& submap, Entry& entry);
   // Appends the entry's bytes to the spill file; false (logged, counted) when that fails.
   bool spill_locked(int64_t id, Entry& entry);
-  std::vector<uint8_t> read_back_locked(int64_t id, const Entry& entry);
+  // Writes `bytes` at `offset` of the spill file; throws covox::Error when that fails.
+  void write_at_locked(const std::vector<uint8_t>& bytes, int64_t offset);
+  // `size` bytes at `offset` past the entry's place in the spill file.
+  std::vector<uint8_t> read_back_locked(int64_t id, const Entry& entry, uint64_t offset,
+                                        uint64_t size);
   void open_spill_file_locked();
 
   const MemoryBudgetConfig config_;
   const float distance_scale_m_;
+  const float mesh_step_m_;
   mutable std::mutex mutex_;
   std::unordered_map<int64_t, Entry> entries_;
   SubmapStoreCounters counters_;
