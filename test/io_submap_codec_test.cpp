@@ -139,6 +139,30 @@ TEST_P(SubmapCodecTest, EncodingIsIdempotent) {
   EXPECT_EQ(io::encode_submap(again, kTruncationM), once);
 }
 
+// A compacted submap's map is released: no blocks, pools or buckets left on its device beyond a
+// two-bucket table (an emptied map keeps its buckets: 2^16 of them by default), the same
+// configuration, and it takes blocks again.
+TEST_P(SubmapCodecTest, AReleasedMapHoldsNextToNothingAndTakesBlocksAgain) {
+  const map::TsdfMapConfig config{0.2f, 8, {}};
+  map::TsdfMap map(device(), config);
+  integrate_yard(&map);
+  const std::vector<uint8_t> bytes = io::encode_submap(map, kTruncationM);
+  const int64_t slots = map.pool_slots();
+  ASSERT_GT(slots, 0);
+  // SoA pools: 8 + 7 + 6 bytes a voxel; a bucket: an 8-byte key and a 4-byte slot.
+  EXPECT_EQ(map.device_bytes(),
+            slots * 512 * 21 + static_cast<int64_t>(map.blocks().bucket_count()) * 12);
+  map.clear();
+  EXPECT_GE(map.device_bytes(), int64_t{1} << 16) << "clear() keeps the buckets";
+  map.release();
+  EXPECT_EQ(map.block_count(), 0);
+  EXPECT_EQ(map.device_bytes(), 2 * 12);
+  EXPECT_EQ(map.config().voxels_per_side, 8);
+  EXPECT_EQ(map.config().block_table.initial_bucket_count, config.block_table.initial_bucket_count);
+  io::load_encoded_submap(bytes, &map, Stream(device()));
+  EXPECT_EQ(io::encode_submap(map, kTruncationM), bytes);
+}
+
 // Decoding side by side (what a restore loads) gives the voxels of decoding block by block, in
 // the same order, and a map loaded either way holds the same blocks; arrays of the wrong length
 // are refused.

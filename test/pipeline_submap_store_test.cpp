@@ -245,7 +245,7 @@ std::unique_ptr<Submap> submap_of_blocks(int64_t id, int blocks) {
 TEST(SubmapStore, TheLeastRecentlyUsedSubmapLeavesFirst) {
   std::vector<std::unique_ptr<Submap>> submaps;
   for (int64_t id = 0; id < 3; ++id) submaps.push_back(submap_of_blocks(id, 4));
-  const int64_t one_submap = voxel_pool_bytes(submaps[0]->map());
+  const int64_t one_submap = submaps[0]->map().device_bytes();
   ASSERT_GT(one_submap, 0);
   MemoryBudgetConfig budget;  // room for two of the three
   budget.device_budget_mb = 2.5 * static_cast<double>(one_submap) / (1024.0 * 1024.0);

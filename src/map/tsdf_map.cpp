@@ -138,6 +138,25 @@ void TsdfMap::load_voxels(const HostVoxels& voxels, const Stream& stream) {
   stream.synchronize();
 }
 
+void TsdfMap::release() {
+  BlockHashTableConfig minimal = config_.block_table;
+  minimal.initial_bucket_count = 2;  // the smallest table BlockHashTable accepts
+  const Device device = this->device();
+  blocks_ = BlockHashTable(device, minimal);
+  tsdf_ = TsdfStorage(device);
+  color_ = ColorStorage(device);
+  esdf_ = EsdfStorage(device);
+  block_changed_ = Buffer<uint8_t>(device);
+}
+
+int64_t TsdfMap::device_bytes() const {
+  // The pools are SoA: each field is an array of its own, so a voxel takes its fields' bytes.
+  constexpr int64_t kVoxelBytes = (4 + 4) + (1 + 1 + 1 + 4) + (4 + 1 + 1);
+  constexpr int64_t kBucketBytes = sizeof(uint64_t) + sizeof(uint32_t);  // packed key, slot
+  return pool_slots() * voxels_per_block() * kVoxelBytes +
+         static_cast<int64_t>(blocks_.bucket_count()) * kBucketBytes;
+}
+
 void TsdfMap::clear() {
   blocks_.clear();
   tsdf_.resize(0);

@@ -197,7 +197,7 @@ void add_map_parameters(std::vector<SlamParameter>* table) {
           number_parameter("map.voxel_size_m", COVOX_FIELD(map.voxel_size_m), positive),
           {"map.voxels_per_side", read_voxels_per_side},
           integer_parameter("map.block_table.initial_bucket_count",
-                            COVOX_FIELD(map.block_table.initial_bucket_count), 1),
+                            COVOX_FIELD(map.block_table.initial_bucket_count), 2),
           number_parameter("map.block_table.max_load_factor",
                            COVOX_FIELD(map.block_table.max_load_factor), in_open_unit_interval),
           bool_parameter("map.block_table.allow_growth", COVOX_FIELD(map.block_table.allow_growth)),

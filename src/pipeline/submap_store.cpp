@@ -28,9 +28,6 @@ namespace {
 
 constexpr double kBytesPerMb = 1024.0 * 1024.0;
 
-// Bytes of one voxel across the three SoA pools (fields only: SoA stores no padding).
-constexpr int64_t kVoxelBytes = (4 + 4) + (1 + 1 + 1 + 4) + (4 + 1 + 1);
-
 // Hands the heap's free pages back to the system. A compaction frees a map's pools (host memory
 // on the CPU backend) and the encoder's per-block temporaries, but glibc keeps freed heap memory
 // that lies below live allocations (the compact bytes themselves), so without this the process's
@@ -51,10 +48,6 @@ void validate(const MemoryBudgetConfig& config) {
     throw Error("memory.host_budget_mb must be >= 0, got " + std::to_string(config.host_budget_mb));
 }
 
-int64_t voxel_pool_bytes(const map::TsdfMap& map) {
-  return map.pool_slots() * map.voxels_per_block() * kVoxelBytes;
-}
-
 SubmapStore::SubmapStore(const MemoryBudgetConfig& config, float distance_scale_m,
                          float mesh_step_m)
     : config_(config), distance_scale_m_(distance_scale_m), mesh_step_m_(mesh_step_m) {
@@ -67,7 +60,7 @@ SubmapStore::~SubmapStore() {
 
 void SubmapStore::add(Submap& submap) {
   Entry entry;
-  entry.resident_bytes = voxel_pool_bytes(submap.map());
+  entry.resident_bytes = submap.map().device_bytes();
   entry.mesh = submap.take_mesh();
   const int64_t mesh_bytes = static_cast<int64_t>(io::mesh_bytes_in_memory(entry.mesh));
   std::lock_guard<std::mutex> lock(mutex_);
@@ -114,7 +107,7 @@ void SubmapStore::acquire(Submap& submap, integrators::EsdfIntegrator& esdf, con
   esdf.update_all(submap.map(), stream);
   stream.synchronize();
   entry.resident = true;
-  entry.resident_bytes = voxel_pool_bytes(submap.map());
+  entry.resident_bytes = submap.map().device_bytes();
   if (from_disk) {
     --counters_.submaps_on_disk;
   } else {
@@ -166,8 +159,8 @@ void SubmapStore::compact_locked(Submap& submap, Entry& entry) {
     counters_.mesh_bytes += static_cast<int64_t>(entry.mesh_size);
     counters_.compact_bytes += static_cast<int64_t>(entry.size + entry.mesh_size);
   }
-  // An empty map of the same configuration: the pools' memory is freed with the old one.
-  submap.map() = map::TsdfMap(submap.map().device(), submap.map().config());
+  // Pools and block table freed; acquire() rebuilds the map with its configured table.
+  submap.map().release();
   entry.resident = false;
   counters_.resident_bytes -= entry.resident_bytes;
   entry.resident_bytes = 0;

@@ -91,6 +91,12 @@ class TsdfMap {
   void load_voxels(const HostVoxels& voxels, const Stream& stream);
 
   void clear();
+  // Frees the blocks, the voxel pools and the block table's buckets down to a minimal table: a
+  // released map holds next to nothing on its device (clear() keeps the buckets), keeps its
+  // configuration and grows again when blocks are added.
+  void release();
+  // What the map holds on its device: the voxel pools of every slot and the block table.
+  int64_t device_bytes() const;
 
  private:
   TsdfMapConfig config_;

@@ -39,8 +39,9 @@ namespace covox {
 namespace pipeline {
 
 struct MemoryBudgetConfig {
-  // Full (resident) finished submaps, in MiB of voxel pools on the map's device. 0: no budget and
-  // no compact form: finished submaps keep their voxels exactly as integrated.
+  // Full (resident) finished submaps, in MiB on the map's device (voxel pools and block table:
+  // map::TsdfMap::device_bytes()). 0: no budget and no compact form: finished submaps keep their
+  // voxels exactly as integrated.
   double device_budget_mb = 1536.0;
   // Compact submaps held in host memory, MiB; beyond it the least recently used go to the spill
   // file.
@@ -57,7 +58,7 @@ struct SubmapStoreCounters {
   int64_t submaps_resident = 0;
   int64_t submaps_compact = 0;  // compact bytes in host memory only
   int64_t submaps_on_disk = 0;
-  int64_t resident_bytes = 0;  // voxel pools of the resident submaps
+  int64_t resident_bytes = 0;  // device memory of the resident submaps' maps
   int64_t compact_bytes = 0;   // compact forms held in host memory (resident ones' included),
                                // their encoded meshes included
   int64_t disk_bytes = 0;      // compact forms written to the spill file
@@ -69,9 +70,6 @@ struct SubmapStoreCounters {
   double restore_s = 0.0;      // wall time spent rebuilding submaps (decode, load, ESDF)
   int64_t mesh_bytes = 0;      // meshes in host memory: as made (resident submaps) and encoded
 };
-
-// The bytes of a map's voxel pools (TSDF, colour and ESDF voxels of every slot).
-int64_t voxel_pool_bytes(const map::TsdfMap& map);
 
 class SubmapStore {
  public:
