@@ -118,6 +118,42 @@ TEST_P(MapFileTest, SaveThenLoadKeepsTheQuantisedMapAndSavesTheSameBytes) {
   std::remove(again.c_str());
 }
 
+// Loading compact forms (what the node does, so a large map is never decoded whole) gives the
+// bytes the file stores: they decode to the blocks a decoded load gives, and a version 1 file's
+// blocks come encoded with its largest |distance|, decoding within the codec's bound.
+TEST_P(MapFileTest, EncodedLoadGivesTheStoredCompactForms) {
+  const io::MapFileContents saved = make_contents();
+  const std::string path = temporary_path("encoded.cvxmap");
+  io::save_map_file(path, saved);
+  const io::MapFileContents decoded = io::load_map_file(path);
+  const io::MapFileContents encoded = io::load_map_file(path, io::MapFileVoxels::kEncoded);
+  ASSERT_EQ(encoded.submaps.size(), decoded.submaps.size());
+  EXPECT_EQ(encoded.distance_scale_m, decoded.distance_scale_m);
+  for (size_t s = 0; s < encoded.submaps.size(); ++s) {
+    EXPECT_TRUE(encoded.submaps[s].blocks.empty());
+    // The decoded load's blocks encode back to these bytes (the codec is idempotent).
+    EXPECT_EQ(encoded.submaps[s].encoded,
+              io::encode_submap(decoded.submaps[s].blocks, 8, decoded.distance_scale_m));
+  }
+  const std::string version1 = temporary_path("encoded_v1.cvxmap");
+  io::save_map_file_version1(version1, saved);
+  const io::MapFileContents from_v1 = io::load_map_file(version1, io::MapFileVoxels::kEncoded);
+  ASSERT_EQ(from_v1.submaps.size(), saved.submaps.size());
+  EXPECT_GT(from_v1.distance_scale_m, 0.0f);
+  for (size_t s = 0; s < saved.submaps.size(); ++s) {
+    const std::vector<map::HostBlock> back = io::decode_submap(from_v1.submaps[s].encoded, "v1");
+    ASSERT_EQ(back.size(), saved.submaps[s].blocks.size());
+    for (size_t b = 0; b < back.size(); ++b) {
+      for (size_t v = 0; v < back[b].tsdf.size(); ++v) {
+        ASSERT_NEAR(back[b].tsdf[v].distance_m, saved.submaps[s].blocks[b].tsdf[v].distance_m,
+                    from_v1.distance_scale_m / 65534.0 + 1e-6);
+      }
+    }
+  }
+  std::remove(path.c_str());
+  std::remove(version1.c_str());
+}
+
 TEST_P(MapFileTest, Version1FilesStillLoadBitExact) {
   const io::MapFileContents saved = make_contents();
   const std::string path = temporary_path("version1.cvxmap");

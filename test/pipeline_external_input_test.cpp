@@ -431,6 +431,69 @@ TEST(PipelineExternalInput, LoadSubmapsRoundTripsAndNewMappingRegistersToTheLoad
   EXPECT_LT(std::abs(yaw_of(correction.linear() * expected.linear().transpose())), 0.3 * kDegToRad);
 }
 
+// A map loaded from its compact forms (what the node's load_map does) under a device budget
+// that holds about one submap: the submaps past the budget enter the store compact and never
+// decoded, the loaded map saves to the same bytes, and meshes and slices are the ones of the same
+// map loaded without a budget.
+TEST(PipelineExternalInput, LoadingCompactFormsStaysWithinTheDeviceBudget) {
+  const sim::World world = make_yard();
+  const sim::LidarConfig lidar = small_lidar();
+  std::vector<SubmapSnapshot> saved;
+  std::vector<std::vector<uint8_t>> saved_bytes;
+  {
+    SlamSystem first(yard_config());
+    for (int k = 0; k * 0.4 <= 18.0; ++k) {
+      const double t = 0.4 * k;
+      first.add_scan(
+          simulate(world, lidar, t, circle_pose(t), Eigen::Isometry3d::Identity(), k + 1).scan);
+    }
+    first.finish();
+    first.write_submaps([&](int64_t id, const Eigen::Isometry3d& T_world_submap,
+                            const std::vector<uint8_t>& encoded) {
+      saved.push_back(SubmapSnapshot{id, T_world_submap, {}, encoded});
+      saved_bytes.push_back(encoded);
+    });
+  }
+  ASSERT_GE(saved.size(), 4u);
+
+  SlamConfig unbounded_config = yard_config();
+  unbounded_config.memory.device_budget_mb = 0.0;
+  SlamSystem unbounded(unbounded_config);
+  unbounded.load_submaps(saved);
+  SlamConfig bounded_config = yard_config();
+  bounded_config.memory.device_budget_mb = 1.0;  // one or two of the yard's submaps
+  SlamSystem bounded(bounded_config);
+  bounded.load_submaps(saved);
+
+  const SubmapStoreCounters memory = bounded.counters().memory;
+  EXPECT_GE(memory.submaps_compact, 2);
+  EXPECT_EQ(memory.submaps_resident + memory.submaps_compact, static_cast<int64_t>(saved.size()));
+  EXPECT_LE(memory.resident_bytes, int64_t{1} << 20);
+  EXPECT_EQ(memory.restores, 0) << "nothing was decoded twice";
+  // Staged within the budget as they were built: none was resident past it and compacted after.
+  EXPECT_EQ(memory.compactions, 0);
+  std::vector<std::vector<uint8_t>> again;
+  bounded.write_submaps([&](int64_t, const Eigen::Isometry3d&,
+                            const std::vector<uint8_t>& encoded) { again.push_back(encoded); });
+  EXPECT_TRUE(again == saved_bytes) << "save -> load -> save changed the bytes";
+  const std::vector<SubmapInfo> infos = bounded.submaps();
+  const std::vector<SubmapInfo> reference = unbounded.submaps();
+  ASSERT_EQ(infos.size(), reference.size());
+  for (size_t k = 0; k < infos.size(); ++k) {
+    EXPECT_EQ(infos[k].mesh_triangles, reference[k].mesh_triangles);
+    map::Mesh mesh;
+    Eigen::Isometry3d T_world_submap;
+    ASSERT_TRUE(bounded.submap_mesh(infos[k].id, &mesh, &T_world_submap));
+    EXPECT_EQ(static_cast<int64_t>(mesh.triangle_count()), reference[k].mesh_triangles);
+  }
+  EXPECT_EQ(bounded.esdf_slice_world(1.0).size(), unbounded.esdf_slice_world(1.0).size());
+
+  std::vector<SubmapSnapshot> truncated = saved;
+  truncated.back().encoded.resize(truncated.back().encoded.size() / 2);
+  EXPECT_THROW(bounded.load_submaps(truncated), Error);
+  EXPECT_EQ(bounded.submaps().size(), saved.size());
+}
+
 TEST(PipelineExternalInput, LoadSubmapsRefusesBadSnapshotsAndKeepsTheMap) {
   SlamSystem slam(sphere_config());
   for (int k = 0; k < 6; ++k)

@@ -12,6 +12,7 @@
 #include <fstream>
 #include <iterator>
 #include <type_traits>
+#include <utility>
 
 #include "covoxslam/core/error.h"
 #include "covoxslam/io/file_bytes.h"
@@ -283,7 +284,7 @@ uint64_t check_version2_checksum(std::ifstream& file, uint64_t file_size, const 
 }
 
 SubmapRecord read_version2_submap(StreamReader& r, const MapFileContents& contents,
-                                  const std::string& path) {
+                                  const std::string& path, MapFileVoxels voxels) {
   SubmapRecord submap;
   submap.id = r.get<int64_t>("submap id");
   Eigen::Matrix4d pose;
@@ -300,11 +301,16 @@ SubmapRecord read_version2_submap(StreamReader& r, const MapFileContents& conten
   if (info.voxels_per_side != contents.voxels_per_side ||
       info.distance_scale_m != contents.distance_scale_m)
     throw Error(what + ": voxels per side or distance scale differ from the file's");
-  submap.blocks = decode_submap(encoded, what.c_str());
+  if (voxels == MapFileVoxels::kDecoded) {
+    submap.blocks = decode_submap(encoded, what.c_str());
+  } else {
+    submap.encoded = std::move(encoded);
+  }
   return submap;
 }
 
-MapFileContents load_version2(std::ifstream& file, uint64_t file_size, const std::string& path) {
+MapFileContents load_version2(std::ifstream& file, uint64_t file_size, const std::string& path,
+                              MapFileVoxels voxels) {
   const uint64_t payload = check_version2_checksum(file, file_size, path);
   file.clear();
   file.seekg(0);
@@ -325,7 +331,7 @@ MapFileContents load_version2(std::ifstream& file, uint64_t file_size, const std
     const uint8_t tag = r.get<uint8_t>("record tag");
     if (tag == kTagEnd) break;
     if (tag != kTagSubmap) throw Error("map file " + path + ": unknown record tag");
-    contents.submaps.push_back(read_version2_submap(r, contents, path));
+    contents.submaps.push_back(read_version2_submap(r, contents, path, voxels));
   }
   if (r.get<uint64_t>("submap count") != contents.submaps.size())
     throw Error("map file " + path + ": the submap count does not match the records");
@@ -454,7 +460,18 @@ void save_map_file(const std::string& path, const MapFileContents& contents) {
   writer.commit();
 }
 
-MapFileContents load_map_file(const std::string& path) {
+// A version 1 file's blocks replaced by their compact forms, encoded with its largest |distance|.
+MapFileContents encoded_version1(MapFileContents contents) {
+  contents.distance_scale_m = largest_distance_m(contents);
+  for (SubmapRecord& submap : contents.submaps) {
+    submap.encoded =
+        encode_submap(submap.blocks, contents.voxels_per_side, contents.distance_scale_m);
+    std::vector<map::HostBlock>().swap(submap.blocks);
+  }
+  return contents;
+}
+
+MapFileContents load_map_file(const std::string& path, MapFileVoxels voxels) {
   std::ifstream file(path, std::ios::binary | std::ios::ate);
   if (!file) throw Error("map file " + path + ": cannot open");
   const uint64_t file_size = static_cast<uint64_t>(file.tellg());
@@ -466,12 +483,15 @@ MapFileContents load_map_file(const std::string& path) {
   uint32_t version = 0;
   file.read(reinterpret_cast<char*>(&version), sizeof(version));
   if (!file) throw Error("map file " + path + ": truncated header");
-  if (version == kVersion1) return load_version1(path);
+  if (version == kVersion1) {
+    MapFileContents contents = load_version1(path);
+    return voxels == MapFileVoxels::kDecoded ? contents : encoded_version1(std::move(contents));
+  }
   if (version != kMapFileVersion) {
     throw Error("map file " + path + ": format version " + std::to_string(version) +
                 ", this build reads versions 1 and " + std::to_string(kMapFileVersion));
   }
-  return load_version2(file, file_size, path);
+  return load_version2(file, file_size, path, voxels);
 }
 
 std::vector<std::unique_ptr<map::TsdfMap>> make_maps(const MapFileContents& contents,

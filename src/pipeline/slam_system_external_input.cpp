@@ -2,11 +2,14 @@
 // optimisation requests, reset() and load_submaps().
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include "covoxslam/core/error.h"
 #include "covoxslam/core/log.h"
+#include "covoxslam/io/submap_codec.h"
 #include "covoxslam/pipeline/slam_system.h"
 
 namespace covox {
@@ -225,6 +228,49 @@ void SlamSystem::reset() {
   reset_locked();
 }
 
+SlamSystem::GraphSubmap SlamSystem::stage_loaded_submap(SubmapSnapshot& snapshot,
+                                                        integrators::EsdfIntegrator& esdf,
+                                                        integrators::MeshIntegrator& mesher,
+                                                        const Stream& stream, double* room_bytes,
+                                                        std::vector<uint8_t>* compact) {
+  const std::string name = "load_submaps: submap " + std::to_string(snapshot.id);
+  auto submap =
+      std::make_unique<Submap>(snapshot.id, config_.device, config_.map, snapshot.T_world_submap);
+  try {
+    if (snapshot.encoded.empty()) {
+      submap->map().load_blocks(snapshot.blocks, stream);
+    } else {
+      io::load_encoded_submap(snapshot.encoded, &submap->map(), stream);
+    }
+  } catch (const std::exception& error) {
+    throw Error(name + ": " + error.what());
+  }
+  std::vector<map::HostBlock>().swap(snapshot.blocks);
+  submap->finish(esdf, mesher, stream);
+  std::unique_ptr<SubmapRegistrationPoints> points;
+  if (config_.registration.enabled)
+    points = prepare_registration_points(submap->map(), config_.registration, stream);
+  auto footprint =
+      std::make_unique<backend::SubmapFootprint>(backend::submap_footprint(submap->map()));
+  const double bytes = static_cast<double>(submap->map().device_bytes());
+  if (bytes <= *room_bytes) {
+    *room_bytes -= bytes;
+  } else {
+    // The file's bytes when they have the system's scale: the same bytes a compaction would give
+    // (the codec is idempotent); otherwise the loaded voxels encoded with the system's scale.
+    const bool same_scale =
+        !snapshot.encoded.empty() &&
+        io::validate_encoded_submap(snapshot.encoded.data(), snapshot.encoded.size(), name.c_str())
+                .distance_scale_m == map_distance_scale_m();
+    *compact = same_scale ? std::move(snapshot.encoded)
+                          : io::encode_submap(submap->map(), map_distance_scale_m());
+    submap->map().release();
+  }
+  std::vector<uint8_t>().swap(snapshot.encoded);
+  return GraphSubmap{std::move(submap), std::move(points), true, std::make_unique<WallMapCache>(),
+                     std::move(footprint)};
+}
+
 void SlamSystem::load_submaps(std::vector<SubmapSnapshot> submaps) {
   std::sort(submaps.begin(), submaps.end(),
             [](const SubmapSnapshot& a, const SubmapSnapshot& b) { return a.id < b.id; });
@@ -242,28 +288,22 @@ void SlamSystem::load_submaps(std::vector<SubmapSnapshot> submaps) {
   }
   // The heavy part (voxels to the device, ESDF, mesh, registration points) before anything is
   // replaced, on this thread with its own integrators: a bad submap leaves the map as it was.
+  // The old map's resident submaps stay until the reset, so the new ones may use what is left of
+  // the device budget; past it they are released to their compact forms as they are staged.
   const Stream stream(config_.device);
   integrators::EsdfIntegrator esdf(config_.esdf);
   integrators::MeshIntegrator mesher(config_.mesh);
+  double room_bytes = std::numeric_limits<double>::infinity();
+  if (store_->enabled()) {
+    room_bytes = config_.memory.device_budget_mb * 1024.0 * 1024.0 -
+                 static_cast<double>(store_->counters().resident_bytes);
+  }
   std::vector<GraphSubmap> loaded;
+  std::vector<std::vector<uint8_t>> compact_forms(submaps.size());
   loaded.reserve(submaps.size());
-  for (SubmapSnapshot& snapshot : submaps) {
-    auto submap =
-        std::make_unique<Submap>(snapshot.id, config_.device, config_.map, snapshot.T_world_submap);
-    try {
-      submap->map().load_blocks(snapshot.blocks, stream);
-    } catch (const std::exception& error) {
-      throw Error("load_submaps: submap " + std::to_string(snapshot.id) + ": " + error.what());
-    }
-    snapshot.blocks.clear();
-    submap->finish(esdf, mesher, stream);
-    std::unique_ptr<SubmapRegistrationPoints> points;
-    if (config_.registration.enabled)
-      points = prepare_registration_points(submap->map(), config_.registration, stream);
-    auto footprint =
-        std::make_unique<backend::SubmapFootprint>(backend::submap_footprint(submap->map()));
-    loaded.push_back(GraphSubmap{std::move(submap), std::move(points), true,
-                                 std::make_unique<WallMapCache>(), std::move(footprint)});
+  for (size_t k = 0; k < submaps.size(); ++k) {
+    loaded.push_back(
+        stage_loaded_submap(submaps[k], esdf, mesher, stream, &room_bytes, &compact_forms[k]));
   }
 
   // New submaps (even one the frontend starts before the reset below) get ids after the loaded
@@ -278,8 +318,13 @@ void SlamSystem::load_submaps(std::vector<SubmapSnapshot> submaps) {
   reset_locked();
   {
     std::lock_guard<std::mutex> lock(state_mutex_);
-    for (GraphSubmap& entry : loaded) {
-      store_->add(*entry.submap);
+    for (size_t k = 0; k < loaded.size(); ++k) {
+      GraphSubmap& entry = loaded[k];
+      if (compact_forms[k].empty()) {
+        store_->add(*entry.submap);
+      } else {
+        store_->add_compact(*entry.submap, std::move(compact_forms[k]));
+      }
       pose_graph_.add_submap(entry.submap->id(), entry.submap->pose(), /*loaded=*/true);
       graph_submaps_.push_back(std::move(entry));
     }

@@ -76,7 +76,7 @@ std::vector<SubmapSnapshot> SlamSystem::submap_snapshots() {
   snapshots.reserve(submaps.size());
   for (const auto& [submap, T_world_submap] : submaps) {
     acquire_locked(*submap, /*mark_used=*/false);
-    snapshots.push_back(SubmapSnapshot{submap->id(), T_world_submap, submap->map().snapshot()});
+    snapshots.push_back(SubmapSnapshot{submap->id(), T_world_submap, submap->map().snapshot(), {}});
     enforce_budget_locked(submap->id());
   }
   enforce_budget_locked(-1);

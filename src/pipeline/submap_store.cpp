@@ -73,6 +73,27 @@ void SubmapStore::add(Submap& submap) {
   counters_.mesh_bytes += mesh_bytes;
 }
 
+void SubmapStore::add_compact(Submap& submap, std::vector<uint8_t> encoded) {
+  if (!enabled() || submap.map().block_count() != 0 || encoded.empty())
+    throw Error("SubmapStore: submap " + std::to_string(submap.id()) +
+                " cannot be added compact (no budget, blocks still resident or no bytes)");
+  Entry entry;
+  entry.bytes = std::move(encoded);
+  entry.size = entry.bytes.size();
+  entry.mesh_bytes = io::encode_mesh(submap.take_mesh(), mesh_step_m_);
+  entry.mesh_size = entry.mesh_bytes.size();
+  entry.resident = false;
+  const int64_t held = static_cast<int64_t>(entry.size + entry.mesh_size);
+  const int64_t mesh_bytes = static_cast<int64_t>(entry.mesh_size);
+  std::lock_guard<std::mutex> lock(mutex_);
+  entry.last_use = ++use_clock_;
+  if (!entries_.emplace(submap.id(), std::move(entry)).second)
+    throw Error("SubmapStore: submap " + std::to_string(submap.id()) + " added twice");
+  ++counters_.submaps_compact;
+  counters_.compact_bytes += held;
+  counters_.mesh_bytes += mesh_bytes;
+}
+
 bool SubmapStore::mesh(int64_t id, map::Mesh* mesh) {
   std::lock_guard<std::mutex> lock(mutex_);
   auto it = entries_.find(id);

@@ -74,7 +74,8 @@ bool SlamNode::load_map(covoxslam::FilePath::Request& request,
                         covoxslam::FilePath::Response& response) {
   return answer("load_map", response, [&] {
     const std::string path = require_path(request.file_path);
-    io::MapFileContents contents = io::load_map_file(path);
+    // Compact forms: a map larger than the memory budget is never decoded whole.
+    io::MapFileContents contents = io::load_map_file(path, io::MapFileVoxels::kEncoded);
     if (contents.voxel_size_m != slam_->config().map.voxel_size_m ||
         contents.voxels_per_side != slam_->config().map.voxels_per_side) {
       throw Error("the map in " + path + " has voxel size " +
@@ -87,8 +88,8 @@ bool SlamNode::load_map(covoxslam::FilePath::Request& request,
     }
     std::vector<pipeline::SubmapSnapshot> submaps;
     for (io::SubmapRecord& record : contents.submaps) {
-      submaps.push_back(
-          pipeline::SubmapSnapshot{record.id, record.T_world_submap, std::move(record.blocks)});
+      submaps.push_back(pipeline::SubmapSnapshot{
+          record.id, record.T_world_submap, {}, std::move(record.encoded)});
     }
     const size_t count = submaps.size();
     {

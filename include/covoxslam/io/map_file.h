@@ -37,7 +37,18 @@ constexpr uint32_t kMapFileVersion = 2;
 struct SubmapRecord {
   int64_t id = 0;
   Eigen::Isometry3d T_world_submap = Eigen::Isometry3d::Identity();
-  std::vector<map::HostBlock> blocks;  // as TsdfMap::snapshot() returns them
+  // MapFileVoxels::kDecoded (and save_map_file): as TsdfMap::snapshot() returns them.
+  std::vector<map::HostBlock> blocks;
+  // MapFileVoxels::kEncoded: the compact form (io/submap_codec.h) with the file's voxels per side
+  // and distance scale; `blocks` stays empty.
+  std::vector<uint8_t> encoded;
+};
+
+// What load_map_file() gives of each submap's voxels.
+enum class MapFileVoxels {
+  kDecoded,  // blocks at full size: every submap's voxels in memory at once
+  kEncoded,  // compact forms as a version 2 file stores them (a tenth of the size or less); a
+             // version 1 file's blocks are encoded with its largest |distance| as the scale
 };
 
 struct MapFileContents {
@@ -91,8 +102,9 @@ class MapFileWriter {
 void save_map_file(const std::string& path, const MapFileContents& contents);
 // Writes the retired version 1 layout; kept so that the version 1 reader stays tested.
 void save_map_file_version1(const std::string& path, const MapFileContents& contents);
-// Loads a version 1 or 2 file (version 2: blocks decoded, without ESDF voxels).
-MapFileContents load_map_file(const std::string& path);
+// Loads a version 1 or 2 file (blocks without ESDF voxels, or compact forms: see MapFileVoxels).
+MapFileContents load_map_file(const std::string& path,
+                              MapFileVoxels voxels = MapFileVoxels::kDecoded);
 
 // Builds device maps from loaded contents.
 std::vector<std::unique_ptr<map::TsdfMap>> make_maps(const MapFileContents& contents,

@@ -252,6 +252,10 @@ struct SubmapSnapshot {
   int64_t id = 0;
   Eigen::Isometry3d T_world_submap = Eigen::Isometry3d::Identity();
   std::vector<map::HostBlock> blocks;  // TSDF, colour and ESDF, as TsdfMap::snapshot() returns them
+  // For load_submaps(), instead of `blocks`: the compact form (io/submap_codec.h) as a map file
+  // stores it. A loaded submap that does not fit the device budget keeps these bytes (when their
+  // distance scale is the system's) without encoding again.
+  std::vector<uint8_t> encoded;
 };
 
 // A finished submap in the pose graph, as the outside sees it.
@@ -356,7 +360,9 @@ class SlamSystem {
   // odometry frame is taken as the world frame until registration or a loop closure links it to
   // the loaded map. Throws covox::Error naming the submap when a pose is not a finite, gravity-
   // aligned rigid transform, ids repeat, or its blocks do not fit the map configuration; the map
-  // is unchanged then.
+  // is unchanged then. Under the memory budget the loaded submaps stay resident while they fit
+  // beside the old map's resident ones; the rest enter the store compact, so a load never holds
+  // more than the device budget plus one submap on the device.
   void load_submaps(std::vector<SubmapSnapshot> submaps);
   // The current correction T_W_odom (voxgraph's mission -> odom) of the latest mapped submap in
   // the graph; identity before the first.
@@ -434,6 +440,11 @@ class SlamSystem {
   // optimisation.
   bool process_submap(QueuedSubmap item);
   // The remaining helpers need backend_mutex_.
+  // A submap of load_submaps() built, finished and, past `room_bytes` of device memory (which it
+  // lowers), released to its compact form `compact` (empty when it stays resident).
+  GraphSubmap stage_loaded_submap(SubmapSnapshot& snapshot, integrators::EsdfIntegrator& esdf,
+                                  integrators::MeshIntegrator& mesher, const Stream& stream,
+                                  double* room_bytes, std::vector<uint8_t>* compact);
   void add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
                                 std::unique_ptr<SubmapRegistrationPoints> points);
   // Place recognition's loop closures for a new submap (pipeline/place_recognition.h), appended

@@ -85,6 +85,10 @@ class SubmapStore {
   // A finished or loaded submap (after Submap::finish()), resident with its voxels as they are; it
   // is encoded when it is first compacted. Takes the submap's mesh (Submap::take_mesh()).
   void add(Submap& submap);
+  // A finished submap whose voxels were released (map::TsdfMap::release(), a loaded submap past
+  // the budget) kept as `encoded`, its compact form, as if it had been compacted: its mesh is
+  // taken and encoded. Throws covox::Error without a budget or while the map holds blocks.
+  void add_compact(Submap& submap, std::vector<uint8_t> encoded);
   // A copy of the submap's mesh (decoded, read back from the spill file if needed); false when
   // the store does not know the id.
   bool mesh(int64_t id, map::Mesh* mesh);
