@@ -121,8 +121,9 @@ void SubmapStore::acquire(Submap& submap, integrators::EsdfIntegrator& esdf, con
   if (entry.resident) return;
   const auto start = std::chrono::steady_clock::now();
   const bool from_disk = entry.bytes.empty();
-  const std::vector<uint8_t> bytes =
-      from_disk ? read_back_locked(submap.id(), entry, 0, entry.size) : entry.bytes;
+  std::vector<uint8_t> read_back;
+  if (from_disk) read_back = read_back_locked(submap.id(), entry, 0, entry.size);
+  const std::vector<uint8_t>& bytes = from_disk ? read_back : entry.bytes;
   submap.map() = map::TsdfMap(submap.map().device(), submap.map().config());
   io::load_encoded_submap(bytes, &submap.map(), stream);
   esdf.update_all(submap.map(), stream);
