@@ -195,7 +195,7 @@ TEST(SubmapStore, SmallBudgetSpillsAndKeepsTheUnboundedRunsMapAndRegistrations) 
             << " B), on disk " << memory.submaps_on_disk << " (" << memory.disk_bytes
             << " B); compactions " << memory.compactions << ", restores " << memory.restores << " ("
             << memory.restore_s << " s), spills " << memory.spills << ", reads "
-            << memory.spill_reads << "\n";
+            << memory.spill_reads << "; peak resident " << memory.peak_resident_bytes << " B\n";
   EXPECT_GT(memory.compactions, 0);
   EXPECT_GT(memory.spills, 0);
   EXPECT_GT(memory.restores, 0);

@@ -366,6 +366,8 @@ void add_memory_rows(tools::BenchmarkReport* report, const std::string& name,
   report->add(name, "submaps compact", static_cast<double>(m.submaps_compact), "");
   report->add(name, "submaps on disk", static_cast<double>(m.submaps_on_disk), "");
   report->add(name, "resident submap memory", static_cast<double>(m.resident_bytes) / mb, "MB");
+  report->add(name, "peak resident submap memory", static_cast<double>(m.peak_resident_bytes) / mb,
+              "MB");
   report->add(name, "compact submap memory", static_cast<double>(m.compact_bytes) / mb, "MB");
   report->add(name, "spilled submap bytes", static_cast<double>(m.disk_bytes) / mb, "MB");
   report->add(name, "submap mesh memory", static_cast<double>(m.mesh_bytes) / mb, "MB");

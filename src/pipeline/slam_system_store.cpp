@@ -34,13 +34,13 @@ void SlamSystem::acquire_locked(Submap& submap, bool mark_used) {
   store_->acquire(submap, restore_esdf_, restore_stream_, mark_used);
 }
 
-void SlamSystem::enforce_budget_locked(int64_t keep) {
+void SlamSystem::enforce_budget_locked(int64_t keep, const std::unordered_set<int64_t>& also_kept) {
   if (!store_->enabled()) return;
   std::vector<Submap*> candidates;
   {
     std::lock_guard<std::mutex> lock(state_mutex_);
     // kJoint solves read the field submaps of its pairs at every optimisation: they stay.
-    std::unordered_set<int64_t> pinned;
+    std::unordered_set<int64_t> pinned = also_kept;
     for (const JointPair& pair : joint_pairs_) pinned.insert(pair.field_submap);
     for (const GraphSubmap& entry : graph_submaps_) {
       if (entry.submap && !pinned.count(entry.submap->id()))
@@ -61,7 +61,13 @@ void SlamSystem::acquire_partners_locked(const std::vector<const RegistrationPar
       if (entry.submap && wanted.count(entry.submap->id())) chosen.push_back(entry.submap.get());
     }
   }
-  for (Submap* submap : chosen) acquire_locked(*submap);
+  // The partners are the most recently used once acquired, so the submaps that leave to make room
+  // are those that would leave after the registration anyway; leaving before the next partner
+  // comes back keeps the device within the budget and one submap.
+  for (Submap* submap : chosen) {
+    acquire_locked(*submap);
+    enforce_budget_locked(-1, wanted);
+  }
 }
 
 std::vector<SubmapSnapshot> SlamSystem::submap_snapshots() {

@@ -70,6 +70,7 @@ void SubmapStore::add(Submap& submap) {
     throw Error("SubmapStore: submap " + std::to_string(submap.id()) + " added twice");
   ++counters_.submaps_resident;
   counters_.resident_bytes += resident_bytes;
+  counters_.peak_resident_bytes = std::max(counters_.peak_resident_bytes, counters_.resident_bytes);
   counters_.mesh_bytes += mesh_bytes;
 }
 
@@ -137,6 +138,7 @@ void SubmapStore::acquire(Submap& submap, integrators::EsdfIntegrator& esdf, con
   }
   ++counters_.submaps_resident;
   counters_.resident_bytes += entry.resident_bytes;
+  counters_.peak_resident_bytes = std::max(counters_.peak_resident_bytes, counters_.resident_bytes);
   ++counters_.restores;
   counters_.restore_s +=
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -309,6 +311,7 @@ void SubmapStore::clear() {
   counters_.spill_reads = totals.spill_reads;
   counters_.spill_failures = totals.spill_failures;
   counters_.restore_s = totals.restore_s;
+  counters_.peak_resident_bytes = totals.peak_resident_bytes;
   if (spill_fd_ >= 0 && ::ftruncate(spill_fd_, 0) == 0) spill_end_ = 0;
 }
 

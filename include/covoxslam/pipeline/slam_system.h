@@ -39,6 +39,7 @@
 #include <mutex>
 #include <string>
 #include <thread>
+#include <unordered_set>
 #include <vector>
 
 #include <Eigen/Geometry>
@@ -477,13 +478,14 @@ class SlamSystem {
   void reset_locked();
   // Memory budget (src/pipeline/slam_system_store.cpp); all need backend_mutex_.
   // Brings back the voxels of the partners registration will read (chosen from the kept
-  // footprints, so the choice itself needs no voxels).
+  // footprints, so the choice itself needs no voxels), one at a time with the budget enforced
+  // after each, the partners kept: the device holds at most the budget and one submap.
   void acquire_partners_locked(const std::vector<const RegistrationPartner*>& partners);
   // `mark_used` false: for sweeps over every submap (SubmapStore::acquire).
   void acquire_locked(Submap& submap, bool mark_used = true);
   // Compacts and spills down to the budgets, least recently used first; `keep` (an id, or -1)
-  // stays.
-  void enforce_budget_locked(int64_t keep);
+  // and the ids in `also_kept` stay.
+  void enforce_budget_locked(int64_t keep, const std::unordered_set<int64_t>& also_kept = {});
   void join_threads();
   // The correction T_W_odom for scans of submap `submap_id`; needs state_mutex_.
   Eigen::Isometry3d correction_for_locked(int64_t submap_id) const;

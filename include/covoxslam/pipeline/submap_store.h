@@ -58,17 +58,18 @@ struct SubmapStoreCounters {
   int64_t submaps_resident = 0;
   int64_t submaps_compact = 0;  // compact bytes in host memory only
   int64_t submaps_on_disk = 0;
-  int64_t resident_bytes = 0;  // device memory of the resident submaps' maps
-  int64_t compact_bytes = 0;   // compact forms held in host memory (resident ones' included),
-                               // their encoded meshes included
-  int64_t disk_bytes = 0;      // compact forms written to the spill file
-  int64_t compactions = 0;     // a resident submap's voxels released
-  int64_t restores = 0;        // a submap's voxels rebuilt from its compact form
-  int64_t spills = 0;          // compact forms written to the spill file
-  int64_t spill_reads = 0;     // compact forms read back from it
-  int64_t spill_failures = 0;  // spill writes that failed (the submap stayed in memory)
-  double restore_s = 0.0;      // wall time spent rebuilding submaps (decode, load, ESDF)
-  int64_t mesh_bytes = 0;      // meshes in host memory: as made (resident submaps) and encoded
+  int64_t resident_bytes = 0;       // device memory of the resident submaps' maps
+  int64_t peak_resident_bytes = 0;  // the most resident_bytes has been (over resets too)
+  int64_t compact_bytes = 0;        // compact forms held in host memory (resident ones' included),
+                                    // their encoded meshes included
+  int64_t disk_bytes = 0;           // compact forms written to the spill file
+  int64_t compactions = 0;          // a resident submap's voxels released
+  int64_t restores = 0;             // a submap's voxels rebuilt from its compact form
+  int64_t spills = 0;               // compact forms written to the spill file
+  int64_t spill_reads = 0;          // compact forms read back from it
+  int64_t spill_failures = 0;       // spill writes that failed (the submap stayed in memory)
+  double restore_s = 0.0;           // wall time spent rebuilding submaps (decode, load, ESDF)
+  int64_t mesh_bytes = 0;           // meshes in host memory: as made (resident submaps) and encoded
 };
 
 class SubmapStore {
