@@ -34,7 +34,8 @@ void SlamSystem::acquire_locked(Submap& submap, bool mark_used) {
   store_->acquire(submap, restore_esdf_, restore_stream_, mark_used);
 }
 
-void SlamSystem::enforce_budget_locked(int64_t keep, const std::unordered_set<int64_t>& also_kept) {
+void SlamSystem::enforce_budget_locked(int64_t keep, const std::unordered_set<int64_t>& also_kept,
+                                       bool return_memory) {
   if (!store_->enabled()) return;
   std::vector<Submap*> candidates;
   {
@@ -47,7 +48,7 @@ void SlamSystem::enforce_budget_locked(int64_t keep, const std::unordered_set<in
         candidates.push_back(entry.submap.get());
     }
   }
-  store_->enforce(candidates, keep);
+  store_->enforce(candidates, keep, return_memory);
 }
 
 void SlamSystem::acquire_partners_locked(const std::vector<const RegistrationPartner*>& partners) {
@@ -63,10 +64,11 @@ void SlamSystem::acquire_partners_locked(const std::vector<const RegistrationPar
   }
   // The partners are the most recently used once acquired, so the submaps that leave to make room
   // are those that would leave after the registration anyway; leaving before the next partner
-  // comes back keeps the device within the budget and one submap.
+  // comes back keeps the device within the budget and one submap. The freed host memory is kept
+  // for the next partner's restore and handed back by the enforcement after the registration.
   for (Submap* submap : chosen) {
     acquire_locked(*submap);
-    enforce_budget_locked(-1, wanted);
+    enforce_budget_locked(-1, wanted, /*return_memory=*/false);
   }
 }
 

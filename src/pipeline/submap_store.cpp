@@ -144,7 +144,8 @@ void SubmapStore::acquire(Submap& submap, integrators::EsdfIntegrator& esdf, con
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-void SubmapStore::enforce(const std::vector<Submap*>& candidates, int64_t keep) {
+void SubmapStore::enforce(const std::vector<Submap*>& candidates, int64_t keep,
+                          bool return_memory) {
   if (!enabled()) return;
   std::lock_guard<std::mutex> lock(mutex_);
   std::vector<std::pair<Submap*, Entry*>> least_recent_first;
@@ -169,7 +170,11 @@ void SubmapStore::enforce(const std::vector<Submap*>& candidates, int64_t keep) 
     if (entry->resident || entry->bytes.empty()) continue;
     if (!spill_locked(submap->id(), *entry)) break;  // no disk: keep everything in memory
   }
-  if (counters_.compactions != compactions_before) return_freed_host_memory();
+  memory_to_return_ = memory_to_return_ || counters_.compactions != compactions_before;
+  if (return_memory && memory_to_return_) {
+    return_freed_host_memory();
+    memory_to_return_ = false;
+  }
 }
 
 void SubmapStore::compact_locked(Submap& submap, Entry& entry) {

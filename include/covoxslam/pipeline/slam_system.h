@@ -484,8 +484,9 @@ class SlamSystem {
   // `mark_used` false: for sweeps over every submap (SubmapStore::acquire).
   void acquire_locked(Submap& submap, bool mark_used = true);
   // Compacts and spills down to the budgets, least recently used first; `keep` (an id, or -1)
-  // and the ids in `also_kept` stay.
-  void enforce_budget_locked(int64_t keep, const std::unordered_set<int64_t>& also_kept = {});
+  // and the ids in `also_kept` stay (SubmapStore::enforce for `return_memory`).
+  void enforce_budget_locked(int64_t keep, const std::unordered_set<int64_t>& also_kept = {},
+                             bool return_memory = true);
   void join_threads();
   // The correction T_W_odom for scans of submap `submap_id`; needs state_mutex_.
   Eigen::Isometry3d correction_for_locked(int64_t submap_id) const;

@@ -102,7 +102,9 @@ class SubmapStore {
   // Compacts resident submaps among `candidates`, least recently used first, until the resident
   // bytes fit the device budget, then spills compact ones, least recently used first, until the
   // bytes in host memory fit the host budget. `keep` (an id, or -1) stays resident.
-  void enforce(const std::vector<Submap*>& candidates, int64_t keep);
+  // `return_memory` false defers handing freed host memory back to the system to the next call
+  // with true (a caller about to restore more submaps reuses it at once).
+  void enforce(const std::vector<Submap*>& candidates, int64_t keep, bool return_memory = true);
   // The compact form of a submap the store holds (read back from the spill file if needed);
   // empty when the store does not know the id or the submap has never been compacted (its
   // voxels are resident: encode them).
@@ -143,6 +145,7 @@ class SubmapStore {
   std::unordered_map<int64_t, Entry> entries_;
   SubmapStoreCounters counters_;
   uint64_t use_clock_ = 0;
+  bool memory_to_return_ = false;  // compactions since freed memory was last handed back
   int spill_fd_ = -1;
   int64_t spill_end_ = 0;
 };
