@@ -364,7 +364,10 @@ def mission_table(reports, name="mission_cpu.json"):
     if "submaps resident" in summary:
         lines.append("")
         lines.append(f"Finished submaps at the end: {number(summary.get('submaps resident'))} "
-                     f"resident ({with_unit(summary.get('resident submap memory'), ' MB')}), "
+                     f"resident ({with_unit(summary.get('resident submap memory'), ' MB')}"
+                     + (f", peak {with_unit(summary.get('peak resident submap memory'), ' MB')}"
+                        if "peak resident submap memory" in summary else "")
+                     + "), "
                      f"{number(summary.get('submaps compact'))} compact "
                      f"({with_unit(summary.get('compact submap memory'), ' MB')}), "
                      f"{number(summary.get('submaps on disk'))} on disk; "
