@@ -138,18 +138,14 @@ class TimelineRecorder {
 void save_map(pipeline::SlamSystem& slam, const map::TsdfMapConfig& map, const std::string& path,
               SlamRunResult* result) {
   const auto start = Clock::now();
-  io::MapFileContents contents;
-  contents.voxel_size_m = map.voxel_size_m;
-  contents.voxels_per_side = map.voxels_per_side;
-  contents.has_esdf = true;  // finishing a submap computes its ESDF
-  for (pipeline::SubmapSnapshot& snapshot : slam.submap_snapshots()) {
-    io::SubmapRecord record;
-    record.id = snapshot.id;
-    record.T_world_submap = snapshot.T_world_submap;
-    record.blocks = std::move(snapshot.blocks);
-    contents.submaps.push_back(std::move(record));
-  }
-  io::save_map_file(path, contents);
+  // Streamed submap by submap in their compact forms, as the node's save_map: the map is never
+  // held whole, in full or compact form.
+  io::MapFileWriter writer(path, map.voxel_size_m, map.voxels_per_side,
+                           slam.map_distance_scale_m());
+  slam.write_submaps(
+      [&](int64_t id, const Eigen::Isometry3d& T_world_submap,
+          const std::vector<uint8_t>& encoded) { writer.add_submap(id, T_world_submap, encoded); });
+  writer.commit();
   result->map_save_s = seconds_since(start);
   std::ifstream file(path, std::ios::binary | std::ios::ate);
   result->map_file_mb = file ? double(file.tellg()) / (1024.0 * 1024.0) : kNaN;
