@@ -166,6 +166,63 @@ TEST(PlaceDescriptor, ATurnIsASectorShiftAndTheBirdEyeFindsTheOffset) {
   EXPECT_GT(overlap.score, 0.5);
 }
 
+TEST(PlaceDescriptor, BirdEyeScoreIsOneForTheSameImageAndNeverAboveOne) {
+  // Turned cells that land in one fixed cell count once: a score is a fraction of the smaller
+  // image's total, 1 only where the images agree.
+  PlaceRecognitionConfig config;
+  const std::vector<SurfaceColumn> yard = yard_columns();
+  const PlaceDescriptor fixed = place_descriptor(seen_from(yard, Pose4Dof{}), config);
+  const BirdEyeMatch same = match_bird_eye(fixed, fixed, 0.0, config);
+  EXPECT_DOUBLE_EQ(same.score, 1.0);
+  EXPECT_EQ(same.T_fixed_moving.x, 0.0);
+  EXPECT_EQ(same.T_fixed_moving.y, 0.0);
+  EXPECT_EQ(same.T_fixed_moving.yaw, 0.0);
+  for (double yaw_deg : {20.0, 45.0, 100.0, 225.0}) {
+    const Pose4Dof pose{1.3, -0.7, 0.0, yaw_deg * kDegToRad};
+    const PlaceDescriptor moving = place_descriptor(seen_from(yard, pose), config);
+    const BirdEyeMatch match = match_bird_eye(moving, fixed, 0.0, config);
+    EXPECT_LE(match.score, 1.0) << yaw_deg;
+    EXPECT_GT(match.score, 0.5) << yaw_deg;
+  }
+}
+
+TEST(PlaceDescriptor, PathAnchorsAreSpacedAlongThePathAndCapped) {
+  std::vector<Eigen::Vector2d> path;
+  for (int k = 0; k <= 50; ++k) path.emplace_back(0.2 * k, 0.0);  // 10 m in 0.2 m steps
+  const std::vector<Eigen::Vector2d> anchors = path_anchors(path, 2.5);
+  ASSERT_EQ(anchors.size(), 4u);  // 0, 2.6, 5.2, 7.8: the 0.2 m steps pass 2.5 m at 2.6 m
+  EXPECT_EQ(anchors[0], path[0]);
+  for (size_t k = 1; k < anchors.size(); ++k)
+    EXPECT_NEAR(anchors[k].x() - anchors[k - 1].x(), 2.6, 1e-9);
+  EXPECT_EQ(path_anchors(path, 0.0).size(), 1u);
+  EXPECT_EQ(path_anchors({}, 2.5)[0], Eigen::Vector2d::Zero());
+  const std::vector<Eigen::Vector2d> capped = path_anchors(path, 0.1);  // every point, thinned
+  ASSERT_EQ(capped.size(), static_cast<size_t>(kMaxPathAnchors));
+  EXPECT_EQ(capped.front(), path.front());
+  EXPECT_EQ(capped.back(), path.back());
+}
+
+TEST(PlaceDescriptor, AnAnchorNearTheQueryGivesANearerRingKeyThanTheOrigin) {
+  // Two passes through the yard whose submaps start 4 m apart along the same path: the ring key
+  // about the second pass's origin is nearer to the first pass's anchor 4 m along its path than
+  // to the first pass's origin.
+  PlaceRecognitionConfig config;
+  const std::vector<SurfaceColumn> yard = yard_columns();
+  const std::vector<SurfaceColumn> first = seen_from(yard, Pose4Dof{-6.0, 0.0, 0.0, 0.0});
+  const PlaceDescriptor second =
+      place_descriptor(seen_from(yard, Pose4Dof{-2.0, 0.0, 0.0, 0.0}), config);
+  auto key_distance_sq = [&](const PlaceDescriptor& d) {
+    double sum = 0.0;
+    for (size_t r = 0; r < d.ring_key.size(); ++r)
+      sum += std::pow(d.ring_key[r] - second.ring_key[r], 2.0);
+    return sum;
+  };
+  const double at_origin = key_distance_sq(place_descriptor(first, config));
+  const double at_anchor =
+      key_distance_sq(place_descriptor(first, config, Eigen::Vector2d(4.0, 0.0)));
+  EXPECT_LT(at_anchor, 0.01 * at_origin);
+}
+
 TEST(RingKeyIndex, NearestKeysAreTheBruteForceOnes) {
   std::mt19937 random(7);
   std::uniform_real_distribution<float> uniform(0.0f, 3.0f);
@@ -253,16 +310,16 @@ TEST(PlaceRecognizer, ClosesARevisitWhoseEstimateIsMetresAndDegreesOff) {
   config.max_descriptor_distance = 1.0;
   PlaceRecognizer recognizer(config);
   PlaceRecognitionCounts counts;
-  EXPECT_TRUE(recognizer
-                  .propose(0, revisit.submap_0->map(), *revisit.points_0, revisit.submap_0->pose(),
-                           {}, {}, revisit.registration, stream, nullptr, {}, &counts)
-                  .empty());
+  EXPECT_TRUE(recognizer.search(0, revisit.submap_0->map(), {}, {}, {}, stream, &counts).empty());
   const std::vector<RegistrationPartner> earlier{
       RegistrationPartner{0, &revisit.submap_0->map(), revisit.submap_0->pose(), nullptr,
                           revisit.points_0.get(), RegistrationOdometry()}};
-  const std::vector<SubmapConstraint> constraints = recognizer.propose(
-      10, revisit.submap_10->map(), *revisit.points_10, revisit.submap_10->pose(), earlier, {},
-      revisit.registration, stream, nullptr, {}, &counts);
+  const std::vector<PlaceCandidate> candidates =
+      recognizer.search(10, revisit.submap_10->map(), {}, {0}, {}, stream, &counts);
+  ASSERT_EQ(candidates.size(), 1u);
+  const std::vector<VerifiedClosure> verified =
+      recognizer.verify(10, revisit.submap_10->map(), *revisit.points_10, revisit.submap_10->pose(),
+                        candidates, earlier, revisit.registration, stream, nullptr, {}, &counts);
   std::printf(
       "[ place    ] candidates %lld, rejected: descriptor %lld, overlap %lld; verified "
       "%lld (too far %lld, too few points %lld, misfit %lld, failed %lld)\n",
@@ -274,22 +331,26 @@ TEST(PlaceRecognizer, ClosesARevisitWhoseEstimateIsMetresAndDegreesOff) {
       static_cast<long long>(counts.registration.rejected_failed));
   EXPECT_EQ(counts.queries, 2);
   EXPECT_EQ(counts.candidates, 1);
-  ASSERT_EQ(constraints.size(), 1u);
-  EXPECT_EQ(counts.accepted, 1);
+  ASSERT_EQ(verified.size(), 1u);
+  EXPECT_EQ(counts.registration.accepted, 1);
   // The true relative pose of the two submap frames (each the gravity-aligned first scan).
   const Pose4Dof expected = relative_pose_4dof(pose_4dof_from_isometry(revisit.truth_0),
                                                pose_4dof_from_isometry(revisit.truth_10));
-  const Pose4Dof& m = constraints[0].measurement;
+  const SubmapConstraint& closure = verified[0].constraint;
+  const Pose4Dof& m = closure.measurement;
   std::printf("[ place    ] measured (%.3f, %.3f, %.2f deg), true (%.3f, %.3f, %.2f deg)\n", m.x,
               m.y, m.yaw / kDegToRad, expected.x, expected.y, expected.yaw / kDegToRad);
-  EXPECT_EQ(constraints[0].from_submap, 0);
-  EXPECT_EQ(constraints[0].to_submap, 10);
+  EXPECT_EQ(closure.from_submap, 0);
+  EXPECT_EQ(closure.to_submap, 10);
+  EXPECT_TRUE(closure.from_place_recognition);
   EXPECT_LT(std::hypot(m.x - expected.x, m.y - expected.y), 0.1);
   EXPECT_LT(std::abs(std::remainder(m.yaw - expected.yaw, 2.0 * test_scene::kPi)), 1.0 * kDegToRad);
+  // Alone, the closure waits for a second one before it enters the graph.
+  EXPECT_TRUE(recognizer.confirm(10, verified, &counts).empty());
+  EXPECT_EQ(counts.accepted, 0);
   // A recent submap is never a candidate: for submap 11, only submap 0 is (10 is excluded).
   PlaceRecognitionCounts recent;
-  recognizer.propose(11, revisit.submap_10->map(), *revisit.points_10, revisit.submap_10->pose(),
-                     earlier, {}, revisit.registration, stream, nullptr, {}, &recent);
+  recognizer.search(11, revisit.submap_10->map(), {}, {0, 10}, {}, stream, &recent);
   EXPECT_EQ(recent.candidates, 1);
 }
 
@@ -309,14 +370,15 @@ TEST(PlaceRecognizer, AClosureTheOdometryCannotExplainIsRejected) {
     odometry_0.pose = revisit.submap_0->odometry_pose();
     odometry_10.pose = revisit.submap_10->odometry_pose();
     odometry_10.path_m = path_m;
-    recognizer.propose(0, revisit.submap_0->map(), *revisit.points_0, revisit.submap_0->pose(), {},
-                       {}, revisit.registration, stream, nullptr, odometry_0, counts);
+    recognizer.search(0, revisit.submap_0->map(), {}, {}, {}, stream, counts);
     const std::vector<RegistrationPartner> earlier{
         RegistrationPartner{0, &revisit.submap_0->map(), revisit.submap_0->pose(), nullptr,
                             revisit.points_0.get(), odometry_0}};
-    return recognizer.propose(10, revisit.submap_10->map(), *revisit.points_10,
-                              revisit.submap_10->pose(), earlier, {}, revisit.registration, stream,
-                              nullptr, odometry_10, counts);
+    const std::vector<PlaceCandidate> candidates =
+        recognizer.search(10, revisit.submap_10->map(), {}, {0}, {}, stream, counts);
+    return recognizer.verify(10, revisit.submap_10->map(), *revisit.points_10,
+                             revisit.submap_10->pose(), candidates, earlier, revisit.registration,
+                             stream, nullptr, odometry_10, counts);
   };
   PlaceRecognitionCounts long_path, short_path;
   EXPECT_EQ(closures_after(1000.0, &long_path).size(), 1u);
@@ -324,6 +386,62 @@ TEST(PlaceRecognizer, AClosureTheOdometryCannotExplainIsRejected) {
   EXPECT_TRUE(closures_after(50.0, &short_path).empty());
   EXPECT_EQ(short_path.verified, 1);
   EXPECT_EQ(short_path.registration.rejected_by_odometry, 1);
+}
+
+// A closure from earlier submap `from` (true pose `truth_from`, odometry = truth) to new submap
+// `to` (true pose `truth_to`; its odometry drifted by `drift` after `path_m`), measuring the true
+// relative pose moved by `error`.
+VerifiedClosure closure(int64_t from, const Pose4Dof& truth_from, int64_t to,
+                        const Pose4Dof& truth_to, const Pose4Dof& drift, double path_m,
+                        const Pose4Dof& error = Pose4Dof{}) {
+  VerifiedClosure c;
+  c.constraint.kind = SubmapConstraintKind::kRegistration;
+  c.constraint.from_submap = from;
+  c.constraint.to_submap = to;
+  c.constraint.from_place_recognition = true;
+  c.constraint.measurement = compose(relative_pose_4dof(truth_from, truth_to), error);
+  c.earlier_odometry.known = c.new_odometry.known = true;
+  c.earlier_odometry.pose = truth_from;
+  c.earlier_odometry.path_m = 10.0 * static_cast<double>(from);
+  c.new_odometry.pose = compose(drift, truth_to);
+  c.new_odometry.path_m = path_m;
+  return c;
+}
+
+TEST(PlaceRecognizer, ClosuresEnterTheGraphOnceAClosureOfAnotherSubmapAgrees) {
+  // A second pass 40 m and 25 degrees off in its odometry: closures 3 -> 100 and 4 -> 102 agree
+  // (the same drift explains both); 4 -> 101 joins the right submaps turned half round (an alike
+  // place) and agrees with neither.
+  PlaceRecognitionConfig config;
+  config.enabled = true;
+  PlaceRecognizer recognizer(config);
+  PlaceRecognitionCounts counts;
+  const Pose4Dof drift{32.0, -24.0, 0.5, 25.0 * kDegToRad};
+  const Pose4Dof e3{30.0, 0.0, 3.5, 0.0}, e4{40.0, 0.5, 3.5, 0.1};
+  const Pose4Dof n100{31.0, 0.8, 3.6, 0.05}, n101{36.0, 0.9, 3.6, 0.08}, n102{41.0, 1.0, 3.6, 0.1};
+  const VerifiedClosure right_a = closure(3, e3, 100, n100, drift, 1000.0);
+  const VerifiedClosure wrong =
+      closure(4, e4, 101, n101, drift, 1005.0, Pose4Dof{4.0, -3.0, 0.0, 180.0 * kDegToRad});
+  const VerifiedClosure right_b = closure(4, e4, 102, n102, drift, 1010.0);
+  EXPECT_LT(closure_disagreement(right_a, right_b, config), 1e-12);
+  EXPECT_GT(closure_disagreement(right_a, wrong, config), 1.0);
+  EXPECT_GT(closure_disagreement(wrong, right_b, config), 1.0);
+  EXPECT_TRUE(recognizer.confirm(100, {right_a}, &counts).empty());
+  EXPECT_TRUE(recognizer.confirm(101, {wrong}, &counts).empty());
+  const std::vector<SubmapConstraint> confirmed = recognizer.confirm(102, {right_b}, &counts);
+  ASSERT_EQ(confirmed.size(), 2u);
+  EXPECT_EQ(confirmed[0].to_submap, 100);
+  EXPECT_EQ(confirmed[1].to_submap, 102);
+  EXPECT_EQ(counts.accepted, 2);
+  // Past the window the wrong closure is dropped, counted as unconfirmed.
+  EXPECT_TRUE(recognizer.confirm(102 + config.confirm_window_submaps + 1, {}, &counts).empty());
+  EXPECT_EQ(counts.unconfirmed, 1);
+  EXPECT_EQ(recognizer.waiting(), 0u);
+  // Two closures of the same new submap never confirm each other.
+  PlaceRecognizer fresh(config);
+  PlaceRecognitionCounts same;
+  EXPECT_TRUE(
+      fresh.confirm(100, {right_a, closure(4, e4, 100, n100, drift, 1000.0)}, &same).empty());
 }
 
 TEST(PlaceRecognitionConfig, ValidationNamesTheParameter) {

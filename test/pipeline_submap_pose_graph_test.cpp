@@ -331,6 +331,22 @@ TEST(PipelineSubmapPoseGraph, ConsistencyGateMeasuresResidualsInTheFromFrameAndS
   EXPECT_THROW(at_truth.set_active(at_truth.constraints().size(), false), Error);
 }
 
+TEST(PipelineSubmapPoseGraph, ConsistencyGateLeavesConfirmedLoopClosuresToTheirOwnTest) {
+  // The same loop with the wrong registration marked as a place-recognition closure: its 2 m are
+  // not the gate's to judge (the closures' confirmation is), so nothing is set aside.
+  GateLoop loop = gate_loop();
+  SubmapPoseGraph at_truth;
+  for (size_t k = 0; k < loop.truth.size(); ++k)
+    at_truth.add_submap(static_cast<int64_t>(k), loop.truth[k], false);
+  for (size_t k = 0; k < loop.graph.constraints().size(); ++k) {
+    SubmapConstraint c = loop.graph.constraints()[k];
+    c.from_place_recognition = k == loop.wrong_index;
+    at_truth.add_constraint(c);
+  }
+  EXPECT_EQ(set_aside_inconsistent_registrations(&at_truth, 1.99), 0);
+  EXPECT_TRUE(at_truth.constraints()[loop.wrong_index].active);
+}
+
 TEST(PipelineSubmapPoseGraph, ConsistencyGateWorstFirstSetsAsideOnlyTheLargestResiduals) {
   // At the true poses: the wrong revisit 2 m off, two more registrations 0.8 m and 0.3 m off.
   GateLoop loop = gate_loop();

@@ -80,6 +80,29 @@ TEST(Simulator, SameSeedGivesIdenticalScansAndOdometry) {
   EXPECT_TRUE(differs);
 }
 
+TEST(Simulator, ALargerFigureEightGetsAProportionallyBuiltUpSite) {
+  // The default flight's site, and any figure 8 of the default lobes, keep the configured counts.
+  FlightConfig flight;
+  const SiteConfig base;
+  for (double path_m : {400.0, 495.0, 3600.0}) {
+    flight.path_length_m = path_m;
+    const SiteConfig same = base.scaled_to(Figure8Path(flight));
+    EXPECT_EQ(same.extra_buildings, base.extra_buildings) << path_m;
+    EXPECT_EQ(same.trees, base.trees) << path_m;
+  }
+  // Lobes twice as long and a lap twice as long: four times the area, four times the objects.
+  flight.lobe_half_length_m = 2.0 * FlightConfig().lobe_half_length_m;
+  flight.path_length_m = 2.0 * 9.0 * flight.lobe_half_length_m;
+  const Figure8Path large(flight);
+  const SiteConfig scaled = base.scaled_to(large);
+  EXPECT_NEAR(scaled.extra_buildings, 4 * base.extra_buildings, 1);
+  EXPECT_NEAR(scaled.rubble_piles, 4 * base.rubble_piles, 1);
+  EXPECT_NEAR(scaled.poles, 4 * base.poles, 2);
+  EXPECT_NEAR(scaled.trees, 4 * base.trees, 2);
+  const Site site = build_site(scaled, large, 5);
+  EXPECT_EQ(site.buildings.size(), static_cast<size_t>(1 + scaled.extra_buildings));
+}
+
 TEST(Simulator, RangesMatchAnalyticDistancesToAPlane) {
   World world;
   world.add(Plane{});  // z = 0, facing up

@@ -11,6 +11,11 @@
 //   KITTI 07 keyframes the lidar-scans dump (5 keyframes, graph.txt poses, another SLAM system's
 //                      estimate): no drift (covoxslam must leave the given poses alone) and the
 //                      simulator's drift of >= 0.3 m (covoxslam must come closer than odometry)
+//   simulated loops    long simulated flights generated in process, with place recognition:
+//                      two laps of a large figure 8 whose odometry ends tens of metres off, and
+//                      the same flight without drift (with place recognition and without). Every
+//                      loop closure is checked against the truth; the program exits with 2 when
+//                      one is wrong.
 // All with translation + yaw alignment (the ARCHE protocol). The real data is read through
 // COVOX_DATA_DIR (io::data_directory()); a missing dataset is skipped with a message.
 // The real data is non-commercial (7-Scenes: Microsoft's terms; MulRan: its own terms).
@@ -32,6 +37,7 @@
 #include "covoxslam/io/trajectory_io.h"
 #include "covoxslam/pipeline/slam_config_files.h"
 #include "dataset_scan_sources.h"
+#include "sim_scan_source.h"
 #include "slam_run.h"
 
 namespace {
@@ -41,8 +47,12 @@ using namespace covox;
 const char kUsage[] =
     "usage: benchmark_accuracy [options]\n"
     "  --device auto|cpu|cuda   (default auto)\n"
-    "  --cases LIST             comma-separated: sim,7scenes,7scenes-long,mulran,kitti07 (default "
-    "all that are available)\n"
+    "  --cases LIST             comma-separated: sim,7scenes,7scenes-long,mulran,kitti07,loops\n"
+    "                           (default all that are available but loops, which runs only\n"
+    "                           when named)\n"
+    "  --loop-seeds LIST        seeds of the loops case; 0: seed 1 without drift, with and "
+    "without\n"
+    "                           place recognition (default 0,1,2,3,4,5)\n"
     "  --bag FILE               simulated flight bag for the sim case (default "
     "demo_output/flight_seed1_256col/flight.bag)\n"
     "  --data-dir DIR           shared data (default: COVOX_DATA_DIR or the build's default)\n"
@@ -103,10 +113,69 @@ void add_kitti_keyframe_runs(const std::string& data_dir, Device device,
   }
 }
 
+// The loops case's flight: two laps of a figure 8 twice the default's length (990 m a lap, its
+// crossing in the open), 256 columns, the odometry 2 % of the distance off at the end (about
+// 40 m), mapped with the arche_sim preset, odometry sigmas for that drift and place recognition;
+// drift_percent 0: the same flight with the odometry equal to the truth.
+constexpr double kLoopLobeHalfLengthM = 110.0;
+constexpr double kLoopDriftPercent = 2.0;
+
+std::unique_ptr<tools::ScanSource> loop_flight(uint64_t seed, double drift_percent) {
+  sim::SimulationOptions options;
+  options.seed = seed;
+  options.flight.variation_seed = seed;
+  options.lidar.columns = 256;
+  options.flight.lobe_half_length_m = kLoopLobeHalfLengthM;
+  options.flight.path_length_m = 2.0 * 9.0 * kLoopLobeHalfLengthM;
+  if (drift_percent > 0.0) {
+    options.drift.final_drift_percent = drift_percent;
+  } else {
+    options.drift_scale = 0.0;
+  }
+  return std::make_unique<tools::SimScanSource>(options, 0.5);
+}
+
+pipeline::SlamConfig loop_config(Device device) {
+  pipeline::SlamConfig config = preset_config("arche_sim", device);
+  // A 5 s link covers 10 m: 2 % of it, as a one-sigma bound on the drift's steady part.
+  config.odometry_translation_sigma_m = 0.2;
+  config.odometry_yaw_sigma_rad = 0.02;
+  config.place_recognition.enabled = true;
+  return config;
+}
+
+void add_loop_runs(const std::string& seeds, Device device, std::vector<CaseRun>* runs) {
+  std::vector<uint64_t> list;
+  for (size_t begin = 0; begin < seeds.size();) {
+    const size_t end = std::min(seeds.find(',', begin), seeds.size());
+    const std::string item = seeds.substr(begin, end - begin);
+    if (item.empty() || item.find_first_not_of("0123456789") != std::string::npos) {
+      throw Error("--loop-seeds: '" + item + "' is not a seed (comma-separated integers >= 0)");
+    }
+    list.push_back(std::stoull(item));
+    begin = end + 1;
+  }
+  for (uint64_t seed : list) {
+    if (seed > 0) {
+      runs->push_back({"simulated loops seed " + std::to_string(seed),
+                       loop_flight(seed, kLoopDriftPercent), loop_config(device)});
+      continue;
+    }
+    // Seed 0: seed 1's flight without drift, with place recognition and without it (what the
+    // closures themselves move on a perfect odometry).
+    runs->push_back({"simulated loops no drift", loop_flight(1, 0.0), loop_config(device)});
+    pipeline::SlamConfig without = loop_config(device);
+    without.place_recognition.enabled = false;
+    runs->push_back(
+        {"simulated loops no drift, no place recognition", loop_flight(1, 0.0), without});
+  }
+}
+
 // The cases asked for whose inputs exist, each with its preset; a missing input is skipped with
 // a message.
 std::vector<CaseRun> collect_runs(const std::string& cases, const std::string& bag_path,
-                                  const std::string& data_dir, Device device) {
+                                  const std::string& data_dir, const std::string& loop_seeds,
+                                  Device device) {
   std::vector<CaseRun> runs;
   if (wanted(cases, "sim")) {
     if (std::filesystem::exists(bag_path)) {
@@ -143,6 +212,8 @@ std::vector<CaseRun> collect_runs(const std::string& cases, const std::string& b
     }
   }
   if (wanted(cases, "kitti07")) add_kitti_keyframe_runs(data_dir, device, &runs);
+  // Long flights (minutes each on a GPU, tens of minutes on the CPU): only when named.
+  if (!cases.empty() && wanted(cases, "loops")) add_loop_runs(loop_seeds, device, &runs);
   return runs;
 }
 
@@ -150,8 +221,29 @@ std::vector<CaseRun> collect_runs(const std::string& cases, const std::string& b
 constexpr double kWrongConstraintM = 0.1;
 constexpr double kWrongConstraintRad = 5.0 * 3.14159265358979323846 / 180.0;
 
-// One case: run, print, add its rows to `report`, and write its trajectories when asked.
-void run_case(CaseRun& run, const std::string& trajectories_dir, tools::BenchmarkReport* report) {
+// Place recognition's closures against the truth: rows, and the count of wrong ones.
+int64_t report_closures(const CaseRun& run, const tools::SlamRunResult& result,
+                        tools::BenchmarkReport* report) {
+  if (!run.config.place_recognition.enabled ||
+      run.source->reference_kind() != tools::ReferenceKind::kGroundTruth) {
+    return 0;
+  }
+  const tools::ConstraintEvaluation constraints = tools::evaluate_registration_constraints(
+      run.source->reference(), result.submaps, result.constraints, kWrongConstraintM,
+      kWrongConstraintRad);
+  tools::print_closure_evaluation(constraints, stdout);
+  const pipeline::PlaceRecognitionCounts& counts = result.counters.place_recognition;
+  report->add(run.name, "place recognition candidates", static_cast<double>(counts.candidates), "");
+  report->add(run.name, "loop closures accepted", static_cast<double>(counts.accepted), "");
+  report->add(run.name, "loop closures wrong by > 1 m or 5 deg",
+              static_cast<double>(constraints.wrong_closures), "");
+  return constraints.wrong_closures;
+}
+
+// One case: run, print, add its rows to `report`, and write its trajectories when asked. Returns
+// the number of wrong loop closures.
+int64_t run_case(CaseRun& run, const std::string& trajectories_dir,
+                 tools::BenchmarkReport* report) {
   std::printf("\n== %s: %s\n", run.name.c_str(), run.source->describe().c_str());
   std::fflush(stdout);
   const tools::SlamRunResult result =
@@ -179,6 +271,16 @@ void run_case(CaseRun& run, const std::string& trajectories_dir, tools::Benchmar
                 static_cast<double>(constraints.wrong), "");
     report->add(run.name, "registration max error", constraints.max_error_m, "m");
   }
+  if (auto* simulated = dynamic_cast<tools::SimScanSource*>(run.source.get())) {
+    const auto& truth = simulated->mission().truth();
+    const auto& odometry = simulated->mission().odometry();
+    report->add(run.name, "odometry final drift",
+                truth.empty()
+                    ? 0.0
+                    : (truth.back().pose.translation() - odometry.back().pose.translation()).norm(),
+                "m");
+  }
+  const int64_t wrong_closures = report_closures(run, result, report);
   const tools::TrajectoryShift shift = tools::trajectory_shift(result);
   report->add(run.name, "shift from odometry RMS", shift.rms_m, "m");
   if (evaluation.available) {
@@ -202,6 +304,7 @@ void run_case(CaseRun& run, const std::string& trajectories_dir, tools::Benchmar
     io::write_tum_trajectory(trajectories_dir + "/" + stem + "_reference.tum",
                              run.source->reference());
   }
+  return wrong_closures;
 }
 
 }  // namespace
@@ -214,18 +317,25 @@ int main(int argc, char** argv) {
   const std::string data_dir = args.text("--data-dir", io::data_directory());
   const std::string trajectories_dir = args.text("--trajectories-dir", "");
   const std::string output = args.text("--output", "docs/benchmarks/accuracy.json");
+  const std::string loop_seeds = args.text("--loop-seeds", "0,1,2,3,4,5");
   args.finish();
 
   try {
     const Device device = select_device(parse_device_request(device_text));
     tools::BenchmarkReport report("accuracy", describe_device(device), argc, argv);
-    std::vector<CaseRun> runs = collect_runs(cases, bag_path, data_dir, device);
+    std::vector<CaseRun> runs = collect_runs(cases, bag_path, data_dir, loop_seeds, device);
     if (runs.empty()) throw Error("no case to run (see the messages above)");
-    for (CaseRun& run : runs) run_case(run, trajectories_dir, &report);
+    int64_t wrong_closures = 0;
+    for (CaseRun& run : runs) wrong_closures += run_case(run, trajectories_dir, &report);
     std::printf("\n");
     report.print_table(std::cout);
     report.write_json(output);
     std::printf("report -> %s\n", output.c_str());
+    if (wrong_closures > 0) {
+      std::fprintf(stderr, "benchmark_accuracy: %lld loop closures join the wrong places\n",
+                   static_cast<long long>(wrong_closures));
+      return 2;
+    }
   } catch (const Error& error) {
     std::cerr << "benchmark_accuracy: " << error.what() << std::endl;
     return 1;

@@ -350,7 +350,9 @@ void add_backend_rows(tools::BenchmarkReport* report, const std::string& name,
        result.counters.place_recognition.rejected_descriptor},
       {"place recognition rejected: overlap", result.counters.place_recognition.rejected_overlap},
       {"place recognition rejected: registration",
-       result.counters.place_recognition.verified - result.counters.place_recognition.accepted}};
+       result.counters.place_recognition.verified -
+           result.counters.place_recognition.registration.accepted},
+      {"place recognition rejected: unconfirmed", result.counters.place_recognition.unconfirmed}};
   for (const auto& count : counts)
     report->add(name, count.first, static_cast<double>(count.second), "");
   const tools::TrajectoryShift shift = tools::trajectory_shift(result);
@@ -532,6 +534,12 @@ void run(RunnerSettings& s, int argc, char** argv) {
         source->reference(), result.submaps, result.constraints, s.verify_tolerance_m,
         kVerifyToleranceYawRad);
     tools::print_constraint_evaluation(constraints, stdout);
+  } else if (config.place_recognition.enabled && truth && !source->reference().empty()) {
+    // A wrong loop closure bends the whole map: with ground truth, closures are always checked.
+    tools::print_closure_evaluation(tools::evaluate_registration_constraints(
+                                        source->reference(), result.submaps, result.constraints,
+                                        s.verify_tolerance_m, kVerifyToleranceYawRad),
+                                    stdout);
   }
   if (!s.json_path.empty()) write_report(s, config, argc, argv, result, evaluation, truth);
 }

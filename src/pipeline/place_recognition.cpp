@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <string>
 
 #include "covoxslam/core/buffer.h"
@@ -34,6 +35,8 @@ void validate(const PlaceRecognitionConfig& config) {
   require(std::isfinite(config.max_radius_m) && config.max_radius_m > 0.0,
           "max_radius_m must be finite and > 0");
   require(config.candidates >= 1, "candidates must be >= 1");
+  require(std::isfinite(config.anchor_spacing_m) && config.anchor_spacing_m >= 0.0,
+          "anchor_spacing_m must be finite and >= 0 (0: the origin only)");
   require(config.exclude_recent_submaps >= 0, "exclude_recent_submaps must be >= 0");
   require(std::isfinite(config.max_descriptor_distance) && config.max_descriptor_distance >= 0.0 &&
               config.max_descriptor_distance <= 1.0,
@@ -49,6 +52,11 @@ void validate(const PlaceRecognitionConfig& config) {
           "odometry_drift_m_per_m must be finite and >= 0");
   require(std::isfinite(config.odometry_drift_deg_per_m) && config.odometry_drift_deg_per_m >= 0.0,
           "odometry_drift_deg_per_m must be finite and >= 0");
+  require(config.confirm_window_submaps >= 1, "confirm_window_submaps must be >= 1");
+  require(std::isfinite(config.confirm_tolerance_m) && config.confirm_tolerance_m > 0.0,
+          "confirm_tolerance_m must be finite and > 0");
+  require(std::isfinite(config.confirm_tolerance_deg) && config.confirm_tolerance_deg > 0.0,
+          "confirm_tolerance_deg must be finite and > 0");
   require(std::isfinite(config.max_odometry_mahalanobis_sq) &&
               config.max_odometry_mahalanobis_sq >= 0.0,
           "max_odometry_mahalanobis_sq must be finite and >= 0 (0: off)");
@@ -117,7 +125,8 @@ struct CellSpans {
 }  // namespace
 
 PlaceDescriptor place_descriptor(const std::vector<SurfaceColumn>& columns,
-                                 const PlaceRecognitionConfig& config) {
+                                 const PlaceRecognitionConfig& config,
+                                 const Eigen::Vector2d& centre_m) {
   PlaceDescriptor d;
   d.rings = config.rings;
   d.sectors = config.sectors;
@@ -127,16 +136,17 @@ PlaceDescriptor place_descriptor(const std::vector<SurfaceColumn>& columns,
   CellSpans polar(static_cast<size_t>(config.rings) * config.sectors);
   CellSpans bird_eye(static_cast<size_t>(side) * side);
   for (const SurfaceColumn& column : columns) {
-    const double r = std::hypot(column.x_m, column.y_m);
+    const double x_m = column.x_m - centre_m.x(), y_m = column.y_m - centre_m.y();
+    const double r = std::hypot(x_m, y_m);
     if (!(r < config.max_radius_m)) continue;
     const int ring = std::min(static_cast<int>(r / ring_m), config.rings - 1);
-    const double turn = (std::atan2(column.y_m, column.x_m) + kPi) / (2.0 * kPi);
+    const double turn = (std::atan2(y_m, x_m) + kPi) / (2.0 * kPi);
     const int sector = std::min(static_cast<int>(turn * config.sectors), config.sectors - 1);
     polar.add(static_cast<size_t>(ring) * config.sectors + sector, column);
     const int bx =
-        std::clamp(static_cast<int>(std::floor(column.x_m / ring_m)) + config.rings, 0, side - 1);
+        std::clamp(static_cast<int>(std::floor(x_m / ring_m)) + config.rings, 0, side - 1);
     const int by =
-        std::clamp(static_cast<int>(std::floor(column.y_m / ring_m)) + config.rings, 0, side - 1);
+        std::clamp(static_cast<int>(std::floor(y_m / ring_m)) + config.rings, 0, side - 1);
     bird_eye.add(static_cast<size_t>(by) * side + bx, column);
     ++d.columns;
   }
@@ -155,6 +165,26 @@ PlaceDescriptor place_descriptor(const std::vector<SurfaceColumn>& columns,
 PlaceDescriptor place_descriptor(const map::TsdfMap& map, const PlaceRecognitionConfig& config,
                                  const Stream& stream) {
   return place_descriptor(surface_columns(map, map.voxel_size_m(), stream), config);
+}
+
+std::vector<Eigen::Vector2d> path_anchors(const std::vector<Eigen::Vector2d>& path_m,
+                                          double spacing_m) {
+  if (path_m.empty() || !(spacing_m > 0.0)) return {Eigen::Vector2d::Zero()};
+  std::vector<Eigen::Vector2d> anchors{path_m.front()};
+  double since_m = 0.0;
+  for (size_t k = 1; k < path_m.size(); ++k) {
+    since_m += (path_m[k] - path_m[k - 1]).norm();
+    if (since_m >= spacing_m) {
+      anchors.push_back(path_m[k]);
+      since_m = 0.0;
+    }
+  }
+  if (anchors.size() <= static_cast<size_t>(kMaxPathAnchors)) return anchors;
+  std::vector<Eigen::Vector2d> thinned;
+  for (int k = 0; k < kMaxPathAnchors; ++k) {
+    thinned.push_back(anchors[k * (anchors.size() - 1) / (kMaxPathAnchors - 1)]);
+  }
+  return thinned;
 }
 
 DescriptorMatch match_descriptors(const PlaceDescriptor& moving, const PlaceDescriptor& fixed) {
@@ -228,20 +258,50 @@ std::vector<BirdEyeCell> occupied_cells(const PlaceDescriptor& d, double* total)
   return cells;
 }
 
-// Sum of min(moving, fixed) over the moving cells moved by (yaw, tx, ty) into fixed's image.
-double overlap_at(const std::vector<BirdEyeCell>& cells, const PlaceDescriptor& fixed, double yaw,
-                  double tx, double ty) {
+// The moving image turned by `yaw` about its origin onto the fixed image's grid: each occupied
+// cell's centre lands in one cell, and cells landing together add up, so an overlap with it
+// never counts a fixed cell twice.
+struct TurnedImage {
+  std::vector<int32_t> bx, by;
+  std::vector<float> value;
+};
+
+TurnedImage turned_image(const std::vector<BirdEyeCell>& cells, const PlaceDescriptor& fixed,
+                         double yaw, std::vector<float>* scratch) {
   const int side = 2 * fixed.rings;
   const double cell_m = fixed.max_radius_m / fixed.rings;
   const double c = std::cos(yaw), s = std::sin(yaw);
-  double sum = 0.0;
+  // Turned cells may leave the square by up to its half diagonal: a grid of twice the side.
+  const int margin = side / 2, wide = 2 * side;
+  scratch->assign(static_cast<size_t>(wide) * wide, 0.0f);
+  std::vector<int32_t> touched;
   for (const BirdEyeCell& cell : cells) {
-    const double x = c * cell.x_m - s * cell.y_m + tx;
-    const double y = s * cell.x_m + c * cell.y_m + ty;
-    const int bx = static_cast<int>(std::floor(x / cell_m)) + fixed.rings;
-    const int by = static_cast<int>(std::floor(y / cell_m)) + fixed.rings;
+    const double x = c * cell.x_m - s * cell.y_m;
+    const double y = s * cell.x_m + c * cell.y_m;
+    const int bx = static_cast<int>(std::floor(x / cell_m)) + fixed.rings + margin;
+    const int by = static_cast<int>(std::floor(y / cell_m)) + fixed.rings + margin;
+    if (bx < 0 || by < 0 || bx >= wide || by >= wide) continue;
+    float& slot = (*scratch)[static_cast<size_t>(by) * wide + bx];
+    if (slot == 0.0f) touched.push_back(by * wide + bx);
+    slot += cell.value;
+  }
+  TurnedImage image;
+  for (int32_t k : touched) {
+    image.bx.push_back(k % wide - margin);
+    image.by.push_back(k / wide - margin);
+    image.value.push_back((*scratch)[static_cast<size_t>(k)]);
+  }
+  return image;
+}
+
+// Sum of min(turned moving, fixed) with the turned image moved by whole cells (ix, iy).
+double overlap_at(const TurnedImage& turned, const PlaceDescriptor& fixed, int ix, int iy) {
+  const int side = 2 * fixed.rings;
+  double sum = 0.0;
+  for (size_t k = 0; k < turned.value.size(); ++k) {
+    const int bx = turned.bx[k] + ix, by = turned.by[k] + iy;
     if (bx < 0 || by < 0 || bx >= side || by >= side) continue;
-    sum += std::min(cell.value, fixed.bird_eye[static_cast<size_t>(by) * side + bx]);
+    sum += std::min(turned.value[k], fixed.bird_eye[static_cast<size_t>(by) * side + bx]);
   }
   return sum;
 }
@@ -262,10 +322,12 @@ BirdEyeMatch match_bird_eye(const PlaceDescriptor& moving, const PlaceDescriptor
   // half a sector either side of the best.
   const double sector_rad = 2.0 * kPi / fixed.sectors;
   double best_sum = -1.0;
+  std::vector<float> scratch;
   auto search = [&](double yaw) {
+    const TurnedImage turned = turned_image(cells, fixed, yaw, &scratch);
     for (int iy = -steps; iy <= steps; ++iy) {
       for (int ix = -steps; ix <= steps; ++ix) {
-        const double sum = overlap_at(cells, fixed, yaw, ix * cell_m, iy * cell_m);
+        const double sum = overlap_at(turned, fixed, ix, iy);
         if (sum > best_sum) {
           best_sum = sum;
           best.T_fixed_moving.x = ix * cell_m;
@@ -290,6 +352,7 @@ void PlaceRecognitionCounts::add(const PlaceRecognitionCounts& other) {
   rejected_descriptor += other.rejected_descriptor;
   rejected_overlap += other.rejected_overlap;
   verified += other.verified;
+  unconfirmed += other.unconfirmed;
   accepted += other.accepted;
   registration.add(other.registration);
 }
@@ -339,43 +402,86 @@ const PlaceRecognizer::Entry* PlaceRecognizer::find(int64_t id) const {
   return it != descriptors_.end() && it->id == id ? &*it : nullptr;
 }
 
-std::vector<SubmapConstraint> PlaceRecognizer::propose(
-    int64_t id, const map::TsdfMap& map, const SubmapRegistrationPoints& points,
-    const backend::Pose4Dof& pose, const std::vector<RegistrationPartner>& earlier,
-    const std::vector<int64_t>& linked, const SubmapRegistrationConfig& registration,
-    const Stream& stream, WallMapCache* own_walls, const RegistrationOdometry& odometry,
-    PlaceRecognitionCounts* counts) {
-  std::vector<SubmapConstraint> constraints;
-  if (!config_.enabled) return constraints;
+std::vector<PlaceRecognizer::AnchorPair> PlaceRecognizer::nearest_submaps(const Entry& entry,
+                                                                          int64_t max_id) const {
+  struct Scored {
+    double distance_sq;
+    AnchorPair pair;
+  };
+  std::vector<Scored> best;  // one per earlier submap
+  // Neighbouring anchors of one submap look alike: more keys than submaps are asked for.
+  const size_t keys_wanted = static_cast<size_t>(config_.candidates) * 4;
+  const int64_t max_key = (max_id + 1) * kMaxPathAnchors - 1;
+  for (size_t own = 0; own < entry.anchors.size(); ++own) {
+    const std::vector<float>& key = entry.anchors[own].ring_key;
+    if (entry.anchors[own].empty()) continue;
+    for (int64_t found : index_.nearest(key, keys_wanted, max_key)) {
+      const int64_t id = found / kMaxPathAnchors;
+      const size_t their = static_cast<size_t>(found % kMaxPathAnchors);
+      const Entry* other = find(id);
+      if (!other || their >= other->anchors.size()) continue;
+      double distance_sq = 0.0;
+      for (size_t r = 0; r < key.size(); ++r) {
+        const double d = static_cast<double>(key[r]) - other->anchors[their].ring_key[r];
+        distance_sq += d * d;
+      }
+      auto it =
+          std::find_if(best.begin(), best.end(), [&](const Scored& s) { return s.pair.id == id; });
+      if (it == best.end()) {
+        best.push_back(Scored{distance_sq, AnchorPair{id, own, their}});
+      } else if (distance_sq < it->distance_sq) {
+        *it = Scored{distance_sq, AnchorPair{id, own, their}};
+      }
+    }
+  }
+  std::sort(best.begin(), best.end(), [](const Scored& a, const Scored& b) {
+    return a.distance_sq < b.distance_sq ||
+           (a.distance_sq == b.distance_sq && a.pair.id < b.pair.id);
+  });
+  if (best.size() > static_cast<size_t>(config_.candidates)) best.resize(config_.candidates);
+  std::vector<AnchorPair> pairs;
+  for (const Scored& scored : best) pairs.push_back(scored.pair);
+  return pairs;
+}
+
+std::vector<PlaceCandidate> PlaceRecognizer::search(int64_t id, const map::TsdfMap& map,
+                                                    const std::vector<Eigen::Vector2d>& path_m,
+                                                    const std::vector<int64_t>& earlier_ids,
+                                                    const std::vector<int64_t>& linked,
+                                                    const Stream& stream,
+                                                    PlaceRecognitionCounts* counts) {
+  std::vector<PlaceCandidate> found;
+  if (!config_.enabled) return found;
   ++counts->queries;
-  PlaceDescriptor descriptor = place_descriptor(map, config_, stream);
+  const std::vector<SurfaceColumn> columns = surface_columns(map, map.voxel_size_m(), stream);
+  Entry entry{id, place_descriptor(columns, config_), {}};
+  for (const Eigen::Vector2d& anchor : path_anchors(path_m, config_.anchor_spacing_m)) {
+    PlaceDescriptor d = place_descriptor(columns, config_, anchor);
+    d.bird_eye = std::vector<float>();
+    entry.anchors.push_back(std::move(d));
+  }
   const int64_t max_id = id - 1 - config_.exclude_recent_submaps;
-  const std::vector<int64_t> nearest =
-      descriptor.empty()
-          ? std::vector<int64_t>()
-          : index_.nearest(descriptor.ring_key, static_cast<size_t>(config_.candidates), max_id);
-  SubmapRegistrationConfig checked = closure_checks(registration);
-  const RegistrationOdometry closure_odometry = with_closure_drift(odometry);
-  for (int64_t candidate : nearest) {
-    const Entry* entry = find(candidate);
-    const auto partner =
-        std::find_if(earlier.begin(), earlier.end(),
-                     [&](const RegistrationPartner& p) { return p.id == candidate; });
-    if (!entry || partner == earlier.end()) continue;
+  for (const AnchorPair& pair : nearest_submaps(entry, max_id)) {
+    const int64_t candidate = pair.id;
+    const Entry* other = find(candidate);
+    if (std::find(earlier_ids.begin(), earlier_ids.end(), candidate) == earlier_ids.end()) continue;
     ++counts->candidates;
     if (std::find(linked.begin(), linked.end(), candidate) != linked.end()) {
       ++counts->skipped_linked;
       continue;
     }
-    const DescriptorMatch match = match_descriptors(descriptor, entry->descriptor);
+    // The anchors' frames share their submaps' axes: the polar shift is a yaw of the submaps.
+    const DescriptorMatch match =
+        match_descriptors(entry.anchors[pair.own], other->anchors[pair.their]);
     log_message(LogLevel::kDebug, "SLAM place recognition: submap ", candidate, " -> ", id,
-                ": descriptor distance ", match.distance, " yaw ", match.yaw_rad);
+                ": descriptor distance ", match.distance, " yaw ", match.yaw_rad, " anchors ",
+                pair.own, " ", pair.their);
     if (match.distance > config_.max_descriptor_distance) {
       ++counts->rejected_descriptor;
       continue;
     }
     const BirdEyeMatch overlap =
-        match_bird_eye(descriptor, entry->descriptor, match.yaw_rad, config_);
+        match_bird_eye(entry.descriptor, other->descriptor, match.yaw_rad, config_);
     log_message(LogLevel::kDebug, "SLAM place recognition: submap ", candidate, " -> ", id,
                 ": overlap ", overlap.score, " at (", overlap.T_fixed_moving.x, ", ",
                 overlap.T_fixed_moving.y, ", ", overlap.T_fixed_moving.yaw, ")");
@@ -383,21 +489,131 @@ std::vector<SubmapConstraint> PlaceRecognizer::propose(
       ++counts->rejected_overlap;
       continue;
     }
-    // The height offset is the one thing the descriptors do not give: the current estimate's.
-    backend::Pose4Dof guess = overlap.T_fixed_moving;
-    guess.z = relative_pose_4dof(partner->pose, pose).z;
-    ++counts->verified;
-    SubmapConstraint constraint;
-    if (registration_constraint_from_guess(id, map, points, pose, with_closure_drift(*partner),
-                                           guess, checked, stream, &counts->registration, own_walls,
-                                           closure_odometry, &constraint)) {
-      ++counts->accepted;
-      constraints.push_back(constraint);
+    found.push_back(
+        PlaceCandidate{candidate, overlap.T_fixed_moving, match.distance, overlap.score});
+  }
+  for (size_t a = 0; a < entry.anchors.size(); ++a) {
+    if (!entry.anchors[a].empty()) {
+      index_.add(id * kMaxPathAnchors + static_cast<int64_t>(a), entry.anchors[a].ring_key);
     }
   }
-  if (!descriptor.empty()) index_.add(id, descriptor.ring_key);
-  descriptors_.push_back(Entry{id, std::move(descriptor)});
-  return constraints;
+  descriptors_.push_back(std::move(entry));
+  return found;
+}
+
+std::vector<VerifiedClosure> PlaceRecognizer::verify(
+    int64_t id, const map::TsdfMap& map, const SubmapRegistrationPoints& points,
+    const backend::Pose4Dof& pose, const std::vector<PlaceCandidate>& candidates,
+    const std::vector<RegistrationPartner>& earlier, const SubmapRegistrationConfig& registration,
+    const Stream& stream, WallMapCache* own_walls, const RegistrationOdometry& odometry,
+    PlaceRecognitionCounts* counts) const {
+  std::vector<VerifiedClosure> verified;
+  const SubmapRegistrationConfig checked = closure_checks(registration);
+  const RegistrationOdometry closure_odometry = with_closure_drift(odometry);
+  for (const PlaceCandidate& candidate : candidates) {
+    const auto partner =
+        std::find_if(earlier.begin(), earlier.end(),
+                     [&](const RegistrationPartner& p) { return p.id == candidate.id; });
+    if (partner == earlier.end()) {
+      throw Error("place recognition: candidate submap " + std::to_string(candidate.id) +
+                  " is not among the earlier submaps given to verify()");
+    }
+    // The height offset is the one thing the descriptors do not give: the current estimate's.
+    backend::Pose4Dof guess = candidate.T_fixed_moving;
+    guess.z = relative_pose_4dof(partner->pose, pose).z;
+    ++counts->verified;
+    VerifiedClosure closure;
+    if (registration_constraint_from_guess(id, map, points, pose, with_closure_drift(*partner),
+                                           guess, checked, stream, &counts->registration, own_walls,
+                                           closure_odometry, &closure.constraint)) {
+      closure.constraint.from_place_recognition = true;
+      closure.earlier_odometry = partner->odometry;
+      closure.new_odometry = odometry;
+      verified.push_back(closure);
+    }
+  }
+  return verified;
+}
+
+double closure_disagreement(const VerifiedClosure& a, const VerifiedClosure& b,
+                            const PlaceRecognitionConfig& config) {
+  if (!a.earlier_odometry.known || !a.new_odometry.known || !b.earlier_odometry.known ||
+      !b.new_odometry.known) {
+    return std::numeric_limits<double>::infinity();  // a loaded submap: no odometry to close with
+  }
+  // The pose of b's new submap in the frame of a's earlier one, both ways round the cycle: a's
+  // closure then the odometry between the new submaps, or the odometry between the earlier
+  // submaps then b's closure.
+  const backend::Pose4Dof via_a = compose(
+      a.constraint.measurement, relative_pose_4dof(a.new_odometry.pose, b.new_odometry.pose));
+  const backend::Pose4Dof via_b =
+      compose(relative_pose_4dof(a.earlier_odometry.pose, b.earlier_odometry.pose),
+              b.constraint.measurement);
+  // Two closures far apart on the earlier pass say nothing about each other (the odometry's
+  // drift between them may be anything the tolerance allows): they never agree.
+  const int64_t window = config.confirm_window_submaps;
+  if (std::abs(a.constraint.from_submap - b.constraint.from_submap) > window ||
+      std::abs(a.constraint.to_submap - b.constraint.to_submap) > window) {
+    return std::numeric_limits<double>::infinity();
+  }
+  const double path_m = std::abs(a.new_odometry.path_m - b.new_odometry.path_m) +
+                        std::abs(a.earlier_odometry.path_m - b.earlier_odometry.path_m);
+  const double tolerance_m = config.confirm_tolerance_m + config.odometry_drift_m_per_m * path_m;
+  const double tolerance_rad =
+      (config.confirm_tolerance_deg + config.odometry_drift_deg_per_m * path_m) * kPi / 180.0;
+  const double error_m = std::sqrt((via_a.x - via_b.x) * (via_a.x - via_b.x) +
+                                   (via_a.y - via_b.y) * (via_a.y - via_b.y) +
+                                   (via_a.z - via_b.z) * (via_a.z - via_b.z));
+  const double error_rad = std::abs(wrap_angle(via_a.yaw - via_b.yaw));
+  const double ratio = std::max(error_m / tolerance_m, error_rad / tolerance_rad);
+  return ratio * ratio;
+}
+
+std::vector<SubmapConstraint> PlaceRecognizer::confirm(int64_t id,
+                                                       const std::vector<VerifiedClosure>& verified,
+                                                       PlaceRecognitionCounts* counts) {
+  // Closures of submaps that left the window can no longer be confirmed by a new one.
+  const int64_t oldest = id - config_.confirm_window_submaps;
+  for (const Waiting& w : waiting_) {
+    if (!w.confirmed && w.closure.constraint.to_submap < oldest) ++counts->unconfirmed;
+  }
+  waiting_.erase(
+      std::remove_if(waiting_.begin(), waiting_.end(),
+                     [&](const Waiting& w) { return w.closure.constraint.to_submap < oldest; }),
+      waiting_.end());
+  std::vector<SubmapConstraint> confirmed;
+  for (const VerifiedClosure& closure : verified) {
+    bool agreed = false;
+    for (Waiting& w : waiting_) {
+      if (w.closure.constraint.to_submap == id) continue;  // another new submap's closure only
+      if (closure_disagreement(w.closure, closure, config_) > 1.0) continue;
+      agreed = true;
+      if (!w.confirmed) {
+        w.confirmed = true;
+        confirmed.push_back(w.closure.constraint);
+      }
+    }
+    waiting_.push_back(Waiting{closure, agreed});
+    if (agreed) confirmed.push_back(closure.constraint);
+  }
+  counts->accepted += static_cast<int64_t>(confirmed.size());
+  return confirmed;
+}
+
+std::vector<SubmapConstraint> PlaceRecognizer::propose(
+    int64_t id, const map::TsdfMap& map, const SubmapRegistrationPoints& points,
+    const backend::Pose4Dof& pose, const std::vector<RegistrationPartner>& earlier,
+    const std::vector<int64_t>& linked, const SubmapRegistrationConfig& registration,
+    const Stream& stream, WallMapCache* own_walls, const RegistrationOdometry& odometry,
+    PlaceRecognitionCounts* counts) {
+  std::vector<int64_t> earlier_ids;
+  for (const RegistrationPartner& partner : earlier) earlier_ids.push_back(partner.id);
+  const std::vector<PlaceCandidate> candidates =
+      search(id, map, {}, earlier_ids, linked, stream, counts);
+  return confirm(id,
+                 verify(id, map, points, pose, candidates, earlier, registration, stream, own_walls,
+                        odometry, counts),
+                 counts);
 }
 
 }  // namespace pipeline

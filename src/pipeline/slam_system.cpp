@@ -633,11 +633,39 @@ void SlamSystem::propose_place_recognition_locked(
   earlier.insert(earlier.end(), joint_partners.begin(), joint_partners.end());
   std::vector<int64_t> linked = joint_pair_partners;
   for (const SubmapConstraint& c : *registrations) linked.push_back(c.from_submap);
-  for (const SubmapConstraint& c :
-       place_recognizer_.propose(submap.id(), submap.map(), points, guess, earlier, linked,
-                                 config_.registration, backend_stream_, walls, odometry, counts)) {
+  std::vector<int64_t> earlier_ids;
+  for (const RegistrationPartner& partner : earlier) earlier_ids.push_back(partner.id);
+  const std::vector<PlaceCandidate> candidates =
+      place_recognizer_.search(submap.id(), submap.map(), submap_path_locked(submap), earlier_ids,
+                               linked, backend_stream_, counts);
+  // The candidates were found from their descriptors alone: their maps may be compact or on disk.
+  std::vector<const RegistrationPartner*> wanted;
+  for (const PlaceCandidate& candidate : candidates) {
+    for (const RegistrationPartner& partner : earlier) {
+      if (partner.id == candidate.id) wanted.push_back(&partner);
+    }
+  }
+  acquire_partners_locked(wanted);
+  const std::vector<VerifiedClosure> verified =
+      place_recognizer_.verify(submap.id(), submap.map(), points, guess, candidates, earlier,
+                               config_.registration, backend_stream_, walls, odometry, counts);
+  for (const SubmapConstraint& c : place_recognizer_.confirm(submap.id(), verified, counts)) {
     registrations->push_back(c);
   }
+}
+
+std::vector<Eigen::Vector2d> SlamSystem::submap_path_locked(const Submap& submap) {
+  // The submap's scans are the latest entries of trajectory_ before those of newer submaps.
+  const Eigen::Isometry3d T_submap_odom = submap.T_odom_submap().inverse();
+  std::vector<Eigen::Vector2d> path_m;
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  for (auto it = trajectory_.rbegin(); it != trajectory_.rend(); ++it) {
+    if (it->submap_id > submap.id()) continue;
+    if (it->submap_id < submap.id()) break;
+    path_m.push_back((T_submap_odom * it->T_odom_sensor.translation()).head<2>());
+  }
+  std::reverse(path_m.begin(), path_m.end());
+  return path_m;
 }
 
 int SlamSystem::integrate_pending_constraints_locked(bool final) {

@@ -289,6 +289,7 @@ int set_aside_inconsistent_registrations(SubmapPoseGraph* graph, double max_resi
   for (size_t k = 0; k < constraints.size(); ++k) {
     const SubmapConstraint& c = constraints[k];
     if (c.kind != SubmapConstraintKind::kRegistration || !c.active) continue;
+    if (c.from_place_recognition) continue;
     const int64_t from = graph->index_of(c.from_submap), to = graph->index_of(c.to_submap);
     if (from < 0 || to < 0) continue;
     // The relative pose at the current poses, in the measurement's convention (from's frame).

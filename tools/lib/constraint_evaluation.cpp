@@ -74,6 +74,14 @@ ConstraintEvaluation evaluate_registration_constraints(
     evaluation.max_error_m = std::max(evaluation.max_error_m, e.error_m);
     evaluation.max_error_yaw_rad = std::max(evaluation.max_error_yaw_rad, e.error_yaw_rad);
     if (e.error_m > tolerance_m || e.error_yaw_rad > tolerance_yaw_rad) ++evaluation.wrong;
+    e.from_place_recognition = c.from_place_recognition;
+    if (c.from_place_recognition) {
+      ++evaluation.closures;
+      evaluation.max_closure_error_m = std::max(evaluation.max_closure_error_m, e.error_m);
+      if (e.error_m > kWrongClosureM || e.error_yaw_rad > kWrongClosureRad) {
+        ++evaluation.wrong_closures;
+      }
+    }
     evaluation.constraints.push_back(e);
   }
   return evaluation;
@@ -81,13 +89,14 @@ ConstraintEvaluation evaluate_registration_constraints(
 
 void print_constraint_evaluation(const ConstraintEvaluation& evaluation, FILE* out) {
   std::fprintf(out, "registration constraints against the reference:\n");
-  std::fprintf(out, "  %5s %5s %6s %10s %10s %12s %12s\n", "from", "to", "active", "error_m",
-               "error_deg", "odom_err_m", "odom_err_deg");
+  std::fprintf(out, "  %5s %5s %6s %10s %10s %12s %12s %s\n", "from", "to", "active", "error_m",
+               "error_deg", "odom_err_m", "odom_err_deg", "found by");
   for (const ConstraintError& e : evaluation.constraints) {
-    std::fprintf(out, "  %5lld %5lld %6s %10.4f %10.3f %12.4f %12.3f\n",
+    std::fprintf(out, "  %5lld %5lld %6s %10.4f %10.3f %12.4f %12.3f %s\n",
                  static_cast<long long>(e.from_submap), static_cast<long long>(e.to_submap),
                  e.active ? "yes" : "no", e.error_m, e.error_yaw_rad * 180.0 / kPi,
-                 e.odometry_error_m, e.odometry_error_yaw_rad * 180.0 / kPi);
+                 e.odometry_error_m, e.odometry_error_yaw_rad * 180.0 / kPi,
+                 e.from_place_recognition ? "place recognition" : "overlap");
   }
   std::fprintf(out,
                "  %zu evaluated (%lld without reference): max error %.4f m, %.3f deg; %lld beyond "
@@ -95,6 +104,16 @@ void print_constraint_evaluation(const ConstraintEvaluation& evaluation, FILE* o
                evaluation.constraints.size(), static_cast<long long>(evaluation.unevaluated),
                evaluation.max_error_m, evaluation.max_error_yaw_rad * 180.0 / kPi,
                static_cast<long long>(evaluation.wrong));
+  print_closure_evaluation(evaluation, out);
+}
+
+void print_closure_evaluation(const ConstraintEvaluation& evaluation, FILE* out) {
+  std::fprintf(out,
+               "place-recognition closures against the reference: %lld, %lld wrong by more than "
+               "%.1f m or %.0f deg (max error %.3f m)\n",
+               static_cast<long long>(evaluation.closures),
+               static_cast<long long>(evaluation.wrong_closures), kWrongClosureM,
+               kWrongClosureRad * 180.0 / kPi, evaluation.max_closure_error_m);
 }
 
 }  // namespace tools

@@ -20,7 +20,8 @@ namespace tools {
 struct ConstraintError {
   int64_t from_submap = -1;
   int64_t to_submap = -1;
-  bool active = true;             // false: set aside by the consistency gate
+  bool active = true;  // false: set aside by the consistency gate
+  bool from_place_recognition = false;
   double error_m = 0.0;           // |measured - reference| over x, y, z
   double error_yaw_rad = 0.0;     // wrapped
   double odometry_error_m = 0.0;  // the odometry's relative pose against the reference
@@ -34,15 +35,29 @@ struct ConstraintEvaluation {
   double max_error_yaw_rad = 0.0;
   // Constraints wrong by more than the tolerances given to evaluate_registration_constraints.
   int64_t wrong = 0;
+  // Of them, the loop closures of place recognition: how many, and how many are a wrong place
+  // (further than kWrongClosureM or kWrongClosureRad from the reference, whatever the
+  // registration tolerances).
+  int64_t closures = 0;
+  int64_t wrong_closures = 0;
+  double max_closure_error_m = 0.0;
 };
+
+// A loop closure this far from the reference relative pose joins two different places (or the
+// right place at an error that bends the map): several voxels and degrees, far beyond a right
+// registration's error.
+constexpr double kWrongClosureM = 1.0;
+constexpr double kWrongClosureRad = 5.0 * 3.14159265358979323846 / 180.0;
 
 ConstraintEvaluation evaluate_registration_constraints(
     const io::Trajectory& reference, const std::vector<pipeline::SubmapInfo>& submaps,
     const std::vector<pipeline::SubmapConstraint>& constraints, double tolerance_m,
     double tolerance_yaw_rad);
 
-// One line per constraint and a summary line.
+// One line per constraint and the summary lines.
 void print_constraint_evaluation(const ConstraintEvaluation& evaluation, FILE* out);
+// The place-recognition closures' summary line.
+void print_closure_evaluation(const ConstraintEvaluation& evaluation, FILE* out);
 
 }  // namespace tools
 }  // namespace covox

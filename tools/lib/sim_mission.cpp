@@ -102,7 +102,7 @@ SimulationOptions read_simulation_options(tools::CommandLine& args) {
 
 SimulatedMission::SimulatedMission(const SimulationOptions& options, size_t max_scans)
     : options_(options), path_((validate(options.lidar), options.flight)) {
-  site_ = build_site(SiteConfig(), path_, options_.seed);
+  site_ = build_site(SiteConfig().scaled_to(path_), path_, options_.seed);
   truth_ = simulate_truth(path_, options_.flight);
   odometry_ = simulate_odometry(truth_, options_.drift.scaled(options_.drift_scale), options_.seed);
   if (max_scans > 0 && max_scans < truth_.size()) {

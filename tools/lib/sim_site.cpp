@@ -259,6 +259,22 @@ void add_rubble_pile(const Eigen::Vector2d& spot, double radius_m, const Ground&
 
 }  // namespace
 
+SiteConfig SiteConfig::scaled_to(const Figure8Path& path) const {
+  FlightConfig reference_flight;
+  reference_flight.path_length_m = 9.0 * reference_flight.lobe_half_length_m;  // one full lap
+  const Figure8Path reference(reference_flight);
+  const double factor = (path.lobe_half_length_m() * path.lobe_width_m()) /
+                        (reference.lobe_half_length_m() * reference.lobe_width_m());
+  if (!(factor > 1.0)) return *this;
+  SiteConfig scaled = *this;
+  auto grow = [&](int count) { return static_cast<int>(std::lround(count * factor)); };
+  scaled.extra_buildings = grow(extra_buildings);
+  scaled.rubble_piles = grow(rubble_piles);
+  scaled.poles = grow(poles);
+  scaled.trees = grow(trees);
+  return scaled;
+}
+
 Site build_site(const SiteConfig& config, const Figure8Path& path, uint64_t seed) {
   Random random(stream_seed(seed, 0x517E));
   Site site;

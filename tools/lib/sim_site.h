@@ -23,6 +23,12 @@ struct SiteConfig {
   double ground_cell_m = 2.0;
   double margin_m = 25.0;         // ground beyond the path's bounding box
   double path_clearance_m = 3.0;  // obstacles keep this far from the path (plus their own size)
+
+  // The counts of buildings, rubble piles, poles and trees for a figure 8 of `path`'s extent:
+  // those above are for the default flight's figure 8 (FlightConfig's lobe half length and lap),
+  // and a larger one gets proportionally more (its extent's area over the default's), so a
+  // larger site is as built up as the default one.
+  SiteConfig scaled_to(const Figure8Path& path) const;
 };
 
 // Axis-aligned footprint of a building, for placement and for tests.

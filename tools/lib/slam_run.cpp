@@ -316,18 +316,18 @@ void print_slam_run(const SlamRunResult& result, FILE* out) {
                "place recognition: %lld submaps searched, %lld candidates, %lld verified, %lld "
                "accepted, rejected: %lld descriptor, %lld overlap, %lld by the registration (%lld "
                "failed, %lld too far, %lld too few points, %lld misfit, %lld disagreeing with the "
-               "odometry); %lld already linked\n",
+               "odometry), %lld unconfirmed; %lld already linked\n",
                static_cast<long long>(p.queries), static_cast<long long>(p.candidates),
                static_cast<long long>(p.verified), static_cast<long long>(p.accepted),
                static_cast<long long>(p.rejected_descriptor),
                static_cast<long long>(p.rejected_overlap),
-               static_cast<long long>(p.verified - p.accepted),
+               static_cast<long long>(p.verified - p.registration.accepted),
                static_cast<long long>(p.registration.rejected_failed),
                static_cast<long long>(p.registration.rejected_too_far),
                static_cast<long long>(p.registration.rejected_too_few_points),
                static_cast<long long>(p.registration.rejected_misfit),
                static_cast<long long>(p.registration.rejected_by_odometry),
-               static_cast<long long>(p.skipped_linked));
+               static_cast<long long>(p.unconfirmed), static_cast<long long>(p.skipped_linked));
   const TrajectoryShift shift = trajectory_shift(result);
   std::fprintf(out,
                "correction: the trajectory moved %.3f m RMS (max %.3f m) from its odometry; "

@@ -11,39 +11,51 @@
 //
 // Descriptor (Scan-Context-like). The submap's surface columns (voxel columns (x, y) holding a
 // TSDF surface voxel: weight > 0 and |distance| under the surface band) in the submap frame S,
-// which is gravity aligned, binned on a polar grid of `rings` x `sectors` around the submap's
-// origin out to max_radius_m. A cell holds the vertical extent of its surfaces (highest top
-// minus lowest bottom, metres) when it is at least half a metre, else 0: ground alone, which
-// every submap has around its origin, would make any two submaps alike. The extent does not
-// depend on the origin's height (which changes along a flight) or on the odometry's drift in z.
-// The ring key (each ring's mean over its sectors) does not change when the submap turns about
-// z, so it is what the index searches. The same columns on a Cartesian grid of the ring width
-// (the bird's-eye image) give the translation and the yaw: the polar shift alone is unreliable
-// once the two origins are metres apart.
+// which is gravity aligned, binned on a polar grid of `rings` x `sectors` around a centre out to
+// max_radius_m. A cell holds the vertical extent of its surfaces (highest top minus lowest
+// bottom, metres) when it is at least half a metre, else 0: ground alone, which every submap has
+// around its path, would make any two submaps alike. The extent does not depend on the height
+// of the path (which changes along a flight) or on the odometry's drift in z. The ring key (each
+// ring's mean over its sectors) does not change when the submap turns about z, so it is what
+// the index searches. Descriptors are taken about several anchors along the submap's path (its
+// scans' positions, every anchor_spacing_m): two passes over the same place cut their submaps at
+// different points, so their origins lie metres apart along the path, but some pair of anchors
+// lies within half the spacing. The grids keep S's axes, so a sector shift between two anchors'
+// descriptors is the submaps' relative yaw. The columns about the origin on a Cartesian grid of
+// the ring width (the bird's-eye image) give the translation and the yaw.
 //
-// Search. The new ring key's nearest earlier keys (Euclidean, a k-d tree; the submaps of the
-// last exclude_recent_submaps ids are left out: they overlap the new one anyway and the
-// odometry links them) are scored by the full descriptor at its best sector shift: the distance
-// is 1 minus the mean cosine similarity of the sector columns over the sectors where either has
-// structure (one side empty: similarity 0); its shift is a first guess of the relative yaw. The
-// two bird's-eye images are then correlated over +-translation_search_m around the origins'
-// coincidence at every sector's yaw, starting from the shift's (which wins ties), and refined to
-// half a sector; the score is the overlap of the two extents, sum min(a, b) over the matched
-// cells divided by the smaller of the two totals.
+// Search. Each anchor's ring key is looked up among the earlier anchors' keys (Euclidean, a k-d
+// tree; the submaps of the last exclude_recent_submaps ids are left out: they overlap the new one
+// anyway and the odometry links them); the earlier submaps with the nearest keys, each at its
+// best pair of anchors, are scored by that pair's polar descriptors at their best sector shift:
+// the distance is 1 minus the mean cosine similarity of the sector columns over the sectors where
+// either has structure (one side empty: similarity 0); its shift is a first guess of the
+// relative yaw. The two bird's-eye images are then correlated over +-translation_search_m around
+// the origins' coincidence at every sector's yaw, starting from the shift's (which wins ties),
+// and refined to half a sector; the score is the overlap of the two extents, sum min(a, b) over
+// the matched cells divided by the smaller of the two totals (at most 1).
 //
 // Verification. A candidate that passes max_descriptor_distance and min_overlap_score is aligned
 // by the registration's own aligner started from the matched relative pose (with its wall search
-// and every acceptance test, registration_constraint_from_guess), and an accepted alignment
-// enters the graph as a registration constraint, so the consistency gate and the robust loss
-// of the pose graph judge it like any other. Each rejection is counted by reason. The residual
-// test is made at least as strict as max_residual_rms_vox here. A submap of a different place
-// with the same kind of structure (two alike buildings) can still pass it: the consistency gate,
-// and registration.verification where the odometry's drift rates are set, are what reject such
-// a closure, since it disagrees with the odometry and the other constraints by far more than
-// the drift.
+// and every acceptance test, registration_constraint_from_guess); the residual test is made at
+// least as strict as max_residual_rms_vox, and the relative pose is checked against the
+// odometry with at least the closures' drift per metre of path between the two submaps (an
+// alike place whose offset the odometry cannot explain is rejected). Each rejection is counted
+// by reason.
+//
+// Confirmation. A submap of a different place with the same kind of structure (two alike
+// buildings) can pass every test above. A verified closure therefore waits until a closure of
+// another new submap agrees with it (the two closures and the odometry between their ends form a
+// cycle that closes, see PlaceRecognitionConfig); then both enter the graph as registration
+// constraints marked from_place_recognition. Two passes over a place give several closures in a
+// row, an alike place rarely two that agree. The registration's consistency gate does not judge
+// confirmed closures: after a long path a revisit moves the graph by metres, which the gate would
+// read as disagreement; the robust loss of the pose graph still weighs them.
 #include <cstdint>
 #include <memory>
 #include <vector>
+
+#include <Eigen/Core>
 
 #include "covoxslam/backend/pose_graph_types.h"
 #include "covoxslam/core/stream.h"
@@ -62,10 +74,14 @@ struct PlaceRecognitionConfig {
   double max_radius_m = 20.0;
   // Earlier submaps scored by the full descriptor per new submap (nearest ring keys).
   int candidates = 5;
+  // Ring keys and polar descriptors are taken about points this far apart along each submap's
+  // path (its scans' positions, from the first), so that a revisit whose submaps start elsewhere
+  // on the same path is compared about nearby points; 0: about the submap's origin only.
+  double anchor_spacing_m = 2.5;
   // The submaps with the last this many ids before the new one are never candidates.
   int exclude_recent_submaps = 6;
   // Full-descriptor distance in [0, 1] above which a candidate is dropped.
-  double max_descriptor_distance = 0.4;
+  double max_descriptor_distance = 0.5;
   // The bird's-eye correlation covers offsets within this of the origins' coincidence (x and y).
   double translation_search_m = 12.0;
   // Least bird's-eye overlap score in [0, 1] for a candidate to be aligned.
@@ -83,6 +99,17 @@ struct PlaceRecognitionConfig {
   // The check's threshold on the squared Mahalanobis distance (x, y, z, yaw), applied where
   // registration.verification's is off or looser; 0: closures are not checked.
   double max_odometry_mahalanobis_sq = 16.0;
+  // A verified closure enters the pose graph only once a second one, from another new submap
+  // within confirm_window_submaps of its own and to an earlier submap within as many of its
+  // earlier one, agrees with it: the cycle of the two closures and
+  // the odometry between their ends closes to within confirm_tolerance_m and _deg plus the
+  // closures' drift per metre over those two stretches of odometry. A lone closure or one that
+  // disagrees with every other is dropped once the window has passed. Confirmed closures are
+  // judged by this test, not by the registration's consistency gate: a revisit after a long
+  // path moves the graph further than the gate allows any one constraint to disagree with it.
+  int confirm_window_submaps = 10;
+  double confirm_tolerance_m = 1.0;
+  double confirm_tolerance_deg = 3.0;
 };
 
 // Throws covox::Error naming the first invalid parameter (prefix "place_recognition.").
@@ -114,9 +141,17 @@ struct PlaceDescriptor {
   bool empty() const { return columns == 0; }
 };
 
-// The descriptor of the given columns (the surface band is a voxel).
+// The descriptor of the given columns (the surface band is a voxel), about `centre_m` (x, y in
+// the columns' frame; the grids keep that frame's axes).
 PlaceDescriptor place_descriptor(const std::vector<SurfaceColumn>& columns,
-                                 const PlaceRecognitionConfig& config);
+                                 const PlaceRecognitionConfig& config,
+                                 const Eigen::Vector2d& centre_m = Eigen::Vector2d::Zero());
+// The points of a submap's path (x, y in its frame, in scan order) that descriptors are taken
+// about: the first, then each point at least `spacing_m` of path after the previous one, at most
+// kMaxPathAnchors (evenly thinned); only the origin when the path is empty or spacing_m is 0.
+constexpr int kMaxPathAnchors = 16;
+std::vector<Eigen::Vector2d> path_anchors(const std::vector<Eigen::Vector2d>& path_m,
+                                          double spacing_m);
 // The descriptor of a finished submap's map (its columns on the map's device, binned on the host).
 PlaceDescriptor place_descriptor(const map::TsdfMap& map, const PlaceRecognitionConfig& config,
                                  const Stream& stream);
@@ -168,6 +203,17 @@ class RingKeyIndex {
   size_t indexed_ = 0;  // items [0, indexed_) are in the tree
 };
 
+// A closure the registration accepted, with both submaps' odometry (for the confirmation).
+struct VerifiedClosure {
+  SubmapConstraint constraint;
+  RegistrationOdometry earlier_odometry, new_odometry;
+};
+
+// How far two verified closures disagree (PlaceRecognitionConfig::confirm_*): the larger of the
+// cycle's translation and yaw errors over their tolerances, squared; <= 1 when they agree.
+double closure_disagreement(const VerifiedClosure& a, const VerifiedClosure& b,
+                            const PlaceRecognitionConfig& config);
+
 // What place recognition did; the verification's own rejections are in `registration`.
 struct PlaceRecognitionCounts {
   int64_t queries = 0;              // submaps searched for
@@ -176,12 +222,23 @@ struct PlaceRecognitionCounts {
   int64_t rejected_descriptor = 0;  // distance above max_descriptor_distance
   int64_t rejected_overlap = 0;     // bird's-eye score below min_overlap_score
   int64_t verified = 0;             // aligned by the registration (registration.attempted)
-  int64_t accepted = 0;             // constraints added
+  int64_t unconfirmed = 0;  // accepted by the registration, no other closure agreed in the window
+  int64_t accepted = 0;     // constraints added (confirmed)
   RegistrationCounts registration;  // the alignments' counts (their rejections by reason)
   int64_t rejected_total() const {
-    return rejected_descriptor + rejected_overlap + (verified - accepted);
+    return rejected_descriptor + rejected_overlap + (verified - registration.accepted) +
+           unconfirmed;
   }
   void add(const PlaceRecognitionCounts& other);
+};
+
+// An earlier submap whose descriptor resembles the new one's, with the relative pose the two
+// descriptors suggest.
+struct PlaceCandidate {
+  int64_t id = -1;
+  backend::Pose4Dof T_fixed_moving;  // earlier <- new: x, y and yaw of the bird's-eye match; z 0
+  double descriptor_distance = 1.0;
+  double overlap_score = 0.0;
 };
 
 // The descriptors of the finished submaps and their index.
@@ -192,10 +249,34 @@ class PlaceRecognizer {
   void clear();
   size_t size() const { return descriptors_.size(); }
 
-  // The loop-closure constraints (kind kRegistration, from an earlier submap to `id`) for a new
-  // finished submap, from the earlier submaps `earlier` (those without a descriptor here are not
-  // candidates); `linked`: ids already constrained to it. Adds the new submap's descriptor.
-  // Nothing (and no descriptor) when disabled.
+  // The search: the earlier submaps among `earlier_ids` (those without a descriptor here are not
+  // candidates) whose descriptors pass max_descriptor_distance and min_overlap_score against the
+  // new finished submap `id`, with their matched relative poses; `linked`: ids already
+  // constrained to it, skipped. Adds the new submap's descriptor. Reads no earlier map, so the
+  // candidates' maps can be brought back (memory budget) before verify(). Nothing when disabled.
+  // `path_m`: the submap's scan positions in its frame (may be empty: the origin alone).
+  std::vector<PlaceCandidate> search(int64_t id, const map::TsdfMap& map,
+                                     const std::vector<Eigen::Vector2d>& path_m,
+                                     const std::vector<int64_t>& earlier_ids,
+                                     const std::vector<int64_t>& linked, const Stream& stream,
+                                     PlaceRecognitionCounts* counts);
+  // The verification: each candidate aligned by the registration from its matched pose and
+  // judged by the closures' tests; those accepted (constraints of kind kRegistration from the
+  // earlier submap to `id`). `earlier` holds each candidate's map, resident.
+  std::vector<VerifiedClosure> verify(
+      int64_t id, const map::TsdfMap& map, const SubmapRegistrationPoints& points,
+      const backend::Pose4Dof& pose, const std::vector<PlaceCandidate>& candidates,
+      const std::vector<RegistrationPartner>& earlier, const SubmapRegistrationConfig& registration,
+      const Stream& stream, WallMapCache* own_walls, const RegistrationOdometry& odometry,
+      PlaceRecognitionCounts* counts) const;
+  // The confirmation: the closures of new submap `id` (verify()) joined to those waiting; the
+  // loop-closure constraints confirmed now. Drops the closures waiting since before
+  // id - confirm_window_submaps.
+  std::vector<SubmapConstraint> confirm(int64_t id, const std::vector<VerifiedClosure>& verified,
+                                        PlaceRecognitionCounts* counts);
+  // The verified closures kept for confirmation (those of the last confirm_window_submaps).
+  size_t waiting() const { return waiting_.size(); }
+  // search(), verify() and confirm(), for callers whose earlier maps are all resident.
   std::vector<SubmapConstraint> propose(
       int64_t id, const map::TsdfMap& map, const SubmapRegistrationPoints& points,
       const backend::Pose4Dof& pose, const std::vector<RegistrationPartner>& earlier,
@@ -204,10 +285,21 @@ class PlaceRecognizer {
       PlaceRecognitionCounts* counts);
 
  private:
+  // Per submap: the descriptor about its origin (whose bird's-eye image the candidates are
+  // matched with) and the polar descriptors about its path anchors (bird's-eye images dropped),
+  // whose ring keys are in the index as id * kMaxPathAnchors + anchor.
   struct Entry {
     int64_t id;
     PlaceDescriptor descriptor;
+    std::vector<PlaceDescriptor> anchors;
   };
+  // The earlier submaps nearest to the new entry's anchors by ring key (each at its best pair of
+  // anchors), nearest first, at most config.candidates of them: (submap id, own, their anchor).
+  struct AnchorPair {
+    int64_t id;
+    size_t own, their;
+  };
+  std::vector<AnchorPair> nearest_submaps(const Entry& entry, int64_t max_id) const;
   const Entry* find(int64_t id) const;
   // The registration's tests as closures need them (see PlaceRecognitionConfig).
   SubmapRegistrationConfig closure_checks(const SubmapRegistrationConfig& registration) const;
@@ -217,6 +309,11 @@ class PlaceRecognizer {
 
   PlaceRecognitionConfig config_;
   std::vector<Entry> descriptors_;  // in id order
+  struct Waiting {
+    VerifiedClosure closure;
+    bool confirmed = false;  // already in the graph: a witness for later closures
+  };
+  std::vector<Waiting> waiting_;  // closures of the last confirm_window_submaps new submaps
   RingKeyIndex index_;
 };
 

@@ -448,8 +448,11 @@ class SlamSystem {
                                   double* room_bytes, std::vector<uint8_t>* compact);
   void add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
                                 std::unique_ptr<SubmapRegistrationPoints> points);
+  // The positions (x, y in the submap's frame) of the scans integrated into `submap`, in order.
+  std::vector<Eigen::Vector2d> submap_path_locked(const Submap& submap);
   // Place recognition's loop closures for a new submap (pipeline/place_recognition.h), appended
-  // to `registrations`; `partners` and `joint_partners` are every earlier submap.
+  // to `registrations`; `partners` and `joint_partners` are every earlier submap. The candidates'
+  // maps are brought back within the memory budget before they are aligned.
   void propose_place_recognition_locked(const Submap& submap,
                                         const SubmapRegistrationPoints& points,
                                         const backend::Pose4Dof& guess,

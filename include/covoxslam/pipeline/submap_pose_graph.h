@@ -57,6 +57,9 @@ struct SubmapConstraint {
   // The solver sees information * weight: the robust loss on registration constraints
   // (pose_graph.registration_loss_scale_sigmas) lowers it for those that disagree with the rest.
   double weight = 1.0;
+  // A registration constraint found by place recognition (a loop closure from the submaps'
+  // descriptors, pipeline/place_recognition.h) rather than at the estimated overlap.
+  bool from_place_recognition = false;
 
   bool is_absolute() const {
     return kind == SubmapConstraintKind::kAbsolutePosition || kind == SubmapConstraintKind::kHeight;
