@@ -3,6 +3,7 @@
 // recomputed from the decoded TSDF is what the pipeline computes from that TSDF.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <map>
@@ -251,6 +252,92 @@ TEST_P(SubmapCodecTest, EsdfFromDecodedTsdfMatchesTheFullMapsEsdf) {
   for (const auto& [index, block] : full_esdf) {
     if (by_index.count(index)) continue;
     for (const map::EsdfVoxel& v : block.esdf) EXPECT_EQ(v.observed, 0);
+  }
+}
+
+// Hand-made blocks with the voxels the quantisation treats specially: NaN and out-of-range
+// distances, subnormal, saturating and zero weights, colour without distance, an all-unobserved
+// block, colour in some blocks only.
+std::vector<map::HostBlock> awkward_blocks(int voxels_per_side) {
+  const size_t per_block = static_cast<size_t>(voxels_per_side) * voxels_per_side * voxels_per_side;
+  std::vector<map::HostBlock> blocks;
+  for (int b = 0; b < 5; ++b) {
+    map::HostBlock block;
+    block.index = Index3D(b - 2, b % 2, -b);
+    block.tsdf.assign(per_block, map::TsdfVoxel());
+    block.color.assign(per_block, map::ColorVoxel());
+    if (b == 3) {  // never observed: dropped
+      blocks.push_back(block);
+      continue;
+    }
+    for (size_t k = 0; k < per_block; k += 1 + (k * 7 + b) % 5) {
+      const float u = static_cast<float>((k * 2654435761u + b) % 10007) / 10007.0f;
+      map::TsdfVoxel& t = block.tsdf[k];
+      t.distance_m = (u - 0.5f) * 3.0f;  // beyond the 0.6 m scale at both ends
+      t.weight = u < 0.1f ? std::ldexp(u, -20) : (u > 0.95f ? 1e6f : u * 200.0f);
+      if (k % 97 == 5) t.distance_m = std::nanf("");
+      if (k % 89 == 3) t.weight = 0.0f;
+      if (b % 2 == 0) {
+        map::ColorVoxel& c = block.color[k];
+        c.r = static_cast<uint8_t>(k % 256);
+        c.g = static_cast<uint8_t>((k / 3) % 256);
+        c.b = static_cast<uint8_t>(b * 40);
+        c.weight = u * 50.0f;
+      }
+      if (k % 61 == 7) {  // colour only
+        t = map::TsdfVoxel();
+        block.color[k].r = 9;
+      }
+    }
+    blocks.push_back(block);
+  }
+  std::sort(blocks.begin(), blocks.end(),
+            [](const map::HostBlock& a, const map::HostBlock& b) { return a.index < b.index; });
+  return blocks;
+}
+
+// The map's own device encodes and decodes (what compaction and restores do): the bytes equal
+// the host encoder's of the map's snapshot, and a decoded map holds the host decoder's voxels bit
+// for bit, with a zero ESDF, on the yard and on the awkward blocks, 8 and 16 voxels a side.
+TEST_P(SubmapCodecTest, TheMapsDeviceEncodesAndDecodesAsTheHostCodec) {
+  const Stream stream(device());
+  for (const int side : {8, 16}) {
+    for (const bool yard : {true, false}) {
+      map::TsdfMap map(device(), map::TsdfMapConfig{0.2f, side, {}});
+      if (yard) {
+        integrate_yard(&map);
+      } else {
+        map.load_blocks(awkward_blocks(side), stream);
+      }
+      const std::vector<map::HostBlock> snapshot = map.snapshot();
+      const std::vector<uint8_t> bytes = io::encode_submap(map, kTruncationM);
+      ASSERT_EQ(bytes, io::encode_submap(snapshot, side, kTruncationM))
+          << side << " voxels a side, " << (yard ? "yard" : "awkward blocks");
+      const std::vector<map::HostBlock> reference = io::decode_submap(bytes, "test");
+      if (!yard) ASSERT_EQ(reference.size() + 1, snapshot.size()) << "the unobserved block";
+      map::TsdfMap decoded(device(), map::TsdfMapConfig{0.2f, side, {}});
+      io::load_encoded_submap(bytes, &decoded, stream);
+      const std::vector<map::HostBlock> back = decoded.snapshot();
+      ASSERT_EQ(back.size(), reference.size());
+      for (size_t b = 0; b < back.size(); ++b) {
+        ASSERT_EQ(back[b].index, reference[b].index);
+        for (size_t k = 0; k < back[b].tsdf.size(); ++k) {
+          const auto bits = [](float value) {
+            uint32_t out;
+            std::memcpy(&out, &value, sizeof(out));
+            return out;
+          };
+          ASSERT_EQ(bits(back[b].tsdf[k].distance_m), bits(reference[b].tsdf[k].distance_m));
+          ASSERT_EQ(bits(back[b].tsdf[k].weight), bits(reference[b].tsdf[k].weight));
+          ASSERT_EQ(back[b].color[k].r, reference[b].color[k].r);
+          ASSERT_EQ(back[b].color[k].g, reference[b].color[k].g);
+          ASSERT_EQ(back[b].color[k].b, reference[b].color[k].b);
+          ASSERT_EQ(bits(back[b].color[k].weight), bits(reference[b].color[k].weight));
+          ASSERT_EQ(back[b].esdf[k].observed, 0);
+          ASSERT_EQ(back[b].esdf[k].distance_m, 0.0f);
+        }
+      }
+    }
   }
 }
 

@@ -113,9 +113,12 @@ double direct_score(const WallMap& moving, const WallMap& fixed, double x, doubl
   return score;
 }
 
-TEST(WallMap, SearchReturnsTheBestPoseOfAPoseByPoseEvaluation) {
+class WallMapTest : public DeviceTest {};
+
+TEST_P(WallMapTest, SearchReturnsTheBestPoseOfAPoseByPoseEvaluation) {
   // Moving columns scattered beyond the fixed map's edges, a guess away from the origin: the
-  // search's best score and pose are those of scoring every grid pose on its own.
+  // search's best score and pose are those of scoring every grid pose on its own, and the device's
+  // sums are the host's to the bit.
   std::mt19937 random(11);
   std::uniform_real_distribution<double> coordinate(-9.0, 9.0);
   std::vector<Eigen::Vector2d> moving_columns;
@@ -127,7 +130,12 @@ TEST(WallMap, SearchReturnsTheBestPoseOfAPoseByPoseEvaluation) {
   config.yaw_range_rad = 2.0 * kDegToRad;
   config.yaw_step_rad = 1.0 * kDegToRad;
   const Pose4Dof guess{0.7, -1.3, 0.0, 5.0 * kDegToRad};
-  const WallMatch match = match_walls(moving, fixed, guess, config);
+  const WallMatch match = match_walls(moving, fixed, guess, config, Stream(device()));
+  const WallMatch on_host = match_walls(moving, fixed, guess, config, Stream(Device::kCpu));
+  EXPECT_EQ(match.score, on_host.score);
+  EXPECT_EQ(match.T_fixed_moving.x, on_host.T_fixed_moving.x);
+  EXPECT_EQ(match.T_fixed_moving.y, on_host.T_fixed_moving.y);
+  EXPECT_EQ(match.T_fixed_moving.yaw, on_host.T_fixed_moving.yaw);
   double best = -1.0;
   Pose4Dof best_pose;
   for (int a = -2; a <= 2; ++a) {
@@ -149,8 +157,6 @@ TEST(WallMap, SearchReturnsTheBestPoseOfAPoseByPoseEvaluation) {
   EXPECT_NEAR(match.T_fixed_moving.y, best_pose.y, 1e-12);
   EXPECT_NEAR(match.T_fixed_moving.yaw, best_pose.yaw, 1e-12);
 }
-
-class WallMapTest : public DeviceTest {};
 
 TEST_P(WallMapTest, TheRoomsWallsAreItsWallColumns) {
   const testing_support::AnalyticScene room = testing_support::registration_room();

@@ -6,6 +6,8 @@
 #include <string>
 
 #include "covoxslam/core/error.h"
+#include "covoxslam/io/internal/submap_codec_layout.h"
+#include "covoxslam/io/internal/voxel_quantisation.h"
 
 namespace covox {
 namespace io {
@@ -13,40 +15,12 @@ namespace {
 
 constexpr char kMagic[4] = {'C', 'V', 'X', 'S'};
 constexpr uint8_t kFlagColor = 1;
-constexpr double kDistanceSteps = 32767.0;
+constexpr size_t kRecordFlagsAt = sizeof(Index3D);  // a record: index, flags, mask, fields
 // Header: magic, version, voxels per side, distance scale, block count.
 constexpr size_t kHeaderBytes = 4 + 4 + 4 + 4 + 8;
-
-// The quantised fields of one voxel: all zero is the never-observed voxel.
-struct QuantisedVoxel {
-  int16_t distance = 0;
-  uint16_t weight = 0;
-  uint8_t r = 0, g = 0, b = 0;
-  uint16_t color_weight = 0;
-  bool observed() const { return distance != 0 || weight != 0 || has_color(); }
-  bool has_color() const { return r != 0 || g != 0 || b != 0 || color_weight != 0; }
-};
-
-int16_t quantise_distance(float distance_m, double scale_m) {
-  if (std::isnan(distance_m)) return 0;
-  const double unit = std::min(1.0, std::max(-1.0, static_cast<double>(distance_m) / scale_m));
-  return static_cast<int16_t>(std::lround(unit * kDistanceSteps));
-}
-
-float dequantise_distance(int16_t distance, float scale_m) {
-  return static_cast<float>(distance) * (scale_m / static_cast<float>(kDistanceSteps));
-}
-
-QuantisedVoxel quantise(const map::TsdfVoxel& tsdf, const map::ColorVoxel& color, double scale_m) {
-  QuantisedVoxel q;
-  q.distance = quantise_distance(tsdf.distance_m, scale_m);
-  q.weight = float_to_half(tsdf.weight);
-  q.r = color.r;
-  q.g = color.g;
-  q.b = color.b;
-  q.color_weight = float_to_half(color.weight);
-  return q;
-}
+using internal::dequantise_distance;
+using internal::quantise;
+using internal::QuantisedVoxel;
 
 template <class T>
 void append(std::vector<uint8_t>* out, const T& value) {
@@ -102,6 +76,7 @@ class ByteReader {
     return at;
   }
   size_t remaining() const { return size_ - position_; }
+  size_t position() const { return position_; }
   [[noreturn]] void fail(const std::string& message) const {
     throw Error(std::string(what_) + ": " + message);
   }
@@ -258,49 +233,9 @@ EncodedSubmapInfo walk(const uint8_t* data, size_t size, const char* what, Sink*
 
 }  // namespace
 
-uint16_t float_to_half(float value) {
-  uint32_t bits;
-  std::memcpy(&bits, &value, sizeof(bits));
-  const uint32_t sign = (bits >> 16) & 0x8000u;
-  const uint32_t float_exponent = (bits >> 23) & 0xffu;
-  uint32_t mantissa = bits & 0x7fffffu;
-  if (float_exponent == 0xffu)
-    return static_cast<uint16_t>(sign | 0x7c00u | (mantissa ? 0x200u : 0u));
-  const int exponent = static_cast<int>(float_exponent) - 127 + 15;
-  if (exponent >= 31) return static_cast<uint16_t>(sign | 0x7bffu);
-  if (exponent <= 0) {
-    // Subnormal half: value = m * 2^-24, m = (1.mantissa << 23) >> (14 - exponent).
-    if (exponent < -10) return static_cast<uint16_t>(sign);
-    mantissa |= 0x800000u;
-    const uint32_t shift = static_cast<uint32_t>(14 - exponent);
-    uint32_t half = mantissa >> shift;
-    const uint32_t remainder = mantissa & ((1u << shift) - 1u);
-    const uint32_t halfway = 1u << (shift - 1u);
-    if (remainder > halfway || (remainder == halfway && (half & 1u))) ++half;
-    return static_cast<uint16_t>(sign | half);
-  }
-  uint32_t half = (static_cast<uint32_t>(exponent) << 10) | (mantissa >> 13);
-  const uint32_t remainder = mantissa & 0x1fffu;
-  // A carry out of the mantissa moves into the exponent, which is the right rounding.
-  if (remainder > 0x1000u || (remainder == 0x1000u && (half & 1u))) ++half;
-  if (half >= 0x7c00u) half = 0x7bffu;
-  return static_cast<uint16_t>(sign | half);
-}
+uint16_t float_to_half(float value) { return internal::float_to_half_bits(value); }
 
-float half_to_float(uint16_t half) {
-  const uint32_t sign = static_cast<uint32_t>(half & 0x8000u) << 16;
-  const uint32_t exponent = (half >> 10) & 0x1fu;
-  const uint32_t mantissa = half & 0x3ffu;
-  if (exponent == 0) {
-    const float magnitude = std::ldexp(static_cast<float>(mantissa), -24);
-    return sign ? -magnitude : magnitude;
-  }
-  uint32_t bits = sign | (mantissa << 13);
-  bits |= exponent == 31 ? 0x7f800000u : (exponent - 15 + 127) << 23;
-  float value;
-  std::memcpy(&value, &bits, sizeof(value));
-  return value;
-}
+float half_to_float(uint16_t half) { return internal::half_bits_to_float(half); }
 
 std::vector<uint8_t> encode_submap(const std::vector<map::HostBlock>& blocks, int voxels_per_side,
                                    float distance_scale_m) {
@@ -309,13 +244,8 @@ std::vector<uint8_t> encode_submap(const std::vector<map::HostBlock>& blocks, in
   if (!(std::isfinite(distance_scale_m) && distance_scale_m > 0.0f))
     throw Error("encode_submap: the distance scale must be a positive number of metres");
   const size_t per_block = static_cast<size_t>(voxels_per_side) * voxels_per_side * voxels_per_side;
-  std::vector<uint8_t> out;
-  out.insert(out.end(), kMagic, kMagic + sizeof(kMagic));
-  append(&out, kSubmapCodecVersion);
-  append(&out, static_cast<uint32_t>(voxels_per_side));
-  append(&out, distance_scale_m);
-  const size_t count_at = out.size();
-  append(&out, uint64_t{0});
+  std::vector<uint8_t> out = internal::encoded_submap_header(voxels_per_side, distance_scale_m, 0);
+  const size_t count_at = out.size() - sizeof(uint64_t);
   uint64_t stored = 0;
   std::vector<QuantisedVoxel> scratch;
   for (size_t b = 0; b < blocks.size(); ++b) {
@@ -330,10 +260,6 @@ std::vector<uint8_t> encode_submap(const std::vector<map::HostBlock>& blocks, in
   }
   std::memcpy(out.data() + count_at, &stored, sizeof(stored));
   return out;
-}
-
-std::vector<uint8_t> encode_submap(const map::TsdfMap& map, float distance_scale_m) {
-  return encode_submap(map.snapshot(), map.voxels_per_side(), distance_scale_m);
 }
 
 EncodedSubmapInfo validate_encoded_submap(const uint8_t* data, size_t size, const char* what) {
@@ -354,18 +280,43 @@ EncodedSubmapInfo decode_submap_voxels(const uint8_t* data, size_t size, const c
   return walk(data, size, what, &sink);
 }
 
-void load_encoded_submap(const std::vector<uint8_t>& bytes, map::TsdfMap* map,
-                         const Stream& stream) {
-  // Decoded straight into the arrays the pools are filled from: no block-by-block copies.
-  map::HostVoxels voxels;
-  const EncodedSubmapInfo info =
-      decode_submap_voxels(bytes.data(), bytes.size(), "load_encoded_submap", &voxels);
-  if (info.voxels_per_side != map->voxels_per_side())
-    throw Error("load_encoded_submap: the submap has " + std::to_string(info.voxels_per_side) +
-                " voxels per side, the map " + std::to_string(map->voxels_per_side()));
-  map->clear();
-  map->load_voxels(voxels, stream);
+namespace internal {
+
+std::vector<uint8_t> encoded_submap_header(int voxels_per_side, float distance_scale_m,
+                                           uint64_t blocks) {
+  std::vector<uint8_t> out;
+  out.insert(out.end(), kMagic, kMagic + sizeof(kMagic));
+  append(&out, kSubmapCodecVersion);
+  append(&out, static_cast<uint32_t>(voxels_per_side));
+  append(&out, distance_scale_m);
+  append(&out, blocks);
+  return out;
 }
+
+EncodedSubmapInfo encoded_block_layout(const uint8_t* data, size_t size, const char* what,
+                                       std::vector<Index3D>* indices,
+                                       std::vector<EncodedBlock>* layout) {
+  if (size < kHeaderBytes) throw Error(std::string(what) + ": truncated submap header");
+  ByteReader r(data, size, what);
+  const EncodedSubmapInfo info = read_header(r);
+  const size_t mask_bytes =
+      static_cast<size_t>(info.voxels_per_side) * info.voxels_per_side * info.voxels_per_side / 8;
+  indices->assign(info.blocks, Index3D());
+  layout->assign(info.blocks, EncodedBlock());
+  for (uint64_t b = 0; b < info.blocks; ++b) {
+    const size_t at = r.position();
+    (*indices)[b] = read_block(r, info, b > 0 ? &(*indices)[b - 1] : nullptr, b,
+                               static_cast<BlockListSink*>(nullptr));
+    EncodedBlock& block = (*layout)[b];
+    block.record_offset = at;
+    block.color = (data[at + kRecordFlagsAt] & kFlagColor) != 0 ? 1 : 0;
+    block.observed = static_cast<uint32_t>(popcount(data + at + kRecordFlagsAt + 1, mask_bytes));
+  }
+  if (r.remaining() != 0) r.fail("unexpected bytes after the last block");
+  return info;
+}
+
+}  // namespace internal
 
 }  // namespace io
 }  // namespace covox

@@ -107,14 +107,25 @@ void TsdfMap::load_voxels(const HostVoxels& voxels, const Stream& stream) {
                 std::to_string(voxels.color.size()) + " colour, " +
                 std::to_string(voxels.esdf.size()) + " ESDF");
   }
-  auto keys = Buffer<Index3D>::from_host(device(), voxels.indices, stream);
+  allocate_blocks_in_order(voxels.indices, stream);
+  tsdf_.copy_from_host(voxels.tsdf, stream);
+  color_.copy_from_host(voxels.color, stream);
+  if (!voxels.esdf.empty()) esdf_.copy_from_host(voxels.esdf, stream);
+  stream.synchronize();
+}
+
+void TsdfMap::allocate_blocks_in_order(const std::vector<Index3D>& indices, const Stream& stream) {
+  if (block_count() != 0) throw Error("TsdfMap: blocks can be loaded only into an empty map");
+  const size_t count = indices.size();
+  const size_t pool = count * static_cast<size_t>(voxels_per_block());
+  auto keys = Buffer<Index3D>::from_host(device(), indices, stream);
   Buffer<uint32_t> slots(device(), count);
   blocks_.reserve(static_cast<int64_t>(count));
   const ActivateResult result =
       blocks_.activate(keys.data(), static_cast<int64_t>(count), slots.data(), nullptr, stream);
   if (!result.ok() || result.num_new != static_cast<int64_t>(count)) {
     clear();
-    throw Error("TsdfMap::load_voxels: the blocks are not distinct valid block indices");
+    throw Error("TsdfMap: the loaded blocks are not distinct valid block indices");
   }
   // In an empty table distinct keys take slots 0..n-1 in input order, so the voxels can be
   // copied as one array. Checked, not assumed.
@@ -122,20 +133,17 @@ void TsdfMap::load_voxels(const HostVoxels& voxels, const Stream& stream) {
   for (size_t i = 0; i < host_slots.size(); ++i) {
     if (host_slots[i] != i) {
       clear();
-      throw Error("TsdfMap::load_voxels: unexpected slot order");
+      throw Error("TsdfMap: unexpected slot order while loading blocks");
     }
   }
-  tsdf_.copy_from_host(voxels.tsdf, stream);
-  color_.copy_from_host(voxels.color, stream);
-  if (voxels.esdf.empty()) {
-    esdf_.resize(0, stream);
-    esdf_.resize(pool, stream);  // zero
-  } else {
-    esdf_.copy_from_host(voxels.esdf, stream);
-  }
+  tsdf_.resize(0, stream);
+  tsdf_.resize(pool, stream);
+  color_.resize(0, stream);
+  color_.resize(pool, stream);
+  esdf_.resize(0, stream);
+  esdf_.resize(pool, stream);
   block_changed_.resize(count, stream);
   block_changed_.fill_bytes(kAllPending, stream);
-  stream.synchronize();
 }
 
 void TsdfMap::release() {

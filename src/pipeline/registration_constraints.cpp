@@ -9,6 +9,7 @@
 #include "covoxslam/backend/pose_graph.h"
 #include "covoxslam/core/error.h"
 #include "covoxslam/core/log.h"
+#include "covoxslam/core/stage_profiler.h"
 #include "covoxslam/pipeline/submap.h"
 #include "covoxslam/pipeline/wall_map.h"
 
@@ -323,8 +324,9 @@ backend::Pose4Dof revisit_start(const PairContext& context, const RegistrationPa
   WallMapCache* const walls_j = partner.walls ? partner.walls : &local_partner_walls;
   WallSearchConfig search;
   search.range_m = revisits.wall_search_range_m;
-  const WallMatch match = match_walls(context.walls_i->get(*context.map, *context.stream),
-                                      walls_j->get(*partner.map, *context.stream), initial, search);
+  const WallMatch match =
+      match_walls(context.walls_i->get(*context.map, *context.stream),
+                  walls_j->get(*partner.map, *context.stream), initial, search, *context.stream);
   const double jump_m =
       std::hypot(match.T_fixed_moving.x - initial.x, match.T_fixed_moving.y - initial.y);
   if (!(match.score >= revisits.wall_search_min_score &&
@@ -416,6 +418,7 @@ bool register_pair(const PairContext& context, const RegistrationPartner& partne
       guess ? *guess : relative_pose_4dof(partner.pose, context.pose);  // T_Sj_Si
   // Symmetric: the partner's own registration points in the new submap's field as well, their
   // weights brought to the new submap's units (the ratio of the mean weights, see the header).
+  StageProfiler::Scope profile("registration pair", *context.stream);
   std::unique_ptr<SubmapRegistrationPoints> prepared_partner_points;
   backend::SymmetricRegistrationPair pair;
   if (config.alignment.symmetric) {
@@ -430,11 +433,14 @@ bool register_pair(const PairContext& context, const RegistrationPartner& partne
     pair.map_i = context.map;
     pair.reverse_weight_scale = context.points->mean_weight / partner_points->mean_weight;
   }
+  profile.mark("partner points");
   bool from_walls = false;
   const backend::Pose4Dof start = revisit_start(context, partner, initial, &from_walls);
+  profile.mark("walls");
   const Attempt attempt = attempt_alignment(
       *context.points, *partner.map, initial, start, context.aligner, config.acceptance,
       config.alignment.symmetric ? &pair : nullptr, *context.stream);
+  profile.mark("align");
   if (attempt.verdict != Verdict::kAccepted) {
     count_rejection(attempt.verdict, counts);
     log_message(LogLevel::kDebug, "SLAM registration: no constraint from submap ", partner.id,

@@ -10,6 +10,7 @@
 
 #include "covoxslam/core/error.h"
 #include "covoxslam/core/log.h"
+#include "covoxslam/core/stage_profiler.h"
 
 namespace covox {
 namespace pipeline {
@@ -585,15 +586,19 @@ void SlamSystem::add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
   PlaceRecognitionCounts recognition_counts;
   std::vector<SubmapConstraint> registrations;
   std::vector<int64_t> joint_pair_partners;
+  StageProfiler::Scope profile("new submap", backend_stream_);
   auto walls = std::make_unique<WallMapCache>();
   auto footprint =
       std::make_unique<backend::SubmapFootprint>(backend::submap_footprint(submap->map()));
+  profile.mark("footprint");
   acquire_partners_locked(
       overlapping_partners(submap->map(), guess, partners, config_.registration, footprint.get()));
+  profile.mark("partners back");
   if (points) {
     registrations = registration_constraints(submap->id(), submap->map(), *points, guess, partners,
                                              config_.registration, backend_stream_, &counts,
                                              walls.get(), own_odometry, footprint.get());
+    profile.mark("registration");
     if (config_.registration.enabled) {
       for (const RegistrationPartner* partner : overlapping_partners(
                submap->map(), guess, joint_partners, config_.registration, footprint.get())) {

@@ -18,6 +18,7 @@
 
 #include "covoxslam/core/error.h"
 #include "covoxslam/core/log.h"
+#include "covoxslam/core/stage_profiler.h"
 #include "covoxslam/io/mesh_codec.h"
 #include "covoxslam/io/submap_codec.h"
 
@@ -121,14 +122,18 @@ void SubmapStore::acquire(Submap& submap, integrators::EsdfIntegrator& esdf, con
   if (mark_used) entry.last_use = ++use_clock_;
   if (entry.resident) return;
   const auto start = std::chrono::steady_clock::now();
+  StageProfiler::Scope profile("restore", stream);
   const bool from_disk = entry.bytes.empty();
   std::vector<uint8_t> read_back;
   if (from_disk) read_back = read_back_locked(submap.id(), entry, 0, entry.size);
   const std::vector<uint8_t>& bytes = from_disk ? read_back : entry.bytes;
+  profile.mark("read back");
   submap.map() = map::TsdfMap(submap.map().device(), submap.map().config());
   io::load_encoded_submap(bytes, &submap.map(), stream);
+  profile.mark("decode");
   esdf.update_all(submap.map(), stream);
   stream.synchronize();
+  profile.mark("esdf");
   entry.resident = true;
   entry.resident_bytes = submap.map().device_bytes();
   if (from_disk) {

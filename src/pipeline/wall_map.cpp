@@ -7,7 +7,9 @@
 #include <utility>
 
 #include "covoxslam/backend/registration.h"
+#include "covoxslam/core/buffer.h"
 #include "covoxslam/core/error.h"
+#include "covoxslam/pipeline/internal/wall_search.h"
 
 namespace covox {
 namespace pipeline {
@@ -113,39 +115,49 @@ double WallMap::distance_m(double x, double y) const {
 
 namespace {
 
-// Per grid offset along one axis, the table cell a moved coordinate falls in (as distance_m
-// computes it), -1 outside the table.
-void cells_along_axis(double coordinate_m, const std::vector<double>& offsets_m, double cell_m,
-                      int32_t origin, int32_t size, std::vector<int64_t>* cells) {
-  for (size_t k = 0; k < offsets_m.size(); ++k) {
-    const int64_t cell =
-        static_cast<int64_t>(std::floor((coordinate_m + offsets_m[k]) / cell_m)) - origin;
-    (*cells)[k] = cell >= 0 && cell < size ? cell : -1;
-  }
-}
-
-// Adds one moved column's score at every grid offset: offset (cx, cy) reads the table at
-// (xs[cx], ys[cy]). Scores accumulate column by column in the columns' order, so every offset's
-// sum is the same sequence of additions as evaluating that offset on its own.
-void add_column_scores(const WallMap::CellTable& table, const std::vector<int64_t>& xs,
-                       const std::vector<int64_t>& ys, std::vector<double>* scores) {
-  const size_t side = xs.size();
-  for (size_t cy = 0; cy < side; ++cy) {
-    double* row_scores = scores->data() + cy * side;
-    if (ys[cy] < 0) {
-      for (size_t cx = 0; cx < side; ++cx) row_scores[cx] += table.outside;
-      continue;
+// Every grid pose's score (wall_search.h), on the stream's device.
+std::vector<double> grid_scores(const internal::WallSearchGrid& grid,
+                                const WallMap::CellTable& table, double cell_m,
+                                const std::vector<Eigen::Vector2d>& columns, double guess_yaw,
+                                double yaw_step_rad, const std::vector<double>& offsets_x,
+                                const std::vector<double>& offsets_y, const Stream& stream) {
+  const int32_t m = (grid.yaws - 1) / 2;
+  // Turned on the host, so both backends look the same coordinates up.
+  std::vector<double> rotated;
+  rotated.reserve(static_cast<size_t>(grid.yaws) * columns.size() * 2);
+  for (int32_t a = 0; a < grid.yaws; ++a) {
+    const double yaw = guess_yaw + (a - m) * yaw_step_rad;
+    const double c = std::cos(yaw), s = std::sin(yaw);
+    for (const Eigen::Vector2d& column : columns) {
+      rotated.push_back(c * column.x() - s * column.y());
+      rotated.push_back(s * column.x() + c * column.y());
     }
-    const double* row = table.inside.data() + static_cast<size_t>(ys[cy]) * table.size_x;
-    for (size_t cx = 0; cx < side; ++cx)
-      row_scores[cx] += xs[cx] >= 0 ? row[xs[cx]] : table.outside;
   }
+  const Device device = stream.device();
+  const auto inside = Buffer<double>::from_host(device, table.inside, stream);
+  const auto device_rotated = Buffer<double>::from_host(device, rotated, stream);
+  const auto device_offsets_x = Buffer<double>::from_host(device, offsets_x, stream);
+  const auto device_offsets_y = Buffer<double>::from_host(device, offsets_y, stream);
+  const size_t along = static_cast<size_t>(grid.yaws) * grid.columns * grid.side;
+  Buffer<int32_t> cells_x(device, along), cells_y(device, along);
+  Buffer<double> scores(device, static_cast<size_t>(grid.yaws) * grid.side * grid.side);
+  const internal::WallCellTable cell_table{inside.data(),  table.outside, table.origin_x,
+                                           table.origin_y, table.size_x,  table.size_y,
+                                           cell_m};
+  dispatch(device, [&](auto backend) {
+    internal::wall_search_cells(backend, stream, grid, cell_table, device_rotated.data(),
+                                device_offsets_x.data(), device_offsets_y.data(), cells_x.data(),
+                                cells_y.data());
+    internal::wall_search_scores(backend, stream, grid, cell_table, cells_x.data(), cells_y.data(),
+                                 scores.data());
+  });
+  return scores.to_host(stream);
 }
 
 }  // namespace
 
 WallMatch match_walls(const WallMap& moving, const WallMap& fixed, const backend::Pose4Dof& guess,
-                      const WallSearchConfig& config) {
+                      const WallSearchConfig& config, const Stream& stream) {
   if (!(config.range_m >= 0.0) || !(config.step_m > 0.0) || !(config.yaw_range_rad >= 0.0) ||
       !(config.yaw_step_rad > 0.0) || !(config.sigma_m > 0.0) || config.max_columns < 1) {
     throw Error("wall search: ranges must be >= 0, steps, sigma and max_columns > 0");
@@ -170,25 +182,18 @@ WallMatch match_walls(const WallMap& moving, const WallMap& fixed, const backend
     offsets_x[k] = guess.x + (k - n) * config.step_m;
     offsets_y[k] = guess.y + (k - n) * config.step_m;
   }
-  // Per yaw step its best grid pose (cell = cy * side + cx); the reduction over yaws is
-  // sequential (deterministic).
+  const internal::WallSearchGrid grid{yaws, static_cast<int32_t>(columns.size()), side};
+  const std::vector<double> scores = grid_scores(grid, table, fixed.cell_m(), columns, guess.yaw,
+                                                 config.yaw_step_rad, offsets_x, offsets_y, stream);
+  // Per yaw step its best grid pose (cell = cy * side + cx), then the best over the yaws, both in
+  // order: ties go to the first grid pose.
   std::vector<double> best_score(yaws, -1.0);
   std::vector<int64_t> best_cell(yaws, 0);
-#pragma omp parallel for schedule(dynamic, 1)
+  const int64_t cells = int64_t(side) * side;
   for (int32_t a = 0; a < yaws; ++a) {
-    const double yaw = guess.yaw + (a - m) * config.yaw_step_rad;
-    const double c = std::cos(yaw), s = std::sin(yaw);
-    std::vector<double> scores(static_cast<size_t>(side) * side, 0.0);
-    std::vector<int64_t> xs(side), ys(side);
-    for (const Eigen::Vector2d& column : columns) {
-      const Eigen::Vector2d p(c * column.x() - s * column.y(), s * column.x() + c * column.y());
-      cells_along_axis(p.x(), offsets_x, fixed.cell_m(), table.origin_x, table.size_x, &xs);
-      cells_along_axis(p.y(), offsets_y, fixed.cell_m(), table.origin_y, table.size_y, &ys);
-      add_column_scores(table, xs, ys, &scores);
-    }
-    for (int64_t cell = 0; cell < int64_t(side) * side; ++cell) {
-      if (scores[cell] > best_score[a]) {
-        best_score[a] = scores[cell];
+    for (int64_t cell = 0; cell < cells; ++cell) {
+      if (scores[a * cells + cell] > best_score[a]) {
+        best_score[a] = scores[a * cells + cell];
         best_cell[a] = cell;
       }
     }

@@ -89,6 +89,10 @@ class TsdfMap {
   // The same from voxels side by side (distinct block indices in any order); throws covox::Error
   // if the map is not empty or an array's length does not match the indices.
   void load_voxels(const HostVoxels& voxels, const Stream& stream);
+  // Allocates `indices` (distinct, any order) in an empty map: block k takes slot k, every voxel
+  // of every layer zero, every BlockChange pending. The caller then fills the pools' slots.
+  // Throws covox::Error if the map is not empty or the indices are not distinct valid indices.
+  void allocate_blocks_in_order(const std::vector<Index3D>& indices, const Stream& stream);
 
   void clear();
   // Frees the blocks, the voxel pools and the block table's buckets down to a minimal table: a

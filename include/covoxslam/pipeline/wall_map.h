@@ -14,8 +14,8 @@
 // (a Gaussian of the distance). The search covers the whole offset range at once, so its result
 // does not depend on a basin, and the aligner then refines from inside its own.
 //
-// The search runs on the host (tens of millions of table look-ups per pair, OpenMP over the yaw
-// steps) and is deterministic: the best score wins, ties go to the first grid pose.
+// The search (tens of millions of table look-ups per pair) runs on the caller's device and is
+// deterministic: the best score wins, ties go to the first grid pose.
 #include <cstdint>
 #include <memory>
 #include <mutex>
@@ -104,9 +104,10 @@ struct WallMatch {
   double score = 0.0;                // sum over the moving columns (matched columns, about)
 };
 
-// The pose of `moving` in `fixed`'s frame with the best score on the grid around `guess`.
+// The pose of `moving` in `fixed`'s frame with the best score on the grid around `guess`; the
+// grid's scores are summed on `stream`'s device (the same sums on either backend).
 WallMatch match_walls(const WallMap& moving, const WallMap& fixed, const backend::Pose4Dof& guess,
-                      const WallSearchConfig& config);
+                      const WallSearchConfig& config, const Stream& stream = Stream());
 
 }  // namespace pipeline
 }  // namespace covox
