@@ -399,9 +399,11 @@ void add_timeline_rows(tools::BenchmarkReport* report,
     report->add(name, "map memory", t.map_memory_mb, "MB");
     report->add(name, "submaps", static_cast<double>(t.submaps), "");
     report->add(name, "window scans", static_cast<double>(t.window_scans), "");
-    report->add(name, "scan time p50", t.scan_p50_ms, "ms");
-    report->add(name, "scan time p95", t.scan_p95_ms, "ms");
-    report->add(name, "scan time max", t.scan_max_ms, "ms");
+    if (t.window_scans > 0) {  // a window without scans has no percentiles
+      report->add(name, "scan time p50", t.scan_p50_ms, "ms");
+      report->add(name, "scan time p95", t.scan_p95_ms, "ms");
+      report->add(name, "scan time max", t.scan_max_ms, "ms");
+    }
     report->add(name, "window submaps", static_cast<double>(t.window_submaps), "");
     report->add(name, "registration per submap", t.registration_ms_per_submap, "ms");
     report->add(name, "solve per submap", t.solve_ms_per_submap, "ms");

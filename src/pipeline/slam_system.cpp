@@ -523,6 +523,32 @@ RegistrationOdometry SlamSystem::odometry_for_verification(const Submap& submap,
   return odometry;
 }
 
+RegistrationOdometry SlamSystem::list_partners_locked(
+    const Submap& submap, bool joint, std::vector<RegistrationPartner>* partners,
+    std::vector<RegistrationPartner>* joint_partners) const {
+  double path_m = 0.0;  // the odometry's path length from the first mapped submap
+  for (const GraphSubmap& earlier : graph_submaps_) {
+    RegistrationPartner partner{earlier.submap->id(),
+                                &earlier.submap->map(),
+                                earlier.submap->pose(),
+                                earlier.walls.get(),
+                                earlier.registration_points.get(),
+                                RegistrationOdometry(),
+                                earlier.footprint.get()};
+    if (!earlier.loaded) {
+      partner.odometry = odometry_for_verification(*earlier.submap, path_m);
+      path_m += earlier.submap->statistics().distance_travelled_m;
+    }
+    // kJoint: pairs with mapped submaps become dense terms; loaded ones stay pairwise.
+    if (joint && !earlier.loaded) {
+      joint_partners->push_back(partner);
+    } else {
+      partners->push_back(partner);
+    }
+  }
+  return odometry_for_verification(submap, path_m);
+}
+
 void SlamSystem::add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
                                           std::unique_ptr<SubmapRegistrationPoints> points) {
   // The link to the graph so far, and the initial guess.
@@ -556,27 +582,7 @@ void SlamSystem::add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
         guess = compose(previous.submap->pose(), link.measurement);
       }
     }
-    double path_m = 0.0;  // the odometry's path length from the first mapped submap
-    for (const GraphSubmap& earlier : graph_submaps_) {
-      RegistrationPartner partner{earlier.submap->id(),
-                                  &earlier.submap->map(),
-                                  earlier.submap->pose(),
-                                  earlier.walls.get(),
-                                  earlier.registration_points.get(),
-                                  RegistrationOdometry(),
-                                  earlier.footprint.get()};
-      if (!earlier.loaded) {
-        partner.odometry = odometry_for_verification(*earlier.submap, path_m);
-        path_m += earlier.submap->statistics().distance_travelled_m;
-      }
-      // kJoint: pairs with mapped submaps become dense terms; loaded ones stay pairwise.
-      if (joint && !earlier.loaded) {
-        joint_partners.push_back(partner);
-      } else {
-        partners.push_back(partner);
-      }
-    }
-    own_odometry = odometry_for_verification(*submap, path_m);
+    own_odometry = list_partners_locked(*submap, joint, &partners, &joint_partners);
   }
   submap->set_pose(guess);
 

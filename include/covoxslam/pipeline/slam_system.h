@@ -448,6 +448,12 @@ class SlamSystem {
                                   double* room_bytes, std::vector<uint8_t>* compact);
   void add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
                                 std::unique_ptr<SubmapRegistrationPoints> points);
+  // Every submap in the graph as a registration partner of the new `submap` (with kJoint, the
+  // mapped ones in `joint_partners`), their odometry for verification; returns the new submap's.
+  // Needs state_mutex_ as well.
+  RegistrationOdometry list_partners_locked(const Submap& submap, bool joint,
+                                            std::vector<RegistrationPartner>* partners,
+                                            std::vector<RegistrationPartner>* joint_partners) const;
   // The positions (x, y in the submap's frame) of the scans integrated into `submap`, in order.
   std::vector<Eigen::Vector2d> submap_path_locked(const Submap& submap);
   // Place recognition's loop closures for a new submap (pipeline/place_recognition.h), appended
