@@ -56,6 +56,8 @@ const char kUsage[] =
     "  --bag FILE               simulated flight bag for the sim case (default "
     "demo_output/flight_seed1_256col/flight.bag)\n"
     "  --data-dir DIR           shared data (default: COVOX_DATA_DIR or the build's default)\n"
+    "  --config FILE.yaml       a configuration file applied over every case's settings (to\n"
+    "                           compare a setting across the cases; its `ros` section is ignored)\n"
     "  --trajectories-dir DIR   also write each case's trajectories as TUM files there\n"
     "  --output FILE            report (default docs/benchmarks/accuracy.json)\n";
 
@@ -307,6 +309,18 @@ int64_t run_case(CaseRun& run, const std::string& trajectories_dir,
   return wrong_closures;
 }
 
+// `path` applied over every run's settings (pipeline::load_slam_config), the device kept.
+void apply_config_file(const std::string& path, std::vector<CaseRun>* runs) {
+  for (CaseRun& run : *runs) {
+    const Device device = run.config.device;
+    const pipeline::SlamConfigFileUse use = pipeline::load_slam_config(path, &run.config);
+    run.config.device = device;
+    if (&run == &runs->front()) {
+      std::printf("config: %s (%zu SLAM parameters over every case)\n", path.c_str(), use.applied);
+    }
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -318,6 +332,7 @@ int main(int argc, char** argv) {
   const std::string trajectories_dir = args.text("--trajectories-dir", "");
   const std::string output = args.text("--output", "docs/benchmarks/accuracy.json");
   const std::string loop_seeds = args.text("--loop-seeds", "0,1,2,3,4,5");
+  const std::string config_path = args.text("--config", "");
   args.finish();
 
   try {
@@ -325,6 +340,7 @@ int main(int argc, char** argv) {
     tools::BenchmarkReport report("accuracy", describe_device(device), argc, argv);
     std::vector<CaseRun> runs = collect_runs(cases, bag_path, data_dir, loop_seeds, device);
     if (runs.empty()) throw Error("no case to run (see the messages above)");
+    if (!config_path.empty()) apply_config_file(config_path, &runs);
     int64_t wrong_closures = 0;
     for (CaseRun& run : runs) wrong_closures += run_case(run, trajectories_dir, &report);
     std::printf("\n");
