@@ -325,7 +325,13 @@ void evaluate_submap(size_t k, const Options& o, const Inputs& in, const Stream&
                   static_cast<long long>(e.to), e.horizontal_m, e.vertical_m, e.yaw_deg, e.along_m);
     }
   }
-  ev.earlier.push_back(pipeline::RegistrationPartner{id, s.map, truth_k, s.walls, s.points});
+  pipeline::RegistrationPartner partner;
+  partner.id = id;
+  partner.map = s.map;
+  partner.pose = truth_k;
+  partner.walls = s.walls;
+  partner.points = s.points;
+  ev.earlier.push_back(partner);
 }
 
 void print_summary(const Options& o, Device device, const Evaluation& ev) {
