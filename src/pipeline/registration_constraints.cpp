@@ -416,9 +416,9 @@ bool register_pair(const PairContext& context, const RegistrationPartner& partne
   }
   const backend::Pose4Dof initial =
       guess ? *guess : relative_pose_4dof(partner.pose, context.pose);  // T_Sj_Si
+  StageProfiler::Scope profile("registration pair", *context.stream);
   // Symmetric: the partner's own registration points in the new submap's field as well, their
   // weights brought to the new submap's units (the ratio of the mean weights, see the header).
-  StageProfiler::Scope profile("registration pair", *context.stream);
   std::unique_ptr<SubmapRegistrationPoints> prepared_partner_points;
   backend::SymmetricRegistrationPair pair;
   if (config.alignment.symmetric) {
