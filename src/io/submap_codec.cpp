@@ -284,8 +284,8 @@ namespace internal {
 
 std::vector<uint8_t> encoded_submap_header(int voxels_per_side, float distance_scale_m,
                                            uint64_t blocks) {
-  std::vector<uint8_t> out;
-  out.insert(out.end(), kMagic, kMagic + sizeof(kMagic));
+  std::vector<uint8_t> out(kMagic, kMagic + sizeof(kMagic));
+  out.reserve(kHeaderBytes);
   append(&out, kSubmapCodecVersion);
   append(&out, static_cast<uint32_t>(voxels_per_side));
   append(&out, distance_scale_m);

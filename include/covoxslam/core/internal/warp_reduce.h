@@ -9,6 +9,7 @@
 // warp may be partial); every lane in it must make the same calls in the same order.
 #include <cstdint>
 
+#include "covoxslam/core/bit_count.h"
 #include "covoxslam/core/macros.h"
 
 namespace covox {
@@ -152,13 +153,7 @@ COVOX_HD_INLINE uint64_t warp_sum(uint32_t lanes, uint64_t value) {
 }
 
 // The number of lanes in a mask (the host's "warp": 1).
-COVOX_HD_INLINE uint32_t warp_count(uint32_t lanes) {
-#if COVOX_DEVICE_CODE
-  return static_cast<uint32_t>(__popc(lanes));
-#else
-  return static_cast<uint32_t>(__builtin_popcount(lanes));
-#endif
-}
+COVOX_HD_INLINE uint32_t warp_count(uint32_t lanes) { return count_bits(lanes); }
 
 // The 64-bit sum over `lanes` of values that all lie within 2^31 of each other (points of one
 // voxel, say): the lowest lane's value times the lane count plus the sum of the differences,

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <cstring>
 
+#include "covoxslam/core/bit_count.h"
 #include "covoxslam/core/macros.h"
 #include "covoxslam/map/voxels.h"
 
@@ -92,14 +93,6 @@ COVOX_HD_INLINE QuantisedVoxel quantise(const map::TsdfVoxel& tsdf, const map::C
   q.b = color.b;
   q.color_weight = float_to_half_bits(color.weight);
   return q;
-}
-
-COVOX_HD_INLINE uint32_t count_bits(uint32_t word) {
-#if COVOX_DEVICE_CODE
-  return static_cast<uint32_t>(__popc(word));
-#else
-  return static_cast<uint32_t>(__builtin_popcount(word));
-#endif
 }
 
 // Little-endian 16-bit fields at any byte offset of the encoded bytes.
