@@ -8,6 +8,7 @@
 #include <unordered_set>
 
 #include "covoxslam/backend/pose_graph.h"
+#include "covoxslam/backend/registration_batch.h"
 #include "covoxslam/backend/internal/registration_ops.h"
 #include "covoxslam/core/error.h"
 #include "covoxslam/map/block_key.h"
@@ -183,78 +184,6 @@ RegistrationNormalEquations registration_normal_equations(
 
 namespace {
 
-// The LM over the relative pose T_Sj_Si shared by the one-way and the symmetric aligner;
-// `normal_equations(pose)` returns the sums at a candidate pose.
-template <class NormalEquations>
-RegistrationResult run_aligner(const Pose4Dof& initial_T_Sj_Si,
-                               const RegistrationAlignerConfig& config,
-                               NormalEquations&& normal_equations) {
-  if (config.max_iterations < 1) {
-    throw Error("align_submaps: max_iterations must be >= 1, got " +
-                std::to_string(config.max_iterations));
-  }
-  Pose4Dof pose = initial_T_Sj_Si;
-  RegistrationNormalEquations current = normal_equations(pose);
-  if (current.used_points < config.min_used_points) {
-    throw Error("align_submaps: only " + std::to_string(current.used_points) + " of " +
-                std::to_string(current.used_points + current.skipped_points) +
-                " registration points fall inside submap j's observed field (need " +
-                std::to_string(config.min_used_points) +
-                "); the submaps do not overlap at this guess");
-  }
-  RegistrationResult result;
-  result.initial_cost = current.cost;
-  double lambda = config.initial_lambda;
-  for (int iteration = 0; iteration < config.max_iterations; ++iteration) {
-    result.iterations = iteration + 1;
-    // LM with damping relative to the diagonal (Marquardt), so metres and radians scale alike.
-    Eigen::Matrix4d damped = current.hessian_i;
-    for (int k = 0; k < 4; ++k) damped(k, k) += lambda * std::max(current.hessian_i(k, k), 1e-12);
-    const Eigen::Vector4d step = damped.ldlt().solve(-current.gradient_i);
-    if (!step.allFinite()) {
-      throw Error(
-          "align_submaps: the normal equations are singular (the overlap does not constrain all of "
-          "x, "
-          "y, z and yaw)");
-    }
-    Pose4Dof candidate = pose;
-    candidate.x += step(0);
-    candidate.y += step(1);
-    candidate.z += step(2);
-    candidate.yaw += step(3);
-    const RegistrationNormalEquations trial = normal_equations(candidate);
-    // Points leaving the other field drop out of the sum; compare mean costs so that losing points
-    // is not mistaken for progress.
-    const double current_mean = current.cost / std::max<int64_t>(current.used_points, 1);
-    const double trial_mean = trial.cost / std::max<int64_t>(trial.used_points, 1);
-    const bool small_step = std::abs(step(0)) < config.translation_tolerance_m &&
-                            std::abs(step(1)) < config.translation_tolerance_m &&
-                            std::abs(step(2)) < config.translation_tolerance_m &&
-                            std::abs(step(3)) < config.yaw_tolerance_rad;
-    if (trial.used_points >= config.min_used_points && trial_mean <= current_mean) {
-      pose = candidate;
-      current = trial;
-      lambda = std::max(lambda / 3.0, 1e-9);
-      if (small_step) {
-        result.converged = true;
-        break;
-      }
-    } else {
-      if (small_step) {  // no smaller step can improve: at the minimum to within the tolerance
-        result.converged = true;
-        break;
-      }
-      lambda *= 4.0;
-    }
-  }
-  result.T_Sj_Si = pose;
-  result.final_cost = current.cost;
-  result.used_points = current.used_points;
-  result.skipped_points = current.skipped_points;
-  result.hessian = current.hessian_i;
-  return result;
-}
-
 RegistrationNormalEquations sum_of(const RegistrationNormalEquations& a,
                                    const RegistrationNormalEquations& b) {
   RegistrationNormalEquations sum;
@@ -299,36 +228,12 @@ RegistrationNormalEquations reverse_normal_equations(const SymmetricRegistration
   return out;
 }
 
-// Coarse-to-fine (RegistrationAlignerConfig::coarse_levels): the LM on the ESDF every 2^L voxels,
-// L = coarse_levels ... 1, each level from where the previous ended, then the LM on the fine
-// residual. `sums(pose, residual_config)` returns the normal equations of one level.
-template <class Sums>
-RegistrationResult run_coarse_to_fine(const Pose4Dof& initial_T_Sj_Si,
-                                      const RegistrationAlignerConfig& config, Sums&& sums) {
-  if (config.coarse_levels < 0 || config.coarse_levels > 10) {
-    throw Error("align_submaps: coarse_levels must be in [0, 10], got " +
-                std::to_string(config.coarse_levels));
-  }
-  Pose4Dof start = initial_T_Sj_Si;
-  int coarse_iterations = 0;
-  for (int level = config.coarse_levels; level >= 1; --level) {
-    RegistrationAlignerConfig coarse = config;
-    coarse.coarse_levels = 0;
-    coarse.residual.coarse_stride_vox = 1 << level;
-    try {
-      const RegistrationResult result = run_aligner(
-          start, coarse, [&](const Pose4Dof& pose) { return sums(pose, coarse.residual); });
-      start = result.T_Sj_Si;
-      coarse_iterations += result.iterations;
-    } catch (const Error&) {
-      // Too few points in the coarse field, or a singular system: the finer levels start where
-      // this one would have (the fine level reports its own failure).
-    }
-  }
-  RegistrationResult result =
-      run_aligner(start, config, [&](const Pose4Dof& pose) { return sums(pose, config.residual); });
-  result.iterations += coarse_iterations;
-  return result;
+// One pair through the batched aligner (registration_batch.h), its failure thrown.
+RegistrationResult align_one_pair(const RegistrationBatchPair& pair,
+                                  const RegistrationAlignerConfig& config, const Stream& stream) {
+  const RegistrationBatchOutcome outcome = align_submap_pairs({pair}, config, stream).front();
+  if (outcome.status != RegistrationBatchOutcome::Status::kAligned) throw Error(outcome.failure);
+  return outcome.result;
 }
 
 }  // namespace
@@ -336,14 +241,12 @@ RegistrationResult run_coarse_to_fine(const Pose4Dof& initial_T_Sj_Si,
 RegistrationResult align_submaps(const RegistrationPoints& points_i, const map::TsdfMap& map_j,
                                  const Pose4Dof& initial_T_Sj_Si,
                                  const RegistrationAlignerConfig& config, const Stream& stream) {
-  // Submap j is the reference frame: T_W_Sj = identity, so T_W_Si is the relative pose itself.
-  Buffer<RegistrationResidual> scratch(map_j.device());
-  return run_coarse_to_fine(
-      initial_T_Sj_Si, config,
-      [&](const Pose4Dof& T_Sj_Si, const RegistrationResidualConfig& residual) {
-        return normal_equations_into(points_i, map_j, T_Sj_Si, Pose4Dof(), residual, &scratch,
-                                     stream);
-      });
+  check_same_device(points_i, map_j);
+  RegistrationBatchPair pair;
+  pair.points_i = &points_i;
+  pair.map_j = &map_j;
+  pair.start_T_Sj_Si = initial_T_Sj_Si;
+  return align_one_pair(pair, config, stream);
 }
 
 namespace {
@@ -373,12 +276,14 @@ RegistrationResult align_submaps_symmetric(const SymmetricRegistrationPair& pair
                                            const RegistrationAlignerConfig& config,
                                            const Stream& stream) {
   check_symmetric_pair(pair);
-  Buffer<RegistrationResidual> scratch(pair.map_j->device()), reverse_scratch(pair.map_i->device());
-  return run_coarse_to_fine(
-      initial_T_Sj_Si, config,
-      [&](const Pose4Dof& T_Sj_Si, const RegistrationResidualConfig& residual) {
-        return two_way_sums(pair, T_Sj_Si, residual, &scratch, &reverse_scratch, stream);
-      });
+  RegistrationBatchPair batch_pair;
+  batch_pair.points_i = pair.points_i;
+  batch_pair.map_j = pair.map_j;
+  batch_pair.points_j = pair.points_j;
+  batch_pair.map_i = pair.map_i;
+  batch_pair.reverse_weight_scale = pair.reverse_weight_scale;
+  batch_pair.start_T_Sj_Si = initial_T_Sj_Si;
+  return align_one_pair(batch_pair, config, stream);
 }
 
 Constraint4Dof make_registration_constraint(int32_t vertex_j, int32_t vertex_i,

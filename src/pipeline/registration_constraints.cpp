@@ -7,6 +7,7 @@
 #include <memory>
 
 #include "covoxslam/backend/pose_graph.h"
+#include "covoxslam/backend/registration_batch.h"
 #include "covoxslam/core/error.h"
 #include "covoxslam/core/log.h"
 #include "covoxslam/core/stage_profiler.h"
@@ -239,50 +240,25 @@ namespace {
 
 enum class Verdict { kAccepted, kFailed, kTooFar, kTooFewPoints };
 
-struct Attempt {
-  Verdict verdict = Verdict::kFailed;
-  backend::RegistrationResult result;
-};
-
-// One alignment from `start`, judged against the guess `initial`.
-// `reverse`: the symmetric pair (registration.h) when the partner's points are used too, else null.
-Attempt attempt_alignment(const SubmapRegistrationPoints& points, const map::TsdfMap& map_j,
-                          const backend::Pose4Dof& initial, const backend::Pose4Dof& start,
-                          const backend::RegistrationAlignerConfig& aligner,
-                          const SubmapRegistrationConfig::Acceptance& acceptance,
-                          const backend::SymmetricRegistrationPair* reverse, const Stream& stream) {
-  Attempt attempt;
-  const backend::RegistrationNormalEquations at_start = backend::registration_normal_equations(
-      points.points, map_j, start, backend::Pose4Dof(), aligner.residual, stream);
-  if (at_start.used_points < acceptance.min_points) {
-    attempt.verdict = Verdict::kTooFewPoints;
-    return attempt;
+// The verdict on one alignment (registration_batch.h's outcome) against the guess `initial`.
+Verdict judge_alignment(const backend::RegistrationBatchOutcome& outcome,
+                        const backend::Pose4Dof& initial,
+                        const SubmapRegistrationConfig::Acceptance& acceptance) {
+  using Status = backend::RegistrationBatchOutcome::Status;
+  if (outcome.status == Status::kTooFewAtStart) return Verdict::kTooFewPoints;
+  if (outcome.status == Status::kFailed) {
+    log_message(LogLevel::kDebug, "SLAM registration: an alignment failed: ", outcome.failure);
+    return Verdict::kFailed;
   }
-  try {
-    attempt.result = reverse ? backend::align_submaps_symmetric(*reverse, start, aligner, stream)
-                             : backend::align_submaps(points.points, map_j, start, aligner, stream);
-  } catch (const std::exception& error) {
-    log_message(LogLevel::kDebug, "SLAM registration: an alignment failed: ", error.what());
-    attempt.verdict = Verdict::kFailed;
-    return attempt;
-  }
-  if (!attempt.result.converged) {
-    attempt.verdict = Verdict::kFailed;
-    return attempt;
-  }
-  if (attempt.result.used_points < acceptance.min_points) {
-    attempt.verdict = Verdict::kTooFewPoints;
-    return attempt;
-  }
-  const backend::Pose4Dof& found = attempt.result.T_Sj_Si;
+  if (!outcome.result.converged) return Verdict::kFailed;
+  if (outcome.result.used_points < acceptance.min_points) return Verdict::kTooFewPoints;
+  const backend::Pose4Dof& found = outcome.result.T_Sj_Si;
   const Eigen::Vector3d moved(found.x - initial.x, found.y - initial.y, found.z - initial.z);
   const double turned =
       std::abs(std::remainder(found.yaw - initial.yaw, 2.0 * 3.14159265358979323846));
-  attempt.verdict =
-      moved.norm() <= acceptance.max_correction_m && turned <= acceptance.max_correction_rad
-          ? Verdict::kAccepted
-          : Verdict::kTooFar;
-  return attempt;
+  return moved.norm() <= acceptance.max_correction_m && turned <= acceptance.max_correction_rad
+             ? Verdict::kAccepted
+             : Verdict::kTooFar;
 }
 
 // What every pair of one new submap shares: the aligner's settings in the new submap's residual
@@ -385,8 +361,6 @@ double verified_mahalanobis_sq(const PairContext& context, const RegistrationPar
                                  one_degree_rad);
 }
 
-// One overlapping pair: aligned, judged and counted; true with `constraint` when accepted.
-// `guess`: the relative pose T_Sj_Si to start from; null: the current poses' relative pose.
 // What every pair of the new submap `id` shares: its map, points, pose, settings and walls.
 PairContext pair_context(int64_t id, const map::TsdfMap& map,
                          const SubmapRegistrationPoints& points, const backend::Pose4Dof& pose,
@@ -405,58 +379,65 @@ PairContext pair_context(int64_t id, const map::TsdfMap& map,
                      odometry};
 }
 
-bool register_pair(const PairContext& context, const RegistrationPartner& partner,
-                   RegistrationCounts* counts, SubmapConstraint* constraint,
-                   const backend::Pose4Dof* guess = nullptr) {
-  const SubmapRegistrationConfig& config = *context.config;
-  ++counts->attempted;
-  if (context.points->points.points.size() < static_cast<size_t>(config.acceptance.min_points)) {
-    ++counts->rejected_too_few_points;
-    return false;
-  }
-  const backend::Pose4Dof initial =
-      guess ? *guess : relative_pose_4dof(partner.pose, context.pose);  // T_Sj_Si
-  StageProfiler::Scope profile("registration pair", *context.stream);
-  // Symmetric: the partner's own registration points in the new submap's field as well, their
-  // weights brought to the new submap's units (the ratio of the mean weights, see the header).
-  std::unique_ptr<SubmapRegistrationPoints> prepared_partner_points;
-  backend::SymmetricRegistrationPair pair;
-  if (config.alignment.symmetric) {
+// A pair ready for the batched alignment: its guess, its start and its points.
+struct PreparedPair {
+  const RegistrationPartner* partner = nullptr;
+  backend::Pose4Dof initial;  // the guess T_Sj_Si the result is judged against
+  bool from_walls = false;
+  std::unique_ptr<SubmapRegistrationPoints> partner_points;  // prepared here when not kept
+  backend::RegistrationBatchPair batch;
+};
+
+// The guess (`guess`, or the current poses' relative pose), the start (from the walls on a
+// revisit) and, when symmetric, the partner's points with their weights brought to the new
+// submap's units (the ratio of the mean weights, see the header).
+PreparedPair prepare_pair(const PairContext& context, const RegistrationPartner& partner,
+                          const backend::Pose4Dof* guess) {
+  PreparedPair prepared;
+  prepared.partner = &partner;
+  prepared.initial = guess ? *guess : relative_pose_4dof(partner.pose, context.pose);
+  prepared.batch.points_i = &context.points->points;
+  prepared.batch.map_j = partner.map;
+  if (context.config->alignment.symmetric) {
     const SubmapRegistrationPoints* partner_points = partner.points;
     if (!partner_points) {
-      prepared_partner_points = prepare_registration_points(*partner.map, config, *context.stream);
-      partner_points = prepared_partner_points.get();
+      prepared.partner_points =
+          prepare_registration_points(*partner.map, *context.config, *context.stream);
+      partner_points = prepared.partner_points.get();
     }
-    pair.points_i = &context.points->points;
-    pair.map_j = partner.map;
-    pair.points_j = &partner_points->points;
-    pair.map_i = context.map;
-    pair.reverse_weight_scale = context.points->mean_weight / partner_points->mean_weight;
+    prepared.batch.points_j = &partner_points->points;
+    prepared.batch.map_i = context.map;
+    prepared.batch.reverse_weight_scale = context.points->mean_weight / partner_points->mean_weight;
   }
-  profile.mark("partner points");
-  bool from_walls = false;
-  const backend::Pose4Dof start = revisit_start(context, partner, initial, &from_walls);
-  profile.mark("walls");
-  const Attempt attempt = attempt_alignment(
-      *context.points, *partner.map, initial, start, context.aligner, config.acceptance,
-      config.alignment.symmetric ? &pair : nullptr, *context.stream);
-  profile.mark("align");
-  if (attempt.verdict != Verdict::kAccepted) {
-    count_rejection(attempt.verdict, counts);
+  prepared.batch.start_T_Sj_Si =
+      revisit_start(context, partner, prepared.initial, &prepared.from_walls);
+  return prepared;
+}
+
+// An aligned pair judged and counted; true with `constraint` when accepted.
+bool accept_pair(const PairContext& context, const PreparedPair& pair,
+                 const backend::RegistrationBatchOutcome& outcome, RegistrationCounts* counts,
+                 SubmapConstraint* constraint) {
+  const SubmapRegistrationConfig& config = *context.config;
+  const RegistrationPartner& partner = *pair.partner;
+  const Verdict verdict = judge_alignment(outcome, pair.initial, config.acceptance);
+  if (verdict != Verdict::kAccepted) {
+    count_rejection(verdict, counts);
     log_message(LogLevel::kDebug, "SLAM registration: no constraint from submap ", partner.id,
                 " to ", context.id);
     return false;
   }
-  *constraint = accepted_constraint(context, partner.id, attempt.result);
+  const backend::RegistrationResult& result = outcome.result;
+  *constraint = accepted_constraint(context, partner.id, result);
   const double mahalanobis_sq = verified_mahalanobis_sq(context, partner, *constraint);
-  const double rms = attempt.result.used_points > 0
-                         ? std::sqrt(2.0 * attempt.result.final_cost /
-                                     static_cast<double>(attempt.result.used_points)) /
-                               context.sqrt_mean_weight
-                         : 0.0;
+  const double rms =
+      result.used_points > 0
+          ? std::sqrt(2.0 * result.final_cost / static_cast<double>(result.used_points)) /
+                context.sqrt_mean_weight
+          : 0.0;
   log_message(LogLevel::kDebug, "SLAM registration: submap ", partner.id, " -> ", context.id,
-              ": points ", attempt.result.used_points, " skipped ", attempt.result.skipped_points,
-              " rms_m ", rms, " walls ", from_walls, " mahalanobis_sq ", mahalanobis_sq);
+              ": points ", result.used_points, " skipped ", result.skipped_points, " rms_m ", rms,
+              " walls ", pair.from_walls, " mahalanobis_sq ", mahalanobis_sq);
   const double max_rms_vox = config.acceptance.max_residual_rms_vox;
   if (max_rms_vox > 0.0 && rms > max_rms_vox * context.map->voxel_size_m()) {
     ++counts->rejected_misfit;
@@ -467,9 +448,43 @@ bool register_pair(const PairContext& context, const RegistrationPartner& partne
     ++counts->rejected_by_odometry;
     return false;
   }
-  if (from_walls) ++counts->started_from_walls;
+  if (pair.from_walls) ++counts->started_from_walls;
   ++counts->accepted;
   return true;
+}
+
+// The new submap against each partner: every pair prepared, then all aligned in lock step
+// (registration_batch.h), then each judged. `guesses`: each pair's relative pose T_Sj_Si to
+// start from; empty: the current poses' relative poses. Returns the accepted constraints.
+std::vector<SubmapConstraint> register_pairs(
+    const PairContext& context, const std::vector<const RegistrationPartner*>& partners,
+    const std::vector<backend::Pose4Dof>& guesses, RegistrationCounts* counts) {
+  const SubmapRegistrationConfig& config = *context.config;
+  std::vector<SubmapConstraint> constraints;
+  counts->attempted += static_cast<int64_t>(partners.size());
+  if (partners.empty()) return constraints;
+  if (context.points->points.points.size() < static_cast<size_t>(config.acceptance.min_points)) {
+    counts->rejected_too_few_points += static_cast<int64_t>(partners.size());
+    return constraints;
+  }
+  StageProfiler::Scope profile("registration pairs", *context.stream);
+  std::vector<PreparedPair> pairs;
+  std::vector<backend::RegistrationBatchPair> batch;
+  for (size_t k = 0; k < partners.size(); ++k) {
+    pairs.push_back(prepare_pair(context, *partners[k], guesses.empty() ? nullptr : &guesses[k]));
+    batch.push_back(pairs.back().batch);
+  }
+  profile.mark("partner points and walls");
+  const std::vector<backend::RegistrationBatchOutcome> outcomes = backend::align_submap_pairs(
+      batch, context.aligner, *context.stream, config.acceptance.min_points);
+  profile.mark("align");
+  for (size_t k = 0; k < pairs.size(); ++k) {
+    SubmapConstraint constraint;
+    if (accept_pair(context, pairs[k], outcomes[k], counts, &constraint)) {
+      constraints.push_back(constraint);
+    }
+  }
+  return constraints;
 }
 
 }  // namespace
@@ -527,12 +542,8 @@ std::vector<SubmapConstraint> registration_constraints(
   WallMapCache local_own_walls;
   const PairContext context = pair_context(id, map, points, pose, config, stream,
                                            own_walls ? own_walls : &local_own_walls, odometry);
-  for (const RegistrationPartner* partner :
-       overlapping_partners(map, pose, earlier, config, footprint)) {
-    SubmapConstraint constraint;
-    if (register_pair(context, *partner, counts, &constraint)) constraints.push_back(constraint);
-  }
-  return constraints;
+  return register_pairs(context, overlapping_partners(map, pose, earlier, config, footprint), {},
+                        counts);
 }
 
 bool registration_constraint_from_guess(
@@ -544,7 +555,11 @@ bool registration_constraint_from_guess(
   WallMapCache local_own_walls;
   const PairContext context = pair_context(id, map, points, pose, config, stream,
                                            own_walls ? own_walls : &local_own_walls, odometry);
-  return register_pair(context, partner, counts, constraint, &T_Sj_Si_guess);
+  const std::vector<SubmapConstraint> accepted =
+      register_pairs(context, {&partner}, {T_Sj_Si_guess}, counts);
+  if (accepted.empty()) return false;
+  *constraint = accepted.front();
+  return true;
 }
 
 }  // namespace pipeline
