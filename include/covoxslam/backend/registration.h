@@ -6,7 +6,8 @@
 //      trilinearly interpolated distance field of submap j, with analytic Jacobians with respect
 //      to both 4-DoF poses (x, y, z, yaw) from the field's gradient;
 //   3. a small Levenberg-Marquardt aligner over the relative pose (4x4 system on the host,
-//      residuals, Jacobians and their J^T J reduction in parallel on the device);
+//      residuals, Jacobians and their J^T J reduction in parallel on the device; many pairs at
+//      once in registration_batch.h, which the aligners below run with one pair);
 //   4. an overlap test and a pose-graph constraint built from an alignment.
 //
 // Why D_j is not always the plain ESDF: this library's ESDF is the exact distance to the nearest
