@@ -50,6 +50,36 @@ void validate_registration_residual_config(const RegistrationResidualConfig& con
   }
 }
 
+RegistrationNormalEquations normal_equations_from_sums(const double* upper_hessian,
+                                                       const double* gradient, double cost,
+                                                       int64_t used_points, int64_t points) {
+  RegistrationNormalEquations out;
+  int k = 0;
+  for (int row = 0; row < 4; ++row) {
+    for (int col = row; col < 4; ++col) {
+      out.hessian_i(row, col) = upper_hessian[k];
+      out.hessian_i(col, row) = upper_hessian[k];
+      ++k;
+    }
+    out.gradient_i(row) = gradient[row];
+  }
+  out.cost = cost;
+  out.used_points = used_points;
+  out.skipped_points = points - used_points;
+  return out;
+}
+
+RegistrationNormalEquations sum_of(const RegistrationNormalEquations& a,
+                                   const RegistrationNormalEquations& b) {
+  RegistrationNormalEquations sum;
+  sum.hessian_i = a.hessian_i + b.hessian_i;
+  sum.gradient_i = a.gradient_i + b.gradient_i;
+  sum.cost = a.cost + b.cost;
+  sum.used_points = a.used_points + b.used_points;
+  sum.skipped_points = a.skipped_points + b.skipped_points;
+  return sum;
+}
+
 bool registration_uses_tsdf_target(const RegistrationResidualConfig& config) {
   return config.distance == RegistrationDistance::kTsdfNearSurface && config.coarse_stride_vox <= 1;
 }
@@ -157,20 +187,7 @@ RegistrationNormalEquations normal_equations_into(const RegistrationPoints& poin
   const RegistrationSums sums = dispatch(map_j.device(), [&](auto backend) {
     return registration_reduce(backend, scratch->data(), count, stream);
   });
-  RegistrationNormalEquations out;
-  int k = 0;
-  for (int row = 0; row < 4; ++row) {
-    for (int col = row; col < 4; ++col) {
-      out.hessian_i(row, col) = sums.hessian[k];
-      out.hessian_i(col, row) = sums.hessian[k];
-      ++k;
-    }
-    out.gradient_i(row) = sums.gradient[row];
-  }
-  out.cost = sums.cost;
-  out.used_points = sums.used;
-  out.skipped_points = count - sums.used;
-  return out;
+  return normal_equations_from_sums(sums.hessian, sums.gradient, sums.cost, sums.used, count);
 }
 
 }  // namespace
@@ -183,17 +200,6 @@ RegistrationNormalEquations registration_normal_equations(
 }
 
 namespace {
-
-RegistrationNormalEquations sum_of(const RegistrationNormalEquations& a,
-                                   const RegistrationNormalEquations& b) {
-  RegistrationNormalEquations sum;
-  sum.hessian_i = a.hessian_i + b.hessian_i;
-  sum.gradient_i = a.gradient_i + b.gradient_i;
-  sum.cost = a.cost + b.cost;
-  sum.used_points = a.used_points + b.used_points;
-  sum.skipped_points = a.skipped_points + b.skipped_points;
-  return sum;
-}
 
 void check_symmetric_pair(const SymmetricRegistrationPair& pair) {
   if (!pair.points_i || !pair.map_j || !pair.points_j || !pair.map_i) {

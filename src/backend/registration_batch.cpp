@@ -187,31 +187,9 @@ class RegistrationBatch {
   }
 
   static RegistrationNormalEquations unpack(const double* s, int64_t points) {
-    RegistrationNormalEquations out;
-    int k = 0;
-    for (int row = 0; row < 4; ++row) {
-      for (int col = row; col < 4; ++col) {
-        out.hessian_i(row, col) = s[k];
-        out.hessian_i(col, row) = s[k];
-        ++k;
-      }
-      out.gradient_i(row) = s[kRegistrationBatchGradientOffset + row];
-    }
-    out.cost = s[kRegistrationBatchCostOffset];
-    out.used_points = static_cast<int64_t>(s[kRegistrationBatchUsedOffset]);
-    out.skipped_points = points - out.used_points;
-    return out;
-  }
-
-  static RegistrationNormalEquations sum_of(const RegistrationNormalEquations& a,
-                                            const RegistrationNormalEquations& b) {
-    RegistrationNormalEquations sum;
-    sum.hessian_i = a.hessian_i + b.hessian_i;
-    sum.gradient_i = a.gradient_i + b.gradient_i;
-    sum.cost = a.cost + b.cost;
-    sum.used_points = a.used_points + b.used_points;
-    sum.skipped_points = a.skipped_points + b.skipped_points;
-    return sum;
+    return normal_equations_from_sums(
+        s, s + kRegistrationBatchGradientOffset, s[kRegistrationBatchCostOffset],
+        static_cast<int64_t>(s[kRegistrationBatchUsedOffset]), points);
   }
 
   const std::vector<RegistrationBatchPair>& pairs_;

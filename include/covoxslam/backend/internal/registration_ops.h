@@ -211,6 +211,14 @@ void validate_registration_residual_config(const RegistrationResidualConfig& con
 // The lookup of map_j's field for kernels on map_j's device (tsdf_band_m from `config`).
 RegistrationDistanceLookup make_registration_lookup(const map::TsdfMap& map_j,
                                                     const RegistrationResidualConfig& config);
+// Normal equations from reduced sums: the upper triangle of the 4x4 Hessian (row-major), the
+// gradient, the cost, the points used and the points evaluated.
+RegistrationNormalEquations normal_equations_from_sums(const double* upper_hessian,
+                                                       const double* gradient, double cost,
+                                                       int64_t used_points, int64_t points);
+// Both sums added (used and skipped points counted over both).
+RegistrationNormalEquations sum_of(const RegistrationNormalEquations& a,
+                                   const RegistrationNormalEquations& b);
 
 // A deterministic uniform number in [0, 1) per voxel (and seed): the sampling decision.
 COVOX_HD_INLINE double registration_sample_uniform(int32_t x, int32_t y, int32_t z, uint32_t seed) {
