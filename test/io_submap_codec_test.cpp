@@ -314,7 +314,9 @@ TEST_P(SubmapCodecTest, TheMapsDeviceEncodesAndDecodesAsTheHostCodec) {
       ASSERT_EQ(bytes, io::encode_submap(snapshot, side, kTruncationM))
           << side << " voxels a side, " << (yard ? "yard" : "awkward blocks");
       const std::vector<map::HostBlock> reference = io::decode_submap(bytes, "test");
-      if (!yard) ASSERT_EQ(reference.size() + 1, snapshot.size()) << "the unobserved block";
+      if (!yard) {
+        ASSERT_EQ(reference.size() + 1, snapshot.size()) << "the unobserved block";
+      }
       map::TsdfMap decoded(device(), map::TsdfMapConfig{0.2f, side, {}});
       io::load_encoded_submap(bytes, &decoded, stream);
       const std::vector<map::HostBlock> back = decoded.snapshot();

@@ -137,7 +137,9 @@ TEST_F(OfflineRunner, TimelineWindowsPartitionTheScansAndSubmaps) {
     scans += t.window_scans;
     submaps += t.window_submaps;
     EXPECT_EQ(t.submaps, submaps) << "sample " << k;
-    if (k > 0) EXPECT_GE(t.wall_s, result.timeline[k - 1].wall_s);
+    if (k > 0) {
+      EXPECT_GE(t.wall_s, result.timeline[k - 1].wall_s);
+    }
     if (t.window_scans > 0) {
       EXPECT_LE(t.scan_p50_ms, t.scan_p95_ms);
       EXPECT_LE(t.scan_p95_ms, t.scan_max_ms);

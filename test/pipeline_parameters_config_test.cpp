@@ -400,7 +400,7 @@ std::string describe(const SlamConfig& config) {
 }
 
 TEST(SlamParameterFiles, PresetsListOnlyWhatDiffersFromTheDefaults) {
-  for (const std::string& preset : {"arche", "arche_sim", "rgbd", "lidar_keyframes", "covoxslam"}) {
+  for (const char* preset : {"arche", "arche_sim", "rgbd", "lidar_keyframes", "covoxslam"}) {
     const io::YamlDocument document = io::read_yaml_subset(preset_path(preset));
     for (const io::YamlEntry& entry : document.entries) {
       if (entry.key.compare(0, 4, "ros.") == 0) continue;

@@ -202,7 +202,11 @@ TEST_P(WallMapTest, ARevisitStartedFromTheWallsEndsAtTheTruth) {
   const Stream stream(device());
   const std::unique_ptr<SubmapRegistrationPoints> points =
       prepare_registration_points(*map_i, config, stream);
-  const std::vector<RegistrationPartner> earlier{RegistrationPartner{0, map_j.get(), T_W_Sj}};
+  RegistrationPartner partner;
+  partner.id = 0;
+  partner.map = map_j.get();
+  partner.pose = T_W_Sj;
+  const std::vector<RegistrationPartner> earlier{partner};
   // The guess is 1.5 m and 2 degrees off the truth (ids 0 and 10: a revisit).
   const Pose4Dof guess{T_W_Si.x - 1.2, T_W_Si.y + 0.9, T_W_Si.z, T_W_Si.yaw - 2.0 * kDegToRad};
   RegistrationCounts counts;
