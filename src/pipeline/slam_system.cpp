@@ -854,6 +854,8 @@ bool SlamSystem::solve_graph_locked() {
       return false;
     }
     const double solve_s = seconds_since(start);
+    log_message(LogLevel::kDebug, "SLAM backend: ", graph.graph.poses.size(), " submaps, ",
+                graph.graph.constraints.size(), " constraints: ", summary.report());
     double max_yaw_change = 0.0;
     for (size_t k = 0; k < before.size(); ++k) {
       const double change =

@@ -51,7 +51,7 @@ struct PoseGraphSolverOptions {
   // kOdometryChain: the chain is cut into segments of this many consecutive vertices, one device
   // thread each (0: one segment, the exact chain). Shorter segments sweep in parallel but hold less
   // of the chain; the same value on both backends keeps their iterates alike.
-  int chain_segment_vertices = 64;
+  int chain_segment_vertices = 8;
 };
 
 enum class PoseGraphTermination {

@@ -282,6 +282,36 @@ Result transform_reduce(CudaBackend, const Stream& stream, InputIterator data, i
 }
 #endif
 
+// The same reduction left in the backend's memory at `out` (one Result), without waiting for it:
+// later work on the stream reads it there, so a loop of reductions never stops for the host.
+template <class InputIterator, class Result, class Transform, class ReduceOp>
+void transform_reduce_into(CpuBackend backend, const Stream& stream, InputIterator data,
+                           int64_t count, Transform transform, Result init, ReduceOp op,
+                           Result* out) {
+  *out = transform_reduce(backend, stream, data, count, transform, init, op);
+}
+#if defined(__CUDACC__)
+template <class InputIterator, class Result, class Transform, class ReduceOp>
+void transform_reduce_into(CudaBackend, const Stream& stream, InputIterator data, int64_t count,
+                           Transform transform, Result init, ReduceOp op, Result* out) {
+  const auto cuda_stream = static_cast<cudaStream_t>(stream.native_handle());
+  const int items = static_cast<int>(std::max<int64_t>(count, 0));
+  size_t temporary_bytes = 0;
+  cuda_check(cub::DeviceReduce::TransformReduce(nullptr, temporary_bytes, data, out, items, op,
+                                                transform, init, cuda_stream),
+             "transform_reduce_into (sizing)");
+  temporary_bytes = std::max<size_t>(temporary_bytes, 1);
+  // The scratch goes back to the stream's cache at once: work on one stream runs in order, so
+  // whoever takes it next cannot start before this reduction has finished.
+  CudaTemporaryAllocator allocator{stream.native_handle()};
+  char* temporary = allocator.allocate(static_cast<std::ptrdiff_t>(temporary_bytes));
+  cuda_check(cub::DeviceReduce::TransformReduce(temporary, temporary_bytes, data, out, items, op,
+                                                transform, init, cuda_stream),
+             "transform_reduce_into");
+  allocator.deallocate(temporary, temporary_bytes);
+}
+#endif
+
 template <class Backend, class T, class Predicate>
 int64_t count_if(Backend backend, const Stream& stream, const T* data, int64_t count,
                  Predicate predicate) {

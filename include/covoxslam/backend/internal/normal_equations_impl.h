@@ -403,18 +403,5 @@ double max_abs(Backend backend, const Stream& stream, const int64_t* indices, in
       thrust::maximum<double>());
 }
 
-// y += a * x.
-template <class Backend>
-void axpy(Backend backend, const Stream& stream, int64_t count, double a, const double* x,
-          double* y) {
-  parallel_for(backend, stream, count, [=] COVOX_HD(int64_t i) { y[i] += a * x[i]; });
-}
-// y = x + a * y (the CG direction update).
-template <class Backend>
-void xpay(Backend backend, const Stream& stream, int64_t count, const double* x, double a,
-          double* y) {
-  parallel_for(backend, stream, count, [=] COVOX_HD(int64_t i) { y[i] = x[i] + a * y[i]; });
-}
-
 }  // namespace backend
 }  // namespace covox

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "covoxslam/backend/internal/block_sparse_structure.h"
+#include "covoxslam/backend/internal/conjugate_gradient_impl.h"
 #include "covoxslam/backend/internal/normal_equations_impl.h"
 #include "covoxslam/backend/internal/pose_graph_solver_ops.h"
 #include "covoxslam/backend/internal/registration_terms_workspace.h"
@@ -68,6 +69,7 @@ class PoseGraphWorkspace {
     preconditioner = Buffer<double>(device, n * DD);
     for (Buffer<double>* v : {&step, &cg_r, &cg_z, &cg_p, &cg_q})
       *v = Buffer<double>(device, n * D);
+    cg_state = Buffer<CgState>(device, 1);
     std::vector<int64_t> iota(n * D);
     for (size_t i = 0; i < iota.size(); ++i) iota[i] = static_cast<int64_t>(i);
     indices = Buffer<int64_t>::from_host(device, iota, stream);
@@ -127,7 +129,8 @@ class PoseGraphWorkspace {
     return max_abs(Backend{}, stream_, indices.data(), unknowns(), gradient.data());
   }
 
-  // Solves (H + damping) step = -g with block-Jacobi PCG; returns the iterations used.
+  // Solves (H + damping) step = -g with PCG (conjugate_gradient_impl.h); returns the iterations
+  // used.
   int solve_damped(double radius, const PoseGraphSolverOptions& options) {
     const int64_t n = unknowns();
     const Backend b{};
@@ -160,29 +163,31 @@ class PoseGraphWorkspace {
       x[i] = 0.0;
       r[i] = -g[i];
     });
-    const double b_norm = std::sqrt(dot(b, stream_, indices.data(), n, r, r));
-    if (b_norm == 0.0) return 0;
+    CgState* state = cg_state.data();
+    dot_into(b, stream_, indices.data(), n, r, r, &state->rr);
+    cg_start(b, stream_, state);
     precondition(r, cg_z.data());
     cg_p.copy_from(cg_z, stream_);
-    double rz = dot(b, stream_, indices.data(), n, r, cg_z.data());
-    int iteration = 0;
-    while (iteration < options.pcg_max_iterations) {
-      ++iteration;
-      multiply_normal_matrix<D>(b, stream_, view_, hessian_diag.data(), hessian_off.data(),
-                                damping.data(), cg_p.data(), cg_q.data());
-      const double pq = dot(b, stream_, indices.data(), n, cg_p.data(), cg_q.data());
-      if (!(pq > 0.0)) break;  // no further descent direction (rounding at convergence)
-      const double alpha = rz / pq;
-      axpy(b, stream_, n, alpha, cg_p.data(), x);
-      axpy(b, stream_, n, -alpha, cg_q.data(), r);
-      const double r_norm = std::sqrt(dot(b, stream_, indices.data(), n, r, r));
-      if (r_norm <= options.pcg_relative_tolerance * b_norm) break;
-      precondition(r, cg_z.data());
-      const double rz_next = dot(b, stream_, indices.data(), n, r, cg_z.data());
-      xpay(b, stream_, n, cg_z.data(), rz_next / rz, cg_p.data());
-      rz = rz_next;
+    dot_into(b, stream_, indices.data(), n, r, cg_z.data(), &state->rz);
+    // Iterations are enqueued in rounds; the state is read back (a wait) once per round.
+    constexpr int kIterationsPerRound = 8;
+    for (int enqueued = 0; enqueued < options.pcg_max_iterations;) {
+      const int round = std::min(kIterationsPerRound, options.pcg_max_iterations - enqueued);
+      for (int k = 0; k < round; ++k) {
+        multiply_normal_matrix<D>(b, stream_, view_, hessian_diag.data(), hessian_off.data(),
+                                  damping.data(), cg_p.data(), cg_q.data());
+        dot_into(b, stream_, indices.data(), n, cg_p.data(), cg_q.data(), &state->pq);
+        cg_update(b, stream_, n, state, cg_p.data(), cg_q.data(), x, r);
+        dot_into(b, stream_, indices.data(), n, r, r, &state->rr);
+        precondition(r, cg_z.data());
+        dot_into(b, stream_, indices.data(), n, r, cg_z.data(), &state->rz_next);
+        cg_advance(b, stream_, options.pcg_relative_tolerance, state);
+        cg_direction(b, stream_, n, state, cg_z.data(), cg_p.data());
+      }
+      enqueued += round;
+      if (cg_state.to_host(stream_)[0].stopped) break;
     }
-    return iteration;
+    return cg_state.to_host(stream_)[0].iterations;
   }
 
   // The decrease of the undamped quadratic model: -(g.step + 0.5 step.H.step).
@@ -214,6 +219,7 @@ class PoseGraphWorkspace {
   Buffer<double> residuals, jac_from, jac_to, costs;
   Buffer<double> hessian_diag, hessian_off, gradient, damping, preconditioner;
   Buffer<double> step, cg_r, cg_z, cg_p, cg_q;
+  Buffer<CgState> cg_state;
   Buffer<int64_t> indices;
   Buffer<int32_t> diag_offsets, diag_terms, off_offsets, off_terms, row_offsets, row_entries,
       row_columns;
