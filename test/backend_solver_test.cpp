@@ -122,6 +122,42 @@ TEST_P(BackendSolver, FixedVertexDoesNotMove) {
   EXPECT_EQ(problem.graph.poses[17].yaw, before.yaw);
 }
 
+// CG runs in rounds of enqueued iterations and reads its state back once per round: the
+// iteration cap is kept exactly, and iterations enqueued after CG has stopped change nothing
+// (a solve capped at the iteration where CG stopped returns the same poses, bit for bit).
+TEST_P(BackendSolver, ConjugateGradientsStopWhereTheyWouldStopIterationByIteration) {
+  SyntheticGraphOptions graph_options;
+  graph_options.submaps = 60;
+  const Synthetic4DofGraph problem = make_synthetic_graph_4dof(graph_options);
+  PoseGraphSolverOptions options;
+  options.max_iterations = 1;  // one LM step: one CG solve
+  auto solve = [&](int pcg_max_iterations, double tolerance) {
+    PoseGraph4Dof graph = problem.graph;
+    options.pcg_max_iterations = pcg_max_iterations;
+    options.pcg_relative_tolerance = tolerance;
+    const PoseGraphSolverSummary summary = solve_pose_graph(&graph, device(), options);
+    return std::make_pair(summary, graph.poses);
+  };
+  for (int cap : {1, 5, 13}) {
+    EXPECT_EQ(solve(cap, 1e-14).first.pcg_iterations, cap) << "cap " << cap;
+  }
+  const auto free_run = solve(500, 0.1);
+  const int stopped_at = static_cast<int>(free_run.first.pcg_iterations);
+  ASSERT_GT(stopped_at, 1);
+  ASSERT_LT(stopped_at, 500);
+  const auto capped = solve(stopped_at, 0.1);
+  EXPECT_EQ(capped.first.pcg_iterations, stopped_at);
+  ASSERT_EQ(capped.second.size(), free_run.second.size());
+  bool one_short_differs = false;
+  const auto one_short = solve(stopped_at - 1, 0.1);
+  for (size_t k = 0; k < free_run.second.size(); ++k) {
+    EXPECT_EQ(capped.second[k].x, free_run.second[k].x) << "vertex " << k;
+    EXPECT_EQ(capped.second[k].yaw, free_run.second[k].yaw) << "vertex " << k;
+    one_short_differs = one_short_differs || one_short.second[k].x != free_run.second[k].x;
+  }
+  EXPECT_TRUE(one_short_differs) << "the last iteration must have moved the step";
+}
+
 TEST_P(BackendSolver, InvalidGraphIsAClearError) {
   PoseGraph4Dof graph;
   graph.poses.resize(2);
