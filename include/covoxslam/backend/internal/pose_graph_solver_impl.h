@@ -171,6 +171,7 @@ class PoseGraphWorkspace {
     dot_into(b, stream_, indices.data(), n, r, cg_z.data(), &state->rz);
     // Iterations are enqueued in rounds; the state is read back (a wait) once per round.
     constexpr int kIterationsPerRound = 8;
+    CgState read_back;
     for (int enqueued = 0; enqueued < options.pcg_max_iterations;) {
       const int round = std::min(kIterationsPerRound, options.pcg_max_iterations - enqueued);
       for (int k = 0; k < round; ++k) {
@@ -185,9 +186,10 @@ class PoseGraphWorkspace {
         cg_direction(b, stream_, n, state, cg_z.data(), cg_p.data());
       }
       enqueued += round;
-      if (cg_state.to_host(stream_)[0].stopped) break;
+      read_back = cg_state.to_host(stream_)[0];
+      if (read_back.stopped) break;
     }
-    return cg_state.to_host(stream_)[0].iterations;
+    return read_back.iterations;
   }
 
   // The decrease of the undamped quadratic model: -(g.step + 0.5 step.H.step).
