@@ -1,8 +1,9 @@
 #pragma once
 // Levenberg-Marquardt + PCG over a pose-graph model, written once for both backends. Host code
 // only orchestrates: every per-constraint, per-block and per-entry step is a parallel_for or a
-// reduction on the device (normal_equations_impl.h); the host reads back scalars (costs, dot
-// products) to steer the iteration.
+// reduction on the device (normal_equations_impl.h); the host reads back LM's scalars (costs,
+// the model's decrease, norms) to steer it, while CG's stay on the device
+// (conjugate_gradient_impl.h).
 #include <algorithm>
 #include <chrono>
 #include <cmath>
