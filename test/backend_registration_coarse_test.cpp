@@ -129,13 +129,44 @@ TEST_P(CoarseRegistrationTest, CoarseToFineRecoversARevisitSizedOffset) {
   }
 }
 
-TEST_P(CoarseRegistrationTest, BadLevelCountIsAnError) {
+// The coarse levels' cap and scaled tolerances end them once the pose is in the next level's
+// basin: fewer LM steps than coarse levels run to the fine tolerances (the earlier behaviour),
+// and the same alignment to within a centimetre and a tenth of a degree.
+TEST_P(CoarseRegistrationTest, CappedCoarseLevelsTakeFewerStepsToTheSameAlignment) {
   const HallPair& pair = hall_pair(device());
   const Stream stream(device());
-  RegistrationAlignerConfig config;
-  config.coarse_levels = -1;
-  EXPECT_THROW(align_submaps(*pair.points_i, *pair.map_j, pair.true_T_Sj_Si, config, stream),
-               Error);
+  const SymmetricRegistrationPair two_way = pair.symmetric();
+  const Pose4Dof truth = pair.true_T_Sj_Si;
+  const Pose4Dof initial{truth.x + 2.0, truth.y + 1.5, truth.z, truth.yaw + 10.0 * kDegToRad};
+  RegistrationAlignerConfig capped;
+  capped.coarse_levels = 3;
+  RegistrationAlignerConfig uncapped = capped;
+  uncapped.coarse_max_iterations = uncapped.max_iterations;
+  uncapped.coarse_tolerance_scale = 1.0;
+  const RegistrationResult a = align_submaps_symmetric(two_way, initial, capped, stream);
+  const RegistrationResult b = align_submaps_symmetric(two_way, initial, uncapped, stream);
+  std::printf("[ registration ] %s: %d LM steps capped, %d uncapped\n", to_string(device()),
+              a.iterations, b.iterations);
+  EXPECT_TRUE(a.converged);
+  EXPECT_LT(a.iterations, b.iterations);
+  EXPECT_LT(translation_error_m(a.T_Sj_Si, b.T_Sj_Si), 0.01);
+  EXPECT_LT(std::abs(a.T_Sj_Si.yaw - b.T_Sj_Si.yaw) / kDegToRad, 0.1);
+  EXPECT_LT(translation_error_m(a.T_Sj_Si, truth), 0.05);
+}
+
+TEST_P(CoarseRegistrationTest, BadLevelSettingsAreErrors) {
+  const HallPair& pair = hall_pair(device());
+  const Stream stream(device());
+  RegistrationAlignerConfig levels;
+  levels.coarse_levels = -1;
+  RegistrationAlignerConfig cap;
+  cap.coarse_max_iterations = 0;
+  RegistrationAlignerConfig scale;
+  scale.coarse_tolerance_scale = 0.5;
+  for (const RegistrationAlignerConfig& config : {levels, cap, scale}) {
+    EXPECT_THROW(align_submaps(*pair.points_i, *pair.map_j, pair.true_T_Sj_Si, config, stream),
+                 Error);
+  }
 }
 
 COVOX_INSTANTIATE_ON_ALL_DEVICES(CoarseRegistrationTest);

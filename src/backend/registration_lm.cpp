@@ -20,6 +20,14 @@ RegistrationLm::RegistrationLm(const Pose4Dof& start_T_Sj_Si,
     throw Error("align_submaps: coarse_levels must be in [0, 10], got " +
                 std::to_string(config.coarse_levels));
   }
+  if (config.coarse_max_iterations < 1) {
+    throw Error("align_submaps: coarse_max_iterations must be >= 1, got " +
+                std::to_string(config.coarse_max_iterations));
+  }
+  if (!(config.coarse_tolerance_scale >= 1.0)) {
+    throw Error("align_submaps: coarse_tolerance_scale must be >= 1, got " +
+                std::to_string(config.coarse_tolerance_scale));
+  }
   if (min_points_at_start_ > 0) {
     phase_ = Phase::kCountAtStart;
     request_ = RegistrationLmRequest{start_, 0, true};
@@ -68,7 +76,10 @@ void RegistrationLm::begin_level(int level) {
 }
 
 void RegistrationLm::plan_step() {
-  if (iterations_ >= config_.max_iterations) {
+  const int max_iterations = level_ > 0
+                                 ? std::min(config_.coarse_max_iterations, config_.max_iterations)
+                                 : config_.max_iterations;
+  if (iterations_ >= max_iterations) {
     end_level(false);
     return;
   }
@@ -94,10 +105,14 @@ void RegistrationLm::plan_step() {
 void RegistrationLm::judge_trial(const RegistrationNormalEquations& trial) {
   const double current_mean = current_.cost / std::max<int64_t>(current_.used_points, 1);
   const double trial_mean = trial.cost / std::max<int64_t>(trial.used_points, 1);
-  const bool small_step = std::abs(step_(0)) < config_.translation_tolerance_m &&
-                          std::abs(step_(1)) < config_.translation_tolerance_m &&
-                          std::abs(step_(2)) < config_.translation_tolerance_m &&
-                          std::abs(step_(3)) < config_.yaw_tolerance_rad;
+  // A coarse level's cells span 2^level voxels: its tolerances grow with them.
+  const double scale =
+      level_ > 0 ? config_.coarse_tolerance_scale * static_cast<double>(1 << level_) : 1.0;
+  const double translation_tolerance_m = config_.translation_tolerance_m * scale;
+  const bool small_step = std::abs(step_(0)) < translation_tolerance_m &&
+                          std::abs(step_(1)) < translation_tolerance_m &&
+                          std::abs(step_(2)) < translation_tolerance_m &&
+                          std::abs(step_(3)) < config_.yaw_tolerance_rad * scale;
   if (trial.used_points >= config_.min_used_points && trial_mean <= current_mean) {
     pose_ = request_.pose;
     current_ = trial;

@@ -126,15 +126,24 @@ RegistrationNormalEquations registration_normal_equations(
 struct RegistrationAlignerConfig {
   RegistrationResidualConfig residual;
   int max_iterations = 60;
-  double initial_lambda = 1e-3;           // LM damping relative to diag(H)
-  double translation_tolerance_m = 1e-5;  // converged when a step moves less than both
-  double yaw_tolerance_rad = 1e-6;
+  double initial_lambda = 1e-3;  // LM damping relative to diag(H)
+  // Converged when a step moves less than both. The cost is trilinear per cell and its point set
+  // changes as points cross the edge of the other field's observed space, so near the minimum
+  // most steps are refused and retried with more damping; much tighter tolerances only add such
+  // rounds, not accuracy (a voxel is 0.1-0.2 m, a good alignment within a few centimetres).
+  double translation_tolerance_m = 1e-4;
+  double yaw_tolerance_rad = 1e-5;
   int64_t min_used_points = 50;  // fewer valid points: no overlap, fail
   // Coarse-to-fine: before the alignment with `residual`, align on the ESDF sampled every
   // 2^coarse_levels voxels, then every 2^(coarse_levels - 1), ..., 2 voxels (coarse_stride_vox of
   // registration.h), each level starting where the coarser one ended. 0: the fine level only.
   // A level that fails (too few points in the coarse field, singular) leaves the pose unchanged.
   int coarse_levels = 0;
+  // A coarse level only has to bring the pose into the next level's basin: it ends after at most
+  // coarse_max_iterations steps, or at tolerances coarse_tolerance_scale times the fine ones per
+  // voxel of its stride (stride 4 and scale 10: 4 mm and 0.4 mrad over 0.1 mm and 0.01 mrad).
+  int coarse_max_iterations = 15;
+  double coarse_tolerance_scale = 10.0;
 };
 
 struct RegistrationResult {

@@ -8,7 +8,8 @@
 // where the previous ended (a level that fails leaves the start unchanged), then the LM on the
 // fine residual, whose failure is the pair's. Each level: damping relative to the diagonal
 // (Marquardt), a step kept when the mean cost per used point does not rise (points leaving the
-// other field drop out of the sum), converged when a step is below the tolerances.
+// other field drop out of the sum), converged when a step is below the tolerances (a coarse
+// level's scaled with its stride, and capped at coarse_max_iterations steps).
 #include <string>
 
 #include "covoxslam/backend/registration_batch.h"
@@ -26,7 +27,8 @@ struct RegistrationLmRequest {
 
 class RegistrationLm {
  public:
-  // Throws covox::Error on max_iterations < 1 or coarse_levels outside [0, 10].
+  // Throws covox::Error on max_iterations or coarse_max_iterations < 1, coarse_levels outside
+  // [0, 10] or coarse_tolerance_scale < 1.
   RegistrationLm(const Pose4Dof& start_T_Sj_Si, const RegistrationAlignerConfig& config,
                  int64_t min_points_at_start);
 
