@@ -102,6 +102,8 @@ std::map<std::string, Expectation> expectations() {
        {"640", [](const SlamConfig& c) { return c.memory.device_budget_mb == 640.0; }}},
       {"memory.host_budget_mb",
        {"320", [](const SlamConfig& c) { return c.memory.host_budget_mb == 320.0; }}},
+      {"memory.device_cache_mb",
+       {"64", [](const SlamConfig& c) { return c.memory.device_cache_mb == 64.0; }}},
       {"memory.spill_directory",
        {"/var/spill",
         [](const SlamConfig& c) { return c.memory.spill_directory == "/var/spill"; }}},

@@ -9,6 +9,7 @@
 #include <string>
 
 #include "covoxslam/core/error.h"
+#include "covoxslam/core/internal/allocation_cache.h"
 
 #if COVOX_WITH_CUDA
 #include <cuda_runtime_api.h>
@@ -53,6 +54,27 @@ void* staging_buffer() {
   if (!staging.data)
     check(cudaMallocHost(&staging.data, kStagedCopyMaxBytes), "page-locked staging allocation");
   return staging.data;
+}
+
+// Device memory comes from the driver through one process-wide cache of freed blocks
+// (internal/allocation_cache.h). It is never destroyed: buffers in static storage may be freed
+// after any destructor of this file would have run.
+constexpr size_t kDeviceCacheMaxBytes = size_t{256} << 20;
+thread_local cudaError_t last_cuda_malloc_error = cudaSuccess;  // of this thread's last failure
+internal::AllocationCache& device_allocation_cache() {
+  static auto* cache = new internal::AllocationCache(
+      internal::AllocationCache::Backend{
+          [](size_t bytes) -> void* {
+            void* pointer = nullptr;
+            const cudaError_t status = cudaMalloc(&pointer, bytes);
+            if (status == cudaSuccess) return pointer;
+            last_cuda_malloc_error = status;
+            cudaGetLastError();  // clear the error so that later calls do not report it
+            return nullptr;
+          },
+          [](void* pointer) { cudaFree(pointer); }, [] { cudaDeviceSynchronize(); }},
+      kDeviceCacheMaxBytes);
+  return *cache;
 }
 #endif
 
@@ -175,10 +197,9 @@ void* allocate_bytes(Device device, size_t bytes) {
   if (bytes == 0) return nullptr;
   if (device == Device::kCuda) {
 #if COVOX_WITH_CUDA
-    void* pointer = nullptr;
-    const cudaError_t status = cudaMalloc(&pointer, bytes);
-    if (status != cudaSuccess) {
-      cudaGetLastError();
+    void* pointer = device_allocation_cache().allocate(bytes);
+    if (!pointer) {
+      const cudaError_t status = last_cuda_malloc_error;
       size_t free_bytes_now = 0, total_bytes = 0;
       cudaMemGetInfo(&free_bytes_now, &total_bytes);
       throw OutOfMemoryError("GPU allocation of " + mebibytes(bytes) + " failed (" +
@@ -199,11 +220,23 @@ void* allocate_bytes(Device device, size_t bytes) {
   return pointer;
 }
 
+void set_device_memory_cache_limit(size_t bytes) {
+#if COVOX_WITH_CUDA
+  device_allocation_cache().set_limit(bytes);
+#else
+  (void)bytes;
+#endif
+}
+
 void free_bytes(Device device, void* pointer) noexcept {
   if (!pointer) return;
   if (device == Device::kCuda) {
 #if COVOX_WITH_CUDA
-    cudaFree(pointer);
+    try {
+      device_allocation_cache().free(pointer);
+    } catch (...) {  // the cache could not record it: hand it back at once
+      cudaFree(pointer);
+    }
 #endif
     return;
   }
@@ -275,7 +308,8 @@ ScanDescriptors single_pass_scan_descriptors(const Stream& stream, int64_t tiles
   Descriptors& d = by_stream[stream.native_handle()];
   if (d.capacity < tiles || d.last_epoch == kLastEpoch) {
     if (d.capacity < tiles) {
-      // cudaFree waits for the work queued before it, the last scans on this stream included
+      // the words go back to the device cache, which hands them out again only after a device
+      // synchronisation: the scans queued on this stream that still use them end first
       free_bytes(Device::kCuda, d.words);
       d.words = nullptr;
       d.capacity = std::max<int64_t>(tiles, std::max<int64_t>(2 * d.capacity, 1024));

@@ -253,6 +253,8 @@ void add_esdf_mesh_submap_parameters(std::vector<SlamParameter>* table) {
                            non_negative),
           number_parameter("memory.host_budget_mb", COVOX_FIELD(memory.host_budget_mb),
                            non_negative),
+          number_parameter("memory.device_cache_mb", COVOX_FIELD(memory.device_cache_mb),
+                           non_negative),
           text_parameter("memory.spill_directory", COVOX_FIELD(memory.spill_directory),
                          [](const std::string& text) { return text; }),
       });

@@ -8,6 +8,7 @@
 #include <string>
 #include <utility>
 
+#include "covoxslam/core/memory.h"
 #include "covoxslam/core/error.h"
 #include "covoxslam/core/log.h"
 #include "covoxslam/core/stage_profiler.h"
@@ -111,6 +112,9 @@ SlamSystem::SlamSystem(const SlamConfig& config)
       mesh_integrator_(config.mesh),
       backend_stream_(Stream::create(config.device)),
       place_recognizer_(config.place_recognition) {
+  if (config_.device == Device::kCuda) {
+    set_device_memory_cache_limit(static_cast<size_t>(config_.memory.device_cache_mb * 1048576.0));
+  }
   if (config_.start_threads) start();
 }
 

@@ -47,6 +47,9 @@ void validate(const MemoryBudgetConfig& config) {
                 std::to_string(config.device_budget_mb));
   if (!(std::isfinite(config.host_budget_mb) && config.host_budget_mb >= 0.0))
     throw Error("memory.host_budget_mb must be >= 0, got " + std::to_string(config.host_budget_mb));
+  if (!(std::isfinite(config.device_cache_mb) && config.device_cache_mb >= 0.0))
+    throw Error("memory.device_cache_mb must be >= 0, got " +
+                std::to_string(config.device_cache_mb));
 }
 
 SubmapStore::SubmapStore(const MemoryBudgetConfig& config, float distance_scale_m,

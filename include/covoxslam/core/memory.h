@@ -12,6 +12,10 @@ namespace covox {
 // on CUDA, the free/total memory of the GPU.
 void* allocate_bytes(Device device, size_t bytes);
 void free_bytes(Device device, void* pointer) noexcept;
+// Freed GPU memory is kept for reuse, at most this many bytes (process-wide, default 256 MiB;
+// 0: every free goes back to the driver at once; core/internal/allocation_cache.h). A no-op in a
+// build without CUDA.
+void set_device_memory_cache_limit(size_t bytes);
 
 // Copies `bytes` between any two devices. When the destination is host memory (CPU) the call
 // returns after the data has arrived; device-to-device copies are queued on `stream`. Small

@@ -46,6 +46,10 @@ struct MemoryBudgetConfig {
   // Compact submaps held in host memory, MiB; beyond it the least recently used go to the spill
   // file.
   double host_budget_mb = 1536.0;
+  // Freed GPU memory kept for reuse instead of handed back to the driver (core/memory.h: a
+  // restore and a compaction allocate and free whole maps), MiB, outside device_budget_mb. It is
+  // process-wide: the last SlamSystem created sets it. 0: none kept.
+  double device_cache_mb = 256.0;
   // Folder of the spill file (created when first needed, removed from the folder at once so it
   // disappears with the process). Empty: the system's temporary folder.
   std::string spill_directory;
