@@ -334,8 +334,9 @@ TEST_P(BlockHashTableTest, QueuedActivationMatchesActivate) {
       continue;
     }
     const auto [it, first_time] = new_slots.emplace(keys[i], host_slots[i]);
-    if (!first_time)
+    if (!first_time) {
       ASSERT_EQ(host_slots[i], it->second) << "duplicates got different slots, key " << i;
+    }
     flagged += host_is_new[i];
   }
   EXPECT_EQ(flagged, static_cast<int64_t>(new_slots.size()));
