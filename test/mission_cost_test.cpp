@@ -17,6 +17,7 @@
 
 #include "covoxslam/backend/registration.h"
 #include "covoxslam/core/buffer.h"
+#include "covoxslam/core/error.h"
 #include "covoxslam/core/stream.h"
 #include "covoxslam/map/tsdf_map.h"
 #include "covoxslam/pipeline/registration_constraints.h"
@@ -157,6 +158,44 @@ TEST_P(MissionCostTest, CandidatesAreTheBestOverlappingAtMostMaxPartners) {
     EXPECT_EQ(chosen[k]->id, ranked[k].second) << "rank " << k;
     EXPECT_EQ(chosen_kept[k]->id, ranked[k].second) << "rank " << k;
   }
+}
+
+TEST_P(MissionCostTest, MaxVisitsKeepsTheFirstAndTheLatestVisitsOfAPlace) {
+  std::mt19937 rng(5);
+  const BlockSet place = random_blocks(&rng, 0, 10);
+  const auto own = map_with_blocks(device(), place);
+  // Ten earlier submaps of the same place in four visits (ids more than min_id_gap apart), all
+  // sharing every block with the new one.
+  const std::vector<int64_t> ids = {0, 1, 2, 10, 11, 20, 21, 22, 30, 31};
+  std::vector<std::unique_ptr<map::TsdfMap>> maps;
+  std::vector<pipeline::RegistrationPartner> earlier;
+  for (int64_t id : ids) {
+    maps.push_back(map_with_blocks(device(), place));
+    pipeline::RegistrationPartner partner;
+    partner.id = id;
+    partner.map = maps.back().get();
+    earlier.push_back(partner);
+  }
+  pipeline::SubmapRegistrationConfig config;
+  config.overlap.max_partners = 0;
+  config.revisits.min_id_gap = 4;
+  const auto chosen_ids = [&](int max_visits) {
+    config.overlap.max_visits = max_visits;
+    std::vector<int64_t> chosen;
+    for (const auto* partner : pipeline::overlapping_partners(*own, Pose4Dof{}, earlier, config))
+      chosen.push_back(partner->id);
+    std::sort(chosen.begin(), chosen.end());
+    return chosen;
+  };
+  EXPECT_EQ(chosen_ids(0), ids);
+  EXPECT_EQ(chosen_ids(4), ids);
+  EXPECT_EQ(chosen_ids(3), (std::vector<int64_t>{0, 1, 2, 20, 21, 22, 30, 31}));
+  EXPECT_EQ(chosen_ids(2), (std::vector<int64_t>{0, 1, 2, 30, 31}));
+  // The visit limit comes first, then max_partners among what is left (ties: lower ids first).
+  config.overlap.max_partners = 4;
+  EXPECT_EQ(chosen_ids(2), (std::vector<int64_t>{0, 1, 2, 30}));
+  config.overlap.max_visits = 1;
+  EXPECT_THROW(pipeline::validate(config), Error);
 }
 
 COVOX_INSTANTIATE_ON_ALL_DEVICES(MissionCostTest);

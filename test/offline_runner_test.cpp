@@ -112,9 +112,9 @@ TEST_F(OfflineRunner, LibraryRunIntegratesEveryScanWithTheBagsOdometry) {
   EXPECT_EQ(evaluation.corrected.aligned.size(), kScans);
 }
 
-// The timeline's windows partition the run: every integrated scan's time and every submap are
-// in exactly one window, samples come at each interval of mission time, and the last sample's map
-// is the run's.
+// The timeline's windows partition the run: every integrated scan's time, every submap and its
+// registration pairs are in exactly one window, samples come at each interval of mission time,
+// and the last sample's map is the run's.
 TEST_F(OfflineRunner, TimelineWindowsPartitionTheScansAndSubmaps) {
   BagScanSource source(bag(), BagScanOptions());
   pipeline::SlamConfig config = pipeline::load_preset("arche_sim");
@@ -126,8 +126,13 @@ TEST_F(OfflineRunner, TimelineWindowsPartitionTheScansAndSubmaps) {
   // Scans every 0.1 s over 1.9 s: samples near 0.5, 1.0 and 1.5 s, then one after finish().
   ASSERT_EQ(result.timeline.size(), 4u);
   int64_t scans = 0, submaps = 0;
+  double pairs = 0.0, restores = 0.0;
   for (size_t k = 0; k < result.timeline.size(); ++k) {
     const TimelineSample& t = result.timeline[k];
+    if (t.window_submaps > 0) {
+      pairs += t.partners_per_submap * static_cast<double>(t.window_submaps);
+      restores += t.restores_per_submap * static_cast<double>(t.window_submaps);
+    }
     // The first scan at or past each boundary (stamps are not exact tenths).
     if (k < 3) {
       EXPECT_GE(t.mission_s, 0.5 * (k + 1) - 1e-9) << "sample " << k;
@@ -149,6 +154,10 @@ TEST_F(OfflineRunner, TimelineWindowsPartitionTheScansAndSubmaps) {
   }
   EXPECT_EQ(scans, static_cast<int64_t>(kScans));
   EXPECT_EQ(submaps, static_cast<int64_t>(result.submaps.size()));
+  // Per-submap counts times the window's submaps add up to the run's counters.
+  EXPECT_NEAR(pairs, static_cast<double>(result.counters.registration.attempted), 1e-6);
+  EXPECT_NEAR(restores, static_cast<double>(result.counters.memory.restores), 1e-6);
+  EXPECT_GT(result.counters.registration.attempted, 0);
   EXPECT_EQ(result.timeline.back().map_blocks, result.map_blocks);
   EXPECT_DOUBLE_EQ(result.timeline.back().map_memory_mb, result.map_memory_mb);
 }

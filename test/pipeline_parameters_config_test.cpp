@@ -167,6 +167,8 @@ std::map<std::string, Expectation> expectations() {
        {"6", [](const SlamConfig& c) { return c.registration.overlap.min_shared_blocks == 6; }}},
       {"registration.overlap.max_partners",
        {"0", [](const SlamConfig& c) { return c.registration.overlap.max_partners == 0; }}},
+      {"registration.overlap.max_visits",
+       {"5", [](const SlamConfig& c) { return c.registration.overlap.max_visits == 5; }}},
       {"registration.sampling.ratio",
        {"0.25", [](const SlamConfig& c) { return c.registration.sampling.ratio == 0.25f; }}},
       {"registration.alignment.distance",

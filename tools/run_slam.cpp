@@ -408,6 +408,8 @@ void add_timeline_rows(tools::BenchmarkReport* report,
     report->add(name, "registration per submap", t.registration_ms_per_submap, "ms");
     report->add(name, "solve per submap", t.solve_ms_per_submap, "ms");
     report->add(name, "window optimisations", static_cast<double>(t.window_optimizations), "");
+    report->add(name, "partners per submap", t.partners_per_submap, "");
+    report->add(name, "restores per submap", t.restores_per_submap, "");
   }
 }
 

@@ -5,6 +5,7 @@
 #include <cstring>
 #include <string>
 
+#include "covoxslam/core/bit_count.h"
 #include "covoxslam/core/error.h"
 #include "covoxslam/io/internal/submap_codec_layout.h"
 #include "covoxslam/io/internal/voxel_quantisation.h"
@@ -113,10 +114,15 @@ EncodedSubmapInfo read_header(ByteReader& r) {
 }
 
 size_t popcount(const uint8_t* mask, size_t bytes) {
+  // Whole 32-bit words first (copied out: the mask has no alignment), then the tail bytes.
   size_t count = 0;
-  for (size_t i = 0; i < bytes; ++i) {
-    for (uint8_t b = mask[i]; b != 0; b = static_cast<uint8_t>(b & (b - 1))) ++count;
+  size_t i = 0;
+  for (; i + sizeof(uint32_t) <= bytes; i += sizeof(uint32_t)) {
+    uint32_t word = 0;
+    std::memcpy(&word, mask + i, sizeof(word));
+    count += count_bits(word);
   }
+  for (; i < bytes; ++i) count += count_bits(mask[i]);
   return count;
 }
 

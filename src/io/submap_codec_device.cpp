@@ -9,6 +9,7 @@
 #include "covoxslam/core/buffer.h"
 #include "covoxslam/core/error.h"
 #include "covoxslam/core/memory.h"
+#include "covoxslam/core/stage_profiler.h"
 #include "covoxslam/io/internal/submap_codec_kernels.h"
 #include "covoxslam/io/internal/submap_codec_layout.h"
 #include "covoxslam/io/submap_codec.h"
@@ -105,6 +106,7 @@ std::vector<uint8_t> encode_submap(const map::TsdfMap& map, float distance_scale
 
 void load_encoded_submap(const std::vector<uint8_t>& bytes, map::TsdfMap* map,
                          const Stream& stream) {
+  StageProfiler::Scope profile("submap decode", stream);
   std::vector<Index3D> indices;
   std::vector<internal::EncodedBlock> host_layout;
   const EncodedSubmapInfo info = internal::encoded_block_layout(
@@ -113,7 +115,9 @@ void load_encoded_submap(const std::vector<uint8_t>& bytes, map::TsdfMap* map,
     throw Error("load_encoded_submap: the submap has " + std::to_string(info.voxels_per_side) +
                 " voxels per side, the map " + std::to_string(map->voxels_per_side()));
   map->clear();
+  profile.mark("layout");
   map->allocate_blocks_in_order(indices, stream);
+  profile.mark("allocate blocks");
   const auto blocks = static_cast<int64_t>(indices.size());
   if (blocks == 0) {
     stream.synchronize();
@@ -124,6 +128,7 @@ void load_encoded_submap(const std::vector<uint8_t>& bytes, map::TsdfMap* map,
   const int32_t words = per_block / kVoxelsPerWord;
   const auto device_bytes = Buffer<uint8_t>::from_host(device, bytes, stream);
   const auto layout = Buffer<internal::EncodedBlock>::from_host(device, host_layout, stream);
+  profile.mark("upload");
   Buffer<uint32_t> masks(device, static_cast<size_t>(blocks * words));
   Buffer<uint32_t> word_ranks(device, static_cast<size_t>(blocks * words));
   Buffer<internal::EncodedBlock> ranked(device, static_cast<size_t>(blocks));
@@ -137,6 +142,7 @@ void load_encoded_submap(const std::vector<uint8_t>& bytes, map::TsdfMap* map,
                                 map->tsdf().view(), map->color().view());
   });
   stream.synchronize();
+  profile.mark("voxels");
 }
 
 }  // namespace covox::io

@@ -100,6 +100,10 @@ void validate(const SubmapRegistrationConfig& config) {
               std::to_string(config.overlap.min_shared_blocks));
   require(config.overlap.max_partners >= 0,
           "overlap.max_partners must be >= 0, got " + std::to_string(config.overlap.max_partners));
+  require(config.overlap.max_visits == 0 || config.overlap.max_visits >= 2,
+          "overlap.max_visits must be 0 (every visit) or at least 2 (the first and the current "
+          "pass), got " +
+              std::to_string(config.overlap.max_visits));
   validate_alignment(config.alignment);
   validate_acceptance(config.acceptance);
   validate_information(config.information);
@@ -487,16 +491,44 @@ std::vector<SubmapConstraint> register_pairs(
   return constraints;
 }
 
+struct PartnerCandidate {
+  const RegistrationPartner* partner;
+  int64_t shared_blocks;
+};
+
+// Leaves the candidates of the first visit and of the latest max_visits - 1 (overlap.max_visits),
+// in increasing id order. Visits: runs of candidates whose consecutive ids differ by at most
+// revisits.min_id_gap.
+void keep_first_and_latest_visits(const SubmapRegistrationConfig& config,
+                                  std::vector<PartnerCandidate>* candidates) {
+  const int max_visits = config.overlap.max_visits;
+  if (max_visits <= 0 || candidates->empty()) return;
+  std::stable_sort(candidates->begin(), candidates->end(),
+                   [](const PartnerCandidate& a, const PartnerCandidate& b) {
+                     return a.partner->id < b.partner->id;
+                   });
+  std::vector<size_t> visit_starts = {0};
+  for (size_t k = 1; k < candidates->size(); ++k) {
+    if ((*candidates)[k].partner->id - (*candidates)[k - 1].partner->id >
+        config.revisits.min_id_gap)
+      visit_starts.push_back(k);
+  }
+  const size_t visits = visit_starts.size();
+  if (visits <= static_cast<size_t>(max_visits)) return;
+  // The first visit ends where the second starts; the latest ones begin at this visit.
+  const size_t first_end = visit_starts[1];
+  const size_t latest_begin = visit_starts[visits - static_cast<size_t>(max_visits - 1)];
+  candidates->erase(candidates->begin() + static_cast<std::ptrdiff_t>(first_end),
+                    candidates->begin() + static_cast<std::ptrdiff_t>(latest_begin));
+}
+
 }  // namespace
 
 std::vector<const RegistrationPartner*> overlapping_partners(
     const map::TsdfMap& map, const backend::Pose4Dof& pose,
     const std::vector<RegistrationPartner>& earlier, const SubmapRegistrationConfig& config,
     const backend::SubmapFootprint* footprint) {
-  struct Candidate {
-    const RegistrationPartner* partner;
-    int64_t shared_blocks;
-  };
+  using Candidate = PartnerCandidate;
   std::vector<Candidate> candidates;
   if (earlier.empty()) return {};
   // Every test reads the new map's blocks: exported once here unless the caller has them. A
@@ -517,6 +549,7 @@ std::vector<const RegistrationPartner*> overlapping_partners(
         *footprint, pose, *partner_footprint, partner.pose, config.overlap.min_shared_blocks);
     if (overlap.overlapping) candidates.push_back(Candidate{&partner, overlap.shared_blocks});
   }
+  keep_first_and_latest_visits(config, &candidates);
   std::stable_sort(
       candidates.begin(), candidates.end(),
       [](const Candidate& a, const Candidate& b) { return a.shared_blocks > b.shared_blocks; });

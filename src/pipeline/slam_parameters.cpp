@@ -320,6 +320,8 @@ void add_registration_alignment_parameters(std::vector<SlamParameter>* table) {
                             COVOX_FIELD(registration.overlap.min_shared_blocks), 1),
           integer_parameter("registration.overlap.max_partners",
                             COVOX_FIELD(registration.overlap.max_partners), 0, 1000000),
+          integer_parameter("registration.overlap.max_visits",
+                            COVOX_FIELD(registration.overlap.max_visits), 0, 1000000),
           number_parameter("registration.sampling.ratio", COVOX_FIELD(registration.sampling.ratio),
                            in_unit_interval_open_closed),
           text_parameter("registration.alignment.distance",

@@ -601,8 +601,10 @@ void SlamSystem::add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
   auto footprint =
       std::make_unique<backend::SubmapFootprint>(backend::submap_footprint(submap->map()));
   profile.mark("footprint");
-  acquire_partners_locked(
-      overlapping_partners(submap->map(), guess, partners, config_.registration, footprint.get()));
+  const std::vector<const RegistrationPartner*> chosen =
+      overlapping_partners(submap->map(), guess, partners, config_.registration, footprint.get());
+  profile.mark("choose partners");
+  acquire_partners_locked(chosen);
   profile.mark("partners back");
   if (points) {
     registrations = registration_constraints(submap->id(), submap->map(), *points, guess, partners,

@@ -186,18 +186,23 @@ void SubmapStore::enforce(const std::vector<Submap*>& candidates, int64_t keep,
 }
 
 void SubmapStore::compact_locked(Submap& submap, Entry& entry) {
+  const Stream device_stream(submap.map().device());
+  StageProfiler::Scope profile("compact", device_stream);
   if (entry.size == 0) {  // first compaction: the one lossy step (see the header)
     entry.bytes = io::encode_submap(submap.map(), distance_scale_m_);
     entry.size = entry.bytes.size();
+    profile.mark("encode voxels");
     counters_.mesh_bytes -= static_cast<int64_t>(io::mesh_bytes_in_memory(entry.mesh));
     entry.mesh_bytes = io::encode_mesh(entry.mesh, mesh_step_m_);
     entry.mesh_size = entry.mesh_bytes.size();
     entry.mesh = map::Mesh();
     counters_.mesh_bytes += static_cast<int64_t>(entry.mesh_size);
     counters_.compact_bytes += static_cast<int64_t>(entry.size + entry.mesh_size);
+    profile.mark("encode mesh");
   }
   // Pools and block table freed; acquire() rebuilds the map with its configured table.
   submap.map().release();
+  profile.mark("release");
   entry.resident = false;
   counters_.resident_bytes -= entry.resident_bytes;
   entry.resident_bytes = 0;

@@ -119,9 +119,13 @@ class TimelineRecorder {
         s.window_submaps > 0
             ? 1000.0 * (timings.backend.total_s - previous_.backend.total_s) / submaps
             : kNaN;
-    s.window_optimizations = counters.optimizations - previous_optimizations_;
+    s.window_optimizations = counters.optimizations - previous_counters_.optimizations;
+    s.partners_per_submap = per_submap(
+        counters.registration.attempted - previous_counters_.registration.attempted, submaps);
+    s.restores_per_submap =
+        per_submap(counters.memory.restores - previous_counters_.memory.restores, submaps);
     previous_ = timings;
-    previous_optimizations_ = counters.optimizations;
+    previous_counters_ = counters;
     return s;
   }
 
@@ -132,7 +136,11 @@ class TimelineRecorder {
   Clock::time_point start_;
   double next_s_ = interval_s_;  // nothing to measure at mission time 0
   pipeline::SlamTimings previous_;
-  int64_t previous_optimizations_ = 0;
+  pipeline::SlamCounters previous_counters_;
+
+  static double per_submap(int64_t count, double submaps) {
+    return submaps > 0.0 ? static_cast<double>(count) / submaps : kNaN;
+  }
 };
 
 void save_map(pipeline::SlamSystem& slam, const map::TsdfMapConfig& map, const std::string& path,
@@ -376,14 +384,17 @@ void print_slam_run(const SlamRunResult& result, FILE* out) {
 
 void print_timeline(const std::vector<TimelineSample>& timeline, FILE* out) {
   if (timeline.empty()) return;
-  std::fprintf(out, "\n%9s %8s %9s %9s %8s %8s %7s %8s %8s %8s %9s %9s\n", "mission s", "wall s",
-               "RSS MB", "peak MB", "blocks", "map MB", "submaps", "scan p50", "scan p95",
-               "scan max", "reg ms/sm", "opt ms/sm");
+  std::fprintf(out, "\n%9s %8s %9s %9s %8s %8s %7s %8s %8s %8s %9s %9s %8s %8s\n", "mission s",
+               "wall s", "RSS MB", "peak MB", "blocks", "map MB", "submaps", "scan p50", "scan p95",
+               "scan max", "reg ms/sm", "opt ms/sm", "pairs/sm", "rest/sm");
   for (const TimelineSample& s : timeline) {
-    std::fprintf(out, "%9.0f %8.1f %9.0f %9.0f %8zu %8.0f %7lld %8.1f %8.1f %8.1f %9.1f %9.1f\n",
+    std::fprintf(out,
+                 "%9.0f %8.1f %9.0f %9.0f %8zu %8.0f %7lld %8.1f %8.1f %8.1f %9.1f %9.1f %8.1f "
+                 "%8.1f\n",
                  s.mission_s, s.wall_s, s.host_rss_mb, s.host_peak_rss_mb, s.map_blocks,
                  s.map_memory_mb, static_cast<long long>(s.submaps), s.scan_p50_ms, s.scan_p95_ms,
-                 s.scan_max_ms, s.registration_ms_per_submap, s.solve_ms_per_submap);
+                 s.scan_max_ms, s.registration_ms_per_submap, s.solve_ms_per_submap,
+                 s.partners_per_submap, s.restores_per_submap);
   }
 }
 

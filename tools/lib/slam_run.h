@@ -55,6 +55,10 @@ struct TimelineSample {
   double registration_ms_per_submap = 0.0;
   double solve_ms_per_submap = 0.0;
   int64_t window_optimizations = 0;
+  // What a submap's registration did in the window: pairs attempted (its partners) and compact
+  // submaps brought back for them, per submap.
+  double partners_per_submap = 0.0;
+  double restores_per_submap = 0.0;
 };
 
 struct SlamRunResult {

@@ -332,6 +332,8 @@ MISSION_COLUMNS = [("host RSS", "host RSS MB"), ("device memory used", "GPU used
                    ("submaps", "submaps"), ("scan time p50", "scan p50 ms"),
                    ("scan time p95", "scan p95 ms"), ("scan time max", "scan max ms"),
                    ("registration per submap", "registration ms per submap"),
+                   ("partners per submap", "partners per submap"),
+                   ("restores per submap", "restores per submap"),
                    ("solve per submap", "solve ms per submap")]
 
 
@@ -402,7 +404,7 @@ BLOCKS = {
     "accuracy": accuracy_table,
     "pipeline": pipeline_table,
     "mission": mission_table,
-    "mission_gpu": lambda reports: mission_table(reports, "mission_gpu.json"),
+    "mission_gpu": lambda reports: mission_table(reports, "mission_gpu_bag.json"),
     "sources": sources_table,
 }
 

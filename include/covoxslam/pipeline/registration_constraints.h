@@ -63,6 +63,13 @@ struct SubmapRegistrationConfig {
     int64_t min_shared_blocks = 4;
     // Align to at most this many earlier submaps (those sharing most blocks); 0: all.
     int max_partners = 10;
+    // Align to the submaps of at most this many visits of the place: the first visit and the
+    // latest ones (the current pass's own predecessors are the latest); 0: every visit. A visit
+    // is a run of overlapping submaps whose ids are at most revisits.min_id_gap apart. Each
+    // later pass was tied to the first and the previous passes when it was made, so the passes
+    // in between add little, and on long missions they are the partners that have left the
+    // memory budget and must be brought back.
+    int max_visits = 3;
   } overlap;
   struct Sampling {
     // Fraction of a submap's surface voxels used as registration points (voxgraph's 0.05).
