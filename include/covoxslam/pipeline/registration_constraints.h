@@ -237,8 +237,9 @@ struct RegistrationPartner {
 };
 
 // The earlier submaps that overlap the new one at `pose` (bounding boxes, then shared blocks),
-// most shared blocks first, at most max_partners. `footprint`: the new map's, when the caller
-// has it (null: computed here, once for all the earlier submaps).
+// those of the first and latest visits (overlap.max_visits), most shared blocks first, at most
+// max_partners. `footprint`: the new map's, when the caller has it (null: computed here, once for
+// all the earlier submaps).
 std::vector<const RegistrationPartner*> overlapping_partners(
     const map::TsdfMap& map, const backend::Pose4Dof& pose,
     const std::vector<RegistrationPartner>& earlier, const SubmapRegistrationConfig& config,
