@@ -100,6 +100,32 @@ TEST(AllocationCache, TheLimitReleasesTheLeastRecentlyFreedAndLargeBlocksAtOnce)
   EXPECT_TRUE(driver.live.empty());
 }
 
+TEST(AllocationCache, TheLeastRecentlyFreedGoesFirstWhateverItsSize) {
+  RecordingDriver driver;
+  AllocationCache cache(driver.backend(), 10000);
+  void* large = cache.allocate(6000);
+  void* small = cache.allocate(1000);
+  void* middle = cache.allocate(3000);
+  cache.free(large);
+  cache.free(small);
+  cache.free(middle);  // 10000 bytes: at the limit, all kept
+  EXPECT_EQ(cache.cached_bytes(), 10000u);
+  // Taking the small block back out and freeing another pushes the cache over its limit: the
+  // large one, freed first, leaves, not the smallest.
+  EXPECT_EQ(cache.allocate(1000), small);
+  void* other = cache.allocate(2000);
+  cache.free(other);
+  EXPECT_EQ(driver.live.count(large), 0u);
+  EXPECT_EQ(driver.live.count(middle), 1u);
+  EXPECT_EQ(driver.live.count(other), 1u);
+  EXPECT_EQ(cache.cached_bytes(), 5000u);
+  // Freed again, the small block is now the most recent: the middle one goes before it.
+  cache.free(small);
+  cache.free(cache.allocate(6000));
+  EXPECT_EQ(driver.live.count(middle), 0u);
+  EXPECT_EQ(driver.live.count(small), 1u);
+}
+
 TEST(AllocationCache, ALowerLimitReleasesAtOnceAndZeroKeepsNothing) {
   RecordingDriver driver;
   AllocationCache cache(driver.backend(), 10000);

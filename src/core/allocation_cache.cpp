@@ -18,6 +18,7 @@ void* AllocationCache::allocate(size_t bytes) {
     }
     void* pointer = fit->second.pointer;
     cached_bytes_ -= fit->first;
+    cached_by_age_.erase(fit->second.freed_at);
     cached_.erase(fit);
     return pointer;
   }
@@ -44,7 +45,8 @@ void AllocationCache::free(void* pointer) {
     backend_.release(pointer);
     return;
   }
-  cached_.emplace(capacity, Cached{pointer, ++free_clock_});
+  const uint64_t freed_at = ++free_clock_;
+  cached_by_age_.emplace(freed_at, cached_.emplace(capacity, Cached{pointer, freed_at}));
   cached_bytes_ += capacity;
   while (cached_bytes_ > max_cached_bytes_) release_oldest_locked();
 }
@@ -73,10 +75,8 @@ void AllocationCache::flush_locked() {
 }
 
 void AllocationCache::release_oldest_locked() {
-  auto oldest = cached_.begin();
-  for (auto it = cached_.begin(); it != cached_.end(); ++it) {
-    if (it->second.freed_at < oldest->second.freed_at) oldest = it;
-  }
+  const CachedBySize::iterator oldest = cached_by_age_.begin()->second;
+  cached_by_age_.erase(cached_by_age_.begin());
   void* pointer = oldest->second.pointer;
   cached_bytes_ -= oldest->first;
   cached_.erase(oldest);

@@ -8,9 +8,9 @@
 #include <string>
 #include <utility>
 
-#include "covoxslam/core/memory.h"
 #include "covoxslam/core/error.h"
 #include "covoxslam/core/log.h"
+#include "covoxslam/core/memory.h"
 #include "covoxslam/core/stage_profiler.h"
 
 namespace covox {

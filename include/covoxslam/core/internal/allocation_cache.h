@@ -61,8 +61,10 @@ class AllocationCache {
   Backend backend_;
   size_t max_cached_bytes_;
   mutable std::mutex mutex_;
-  std::unordered_map<void*, size_t> capacity_;  // every block handed out or cached
-  std::multimap<size_t, Cached> cached_;        // by capacity
+  using CachedBySize = std::multimap<size_t, Cached>;
+  std::unordered_map<void*, size_t> capacity_;                // every block handed out or cached
+  CachedBySize cached_;                                       // by capacity
+  std::map<uint64_t, CachedBySize::iterator> cached_by_age_;  // the same blocks by freed_at
   size_t cached_bytes_ = 0;
   uint64_t free_clock_ = 0;
   uint64_t synchronised_through_ = 0;  // blocks freed at or before this clock are safe to reuse
