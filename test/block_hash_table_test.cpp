@@ -1,4 +1,5 @@
-// BlockHashTable against std::unordered_map (the reference), on every backend, and CPU vs CUDA.
+// BlockHashTable against std::unordered_map (the reference), on every backend, and CPU vs CUDA;
+// the host BlockKeySet against std::set.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -13,6 +14,7 @@
 #include "covoxslam/core/error.h"
 #include "covoxslam/map/block_hash_table.h"
 #include "covoxslam/map/block_key.h"
+#include "covoxslam/map/block_key_set.h"
 #include "support/test_devices.h"
 
 namespace covox {
@@ -515,6 +517,39 @@ TEST(BlockHashTableParity, CpuAndCudaAssignConsistentSlots) {
   }
   EXPECT_EQ(cpu.size(), gpu.size());
   EXPECT_EQ(find(cpu, distinct), find(gpu, distinct));
+}
+
+// The host set answers as std::set does: clustered keys (a submap's neighbouring blocks) with
+// duplicates, the reserved keys left out, and queries mostly outside the set.
+TEST(BlockKeySetTest, MatchesStdSetOnClusteredKeysWithDuplicates) {
+  std::mt19937 rng(7);
+  std::uniform_int_distribution<int32_t> axis(-40, 40);
+  std::vector<uint64_t> keys;
+  for (int k = 0; k < 3000; ++k)
+    keys.push_back(map::pack_block_key(Index3D(axis(rng), axis(rng), axis(rng) / 8)));
+  keys.push_back(map::kInvalidBlockKey);
+  keys.push_back(map::kEmptyBlockKey);
+  keys.push_back(map::kErasedBlockKey);
+  const map::BlockKeySet set(keys);
+  std::set<uint64_t> reference;
+  for (uint64_t key : keys)
+    if (map::is_live_block_key(key)) reference.insert(key);
+  EXPECT_EQ(set.size(), reference.size());
+  EXPECT_LT(reference.size(), 3000u);  // the draw did repeat keys
+  int64_t found = 0;
+  for (int x = -45; x <= 45; ++x) {
+    for (int y = -45; y <= 45; ++y) {
+      for (int z = -6; z <= 6; ++z) {
+        const uint64_t key = map::pack_block_key(Index3D(x, y, z));
+        ASSERT_EQ(set.contains(key), reference.count(key) == 1) << x << " " << y << " " << z;
+        found += set.contains(key) ? 1 : 0;
+      }
+    }
+  }
+  EXPECT_EQ(found, static_cast<int64_t>(reference.size()));
+  EXPECT_FALSE(set.contains(map::kInvalidBlockKey));
+  EXPECT_FALSE(set.contains(map::kEmptyBlockKey));
+  EXPECT_FALSE(map::BlockKeySet().contains(map::pack_block_key(Index3D(0, 0, 0))));
 }
 
 }  // namespace

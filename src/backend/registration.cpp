@@ -5,7 +5,6 @@
 #include <cmath>
 #include <numeric>
 #include <string>
-#include <unordered_set>
 
 #include "covoxslam/backend/pose_graph.h"
 #include "covoxslam/backend/registration_batch.h"
@@ -314,8 +313,10 @@ SubmapFootprint submap_footprint(const map::TsdfMap& map) {
   Buffer<uint32_t> slots(map.device());
   map.blocks().export_entries(&indices, &slots);
   footprint.blocks = indices.to_host(stream);
-  footprint.keys.reserve(footprint.blocks.size() * 2);
-  for (const Index3D& b : footprint.blocks) footprint.keys.insert(map::pack_block_key(b));
+  std::vector<uint64_t> keys;
+  keys.reserve(footprint.blocks.size());
+  for (const Index3D& b : footprint.blocks) keys.push_back(map::pack_block_key(b));
+  footprint.keys = map::BlockKeySet(keys);
   if (footprint.blocks.empty()) return footprint;
   footprint.block_min = footprint.block_max = footprint.blocks.front();
   for (const Index3D& b : footprint.blocks) {
@@ -345,8 +346,9 @@ SubmapOverlap submap_overlap(const map::TsdfMap& map_i, const Pose4Dof& T_W_Si,
 
 namespace {
 
-Eigen::Vector3d pose_4dof_apply(const Pose4Dof& pose, const Eigen::Vector3d& p) {
-  const double c = std::cos(pose.yaw), s = std::sin(pose.yaw);
+// The pose applied to p, its yaw's cosine and sine computed once by the caller for many points.
+Eigen::Vector3d pose_4dof_apply(const Pose4Dof& pose, double c, double s,
+                                const Eigen::Vector3d& p) {
   return Eigen::Vector3d(c * p.x() - s * p.y() + pose.x, s * p.x() + c * p.y() + pose.y,
                          p.z() + pose.z);
 }
@@ -363,11 +365,12 @@ void footprint_world_box(const SubmapFootprint& footprint, const Pose4Dof& pose,
       Eigen::Vector3d::Constant(block_m);
   *lo = Eigen::Vector3d::Constant(1e300);
   *hi = Eigen::Vector3d::Constant(-1e300);
+  const double cos_yaw = std::cos(pose.yaw), sin_yaw = std::sin(pose.yaw);
   for (int c = 0; c < 8; ++c) {
     const Eigen::Vector3d corner((c & 1) ? block_hi.x() : block_lo.x(),
                                  (c & 2) ? block_hi.y() : block_lo.y(),
                                  (c & 4) ? block_hi.z() : block_lo.z());
-    const Eigen::Vector3d w = pose_4dof_apply(pose, corner);
+    const Eigen::Vector3d w = pose_4dof_apply(pose, cos_yaw, sin_yaw, corner);
     *lo = lo->cwiseMin(w);
     *hi = hi->cwiseMax(w);
   }
@@ -396,17 +399,20 @@ SubmapOverlap submap_overlap(const SubmapFootprint& footprint_i, const Pose4Dof&
   // Finer check: block centres of i, moved into frame j, landing in allocated blocks of j.
   const double block_m = footprint_i.block_size_m;
   const double c = std::cos(T_W_Sj.yaw), s = std::sin(T_W_Sj.yaw);
+  const double c_i = std::cos(T_W_Si.yaw), s_i = std::sin(T_W_Si.yaw);
   for (const Index3D& b : footprint_i.blocks) {
     const Eigen::Vector3d centre((b.x + 0.5) * block_m, (b.y + 0.5) * block_m,
                                  (b.z + 0.5) * block_m);
-    const Eigen::Vector3d w = pose_4dof_apply(T_W_Si, centre);
+    const Eigen::Vector3d w = pose_4dof_apply(T_W_Si, c_i, s_i, centre);
     const Eigen::Vector3d d(w.x() - T_W_Sj.x, w.y() - T_W_Sj.y, w.z() - T_W_Sj.z);
     const Eigen::Vector3d in_j(c * d.x() + s * d.y(), -s * d.x() + c * d.y(), d.z());
     const Index3D block(static_cast<int32_t>(std::floor(in_j.x() / block_m)),
                         static_cast<int32_t>(std::floor(in_j.y() / block_m)),
                         static_cast<int32_t>(std::floor(in_j.z() / block_m)));
-    const uint64_t key = map::pack_block_key(block);
-    if (key != map::kInvalidBlockKey && footprint_j.keys.count(key)) ++overlap.shared_blocks;
+    const bool in_box = block.x >= footprint_j.block_min.x && block.x <= footprint_j.block_max.x &&
+                        block.y >= footprint_j.block_min.y && block.y <= footprint_j.block_max.y &&
+                        block.z >= footprint_j.block_min.z && block.z <= footprint_j.block_max.z;
+    if (in_box && footprint_j.keys.contains(map::pack_block_key(block))) ++overlap.shared_blocks;
   }
   overlap.overlapping = overlap.shared_blocks >= std::max<int64_t>(min_shared_blocks, 1);
   return overlap;

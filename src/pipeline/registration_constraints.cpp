@@ -568,15 +568,24 @@ std::vector<SubmapConstraint> registration_constraints(
     const SubmapRegistrationConfig& config, const Stream& stream, RegistrationCounts* counts,
     WallMapCache* own_walls, const RegistrationOdometry& odometry,
     const backend::SubmapFootprint* footprint) {
-  std::vector<SubmapConstraint> constraints;
-  if (!config.enabled) return constraints;
+  if (!config.enabled) return {};
+  return registration_constraints_with(id, map, points, pose,
+                                       overlapping_partners(map, pose, earlier, config, footprint),
+                                       config, stream, counts, own_walls, odometry);
+}
+
+std::vector<SubmapConstraint> registration_constraints_with(
+    int64_t id, const map::TsdfMap& map, const SubmapRegistrationPoints& points,
+    const backend::Pose4Dof& pose, const std::vector<const RegistrationPartner*>& partners,
+    const SubmapRegistrationConfig& config, const Stream& stream, RegistrationCounts* counts,
+    WallMapCache* own_walls, const RegistrationOdometry& odometry) {
+  if (!config.enabled) return {};
   // Wall maps are built at the first revisit that needs them; without a caller's cache, the new
   // submap's lives for this call and a partner's for its pair.
   WallMapCache local_own_walls;
   const PairContext context = pair_context(id, map, points, pose, config, stream,
                                            own_walls ? own_walls : &local_own_walls, odometry);
-  return register_pairs(context, overlapping_partners(map, pose, earlier, config, footprint), {},
-                        counts);
+  return register_pairs(context, partners, {}, counts);
 }
 
 bool registration_constraint_from_guess(

@@ -452,8 +452,10 @@ bool SlamSystem::process_submap(QueuedSubmap item) {
     times = submap->finish(esdf_integrator_, mesh_integrator_, backend_stream_);
     store_->add(*submap);
     const auto start = Clock::now();
+    StageProfiler::Scope profile("submap registration", backend_stream_);
     if (config_.registration.enabled)
       points = prepare_registration_points(submap->map(), config_.registration, backend_stream_);
+    profile.mark("points");
     points_s = seconds_since(start);
   } catch (const std::exception& error) {
     store_->remove(submap->id());
@@ -477,8 +479,11 @@ bool SlamSystem::process_submap(QueuedSubmap item) {
   const auto start = Clock::now();
   const int64_t id = submap->id();
   try {
+    StageProfiler::Scope profile("submap registration", backend_stream_);
     add_to_pose_graph_locked(std::move(submap), std::move(points));
+    profile.mark("pose graph");
     enforce_budget_locked(-1);
+    profile.mark("budget");
   } catch (const std::exception& error) {
     store_->remove(id);
     std::lock_guard<std::mutex> lock(state_mutex_);
@@ -601,15 +606,15 @@ void SlamSystem::add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
   auto footprint =
       std::make_unique<backend::SubmapFootprint>(backend::submap_footprint(submap->map()));
   profile.mark("footprint");
-  const std::vector<const RegistrationPartner*> chosen =
-      overlapping_partners(submap->map(), guess, partners, config_.registration, footprint.get());
-  profile.mark("choose partners");
-  acquire_partners_locked(chosen);
-  profile.mark("partners back");
   if (points) {
-    registrations = registration_constraints(submap->id(), submap->map(), *points, guess, partners,
-                                             config_.registration, backend_stream_, &counts,
-                                             walls.get(), own_odometry, footprint.get());
+    const std::vector<const RegistrationPartner*> chosen =
+        overlapping_partners(submap->map(), guess, partners, config_.registration, footprint.get());
+    profile.mark("choose partners");
+    acquire_partners_locked(chosen);
+    profile.mark("partners back");
+    registrations = registration_constraints_with(submap->id(), submap->map(), *points, guess,
+                                                  chosen, config_.registration, backend_stream_,
+                                                  &counts, walls.get(), own_odometry);
     profile.mark("registration");
     if (config_.registration.enabled) {
       for (const RegistrationPartner* partner : overlapping_partners(

@@ -30,8 +30,8 @@ void SlamSystem::write_submaps(const EncodedSubmapSink& write) {
   }
 }
 
-void SlamSystem::acquire_locked(Submap& submap, bool mark_used) {
-  store_->acquire(submap, restore_esdf_, restore_stream_, mark_used);
+bool SlamSystem::acquire_locked(Submap& submap, bool mark_used) {
+  return store_->acquire(submap, restore_esdf_, restore_stream_, mark_used);
 }
 
 void SlamSystem::enforce_budget_locked(int64_t keep, const std::unordered_set<int64_t>& also_kept,
@@ -66,9 +66,11 @@ void SlamSystem::acquire_partners_locked(const std::vector<const RegistrationPar
   // are those that would leave after the registration anyway; leaving before the next partner
   // comes back keeps the device within the budget and one submap. The freed host memory is kept
   // for the next partner's restore and handed back by the enforcement after the registration.
+  // The budget is enforced first (the new submap was added resident), then after each restore:
+  // only a restore adds resident bytes, a partner already resident is only marked used.
+  enforce_budget_locked(-1, wanted, /*return_memory=*/false);
   for (Submap* submap : chosen) {
-    acquire_locked(*submap);
-    enforce_budget_locked(-1, wanted, /*return_memory=*/false);
+    if (acquire_locked(*submap)) enforce_budget_locked(-1, wanted, /*return_memory=*/false);
   }
 }
 

@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <future>
 #include <string>
 #include <utility>
 #include <vector>
@@ -103,7 +104,8 @@ bool SubmapStore::mesh(int64_t id, map::Mesh* mesh) {
   std::lock_guard<std::mutex> lock(mutex_);
   auto it = entries_.find(id);
   if (it == entries_.end()) return false;
-  const Entry& entry = it->second;
+  Entry& entry = it->second;
+  finish_mesh_locked(entry);
   if (entry.mesh_size == 0) {
     *mesh = entry.mesh;
   } else if (!entry.mesh_bytes.empty()) {
@@ -115,15 +117,15 @@ bool SubmapStore::mesh(int64_t id, map::Mesh* mesh) {
   return true;
 }
 
-void SubmapStore::acquire(Submap& submap, integrators::EsdfIntegrator& esdf, const Stream& stream,
+bool SubmapStore::acquire(Submap& submap, integrators::EsdfIntegrator& esdf, const Stream& stream,
                           bool mark_used) {
-  if (!enabled()) return;
+  if (!enabled()) return false;
   std::lock_guard<std::mutex> lock(mutex_);
   auto it = entries_.find(submap.id());
-  if (it == entries_.end()) return;
+  if (it == entries_.end()) return false;
   Entry& entry = it->second;
   if (mark_used) entry.last_use = ++use_clock_;
-  if (entry.resident) return;
+  if (entry.resident) return false;
   const auto start = std::chrono::steady_clock::now();
   StageProfiler::Scope profile("restore", stream);
   const bool from_disk = entry.bytes.empty();
@@ -150,12 +152,14 @@ void SubmapStore::acquire(Submap& submap, integrators::EsdfIntegrator& esdf, con
   ++counters_.restores;
   counters_.restore_s +=
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return true;
 }
 
 void SubmapStore::enforce(const std::vector<Submap*>& candidates, int64_t keep,
                           bool return_memory) {
   if (!enabled()) return;
   std::lock_guard<std::mutex> lock(mutex_);
+  finish_ready_meshes_locked();
   std::vector<std::pair<Submap*, Entry*>> least_recent_first;
   least_recent_first.reserve(candidates.size());
   for (Submap* submap : candidates) {
@@ -191,14 +195,18 @@ void SubmapStore::compact_locked(Submap& submap, Entry& entry) {
   if (entry.size == 0) {  // first compaction: the one lossy step (see the header)
     entry.bytes = io::encode_submap(submap.map(), distance_scale_m_);
     entry.size = entry.bytes.size();
+    counters_.compact_bytes += static_cast<int64_t>(entry.size);
     profile.mark("encode voxels");
-    counters_.mesh_bytes -= static_cast<int64_t>(io::mesh_bytes_in_memory(entry.mesh));
-    entry.mesh_bytes = io::encode_mesh(entry.mesh, mesh_step_m_);
-    entry.mesh_size = entry.mesh_bytes.size();
+    // The mesh, host work only, is encoded on a worker thread: the registration that made room
+    // goes on meanwhile, and the bytes are taken when first needed (finish_mesh_locked). Until
+    // then the mesh as made is what it holds, and what mesh_bytes counts.
+    entry.pending_mesh_bytes = static_cast<int64_t>(io::mesh_bytes_in_memory(entry.mesh));
+    entry.pending_mesh =
+        std::async(std::launch::async, [mesh = std::move(entry.mesh), step_m = mesh_step_m_]() {
+          return io::encode_mesh(mesh, step_m);
+        });
     entry.mesh = map::Mesh();
-    counters_.mesh_bytes += static_cast<int64_t>(entry.mesh_size);
-    counters_.compact_bytes += static_cast<int64_t>(entry.size + entry.mesh_size);
-    profile.mark("encode mesh");
+    pending_meshes_.push_back(submap.id());
   }
   // Pools and block table freed; acquire() rebuilds the map with its configured table.
   submap.map().release();
@@ -215,7 +223,31 @@ void SubmapStore::compact_locked(Submap& submap, Entry& entry) {
   }
 }
 
+void SubmapStore::finish_mesh_locked(Entry& entry) {
+  if (!entry.pending_mesh.valid()) return;
+  entry.mesh_bytes = entry.pending_mesh.get();  // rethrows the encoder's error
+  entry.mesh_size = entry.mesh_bytes.size();
+  counters_.mesh_bytes += static_cast<int64_t>(entry.mesh_size) - entry.pending_mesh_bytes;
+  counters_.compact_bytes += static_cast<int64_t>(entry.mesh_size);
+  entry.pending_mesh_bytes = 0;
+}
+
+void SubmapStore::finish_ready_meshes_locked() {
+  std::vector<int64_t> still_pending;
+  for (int64_t id : pending_meshes_) {
+    auto it = entries_.find(id);
+    if (it == entries_.end() || !it->second.pending_mesh.valid()) continue;
+    if (it->second.pending_mesh.wait_for(std::chrono::seconds(0)) == std::future_status::ready) {
+      finish_mesh_locked(it->second);
+    } else {
+      still_pending.push_back(id);
+    }
+  }
+  pending_meshes_.swap(still_pending);
+}
+
 bool SubmapStore::spill_locked(int64_t id, Entry& entry) {
+  finish_mesh_locked(entry);
   try {
     if (entry.file_offset < 0) {
       open_spill_file_locked();
@@ -301,7 +333,8 @@ void SubmapStore::remove(int64_t id) {
   std::lock_guard<std::mutex> lock(mutex_);
   auto it = entries_.find(id);
   if (it == entries_.end()) return;
-  const Entry& entry = it->second;
+  Entry& entry = it->second;
+  finish_mesh_locked(entry);
   if (entry.resident) {
     --counters_.submaps_resident;
     counters_.resident_bytes -= entry.resident_bytes;
@@ -319,7 +352,8 @@ void SubmapStore::remove(int64_t id) {
 
 void SubmapStore::clear() {
   std::lock_guard<std::mutex> lock(mutex_);
-  entries_.clear();
+  entries_.clear();  // waits for the meshes still being encoded
+  pending_meshes_.clear();
   const SubmapStoreCounters totals = counters_;
   counters_ = SubmapStoreCounters();
   // What moving submaps cost stays counted across resets; where they are starts afresh.

@@ -22,13 +22,13 @@
 // formulation: the ESDF only, target 0.
 #include <Eigen/Core>
 #include <cstdint>
-#include <unordered_set>
 #include <vector>
 
 #include "covoxslam/backend/pose_graph_types.h"
 #include "covoxslam/core/buffer.h"
 #include "covoxslam/core/stream.h"
 #include "covoxslam/core/vec3.h"
+#include "covoxslam/map/block_key_set.h"
 #include "covoxslam/map/tsdf_map.h"
 
 namespace covox {
@@ -212,8 +212,8 @@ SubmapOverlap submap_overlap(const map::TsdfMap& map_i, const Pose4Dof& T_W_Si,
 struct SubmapFootprint {
   double block_size_m = 0.0;
   std::vector<Index3D> blocks;
-  std::unordered_set<uint64_t> keys;  // pack_block_key of each block
-  Index3D block_min, block_max;       // inclusive; meaningless when `blocks` is empty
+  map::BlockKeySet keys;         // pack_block_key of each block
+  Index3D block_min, block_max;  // inclusive; meaningless when `blocks` is empty
 };
 SubmapFootprint submap_footprint(const map::TsdfMap& map);
 // The same test as above on footprints; the same result for the same maps.

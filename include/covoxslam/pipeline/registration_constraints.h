@@ -255,6 +255,14 @@ std::vector<SubmapConstraint> registration_constraints(
     WallMapCache* own_walls = nullptr, const RegistrationOdometry& odometry = {},
     const backend::SubmapFootprint* footprint = nullptr);
 
+// The same for partners the caller has chosen already (overlapping_partners() with the same
+// map, pose and config), so the overlap tests are not run twice.
+std::vector<SubmapConstraint> registration_constraints_with(
+    int64_t id, const map::TsdfMap& map, const SubmapRegistrationPoints& points,
+    const backend::Pose4Dof& pose, const std::vector<const RegistrationPartner*>& partners,
+    const SubmapRegistrationConfig& config, const Stream& stream, RegistrationCounts* counts,
+    WallMapCache* own_walls = nullptr, const RegistrationOdometry& odometry = {});
+
 // One pair aligned from the relative pose `T_Sj_Si_guess` instead of the current poses' (place
 // recognition's candidates), with the same start from the walls, acceptance tests, verification
 // and counts as registration_constraints(); true with `constraint` when accepted.

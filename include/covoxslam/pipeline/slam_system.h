@@ -491,7 +491,7 @@ class SlamSystem {
   // after each, the partners kept: the device holds at most the budget and one submap.
   void acquire_partners_locked(const std::vector<const RegistrationPartner*>& partners);
   // `mark_used` false: for sweeps over every submap (SubmapStore::acquire).
-  void acquire_locked(Submap& submap, bool mark_used = true);
+  bool acquire_locked(Submap& submap, bool mark_used = true);  // true: restored
   // Compacts and spills down to the budgets, least recently used first; `keep` (an id, or -1)
   // and the ids in `also_kept` stay (SubmapStore::enforce for `return_memory`).
   void enforce_budget_locked(int64_t keep, const std::unordered_set<int64_t>& also_kept = {},

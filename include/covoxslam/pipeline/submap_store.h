@@ -18,14 +18,16 @@
 //
 // The store also holds every finished submap's mesh (taken from the submap when it is added, so
 // the ROS queries read it under the store's mutex while the backend compacts). A resident
-// submap's mesh is kept as the mesher made it; at the first compaction it is encoded with
-// io/mesh_codec.h (vertices on a grid of mesh_step_m), its bytes counted with the compact form's
-// against host_budget_mb and spilled with it, and mesh() decodes them. Without a budget
+// submap's mesh is kept as the mesher made it; at its first compaction it is encoded with
+// io/mesh_codec.h (vertices on a grid of mesh_step_m) on a worker thread, so the compaction does
+// not wait for it; the bytes, taken when done or first needed, are counted with the compact
+// form's against host_budget_mb and spilled with it, and mesh() decodes them. Without a budget
 // (device_budget_mb 0) the meshes are held as made and nothing else is done.
 //
 // The store is driven by SlamSystem under its backend_mutex_ (every call that changes a submap's
 // voxels), and keeps its own mutex for the counters and the bytes it holds.
 #include <cstdint>
+#include <future>
 #include <mutex>
 #include <string>
 #include <unordered_map>
@@ -100,8 +102,8 @@ class SubmapStore {
   // Makes the submap's voxels resident again (decoded, ESDF recomputed; a no-op if they are) and,
   // with `mark_used`, marks it used. A sweep over every submap (a slice, a snapshot) passes false:
   // a submap brought back only for the sweep keeps its old use, so it is the first to leave
-  // again, and the resident ones the sweep has yet to read stay.
-  void acquire(Submap& submap, integrators::EsdfIntegrator& esdf, const Stream& stream,
+  // again, and the resident ones the sweep has yet to read stay. True when the voxels came back.
+  bool acquire(Submap& submap, integrators::EsdfIntegrator& esdf, const Stream& stream,
                bool mark_used = true);
   // Compacts resident submaps among `candidates`, least recently used first, until the resident
   // bytes fit the device budget, then spills compact ones, least recently used first, until the
@@ -126,6 +128,10 @@ class SubmapStore {
     map::Mesh mesh;              // as made, until the first compaction encodes it
     std::vector<uint8_t> mesh_bytes;  // the encoded mesh, held and spilled beside `bytes`
     uint64_t mesh_size = 0;           // of the encoded mesh; 0 until encoded
+    // The mesh being encoded since the first compaction, and the bytes of the mesh as made it
+    // holds meanwhile (counted in mesh_bytes until finish_mesh_locked).
+    std::future<std::vector<uint8_t>> pending_mesh;
+    int64_t pending_mesh_bytes = 0;
     int64_t file_offset = -1;  // in the spill file, once written there: `bytes`, then the mesh's
     bool resident = true;
     int64_t resident_bytes = 0;
@@ -133,6 +139,10 @@ class SubmapStore {
   };
   // Encodes the submap on its first compaction and releases its voxels.
   void compact_locked(Submap& submap, Entry& entry);
+  // Takes the entry's encoded mesh once its encoding is done (waits for it), with the counters.
+  void finish_mesh_locked(Entry& entry);
+  // finish_mesh_locked for every pending mesh whose encoding is done, without waiting.
+  void finish_ready_meshes_locked();
   // Appends the entry's bytes to the spill file; false (logged, counted) when that fails.
   bool spill_locked(int64_t id, Entry& entry);
   // Writes `bytes` at `offset` of the spill file; throws covox::Error when that fails.
@@ -147,6 +157,7 @@ class SubmapStore {
   const float mesh_step_m_;
   mutable std::mutex mutex_;
   std::unordered_map<int64_t, Entry> entries_;
+  std::vector<int64_t> pending_meshes_;  // ids whose mesh is being encoded
   SubmapStoreCounters counters_;
   uint64_t use_clock_ = 0;
   bool memory_to_return_ = false;  // compactions since freed memory was last handed back
