@@ -196,7 +196,7 @@ void decode_voxels(const uint8_t* mask, size_t per_block, const uint8_t* distanc
 // the block before (null for the first): indices must increase.
 template <typename Sink>
 Index3D read_block(ByteReader& r, const EncodedSubmapInfo& info, const Index3D* previous,
-                   uint64_t b, Sink* sink) {
+                   uint64_t b, Sink* sink, size_t* observed = nullptr) {
   const size_t per_block =
       static_cast<size_t>(info.voxels_per_side) * info.voxels_per_side * info.voxels_per_side;
   Index3D index;
@@ -209,6 +209,7 @@ Index3D read_block(ByteReader& r, const EncodedSubmapInfo& info, const Index3D* 
   const uint8_t* mask = r.take(per_block / 8, "a block mask");
   const size_t n = popcount(mask, per_block / 8);
   if (n == 0) r.fail("a stored block has no observed voxel");
+  if (observed) *observed = n;
   const bool color = (flags & kFlagColor) != 0;
   const uint8_t* distances = r.take(n * 2, "distances");
   const uint8_t* weights = r.take(n * 2, "weights");
@@ -305,18 +306,17 @@ EncodedSubmapInfo encoded_block_layout(const uint8_t* data, size_t size, const c
   if (size < kHeaderBytes) throw Error(std::string(what) + ": truncated submap header");
   ByteReader r(data, size, what);
   const EncodedSubmapInfo info = read_header(r);
-  const size_t mask_bytes =
-      static_cast<size_t>(info.voxels_per_side) * info.voxels_per_side * info.voxels_per_side / 8;
   indices->assign(info.blocks, Index3D());
   layout->assign(info.blocks, EncodedBlock());
   for (uint64_t b = 0; b < info.blocks; ++b) {
     const size_t at = r.position();
+    size_t observed = 0;
     (*indices)[b] = read_block(r, info, b > 0 ? &(*indices)[b - 1] : nullptr, b,
-                               static_cast<BlockListSink*>(nullptr));
+                               static_cast<BlockListSink*>(nullptr), &observed);
     EncodedBlock& block = (*layout)[b];
     block.record_offset = at;
     block.color = (data[at + kRecordFlagsAt] & kFlagColor) != 0 ? 1 : 0;
-    block.observed = static_cast<uint32_t>(popcount(data + at + kRecordFlagsAt + 1, mask_bytes));
+    block.observed = static_cast<uint32_t>(observed);
   }
   if (r.remaining() != 0) r.fail("unexpected bytes after the last block");
   return info;
