@@ -2,6 +2,7 @@
 
 #include <Eigen/Cholesky>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <numeric>
 #include <string>
@@ -353,9 +354,15 @@ Eigen::Vector3d pose_4dof_apply(const Pose4Dof& pose, double c, double s,
                          p.z() + pose.z);
 }
 
-// World AABB of a footprint: the 8 corners of its block-index box, transformed.
-void footprint_world_box(const SubmapFootprint& footprint, const Pose4Dof& pose,
-                         Eigen::Vector3d* lo, Eigen::Vector3d* hi) {
+// The inverse: a world point in the pose's frame.
+Eigen::Vector3d pose_4dof_unapply(const Pose4Dof& pose, double c, double s,
+                                  const Eigen::Vector3d& w) {
+  const Eigen::Vector3d d(w.x() - pose.x, w.y() - pose.y, w.z() - pose.z);
+  return Eigen::Vector3d(c * d.x() + s * d.y(), -s * d.x() + c * d.y(), d.z());
+}
+
+// The 8 corners of a footprint's block-index box, in metres of its own frame.
+std::array<Eigen::Vector3d, 8> footprint_corners(const SubmapFootprint& footprint) {
   const double block_m = footprint.block_size_m;
   const Eigen::Vector3d block_lo(footprint.block_min.x * block_m, footprint.block_min.y * block_m,
                                  footprint.block_min.z * block_m);
@@ -363,13 +370,22 @@ void footprint_world_box(const SubmapFootprint& footprint, const Pose4Dof& pose,
       Eigen::Vector3d(footprint.block_max.x * block_m, footprint.block_max.y * block_m,
                       footprint.block_max.z * block_m) +
       Eigen::Vector3d::Constant(block_m);
+  std::array<Eigen::Vector3d, 8> corners;
+  for (int c = 0; c < 8; ++c) {
+    corners[c] = Eigen::Vector3d((c & 1) ? block_hi.x() : block_lo.x(),
+                                 (c & 2) ? block_hi.y() : block_lo.y(),
+                                 (c & 4) ? block_hi.z() : block_lo.z());
+  }
+  return corners;
+}
+
+// World AABB of a footprint: the 8 corners of its block-index box, transformed.
+void footprint_world_box(const SubmapFootprint& footprint, const Pose4Dof& pose,
+                         Eigen::Vector3d* lo, Eigen::Vector3d* hi) {
   *lo = Eigen::Vector3d::Constant(1e300);
   *hi = Eigen::Vector3d::Constant(-1e300);
   const double cos_yaw = std::cos(pose.yaw), sin_yaw = std::sin(pose.yaw);
-  for (int c = 0; c < 8; ++c) {
-    const Eigen::Vector3d corner((c & 1) ? block_hi.x() : block_lo.x(),
-                                 (c & 2) ? block_hi.y() : block_lo.y(),
-                                 (c & 4) ? block_hi.z() : block_lo.z());
+  for (const Eigen::Vector3d& corner : footprint_corners(footprint)) {
     const Eigen::Vector3d w = pose_4dof_apply(pose, cos_yaw, sin_yaw, corner);
     *lo = lo->cwiseMin(w);
     *hi = hi->cwiseMax(w);
@@ -382,24 +398,13 @@ void footprint_world_box(const SubmapFootprint& footprint, const Pose4Dof& pose,
 void footprint_box_in_frame(const SubmapFootprint& footprint_j, const Pose4Dof& T_W_Sj,
                             const Pose4Dof& T_W_Si, double margin_m, Eigen::Vector3d* lo,
                             Eigen::Vector3d* hi) {
-  Eigen::Vector3d world_lo, world_hi;
-  const double block_m = footprint_j.block_size_m;
-  const Eigen::Vector3d box_lo(footprint_j.block_min.x * block_m, footprint_j.block_min.y * block_m,
-                               footprint_j.block_min.z * block_m);
-  const Eigen::Vector3d box_hi = Eigen::Vector3d((footprint_j.block_max.x + 1) * block_m,
-                                                 (footprint_j.block_max.y + 1) * block_m,
-                                                 (footprint_j.block_max.z + 1) * block_m);
   const double c_j = std::cos(T_W_Sj.yaw), s_j = std::sin(T_W_Sj.yaw);
   const double c_i = std::cos(T_W_Si.yaw), s_i = std::sin(T_W_Si.yaw);
   *lo = Eigen::Vector3d::Constant(1e300);
   *hi = Eigen::Vector3d::Constant(-1e300);
-  for (int c = 0; c < 8; ++c) {
-    const Eigen::Vector3d corner((c & 1) ? box_hi.x() : box_lo.x(),
-                                 (c & 2) ? box_hi.y() : box_lo.y(),
-                                 (c & 4) ? box_hi.z() : box_lo.z());
-    const Eigen::Vector3d w = pose_4dof_apply(T_W_Sj, c_j, s_j, corner);
-    const Eigen::Vector3d d(w.x() - T_W_Si.x, w.y() - T_W_Si.y, w.z() - T_W_Si.z);
-    const Eigen::Vector3d in_i(c_i * d.x() + s_i * d.y(), -s_i * d.x() + c_i * d.y(), d.z());
+  for (const Eigen::Vector3d& corner : footprint_corners(footprint_j)) {
+    const Eigen::Vector3d in_i =
+        pose_4dof_unapply(T_W_Si, c_i, s_i, pose_4dof_apply(T_W_Sj, c_j, s_j, corner));
     *lo = lo->cwiseMin(in_i);
     *hi = hi->cwiseMax(in_i);
   }
@@ -440,9 +445,8 @@ SubmapOverlap submap_overlap(const SubmapFootprint& footprint_i, const Pose4Dof&
     const Eigen::Vector3d centre((b.x + 0.5) * block_m, (b.y + 0.5) * block_m,
                                  (b.z + 0.5) * block_m);
     if ((centre.array() < j_lo.array()).any() || (centre.array() > j_hi.array()).any()) continue;
-    const Eigen::Vector3d w = pose_4dof_apply(T_W_Si, c_i, s_i, centre);
-    const Eigen::Vector3d d(w.x() - T_W_Sj.x, w.y() - T_W_Sj.y, w.z() - T_W_Sj.z);
-    const Eigen::Vector3d in_j(c * d.x() + s * d.y(), -s * d.x() + c * d.y(), d.z());
+    const Eigen::Vector3d in_j =
+        pose_4dof_unapply(T_W_Sj, c, s, pose_4dof_apply(T_W_Si, c_i, s_i, centre));
     const Index3D block(static_cast<int32_t>(std::floor(in_j.x() / block_m)),
                         static_cast<int32_t>(std::floor(in_j.y() / block_m)),
                         static_cast<int32_t>(std::floor(in_j.z() / block_m)));
