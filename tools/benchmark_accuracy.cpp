@@ -120,9 +120,9 @@ void add_kitti_keyframe_runs(const std::string& data_dir, Device device,
 // The loops case's flight: two laps of a figure 8 twice the default's length (990 m a lap, its
 // crossing in the open), 256 columns, the odometry drift_percent % of the distance off at the end
 // (1 %: about 20 m, so the second lap passes the first's places 10-30 m from where the odometry
-// puts them, beyond the registration's search), mapped with the arche_sim preset, 24 m rays,
-// odometry sigmas for up to 2 % drift and place recognition; drift_percent 0: the same flight with
-// the odometry equal to the truth.
+// puts them, beyond the registration's search), mapped with the arche_sim preset, 24 m rays and
+// no weight drop-off, odometry sigmas for up to 2 % drift and place recognition; drift_percent 0:
+// the same flight with the odometry equal to the truth.
 constexpr double kLoopLobeHalfLengthM = 110.0;
 
 std::unique_ptr<tools::ScanSource> loop_flight(uint64_t seed, double drift_percent) {
@@ -145,9 +145,12 @@ pipeline::SlamConfig loop_config(Device device) {
   // A 5 s link covers 10 m: 2 % of it, as a one-sigma bound on the drift's steady part.
   config.odometry_translation_sigma_m = 0.2;
   config.odometry_yaw_sigma_rad = 0.02;
-  // Rays to 24 m see each wall from more places than the preset's 16 m: the submaps' surfaces
-  // agree better, so the registrations that link the laps between closures are less biased.
+  // Rays to 24 m see each wall from more places than the preset's 16 m, and without the weight
+  // drop-off a visit behind a surface weighs as much as one in front of it, whatever the angle
+  // of the ray: two submaps that saw a wall from different places put it in the same place, so
+  // the registrations that link the laps between closures come out less short.
   config.tsdf.max_ray_length_m = 24.0;
+  config.tsdf.use_weight_dropoff = false;
   config.place_recognition.enabled = true;
   return config;
 }
