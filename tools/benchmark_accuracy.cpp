@@ -158,7 +158,10 @@ pipeline::SlamConfig loop_config(Device device) {
 void add_loop_runs(const std::string& seeds, double drift_percent, Device device,
                    std::vector<CaseRun>* runs) {
   if (!(drift_percent > 0.0 && drift_percent <= 10.0)) {
-    throw Error("--loop-drift-percent must be in (0, 10], got " + std::to_string(drift_percent));
+    char message[96];
+    std::snprintf(message, sizeof(message), "--loop-drift-percent must be in (0, 10], got %g",
+                  drift_percent);
+    throw Error(message);
   }
   std::vector<uint64_t> list;
   for (size_t begin = 0; begin < seeds.size();) {
