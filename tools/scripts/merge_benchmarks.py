@@ -29,6 +29,14 @@ def main():
         sys.exit("merge_benchmarks: the parts come from different benchmarks: %s" % sorted(names))
     if len(devices) != 1:
         sys.exit("merge_benchmarks: the parts ran on different devices: %s" % sorted(devices))
+    seen = set()
+    for path, report in zip(args.parts, reports):
+        for row in report["results"]:
+            key = (row["case"], row["metric"])
+            if key in seen:
+                sys.exit("merge_benchmarks: %s repeats case '%s', metric '%s' of an earlier part"
+                         % (path, row["case"], row["metric"]))
+            seen.add(key)
     merged = {
         "benchmark": reports[0]["benchmark"],
         "device": reports[0]["device"],
