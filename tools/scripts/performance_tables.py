@@ -35,8 +35,56 @@ TSDF_MS = "median integration time"
 INCREMENTAL = "incremental update (median)"
 SOLVE = "solve time (median)"
 
+LOOPS = "loop_closure.json"
+LOOPS_WITH_DROPOFF = "loop_closure_weight_dropoff.json"
+LOOPS_NOISE_ESTIMATED = "loop_closure_odometry_noise.json"
+LOOP_ATE_LIMIT_M = 0.5
+
+
+def loop_flights(report):
+    """The drifting flights of a loops report (cases "simulated loops seed N, P % drift")."""
+    cases = dict.fromkeys(row["case"] for row in report["results"])
+    return [case for case in cases if case.startswith("simulated loops seed ")]
+
+
+def loop_flights_within_limit(reports, name):
+    report = reports.get(name)
+    if report is None:
+        return None
+    return sum(1 for case in loop_flights(report)
+               if lookup(reports, (name, case, "ATE RMSE covoxslam")) <= LOOP_ATE_LIMIT_M)
+
+
+def loop_wrong_closures(reports, name):
+    report = reports.get(name)
+    if report is None:
+        return None
+    cases = dict.fromkeys(row["case"] for row in report["results"])
+    wrong = [lookup(reports, (name, case, "loop closures wrong by > 1 m or 5 deg"))
+             for case in cases]
+    return sum(w for w in wrong if w is not None)
+
+
+def no_drift_difference(reports, name, reference):
+    """The flight without drift's ATE minus the reference's: the run without place recognition's
+    ("closures") or the odometry's ("odometry")."""
+    ours = lookup(reports, (name, "simulated loops no drift", "ATE RMSE covoxslam"))
+    if reference == "closures":
+        other = lookup(reports, (name, "simulated loops no drift, no place recognition",
+                                 "ATE RMSE covoxslam"))
+    else:
+        other = lookup(reports, (name, "simulated loops no drift", "ATE RMSE odometry"))
+    return None if ours is None or other is None else ours - other
+
+
+def loop_goal(label, name, figure, *args):
+    """A goals selector over a loops report: (label, (file, function of the reports))."""
+    return (label, (name, lambda reports: figure(reports, name, *args)))
+
+
 # The project's goals. A row is met when every selected figure is on the right side of its
-# threshold. Selector: (report file, case, metric).
+# threshold. Selector: (report file, case, metric), or (report file, function of the reports)
+# for a figure derived from several rows.
 GOALS = [
     ("hash table insert, GPU, load 0.85", ">=", 1000, "Mkeys/s",
      [("", ("hash_table.json", "cuda load 0.85", "insert (activate)"))]),
@@ -75,6 +123,18 @@ GOALS = [
      [("", ("accuracy.json", "simulated flight", "ATE RMSE covoxslam"))]),
     ("7-Scenes ATE from 0.3 m-drifting odometry", "<=", 0.05, "m",
      [("", ("accuracy.json", "7-Scenes redkitchen", "ATE RMSE covoxslam"))]),
+    ("loop flights (1980 m, odometry >= 10 m off) with ATE <= 0.5 m", ">=", 5, "seeds",
+     [loop_goal("loops case", LOOPS, loop_flights_within_limit),
+      loop_goal("noise estimated", LOOPS_NOISE_ESTIMATED, loop_flights_within_limit)]),
+    ("wrong place-recognition closures on the loop flights", "<=", 0, "closures",
+     [loop_goal("loops case", LOOPS, loop_wrong_closures),
+      loop_goal("noise estimated", LOOPS_NOISE_ESTIMATED, loop_wrong_closures)]),
+    ("loop flight without drift: ATE above the odometry's", "<=", 0.05, "m",
+     [loop_goal("loops case", LOOPS, no_drift_difference, "odometry"),
+      loop_goal("noise estimated", LOOPS_NOISE_ESTIMATED, no_drift_difference, "odometry")]),
+    ("loop flight without drift: ATE added by the closures", "<=", 0.05, "m",
+     [loop_goal("loops case", LOOPS, no_drift_difference, "closures"),
+      loop_goal("noise estimated", LOOPS_NOISE_ESTIMATED, no_drift_difference, "closures")]),
 ]
 
 REGISTRATION_GRAPHS = [("50", "reg n=50 (146 pairs, 297k points)"),
@@ -108,6 +168,8 @@ PEERS = [
 def number(value):
     if value is None:
         return "n/a"
+    if abs(value) < 1e-12:  # rounding noise of a zero
+        return "0"
     if float(value).is_integer() and abs(value) < 1e15:
         return str(int(value))
     if abs(value) >= 100:
@@ -172,7 +234,7 @@ def goals_table(reports):
     for what, sense, threshold, unit, selectors in GOALS:
         figures, verdicts, files = [], [], []
         for label, selector in selectors:
-            value = lookup(reports, selector)
+            value = selector[1](reports) if callable(selector[1]) else lookup(reports, selector)
             files.append(selector[0])
             if value is None:
                 figures.append(f"{label} not recorded".strip())
@@ -190,7 +252,7 @@ def goals_table(reports):
         else:
             missed = [label for (label, _), v in zip(selectors, verdicts) if not v]
             verdict = "**missed** at " + ", ".join(missed)
-        target = f"{sense} {threshold:g} {unit}"
+        target = f"{sense} {threshold:g} {unit}".rstrip()
         measured = " / ".join(figures) + ("" if verdict == "not recorded" else f" {unit}")
         report = ", ".join(f"`{f}`" for f in dict.fromkeys(files))
         lines.append(f"| {what} | {target} | {measured} | {verdict} | {report} |")
@@ -312,6 +374,29 @@ def accuracy_table(reports):
     return lines
 
 
+def loops_table(reports):
+    lines = ["| flight | odometry | covoxslam | closures | wrong | real-time factor | "
+             "with drop-off | wrong | odometry noise estimated | wrong |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    report = reports.get(LOOPS)
+    if report is None:
+        return lines
+    for case in dict.fromkeys(row["case"] for row in report["results"]):
+        def get(name, metric):
+            return lookup(reports, (name, case, metric))
+        cells = [with_unit(get(LOOPS, "ATE RMSE covoxslam"), " m"),
+                 number(get(LOOPS, "loop closures accepted")),
+                 number(get(LOOPS, "loop closures wrong by > 1 m or 5 deg")),
+                 with_unit(get(LOOPS, "real-time factor"), "x")]
+        for name in (LOOPS_WITH_DROPOFF, LOOPS_NOISE_ESTIMATED):
+            cells += [with_unit(get(name, "ATE RMSE covoxslam"), " m"),
+                      number(get(name, "loop closures wrong by > 1 m or 5 deg"))]
+        label = case.replace("simulated loops ", "")
+        lines.append(f"| {label} | {with_unit(get(LOOPS, 'ATE RMSE odometry'), ' m')} | "
+                     + " | ".join(cells) + " |")
+    return lines
+
+
 def pipeline_table(reports):
     report = reports.get("pipeline.json")
     if report is None:
@@ -402,6 +487,7 @@ BLOCKS = {
     "esdf_mesh": esdf_mesh_table,
     "backend": backend_table,
     "accuracy": accuracy_table,
+    "loops": loops_table,
     "pipeline": pipeline_table,
     "mission": mission_table,
     "mission_gpu": lambda reports: mission_table(reports, "mission_gpu_bag.json"),
