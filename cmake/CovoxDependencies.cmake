@@ -107,6 +107,15 @@ if(JPEG_FOUND)
 endif()
 message(STATUS "covoxslam: PNG reader ${PNG_FOUND}, JPEG reader ${JPEG_FOUND}")
 
+# --- zlib compresses the tools' PNG plots (tools/lib/png_plot.h). Optional: without it a plot is
+#     written in stored (uncompressed) deflate blocks, a few MB instead of tens of kB.
+find_package(ZLIB QUIET)
+add_library(covox_zlib INTERFACE)
+if(ZLIB_FOUND)
+  target_link_libraries(covox_zlib INTERFACE ZLIB::ZLIB)
+  target_compile_definitions(covox_zlib INTERFACE COVOX_HAVE_ZLIB=1)
+endif()
+
 # --- Ceres: only a test and benchmark oracle for the pose-graph solver (never linked into the
 #     library). Where it is missing (the GPU machine) the Ceres comparisons skip with a message.
 find_package(Ceres QUIET)

@@ -7,6 +7,9 @@
 #include <cstring>
 #include <limits>
 #include <random>
+#if COVOX_HAVE_ZLIB
+#include <zlib.h>
+#endif
 
 #include "covoxslam/core/error.h"
 #include "mesh_distance.h"
@@ -195,6 +198,67 @@ TEST(PngPlot, ChecksumsMatchKnownValuesAndTheFileIsWellFormed) {
     for (int x = 0; x < image.width_px() && !found; ++x)
       found = image.pixel(x, y) == series_colour(0);
   EXPECT_TRUE(found);
+}
+
+#if !COVOX_HAVE_ZLIB
+// The data of a zlib stream of stored blocks (BTYPE 00), read back as RFC 1950/1951 define them;
+// empty when a block is of another type or malformed.
+std::vector<uint8_t> read_stored_blocks(const std::vector<uint8_t>& stream) {
+  std::vector<uint8_t> data;
+  size_t at = 2;  // after the zlib header
+  for (bool last = false; !last;) {
+    if (at + 5 > stream.size() || (stream[at] & 0x06) != 0) return {};
+    last = (stream[at] & 1) != 0;
+    const size_t length = stream[at + 1] | (stream[at + 2] << 8);
+    const size_t complement = stream[at + 3] | (stream[at + 4] << 8);
+    if ((length ^ 0xFFFF) != complement || at + 5 + length > stream.size()) return {};
+    data.insert(data.end(), stream.begin() + at + 5, stream.begin() + at + 5 + length);
+    at += 5 + length;
+  }
+  return data;
+}
+#endif
+
+TEST(PngPlot, TheImageDataIsTheFilteredScanlinesAndItsStreamInflatesBack) {
+  TrajectoryFigure figure;
+  figure.top_view_m.push_back({"TRUTH", series_colour(0), {{0, 0}, {10, 5}, {20, 0}}});
+  figure.error_over_time.push_back({"ODOMETRY", series_colour(1), {{0, 0}, {1, 0.5}, {2, 0.2}}});
+  const RgbImage image = render_trajectory_figure(figure, 400);
+  const std::vector<uint8_t> raw = png_scanlines(image);
+  const size_t row_bytes = 3 * static_cast<size_t>(image.width_px()) + 1;
+  ASSERT_EQ(raw.size(), row_bytes * image.height_px());
+  for (int y = 0; y < image.height_px(); ++y) {
+    ASSERT_EQ(raw[y * row_bytes], 0) << "row " << y << " must use filter type 0";
+    for (int x = 0; x < image.width_px(); x += 37) {
+      const uint8_t* pixel = &raw[y * row_bytes + 1 + 3 * x];
+      ASSERT_EQ(Rgb({pixel[0], pixel[1], pixel[2]}), image.pixel(x, y)) << x << ", " << y;
+    }
+  }
+  const std::vector<uint8_t> stream = zlib_stream(raw);
+  ASSERT_GE(stream.size(), 6u);
+  EXPECT_EQ(((stream[0] << 8) | stream[1]) % 31, 0) << "the zlib header check";
+#if COVOX_HAVE_ZLIB
+  std::vector<uint8_t> inflated(raw.size());
+  uLongf size = static_cast<uLongf>(inflated.size());
+  ASSERT_EQ(uncompress(inflated.data(), &size, stream.data(), static_cast<uLong>(stream.size())),
+            Z_OK);
+  EXPECT_EQ(size, raw.size());
+  EXPECT_EQ(inflated, raw);
+  // A plot is mostly flat colour: deflate keeps a small part of it.
+  EXPECT_LT(stream.size(), raw.size() / 10);
+#else
+  EXPECT_EQ(read_stored_blocks(stream), raw);
+  const uint32_t adler = adler32(raw.data(), raw.size());
+  EXPECT_EQ(stream[stream.size() - 4], adler >> 24);
+  EXPECT_EQ(stream[stream.size() - 1], adler & 0xFF);
+#endif
+  // encode_png's IDAT chunk, after the signature (8 bytes) and the IHDR chunk (25), is that stream.
+  const std::vector<uint8_t> png = encode_png(image);
+  ASSERT_GT(png.size(), 33u + 8u);
+  EXPECT_EQ(std::memcmp(png.data() + 33 + 4, "IDAT", 4), 0);
+  const size_t idat_length =
+      (static_cast<size_t>(png[33]) << 24) | (png[34] << 16) | (png[35] << 8) | png[36];
+  EXPECT_EQ(std::vector<uint8_t>(png.begin() + 41, png.begin() + 41 + idat_length), stream);
 }
 
 TEST(ReconstructionEvaluation, ExactAndShiftedSurfacesScoreAsExpected) {

@@ -7,6 +7,10 @@
 #include <fstream>
 #include <limits>
 
+#if COVOX_HAVE_ZLIB
+#include <zlib.h>
+#endif
+
 #include "covoxslam/core/error.h"
 
 namespace covox {
@@ -341,18 +345,18 @@ uint32_t adler32(const uint8_t* data, size_t size) {
   return (b << 16) | a;
 }
 
-std::vector<uint8_t> encode_png(const RgbImage& image) {
-  const size_t row_bytes = static_cast<size_t>(image.width_px()) * 3;
-  // Scanlines, each preceded by its filter type (0: none).
-  std::vector<uint8_t> raw;
-  raw.reserve((row_bytes + 1) * image.height_px());
-  for (int y = 0; y < image.height_px(); ++y) {
-    raw.push_back(0);
-    const uint8_t* row = image.rgb_bytes().data() + y * row_bytes;
-    raw.insert(raw.end(), row, row + row_bytes);
+std::vector<uint8_t> zlib_stream(const std::vector<uint8_t>& raw) {
+#if COVOX_HAVE_ZLIB
+  uLongf size = compressBound(static_cast<uLong>(raw.size()));
+  std::vector<uint8_t> compressed(size);
+  if (compress2(compressed.data(), &size, raw.data(), static_cast<uLong>(raw.size()),
+                Z_BEST_COMPRESSION) == Z_OK) {
+    compressed.resize(size);
+    return compressed;
   }
-  // zlib stream: header (deflate, 32 KiB window, no preset dictionary; 0x7801 is a multiple of
-  // 31 as the header check requires), stored blocks of at most 65535 bytes, Adler-32 of the data.
+#endif
+  // Header (deflate, 32 KiB window, no preset dictionary; 0x7801 is a multiple of 31 as the
+  // header check requires), stored blocks of at most 65535 bytes, Adler-32 of the data.
   std::vector<uint8_t> zlib = {0x78, 0x01};
   constexpr size_t kMaxStored = 65535;
   size_t offset = 0;
@@ -368,7 +372,24 @@ std::vector<uint8_t> encode_png(const RgbImage& image) {
     offset += length;
   } while (offset < raw.size());
   append_u32_big_endian(&zlib, adler32(raw.data(), raw.size()));
+  return zlib;
+}
 
+std::vector<uint8_t> png_scanlines(const RgbImage& image) {
+  const size_t row_bytes = static_cast<size_t>(image.width_px()) * 3;
+  // Scanlines, each preceded by its filter type (0: none).
+  std::vector<uint8_t> raw;
+  raw.reserve((row_bytes + 1) * image.height_px());
+  for (int y = 0; y < image.height_px(); ++y) {
+    raw.push_back(0);
+    const uint8_t* row = image.rgb_bytes().data() + y * row_bytes;
+    raw.insert(raw.end(), row, row + row_bytes);
+  }
+  return raw;
+}
+
+std::vector<uint8_t> encode_png(const RgbImage& image) {
+  const std::vector<uint8_t> zlib = zlib_stream(png_scanlines(image));
   std::vector<uint8_t> png = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'};
   std::vector<uint8_t> header;
   append_u32_big_endian(&header, static_cast<uint32_t>(image.width_px()));

@@ -58,6 +58,11 @@ uint32_t crc32(const uint8_t* data, size_t size, uint32_t previous_crc = 0);
 // Adler-32 as zlib defines it (starts at 1).
 uint32_t adler32(const uint8_t* data, size_t size);
 
+// The image data a PNG compresses: each row preceded by its filter type, 0 (none).
+std::vector<uint8_t> png_scanlines(const RgbImage& image);
+// A zlib stream of `raw`: zlib's deflate where the build has zlib (COVOX_HAVE_ZLIB), else
+// stored blocks.
+std::vector<uint8_t> zlib_stream(const std::vector<uint8_t>& raw);
 // The complete PNG file: 8-bit RGB, no interlace, filter type 0 (none) on every row.
 std::vector<uint8_t> encode_png(const RgbImage& image);
 // Throws covox::Error when the file cannot be written.
