@@ -51,8 +51,8 @@ def loop_flights_within_limit(reports, name):
     report = reports.get(name)
     if report is None:
         return None
-    return sum(1 for case in loop_flights(report)
-               if lookup(reports, (name, case, "ATE RMSE covoxslam")) <= LOOP_ATE_LIMIT_M)
+    ates = [lookup(reports, (name, case, "ATE RMSE covoxslam")) for case in loop_flights(report)]
+    return sum(1 for ate in ates if ate is not None and ate <= LOOP_ATE_LIMIT_M)
 
 
 def loop_wrong_closures(reports, name):
