@@ -92,29 +92,28 @@ function(covox_configure_cuda_target target)
   endif()
 endfunction()
 
+# An optional library: where find_package finds `package`, the interface target `target` links
+# `imported` and defines `definition`=1 for the code that uses it. A macro, so that the package's
+# _FOUND variable stays visible to the caller.
+macro(covox_optional_library target package imported definition)
+  find_package(${package} QUIET)
+  if(${package}_FOUND)
+    target_link_libraries(${target} INTERFACE ${imported})
+    target_compile_definitions(${target} INTERFACE ${definition}=1)
+  endif()
+endmacro()
+
 # --- Image codecs for the RGB-D dataset readers (io/). Optional: without them the readers say
 #     which library is missing when asked for a PNG or JPEG, and everything else still works.
-find_package(PNG QUIET)
-find_package(JPEG QUIET)
 add_library(covox_image_codecs INTERFACE)
-if(PNG_FOUND)
-  target_link_libraries(covox_image_codecs INTERFACE PNG::PNG)
-  target_compile_definitions(covox_image_codecs INTERFACE COVOX_HAVE_PNG=1)
-endif()
-if(JPEG_FOUND)
-  target_link_libraries(covox_image_codecs INTERFACE JPEG::JPEG)
-  target_compile_definitions(covox_image_codecs INTERFACE COVOX_HAVE_JPEG=1)
-endif()
+covox_optional_library(covox_image_codecs PNG PNG::PNG COVOX_HAVE_PNG)
+covox_optional_library(covox_image_codecs JPEG JPEG::JPEG COVOX_HAVE_JPEG)
 message(STATUS "covoxslam: PNG reader ${PNG_FOUND}, JPEG reader ${JPEG_FOUND}")
 
 # --- zlib compresses the tools' PNG plots (tools/lib/png_plot.h). Optional: without it a plot is
 #     written in stored (uncompressed) deflate blocks, a few MB instead of tens of kB.
-find_package(ZLIB QUIET)
 add_library(covox_zlib INTERFACE)
-if(ZLIB_FOUND)
-  target_link_libraries(covox_zlib INTERFACE ZLIB::ZLIB)
-  target_compile_definitions(covox_zlib INTERFACE COVOX_HAVE_ZLIB=1)
-endif()
+covox_optional_library(covox_zlib ZLIB ZLIB::ZLIB COVOX_HAVE_ZLIB)
 
 # --- Ceres: only a test and benchmark oracle for the pose-graph solver (never linked into the
 #     library). Where it is missing (the GPU machine) the Ceres comparisons skip with a message.
