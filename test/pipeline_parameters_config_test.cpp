@@ -121,6 +121,8 @@ std::map<std::string, Expectation> expectations() {
        {"0.02", [](const SlamConfig& c) { return c.min_odometry_drift_m_per_m == 0.02; }}},
       {"pose_graph.min_odometry_drift_deg_per_m",
        {"0.3", [](const SlamConfig& c) { return c.min_odometry_drift_deg_per_m == 0.3; }}},
+      {"pose_graph.revisit_drift_min_path_m",
+       {"250", [](const SlamConfig& c) { return c.revisit_drift_min_path_m == 250.0; }}},
       {"pose_graph.registration_loss_scale_sigmas",
        {"2.5", [](const SlamConfig& c) { return c.registration_loss_scale_sigmas == 2.5; }}},
       {"registration.acceptance.max_residual_rms_vox",

@@ -284,6 +284,7 @@ TEST(RegistrationVerification, SimulatedFlightAcceptsOnlyRightRegistrations) {
   config.odometry_drift_deg_per_m = 0.5;
   config.registration_loss_scale_sigmas = 3.0;
   config.estimate_odometry_noise = true;
+  config.revisit_drift_min_path_m = 40.0;  // the lobes are 50 m long: revisits span 40 m or more
   tools::SlamRunOptions run_options;
   run_options.progress_bar = false;
   const tools::SlamRunResult result = tools::run_slam_system(source, config, run_options);
@@ -306,6 +307,21 @@ TEST(RegistrationVerification, SimulatedFlightAcceptsOnlyRightRegistrations) {
   }
   EXPECT_GE(used, 20);  // the revisits are not all thrown away
   tools::print_constraint_evaluation(evaluation, stdout);
+  // The noise estimate honours the revisits' drift as its floor (below the configured ceiling).
+  const SlamCounters& counters = result.counters;
+  ASSERT_GT(counters.revisits_measuring_drift, 0);
+  EXPECT_GT(counters.revisit_drift_m_per_m, 0.0);
+  EXPECT_GE(counters.odometry_drift_estimate_m_per_m,
+            std::min(counters.revisit_drift_m_per_m, config.odometry_drift_m_per_m) * (1.0 - 1e-9));
+  EXPECT_GE(
+      counters.odometry_drift_estimate_deg_per_m,
+      std::min(counters.revisit_drift_deg_per_m, config.odometry_drift_deg_per_m) * (1.0 - 1e-9));
+  std::printf(
+      "odometry drift estimate %.4f m/m, %.4f deg/m; %lld revisits show %.4f m/m, %.4f "
+      "deg/m\n",
+      counters.odometry_drift_estimate_m_per_m, counters.odometry_drift_estimate_deg_per_m,
+      static_cast<long long>(counters.revisits_measuring_drift), counters.revisit_drift_m_per_m,
+      counters.revisit_drift_deg_per_m);
   const tools::SlamRunEvaluation ate =
       tools::evaluate_slam_run(source, result, tools::AlignmentMode::kTranslationYaw, 0.1);
   ASSERT_TRUE(ate.available) << ate.problem;

@@ -121,7 +121,7 @@ void add_kitti_keyframe_runs(const std::string& data_dir, Device device,
 // crossing in the open), 256 columns, the odometry drift_percent % of the distance off at the end
 // (1 %: about 20 m, so the second lap passes the first's places 10-30 m from where the odometry
 // puts them, beyond the registration's search), mapped with the arche_sim preset, 24 m rays and
-// no weight drop-off, odometry sigmas for up to 2 % drift and place recognition; drift_percent 0:
+// no weight drop-off, the odometry's noise estimated and place recognition; drift_percent 0:
 // the same flight with the odometry equal to the truth.
 constexpr double kLoopLobeHalfLengthM = 110.0;
 
@@ -142,9 +142,18 @@ std::unique_ptr<tools::ScanSource> loop_flight(uint64_t seed, double drift_perce
 
 pipeline::SlamConfig loop_config(Device device) {
   pipeline::SlamConfig config = preset_config("arche_sim", device);
-  // A 5 s link covers 10 m: 2 % of it, as a one-sigma bound on the drift's steady part.
-  config.odometry_translation_sigma_m = 0.2;
-  config.odometry_yaw_sigma_rad = 0.02;
+  // The odometry's noise estimated from the data, between a floor of 0.2 % (0.005 degrees) per
+  // metre and a ceiling of 2 % (0.1 degrees): a 5 s link covers 10 m, so the ceiling gives a link
+  // about 0.2 m and a degree. The revisits' drift (pose_graph.revisit_drift_min_path_m) keeps the
+  // estimate from claiming a drifting odometry better than its loops show; without drift the
+  // estimate falls to its floor and the registrations cannot bend a good odometry.
+  config.odometry_translation_sigma_m = 0.05;
+  config.odometry_yaw_sigma_rad = 0.005;
+  config.odometry_drift_m_per_m = 0.02;
+  config.odometry_drift_deg_per_m = 0.1;
+  config.estimate_odometry_noise = true;
+  config.min_odometry_drift_m_per_m = 0.002;
+  config.min_odometry_drift_deg_per_m = 0.005;
   // Rays to 24 m see each wall from more places than the preset's 16 m, and without the weight
   // drop-off a visit behind a surface weighs as much as one in front of it, whatever the angle
   // of the ray: two submaps that saw a wall from different places put it in the same place, so

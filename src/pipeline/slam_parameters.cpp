@@ -279,6 +279,8 @@ void add_pose_graph_parameters(std::vector<SlamParameter>* table) {
                            COVOX_FIELD(min_odometry_drift_m_per_m), positive),
           number_parameter("pose_graph.min_odometry_drift_deg_per_m",
                            COVOX_FIELD(min_odometry_drift_deg_per_m), positive),
+          number_parameter("pose_graph.revisit_drift_min_path_m",
+                           COVOX_FIELD(revisit_drift_min_path_m), non_negative),
           number_parameter("pose_graph.registration_loss_scale_sigmas",
                            COVOX_FIELD(registration_loss_scale_sigmas), non_negative),
           integer_parameter("pose_graph.optimize_every_n_submaps",

@@ -61,6 +61,9 @@ void validate(const SlamConfig& config) {
       std::isfinite(config.external_stamp_tolerance_s) && config.external_stamp_tolerance_s >= 0.0,
       "pose_graph.external_stamp_tolerance_s must be >= 0, got " +
           std::to_string(config.external_stamp_tolerance_s));
+  require(std::isfinite(config.revisit_drift_min_path_m) && config.revisit_drift_min_path_m >= 0.0,
+          "pose_graph.revisit_drift_min_path_m must be >= 0, got " +
+              std::to_string(config.revisit_drift_min_path_m));
   require(std::isfinite(config.min_odometry_drift_m_per_m) &&
               config.min_odometry_drift_m_per_m > 0.0 &&
               std::isfinite(config.min_odometry_drift_deg_per_m) &&
@@ -88,6 +91,9 @@ namespace {
 // An encoded mesh keeps its vertices on a grid of 1/256 voxel: far finer than the surface that
 // marching cubes interpolates from the quantised TSDF.
 constexpr float kMeshStepsPerVoxel = 256.0f;
+
+// (value / bound)^2: a drift as a factor on the variances of a configured drift.
+double square_ratio(double value, double bound) { return (value / bound) * (value / bound); }
 
 // Validates before any member is built, so a bad configuration fails with its own message.
 const SlamConfig& validated(const SlamConfig& config) {
@@ -742,6 +748,18 @@ bool SlamSystem::solve_robust_locked() {
   return solve_graph_locked();
 }
 
+RevisitDrift SlamSystem::revisit_drift_locked() const {
+  if (!(config_.revisit_drift_min_path_m > 0.0)) return RevisitDrift();
+  std::lock_guard<std::mutex> lock(state_mutex_);
+  // The path from the first submap to each submap's start, in the graph's order.
+  std::vector<double> path_at_node_m(graph_submaps_.size(), 0.0);
+  for (size_t k = 1; k < graph_submaps_.size(); ++k) {
+    path_at_node_m[k] =
+        path_at_node_m[k - 1] + graph_submaps_[k - 1].submap->statistics().distance_travelled_m;
+  }
+  return estimate_revisit_drift(pose_graph_, path_at_node_m, config_.revisit_drift_min_path_m);
+}
+
 bool SlamSystem::estimate_odometry_noise_locked() {
   // The configured drift bounds the estimate from above: without it there is nothing to estimate.
   if (!config_.estimate_odometry_noise || !(config_.odometry_drift_m_per_m > 0.0) ||
@@ -753,6 +771,15 @@ bool SlamSystem::estimate_odometry_noise_locked() {
   const double floor_deg =
       std::min(1.0, config_.min_odometry_drift_deg_per_m / config_.odometry_drift_deg_per_m);
   const auto bounded = [](double value, double low) { return std::min(1.0, std::max(low, value)); };
+  // The revisits' drift raises the floors: the estimate may not claim an odometry better than
+  // what its own revisits show.
+  const RevisitDrift revisits = revisit_drift_locked();
+  const double deg_per_rad = 180.0 / 3.14159265358979323846;
+  const double floor_t =
+      std::max(floor_m * floor_m, square_ratio(revisits.m_per_m, config_.odometry_drift_m_per_m));
+  const double floor_yaw =
+      std::max(floor_deg * floor_deg,
+               square_ratio(revisits.rad_per_m * deg_per_rad, config_.odometry_drift_deg_per_m));
   // Variance-component estimation: each round scales the odometry's factors by the residuals'
   // ratios at the latest solution and solves again; the ratios tend to 1 as the factors settle.
   // The bounds keep the factors where the configuration says the odometry can be.
@@ -763,18 +790,22 @@ bool SlamSystem::estimate_odometry_noise_locked() {
       std::lock_guard<std::mutex> lock(state_mutex_);
       const VarianceRatios ratios = estimate_variance_ratios(pose_graph_);
       const VarianceFactors old = pose_graph_.variance_factors(SubmapConstraintKind::kOdometry);
-      const VarianceFactors factors{
-          bounded(old.translation * ratios.odometry.translation, floor_m * floor_m),
-          bounded(old.yaw * ratios.odometry.yaw, floor_deg * floor_deg)};
+      const VarianceFactors factors{bounded(old.translation * ratios.odometry.translation, floor_t),
+                                    bounded(old.yaw * ratios.odometry.yaw, floor_yaw)};
       pose_graph_.set_variance_factors(SubmapConstraintKind::kOdometry, factors);
       log_message(LogLevel::kDebug, "SLAM backend: odometry variance factors ", factors.translation,
                   " ", factors.yaw, " (redundancy ", ratios.odometry_redundancy.translation, " ",
                   ratios.odometry_redundancy.yaw, "; registration ratios ",
-                  ratios.registration.translation, " ", ratios.registration.yaw, ")");
+                  ratios.registration.translation, " ", ratios.registration.yaw, "; revisits ",
+                  revisits.revisits, " showing ", revisits.m_per_m * 100.0, " % and ",
+                  revisits.rad_per_m * deg_per_rad, " deg/m)");
       counters_.odometry_drift_estimate_m_per_m =
           config_.odometry_drift_m_per_m * std::sqrt(factors.translation);
       counters_.odometry_drift_estimate_deg_per_m =
           config_.odometry_drift_deg_per_m * std::sqrt(factors.yaw);
+      counters_.revisits_measuring_drift = revisits.revisits;
+      counters_.revisit_drift_m_per_m = revisits.m_per_m;
+      counters_.revisit_drift_deg_per_m = revisits.rad_per_m * deg_per_rad;
       // Standard deviations within 2 % of the last ones: the solution would barely move.
       settled = std::abs(std::log(factors.translation / old.translation)) < 0.04 &&
                 std::abs(std::log(factors.yaw / old.yaw)) < 0.04;

@@ -36,8 +36,8 @@ INCREMENTAL = "incremental update (median)"
 SOLVE = "solve time (median)"
 
 LOOPS = "loop_closure.json"
-LOOPS_WITH_DROPOFF = "loop_closure_weight_dropoff.json"
-LOOPS_NOISE_ESTIMATED = "loop_closure_odometry_noise.json"
+LOOPS_LOOSE = "loop_closure_loose_sigmas.json"
+LOOPS_PER_LINK = "loop_closure_per_link_noise.json"
 LOOP_ATE_LIMIT_M = 0.5
 
 
@@ -124,17 +124,13 @@ GOALS = [
     ("7-Scenes ATE from 0.3 m-drifting odometry", "<=", 0.05, "m",
      [("", ("accuracy.json", "7-Scenes redkitchen", "ATE RMSE covoxslam"))]),
     ("loop flights (1980 m, odometry >= 10 m off) with ATE <= 0.5 m", ">=", 5, "seeds",
-     [loop_goal("loops case", LOOPS, loop_flights_within_limit),
-      loop_goal("noise estimated", LOOPS_NOISE_ESTIMATED, loop_flights_within_limit)]),
+     [loop_goal("", LOOPS, loop_flights_within_limit)]),
     ("wrong place-recognition closures on the loop flights", "<=", 0, "closures",
-     [loop_goal("loops case", LOOPS, loop_wrong_closures),
-      loop_goal("noise estimated", LOOPS_NOISE_ESTIMATED, loop_wrong_closures)]),
+     [loop_goal("", LOOPS, loop_wrong_closures)]),
     ("loop flight without drift: ATE above the odometry's", "<=", 0.05, "m",
-     [loop_goal("loops case", LOOPS, no_drift_difference, "odometry"),
-      loop_goal("noise estimated", LOOPS_NOISE_ESTIMATED, no_drift_difference, "odometry")]),
+     [loop_goal("", LOOPS, no_drift_difference, "odometry")]),
     ("loop flight without drift: ATE added by the closures", "<=", 0.05, "m",
-     [loop_goal("loops case", LOOPS, no_drift_difference, "closures"),
-      loop_goal("noise estimated", LOOPS_NOISE_ESTIMATED, no_drift_difference, "closures")]),
+     [loop_goal("", LOOPS, no_drift_difference, "closures")]),
 ]
 
 REGISTRATION_GRAPHS = [("50", "reg n=50 (146 pairs, 297k points)"),
@@ -376,7 +372,7 @@ def accuracy_table(reports):
 
 def loops_table(reports):
     lines = ["| flight | odometry | covoxslam | closures | wrong | real-time factor | "
-             "with drop-off | wrong | odometry noise estimated | wrong |",
+             "loose odometry sigmas | wrong | per-link noise estimate | wrong |",
              "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     report = reports.get(LOOPS)
     if report is None:
@@ -388,7 +384,7 @@ def loops_table(reports):
                  number(get(LOOPS, "loop closures accepted")),
                  number(get(LOOPS, "loop closures wrong by > 1 m or 5 deg")),
                  with_unit(get(LOOPS, "real-time factor"), "x")]
-        for name in (LOOPS_WITH_DROPOFF, LOOPS_NOISE_ESTIMATED):
+        for name in (LOOPS_LOOSE, LOOPS_PER_LINK):
             cells += [with_unit(get(name, "ATE RMSE covoxslam"), " m"),
                       number(get(name, "loop closures wrong by > 1 m or 5 deg"))]
         label = case.replace("simulated loops ", "")

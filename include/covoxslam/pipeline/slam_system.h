@@ -61,6 +61,7 @@
 #include "covoxslam/pipeline/external_constraints.h"
 #include "covoxslam/pipeline/place_recognition.h"
 #include "covoxslam/pipeline/registration_constraints.h"
+#include "covoxslam/pipeline/revisit_drift.h"
 #include "covoxslam/pipeline/submap.h"
 #include "covoxslam/pipeline/submap_pose_graph.h"
 #include "covoxslam/pipeline/submap_store.h"
@@ -101,6 +102,12 @@ struct SlamConfig {
   bool estimate_odometry_noise = false;
   double min_odometry_drift_m_per_m = 0.005;
   double min_odometry_drift_deg_per_m = 0.1;
+  // estimate_odometry_noise: the drift the revisits show (pipeline/revisit_drift.h: registrations
+  // between submaps at least this far apart along the path, against the odometry's relative pose)
+  // is a lower bound on the estimate. A per-link estimate sees only each link's own error; a bias
+  // that repeats on every link ends a long chain further off than independent errors would, and
+  // only a revisit measures that. 0: the per-link estimate alone.
+  double revisit_drift_min_path_m = 100.0;
   // Robust loss on registration constraints in the pose-graph solve (Cauchy, by iteratively
   // reweighted solves): a constraint whose whitened residual r (r^2 = e^T information e at the
   // solution) is large gets its information times 1 / (1 + r^2 / c^2), c this scale in standard
@@ -200,6 +207,11 @@ struct SlamCounters {
   // configured drift times the square root of the estimated variance factor); 0 when off.
   double odometry_drift_estimate_m_per_m = 0.0;
   double odometry_drift_estimate_deg_per_m = 0.0;
+  // ... and the drift the revisits showed, the estimate's lower bound (revisit_drift_min_path_m):
+  // from this many registrations; 0 when none or off.
+  int64_t revisits_measuring_drift = 0;
+  double revisit_drift_m_per_m = 0.0;
+  double revisit_drift_deg_per_m = 0.0;
   RegistrationCounts registration;           // attempted, accepted and each reason for a rejection
   PlaceRecognitionCounts place_recognition;  // candidates, verified, accepted, rejections
   ExternalConstraintCounters loop_closures;
@@ -480,6 +492,8 @@ class SlamSystem {
   // pose_graph.estimate_odometry_noise: after a solve, estimates the odometry's variance factors
   // and re-solves until they settle (false when a solve failed; true at once when off).
   bool estimate_odometry_noise_locked();
+  // The odometry's drift as the graph's revisits show it (revisit_drift_min_path_m; zeros when 0).
+  RevisitDrift revisit_drift_locked() const;
   // kJoint: the dense registration terms of joint_pairs_ for `graph`; needs state_mutex_ (and
   // backend_mutex_ for the lifetime of the submaps they point to).
   std::vector<backend::RegistrationTerm> joint_terms_locked(
