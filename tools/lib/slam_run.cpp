@@ -342,12 +342,14 @@ void print_slam_run(const SlamRunResult& result, FILE* out) {
                "submaps %.3f m RMS (max %.3f m)\n",
                shift.rms_m, shift.max_m, c.correction_rms_m, c.correction_max_m);
   if (c.odometry_drift_estimate_m_per_m > 0.0) {
-    std::fprintf(out,
-                 "odometry drift estimated from the data: %.4f m/m, %.3f deg/m (at least what "
-                 "%lld revisits show: %.4f m/m, %.3f deg/m)\n",
-                 c.odometry_drift_estimate_m_per_m, c.odometry_drift_estimate_deg_per_m,
-                 static_cast<long long>(c.revisits_measuring_drift), c.revisit_drift_m_per_m,
-                 c.revisit_drift_deg_per_m);
+    std::fprintf(out, "odometry drift estimated from the data: %.4f m/m, %.3f deg/m",
+                 c.odometry_drift_estimate_m_per_m, c.odometry_drift_estimate_deg_per_m);
+    if (c.revisits_measuring_drift > 0) {
+      std::fprintf(out, " (at least what %lld revisits show: %.4f m/m, %.3f deg/m)",
+                   static_cast<long long>(c.revisits_measuring_drift), c.revisit_drift_m_per_m,
+                   c.revisit_drift_deg_per_m);
+    }
+    std::fprintf(out, "\n");
   }
   std::fprintf(out,
                "scans: %zu given, %lld integrated, %lld dropped by the pipeline (queue full %lld, "
