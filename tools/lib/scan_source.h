@@ -12,6 +12,7 @@
 
 #include "covoxslam/core/vec3.h"
 #include "covoxslam/io/trajectory_io.h"
+#include "covoxslam/pipeline/sweep_odometry.h"
 
 namespace covox {
 namespace tools {
@@ -21,6 +22,10 @@ struct SourceScan {
   Eigen::Isometry3d T_odom_sensor = Eigen::Isometry3d::Identity();
   std::vector<Vec3f> points_sensor_m;
   std::vector<Rgb8> colors;  // empty, or one per point
+  // Empty, or one per point: seconds after stamp_s at which the point was measured; `sweep`: the
+  // odometry at the first and last point time (pipeline/sweep_odometry.h), for de-skewing.
+  std::vector<float> point_times_s;
+  pipeline::SweepOdometry sweep;
 };
 
 // How the reference trajectory may be called in a report: only ground truth is "accuracy".

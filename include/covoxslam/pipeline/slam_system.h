@@ -65,6 +65,7 @@
 #include "covoxslam/pipeline/submap.h"
 #include "covoxslam/pipeline/submap_pose_graph.h"
 #include "covoxslam/pipeline/submap_store.h"
+#include "covoxslam/pipeline/sweep_odometry.h"
 
 namespace covox {
 namespace pipeline {
@@ -156,6 +157,10 @@ struct Scan {
   Eigen::Isometry3d T_odom_sensor = Eigen::Isometry3d::Identity();
   std::vector<Vec3f> points_sensor_m;
   std::vector<Rgb8> colors;  // empty, or one per point
+  // Empty, or one per point: when it was measured, in seconds after stamp_s (a LiDAR driver's
+  // per-point time field). With `sweep` known, the points are de-skewed to the stamp.
+  std::vector<float> point_times_s;
+  SweepOdometry sweep;
 };
 
 // One kind of external constraint (loop closures, absolute positions or heights).
