@@ -12,6 +12,7 @@
 // 2 cm with colour, frames 0-69 (what nvblox was timed on).
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdint>
 #include <cstdlib>
 #include <iostream>
@@ -110,9 +111,20 @@ void add_rows(tools::BenchmarkReport* report, const std::string& name, const Tim
   report->add(name, "voxel updates per frame (mean)", t.updates_per_frame, "updates");
 }
 
+// A drone's motion over one 0.1 s sweep: 2 m/s forward while turning at 30 deg/s.
+integrators::SweepMotion drone_sweep() {
+  Eigen::Isometry3d end = Eigen::Isometry3d::Identity();
+  end.translation() = Eigen::Vector3d(0.2, 0.0, 0.0);
+  end.linear() = Eigen::AngleAxisd(3.0 * M_PI / 180.0, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  return integrators::make_sweep_motion(Eigen::Isometry3d::Identity(),
+                                        Eigen::Isometry3d::Identity(), end, 0.0, 0.1);
+}
+
+// `sweep`: the scans' points de-skewed by their times with this motion (stage 0).
 void benchmark_lidar(Device device, const Options& options, const std::string& label,
                      const tools::DeviceScans& scans, float voxel_size, float max_ray_m,
-                     integrators::TsdfIntegrationMethod method, tools::BenchmarkReport* report) {
+                     integrators::TsdfIntegrationMethod method, tools::BenchmarkReport* report,
+                     const integrators::SweepMotion* sweep = nullptr) {
   const std::string name = std::string(to_string(device)) + " " + label + ", " + to_string(method);
   if (!options.runs(name)) return;
   const Stream stream(device);
@@ -131,7 +143,8 @@ void benchmark_lidar(Device device, const Options& options, const std::string& l
   integrators::TsdfIntegrator integrator(config);
   const Timing timing =
       time_integrations(stream, scans.size(), options.integrations, map, [&](size_t f) {
-        return integrator.integrate(map, scans.view(f), Eigen::Isometry3d::Identity(), stream);
+        return integrator.integrate(map, scans.view(f, sweep), Eigen::Isometry3d::Identity(),
+                                    stream);
       });
   add_rows(report, name, timing);
 }
@@ -183,6 +196,13 @@ int main(int argc, char** argv) {
                         &report);
         benchmark_lidar(device, options, "OS1-64 0.1 m, 16 m rays", ouster, 0.1f, 16.0f, merged,
                         &report);
+        // The cost of de-skewing: the same raw scans with and without their points' times.
+        const tools::DeviceScans raw = tools::load_ouster_timed_scans(options.data, device);
+        const integrators::SweepMotion sweep = drone_sweep();
+        benchmark_lidar(device, options, "OS1-64 raw 0.2 m, 16 m rays", raw, 0.2f, 16.0f, merged,
+                        &report);
+        benchmark_lidar(device, options, "OS1-64 raw de-skewed 0.2 m, 16 m rays", raw, 0.2f, 16.0f,
+                        merged, &report, &sweep);
         benchmark_lidar(device, options, "KITTI HDL-64 0.2 m, 50 m rays", kitti, 0.2f, 50.0f,
                         merged, &report);
       }

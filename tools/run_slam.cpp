@@ -472,6 +472,7 @@ void write_report(const RunnerSettings& s, const pipeline::SlamConfig& config, i
     report.add(name, "map file size", result.map_file_mb, "MB");
     report.add(name, "map save time", result.map_save_s, "s");
   }
+  report.add(name, "scans de-skewed", static_cast<double>(result.counters.scans_deskewed), "");
   report.add(
       name, "scans dropped",
       static_cast<double>(result.counters.scans_dropped_total() + result.scans_dropped_by_source),
@@ -495,6 +496,8 @@ void run(RunnerSettings& s, int argc, char** argv) {
   const Device device = select_device(parse_device_request(s.device_text));
   std::unique_ptr<tools::ScanSource> source = open_source(s);
   const pipeline::SlamConfig config = build_config(s, *source, device);
+  if (auto* bag = dynamic_cast<tools::BagScanSource*>(source.get()))
+    bag->set_column_sweep_duration_s(config.deskew.sweep_duration_s);
   std::printf(
       "device: %s\ninput: %s\npreset: %s (%.3f m voxels, %.3f m truncation, %.1f m rays, "
       "submaps: %s)\n",

@@ -16,6 +16,31 @@ const PointFieldDescription* find_field(const PointCloudLayout& layout, const ch
   return nullptr;
 }
 
+// The `rgb` or `rgba` field; null when neither is a packed colour of 4 bytes (anything else is
+// not PCL's convention and is ignored).
+const PointFieldDescription* packed_color_field(const PointCloudLayout& layout) {
+  const PointFieldDescription* rgb = find_field(layout, "rgb");
+  if (!rgb) rgb = find_field(layout, "rgba");
+  if (rgb && point_field_type_size(rgb->datatype) * rgb->count != 4) return nullptr;
+  return rgb;
+}
+
+// PCL's packed 0x00RRGGBB colour.
+Rgb8 packed_color(const uint8_t* at) {
+  uint32_t packed;
+  std::memcpy(&packed, at, 4);
+  return Rgb8{static_cast<uint8_t>((packed >> 16) & 0xff),
+              static_cast<uint8_t>((packed >> 8) & 0xff), static_cast<uint8_t>(packed & 0xff)};
+}
+
+// An intensity as grey: its value times `grey_scale`, clamped to [0, 255] (non-finite: black).
+Rgb8 grey_of(const uint8_t* at, uint8_t datatype, double grey_scale) {
+  const double value = read_point_field_element(at, datatype) * grey_scale;
+  const double clamped = std::isfinite(value) ? std::min(255.0, std::max(0.0, value)) : 0.0;
+  const uint8_t grey = static_cast<uint8_t>(std::lround(clamped));
+  return Rgb8{grey, grey, grey};
+}
+
 CloudDecodeResult failure(CloudDecodeStatus status, std::string message) {
   return CloudDecodeResult{status, std::move(message)};
 }
@@ -111,21 +136,21 @@ CloudDecodeResult decode_point_cloud(const PointCloudLayout& layout, const uint8
   const uint32_t x_offset = find_field(layout, "x")->offset;
   const uint32_t y_offset = find_field(layout, "y")->offset;
   const uint32_t z_offset = find_field(layout, "z")->offset;
-  const PointFieldDescription* rgb = nullptr;
-  if (options.use_color) {
-    rgb = find_field(layout, "rgb");
-    if (!rgb) rgb = find_field(layout, "rgba");
-    // A packed colour is 4 bytes; anything else is not PCL's convention and is ignored.
-    if (rgb && point_field_type_size(rgb->datatype) * rgb->count != 4) rgb = nullptr;
-  }
+  const PointFieldDescription* rgb = options.use_color ? packed_color_field(layout) : nullptr;
   const PointFieldDescription* intensity =
       (!rgb && options.use_intensity) ? find_field(layout, "intensity") : nullptr;
   const double grey_scale =
       options.intensity_max_value > 0.0f ? 255.0 / options.intensity_max_value : 0.0;
 
+  const PointTimeReader times =
+      options.read_point_times ? make_point_time_reader(layout.fields, layout.width, layout.height,
+                                                        options.column_sweep_duration_s)
+                               : PointTimeReader();
+  cloud->time_source = times.source();
   cloud->has_color = rgb != nullptr;
   cloud->has_intensity = intensity != nullptr;
   cloud->points_in = static_cast<int64_t>(layout.width) * layout.height;
+  if (times.has_times()) cloud->point_times_s.reserve(static_cast<size_t>(cloud->points_in));
   cloud->points_m.reserve(static_cast<size_t>(cloud->points_in));
   if (rgb || intensity) cloud->colors.reserve(static_cast<size_t>(cloud->points_in));
 
@@ -142,18 +167,12 @@ CloudDecodeResult decode_point_cloud(const PointCloudLayout& layout, const uint8
         continue;
       }
       cloud->points_m.emplace_back(x, y, z);
+      if (times.has_times()) cloud->point_times_s.push_back(times.time_s(point, column));
       if (rgb) {
-        uint32_t packed;
-        std::memcpy(&packed, point + rgb->offset, 4);
-        cloud->colors.push_back(Rgb8{static_cast<uint8_t>((packed >> 16) & 0xff),
-                                     static_cast<uint8_t>((packed >> 8) & 0xff),
-                                     static_cast<uint8_t>(packed & 0xff)});
+        cloud->colors.push_back(packed_color(point + rgb->offset));
       } else if (intensity) {
-        const double value =
-            read_point_field_element(point + intensity->offset, intensity->datatype) * grey_scale;
-        const double clamped = std::isfinite(value) ? std::min(255.0, std::max(0.0, value)) : 0.0;
-        const uint8_t grey = static_cast<uint8_t>(std::lround(clamped));
-        cloud->colors.push_back(Rgb8{grey, grey, grey});
+        cloud->colors.push_back(
+            grey_of(point + intensity->offset, intensity->datatype, grey_scale));
       }
     }
   }

@@ -2,8 +2,10 @@
 
 #include <cmath>
 #include <cstring>
+#include <initializer_list>
 
 #include "covoxslam/core/error.h"
+#include "covoxslam/io/point_times.h"
 
 namespace covox {
 namespace io {
@@ -344,27 +346,18 @@ PointCloud2Message make_point_cloud2(const Header& header,
   return cloud;
 }
 
-PointCloud extract_points(const PointCloud2Message& cloud, const std::string& what,
-                          ReadStats* stats) {
-  if (cloud.is_bigendian) throw Error(what + ": big-endian PointCloud2 data is not supported");
+namespace {
+
+// The fields extract_points reads, checked against the cloud's layout.
+struct ExtractedFields {
   const PointField* xyz[3] = {nullptr, nullptr, nullptr};
-  const PointField* intensity = nullptr;
-  for (const PointField& field : cloud.fields) {
-    if (field.name == "x") xyz[0] = &field;
-    if (field.name == "y") xyz[1] = &field;
-    if (field.name == "z") xyz[2] = &field;
-    if (field.name == "intensity") intensity = &field;
-  }
-  for (int axis = 0; axis < 3; ++axis) {
-    if (xyz[axis] == nullptr) throw Error(what + ": PointCloud2 has no " + "xyz"[axis] + " field");
-    if (xyz[axis]->datatype != kFloat32 && xyz[axis]->datatype != kFloat64) {
-      throw Error(what + ": PointCloud2 field '" + xyz[axis]->name +
-                  "' is not float32 or float64 (datatype " + std::to_string(xyz[axis]->datatype) +
-                  ")");
-    }
-  }
-  if (intensity != nullptr && point_field_type_size(intensity->datatype) == 0) intensity = nullptr;
-  for (const PointField* field : {xyz[0], xyz[1], xyz[2], intensity}) {
+  const PointField* intensity = nullptr;  // null: none, or of no numeric type
+  PointTimeReader times;
+};
+
+void check_cloud_sizes(const PointCloud2Message& cloud, const std::string& what,
+                       std::initializer_list<const PointField*> fields) {
+  for (const PointField* field : fields) {
     if (field == nullptr) continue;
     const uint64_t end = uint64_t(field->offset) + point_field_type_size(field->datatype);
     if (end > cloud.point_step) {
@@ -382,10 +375,47 @@ PointCloud extract_points(const PointCloud2Message& cloud, const std::string& wh
                 " bytes, height " + std::to_string(cloud.height) + " x row_step " +
                 std::to_string(cloud.row_step) + " needed");
   }
+}
+
+ExtractedFields find_extracted_fields(const PointCloud2Message& cloud, const std::string& what,
+                                      double column_sweep_duration_s) {
+  if (cloud.is_bigendian) throw Error(what + ": big-endian PointCloud2 data is not supported");
+  ExtractedFields fields;
+  const PointField* time_field = nullptr;
+  fields.times =
+      make_point_time_reader(cloud.fields, cloud.width, cloud.height, column_sweep_duration_s);
+  for (const PointField& field : cloud.fields) {
+    for (int axis = 0; axis < 3; ++axis) {
+      if (field.name == std::string(1, "xyz"[axis])) fields.xyz[axis] = &field;
+    }
+    if (field.name == "intensity" && point_field_type_size(field.datatype) != 0)
+      fields.intensity = &field;
+    if (!fields.times.field_name().empty() && field.name == fields.times.field_name())
+      time_field = &field;
+  }
+  for (int axis = 0; axis < 3; ++axis) {
+    const PointField* field = fields.xyz[axis];
+    if (field == nullptr) throw Error(what + ": PointCloud2 has no " + "xyz"[axis] + " field");
+    if (field->datatype != kFloat32 && field->datatype != kFloat64) {
+      throw Error(what + ": PointCloud2 field '" + field->name +
+                  "' is not float32 or float64 (datatype " + std::to_string(field->datatype) + ")");
+    }
+  }
+  check_cloud_sizes(cloud, what,
+                    {fields.xyz[0], fields.xyz[1], fields.xyz[2], fields.intensity, time_field});
+  return fields;
+}
+
+}  // namespace
+
+PointCloud extract_points(const PointCloud2Message& cloud, const std::string& what,
+                          ReadStats* stats, double column_sweep_duration_s) {
+  const ExtractedFields fields = find_extracted_fields(cloud, what, column_sweep_duration_s);
   PointCloud points;
   const size_t count = size_t(cloud.width) * cloud.height;
   points.points_m.reserve(count);
-  if (intensity != nullptr) points.intensities.reserve(count);
+  if (fields.intensity != nullptr) points.intensities.reserve(count);
+  if (fields.times.has_times()) points.times_s.reserve(count);
   size_t dropped = 0;
   for (uint32_t row = 0; row < cloud.height; ++row) {
     const uint8_t* point = cloud.data.data() + size_t(row) * cloud.row_step;
@@ -393,16 +423,17 @@ PointCloud extract_points(const PointCloud2Message& cloud, const std::string& wh
       Eigen::Vector3f p;
       for (int axis = 0; axis < 3; ++axis) {
         p[axis] = static_cast<float>(
-            read_point_field_element(point + xyz[axis]->offset, xyz[axis]->datatype));
+            read_point_field_element(point + fields.xyz[axis]->offset, fields.xyz[axis]->datatype));
       }
       if (!p.allFinite()) {
         ++dropped;
         continue;
       }
       points.points_m.push_back(p);
-      if (intensity != nullptr) {
-        points.intensities.push_back(static_cast<float>(
-            read_point_field_element(point + intensity->offset, intensity->datatype)));
+      if (fields.times.has_times()) points.times_s.push_back(fields.times.time_s(point, column));
+      if (fields.intensity != nullptr) {
+        points.intensities.push_back(static_cast<float>(read_point_field_element(
+            point + fields.intensity->offset, fields.intensity->datatype)));
       }
     }
   }

@@ -9,6 +9,7 @@
 #include <utility>
 
 #include "covoxslam/core/error.h"
+#include "covoxslam/pipeline/scan_deskew.h"
 #include "covoxslam/core/log.h"
 #include "covoxslam/core/memory.h"
 #include "covoxslam/core/stage_profiler.h"
@@ -41,6 +42,9 @@ void validate(const SlamConfig& config) {
           "map.voxels_per_side must be 8 or 16, got " + std::to_string(config.map.voxels_per_side));
   validate(config.tsdf, config.map.voxel_size_m);
   validate(config.submaps);
+  require(std::isfinite(config.deskew.sweep_duration_s) && config.deskew.sweep_duration_s > 0.0,
+          "deskew.sweep_duration_s must be positive, got " +
+              std::to_string(config.deskew.sweep_duration_s));
   require(config.sensor_queue_size >= 1, "queues.sensor_scans must be at least 1");
   require(config.submap_queue_size >= 1, "queues.submaps must be at least 1");
   require(std::isfinite(config.odometry_translation_sigma_m) &&
@@ -110,6 +114,7 @@ SlamSystem::SlamSystem(const SlamConfig& config)
       frontend_stream_(Stream::create(config.device)),
       points_buffer_(config.device),
       colors_buffer_(config.device),
+      times_buffer_(config.device),
       store_(std::make_unique<SubmapStore>(config.memory, config.tsdf.truncation_distance_m,
                                            config.map.voxel_size_m / kMeshStepsPerVoxel)),
       restore_esdf_(config.esdf),
@@ -162,6 +167,8 @@ bool SlamSystem::add_scan(Scan scan) {
     } else if (!scan.colors.empty() && scan.colors.size() != scan.points_sensor_m.size()) {
       problem = "its colour count does not match its point count";
       counter = &counters_.scans_dropped_bad_colors;
+    } else if ((problem = point_times_problem(scan)) != nullptr) {
+      counter = &counters_.scans_dropped_bad_point_times;
     }
     if (!problem) {
       have_last_stamp_ = true;
@@ -343,16 +350,7 @@ void SlamSystem::process_scan(const QueuedScan& queued) {
   }
 
   const auto start = Clock::now();
-  points_buffer_.copy_from_host(scan.points_sensor_m, frontend_stream_);
-  colors_buffer_.copy_from_host(scan.colors, frontend_stream_);
-  integrators::PointCloudView view;
-  view.points = points_buffer_.data();
-  view.colors = scan.colors.empty() ? nullptr : colors_buffer_.data();
-  view.count = static_cast<int64_t>(scan.points_sensor_m.size());
-  const integrators::IntegrationStats stats = active_submap_->integrate(
-      tsdf_integrator_, view, scan.T_odom_sensor, scan.stamp_s, frontend_stream_);
-  // Drained before timing and before the next scan overwrites the upload buffers.
-  frontend_stream_.synchronize();
+  const integrators::IntegrationStats stats = integrate_scan(scan);
   const double integrate_s = seconds_since(start);
   last_position_odom_m_ = position_m;
 
@@ -370,6 +368,51 @@ void SlamSystem::process_scan(const QueuedScan& queued) {
   counters_.points_dropped_by_integrator += stats.dropped_total();
   trajectory_.push_back(TrajectoryEntry{scan.stamp_s, active_submap_->id(), scan.T_odom_sensor,
                                         active_submap_->T_odom_submap()});
+}
+
+integrators::IntegrationStats SlamSystem::integrate_scan(const Scan& scan) {
+  const DeskewPlan deskew = plan_deskew(config_.deskew, scan);
+  const bool deskewed = deskew.outcome == DeskewOutcome::kDeskewed;
+  points_buffer_.copy_from_host(scan.points_sensor_m, frontend_stream_);
+  colors_buffer_.copy_from_host(scan.colors, frontend_stream_);
+  if (deskewed) times_buffer_.copy_from_host(scan.point_times_s, frontend_stream_);
+  integrators::PointCloudView view;
+  view.points = points_buffer_.data();
+  view.colors = scan.colors.empty() ? nullptr : colors_buffer_.data();
+  view.count = static_cast<int64_t>(scan.points_sensor_m.size());
+  view.times_s = deskewed ? times_buffer_.data() : nullptr;
+  view.sweep = deskew.motion;
+  const integrators::IntegrationStats stats = active_submap_->integrate(
+      tsdf_integrator_, view, scan.T_odom_sensor, scan.stamp_s, frontend_stream_);
+  // Drained before the next scan overwrites the upload buffers.
+  frontend_stream_.synchronize();
+  // A cloud without times from a sensor that moved more than a voxel at the longest ray since the
+  // previous scan (within a second: the same time line) is smeared, if it came from a spinning
+  // LiDAR; a depth camera's frame or a de-skewed keyframe is not, so this is a count and one
+  // warning, not an error.
+  const bool moving =
+      scan.stamp_s - previous_scan_stamp_s_ < 1.0 &&
+      motion_displacement_m(previous_T_odom_sensor_, scan.T_odom_sensor,
+                            config_.tsdf.max_ray_length_m) > config_.map.voxel_size_m;
+  previous_scan_stamp_s_ = scan.stamp_s;
+  previous_T_odom_sensor_ = scan.T_odom_sensor;
+  int64_t untimed_moving = 0;
+  {
+    std::lock_guard<std::mutex> lock(state_mutex_);
+    if (deskewed) ++counters_.scans_deskewed;
+    if (deskew.outcome == DeskewOutcome::kNoSweepOdometry)
+      ++counters_.scans_not_deskewed_no_sweep_odometry;
+    if (deskew.outcome == DeskewOutcome::kNoPointTimes && moving)
+      untimed_moving = ++counters_.scans_not_deskewed_no_times_moving;
+  }
+  if (untimed_moving == 1) {
+    log_warning("SLAM: the scan at ", scan.stamp_s,
+                " s has no per-point times while the sensor moves; its points are integrated as "
+                "they are. A spinning LiDAR's clouds are then smeared over the sweep: give the "
+                "driver's time field (t or time) to de-skew them (counted in "
+                "scans_not_deskewed_no_times_moving; fine for depth cameras and de-skewed clouds)");
+  }
+  return stats;
 }
 
 void SlamSystem::copy_active_submap_for_slice() {

@@ -48,6 +48,8 @@ void SlamNode::cloud_callback(const sensor_msgs::PointCloud2::ConstPtr& cloud) {
   decode_options.use_color = options_.use_color;
   decode_options.use_intensity = options_.use_intensity;
   decode_options.intensity_max_value = static_cast<float>(options_.intensity_max_value);
+  decode_options.read_point_times = slam_->config().deskew.enabled;
+  decode_options.column_sweep_duration_s = slam_->config().deskew.sweep_duration_s;
   io::DecodedCloud decoded;
   const io::CloudDecodeResult result = io::decode_point_cloud(
       point_cloud_layout(*cloud), cloud->data.data(), cloud->data.size(), decode_options, &decoded);
@@ -88,6 +90,7 @@ void SlamNode::cloud_callback(const sensor_msgs::PointCloud2::ConstPtr& cloud) {
   if (scan.frame.front() == '/') scan.frame.erase(0, 1);  // tf2 frame ids have no leading slash
   scan.points_m = std::move(decoded.points_m);
   scan.colors = std::move(decoded.colors);
+  scan.times_s = std::move(decoded.point_times_s);
   scan.received = ros::WallTime::now();
   enqueue_locked(std::move(scan));
 }
@@ -260,12 +263,19 @@ void SlamNode::process_pending_locked() {
     Eigen::Isometry3d T_odom_sensor;
     const PoseResult result = sensor_pose_locked(scan, &T_odom_sensor);
     if (result == PoseResult::kWait) return;
+    pipeline::SweepOdometry sweep;
+    if (result == PoseResult::kReady &&
+        sweep_odometry_locked(scan, T_odom_sensor, &sweep) == PoseResult::kWait) {
+      return;
+    }
     if (result == PoseResult::kReady) {
       pipeline::Scan input;
       input.stamp_s = scan.stamp.toSec();
       input.T_odom_sensor = T_odom_sensor;
       input.points_sensor_m = std::move(scan.points_m);
       input.colors = std::move(scan.colors);
+      input.point_times_s = std::move(scan.times_s);
+      input.sweep = sweep;
       if (slam_->add_scan(std::move(input))) {
         ++scans_added_;
         last_added_stamp_ = scan.stamp;
@@ -294,6 +304,8 @@ std::string SlamNode::slam_refusal_reason() {
       {now.scans_dropped_empty_cloud > before.scans_dropped_empty_cloud, "it has no points"},
       {now.scans_dropped_bad_colors > before.scans_dropped_bad_colors,
        "its colour count does not match its point count"},
+      {now.scans_dropped_bad_point_times > before.scans_dropped_bad_point_times,
+       "its point times are not finite or do not match its points"},
       {now.scans_rejected_not_running > before.scans_rejected_not_running,
        "the SLAM system is not running"}};
   refusal_reference_ = now;

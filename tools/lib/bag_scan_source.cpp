@@ -138,25 +138,48 @@ bool BagScanSource::next(SourceScan* scan) {
         continue;
       }
       io::ReadStats stats;
-      const io::PointCloud points = rb::extract_points(cloud, what, &stats);
+      const io::PointCloud points =
+          rb::extract_points(cloud, what, &stats, options_.column_sweep_duration_s);
       dropped_non_finite_points_ += static_cast<int64_t>(stats.dropped_non_finite_points);
       scan->stamp_s = stamp_s;
       scan->T_odom_sensor = T_odom_sensor;
       scan->colors.clear();
-      scan->points_sensor_m.clear();
-      scan->points_sensor_m.reserve(points.size());
-      const float min_range_squared =
-          static_cast<float>(options_.min_range_m * options_.min_range_m);
-      for (const Eigen::Vector3f& p : points.points_m) {
-        if (p.squaredNorm() < min_range_squared) continue;
-        scan->points_sensor_m.emplace_back(p.x(), p.y(), p.z());
-      }
+      keep_points(points, scan);
+      look_up_sweep(frame, scan);
       return true;
     } catch (const Error& error) {
       log_dropped_scan(++dropped_, error.what());
     }
   }
   return false;
+}
+
+void BagScanSource::keep_points(const io::PointCloud& points, SourceScan* scan) const {
+  scan->points_sensor_m.clear();
+  scan->points_sensor_m.reserve(points.size());
+  scan->point_times_s.clear();
+  const bool timed = !points.times_s.empty();
+  const float min_range_squared = static_cast<float>(options_.min_range_m * options_.min_range_m);
+  for (size_t i = 0; i < points.size(); ++i) {
+    const Eigen::Vector3f& p = points.points_m[i];
+    if (p.squaredNorm() < min_range_squared) continue;
+    scan->points_sensor_m.emplace_back(p.x(), p.y(), p.z());
+    if (timed) scan->point_times_s.push_back(points.times_s[i]);
+  }
+}
+
+void BagScanSource::look_up_sweep(const std::string& frame, SourceScan* scan) const {
+  scan->sweep = pipeline::SweepOdometry();
+  if (scan->point_times_s.empty()) return;
+  const auto [earliest, latest] =
+      std::minmax_element(scan->point_times_s.begin(), scan->point_times_s.end());
+  pipeline::SweepOdometry& sweep = scan->sweep;
+  sweep.begin_s = *earliest;
+  sweep.end_s = *latest;
+  sweep.known =
+      tf_.lookup(options_.odom_frame, frame, scan->stamp_s + sweep.begin_s,
+                 &sweep.T_odom_sensor_begin) &&
+      tf_.lookup(options_.odom_frame, frame, scan->stamp_s + sweep.end_s, &sweep.T_odom_sensor_end);
 }
 
 std::string BagScanSource::describe() const {

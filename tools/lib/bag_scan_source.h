@@ -8,7 +8,9 @@
 //
 // The tf and the reference are read first (they are small); then the clouds are read one by one
 // in time order. A cloud whose pose cannot be looked up (tf does not reach its stamp or frame) or
-// whose fields cannot be read is skipped and counted.
+// whose fields cannot be read is skipped and counted. A cloud with per-point times (a `t` or
+// `time` field, or organised) gets them and the odometry at its first and last point time, for
+// de-skewing; where tf does not reach those times the scan goes without (the pipeline counts it).
 #include <memory>
 #include <string>
 #include <vector>
@@ -29,6 +31,9 @@ struct BagScanOptions {
   std::string sensor_frame;
   // Points nearer than this are the drone's own frame and propellers (ARCHE's launch crops them).
   double min_range_m = 0.0;
+  // Organised clouds without a time field: their columns are taken as fired over this long
+  // (deskew.sweep_duration_s; io/point_times.h).
+  double column_sweep_duration_s = 0.1;
 };
 
 // The poses on `topic`: geometry_msgs/PointStamped (position-only) or nav_msgs/Odometry, stamped
@@ -45,6 +50,8 @@ class BagScanSource : public ScanSource {
   bool next(SourceScan* scan) override;
   std::string describe() const override;
   double duration_s() const override;
+  // The configuration's deskew.sweep_duration_s, for the clouds read from now on.
+  void set_column_sweep_duration_s(double seconds) { options_.column_sweep_duration_s = seconds; }
 
  private:
   std::string path_;
@@ -53,6 +60,10 @@ class BagScanSource : public ScanSource {
   io::rosbag::TfBuffer tf_;
   std::vector<io::rosbag::IndexEntry> clouds_;
   size_t next_cloud_ = 0;
+  // The points nearer than min_range_m left out, with their times.
+  void keep_points(const io::PointCloud& points, SourceScan* scan) const;
+  // scan->sweep from tf at the scan's first and last point time.
+  void look_up_sweep(const std::string& frame, SourceScan* scan) const;
   int64_t dropped_non_finite_points_ = 0;
 };
 

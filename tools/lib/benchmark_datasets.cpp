@@ -1,10 +1,12 @@
 #include "benchmark_datasets.h"
 
 #include <algorithm>
+#include <cstring>
 #include <iostream>
 
 #include "covoxslam/core/error.h"
 #include "covoxslam/core/stage_profiler.h"
+#include "covoxslam/io/file_bytes.h"
 #include "covoxslam/io/lidar_bin_reader.h"
 #include "covoxslam/io/rgbd_folder.h"
 
@@ -26,12 +28,27 @@ DeviceScans load_scans(const std::vector<std::string>& paths, Device device) {
   return scans;
 }
 
+// A file of float32 values, one per point.
+std::vector<float> read_float32_file(const std::string& path) {
+  const std::vector<uint8_t> bytes = io::read_file_bytes(path);
+  if (bytes.size() % sizeof(float) != 0)
+    throw Error(path + ": " + std::to_string(bytes.size()) + " bytes is not a float32 array");
+  std::vector<float> values(bytes.size() / sizeof(float));
+  std::memcpy(values.data(), bytes.data(), bytes.size());
+  return values;
+}
+
 }  // namespace
 
-integrators::PointCloudView DeviceScans::view(size_t i) const {
+integrators::PointCloudView DeviceScans::view(size_t i,
+                                              const integrators::SweepMotion* sweep) const {
   integrators::PointCloudView cloud;
   cloud.points = points[i].data();
   cloud.count = static_cast<int64_t>(points[i].size());
+  if (sweep && i < times_s.size()) {
+    cloud.times_s = times_s[i].data();
+    cloud.sweep = *sweep;
+  }
   return cloud;
 }
 
@@ -47,6 +64,22 @@ DeviceScans load_ouster_scans(const std::string& data_directory, Device device) 
   const std::string folder = data_directory + "/lidar-scans/newer_06/";
   return load_scans(
       {folder + "deskewed_00.bin", folder + "deskewed_01.bin", folder + "deskewed_02.bin"}, device);
+}
+
+DeviceScans load_ouster_timed_scans(const std::string& data_directory, Device device) {
+  const std::string folder = data_directory + "/lidar-scans/newer_06/";
+  DeviceScans scans =
+      load_scans({folder + "raw_00.bin", folder + "raw_01.bin", folder + "raw_02.bin"}, device);
+  for (size_t i = 0; i < scans.size(); ++i) {
+    const std::string path = folder + "times_0" + std::to_string(i) + ".bin";
+    const std::vector<float> times = read_float32_file(path);
+    if (times.size() != scans.points[i].size()) {
+      throw Error(path + ": " + std::to_string(times.size()) + " times for " +
+                  std::to_string(scans.points[i].size()) + " points");
+    }
+    scans.times_s.push_back(Buffer<float>::from_host(device, times));
+  }
+  return scans;
 }
 
 DeviceScans load_kitti_scans(const std::string& data_directory, Device device) {

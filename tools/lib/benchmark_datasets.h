@@ -17,8 +17,10 @@ namespace tools {
 // LiDAR scans in the sensor frame, on a device.
 struct DeviceScans {
   std::vector<Buffer<Vec3f>> points;
+  std::vector<Buffer<float>> times_s;  // empty, or one buffer per scan: each point's time
   size_t size() const { return points.size(); }
-  integrators::PointCloudView view(size_t i) const;
+  // Scan i's points; with its times and `sweep` when the scans have times and `sweep` is given.
+  integrators::PointCloudView view(size_t i, const integrators::SweepMotion* sweep = nullptr) const;
 };
 
 // RGB-D frames (depth in metres, colour, camera-to-world pose), on a device.
@@ -33,6 +35,9 @@ struct DeviceRgbdFrames {
 
 // Newer College Ouster OS1-64 deskewed scans (lidar-scans/newer_06, 3 scans).
 DeviceScans load_ouster_scans(const std::string& data_directory, Device device);
+// The same Newer College OS1-64 scans as the sensor gave them (raw, motion-distorted), with each
+// point's time in the sweep (0 to 0.1 s).
+DeviceScans load_ouster_timed_scans(const std::string& data_directory, Device device);
 // KITTI Velodyne HDL-64 scans (lidar-scans/kitti_00, 2 scans).
 DeviceScans load_kitti_scans(const std::string& data_directory, Device device);
 // The first `count` frames of 7scenes-redkitchen (fewer if the folder has fewer).

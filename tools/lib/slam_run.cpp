@@ -217,6 +217,8 @@ SlamRunResult run_slam_system(ScanSource& source, const pipeline::SlamConfig& co
     input.T_odom_sensor = scan.T_odom_sensor;
     input.points_sensor_m = std::move(scan.points_sensor_m);
     input.colors = std::move(scan.colors);
+    input.point_times_s = std::move(scan.point_times_s);
+    input.sweep = scan.sweep;
     slam.add_scan(std::move(input));
     ++result.scans_given;
     timeline.after_scan(last_stamp_s - first_stamp_s, slam, &result.timeline);
@@ -365,6 +367,14 @@ void print_slam_run(const SlamRunResult& result, FILE* out) {
                static_cast<long long>(c.scans_failed),
                static_cast<long long>(result.scans_dropped_by_source),
                static_cast<long long>(c.submaps_dropped_queue_full));
+  std::fprintf(out,
+               "de-skewing: %lld scans de-skewed by their point times, %lld with times but no "
+               "odometry across the sweep, %lld without times while moving, %lld dropped for bad "
+               "times\n",
+               static_cast<long long>(c.scans_deskewed),
+               static_cast<long long>(c.scans_not_deskewed_no_sweep_odometry),
+               static_cast<long long>(c.scans_not_deskewed_no_times_moving),
+               static_cast<long long>(c.scans_dropped_bad_point_times));
   const pipeline::SlamTimings& t = result.timings;
   std::fprintf(out, "\n%-20s %8s %10s %10s %10s\n", "module", "calls", "total s", "mean ms",
                "max ms");

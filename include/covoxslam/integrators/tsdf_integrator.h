@@ -48,6 +48,7 @@
 #include "covoxslam/core/device.h"
 #include "covoxslam/core/stream.h"
 #include "covoxslam/core/vec3.h"
+#include "covoxslam/integrators/sweep_motion.h"
 #include "covoxslam/integrators/tsdf_integrator_config.h"
 #include "covoxslam/map/tsdf_map.h"
 
@@ -72,6 +73,7 @@ struct IntegrationStats {
   int64_t voxels_updated = 0;       // distinct voxels written
   int64_t voxels_out_of_range = 0;  // voxels dropped: block outside the map's key range
   int64_t blocks_allocated = 0;     // new blocks this call
+  int64_t points_deskewed = 0;      // moved to the cloud's pose by their times (stage 0)
   int64_t records_grouped = 0;      // visit records grouped by voxel (sorted) and reduced: every
                                     // visit, with free-space sums the band's (a bound on them),
                                     // with every visit summed none
@@ -89,6 +91,10 @@ struct PointCloudView {
   int64_t count = 0;
   const float* intensities = nullptr;  // optional, used when colors is null
   float intensity_max_value = 255.0f;  // intensity shown as white
+  // Optional, one per point: seconds after the cloud's pose at which the point was measured. With
+  // it every point is first de-skewed by `sweep` into the sensor frame at the cloud's pose.
+  const float* times_s = nullptr;
+  SweepMotion sweep;
 };
 
 // A pinhole camera; depth pixel (u, v) with depth z unprojects to ((u-cx) z/fx, (v-cy) z/fy, z).

@@ -9,8 +9,9 @@
 // Accepted: x, y, z as FLOAT32 (required) at any offsets, in any order, with any point step;
 // optional colour from a packed `rgb` / `rgba` field (4 bytes, PCL's 0x00RRGGBB, stored as FLOAT32,
 // UINT32 or INT32) or, when there is no colour, an `intensity` field of any numeric type shown as
-// grey (intensity / intensity_max_value). Points with a non-finite coordinate are dropped and
-// counted; organised clouds (height > 1) are read row by row honouring row_step.
+// grey (intensity / intensity_max_value); per-point times from a `t` or `time` field or an
+// organised cloud's column order (point_times.h). Points with a non-finite coordinate are dropped
+// and counted; organised clouds (height > 1) are read row by row honouring row_step.
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -18,6 +19,7 @@
 
 #include "covoxslam/core/vec3.h"
 #include "covoxslam/io/point_field_types.h"
+#include "covoxslam/io/point_times.h"
 
 namespace covox {
 namespace io {
@@ -39,9 +41,11 @@ struct PointCloudLayout {
 };
 
 struct CloudDecodeOptions {
-  bool use_color = true;               // read `rgb` / `rgba` when present
-  bool use_intensity = true;           // read `intensity` when there is no colour
-  float intensity_max_value = 255.0f;  // intensity shown as white
+  bool use_color = true;                 // read `rgb` / `rgba` when present
+  bool use_intensity = true;             // read `intensity` when there is no colour
+  float intensity_max_value = 255.0f;    // intensity shown as white
+  bool read_point_times = true;          // per-point times (point_times.h) when the cloud has them
+  double column_sweep_duration_s = 0.1;  // organised clouds without a time field
 };
 
 enum class CloudDecodeStatus {
@@ -58,11 +62,13 @@ const char* to_string(CloudDecodeStatus status);
 
 struct DecodedCloud {
   std::vector<Vec3f> points_m;
-  std::vector<Rgb8> colors;        // empty, or one per point
-  int64_t points_in = 0;           // width x height
-  int64_t dropped_non_finite = 0;  // points with a NaN or infinite coordinate
-  bool has_color = false;          // colours came from rgb / rgba
-  bool has_intensity = false;      // colours came from intensity (grey)
+  std::vector<Rgb8> colors;          // empty, or one per point
+  int64_t points_in = 0;             // width x height
+  int64_t dropped_non_finite = 0;    // points with a NaN or infinite coordinate
+  bool has_color = false;            // colours came from rgb / rgba
+  bool has_intensity = false;        // colours came from intensity (grey)
+  std::vector<float> point_times_s;  // empty, or one per point: seconds after the stamp
+  PointTimeSource time_source = PointTimeSource::kNone;
 };
 
 struct CloudDecodeResult {

@@ -107,13 +107,15 @@ PointCloud2Message make_point_cloud2(const Header& header,
                                      const std::vector<float>& intensities = {});
 
 // The points of any PointCloud2 with x, y and z fields (float32 or float64, any offsets, any
-// point and row step), plus intensities when it has an `intensity` field of any numeric type.
+// point and row step), plus intensities when it has an `intensity` field of any numeric type, and
+// per-point times when it has a time field or is organised (io/point_times.h; organised clouds
+// without a time field over `column_sweep_duration_s`, none when 0).
 // Points with a non-finite coordinate (Ouster drivers mark missing returns so) are dropped and
 // counted in stats->dropped_non_finite_points. Throws covox::Error naming `what` for a cloud
 // without x/y/z, a point step or row step too small for its fields, data shorter than
 // height * row_step, or big-endian data.
 PointCloud extract_points(const PointCloud2Message& cloud, const std::string& what,
-                          ReadStats* stats = nullptr);
+                          ReadStats* stats = nullptr, double column_sweep_duration_s = 0.1);
 
 }  // namespace rosbag
 }  // namespace io

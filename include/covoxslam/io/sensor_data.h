@@ -11,12 +11,13 @@
 namespace covox {
 namespace io {
 
-// A LiDAR (or depth-derived) point cloud in the sensor frame. `intensities` and `colors` are
-// either empty (the source had none) or exactly as long as `points_m`.
+// A LiDAR (or depth-derived) point cloud in the sensor frame. `intensities`, `colors` and
+// `times_s` are either empty (the source had none) or exactly as long as `points_m`.
 struct PointCloud {
   std::vector<Eigen::Vector3f> points_m;
   std::vector<float> intensities;
   std::vector<std::array<uint8_t, 3>> colors;  // r, g, b
+  std::vector<float> times_s;                  // seconds after the cloud's stamp (io/point_times.h)
 
   size_t size() const { return points_m.size(); }
   bool empty() const { return points_m.empty(); }

@@ -35,6 +35,7 @@
 #include <cstdint>
 #include <deque>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -70,6 +71,15 @@
 namespace covox {
 namespace pipeline {
 
+// De-skewing of LiDAR sweeps (pipeline/scan_deskew.h, integrators/sweep_motion.h).
+struct DeskewConfig {
+  // Points with times are moved to the scan's stamp by the odometry across the sweep.
+  bool enabled = true;
+  // The sweep's duration, for organised clouds without a time field: their columns are taken as
+  // fired in order over this long (a 10 Hz spinning LiDAR: 0.1 s). Read by the cloud decoders.
+  double sweep_duration_s = 0.1;
+};
+
 // Every field is a parameter of the configuration files (pipeline/slam_parameters.h reads them;
 // docs/parameters.md lists each with its name, unit and default).
 struct SlamConfig {
@@ -79,6 +89,7 @@ struct SlamConfig {
   integrators::EsdfIntegratorConfig esdf;
   integrators::MeshIntegratorConfig mesh;
   SubmapPolicyConfig submaps;
+  DeskewConfig deskew;
   // Scans waiting for the frontend; at 10 Hz, 20 scans absorb a 2 s stall of the frontend.
   size_t sensor_queue_size = 20;
   // Submaps waiting for the backend (each holds its whole TSDF: keep this small).
@@ -181,17 +192,25 @@ struct SlamCounters {
   int64_t scans_received = 0;              // every add_scan call
   int64_t scans_dropped_invalid_pose = 0;  // non-finite or non-rigid T_odom_sensor
   int64_t scans_dropped_empty_cloud = 0;
-  int64_t scans_dropped_bad_stamp = 0;      // non-finite, or not after the previous scan's
-  int64_t scans_dropped_bad_colors = 0;     // colour count not matching the point count
-  int64_t scans_rejected_not_running = 0;   // after finish() or shutdown()
-  int64_t scans_dropped_queue_full = 0;     // oldest scans dropped by the sensor queue
-  int64_t scans_discarded_at_shutdown = 0;  // still queued when shutdown() ran
-  int64_t scans_discarded_at_reset = 0;     // queued (or being integrated) when reset() ran
+  int64_t scans_dropped_bad_stamp = 0;        // non-finite, or not after the previous scan's
+  int64_t scans_dropped_bad_colors = 0;       // colour count not matching the point count
+  int64_t scans_dropped_bad_point_times = 0;  // point_times_problem() (scan_deskew.h)
+  int64_t scans_rejected_not_running = 0;     // after finish() or shutdown()
+  int64_t scans_dropped_queue_full = 0;       // oldest scans dropped by the sensor queue
+  int64_t scans_discarded_at_shutdown = 0;    // still queued when shutdown() ran
+  int64_t scans_discarded_at_reset = 0;       // queued (or being integrated) when reset() ran
   // Frontend.
   int64_t scans_integrated = 0;
   int64_t scans_failed = 0;                  // the integrator threw (logged)
   int64_t points_integrated = 0;             // points handed to the integrator
   int64_t points_dropped_by_integrator = 0;  // non-finite, too close or too far
+  // De-skewing: scans whose points were moved to their stamp; scans integrated as they are
+  // because they carry no point times although the sensor moved more than a voxel at the
+  // maximum ray length since the previous scan (a spinning LiDAR's clouds are then smeared);
+  // scans with times but no odometry across their sweep.
+  int64_t scans_deskewed = 0;
+  int64_t scans_not_deskewed_no_times_moving = 0;
+  int64_t scans_not_deskewed_no_sweep_odometry = 0;
   int64_t submaps_created = 0;
   int64_t submaps_dropped_queue_full = 0;  // oldest submaps dropped by the submap queue
   // Backend.
@@ -230,8 +249,9 @@ struct SlamCounters {
   // Every scan that was given but will never be integrated, for any counted reason.
   int64_t scans_dropped_total() const {
     return scans_dropped_invalid_pose + scans_dropped_empty_cloud + scans_dropped_bad_stamp +
-           scans_dropped_bad_colors + scans_rejected_not_running + scans_dropped_queue_full +
-           scans_discarded_at_shutdown + scans_discarded_at_reset + scans_failed;
+           scans_dropped_bad_colors + scans_dropped_bad_point_times + scans_rejected_not_running +
+           scans_dropped_queue_full + scans_discarded_at_shutdown + scans_discarded_at_reset +
+           scans_failed;
   }
 };
 
@@ -451,6 +471,9 @@ class SlamSystem {
   void frontend_loop();
   void backend_loop();
   void process_scan(const QueuedScan& queued);
+  // Uploads the scan (points, colours, times) and integrates it into the active submap,
+  // de-skewed when it can be (scan_deskew.h); counts the de-skewing outcome.
+  integrators::IntegrationStats integrate_scan(const Scan& scan);
   void hand_over_active_submap();
   // Copies the active submap's blocks for esdf_slice_active_submap() (frontend thread only).
   void copy_active_submap_for_slice();
@@ -538,6 +561,11 @@ class SlamSystem {
   Stream frontend_stream_;
   Buffer<Vec3f> points_buffer_;
   Buffer<Rgb8> colors_buffer_;
+  Buffer<float> times_buffer_;
+  // The previous integrated scan's stamp and pose, for the warning about clouds without point
+  // times from a moving sensor.
+  double previous_scan_stamp_s_ = -std::numeric_limits<double>::infinity();
+  Eigen::Isometry3d previous_T_odom_sensor_ = Eigen::Isometry3d::Identity();
   std::unique_ptr<Submap> active_submap_;
   uint64_t active_generation_ = 0;
   Eigen::Vector3d last_position_odom_m_ = Eigen::Vector3d::Zero();

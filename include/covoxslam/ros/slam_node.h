@@ -103,6 +103,7 @@ class SlamNode {
     std::string frame;
     std::vector<Vec3f> points_m;
     std::vector<Rgb8> colors;
+    std::vector<float> times_s;  // empty, or one per point (seconds after `stamp`)
     ros::WallTime received;
   };
   enum class PoseResult { kReady, kWait, kDrop };
@@ -140,6 +141,15 @@ class SlamNode {
   void process_pending_locked();
   // T_odom_sensor of `scan`, or why not (the drop is counted and logged here).
   PoseResult sensor_pose_locked(const PendingScan& scan, Eigen::Isometry3d* T_odom_sensor);
+  // ---- De-skewing (slam_node_sweep.cpp) ----
+  // The odometry T_odom_base at `stamp` from tf or the odometry topic: kReady, kWait (not there
+  // yet) or kDrop (it never will be). Neither waits nor counts.
+  PoseResult odometry_at_locked(const ros::Time& stamp, Eigen::Isometry3d* T_odom_base);
+  // The sensor's odometry at the first and last point time of a timed scan whose pose at its
+  // stamp is T_odom_sensor: kWait while the odometry does not reach the sweep's end yet (up to
+  // tf_wait_timeout_s); kReady otherwise, with sweep->known false when it cannot be had.
+  PoseResult sweep_odometry_locked(const PendingScan& scan, const Eigen::Isometry3d& T_odom_sensor,
+                                   pipeline::SweepOdometry* sweep);
   void count_drop(pipeline::DropCounter& counter, const std::string& what);
 
   // Advertises the outputs and starts the timers and services on the output queue.

@@ -10,6 +10,7 @@
 #include "covoxslam/core/stage_profiler.h"
 #include "covoxslam/integrators/internal/tsdf_frame_plan.h"
 #include "covoxslam/integrators/internal/tsdf_stage_blocks.h"
+#include "covoxslam/integrators/internal/tsdf_stage_deskew.h"
 #include "covoxslam/integrators/internal/tsdf_stage_finish.h"
 #include "covoxslam/integrators/internal/tsdf_stage_group_records.h"
 #include "covoxslam/integrators/internal/tsdf_stage_merge_rays.h"
@@ -112,18 +113,24 @@ inline WeightParameters weight_parameters_of(const TsdfIntegratorConfig& config,
                           config.sparsity_compensation_factor};
 }
 
-// A frame: its rays and tally (stage 1), its plan, how its visits are walked (stage 2a), then
-// stages 2b to 5.
+// A frame: a timed cloud's points de-skewed (stage 0), its rays and tally (stage 1), its plan,
+// how its visits are walked (stage 2a), then stages 2b to 5.
 template <class Backend>
 IntegrationStats integrate_frame(Backend backend, const TsdfIntegratorConfig& config,
                                  const FrameStrategy& strategy, map::TsdfMap& map,
-                                 const FramePoints& points, const Eigen::Isometry3d& T_map_sensor,
+                                 const FramePoints& input, const Eigen::Isometry3d& T_map_sensor,
                                  TsdfScratchBuffers& scratch, const Stream& stream) {
   IntegrationStats stats;
-  stats.points_in = points.cloud.count;
-  if (points.cloud.count == 0) return stats;
+  stats.points_in = input.cloud.count;
+  if (input.cloud.count == 0) return stats;
   StageProfiler::Scope profile("tsdf", stream);
   const FrameContext<Backend> frame{backend, stream, config, map, scratch, profile};
+  const bool timed = input.cloud.times_s != nullptr;
+  const FramePoints points = timed ? deskew_points(backend, input, scratch.input, stream) : input;
+  if (timed) {
+    stats.points_deskewed = input.cloud.count;
+    profile.mark("0 de-skew points");
+  }
   const float voxel_size = map.voxel_size_m();
   const RayParameters ray_parameters = ray_parameters_of(config, voxel_size, T_map_sensor);
   TsdfFramePlan plan = plan_rays(config, points);

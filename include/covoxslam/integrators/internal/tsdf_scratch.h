@@ -20,9 +20,10 @@ struct TsdfScratchBuffers {
   // The frame's points when they are not the caller's: depth images unprojected (or read in place
   // by the merge, which writes them here), host clouds uploaded.
   struct Input {
-    explicit Input(Device device) : points(device), colors(device) {}
+    explicit Input(Device device) : points(device), colors(device), deskewed_points(device) {}
     Buffer<Vec3f> points;
     Buffer<Rgb8> colors;
+    Buffer<Vec3f> deskewed_points;  // stage 0: a timed cloud's points at the cloud's pose
   };
   // The merge of points into rays (tsdf_ray_merging.h, internal/tsdf_stage_merge_rays.h).
   struct Merge {
