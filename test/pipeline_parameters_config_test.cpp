@@ -101,6 +101,8 @@ std::map<std::string, Expectation> expectations() {
        {"321", [](const SlamConfig& c) { return c.submaps.max_blocks == 321; }}},
       {"queues.sensor_scans", {"3", [](const SlamConfig& c) { return c.sensor_queue_size == 3u; }}},
       {"queues.submaps", {"9", [](const SlamConfig& c) { return c.submap_queue_size == 9u; }}},
+      {"queues.wait_when_full",
+       {"true", [](const SlamConfig& c) { return c.wait_when_queues_full; }}},
       {"memory.device_budget_mb",
        {"640", [](const SlamConfig& c) { return c.memory.device_budget_mb == 640.0; }}},
       {"memory.host_budget_mb",

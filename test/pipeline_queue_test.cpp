@@ -121,6 +121,35 @@ TEST(PipelineQueue, ClearDiscardsEntriesButKeepsAccepting) {
   EXPECT_FALSE(queue.pop(&value));
 }
 
+TEST(PipelineQueue, WaitingProducerLosesNothingAndStopsOnClose) {
+  BoundedQueue<int> queue(1, "test queue");
+  auto producer = std::async(std::launch::async, [&queue] {
+    std::vector<PushResult> results;
+    for (int value = 0; value < 50; ++value) results.push_back(queue.push_waiting(value));
+    return results;
+  });
+  std::vector<int> seen;
+  int value = 0;
+  while (seen.size() < 50 && queue.pop(&value)) {
+    seen.push_back(value);
+    if (seen.size() % 10 == 0) std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  ASSERT_EQ(producer.wait_for(std::chrono::seconds(5)), std::future_status::ready);
+  for (const PushResult result : producer.get()) EXPECT_EQ(result, PushResult::kQueued);
+  std::vector<int> expected(50);
+  for (int i = 0; i < 50; ++i) expected[i] = i;
+  EXPECT_EQ(seen, expected);
+  EXPECT_EQ(queue.dropped_count(), 0);
+
+  // A producer waiting on a full queue is released by close(), its entry refused.
+  queue.push_waiting(1);
+  auto blocked = std::async(std::launch::async, [&queue] { return queue.push_waiting(2); });
+  EXPECT_EQ(blocked.wait_for(std::chrono::milliseconds(50)), std::future_status::timeout);
+  queue.close();
+  ASSERT_EQ(blocked.wait_for(std::chrono::seconds(5)), std::future_status::ready);
+  EXPECT_EQ(blocked.get(), PushResult::kRejectedClosed);
+}
+
 TEST(PipelineQueue, ZeroCapacityIsAClearError) {
   try {
     BoundedQueue<int> queue(0, "sensor queue");

@@ -252,6 +252,7 @@ void add_esdf_mesh_submap_parameters(std::vector<SlamParameter>* table) {
           integer_parameter("submaps.max_blocks", COVOX_FIELD(submaps.max_blocks), 1),
           integer_parameter("queues.sensor_scans", COVOX_FIELD(sensor_queue_size), 1, 100000),
           integer_parameter("queues.submaps", COVOX_FIELD(submap_queue_size), 1, 1000),
+          bool_parameter("queues.wait_when_full", COVOX_FIELD(wait_when_queues_full)),
           number_parameter("memory.device_budget_mb", COVOX_FIELD(memory.device_budget_mb),
                            non_negative),
           number_parameter("memory.host_budget_mb", COVOX_FIELD(memory.host_budget_mb),

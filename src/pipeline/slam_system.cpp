@@ -189,8 +189,10 @@ bool SlamSystem::add_scan(Scan scan) {
   }
 
   std::optional<QueuedScan> dropped;
-  const PushResult result =
-      sensor_queue_.push(QueuedScan{std::move(scan), generation_.load()}, &dropped);
+  QueuedScan queued{std::move(scan), generation_.load()};
+  const PushResult result = config_.wait_when_queues_full
+                                ? sensor_queue_.push_waiting(std::move(queued))
+                                : sensor_queue_.push(std::move(queued), &dropped);
   if (result == PushResult::kRejectedClosed) {
     std::lock_guard<std::mutex> lock(state_mutex_);
     ++counters_.scans_rejected_not_running;
@@ -440,8 +442,10 @@ void SlamSystem::hand_over_active_submap() {
   }
   std::optional<QueuedSubmap> dropped;
   const int64_t id = active_submap_->id();
-  const PushResult result =
-      submap_queue_.push(QueuedSubmap{std::move(active_submap_), active_generation_}, &dropped);
+  QueuedSubmap queued{std::move(active_submap_), active_generation_};
+  const PushResult result = config_.wait_when_queues_full
+                                ? submap_queue_.push_waiting(std::move(queued))
+                                : submap_queue_.push(std::move(queued), &dropped);
   active_submap_.reset();
   if (result == PushResult::kQueued) return;
   if (result == PushResult::kRejectedClosed) {

@@ -190,7 +190,11 @@ SlamRunResult run_slam_system(ScanSource& source, const pipeline::SlamConfig& co
   SlamRunResult result;
   const size_t total =
       options.max_scans > 0 ? std::min(options.max_scans, source.size()) : source.size();
-  pipeline::SlamSystem slam(config);
+  // Offline input waits for room in the queues: nothing is dropped, and the result does not
+  // depend on the machine's speed or load.
+  pipeline::SlamConfig offline = config;
+  offline.wait_when_queues_full = true;
+  pipeline::SlamSystem slam(offline);
   const auto start = Clock::now();
   TimelineRecorder timeline(options.timeline_interval_s, config.map, config.device, start);
   SourceScan scan;
@@ -203,15 +207,6 @@ SlamRunResult run_slam_system(ScanSource& source, const pipeline::SlamConfig& co
     if (result.scans_given == 0) first_stamp_s = scan.stamp_s;
     last_stamp_s = scan.stamp_s;
     result.odometry.poses.push_back(to_stamped(scan.stamp_s, scan.T_odom_sensor));
-    // Back-pressure instead of drops. The submap queue keeps one place free for the submap the
-    // frontend may be closing right now.
-    const auto throttle_start = Clock::now();
-    const size_t submap_limit = std::max<size_t>(1, config.submap_queue_size - 1);
-    while (slam.sensor_queue_length() >= config.sensor_queue_size ||
-           slam.submap_queue_length() >= submap_limit) {
-      std::this_thread::sleep_for(std::chrono::microseconds(200));
-    }
-    result.throttle_s += seconds_since(throttle_start);
     pipeline::Scan input;
     input.stamp_s = scan.stamp_s;
     input.T_odom_sensor = scan.T_odom_sensor;
@@ -219,7 +214,10 @@ SlamRunResult run_slam_system(ScanSource& source, const pipeline::SlamConfig& co
     input.colors = std::move(scan.colors);
     input.point_times_s = std::move(scan.point_times_s);
     input.sweep = scan.sweep;
+    // add_scan waits while the sensor queue is full (back-pressure instead of drops).
+    const auto throttle_start = Clock::now();
     slam.add_scan(std::move(input));
+    result.throttle_s += seconds_since(throttle_start);
     ++result.scans_given;
     timeline.after_scan(last_stamp_s - first_stamp_s, slam, &result.timeline);
     if (options.progress_bar && (result.scans_given % 10 == 0 || result.scans_given == total)) {

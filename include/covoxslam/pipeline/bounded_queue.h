@@ -2,9 +2,11 @@
 // BoundedQueue: the hand-over between the SLAM threads (sensor input to front end, front end to
 // back end).
 //
-// The producer never waits: when the queue is full, push() drops the OLDEST entry and counts it.
-// Dropping the oldest (not the newest) keeps the map following the robot: after a stall the
-// frontend resumes with the most recent scans instead of catching up on stale ones.
+// Live input: the producer never waits; when the queue is full, push() drops the OLDEST entry
+// and counts it. Dropping the oldest (not the newest) keeps the map following the robot: after a
+// stall the frontend resumes with the most recent scans instead of catching up on stale ones.
+// Offline input: push_waiting() waits for room instead, so nothing is lost and what is mapped does
+// not depend on the machine's speed.
 // Consumers block in pop() until an entry arrives, the queue is closed and drained, or aborted.
 #include <chrono>
 #include <condition_variable>
@@ -68,6 +70,20 @@ class BoundedQueue {
     return result;
   }
 
+  // Appends `item` once the queue has room, waiting for a consumer to take an entry (or for
+  // clear()); kRejectedClosed when the queue is (or gets) closed or aborted meanwhile.
+  PushResult push_waiting(T item) {
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      room_.wait(lock, [this] { return closed_ || aborted_ || entries_.size() < capacity_; });
+      if (closed_ || aborted_) return PushResult::kRejectedClosed;
+      entries_.push_back(Entry{std::move(item), Clock::now()});
+      ++pushed_count_;
+    }
+    ready_.notify_one();
+    return PushResult::kQueued;
+  }
+
   // Waits for the next entry. Returns false when the queue is closed and empty, or aborted.
   // `waited_s` (optional) receives how long the entry sat in the queue (the "queue wait").
   bool pop(T* item, double* waited_s = nullptr) {
@@ -77,6 +93,7 @@ class BoundedQueue {
     Entry entry = std::move(entries_.front());
     entries_.pop_front();
     lock.unlock();
+    room_.notify_one();
     if (waited_s) *waited_s = std::chrono::duration<double>(Clock::now() - entry.queued_at).count();
     *item = std::move(entry.item);
     return true;
@@ -100,6 +117,7 @@ class BoundedQueue {
     Entry entry = std::move(entries_.front());
     entries_.pop_front();
     lock.unlock();
+    room_.notify_one();
     if (waited_s) *waited_s = std::chrono::duration<double>(Clock::now() - entry.queued_at).count();
     *item = std::move(entry.item);
     return PopResult::kItem;
@@ -121,6 +139,7 @@ class BoundedQueue {
       std::lock_guard<std::mutex> lock(mutex_);
       discarded.swap(entries_);
     }
+    room_.notify_all();
     return discarded.size();  // destroyed here, outside the lock
   }
 
@@ -131,6 +150,7 @@ class BoundedQueue {
       closed_ = true;
     }
     ready_.notify_all();
+    room_.notify_all();
   }
 
   // Accepts pushes again after close() (SlamSystem::resume); an aborted queue stays aborted.
@@ -150,6 +170,7 @@ class BoundedQueue {
       discarded.swap(entries_);
     }
     ready_.notify_all();
+    room_.notify_all();
     return discarded.size();
   }
 
@@ -176,6 +197,7 @@ class BoundedQueue {
   const std::string what_;
   mutable std::mutex mutex_;
   std::condition_variable ready_;
+  std::condition_variable room_;  // push_waiting(): an entry was taken, or the queue closed
   std::deque<Entry> entries_;
   bool closed_ = false;
   bool aborted_ = false;

@@ -94,6 +94,11 @@ struct SlamConfig {
   size_t sensor_queue_size = 20;
   // Submaps waiting for the backend (each holds its whole TSDF: keep this small).
   size_t submap_queue_size = 4;
+  // False (live input): a full queue drops its oldest entry, counted, so the map keeps up with
+  // the robot. True (offline input, the offline runner's): add_scan() and the frontend wait for
+  // room instead, so nothing is dropped and the result does not depend on the machine's speed or
+  // load (add_scan() then needs the threads running).
+  bool wait_when_queues_full = false;
   // Standard deviations of the odometry between consecutive submaps (information = 1 / sigma^2).
   double odometry_translation_sigma_m = 0.1;
   double odometry_yaw_sigma_rad = 0.01;
