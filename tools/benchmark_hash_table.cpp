@@ -51,7 +51,7 @@ Options parse(int argc, char** argv) {
   options.load_factors = args.numbers("--load-factors", options.load_factors);
   options.lookup_blocks = args.integer("--lookup-blocks", options.lookup_blocks);
   options.lookups = args.integer("--lookups", options.lookups);
-  options.output = args.text("--output", "");
+  options.output = args.output_file("--output", "");
   args.finish();
   for (double lf : options.load_factors) {
     if (!(lf > 0.0 && lf < 1.0)) args.fail("load factors must be in (0, 1)");

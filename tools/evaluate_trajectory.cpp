@@ -63,7 +63,7 @@ void evaluate_trajectories(tools::CommandLine& args, const std::string& referenc
   options.relative.unit = tools::parse_relative_delta_unit(args.text("--rpe-unit", "m"));
   const std::vector<std::string> estimate_paths = split_commas(estimates_text);
   std::vector<std::string> labels = split_commas(args.text("--labels", ""));
-  const std::string plot_path = args.text("--plot", "");
+  const std::string plot_path = args.output_file("--plot", "");
   const std::string topic = args.text("--topic", "/penguin/piksi_node/enu_pose_fix");
   args.finish();
   // A .bag is read through its trajectory topic, anything else as a TUM file.

@@ -99,7 +99,7 @@ Options parse_options(int argc, char** argv) {
   o.esdf_every = args.integer("--esdf-every", 10);
   o.mesh_every = args.integer("--mesh-every", 10);
   o.max_scans = args.integer("--max-scans", 0);
-  o.mesh_path = args.text("--mesh", "map_flight_mesh.ply");
+  o.mesh_path = args.output_file("--mesh", "map_flight_mesh.ply");
   args.finish();
   if (o.pose_source != "odometry" && o.pose_source != "truth")
     args.fail("--poses must be odometry or truth");

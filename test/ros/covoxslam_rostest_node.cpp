@@ -417,9 +417,11 @@ bool call_trigger(const std::string& name, std::string* message) {
   return trigger.response.success;
 }
 
-bool call_file(const std::string& name, const std::string& path, std::string* message) {
+bool call_file(const std::string& name, const std::string& path, std::string* message,
+               bool overwrite = false) {
   covoxslam::FilePath file;
   file.request.file_path = path;
+  file.request.overwrite = overwrite;
   if (!ros::service::call(ns(name), file)) {
     *message = "the call failed";
     return false;
@@ -929,13 +931,16 @@ TEST_F(CovoxSlamNodeletTest, MapsABagAndServesTheMap) {
   EXPECT_NEAR(correction.transform.translation.x, 0.0, 0.3);
   EXPECT_NEAR(correction.transform.translation.y, 0.0, 0.3);
 
-  // Saving: map, trajectory (one TUM line per scan), mesh (a PLY with faces).
-  const std::string map_path = (folder_ / "map.covoxmap").string();
-  const std::string trajectory_path = (folder_ / "trajectory.tum").string();
-  const std::string mesh_path = (folder_ / "mesh.ply").string();
-  EXPECT_TRUE(call_file("save_map", map_path, &message)) << message;
+  // Saving: map, trajectory (one TUM line per scan), mesh (a PLY with faces), by names in the
+  // node's ~ros/output_dir (the .test file sets it; earlier runs' files are replaced).
+  std::string output_dir;
+  ASSERT_TRUE(ros::param::get(ns("ros/output_dir"), output_dir));
+  const std::string map_path = output_dir + "/map.covoxmap";
+  const std::string trajectory_path = output_dir + "/trajectory.tum";
+  const std::string mesh_path = output_dir + "/mesh.ply";
+  ASSERT_TRUE(call_file("save_map", "map.covoxmap", &message, true)) << message;
   EXPECT_GT(fs::file_size(map_path), 1000u);
-  EXPECT_TRUE(call_file("save_trajectory", trajectory_path, &message)) << message;
+  EXPECT_TRUE(call_file("save_trajectory", "trajectory.tum", &message, true)) << message;
   {
     std::ifstream file(trajectory_path);
     std::string line;
@@ -945,7 +950,7 @@ TEST_F(CovoxSlamNodeletTest, MapsABagAndServesTheMap) {
     }
     EXPECT_EQ(lines, kClouds);
   }
-  EXPECT_TRUE(call_file("save_mesh", mesh_path, &message)) << message;
+  EXPECT_TRUE(call_file("save_mesh", "mesh.ply", &message, true)) << message;
   {
     std::ifstream file(mesh_path, std::ios::binary);
     std::string header((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
@@ -953,16 +958,29 @@ TEST_F(CovoxSlamNodeletTest, MapsABagAndServesTheMap) {
     ASSERT_NE(face, std::string::npos);
     EXPECT_GT(std::stol(header.substr(face + 13)), 100);
   }
-  // A bad request is answered, not crashed on.
+  // A bad request is answered, not crashed on; names outside the folder are refused, and an
+  // existing file is kept unless overwrite is asked for.
   EXPECT_FALSE(call_file("save_map", "", &message));
-  EXPECT_FALSE(call_file("load_map", (folder_ / "missing.covoxmap").string(), &message));
+  EXPECT_FALSE(call_file("load_map", "missing.covoxmap", &message));
   EXPECT_NE(message.find("missing.covoxmap"), std::string::npos) << message;
+  const std::string outside = (folder_ / "outside.covoxmap").string();
+  EXPECT_FALSE(call_file("save_map", outside, &message, true));
+  EXPECT_NE(message.find("absolute"), std::string::npos) << message;
+  EXPECT_FALSE(fs::exists(outside));
+  EXPECT_FALSE(call_file("save_mesh", "../mesh.ply", &message, true));
+  EXPECT_NE(message.find("contains '..'"), std::string::npos) << message;
+  EXPECT_FALSE(call_file("load_map", "/etc/passwd", &message));
+  EXPECT_NE(message.find("refused"), std::string::npos) << message;
+  const auto map_bytes = fs::file_size(map_path);
+  EXPECT_FALSE(call_file("save_map", "map.covoxmap", &message));
+  EXPECT_NE(message.find("overwrite"), std::string::npos) << message;
+  EXPECT_EQ(fs::file_size(map_path), map_bytes);
 
   // Reset empties the map; loading the saved map brings the submaps and their meshes back.
   ASSERT_TRUE(call_trigger("reset", &message)) << message;
   EXPECT_TRUE(wait_for(
       [] { return latest.submaps.submaps.empty() && latest.separated_meshes.empty(); }, 10.0));
-  ASSERT_TRUE(call_file("load_map", map_path, &message)) << message;
+  ASSERT_TRUE(call_file("load_map", "map.covoxmap", &message)) << message;
   EXPECT_TRUE(wait_for([&] { return latest.submaps.submaps.size() == submap_count; }, 10.0))
       << latest.submaps.submaps.size() << " submaps after loading, " << submap_count << " saved";
   {
