@@ -19,6 +19,7 @@
 #include "covoxslam/io/atomic_file.h"
 #include "covoxslam/io/file_bytes.h"
 #include "covoxslam/io/output_folder.h"
+#include "support/error_message.h"
 #include "support/scratch_folder.h"
 
 namespace covox {
@@ -38,16 +39,7 @@ std::string read_text(const std::string& path) {
   return text.str();
 }
 
-// The message of the covox::Error that `action` throws ("" when it throws none).
-template <class Action>
-std::string error_of(Action action) {
-  try {
-    action();
-  } catch (const Error& error) {
-    return error.what();
-  }
-  return std::string();
-}
+using testing_support::error_message_of;
 
 std::vector<std::string> entries(const fs::path& folder) {
   std::vector<std::string> names;
@@ -89,19 +81,22 @@ TEST(IoOutputFolder, NamesThatLeaveTheFolderAreRefusedByTheirText) {
       {std::string(5000, 'a'), "longer than"}};
   for (const auto& [name, why] : refused) {
     for (const bool overwrite : {false, true}) {
-      const std::string message = error_of([&] { folder.target(name, overwrite); });
+      const std::string message = error_message_of([&] { folder.target(name, overwrite); });
       EXPECT_NE(message.find("refused: '"), std::string::npos) << name << ": " << message;
       EXPECT_NE(message.find(why), std::string::npos) << name << ": " << message;
       EXPECT_NE(message.find("~ros/output_dir (" + folders.inside.string() + ")"),
                 std::string::npos)
           << message;
     }
-    EXPECT_NE(error_of([&] { folder.open_for_reading(name); }).find(why), std::string::npos);
+    EXPECT_NE(error_message_of([&] { folder.open_for_reading(name); }).find(why),
+              std::string::npos);
   }
-  EXPECT_EQ(error_of([&] { folder.target("a/../b", false); }),
+  EXPECT_EQ(error_message_of([&] { folder.target("a/../b", false); }),
             "refused: 'a/../b' contains '..'; give a name relative to ~ros/output_dir (" +
                 folders.inside.string() + ")");
-  EXPECT_NE(error_of([&] { folder.target(std::string("a\0b\n", 4), true); }).find("'a\\x00b\\x0a'"),
+  EXPECT_NE(error_message_of([&] {
+              folder.target(std::string("a\0b\n", 4), true);
+            }).find("'a\\x00b\\x0a'"),
             std::string::npos)
       << "control characters are shown escaped";
   EXPECT_EQ(entries(folders.outside), std::vector<std::string>{"secret"});
@@ -113,7 +108,7 @@ TEST(IoOutputFolder, WritesInsideAndOverwritesOnlyWhenAsked) {
   const io::OutputFolder folder(folders.inside.string(), "~ros/output_dir");
   write_to(folder.target("map.bin", false), "first");
   EXPECT_EQ(read_text((folders.inside / "map.bin").string()), "first");
-  const std::string message = error_of([&] { folder.target("map.bin", false); });
+  const std::string message = error_message_of([&] { folder.target("map.bin", false); });
   EXPECT_NE(message.find("exists and overwrite was not asked for"), std::string::npos) << message;
   EXPECT_EQ(read_text((folders.inside / "map.bin").string()), "first");
   write_to(folder.target("map.bin", true), "second");
@@ -122,7 +117,7 @@ TEST(IoOutputFolder, WritesInsideAndOverwritesOnlyWhenAsked) {
   fs::create_directories(folders.inside / "runs" / "a");
   write_to(folder.target("runs/a/mesh.ply", false), "mesh");
   EXPECT_EQ(read_text((folders.inside / "runs/a/mesh.ply").string()), "mesh");
-  EXPECT_NE(error_of([&] { folder.target("runs/b/mesh.ply", false); }).find("'runs/b'"),
+  EXPECT_NE(error_message_of([&] { folder.target("runs/b/mesh.ply", false); }).find("'runs/b'"),
             std::string::npos);
   const io::FileDescriptor read = folder.open_for_reading("runs/a/mesh.ply");
   EXPECT_TRUE(read.valid());
@@ -136,20 +131,21 @@ TEST(IoOutputFolder, SymbolicLinksAreNeverFollowed) {
   // A link at the target's name.
   fs::create_symlink(secret, folders.inside / "link.bin");
   for (const bool overwrite : {false, true}) {
-    EXPECT_NE(error_of([&] { folder.target("link.bin", overwrite); }).find("symbolic link"),
+    EXPECT_NE(error_message_of([&] { folder.target("link.bin", overwrite); }).find("symbolic link"),
               std::string::npos);
   }
-  EXPECT_NE(error_of([&] { folder.open_for_reading("link.bin"); }).find("symbolic link"),
+  EXPECT_NE(error_message_of([&] { folder.open_for_reading("link.bin"); }).find("symbolic link"),
             std::string::npos);
   // A link as a folder on the way: refused whether the file behind it exists or not, with the
   // same words, so a refusal does not tell what lies outside.
   fs::create_directory_symlink(folders.outside, folders.inside / "out");
-  const std::string existing = error_of([&] { folder.open_for_reading("out/secret"); });
-  const std::string missing = error_of([&] { folder.open_for_reading("out/missing"); });
+  const std::string existing = error_message_of([&] { folder.open_for_reading("out/secret"); });
+  const std::string missing = error_message_of([&] { folder.open_for_reading("out/missing"); });
   EXPECT_NE(existing.find("passes through 'out'"), std::string::npos) << existing;
   EXPECT_EQ(missing.substr(0, missing.find("out/")), existing.substr(0, existing.find("out/")));
-  EXPECT_NE(error_of([&] { folder.target("out/new.bin", true); }).find("passes through 'out'"),
-            std::string::npos);
+  EXPECT_NE(
+      error_message_of([&] { folder.target("out/new.bin", true); }).find("passes through 'out'"),
+      std::string::npos);
   EXPECT_EQ(read_text(secret), "secret");
   EXPECT_EQ(entries(folders.outside), std::vector<std::string>{"secret"});
 }
@@ -165,11 +161,12 @@ TEST(IoOutputFolder, DevicesAndFifosAreRefused) {
     names.push_back("null");
   for (const std::string& name : names) {
     for (const bool overwrite : {false, true}) {
-      EXPECT_NE(error_of([&] { folder.target(name, overwrite); }).find("not a regular file"),
-                std::string::npos)
+      EXPECT_NE(
+          error_message_of([&] { folder.target(name, overwrite); }).find("not a regular file"),
+          std::string::npos)
           << name;
     }
-    EXPECT_NE(error_of([&] { folder.open_for_reading(name); }).find("not a regular file"),
+    EXPECT_NE(error_message_of([&] { folder.open_for_reading(name); }).find("not a regular file"),
               std::string::npos)
         << name;
   }
@@ -211,7 +208,7 @@ TEST(IoAtomicFile, TemporariesAreFreshAndAFileThatAppearsIsNotReplaced) {
   ASSERT_EQ(::write(first.fd(), "late", 4), 4);
   // Someone else's file appears under the name while the temporary is written.
   write_text((folders.inside / "a.bin").string(), "theirs");
-  const std::string message = error_of([&] { first.commit(); });
+  const std::string message = error_message_of([&] { first.commit(); });
   EXPECT_NE(message.find("appeared while writing"), std::string::npos) << message;
   EXPECT_EQ(read_text((folders.inside / "a.bin").string()), "theirs");
   // With overwrite the rename replaces it.
@@ -223,7 +220,8 @@ TEST(IoAtomicFile, TemporariesAreFreshAndAFileThatAppearsIsNotReplaced) {
 
 TEST(IoAtomicFile, ReadingAFolderIsRefusedByName) {
   ScratchFolder scratch;
-  const std::string message = error_of([&] { io::read_text_file(scratch.path().string()); });
+  const std::string message =
+      error_message_of([&] { io::read_text_file(scratch.path().string()); });
   EXPECT_NE(message.find("is a folder"), std::string::npos) << message;
   EXPECT_NE(message.find(scratch.path().string()), std::string::npos) << message;
 }

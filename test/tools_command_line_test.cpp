@@ -23,6 +23,7 @@
 #include "covoxslam/io/setting_values.h"
 #include "covoxslam/io/yaml_subset.h"
 #include "covoxslam/pipeline/slam_parameters.h"
+#include "support/error_message.h"
 #include "support/scratch_folder.h"
 
 namespace covox {
@@ -37,21 +38,13 @@ CommandLine parse(const std::vector<std::string>& arguments) {
                      CommandLine::OnFailure::kThrow);
 }
 
-template <class Action>
-std::string error_of(Action action) {
-  try {
-    action();
-  } catch (const Error& error) {
-    return error.what();
-  }
-  return std::string();
-}
+using testing_support::error_message_of;
 
 void expect_refused(const std::vector<std::string>& arguments,
                     const std::function<void(CommandLine&)>& read,
                     const std::vector<std::string>& words) {
   CommandLine args = parse(arguments);
-  const std::string message = error_of([&] { read(args); });
+  const std::string message = error_message_of([&] { read(args); });
   ASSERT_FALSE(message.empty()) << "accepted: " << ::testing::PrintToString(arguments);
   for (const std::string& word : words)
     EXPECT_NE(message.find(word), std::string::npos) << "'" << word << "' not in: " << message;
@@ -168,7 +161,7 @@ TEST(ToolsCommandLineFuzz, NumbersAreReadExactlyOrRefusedWithAMessage) {
     const bool in_range = errno != ERANGE && std::isfinite(reference);
     CommandLine args = parse({"--value-m", text});
     double value = 0.0;
-    const std::string message = error_of([&] { value = args.number("--value-m", -1.0); });
+    const std::string message = error_message_of([&] { value = args.number("--value-m", -1.0); });
     if (message.empty()) {
       ++accepted;
       ASSERT_TRUE(grammatical) << "accepted '" << text << "'";
@@ -193,7 +186,8 @@ TEST(ToolsCommandLineFuzz, IntegersAreReadExactlyOrRefusedWithTheRange) {
     const int64_t maximum = 1 + static_cast<int64_t>(fuzz.below(100000));
     CommandLine args = parse({"--count", text});
     int64_t value = 0;
-    const std::string message = error_of([&] { value = args.integer("--count", 1, 0, maximum); });
+    const std::string message =
+        error_message_of([&] { value = args.integer("--count", 1, 0, maximum); });
     if (message.empty()) {
       ASSERT_TRUE(exact) << "accepted '" << text << "'";
       ASSERT_EQ(value, reference);
@@ -222,7 +216,7 @@ TEST(ToolsCommandLineFuzz, RandomArgumentListsEndInAValueOrAMessage) {
       if (name != "--flag" && fuzz.below(8) != 0) arguments.push_back(fuzz.number_text());
     }
     CommandLine args = parse(arguments);
-    const std::string message = error_of([&] {
+    const std::string message = error_message_of([&] {
       args.number("--a", 0.0);
       args.integer("--b", 0);
       args.flag("--flag");
@@ -273,7 +267,7 @@ TEST(ToolsCommandLineFuzz, TheYamlReaderReadsBackWhatWasWrittenOrRefusesWithALin
     }
     io::YamlDocument document;
     const std::string message =
-        error_of([&] { document = io::parse_yaml_subset(text, "fuzz.yaml"); });
+        error_message_of([&] { document = io::parse_yaml_subset(text, "fuzz.yaml"); });
     if (!message.empty()) {
       ASSERT_EQ(message.rfind("fuzz.yaml", 0), 0u) << message;
       ASSERT_FALSE(plain) << "refused a plain document:\n" << text << message;
@@ -285,7 +279,7 @@ TEST(ToolsCommandLineFuzz, TheYamlReaderReadsBackWhatWasWrittenOrRefusesWithALin
     const pipeline::TextParameterSource source(values);
     for (const io::YamlEntry& entry : document.entries) {
       double value = 0.0;
-      const std::string problem = error_of([&] { source.get_number(entry.key, &value); });
+      const std::string problem = error_message_of([&] { source.get_number(entry.key, &value); });
       if (!problem.empty()) {
         ASSERT_NE(problem.find(entry.key), std::string::npos) << problem;
         continue;

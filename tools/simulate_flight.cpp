@@ -91,9 +91,10 @@ void print_summary(const sim::SimulatedMission& mission, size_t total_points) {
 
 int main(int argc, char** argv) {
   tools::CommandLine args(argc, argv, std::string(kUsage) + sim::kSimulationUsage);
-  const std::string output_dir = args.output_folder("--output-dir", "sim_flight");
   const int64_t max_scans = args.integer("--max-scans", 0, 0, tools::CommandLine::kIntMax);
   const sim::SimulationOptions options = sim::read_simulation_options(args);
+  // Last: the folder is created only once every other value was read.
+  const std::string output_dir = args.output_folder("--output-dir", "sim_flight");
   args.finish();
 
   try {

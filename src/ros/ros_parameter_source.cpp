@@ -92,19 +92,25 @@ std::string RosParameterSource::location(const std::string& name) const {
   return it == files_.locations.end() ? node_.resolveName(server) : it->second;
 }
 
+std::string RosParameterSource::labelled(const std::string& name, const std::string& where) const {
+  // The SLAM parameters' messages get the location from read_slam_config (as run_slam's do); the
+  // node options' readers name the parameter only, so their label carries it.
+  return prefix_.empty() ? name : prefix_ + name + " in " + where;
+}
+
 bool RosParameterSource::text_of(const std::string& name, std::string* text,
                                  std::string* label) const {
   const std::string server = ros_name(name);
   XmlRpc::XmlRpcValue value;
   if (node_.hasParam(server) && node_.getParam(server, value)) {
     *text = server_text(node_, server, value);
-    *label = prefix_ + name + " in " + node_.resolveName(server);
+    *label = labelled(name, node_.resolveName(server));
     return true;
   }
   const auto it = files_.values.find(prefix_ + name);
   if (it == files_.values.end()) return false;
   *text = it->second;
-  *label = it->first + " in " + files_.locations.at(it->first);
+  *label = labelled(name, files_.locations.at(it->first));
   return true;
 }
 

@@ -47,6 +47,8 @@ class RosParameterSource : public pipeline::ParameterSource {
   // The text of `name`: the server's value turned into text, else the files'; `label` names
   // where it was set for messages. False when unset.
   bool text_of(const std::string& name, std::string* text, std::string* label) const;
+  // `name` for a value message, with `where` it was set unless the caller adds that.
+  std::string labelled(const std::string& name, const std::string& where) const;
 
   ros::NodeHandle node_;  // the section's node handle
   std::string prefix_;    // "" or "ros."
