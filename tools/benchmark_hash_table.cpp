@@ -48,7 +48,7 @@ Options parse(int argc, char** argv) {
   options.keys = args.positive_integer("--keys", options.keys);
   options.device = args.text("--device", options.device);
   options.repeats = static_cast<int>(args.positive_integer("--repeats", options.repeats));
-  options.load_factors = args.numbers("--load-factors", options.load_factors);
+  options.load_factors = args.numbers("--load-factors", options.load_factors, 1e-6, 0.999999);
   options.lookup_blocks = args.integer("--lookup-blocks", options.lookup_blocks);
   options.lookups = args.integer("--lookups", options.lookups);
   options.output = args.output_file("--output", "");
