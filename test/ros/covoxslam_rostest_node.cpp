@@ -430,6 +430,27 @@ bool call_file(const std::string& name, const std::string& path, std::string* me
   return file.response.success;
 }
 
+// A bad request is answered, not crashed on: names outside ~ros/output_dir are refused, and the
+// existing `map_path` is kept unless overwrite is asked for.
+void expect_bad_file_requests_refused(const fs::path& outside_folder, const std::string& map_path) {
+  std::string message;
+  EXPECT_FALSE(call_file("save_map", "", &message));
+  EXPECT_FALSE(call_file("load_map", "missing.covoxmap", &message));
+  EXPECT_NE(message.find("missing.covoxmap"), std::string::npos) << message;
+  const std::string outside = (outside_folder / "outside.covoxmap").string();
+  EXPECT_FALSE(call_file("save_map", outside, &message, true));
+  EXPECT_NE(message.find("absolute"), std::string::npos) << message;
+  EXPECT_FALSE(fs::exists(outside));
+  EXPECT_FALSE(call_file("save_mesh", "../mesh.ply", &message, true));
+  EXPECT_NE(message.find("contains '..'"), std::string::npos) << message;
+  EXPECT_FALSE(call_file("load_map", "/etc/passwd", &message));
+  EXPECT_NE(message.find("refused"), std::string::npos) << message;
+  const auto map_bytes = fs::file_size(map_path);
+  EXPECT_FALSE(call_file("save_map", "map.covoxmap", &message));
+  EXPECT_NE(message.find("overwrite"), std::string::npos) << message;
+  EXPECT_EQ(fs::file_size(map_path), map_bytes);
+}
+
 // An ESDF slice at 1.0 m: distances match the room's analytic distance where both are well inside.
 // Returns how many cells were compared; `good` receives how many were within 0.3 m.
 int compare_slice_with_room(const sensor_msgs::PointCloud2& slice, int* good) {
@@ -958,23 +979,7 @@ TEST_F(CovoxSlamNodeletTest, MapsABagAndServesTheMap) {
     ASSERT_NE(face, std::string::npos);
     EXPECT_GT(std::stol(header.substr(face + 13)), 100);
   }
-  // A bad request is answered, not crashed on; names outside the folder are refused, and an
-  // existing file is kept unless overwrite is asked for.
-  EXPECT_FALSE(call_file("save_map", "", &message));
-  EXPECT_FALSE(call_file("load_map", "missing.covoxmap", &message));
-  EXPECT_NE(message.find("missing.covoxmap"), std::string::npos) << message;
-  const std::string outside = (folder_ / "outside.covoxmap").string();
-  EXPECT_FALSE(call_file("save_map", outside, &message, true));
-  EXPECT_NE(message.find("absolute"), std::string::npos) << message;
-  EXPECT_FALSE(fs::exists(outside));
-  EXPECT_FALSE(call_file("save_mesh", "../mesh.ply", &message, true));
-  EXPECT_NE(message.find("contains '..'"), std::string::npos) << message;
-  EXPECT_FALSE(call_file("load_map", "/etc/passwd", &message));
-  EXPECT_NE(message.find("refused"), std::string::npos) << message;
-  const auto map_bytes = fs::file_size(map_path);
-  EXPECT_FALSE(call_file("save_map", "map.covoxmap", &message));
-  EXPECT_NE(message.find("overwrite"), std::string::npos) << message;
-  EXPECT_EQ(fs::file_size(map_path), map_bytes);
+  expect_bad_file_requests_refused(folder_, map_path);
 
   // Reset empties the map; loading the saved map brings the submaps and their meshes back.
   ASSERT_TRUE(call_trigger("reset", &message)) << message;
