@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <functional>
 #include <map>
 #include <random>
@@ -22,6 +23,7 @@
 #include "covoxslam/core/error.h"
 #include "covoxslam/io/setting_values.h"
 #include "covoxslam/io/yaml_subset.h"
+#include "covoxslam/pipeline/slam_config_files.h"
 #include "covoxslam/pipeline/slam_parameters.h"
 #include "support/error_message.h"
 #include "support/scratch_folder.h"
@@ -93,6 +95,23 @@ TEST(ToolsCommandLine, OutputFilesAreCheckedWhenRead) {
   CommandLine good = parse({"--mesh", scratch.file("mesh.ply")});
   EXPECT_EQ(good.output_file("--mesh", ""), scratch.file("mesh.ply"));
   EXPECT_TRUE(std::filesystem::is_empty(scratch.path())) << "the probe left a file behind";
+}
+
+// The configuration files read by run_slam: a quoted number and an exponent are numbers, and a bad
+// value is named with its file and line (the node's rostest checks the same files and message).
+TEST(ToolsConfigurationFiles, QuotedAndExponentNumbersReadAsInTheNode) {
+  ScratchFolder scratch;
+  std::ofstream(scratch.file("good.yaml"))
+      << "map:\n  voxel_size_m: \"0.25\"\ntsdf:\n  truncation_distance_m: 75e-2\n";
+  std::ofstream(scratch.file("bad.yaml")) << "map:\n  voxel_size_m: 0.2x\n";
+  pipeline::SlamConfig config;
+  pipeline::load_slam_config(scratch.file("good.yaml"), &config);
+  EXPECT_EQ(config.map.voxel_size_m, 0.25f);
+  EXPECT_EQ(config.tsdf.truncation_distance_m, 0.75f);
+  EXPECT_EQ(
+      error_message_of([&] { pipeline::load_slam_config(scratch.file("bad.yaml"), &config); }),
+      scratch.file("bad.yaml") +
+          ":2: parameter 'map.voxel_size_m': expected a finite decimal number, got '0.2x'");
 }
 
 // ---- Fuzz ----

@@ -1038,6 +1038,36 @@ TEST(CovoxSlamNodeStartup, BadParametersStopTheNodeWithTheirName) {
   }
 }
 
+// The node reads configuration files with the offline runner's reader: a quoted number and an
+// exponent (which `rosparam load` keeps as texts) are read in both, and a bad value stops both
+// with the same message (tools_command_line_test.cpp checks the runner's side).
+TEST(CovoxSlamNodeStartup, ConfigurationFilesReadAsTheOfflineRunnerReadsThem) {
+  if (odometry_as_topic() || depth_images())
+    GTEST_SKIP() << "checked once, in covoxslam_nodelet.test";
+  const fs::path folder =
+      fs::temp_directory_path() / ("covoxslam_yaml_" + std::to_string(::getpid()));
+  fs::create_directories(folder);
+  std::ofstream(folder / "good.yaml") << "map:\n  voxel_size_m: \"0.25\"\ntsdf:\n"
+                                      << "  truncation_distance_m: 75e-2\n";
+  std::ofstream(folder / "bad.yaml") << "map:\n  voxel_size_m: 0.2x\n";
+  int status = 0;
+  // `timeout` ends the node once it has started; its stdout is line-buffered for the check.
+  std::string output =
+      run_and_capture("timeout -k 10 6 stdbuf -oL " + std::string(COVOXSLAM_NODE_PATH) +
+                          " __name:=yaml_good _config_file:=" + (folder / "good.yaml").string(),
+                      &status);
+  EXPECT_NE(output.find("voxel 0.25 m"), std::string::npos) << output;
+  output = run_and_capture(std::string(COVOXSLAM_NODE_PATH) +
+                               " __name:=yaml_bad _config_file:=" + (folder / "bad.yaml").string(),
+                           &status);
+  EXPECT_NE(status, 0) << output;
+  EXPECT_NE(output.find("bad.yaml:2: parameter 'map.voxel_size_m': expected a finite decimal "
+                        "number, got '0.2x'"),
+            std::string::npos)
+      << output;
+  fs::remove_all(folder);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
