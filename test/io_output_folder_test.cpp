@@ -194,6 +194,32 @@ TEST(IoAtomicFile, ALinkAtTheOldTemporaryNameOrTheTargetIsNotWrittenThrough) {
   EXPECT_EQ(read_text(linked), "new");
 }
 
+// An operator's path that is another user's link to a device or FIFO (planted in a shared
+// folder) is not written through; the user's own link is (as /dev/stdout is root's).
+TEST(IoAtomicFile, AnotherUsersLinkToADeviceIsNotWrittenThrough) {
+  Folders folders;
+  fs::create_directories(folders.inside);
+  const std::string fifo = (folders.outside / "pipe").string();
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0666), 0);
+  // A reader first: a wrong open for writing returns at once instead of hanging.
+  const int reader = ::open(fifo.c_str(), O_RDONLY | O_NONBLOCK);
+  ASSERT_GE(reader, 0);
+  const std::string planted = (folders.inside / "planted.ply").string();
+  fs::create_symlink(fifo, planted);
+  if (::lchown(planted.c_str(), 65534, 65534) != 0) {
+    ::close(reader);
+    GTEST_SKIP() << "changing a link's owner needs root";
+  }
+  const std::string message = error_message_of([&] {
+    io::write_file_replacing(planted, "test", false, [](std::ostream& out) { out << "data"; });
+  });
+  EXPECT_NE(message.find("another user's symbolic link"), std::string::npos) << message;
+  char byte = 0;
+  EXPECT_LE(::read(reader, &byte, 1), 0) << "written through the link";
+  ::close(reader);
+  EXPECT_TRUE(fs::is_symlink(planted));
+}
+
 TEST(IoAtomicFile, TemporariesAreFreshAndAFileThatAppearsIsNotReplaced) {
   Folders folders;
   const io::OutputFolder folder(folders.inside.string(), "~ros/output_dir");

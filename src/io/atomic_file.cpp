@@ -23,10 +23,14 @@ constexpr int kTemporaryNameAttempts = 64;
 // The name part kept in a temporary's name, so that it stays under NAME_MAX (255).
 constexpr size_t kTemporaryNamePrefix = 200;
 
+// 64 bits from the system's random source (getrandom), drawn anew for every name so that one
+// temporary's name tells nothing about the next.
 std::string random_suffix() {
-  static thread_local std::mt19937_64 generator(std::random_device{}());
+  std::random_device source;
+  const unsigned long long bits =
+      (static_cast<unsigned long long>(source()) << 32) ^ static_cast<unsigned long long>(source());
   char text[17];
-  std::snprintf(text, sizeof(text), "%016llx", static_cast<unsigned long long>(generator()));
+  std::snprintf(text, sizeof(text), "%016llx", bits);
   return text;
 }
 
@@ -72,6 +76,13 @@ WriteTarget write_target_for_path(const std::string& path, bool overwrite) {
     throw Error("'" + path + "' names a folder, not a file");
   if (exists && !overwrite) throw Error("'" + path + "' exists and is not replaced");
   target.in_place = exists && !S_ISREG(status.st_mode);
+  // Written through a link only when the link is root's or the user's own (/dev/stdout): one
+  // planted by another user (a shared /tmp) must not point the write at a device.
+  struct stat link {};
+  if (target.in_place && ::lstat(path.c_str(), &link) == 0 && S_ISLNK(link.st_mode) &&
+      link.st_uid != 0 && link.st_uid != ::geteuid()) {
+    throw Error("'" + path + "' is another user's symbolic link to a device or FIFO; not written");
+  }
   const int fd = ::open(folder.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
   if (fd < 0) {
     throw Error("cannot write '" + path + "': its folder '" + folder +

@@ -53,7 +53,8 @@ struct WriteTarget {
 
 // The target for a path the operator gave (a command line): the folder part is opened as a shell
 // would (links in it are the operator's), the last component is replaced by a rename. An
-// existing device or FIFO there is written in place. Throws covox::Error naming the path when
+// existing device or FIFO there is written in place, also through a link that root or the user
+// owns (/dev/stdout), never through another user's link. Throws covox::Error naming the path when
 // the folder cannot be opened, the path names a folder, or `overwrite` is false and it exists.
 WriteTarget write_target_for_path(const std::string& path, bool overwrite = true);
 
