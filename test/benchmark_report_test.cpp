@@ -103,7 +103,7 @@ TEST(CommandLine, ReadsOptionsAndRejectsUnknownOnes) {
               "unknown option '--typo'");
   const char* not_a_number[] = {"tool", "--keys", "many"};
   EXPECT_EXIT(CommandLine(3, not_a_number, "usage: tool").integer("--keys", 1),
-              ::testing::ExitedWithCode(2), "--keys expects an integer");
+              ::testing::ExitedWithCode(2), "--keys takes an integer in");
 }
 
 }  // namespace

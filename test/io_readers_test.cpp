@@ -33,6 +33,7 @@
 #include "covoxslam/io/rgbd_folder.h"
 #include "covoxslam/io/rigid_pose_check.h"
 #include "covoxslam/io/trajectory_io.h"
+#include "support/scratch_folder.h"
 
 #if COVOX_HAVE_PNG
 #include <png.h>
@@ -53,27 +54,6 @@ namespace fs = std::filesystem;
 
 #define COVOX_SKIP_WITHOUT_PNG() \
   if (!io::png_reader_available()) GTEST_SKIP() << "built without libpng (install libpng-dev)"
-
-// A fresh folder per test, removed afterwards.
-class ScratchFolder {
- public:
-  ScratchFolder() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    path_ = fs::temp_directory_path() / ("covox_io_" + std::string(info->test_suite_name()) + "_" +
-                                         info->name() + "_" + std::to_string(::getpid()));
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~ScratchFolder() {
-    std::error_code ignored;
-    fs::remove_all(path_, ignored);
-  }
-  std::string file(const std::string& name) const { return (path_ / name).string(); }
-  const fs::path& path() const { return path_; }
-
- private:
-  fs::path path_;
-};
 
 void write_bytes(const std::string& path, const void* data, size_t size) {
   std::ofstream file(path, std::ios::binary | std::ios::trunc);

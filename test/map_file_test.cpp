@@ -1,8 +1,10 @@
 // Map files: save then load is bit-exact; truncated, corrupted and foreign files are rejected.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <iostream>
 #include <unistd.h>
 #include <fstream>
@@ -187,8 +189,57 @@ TEST_P(MapFileTest, AFailedWriteLeavesTheOldFile) {
                  Error);
   }
   EXPECT_EQ(read_bytes(path), before);
-  const std::string temporary = path + ".tmp." + std::to_string(::getpid());
-  EXPECT_NE(::access(temporary.c_str(), F_OK), 0) << "the temporary file was left behind";
+  const std::string name = std::filesystem::path(path).filename().string();
+  for (const auto& entry : std::filesystem::directory_iterator(::testing::TempDir())) {
+    EXPECT_NE(entry.path().filename().string().rfind("." + name + ".", 0), 0u)
+        << "the temporary file was left behind: " << entry.path();
+  }
+  std::remove(path.c_str());
+}
+
+// A file with a valid checksum whose submap pose is not a rotation (scaled, sheared, mirrored,
+// NaN) is refused naming the submap; rounding-level noise is not.
+TEST_P(MapFileTest, NonRigidSubmapPosesAreRefusedNamingTheSubmap) {
+  const io::MapFileContents contents = make_contents();
+  const std::string path = temporary_path("pose.cvxmap");
+  const std::vector<uint8_t> encoded = io::encode_submap(contents.submaps[0].blocks, 8, 0.4f);
+  auto save_with = [&](const Eigen::Matrix4d& pose) {
+    io::MapFileWriter writer(path, 0.1f, 8, 0.4f);
+    writer.add_submap(3, Eigen::Isometry3d::Identity(), encoded);
+    Eigen::Isometry3d bad;
+    bad.matrix() = pose;
+    writer.add_submap(7, bad, encoded);
+    writer.commit();
+  };
+  Eigen::Matrix4d scaled = Eigen::Matrix4d::Identity();
+  scaled.topLeftCorner<3, 3>() *= 1.1;
+  Eigen::Matrix4d sheared = Eigen::Matrix4d::Identity();
+  sheared(0, 1) = 0.2;
+  Eigen::Matrix4d mirrored = Eigen::Matrix4d::Identity();
+  mirrored(2, 2) = -1.0;
+  Eigen::Matrix4d not_a_number = Eigen::Matrix4d::Identity();
+  not_a_number(1, 3) = std::nan("");
+  Eigen::Matrix4d projective = Eigen::Matrix4d::Identity();
+  projective(3, 0) = 0.5;
+  for (const Eigen::Matrix4d& pose : {scaled, sheared, mirrored, not_a_number, projective}) {
+    save_with(pose);
+    try {
+      io::load_map_file(path);
+      ADD_FAILURE() << "accepted the pose\n" << pose;
+    } catch (const Error& error) {
+      EXPECT_NE(std::string(error.what()).find("submap 7's pose"), std::string::npos)
+          << error.what();
+      EXPECT_NE(std::string(error.what()).find(path), std::string::npos) << error.what();
+    }
+  }
+  Eigen::Matrix4d rounded = Eigen::Matrix4d::Identity();
+  rounded.topLeftCorner<3, 3>() =
+      Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+  rounded(0, 0) += 1e-12;
+  save_with(rounded);
+  const io::MapFileContents loaded = io::load_map_file(path, io::MapFileVoxels::kEncoded);
+  ASSERT_EQ(loaded.submaps.size(), 2u);
+  EXPECT_TRUE(loaded.submaps[1].T_world_submap.matrix().isApprox(rounded, 1e-15));
   std::remove(path.c_str());
 }
 
@@ -219,7 +270,29 @@ TEST_P(MapFileTest, TruncatedCorruptedAndForeignFilesAreRejected) {
   std::vector<unsigned char> future = good;
   future[8] = 99;  // version
   expect_rejected(future, "newer version", "version");
-  EXPECT_THROW(io::load_map_file(temporary_path("does_not_exist")), Error);
+  // Each message says what was expected and what was found.
+  const std::string missing = temporary_path("does_not_exist");
+  expect_rejected(png, "foreign",
+                  "starts with '\\x89PNG\\x0d\\x0a\\x1a\\x0a', expected 'COVOXMAP'");
+  expect_rejected(std::vector<unsigned char>(good.begin(), good.begin() + 10), "tiny",
+                  "10 bytes, shorter than the 12-byte header");
+  future[8] = 7;
+  expect_rejected(future, "newer version", "format version 7, this build reads versions 1 and 2");
+  try {
+    io::load_map_file(missing);
+    ADD_FAILURE() << "a missing file was accepted";
+  } catch (const Error& error) {
+    EXPECT_NE(std::string(error.what()).find(missing + ": cannot open: No such file"),
+              std::string::npos)
+        << error.what();
+  }
+  try {
+    io::load_map_file(::testing::TempDir());
+    ADD_FAILURE() << "a folder was accepted";
+  } catch (const Error& error) {
+    EXPECT_NE(std::string(error.what()).find("not a regular file"), std::string::npos)
+        << error.what();
+  }
   std::remove(path.c_str());
 }
 

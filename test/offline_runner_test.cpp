@@ -7,6 +7,7 @@
 
 #include <unistd.h>
 
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -281,6 +282,66 @@ TEST_F(OfflineRunner, ProgramNamesAMissingBagOrAWrongTopic) {
   // Nothing half-written is left behind.
   EXPECT_FALSE(fs::exists(out / "t.tum"));
   EXPECT_FALSE(fs::exists(out / "m.ply"));
+}
+
+// Every output is checked before the input is read: a missing folder ends the run at once with
+// the option and the path, instead of after mapping the whole input.
+TEST_F(OfflineRunner, ProgramChecksEveryOutputBeforeAnyWork) {
+  if (!fs::exists(run_slam_program())) GTEST_SKIP() << "run_slam is not built next to the tests";
+  const fs::path out = folder() / "early";
+  fs::create_directories(out);
+  const std::string missing = "/nonexistent/dir/output.bin";
+  for (const char* option : {"--map", "--mesh", "--trajectory", "--odometry-trajectory",
+                             "--reference-trajectory", "--graph", "--json", "--timeline-plot"}) {
+    const auto start = std::chrono::steady_clock::now();
+    const ProgramRun run = run_program("--bag " + bag() + " --device cpu --quiet " + option + " " +
+                                           missing + " --trajectory " + (out / "t.tum").string(),
+                                       out / "log.txt");
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (std::string(option) == "--trajectory") {
+      // Given twice: refused as such, also at once.
+      EXPECT_NE(run.output.find("--trajectory is given twice"), std::string::npos) << run.output;
+    } else {
+      EXPECT_NE(run.output.find(std::string(option) + " " + missing), std::string::npos)
+          << run.output;
+      EXPECT_NE(run.output.find("No such file or directory"), std::string::npos) << run.output;
+    }
+    EXPECT_EQ(run.status, 2) << option << ": " << run.output;
+    EXPECT_LT(seconds, 1.0) << option;
+  }
+  EXPECT_FALSE(fs::exists(out / "t.tum"));
+  // A folder as the output file, and a folder as --config.
+  ProgramRun run = run_program("--bag " + bag() + " --quiet --mesh " + out.string(), out / "l");
+  EXPECT_EQ(run.status, 2);
+  EXPECT_NE(run.output.find("is a folder"), std::string::npos) << run.output;
+  run = run_program("--bag " + bag() + " --quiet --config " + out.string() + " --trajectory " +
+                        (out / "t.tum").string(),
+                    out / "l");
+  EXPECT_EQ(run.status, 2);
+  EXPECT_NE(run.output.find("--config"), std::string::npos) << run.output;
+}
+
+// A run in which every scan is dropped (here: every point nearer than --min-range-m) fails and
+// leaves the outputs of an earlier run as they were.
+TEST_F(OfflineRunner, ARunThatMapsNothingFailsAndKeepsEarlierOutputs) {
+  if (!fs::exists(run_slam_program())) GTEST_SKIP() << "run_slam is not built next to the tests";
+  const fs::path out = folder() / "nothing";
+  fs::create_directories(out);
+  for (const char* name : {"t.tum", "m.ply", "map.bin"}) std::ofstream(out / name) << "earlier";
+  const ProgramRun run =
+      run_program("--bag " + bag() + " --device cpu --quiet --min-range-m 999 --trajectory " +
+                      (out / "t.tum").string() + " --mesh " + (out / "m.ply").string() + " --map " +
+                      (out / "map.bin").string(),
+                  out / "log.txt");
+  EXPECT_EQ(run.status, 1) << run.output;
+  EXPECT_NE(run.output.find("nothing was mapped"), std::string::npos) << run.output;
+  for (const char* name : {"t.tum", "m.ply", "map.bin"}) {
+    std::ifstream file(out / name);
+    std::string text;
+    std::getline(file, text);
+    EXPECT_EQ(text, "earlier") << name << " was replaced";
+  }
 }
 
 TEST(OfflineRunnerInputs, RgbdFolderCloudsProjectOntoTheirPixelsAndOdometryDriftsAsAsked) {

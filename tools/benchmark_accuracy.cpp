@@ -358,9 +358,9 @@ int main(int argc, char** argv) {
   const std::string bag_path = args.text("--bag", "demo_output/flight_seed1_256col/flight.bag");
   const std::string data_dir = args.text("--data-dir", io::data_directory());
   const std::string trajectories_dir = args.text("--trajectories-dir", "");
-  const std::string output = args.text("--output", "docs/benchmarks/accuracy.json");
+  const std::string output = args.output_file("--output", "docs/benchmarks/accuracy.json");
   const std::string loop_seeds = args.text("--loop-seeds", "0,1,2,3,4,5");
-  const double loop_drift_percent = args.number("--loop-drift-percent", 1.0);
+  const double loop_drift_percent = args.number("--loop-drift-percent", 1.0, 0.0, 100.0);
   const std::string config_path = args.text("--config", "");
   args.finish();
 

@@ -42,6 +42,7 @@
 #include "covoxslam/backend/synthetic_pose_graph.h"
 #include "covoxslam/core/device.h"
 #include "covoxslam/core/error.h"
+#include "covoxslam/io/atomic_file.h"
 #include "covoxslam/io/data_directory.h"
 #include "registration_benchmark_world.h"
 
@@ -196,7 +197,15 @@ const OptionRule kOptionRules[] = {
      }},
     {"--registration-distance", true,
      [](Options& o, const std::string&, const std::string& v) { o.distance = distance_of(v); }},
-    {"--output", true, [](Options& o, const std::string&, const std::string& v) { o.output = v; }},
+    {"--output", true,
+     [](Options& o, const std::string& f, const std::string& v) {
+       try {
+         io::probe_output_path(v);  // before the benchmark runs, not after
+       } catch (const Error& error) {
+         usage_error(f + " " + v + ": " + error.what());
+       }
+       o.output = v;
+     }},
 };
 
 // Options are applied in command-line order, so a repeated option's last value wins.

@@ -48,10 +48,10 @@ Options parse(int argc, char** argv) {
   options.keys = args.positive_integer("--keys", options.keys);
   options.device = args.text("--device", options.device);
   options.repeats = static_cast<int>(args.positive_integer("--repeats", options.repeats));
-  options.load_factors = args.numbers("--load-factors", options.load_factors);
+  options.load_factors = args.numbers("--load-factors", options.load_factors, 1e-6, 0.999999);
   options.lookup_blocks = args.integer("--lookup-blocks", options.lookup_blocks);
   options.lookups = args.integer("--lookups", options.lookups);
-  options.output = args.text("--output", "");
+  options.output = args.output_file("--output", "");
   args.finish();
   for (double lf : options.load_factors) {
     if (!(lf > 0.0 && lf < 1.0)) args.fail("load factors must be in (0, 1)");

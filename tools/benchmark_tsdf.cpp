@@ -58,7 +58,7 @@ Options parse(int argc, char** argv) {
   options.device = args.text("--device", options.device);
   options.integrations =
       static_cast<int>(args.positive_integer("--integrations", options.integrations));
-  options.output = args.text("--output", "");
+  options.output = args.output_file("--output", "");
   options.skip_rgbd = args.flag("--skip-rgbd");
   options.skip_lidar = args.flag("--skip-lidar");
   options.only_case = args.text("--case", "");

@@ -58,12 +58,12 @@ void evaluate_trajectories(tools::CommandLine& args, const std::string& referenc
                            const std::string& estimates_text) {
   tools::TrajectoryEvaluationOptions options;
   options.alignment = tools::parse_alignment_mode(args.text("--align", "4dof"));
-  options.association.max_time_gap_s = args.number("--max-time-gap-s", 0.1);
-  options.relative.delta = args.number("--rpe-delta", 10.0);
+  options.association.max_time_gap_s = args.number("--max-time-gap-s", 0.1, 0.0, 3600.0);
+  options.relative.delta = args.number("--rpe-delta", 10.0, 1e-6, 1e9);
   options.relative.unit = tools::parse_relative_delta_unit(args.text("--rpe-unit", "m"));
   const std::vector<std::string> estimate_paths = split_commas(estimates_text);
   std::vector<std::string> labels = split_commas(args.text("--labels", ""));
-  const std::string plot_path = args.text("--plot", "");
+  const std::string plot_path = args.output_file("--plot", "");
   const std::string topic = args.text("--topic", "/penguin/piksi_node/enu_pose_fix");
   args.finish();
   // A .bag is read through its trajectory topic, anything else as a TUM file.
@@ -127,8 +127,8 @@ void evaluate_trajectories(tools::CommandLine& args, const std::string& referenc
 void evaluate_mesh(tools::CommandLine& args, const std::string& mesh_path,
                    const std::string& truth_path) {
   tools::ReconstructionEvaluationOptions options;
-  options.thresholds_m = args.numbers("--thresholds-m", {0.1, 0.2, 0.5});
-  options.sample_spacing_m = args.number("--sample-spacing-m", 0.1);
+  options.thresholds_m = args.numbers("--thresholds-m", {0.1, 0.2, 0.5}, 1e-6, 1000.0);
+  options.sample_spacing_m = args.number("--sample-spacing-m", 0.1, 0.001, 100.0);
   args.finish();
   const map::Mesh reconstruction = io::read_mesh_ply(mesh_path);
   const map::Mesh truth = io::read_mesh_ply(truth_path);

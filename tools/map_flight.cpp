@@ -93,18 +93,16 @@ Options parse_options(int argc, char** argv) {
       "--truth", (slash == std::string::npos ? std::string() : o.flight_path.substr(0, slash + 1)) +
                      "truth.tum");
   o.device_text = args.text("--device", "auto");
-  o.voxel_size_m = args.number("--voxel-size-m", 0.2);
-  o.truncation_m = args.number("--truncation-m", 0.6);
-  o.max_ray_m = args.number("--max-ray-m", 16.0);
-  o.esdf_every = args.integer("--esdf-every", 10);
-  o.mesh_every = args.integer("--mesh-every", 10);
-  o.max_scans = args.integer("--max-scans", 0);
-  o.mesh_path = args.text("--mesh", "map_flight_mesh.ply");
+  o.voxel_size_m = args.number("--voxel-size-m", 0.2, 0.005, 10.0);
+  o.truncation_m = args.number("--truncation-m", 0.6, 0.005, 100.0);
+  o.max_ray_m = args.number("--max-ray-m", 16.0, 0.1, 1000.0);
+  o.esdf_every = args.integer("--esdf-every", 10, 1, 1000000);
+  o.mesh_every = args.integer("--mesh-every", 10, 1, 1000000);
+  o.max_scans = args.integer("--max-scans", 0, 0, tools::CommandLine::kIntMax);
+  o.mesh_path = args.output_file("--mesh", "map_flight_mesh.ply");
   args.finish();
   if (o.pose_source != "odometry" && o.pose_source != "truth")
     args.fail("--poses must be odometry or truth");
-  if (o.esdf_every <= 0 || o.mesh_every <= 0)
-    args.fail("--esdf-every and --mesh-every must be positive");
   return o;
 }
 

@@ -172,17 +172,15 @@ Options parse_options(int argc, char** argv) {
   o.truth_path = args.text("--truth", "");
   o.config_path = args.text("--config", "");
   o.device_text = args.text("--device", "auto");
-  o.start_offset_m = args.number("--start-offset-m", 0.0);
-  o.start_yaw_deg = args.number("--start-yaw-deg", 0.0);
-  o.neighbour_gap = args.integer("--neighbour-gap", 3);
-  o.repeat = args.integer("--repeat", 0);
+  o.start_offset_m = args.number("--start-offset-m", 0.0, 0.0, 100.0);
+  o.start_yaw_deg = args.number("--start-yaw-deg", 0.0, -180.0, 180.0);
+  o.neighbour_gap = args.integer("--neighbour-gap", 3, 1, 1000000);
+  o.repeat = args.integer("--repeat", 0, 0, 1000000);
   o.rows = args.flag("--rows");
   o.walls = args.flag("--walls");
   args.finish();
   if (o.map_path.empty() || o.graph_path.empty() || o.truth_path.empty())
     args.fail("--map, --graph and --truth are required");
-  if (!(o.start_offset_m >= 0.0)) args.fail("--start-offset-m must be >= 0");
-  if (o.repeat < 0) args.fail("--repeat must be >= 0");
   return o;
 }
 

@@ -24,6 +24,7 @@
 #include "covoxslam/core/error.h"
 #include "covoxslam/core/log.h"
 #include "covoxslam/core/stage_profiler.h"
+#include "covoxslam/io/file_bytes.h"
 #include "covoxslam/io/mesh_ply.h"
 #include "covoxslam/io/trajectory_io.h"
 #include "dataset_scan_sources.h"
@@ -37,6 +38,12 @@
 namespace {
 
 using namespace covox;
+
+// Bounds of the options: a smaller voxel, a longer duration or a larger queue does not fit any
+// machine (0.001 m voxels over a flight ask for ~150 GB).
+constexpr int64_t kIntMax = tools::CommandLine::kIntMax;
+constexpr double kMinVoxelSizeM = 0.005;
+constexpr double kMaxDurationS = 86400.0;
 
 const char kUsage[] =
     "usage: run_slam (--bag FILE | --dataset DIR | --simulate) [options]\n"
@@ -119,24 +126,28 @@ const char kUsage[] =
 
 // The final pose graph as text, for inspection: one line per submap and per constraint (m, rad).
 void write_graph(const std::string& path, const tools::SlamRunResult& result) {
-  FILE* file = std::fopen(path.c_str(), "w");
-  if (!file) throw Error("run_slam: cannot write " + path);
-  for (const pipeline::SubmapInfo& submap : result.submaps) {
-    const backend::Pose4Dof world = pipeline::pose_4dof_from_isometry(submap.T_world_submap);
-    const backend::Pose4Dof odom = pipeline::pose_4dof_from_isometry(submap.T_odom_submap);
-    std::fprintf(file, "submap %lld %.6f %.6f %.6f %.6f %.6f %.8f %.6f %.6f %.6f %.8f\n",
-                 static_cast<long long>(submap.id), submap.statistics.start_stamp_s,
-                 submap.statistics.end_stamp_s, world.x, world.y, world.z, world.yaw, odom.x,
-                 odom.y, odom.z, odom.yaw);
-  }
-  for (const pipeline::SubmapConstraint& c : result.constraints) {
-    std::fprintf(file, "constraint %s %lld %lld %.6f %.6f %.6f %.8f %.6g %.6g %.6g %.6g %d\n",
-                 pipeline::to_string(c.kind), static_cast<long long>(c.from_submap),
-                 static_cast<long long>(c.to_submap), c.measurement.x, c.measurement.y,
-                 c.measurement.z, c.measurement.yaw, c.information(0, 0), c.information(1, 1),
-                 c.information(2, 2), c.information(3, 3), c.active ? 1 : 0);
-  }
-  std::fclose(file);
+  io::write_file_replacing(path, "run_slam --graph", /*binary=*/false, [&](std::ostream& file) {
+    char line[512];
+    for (const pipeline::SubmapInfo& submap : result.submaps) {
+      const backend::Pose4Dof world = pipeline::pose_4dof_from_isometry(submap.T_world_submap);
+      const backend::Pose4Dof odom = pipeline::pose_4dof_from_isometry(submap.T_odom_submap);
+      std::snprintf(line, sizeof(line),
+                    "submap %lld %.6f %.6f %.6f %.6f %.6f %.8f %.6f %.6f %.6f %.8f\n",
+                    static_cast<long long>(submap.id), submap.statistics.start_stamp_s,
+                    submap.statistics.end_stamp_s, world.x, world.y, world.z, world.yaw, odom.x,
+                    odom.y, odom.z, odom.yaw);
+      file << line;
+    }
+    for (const pipeline::SubmapConstraint& c : result.constraints) {
+      std::snprintf(line, sizeof(line),
+                    "constraint %s %lld %lld %.6f %.6f %.6f %.8f %.6g %.6g %.6g %.6g %d\n",
+                    pipeline::to_string(c.kind), static_cast<long long>(c.from_submap),
+                    static_cast<long long>(c.to_submap), c.measurement.x, c.measurement.y,
+                    c.measurement.z, c.measurement.yaw, c.information(0, 0), c.information(1, 1),
+                    c.information(2, 2), c.information(3, 3), c.active ? 1 : 0);
+      file << line;
+    }
+  });
 }
 
 void add_timing_rows(tools::BenchmarkReport* report, const std::string& name,
@@ -179,17 +190,18 @@ void read_input_options(tools::CommandLine& args, RunnerSettings* s) {
   bag.odometry_topic = args.text("--odometry-topic", bag.odometry_topic);
   bag.reference_topic = args.text("--reference-topic", bag.reference_topic);
   bag.sensor_frame = args.text("--sensor-frame", bag.sensor_frame);
-  bag.min_range_m = args.number("--min-range-m", 0.5);
+  bag.min_range_m = args.number("--min-range-m", 0.5, 0.0, 1000.0);
   tools::RgbdScanOptions& rgbd = s->rgbd_options;
-  rgbd.pixel_stride = static_cast<int>(args.integer("--pixel-stride", rgbd.pixel_stride));
-  rgbd.frame_rate_hz = args.number("--frame-rate-hz", rgbd.frame_rate_hz);
-  rgbd.min_final_drift_m = args.number("--drift-m", rgbd.min_final_drift_m);
-  rgbd.drift_seed = static_cast<uint64_t>(args.integer("--drift-seed", 1));
-  rgbd.drift_scale = args.number("--drift-scale", rgbd.drift_scale);
-  s->lidar_options.min_final_drift_m = args.number("--keyframe-drift-m", 0.3);
+  rgbd.pixel_stride = static_cast<int>(args.integer("--pixel-stride", rgbd.pixel_stride, 1, 64));
+  rgbd.frame_rate_hz = args.number("--frame-rate-hz", rgbd.frame_rate_hz, 0.01, 10000.0);
+  rgbd.min_final_drift_m = args.number("--drift-m", rgbd.min_final_drift_m, 0.0, 10000.0);
+  rgbd.drift_seed = static_cast<uint64_t>(
+      args.integer("--drift-seed", 1, 0, std::numeric_limits<int64_t>::max()));
+  rgbd.drift_scale = args.number("--drift-scale", rgbd.drift_scale, 0.0, 1000.0);
+  s->lidar_options.min_final_drift_m = args.number("--keyframe-drift-m", 0.3, 0.0, 10000.0);
   s->lidar_options.drift_seed = rgbd.drift_seed;
   s->lidar_options.drift_scale = rgbd.drift_scale;
-  s->max_scans = args.integer("--max-scans", 0);
+  s->max_scans = args.integer("--max-scans", 0, 0, kIntMax);
   s->simulate = args.flag("--simulate");
   if (s->simulate) s->simulation = sim::read_simulation_options(args);
 }
@@ -199,34 +211,46 @@ void read_mapping_options(tools::CommandLine& args, RunnerSettings* s) {
   s->device_text = args.text("--device", "auto");
   s->preset = args.text("--preset", "");
   s->config_path = args.text("--config", "");
-  s->voxel_size_m = args.number("--voxel-size-m", unset);
-  s->truncation_m = args.number("--truncation-m", unset);
-  s->max_ray_m = args.number("--max-ray-m", unset);
+  s->voxel_size_m = args.number("--voxel-size-m", unset, kMinVoxelSizeM, 10.0);
+  s->truncation_m = args.number("--truncation-m", unset, kMinVoxelSizeM, 100.0);
+  s->max_ray_m = args.number("--max-ray-m", unset, 0.1, 1000.0);
   s->policy_text = args.text("--submap-policy", "");
-  s->interval_s = args.number("--submap-interval-s", unset);
-  s->distance_m = args.number("--submap-distance-m", unset);
-  s->max_blocks = args.number("--submap-max-blocks", unset);
-  s->sensor_queue = args.number("--sensor-queue", unset);
-  s->submap_queue = args.number("--submap-queue", unset);
+  s->interval_s = args.number("--submap-interval-s", unset, 0.01, kMaxDurationS);
+  s->distance_m = args.number("--submap-distance-m", unset, 0.01, 100000.0);
+  s->max_blocks = args.number("--submap-max-blocks", unset, 1.0, 1e8);
+  s->sensor_queue = args.number("--sensor-queue", unset, 1.0, 100000.0);
+  s->submap_queue = args.number("--submap-queue", unset, 1.0, 1000.0);
 }
 
 void read_output_options(tools::CommandLine& args, RunnerSettings* s) {
-  s->trajectory_path = args.text("--trajectory", "run_slam_trajectory.tum");
-  s->odometry_path = args.text("--odometry-trajectory", "");
-  s->reference_path = args.text("--reference-trajectory", "");
-  s->mesh_path = args.text("--mesh", "run_slam_mesh.ply");
-  s->graph_path = args.text("--graph", "");
-  s->map_path = args.text("--map", "");
+  s->trajectory_path = args.output_file("--trajectory", "run_slam_trajectory.tum");
+  s->odometry_path = args.output_file("--odometry-trajectory", "");
+  s->reference_path = args.output_file("--reference-trajectory", "");
+  s->mesh_path = args.output_file("--mesh", "run_slam_mesh.ply");
+  s->graph_path = args.output_file("--graph", "");
+  s->map_path = args.output_file("--map", "");
   s->align_text = args.text("--align", "4dof");
-  s->max_time_gap_s = args.number("--max-time-gap-s", 0.1);
-  s->json_path = args.text("--json", "");
+  s->max_time_gap_s = args.number("--max-time-gap-s", 0.1, 0.0, kMaxDurationS);
+  s->json_path = args.output_file("--json", "");
   s->case_name = args.text("--case", "");
-  s->timeline_interval_s = args.number("--timeline-interval-s", s->timeline_interval_s);
-  s->timeline_plot_path = args.text("--timeline-plot", "");
+  s->timeline_interval_s =
+      args.number("--timeline-interval-s", s->timeline_interval_s, 0.0, kMaxDurationS);
+  s->timeline_plot_path = args.output_file("--timeline-plot", "");
   s->quiet = args.flag("--quiet");
   s->verify_constraints = args.flag("--verify-constraints");
-  s->verify_tolerance_m = args.number("--verify-tolerance-m", s->verify_tolerance_m);
+  s->verify_tolerance_m = args.number("--verify-tolerance-m", s->verify_tolerance_m, 0.0, 1000.0);
   s->debug_log = args.flag("--debug-log");
+}
+
+// --config is read when the configuration is built (after the input is opened): a folder or a
+// typo ends the run here instead.
+void check_config_file(const tools::CommandLine& args, const std::string& path) {
+  if (path.empty()) return;
+  try {
+    io::read_text_file(path);
+  } catch (const Error& error) {
+    args.fail(std::string("--config: ") + error.what());
+  }
 }
 
 RunnerSettings read_settings(tools::CommandLine& args) {
@@ -235,6 +259,7 @@ RunnerSettings read_settings(tools::CommandLine& args) {
   read_mapping_options(args, &s);
   read_output_options(args, &s);
   args.finish();
+  check_config_file(args, s.config_path);
   if (int(!s.bag_path.empty()) + int(!s.dataset_path.empty()) + int(s.simulate) > 1)
     args.fail("give one of --bag, --dataset and --simulate");
   if (s.bag_path.empty() && s.dataset_path.empty() && !s.simulate)

@@ -91,19 +91,14 @@ void print_summary(const sim::SimulatedMission& mission, size_t total_points) {
 
 int main(int argc, char** argv) {
   tools::CommandLine args(argc, argv, std::string(kUsage) + sim::kSimulationUsage);
-  const std::string output_dir = args.text("--output-dir", "sim_flight");
-  const int64_t max_scans = args.integer("--max-scans", 0);
+  const int64_t max_scans = args.integer("--max-scans", 0, 0, tools::CommandLine::kIntMax);
   const sim::SimulationOptions options = sim::read_simulation_options(args);
+  // Last: the folder is created only once every other value was read.
+  const std::string output_dir = args.output_folder("--output-dir", "sim_flight");
   args.finish();
 
   try {
     const auto start = std::chrono::steady_clock::now();
-    // With its parents (a nested --output-dir used to fail only at the first write); an existing
-    // folder is fine.
-    std::error_code folder_error;
-    std::filesystem::create_directories(output_dir, folder_error);
-    if (folder_error)
-      throw Error("cannot create the output folder " + output_dir + ": " + folder_error.message());
     const sim::SimulatedMission mission(options,
                                         max_scans > 0 ? static_cast<size_t>(max_scans) : 0);
     io::write_mesh_ply(output_dir + "/world.ply", mission.site().world.to_mesh());

@@ -4,6 +4,8 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <ext/stdio_filebuf.h>
+
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
@@ -16,6 +18,7 @@
 
 #include "covoxslam/core/error.h"
 #include "covoxslam/io/file_bytes.h"
+#include "covoxslam/io/rigid_pose_check.h"
 #include "covoxslam/io/submap_codec.h"
 
 namespace covox {
@@ -169,9 +172,23 @@ void save_map_file_version1(const std::string& path, const MapFileContents& cont
 
 namespace {
 
-MapFileContents load_version1(const std::string& path) {
-  std::ifstream file(path, std::ios::binary);
-  if (!file) throw Error("map file " + path + ": cannot open");
+// What a saved pose may be off a rotation: SlamSystem's poses are products of exact rotations,
+// off by rounding (~1e-15); a file above this was written by something else or edited.
+constexpr double kSubmapPoseTolerance = 1e-6;
+
+// The submap pose of a file, refused (naming the submap) unless rigid within the tolerance.
+Eigen::Isometry3d checked_submap_pose(const Eigen::Matrix4d& pose, const std::string& path,
+                                      int64_t id) {
+  PoseTolerances exact;
+  exact.reject_above_error = kSubmapPoseTolerance;
+  exact.reorthonormalize_above_error = kSubmapPoseTolerance;  // never repaired, only refused
+  return make_rigid_pose(pose, "map file " + path + ": submap " + std::to_string(id) + "'s pose",
+                         nullptr, exact);
+}
+
+MapFileContents load_version1(std::istream& file, const std::string& path) {
+  file.clear();
+  file.seekg(0);
   const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(file)),
                                          std::istreambuf_iterator<char>());
   if (bytes.size() < sizeof(kMagic) + sizeof(uint64_t) + 2 * sizeof(uint32_t)) {
@@ -202,7 +219,7 @@ MapFileContents load_version1(const std::string& path) {
     submap.id = r.get<int64_t>("submap id");
     Eigen::Matrix4d pose;
     for (int i = 0; i < 16; ++i) pose(i / 4, i % 4) = r.get<double>("submap pose");
-    submap.T_world_submap.matrix() = pose;
+    submap.T_world_submap = checked_submap_pose(pose, path, submap.id);
     const uint64_t blocks = r.get<uint64_t>("block count");
     if (blocks > r.remaining() / (sizeof(Index3D) + per_block * 8)) {
       throw Error("map file " + path + ": block count larger than the file");
@@ -223,7 +240,7 @@ MapFileContents load_version1(const std::string& path) {
 // names the file and what was being read.
 class StreamReader {
  public:
-  StreamReader(std::ifstream& file, uint64_t end, const std::string& path)
+  StreamReader(std::istream& file, uint64_t end, const std::string& path)
       : file_(file), end_(end), path_(path) {}
   template <class T>
   T get(const char* what) {
@@ -241,7 +258,7 @@ class StreamReader {
   uint64_t remaining() const { return end_ - position_; }
 
  private:
-  std::ifstream& file_;
+  std::istream& file_;
   uint64_t end_;
   uint64_t position_ = 0;
   const std::string& path_;
@@ -262,7 +279,7 @@ uint64_t fnv1a_update(uint64_t hash, const unsigned char* data, size_t size) {
 }
 
 // The first pass over a version 2 file: its checksum, read in chunks. Returns the payload size.
-uint64_t check_version2_checksum(std::ifstream& file, uint64_t file_size, const std::string& path) {
+uint64_t check_version2_checksum(std::istream& file, uint64_t file_size, const std::string& path) {
   if (file_size < kVersion2HeaderBytes + 1 + 8 + 8)
     throw Error("map file " + path + ": truncated (shorter than an empty map)");
   const uint64_t payload = file_size - sizeof(uint64_t);
@@ -289,7 +306,7 @@ SubmapRecord read_version2_submap(StreamReader& r, const MapFileContents& conten
   submap.id = r.get<int64_t>("submap id");
   Eigen::Matrix4d pose;
   for (int i = 0; i < 16; ++i) pose(i / 4, i % 4) = r.get<double>("submap pose");
-  submap.T_world_submap.matrix() = pose;
+  submap.T_world_submap = checked_submap_pose(pose, path, submap.id);
   const uint64_t size = r.get<uint64_t>("submap length");
   if (size > r.remaining())
     throw Error("map file " + path + ": submap length larger than the file");
@@ -309,7 +326,7 @@ SubmapRecord read_version2_submap(StreamReader& r, const MapFileContents& conten
   return submap;
 }
 
-MapFileContents load_version2(std::ifstream& file, uint64_t file_size, const std::string& path,
+MapFileContents load_version2(std::istream& file, uint64_t file_size, const std::string& path,
                               MapFileVoxels voxels) {
   const uint64_t payload = check_version2_checksum(file, file_size, path);
   file.clear();
@@ -351,26 +368,22 @@ float largest_distance_m(const MapFileContents& contents) {
   return largest > 0.0f ? largest : 1.0f;
 }
 
-[[noreturn]] void throw_errno(const std::string& path, const std::string& what) {
-  throw Error("map file " + path + ": " + what + ": " + std::strerror(errno));
-}
-
 }  // namespace
 
 MapFileWriter::MapFileWriter(const std::string& path, float voxel_size_m, int voxels_per_side,
                              float distance_scale_m)
-    : path_(path),
+    : MapFileWriter(write_target_for_path(path), voxel_size_m, voxels_per_side, distance_scale_m) {}
+
+MapFileWriter::MapFileWriter(WriteTarget target, float voxel_size_m, int voxels_per_side,
+                             float distance_scale_m)
+    : path_(target.display),
       voxels_per_side_(voxels_per_side),
       distance_scale_m_(distance_scale_m),
       checksum_(0xcbf29ce484222325ull) {
   if (!(voxel_size_m > 0.0f) || (voxels_per_side != 8 && voxels_per_side != 16) ||
       !(distance_scale_m > 0.0f))
-    throw Error("map file " + path + ": invalid voxel size, voxels per side or distance scale");
-  struct stat status {};
-  in_place_ = ::stat(path.c_str(), &status) == 0 && !S_ISREG(status.st_mode);
-  temporary_ = in_place_ ? path : path + ".tmp." + std::to_string(::getpid());
-  fd_ = ::open(temporary_.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  if (fd_ < 0) throw_errno(temporary_, "cannot open for writing");
+    throw Error("map file " + path_ + ": invalid voxel size, voxels per side or distance scale");
+  file_ = std::make_unique<AtomicFile>(std::move(target), "map file");
   buffer_.reserve(kWriteBufferBytes);
   for (char c : kMagic) put(c);
   put(kMapFileVersion);
@@ -380,11 +393,8 @@ MapFileWriter::MapFileWriter(const std::string& path, float voxel_size_m, int vo
   put(distance_scale_m);
 }
 
-MapFileWriter::~MapFileWriter() {
-  if (fd_ < 0) return;
-  ::close(fd_);
-  if (!in_place_) ::unlink(temporary_.c_str());
-}
+// An uncommitted file_ removes its temporary.
+MapFileWriter::~MapFileWriter() = default;
 
 void MapFileWriter::put_bytes(const void* data, size_t size) {
   const auto* bytes = static_cast<const unsigned char*>(data);
@@ -402,9 +412,9 @@ void MapFileWriter::put_bytes(const void* data, size_t size) {
 void MapFileWriter::flush() {
   size_t done = 0;
   while (done < buffer_.size()) {
-    const ssize_t wrote = ::write(fd_, buffer_.data() + done, buffer_.size() - done);
+    const ssize_t wrote = ::write(file_->fd(), buffer_.data() + done, buffer_.size() - done);
     if (wrote < 0 && errno == EINTR) continue;
-    if (wrote <= 0) throw_errno(temporary_, "write failed");
+    if (wrote <= 0) file_->fail("write failed");
     done += static_cast<size_t>(wrote);
   }
   buffer_.clear();
@@ -412,7 +422,7 @@ void MapFileWriter::flush() {
 
 void MapFileWriter::add_submap(int64_t id, const Eigen::Isometry3d& T_world_submap,
                                const std::vector<uint8_t>& encoded) {
-  if (fd_ < 0) throw Error("map file " + path_ + ": add_submap after commit");
+  if (!file_) throw Error("map file " + path_ + ": add_submap after commit");
   const std::string what = "map file " + path_ + ": submap " + std::to_string(id);
   const EncodedSubmapInfo info =
       validate_encoded_submap(encoded.data(), encoded.size(), what.c_str());
@@ -428,25 +438,14 @@ void MapFileWriter::add_submap(int64_t id, const Eigen::Isometry3d& T_world_subm
 }
 
 void MapFileWriter::commit() {
-  if (fd_ < 0) throw Error("map file " + path_ + ": committed twice");
+  if (!file_) throw Error("map file " + path_ + ": committed twice");
   put(kTagEnd);
   put(submaps_);
   const uint64_t checksum = checksum_;
   put(checksum);
   flush();
-  if (!in_place_ && ::fsync(fd_) != 0) throw_errno(temporary_, "fsync failed");
-  const int fd = fd_;
-  fd_ = -1;
-  if (::close(fd) != 0) {
-    if (!in_place_) ::unlink(temporary_.c_str());
-    throw_errno(temporary_, "close failed");
-  }
-  if (!in_place_ && std::rename(temporary_.c_str(), path_.c_str()) != 0) {
-    const int error = errno;
-    ::unlink(temporary_.c_str());
-    errno = error;
-    throw_errno(path_, "cannot rename the temporary over it");
-  }
+  file_->commit();
+  file_.reset();
 }
 
 void save_map_file(const std::string& path, const MapFileContents& contents) {
@@ -471,20 +470,57 @@ MapFileContents encoded_version1(MapFileContents contents) {
   return contents;
 }
 
+namespace {
+
+// The first bytes of a file that is not a map, printable, for the message.
+std::string shown_bytes(const char* bytes, size_t size) {
+  std::string shown;
+  for (size_t i = 0; i < size; ++i) {
+    const auto byte = static_cast<unsigned char>(bytes[i]);
+    char hex[8];
+    std::snprintf(hex, sizeof(hex), "\\x%02x", byte);
+    shown += (byte >= 0x20 && byte < 0x7f) ? std::string(1, bytes[i]) : std::string(hex);
+  }
+  return shown;
+}
+
+}  // namespace
+
 MapFileContents load_map_file(const std::string& path, MapFileVoxels voxels) {
-  std::ifstream file(path, std::ios::binary | std::ios::ate);
-  if (!file) throw Error("map file " + path + ": cannot open");
-  const uint64_t file_size = static_cast<uint64_t>(file.tellg());
-  file.seekg(0);
+  FileDescriptor file(::open(path.c_str(), O_RDONLY | O_CLOEXEC));
+  if (!file.valid()) throw Error("map file " + path + ": cannot open: " + std::strerror(errno));
+  return load_map_file(std::move(file), path, voxels);
+}
+
+MapFileContents load_map_file(FileDescriptor descriptor, const std::string& path,
+                              MapFileVoxels voxels) {
+  struct stat status {};
+  if (::fstat(descriptor.get(), &status) != 0)
+    throw Error("map file " + path + ": cannot read its size: " + std::strerror(errno));
+  if (!S_ISREG(status.st_mode))
+    throw Error("map file " + path + ": not a regular file (a folder, device or FIFO)");
+  const uint64_t file_size = static_cast<uint64_t>(status.st_size);
+  constexpr uint64_t kHeaderBytes = sizeof(kMagic) + sizeof(uint32_t);
+  if (file_size < kHeaderBytes) {
+    throw Error("map file " + path + ": truncated: " + std::to_string(file_size) +
+                " bytes, shorter than the " + std::to_string(kHeaderBytes) +
+                "-byte header of a covoxslam map");
+  }
+  __gnu_cxx::stdio_filebuf<char> buffer(descriptor.release(), std::ios::in | std::ios::binary,
+                                        kWriteBufferBytes);
+  std::istream file(&buffer);
   char magic[sizeof(kMagic)] = {};
-  file.read(magic, sizeof(magic));
-  if (!file || std::memcmp(magic, kMagic, sizeof(kMagic)) != 0)
-    throw Error("map file " + path + ": not a covoxslam map (wrong magic)");
   uint32_t version = 0;
+  file.read(magic, sizeof(magic));
   file.read(reinterpret_cast<char*>(&version), sizeof(version));
-  if (!file) throw Error("map file " + path + ": truncated header");
+  if (!file)
+    throw Error("map file " + path + ": read error in the header: " + std::strerror(errno));
+  if (std::memcmp(magic, kMagic, sizeof(kMagic)) != 0) {
+    throw Error("map file " + path + ": not a covoxslam map: it starts with '" +
+                shown_bytes(magic, sizeof(magic)) + "', expected 'COVOXMAP'");
+  }
   if (version == kVersion1) {
-    MapFileContents contents = load_version1(path);
+    MapFileContents contents = load_version1(file, path);
     return voxels == MapFileVoxels::kDecoded ? contents : encoded_version1(std::move(contents));
   }
   if (version != kMapFileVersion) {

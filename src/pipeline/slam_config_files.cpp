@@ -32,21 +32,39 @@ bool is_slam_parameter(const std::string& key) {
   return std::find(names.begin(), names.end(), key) != names.end();
 }
 
+bool is_node_key(const std::string& key) {
+  return key.compare(0, sizeof(kNodeSection) - 1, kNodeSection) == 0;
+}
+
 }  // namespace
 
+ConfigFileValues read_config_files(const std::vector<std::string>& paths) {
+  ConfigFileValues read;
+  for (const std::string& path : paths) {
+    if (path.empty()) continue;
+    const io::YamlDocument document = io::read_yaml_subset(path);
+    for (const io::YamlEntry& entry : document.entries) {
+      if (!is_node_key(entry.key) && !is_slam_parameter(entry.key)) {
+        throw Error(document.where(entry) + ": unknown parameter '" + entry.key +
+                    "' (docs/parameters.md lists them; the nodelet's own go in the `ros` section)");
+      }
+      read.values[entry.key] = entry.value;
+      read.locations[entry.key] = document.where(entry);
+    }
+  }
+  return read;
+}
+
 SlamConfigFileUse load_slam_config(const std::string& path, SlamConfig* config) {
-  const io::YamlDocument document = io::read_yaml_subset(path);
+  ConfigFileValues read = read_config_files({path});
   std::map<std::string, std::string> values, locations;
   SlamConfigFileUse use;
-  for (const io::YamlEntry& entry : document.entries) {
-    if (entry.key.compare(0, sizeof(kNodeSection) - 1, kNodeSection) == 0) {
-      use.node_keys.push_back(entry.key);
-    } else if (is_slam_parameter(entry.key)) {
-      values[entry.key] = entry.value;
-      locations[entry.key] = document.where(entry);
+  for (const auto& [key, value] : read.values) {
+    if (is_node_key(key)) {
+      use.node_keys.push_back(key);
     } else {
-      throw Error(document.where(entry) + ": unknown parameter '" + entry.key +
-                  "' (docs/parameters.md lists them; the nodelet's own go in the `ros` section)");
+      values[key] = value;
+      locations[key] = read.locations[key];
     }
   }
   use.applied = values.size();

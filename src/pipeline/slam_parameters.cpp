@@ -9,6 +9,7 @@
 
 #include "covoxslam/core/device.h"
 #include "covoxslam/core/error.h"
+#include "covoxslam/io/setting_values.h"
 
 namespace covox {
 namespace pipeline {
@@ -60,42 +61,29 @@ std::string non_negative(double value) { return value >= 0.0 ? "" : "must be >= 
 
 }  // namespace
 
+// The three readers share io/setting_values.h with the command line and the ROS parameters, so
+// a value reads the same wherever it is written.
 bool TextParameterSource::get_number(const std::string& name, double* value) const {
   auto it = values_.find(name);
   if (it == values_.end()) return false;
-  char* end = nullptr;
-  errno = 0;
-  const double parsed = std::strtod(it->second.c_str(), &end);
-  if (it->second.empty() || *end != '\0' || errno == ERANGE) {
-    bad_parameter(name, "expected a number, got '" + it->second + "'");
-  }
-  *value = parsed;
+  const std::string problem = io::parse_number_value(it->second, value);
+  if (!problem.empty()) bad_parameter(name, problem);
   return true;
 }
 
 bool TextParameterSource::get_integer(const std::string& name, int64_t* value) const {
   auto it = values_.find(name);
   if (it == values_.end()) return false;
-  char* end = nullptr;
-  errno = 0;
-  const long long parsed = std::strtoll(it->second.c_str(), &end, 10);
-  if (it->second.empty() || *end != '\0' || errno == ERANGE) {
-    bad_parameter(name, "expected an integer, got '" + it->second + "'");
-  }
-  *value = parsed;
+  const std::string problem = io::parse_integer_value(it->second, value);
+  if (!problem.empty()) bad_parameter(name, problem);
   return true;
 }
 
 bool TextParameterSource::get_bool(const std::string& name, bool* value) const {
   auto it = values_.find(name);
   if (it == values_.end()) return false;
-  if (it->second == "true") {
-    *value = true;
-  } else if (it->second == "false") {
-    *value = false;
-  } else {
-    bad_parameter(name, "expected true or false, got '" + it->second + "'");
-  }
+  const std::string problem = io::parse_bool_value(it->second, value);
+  if (!problem.empty()) bad_parameter(name, problem);
   return true;
 }
 

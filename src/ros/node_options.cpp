@@ -1,7 +1,10 @@
 #include "covoxslam/ros/node_options.h"
 
 #include <cmath>
+#include <cstdlib>
 #include <vector>
+
+#include <ros/console.h>
 
 #include "covoxslam/core/error.h"
 #include "covoxslam/ros/ros_parameter_source.h"
@@ -53,14 +56,10 @@ void read_count(const RosParameterSource& source, const std::string& name, int* 
 }
 
 // [x, y, z, qx, qy, qz, qw] or a row-major 4x4 matrix (voxgraph's T_base_link_sensor).
-Eigen::Isometry3d read_transform(const ros::NodeHandle& node, const std::string& name,
+Eigen::Isometry3d read_transform(const RosParameterSource& source, const std::string& name,
                                  const Eigen::Isometry3d& fallback) {
-  if (!node.hasParam(name)) return fallback;
   std::vector<double> values;
-  if (!node.getParam(name, values)) bad(name, "expected a list of 7 or 16 numbers");
-  for (double v : values) {
-    if (!std::isfinite(v)) bad(name, "contains a non-finite number");
-  }
+  if (!source.get_number_list(name, &values)) return fallback;
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   if (values.size() == 7) {
     const Eigen::Quaterniond q(values[6], values[3], values[4], values[5]);
@@ -112,6 +111,13 @@ void read_time_and_mesh_options(const RosParameterSource& source, NodeOptions* o
 
 }  // namespace
 
+std::string NodeOptions::default_output_dir() {
+  const char* ros_home = std::getenv("ROS_HOME");
+  if (ros_home != nullptr && *ros_home != '\0') return std::string(ros_home) + "/covoxslam";
+  const char* home = std::getenv("HOME");
+  return std::string(home != nullptr && *home != '\0' ? home : ".") + "/.ros/covoxslam";
+}
+
 const std::vector<std::string>& node_option_names() {
   static const std::vector<std::string> names = {"mission_frame",
                                                  "odom_frame",
@@ -143,13 +149,17 @@ const std::vector<std::string>& node_option_names() {
                                                  "time_jump_policy",
                                                  "time_jump_min_s",
                                                  "mesh_height_color_min_m",
-                                                 "mesh_height_color_max_m"};
+                                                 "mesh_height_color_max_m",
+                                                 "output_dir"};
   return names;
 }
 
 NodeOptions read_node_options(const ros::NodeHandle& private_node) {
-  const ros::NodeHandle node(private_node, "ros");
-  const RosParameterSource source(node);
+  const RosParameterSource source(private_node, "ros");
+  for (const std::string& key : source.unknown_file_keys(node_option_names())) {
+    ROS_WARN_STREAM("covoxslam: unknown parameter "
+                    << key << " is ignored (misspelt? docs/parameters.md)");
+  }
   NodeOptions options;
   read_frame(source, "mission_frame", &options.mission_frame);
   read_frame(source, "odom_frame", &options.odom_frame);
@@ -161,7 +171,7 @@ NodeOptions read_node_options(const ros::NodeHandle& private_node) {
   if (options.odom_frame == options.base_frame) bad("base_frame", "must differ from odom_frame");
   read_flag(source, "use_tf_for_odometry", &options.use_tf_for_odometry);
   read_flag(source, "use_tf_for_extrinsic", &options.use_tf_for_extrinsic);
-  options.T_base_sensor = read_transform(node, "T_base_sensor", options.T_base_sensor);
+  options.T_base_sensor = read_transform(source, "T_base_sensor", options.T_base_sensor);
   read_amount(source, "tf_wait_timeout_s", &options.tf_wait_timeout_s, true);
   read_count(source, "max_pending_clouds", &options.max_pending_clouds, 1);
   read_amount(source, "odometry_buffer_s", &options.odometry_buffer_s);
@@ -189,6 +199,8 @@ NodeOptions read_node_options(const ros::NodeHandle& private_node) {
   read_flag(source, "publish_separated_mesh", &options.publish_separated_mesh);
   read_amount(source, "drop_log_interval_s", &options.drop_log_interval_s, true);
   read_time_and_mesh_options(source, &options);
+  if (source.get_text("output_dir", &options.output_dir) && options.output_dir.empty())
+    bad("output_dir", "must not be empty (the folder of the file services)");
   return options;
 }
 

@@ -51,6 +51,7 @@ void warn_about_unknown_parameters(const ros::NodeHandle& private_node) {
     known.insert(RosParameterSource::ros_name(name));
   }
   for (const std::string& name : node_option_names()) known.insert("ros/" + name);
+  for (const std::string& name : RosParameterSource::file_parameter_names()) known.insert(name);
   const std::string prefix = private_node.getNamespace() + "/";
   for (const std::string& name : all) {
     if (name.compare(0, prefix.size(), prefix) != 0) continue;

@@ -2,11 +2,14 @@
 // the meshes now, finish the map, optimise, reset. After finish_map, reset and load_map the node
 // maps the next clouds. They run on the output thread; every failure
 // is answered with success = false and a message saying why (never an exception into roscpp).
+// The file services read and write only inside ~ros/output_dir (io/output_folder.h): a request's
+// file_path is a plain relative name, and an existing file is replaced only with overwrite.
 #include <exception>
 #include <functional>
 #include <utility>
 
 #include "covoxslam/core/error.h"
+#include "covoxslam/io/atomic_file.h"
 #include "covoxslam/io/map_file.h"
 #include "covoxslam/io/submap_codec.h"
 #include "covoxslam/io/mesh_ply.h"
@@ -33,11 +36,6 @@ bool answer(const char* service, Response& response, const std::function<std::st
   return true;
 }
 
-std::string require_path(const std::string& path) {
-  if (path.empty()) throw Error("file_path is empty");
-  return path;
-}
-
 // Runs `on_exit` when the scope ends, also by an exception.
 class ScopeExit {
  public:
@@ -55,9 +53,10 @@ class ScopeExit {
 bool SlamNode::save_map(covoxslam::FilePath::Request& request,
                         covoxslam::FilePath::Response& response) {
   return answer("save_map", response, [&] {
-    const std::string path = require_path(request.file_path);
-    io::MapFileWriter writer(path, slam_->config().map.voxel_size_m,
-                             slam_->config().map.voxels_per_side, slam_->map_distance_scale_m());
+    const std::string path = output_folder_.display(request.file_path);
+    io::MapFileWriter writer(output_folder_.target(request.file_path, request.overwrite),
+                             slam_->config().map.voxel_size_m, slam_->config().map.voxels_per_side,
+                             slam_->map_distance_scale_m());
     uint64_t blocks = 0;
     slam_->write_submaps([&](int64_t id, const Eigen::Isometry3d& T_world_submap,
                              const std::vector<uint8_t>& encoded) {
@@ -73,9 +72,10 @@ bool SlamNode::save_map(covoxslam::FilePath::Request& request,
 bool SlamNode::load_map(covoxslam::FilePath::Request& request,
                         covoxslam::FilePath::Response& response) {
   return answer("load_map", response, [&] {
-    const std::string path = require_path(request.file_path);
+    const std::string path = output_folder_.display(request.file_path);
     // Compact forms: a map larger than the memory budget is never decoded whole.
-    io::MapFileContents contents = io::load_map_file(path, io::MapFileVoxels::kEncoded);
+    io::MapFileContents contents = io::load_map_file(
+        output_folder_.open_for_reading(request.file_path), path, io::MapFileVoxels::kEncoded);
     if (contents.voxel_size_m != slam_->config().map.voxel_size_m ||
         contents.voxels_per_side != slam_->config().map.voxels_per_side) {
       throw Error("the map in " + path + " has voxel size " +
@@ -114,7 +114,7 @@ bool SlamNode::load_map(covoxslam::FilePath::Request& request,
 bool SlamNode::save_trajectory(covoxslam::FilePath::Request& request,
                                covoxslam::FilePath::Response& response) {
   return answer("save_trajectory", response, [&] {
-    const std::string path = require_path(request.file_path);
+    const io::WriteTarget target = output_folder_.target(request.file_path, request.overwrite);
     io::Trajectory trajectory;
     for (const pipeline::StampedPose& pose : slam_->corrected_trajectory()) {
       io::StampedPose stamped;
@@ -123,18 +123,22 @@ bool SlamNode::save_trajectory(covoxslam::FilePath::Request& request,
       stamped.orientation = Eigen::Quaterniond(pose.T_world_sensor.linear()).normalized();
       trajectory.poses.push_back(stamped);
     }
-    io::write_tum_trajectory(path, trajectory);
-    return "saved " + std::to_string(trajectory.size()) + " corrected poses (TUM) to " + path;
+    io::write_file(target, "save_trajectory",
+                   [&](std::ostream& file) { io::write_tum_trajectory(file, trajectory); });
+    return "saved " + std::to_string(trajectory.size()) + " corrected poses (TUM) to " +
+           target.display;
   });
 }
 
 bool SlamNode::save_mesh(covoxslam::FilePath::Request& request,
                          covoxslam::FilePath::Response& response) {
   return answer("save_mesh", response, [&] {
-    const std::string path = require_path(request.file_path);
+    const io::WriteTarget target = output_folder_.target(request.file_path, request.overwrite);
     const map::Mesh mesh = slam_->combined_mesh();
-    io::write_mesh_ply(path, mesh);
-    return "saved " + std::to_string(mesh.triangle_count()) + " triangles (PLY) to " + path;
+    io::write_file(target, "save_mesh",
+                   [&](std::ostream& file) { io::write_mesh_ply(file, mesh); });
+    return "saved " + std::to_string(mesh.triangle_count()) + " triangles (PLY) to " +
+           target.display;
   });
 }
 

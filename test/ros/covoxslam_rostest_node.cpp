@@ -417,15 +417,38 @@ bool call_trigger(const std::string& name, std::string* message) {
   return trigger.response.success;
 }
 
-bool call_file(const std::string& name, const std::string& path, std::string* message) {
+bool call_file(const std::string& name, const std::string& path, std::string* message,
+               bool overwrite = false) {
   covoxslam::FilePath file;
   file.request.file_path = path;
+  file.request.overwrite = overwrite;
   if (!ros::service::call(ns(name), file)) {
     *message = "the call failed";
     return false;
   }
   *message = file.response.message;
   return file.response.success;
+}
+
+// A bad request is answered, not crashed on: names outside ~ros/output_dir are refused, and the
+// existing `map_path` is kept unless overwrite is asked for.
+void expect_bad_file_requests_refused(const fs::path& outside_folder, const std::string& map_path) {
+  std::string message;
+  EXPECT_FALSE(call_file("save_map", "", &message));
+  EXPECT_FALSE(call_file("load_map", "missing.covoxmap", &message));
+  EXPECT_NE(message.find("missing.covoxmap"), std::string::npos) << message;
+  const std::string outside = (outside_folder / "outside.covoxmap").string();
+  EXPECT_FALSE(call_file("save_map", outside, &message, true));
+  EXPECT_NE(message.find("absolute"), std::string::npos) << message;
+  EXPECT_FALSE(fs::exists(outside));
+  EXPECT_FALSE(call_file("save_mesh", "../mesh.ply", &message, true));
+  EXPECT_NE(message.find("contains '..'"), std::string::npos) << message;
+  EXPECT_FALSE(call_file("load_map", "/etc/passwd", &message));
+  EXPECT_NE(message.find("refused"), std::string::npos) << message;
+  const auto map_bytes = fs::file_size(map_path);
+  EXPECT_FALSE(call_file("save_map", "map.covoxmap", &message));
+  EXPECT_NE(message.find("overwrite"), std::string::npos) << message;
+  EXPECT_EQ(fs::file_size(map_path), map_bytes);
 }
 
 // An ESDF slice at 1.0 m: distances match the room's analytic distance where both are well inside.
@@ -929,13 +952,16 @@ TEST_F(CovoxSlamNodeletTest, MapsABagAndServesTheMap) {
   EXPECT_NEAR(correction.transform.translation.x, 0.0, 0.3);
   EXPECT_NEAR(correction.transform.translation.y, 0.0, 0.3);
 
-  // Saving: map, trajectory (one TUM line per scan), mesh (a PLY with faces).
-  const std::string map_path = (folder_ / "map.covoxmap").string();
-  const std::string trajectory_path = (folder_ / "trajectory.tum").string();
-  const std::string mesh_path = (folder_ / "mesh.ply").string();
-  EXPECT_TRUE(call_file("save_map", map_path, &message)) << message;
+  // Saving: map, trajectory (one TUM line per scan), mesh (a PLY with faces), by names in the
+  // node's ~ros/output_dir (the .test file sets it; earlier runs' files are replaced).
+  std::string output_dir;
+  ASSERT_TRUE(ros::param::get(ns("ros/output_dir"), output_dir));
+  const std::string map_path = output_dir + "/map.covoxmap";
+  const std::string trajectory_path = output_dir + "/trajectory.tum";
+  const std::string mesh_path = output_dir + "/mesh.ply";
+  ASSERT_TRUE(call_file("save_map", "map.covoxmap", &message, true)) << message;
   EXPECT_GT(fs::file_size(map_path), 1000u);
-  EXPECT_TRUE(call_file("save_trajectory", trajectory_path, &message)) << message;
+  EXPECT_TRUE(call_file("save_trajectory", "trajectory.tum", &message, true)) << message;
   {
     std::ifstream file(trajectory_path);
     std::string line;
@@ -945,7 +971,7 @@ TEST_F(CovoxSlamNodeletTest, MapsABagAndServesTheMap) {
     }
     EXPECT_EQ(lines, kClouds);
   }
-  EXPECT_TRUE(call_file("save_mesh", mesh_path, &message)) << message;
+  EXPECT_TRUE(call_file("save_mesh", "mesh.ply", &message, true)) << message;
   {
     std::ifstream file(mesh_path, std::ios::binary);
     std::string header((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
@@ -953,16 +979,13 @@ TEST_F(CovoxSlamNodeletTest, MapsABagAndServesTheMap) {
     ASSERT_NE(face, std::string::npos);
     EXPECT_GT(std::stol(header.substr(face + 13)), 100);
   }
-  // A bad request is answered, not crashed on.
-  EXPECT_FALSE(call_file("save_map", "", &message));
-  EXPECT_FALSE(call_file("load_map", (folder_ / "missing.covoxmap").string(), &message));
-  EXPECT_NE(message.find("missing.covoxmap"), std::string::npos) << message;
+  expect_bad_file_requests_refused(folder_, map_path);
 
   // Reset empties the map; loading the saved map brings the submaps and their meshes back.
   ASSERT_TRUE(call_trigger("reset", &message)) << message;
   EXPECT_TRUE(wait_for(
       [] { return latest.submaps.submaps.empty() && latest.separated_meshes.empty(); }, 10.0));
-  ASSERT_TRUE(call_file("load_map", map_path, &message)) << message;
+  ASSERT_TRUE(call_file("load_map", "map.covoxmap", &message)) << message;
   EXPECT_TRUE(wait_for([&] { return latest.submaps.submaps.size() == submap_count; }, 10.0))
       << latest.submaps.submaps.size() << " submaps after loading, " << submap_count << " saved";
   {
@@ -1013,6 +1036,36 @@ TEST(CovoxSlamNodeStartup, BadParametersStopTheNodeWithTheirName) {
     EXPECT_NE(output.find(std::string("parameter")), std::string::npos) << output;
     EXPECT_NE(output.find(bad.name), std::string::npos) << bad.argument << ":\n" << output;
   }
+}
+
+// The node reads configuration files with the offline runner's reader: a quoted number and an
+// exponent (which `rosparam load` keeps as texts) are read in both, and a bad value stops both
+// with the same message (tools_command_line_test.cpp checks the runner's side).
+TEST(CovoxSlamNodeStartup, ConfigurationFilesReadAsTheOfflineRunnerReadsThem) {
+  if (odometry_as_topic() || depth_images())
+    GTEST_SKIP() << "checked once, in covoxslam_nodelet.test";
+  const fs::path folder =
+      fs::temp_directory_path() / ("covoxslam_yaml_" + std::to_string(::getpid()));
+  fs::create_directories(folder);
+  std::ofstream(folder / "good.yaml") << "map:\n  voxel_size_m: \"0.25\"\ntsdf:\n"
+                                      << "  truncation_distance_m: 75e-2\n";
+  std::ofstream(folder / "bad.yaml") << "map:\n  voxel_size_m: 0.2x\n";
+  int status = 0;
+  // `timeout` ends the node once it has started; its stdout is line-buffered for the check.
+  std::string output =
+      run_and_capture("timeout -k 10 6 stdbuf -oL " + std::string(COVOXSLAM_NODE_PATH) +
+                          " __name:=yaml_good _config_file:=" + (folder / "good.yaml").string(),
+                      &status);
+  EXPECT_NE(output.find("voxel 0.25 m"), std::string::npos) << output;
+  output = run_and_capture(std::string(COVOXSLAM_NODE_PATH) +
+                               " __name:=yaml_bad _config_file:=" + (folder / "bad.yaml").string(),
+                           &status);
+  EXPECT_NE(status, 0) << output;
+  EXPECT_NE(output.find("bad.yaml:2: parameter 'map.voxel_size_m': expected a finite decimal "
+                        "number, got '0.2x'"),
+            std::string::npos)
+      << output;
+  fs::remove_all(folder);
 }
 
 }  // namespace

@@ -12,6 +12,7 @@
 #endif
 
 #include "covoxslam/core/error.h"
+#include "covoxslam/io/file_bytes.h"
 
 namespace covox {
 namespace tools {
@@ -403,11 +404,10 @@ std::vector<uint8_t> encode_png(const RgbImage& image) {
 
 void write_png(const std::string& path, const RgbImage& image) {
   const std::vector<uint8_t> bytes = encode_png(image);
-  std::ofstream file(path, std::ios::binary | std::ios::trunc);
-  if (!file) throw Error("cannot open '" + path + "' for writing the PNG plot");
-  file.write(reinterpret_cast<const char*>(bytes.data()),
-             static_cast<std::streamsize>(bytes.size()));
-  if (!file) throw Error("writing the PNG plot '" + path + "' failed (disk full?)");
+  io::write_file_replacing(path, "PNG plot", /*binary=*/true, [&](std::ostream& file) {
+    file.write(reinterpret_cast<const char*>(bytes.data()),
+               static_cast<std::streamsize>(bytes.size()));
+  });
 }
 
 RgbImage render_trajectory_figure(const TrajectoryFigure& figure, int width_px) {

@@ -35,21 +35,30 @@ const char kSimulationUsage[] =
 
 namespace {
 
+// Bounds of the simulator's options: beyond them a run would not fit in memory or time (a
+// 100 km path, a day of flight, an 8192 x 1024 beam scan).
+constexpr int64_t kMaxColumns = 8192;
+constexpr int64_t kMaxRows = 1024;
+constexpr double kMaxPathLengthM = 100000.0;
+constexpr double kMaxDurationS = 86400.0;
+
 void read_lidar_options(tools::CommandLine& args, LidarConfig* lidar) {
-  lidar->columns = static_cast<int>(args.positive_integer("--columns", lidar->columns));
-  lidar->rows = static_cast<int>(args.positive_integer("--rows", lidar->rows));
-  lidar->range_noise_m = args.number("--range-noise-m", lidar->range_noise_m);
-  lidar->dropout_probability = args.number("--dropout", lidar->dropout_probability);
-  lidar->max_range_m = args.number("--max-range-m", lidar->max_range_m);
+  lidar->columns =
+      static_cast<int>(args.positive_integer("--columns", lidar->columns, kMaxColumns));
+  lidar->rows = static_cast<int>(args.positive_integer("--rows", lidar->rows, kMaxRows));
+  lidar->range_noise_m = args.number("--range-noise-m", lidar->range_noise_m, 0.0, 10.0);
+  lidar->dropout_probability = args.number("--dropout", lidar->dropout_probability, 0.0, 1.0);
+  lidar->max_range_m = args.number("--max-range-m", lidar->max_range_m, 0.1, 1000.0);
 }
 
 void read_flight_options(tools::CommandLine& args, FlightConfig* flight) {
   const double unset = std::numeric_limits<double>::quiet_NaN();
-  const double path_length_m = args.number("--path-length-m", unset);
-  const double duration_s = args.number("--duration-s", unset);
-  flight->speed_m_per_s = args.number("--speed-m-per-s", flight->speed_m_per_s);
-  flight->lobe_half_length_m = args.number("--lobe-half-length-m", flight->lobe_half_length_m);
-  flight->lap_length_m = args.number("--lap-length-m", flight->lap_length_m);
+  const double path_length_m = args.number("--path-length-m", unset, 1.0, kMaxPathLengthM);
+  const double duration_s = args.number("--duration-s", unset, 0.1, kMaxDurationS);
+  flight->speed_m_per_s = args.number("--speed-m-per-s", flight->speed_m_per_s, 0.01, 100.0);
+  flight->lobe_half_length_m =
+      args.number("--lobe-half-length-m", flight->lobe_half_length_m, 1.0, 10000.0);
+  flight->lap_length_m = args.number("--lap-length-m", flight->lap_length_m, 0.0, kMaxPathLengthM);
   if (!(flight->speed_m_per_s > 0.0)) args.fail("--speed-m-per-s must be positive");
   if (!(flight->lobe_half_length_m > 0.0)) args.fail("--lobe-half-length-m must be positive");
   if (!(flight->lap_length_m >= 0.0)) args.fail("--lap-length-m must be positive");
@@ -69,9 +78,9 @@ void read_flight_options(tools::CommandLine& args, FlightConfig* flight) {
 void read_drift_options(tools::CommandLine& args, SimulationOptions* options) {
   const double unset = std::numeric_limits<double>::quiet_NaN();
   DriftConfig& drift = options->drift;
-  const double min_drift_m = args.number("--min-drift-m", unset);
-  const double percent = args.number("--drift-percent", unset);
-  options->drift_scale = args.number("--drift-scale", options->drift_scale);
+  const double min_drift_m = args.number("--min-drift-m", unset, 0.0, 10000.0);
+  const double percent = args.number("--drift-percent", unset, 0.0, 100.0);
+  options->drift_scale = args.number("--drift-scale", options->drift_scale, 0.0, 1000.0);
   if (!(options->drift_scale >= 0.0 && std::isfinite(options->drift_scale)))
     args.fail("--drift-scale must be a number >= 0");
   if (!std::isnan(min_drift_m) && !std::isnan(percent))
@@ -92,7 +101,8 @@ void read_drift_options(tools::CommandLine& args, SimulationOptions* options) {
 
 SimulationOptions read_simulation_options(tools::CommandLine& args) {
   SimulationOptions options;
-  options.seed = static_cast<uint64_t>(args.integer("--seed", 1));
+  options.seed =
+      static_cast<uint64_t>(args.integer("--seed", 1, 0, std::numeric_limits<int64_t>::max()));
   read_lidar_options(args, &options.lidar);
   read_flight_options(args, &options.flight);
   read_drift_options(args, &options);

@@ -159,6 +159,23 @@ void save_map(pipeline::SlamSystem& slam, const map::TsdfMapConfig& map, const s
   result->map_file_mb = file ? double(file.tellg()) / (1024.0 * 1024.0) : kNaN;
 }
 
+std::string nothing_mapped(const SlamRunResult& result) {
+  return "nothing was mapped: " + std::to_string(result.scans_given) +
+         " scans were given to the SLAM system and none was integrated (" +
+         std::to_string(result.counters.scans_dropped_total()) + " dropped by it, " +
+         std::to_string(result.scans_dropped_by_source) +
+         " dropped by the input reader); no output was written";
+}
+
+// A run that mapped nothing has no result: it fails here, which keeps earlier outputs (the map
+// file, the caller's files) instead of replacing them with empty ones. Otherwise saves the map
+// when `path` is set.
+void save_map_of_run(pipeline::SlamSystem& slam, const map::TsdfMapConfig& map,
+                     const std::string& path, SlamRunResult* result) {
+  if (result->counters.scans_integrated == 0) throw Error(nothing_mapped(*result));
+  if (!path.empty()) save_map(slam, map, path, result);
+}
+
 }  // namespace
 
 double nearest_rank_percentile(std::vector<double>* values, double percent) {
@@ -251,7 +268,7 @@ SlamRunResult run_slam_system(ScanSource& source, const pipeline::SlamConfig& co
   for (const pipeline::SubmapInfo& submap : result.submaps)
     result.map_blocks += submap.statistics.blocks;
   result.map_memory_mb = voxel_memory_mb(result.map_blocks, config.map);
-  if (!options.map_path.empty()) save_map(slam, config.map, options.map_path, &result);
+  save_map_of_run(slam, config.map, options.map_path, &result);
   return result;
 }
 

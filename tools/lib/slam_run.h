@@ -85,7 +85,8 @@ struct SlamRunResult {
 };
 
 // Runs `source` through a SlamSystem built from `config`. Throws covox::Error for a bad
-// configuration or an input the source cannot read at all.
+// configuration, an input the source cannot read at all, or a run that integrated no scan (every
+// scan dropped or refused); the map file is not written then.
 SlamRunResult run_slam_system(ScanSource& source, const pipeline::SlamConfig& config,
                               const SlamRunOptions& options);
 

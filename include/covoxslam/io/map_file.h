@@ -27,6 +27,7 @@
 #include <vector>
 
 #include "covoxslam/core/device.h"
+#include "covoxslam/io/atomic_file.h"
 #include "covoxslam/map/tsdf_map.h"
 
 namespace covox {
@@ -70,6 +71,9 @@ class MapFileWriter {
  public:
   MapFileWriter(const std::string& path, float voxel_size_m, int voxels_per_side,
                 float distance_scale_m);
+  // The same into a checked target (io/output_folder.h), e.g. without overwriting.
+  MapFileWriter(WriteTarget target, float voxel_size_m, int voxels_per_side,
+                float distance_scale_m);
   ~MapFileWriter();
   MapFileWriter(const MapFileWriter&) = delete;
   MapFileWriter& operator=(const MapFileWriter&) = delete;
@@ -88,9 +92,7 @@ class MapFileWriter {
   void flush();
 
   std::string path_;
-  std::string temporary_;
-  int fd_ = -1;
-  bool in_place_ = false;  // a device or pipe: written directly
+  std::unique_ptr<AtomicFile> file_;  // null once committed
   int voxels_per_side_ = 0;
   float distance_scale_m_ = 0.0f;
   uint64_t checksum_;
@@ -103,7 +105,14 @@ void save_map_file(const std::string& path, const MapFileContents& contents);
 // Writes the retired version 1 layout; kept so that the version 1 reader stays tested.
 void save_map_file_version1(const std::string& path, const MapFileContents& contents);
 // Loads a version 1 or 2 file (blocks without ESDF voxels, or compact forms: see MapFileVoxels).
+// Every submap pose must be rigid (a rotation with determinant +1 within 1e-6, finite values,
+// bottom row 0 0 0 1): a file with a valid checksum but a scaled or sheared pose is refused
+// naming the submap. Errors name the file, the errno text of a failed call, and what was expected
+// against what was found.
 MapFileContents load_map_file(const std::string& path,
+                              MapFileVoxels voxels = MapFileVoxels::kDecoded);
+// The same from a file already opened (io/output_folder.h); `display` names it in messages.
+MapFileContents load_map_file(FileDescriptor file, const std::string& display,
                               MapFileVoxels voxels = MapFileVoxels::kDecoded);
 
 // Builds device maps from loaded contents.

@@ -9,6 +9,7 @@
 // default). The offline runner, the benchmarks, the nodelet's launch files and the tests all read
 // these files, so a preset exists once.
 #include <cstddef>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -22,6 +23,18 @@ struct SlamConfigFileUse {
   size_t applied = 0;                  // SLAM parameters it set
   std::vector<std::string> node_keys;  // keys of its `ros` section ("ros.odom_frame", ...)
 };
+
+// The values of configuration files, read as the offline runner and the node both read them:
+// every entry as its text (SLAM parameters by their dotted names, the nodelet's as "ros.<name>"),
+// with where it was written. A later file's value replaces an earlier file's.
+struct ConfigFileValues {
+  std::map<std::string, std::string> values;
+  std::map<std::string, std::string> locations;  // "file:line"
+};
+// Reads the files in order; an empty path is skipped. Throws covox::Error ("file:line: problem")
+// for a line outside the YAML subset and for an unknown SLAM parameter (a key outside the `ros`
+// section that slam_parameter_names() does not list).
+ConfigFileValues read_config_files(const std::vector<std::string>& paths);
 
 // Applies the configuration file at `path` over `*config`: each parameter it sets replaces the
 // value there, the others stay. Throws covox::Error, with the file and line where there is one,

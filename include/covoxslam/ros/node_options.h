@@ -57,6 +57,12 @@ struct NodeOptions {
   // Mesh vertices without a fused colour are coloured by world height over this range (m).
   double mesh_height_color_min_m = -1.0;
   double mesh_height_color_max_m = 9.0;
+  // The folder of the file services (save_map, load_map, save_mesh, save_trajectory): their
+  // file_path names a file inside it (io/output_folder.h). Created at start-up.
+  std::string output_dir = default_output_dir();
+
+  // $ROS_HOME/covoxslam, or ~/.ros/covoxslam when ROS_HOME is not set.
+  static std::string default_output_dir();
 };
 
 // Reads every option set under the private node handle's `ros` namespace (defaults for the

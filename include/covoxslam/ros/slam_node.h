@@ -52,6 +52,7 @@
 
 #include "covoxslam/FilePath.h"
 #include "covoxslam/LoopClosure.h"
+#include "covoxslam/io/output_folder.h"
 #include "covoxslam/pipeline/drop_counter.h"
 #include "covoxslam/pipeline/slam_system.h"
 #include "covoxslam/pipeline/stamped_pose_buffer.h"
@@ -201,6 +202,9 @@ class SlamNode {
   std::unique_ptr<ros::AsyncSpinner> output_spinner_;
 
   NodeOptions options_;
+  // The only folder the file services read and write (~ros/output_dir), created and opened here
+  // (after options_), so a folder that cannot be made stops the node at start-up.
+  io::OutputFolder output_folder_{options_.output_dir, "~ros/output_dir"};
   std::unique_ptr<pipeline::SlamSystem> slam_;
 
   tf2_ros::Buffer tf_buffer_;
