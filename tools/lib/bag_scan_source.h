@@ -6,10 +6,16 @@
 // from geometry_msgs/PointStamped (position-only, like ARCHE's RTK fixes) or nav_msgs/Odometry
 // messages on `reference_topic`, whichever type the topic has.
 //
-// The tf and the reference are read first (they are small); then the clouds are read one by one
-// in time order. A cloud whose pose cannot be looked up (tf does not reach its stamp or frame) or
-// whose fields cannot be read is skipped and counted.
+// With an extrinsic (T_base_sensor, see bag_extrinsic.h) the cloud's pose is tf odom_frame ->
+// base_frame times the extrinsic instead, so a bag without the static transform from the robot to
+// its LiDAR maps as one with it; where the bag has that transform too, the extrinsic wins, and
+// the first scan's log line gives both.
+//
+// The tf and the reference are read first, in one pass (they are small); then the clouds are read
+// one by one in time order. A cloud whose pose cannot be looked up (tf does not reach its stamp or
+// frame) or whose fields cannot be read is skipped and counted.
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -29,6 +35,11 @@ struct BagScanOptions {
   std::string sensor_frame;
   // Points nearer than this are the drone's own frame and propellers (ARCHE's launch crops them).
   double min_range_m = 0.0;
+  // The sensor's extrinsic, the nodelet's ros.base_frame and ros.T_base_sensor (points of the
+  // cloud's frame into base_frame); unset: tf from odom_frame to the cloud's frame.
+  std::string base_frame = "base_link";
+  std::optional<Eigen::Isometry3d> T_base_sensor;
+  std::string extrinsic_origin;  // where T_base_sensor came from, for the log ("--extrinsic")
 };
 
 // The poses on `topic`: geometry_msgs/PointStamped (position-only) or nav_msgs/Odometry, stamped
@@ -47,6 +58,13 @@ class BagScanSource : public ScanSource {
   double duration_s() const override;
 
  private:
+  // Reads /tf, /tf_static, the odometry topic and the reference in one pass over the bag.
+  void read_poses();
+  // T_odom_sensor of a cloud in `frame` at `stamp_s`, from tf alone or through the extrinsic;
+  // false with the reason when tf cannot give it.
+  bool lookup_sensor_pose(const std::string& frame, double stamp_s,
+                          Eigen::Isometry3d* T_odom_sensor, std::string* reason);
+
   std::string path_;
   BagScanOptions options_;
   io::rosbag::BagReader bag_;
@@ -54,6 +72,7 @@ class BagScanSource : public ScanSource {
   std::vector<io::rosbag::IndexEntry> clouds_;
   size_t next_cloud_ = 0;
   int64_t dropped_non_finite_points_ = 0;
+  bool extrinsic_logged_ = false;
 };
 
 }  // namespace tools
