@@ -34,9 +34,10 @@ export COVOX_DATA_DIR
 
 # Thrust's headers come with the CUDA toolkit (CCCL); without it, Debian's libthrust-dev.
 THRUST_PACKAGE := $(if $(wildcard /usr/local/cuda/include/cccl/thrust/version.h /usr/local/cuda/include/thrust/version.h),,libthrust-dev)
-# Debian 12 packages: what the demo's programs need, then the library's optional readers and the
-# tests, then the ROS 1 layer (Debian's own ROS packages).
-DEBIAN_DEMO_PACKAGES := cmake make g++ libeigen3-dev $(THRUST_PACKAGE)
+# Debian 12 packages: what the demo's programs need (liblz4 and libbz2: run_slam reads bags
+# recorded with --lz4 or --bz2), then the library's optional readers and the tests, then the ROS 1
+# layer (Debian's own ROS packages).
+DEBIAN_DEMO_PACKAGES := cmake make g++ libeigen3-dev $(THRUST_PACKAGE) liblz4-dev libbz2-dev
 DEBIAN_BUILD_PACKAGES := $(DEBIAN_DEMO_PACKAGES) pkg-config libgtest-dev libpng-dev \
   libjpeg-dev zlib1g-dev libceres-dev
 DEBIAN_ROS_PACKAGES := catkin ros-core-dev libroscpp-dev libnodeletlib-dev libnodelet-dev \

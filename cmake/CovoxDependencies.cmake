@@ -115,6 +115,20 @@ message(STATUS "covoxslam: PNG reader ${PNG_FOUND}, JPEG reader ${JPEG_FOUND}")
 add_library(covox_zlib INTERFACE)
 covox_optional_library(covox_zlib ZLIB ZLIB::ZLIB COVOX_HAVE_ZLIB)
 
+# --- Decompressors for ROS bag chunks (io/rosbag_reader.h), for bags recorded with
+#     `rosbag record --lz4` or `--bz2`. Optional: without them such a bag is refused with a message
+#     naming the missing library, and uncompressed bags read as before.
+add_library(covox_bag_codecs INTERFACE)
+covox_optional_library(covox_bag_codecs LZ4 LZ4::LZ4 COVOX_HAVE_LZ4)
+covox_optional_library(covox_bag_codecs BZip2 BZip2::BZip2 COVOX_HAVE_BZIP2)
+if(NOT LZ4_FOUND)
+  set(LZ4_FOUND FALSE)
+endif()
+if(NOT BZip2_FOUND)
+  set(BZip2_FOUND FALSE)
+endif()
+message(STATUS "covoxslam: compressed bag chunks: lz4 ${LZ4_FOUND}, bz2 ${BZip2_FOUND}")
+
 # --- Ceres: only a test and benchmark oracle for the pose-graph solver (never linked into the
 #     library). Where it is missing (the GPU machine) the Ceres comparisons skip with a message.
 find_package(Ceres QUIET)

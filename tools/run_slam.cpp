@@ -15,7 +15,9 @@
 #include <iostream>
 #include <memory>
 #include <string>
+#include <vector>
 
+#include "bag_extrinsic.h"
 #include "bag_scan_source.h"
 #include "benchmark_report.h"
 #include "command_line.h"
@@ -48,13 +50,21 @@ constexpr double kMaxDurationS = 86400.0;
 const char kUsage[] =
     "usage: run_slam (--bag FILE | --dataset DIR | --simulate) [options]\n"
     "input (default --bag sim_flight/flight.bag):\n"
-    "  --bag FILE                  ROS bag (format 2.0, uncompressed chunks)\n"
+    "  --bag FILE                  ROS bag (format 2.0; chunks uncompressed, lz4 or bz2)\n"
     "  --cloud-topic T             (default /penguin/os1_cloud_node/points)\n"
     "  --odom-frame F              odometry frame in tf (default odom)\n"
     "  --odometry-topic T          take odometry from nav_msgs/Odometry on T instead of tf\n"
     "  --reference-topic T         PointStamped or Odometry reference (default "
     "/penguin/piksi_node/enu_pose_fix)\n"
     "  --sensor-frame F            frame of the clouds (default: each cloud's frame_id)\n"
+    "  --extrinsic \"x y z qx qy qz qw\"\n"
+    "                              the clouds' frame in the base frame (metres, unit\n"
+    "                              quaternion, as ros.T_base_sensor; or 16 numbers, a\n"
+    "                              row-major 4x4) instead of the bag's tf from the base frame\n"
+    "                              (default: ros.T_base_sensor of the config where it sets\n"
+    "                              ros.use_tf_for_extrinsic: false)\n"
+    "  --base-frame F              the frame the odometry moves and --extrinsic starts from\n"
+    "                              (default: the config's ros.base_frame, e.g. imu for arche)\n"
     "  --min-range-m R             drop points nearer than R (default 0.5: the drone itself)\n"
     "  --dataset DIR               RGB-D folder (7-Scenes, 3DMatch, Replica) or LiDAR keyframes "
     "(MulRan layout)\n"
@@ -78,9 +88,8 @@ const char kUsage[] =
     "rgbd\n"
     "                              (the default for RGB-D folders), lidar_keyframes (the default\n"
     "                              for keyframe folders); docs/parameters.md lists the parameters\n"
-    "  --config FILE.yaml          a configuration file applied over the preset (its `ros` "
-    "section,\n"
-    "                              the nodelet's, is ignored)\n"
+    "  --config FILE.yaml          a configuration file applied over the preset (of its `ros`\n"
+    "                              section, the nodelet's, only the extrinsic keys are read)\n"
     "  --voxel-size-m S            voxel size\n"
     "  --truncation-m T            truncation distance\n"
     "  --max-ray-m R               points farther only clear space\n"
@@ -163,6 +172,7 @@ struct RunnerSettings {
   bool simulate = false;
   sim::SimulationOptions simulation;
   tools::BagScanOptions bag_options;
+  std::string base_frame_text, extrinsic_text;  // --base-frame, --extrinsic; empty: not given
   tools::RgbdScanOptions rgbd_options;
   tools::LidarKeyframeScanOptions lidar_options;
   int64_t max_scans = 0;
@@ -191,6 +201,8 @@ void read_input_options(tools::CommandLine& args, RunnerSettings* s) {
   bag.reference_topic = args.text("--reference-topic", bag.reference_topic);
   bag.sensor_frame = args.text("--sensor-frame", bag.sensor_frame);
   bag.min_range_m = args.number("--min-range-m", 0.5, 0.0, 1000.0);
+  s->base_frame_text = args.text("--base-frame", "");
+  s->extrinsic_text = args.text("--extrinsic", "");
   tools::RgbdScanOptions& rgbd = s->rgbd_options;
   rgbd.pixel_stride = static_cast<int>(args.integer("--pixel-stride", rgbd.pixel_stride, 1, 64));
   rgbd.frame_rate_hz = args.number("--frame-rate-hz", rgbd.frame_rate_hz, 0.01, 10000.0);
@@ -204,6 +216,9 @@ void read_input_options(tools::CommandLine& args, RunnerSettings* s) {
   s->max_scans = args.integer("--max-scans", 0, 0, kIntMax);
   s->simulate = args.flag("--simulate");
   if (s->simulate) s->simulation = sim::read_simulation_options(args);
+  if ((s->simulate || !s->dataset_path.empty()) &&
+      !(s->base_frame_text + s->extrinsic_text).empty())
+    args.fail("--extrinsic and --base-frame apply to --bag only");
 }
 
 void read_mapping_options(tools::CommandLine& args, RunnerSettings* s) {
@@ -287,7 +302,14 @@ std::unique_ptr<tools::ScanSource> open_source(RunnerSettings& s) {
     return std::make_unique<tools::SimScanSource>(s.simulation, s.bag_options.min_range_m,
                                                   static_cast<size_t>(s.max_scans));
   }
-  if (!s.bag_path.empty()) return std::make_unique<tools::BagScanSource>(s.bag_path, s.bag_options);
+  if (!s.bag_path.empty()) {
+    // The extrinsic is read from the same configuration files as the mapping parameters.
+    if (s.preset.empty()) s.preset = "arche_sim";
+    std::vector<std::string> config_paths = {pipeline::preset_path(s.preset)};
+    if (!s.config_path.empty()) config_paths.push_back(s.config_path);
+    tools::resolve_bag_extrinsic(config_paths, s.base_frame_text, s.extrinsic_text, &s.bag_options);
+    return std::make_unique<tools::BagScanSource>(s.bag_path, s.bag_options);
+  }
   if (s.max_scans > 0) {
     s.rgbd_options.max_frames = s.lidar_options.max_scans = static_cast<size_t>(s.max_scans);
   }

@@ -7,6 +7,7 @@
 #include <set>
 
 #include "covoxslam/core/error.h"
+#include "covoxslam/io/internal/rosbag_chunk_codecs.h"
 #include "covoxslam/io/rosbag_format.h"
 
 namespace covox {
@@ -126,14 +127,17 @@ void BagReader::read_index() {
     const RecordHeader header =
         RecordHeader::decode(header_bytes.data(), header_bytes.size(), chunk_what);
     if (header.u8("op", chunk_what) != kOpChunk) throw Error(chunk_what + ": not a chunk record");
-    const std::string& compression = header.text("compression", chunk_what);
-    if (compression != "none") {
-      throw Error(chunk_what + " is compressed with '" + compression +
-                  "', which this reader does not support: run `rosbag decompress` on the bag");
-    }
     Chunk chunk;
+    chunk.compression = header.text("compression", chunk_what);
+    const std::string problem = chunk_compression_problem(chunk.compression);
+    if (!problem.empty()) {
+      throw Error(chunk_what + " is compressed with '" + chunk.compression + "': " + problem +
+                  ", or run `rosbag decompress` on the bag");
+    }
     chunk.data_size = header.u32("size", chunk_what);
+    chunk.position = info.position;
     chunk.data_position = info.position + 4 + header_bytes.size() + 4;
+    chunk.stored_size = position - chunk.data_position;
     const uint32_t chunk_number = static_cast<uint32_t>(chunks_.size());
     chunks_.push_back(chunk);
     // The chunk's index-data records follow it, one per connection it holds.
@@ -197,17 +201,54 @@ std::vector<IndexEntry> BagReader::index(const std::vector<std::string>& topics)
   return selected;
 }
 
+const std::vector<uint8_t>& BagReader::decompressed_chunk(uint32_t number) {
+  if (number == cached_chunk_) return cached_chunk_data_;
+  const Chunk& chunk = chunks_[number];
+  const std::string what = "bag '" + path_ + "' chunk at byte " + std::to_string(chunk.position);
+  std::vector<uint8_t> stored(chunk.stored_size);
+  file_.seekg(static_cast<std::streamoff>(chunk.data_position));
+  file_.read(reinterpret_cast<char*>(stored.data()), static_cast<std::streamsize>(stored.size()));
+  if (!file_) throw Error(what + ": read failed");
+  cached_chunk_ = kNoChunk;  // until the new data is complete
+  cached_chunk_data_ =
+      decompress_chunk(chunk.compression, stored.data(), stored.size(), chunk.data_size, what);
+  cached_chunk_ = number;
+  return cached_chunk_data_;
+}
+
+std::string BagReader::read_message_record(const IndexEntry& entry, std::vector<uint8_t>* header,
+                                           std::vector<uint8_t>* data) {
+  const Chunk& chunk = chunks_[entry.chunk];
+  if (chunk.compression == "none") {
+    const uint64_t position = chunk.data_position + entry.offset;
+    const uint64_t end = read_record(position, header, data);
+    const std::string what = "bag '" + path_ + "' message at byte " + std::to_string(position);
+    if (end > chunk.data_position + chunk.data_size)
+      throw Error(what + ": runs past the end of its chunk");
+    return what;
+  }
+  // A compressed chunk is decompressed whole; the index's offsets count in its decompressed data.
+  const std::string what = "bag '" + path_ + "' message at byte " + std::to_string(entry.offset) +
+                           " of the " + chunk.compression + " chunk at byte " +
+                           std::to_string(chunk.position);
+  const std::vector<uint8_t>& bytes = decompressed_chunk(entry.chunk);
+  ByteReader in(bytes.data(), bytes.size(), what);
+  in.bytes(entry.offset, "the chunk's records before the message");
+  const uint32_t header_size = in.u32("record header length");
+  const uint8_t* header_bytes = in.bytes(header_size, "record header");
+  header->assign(header_bytes, header_bytes + header_size);
+  const uint32_t data_size = in.u32("record data length (the record runs past its chunk)");
+  const uint8_t* data_bytes = in.bytes(data_size, "record data (the record runs past its chunk)");
+  data->assign(data_bytes, data_bytes + data_size);
+  return what;
+}
+
 BagMessage BagReader::read(const IndexEntry& entry) {
   if (entry.chunk >= chunks_.size())
     throw Error("bag '" + path_ + "': index entry names chunk " + std::to_string(entry.chunk));
-  const Chunk& chunk = chunks_[entry.chunk];
-  const uint64_t position = chunk.data_position + entry.offset;
   std::vector<uint8_t> header_bytes;
   BagMessage message;
-  const uint64_t end = read_record(position, &header_bytes, &message.data);
-  const std::string what = "bag '" + path_ + "' message at byte " + std::to_string(position);
-  if (end > chunk.data_position + chunk.data_size)
-    throw Error(what + ": runs past the end of its chunk");
+  const std::string what = read_message_record(entry, &header_bytes, &message.data);
   const RecordHeader header = RecordHeader::decode(header_bytes.data(), header_bytes.size(), what);
   if (header.u8("op", what) != kOpMessageData)
     throw Error(what + ": the index points at something else than a message");

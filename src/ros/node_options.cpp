@@ -7,6 +7,7 @@
 #include <ros/console.h>
 
 #include "covoxslam/core/error.h"
+#include "covoxslam/io/transform_numbers.h"
 #include "covoxslam/ros/ros_parameter_source.h"
 
 namespace covox {
@@ -60,31 +61,7 @@ Eigen::Isometry3d read_transform(const RosParameterSource& source, const std::st
                                  const Eigen::Isometry3d& fallback) {
   std::vector<double> values;
   if (!source.get_number_list(name, &values)) return fallback;
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  if (values.size() == 7) {
-    const Eigen::Quaterniond q(values[6], values[3], values[4], values[5]);
-    if (std::abs(q.norm() - 1.0) > 1e-3)
-      bad(name, "the quaternion (qx, qy, qz, qw) is not of unit length");
-    T.linear() = q.normalized().toRotationMatrix();
-    T.translation() = Eigen::Vector3d(values[0], values[1], values[2]);
-    return T;
-  }
-  if (values.size() == 16) {
-    Eigen::Matrix4d M;
-    for (int r = 0; r < 4; ++r) {
-      for (int c = 0; c < 4; ++c) M(r, c) = values[4 * r + c];
-    }
-    const Eigen::Matrix3d R = M.topLeftCorner<3, 3>();
-    if ((R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-3 ||
-        R.determinant() < 0.0 || M.row(3).cwiseAbs().sum() - std::abs(M(3, 3)) > 1e-9 ||
-        std::abs(M(3, 3) - 1.0) > 1e-9) {
-      bad(name, "the 4x4 matrix is not a rigid transform");
-    }
-    T.matrix() = M;
-    return T;
-  }
-  bad(name, "expected 7 numbers [x, y, z, qx, qy, qz, qw] or 16 (a row-major 4x4 matrix), got " +
-                std::to_string(values.size()));
+  return io::transform_from_numbers(values, "parameter 'ros." + name + "'");
 }
 
 // time_jump_policy, time_jump_min_s and the mesh height colour range.

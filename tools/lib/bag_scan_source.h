@@ -6,12 +6,19 @@
 // from geometry_msgs/PointStamped (position-only, like ARCHE's RTK fixes) or nav_msgs/Odometry
 // messages on `reference_topic`, whichever type the topic has.
 //
-// The tf and the reference are read first (they are small); then the clouds are read one by one
-// in time order. A cloud whose pose cannot be looked up (tf does not reach its stamp or frame) or
-// whose fields cannot be read is skipped and counted. A cloud with per-point times (a `t` or
-// `time` field, or organised) gets them and the odometry at its first and last point time, for
-// de-skewing; where tf does not reach those times the scan goes without (the pipeline counts it).
+// With an extrinsic (T_base_sensor, see bag_extrinsic.h) the cloud's pose is tf odom_frame ->
+// base_frame times the extrinsic instead, so a bag without the static transform from the robot to
+// its LiDAR maps as one with it; where the bag has that transform too, the extrinsic wins, and
+// the first scan's log line gives both.
+//
+// The tf and the reference are read first, in one pass (they are small); then the clouds are read
+// one by one in time order. A cloud whose pose cannot be looked up (tf does not reach its stamp or
+// frame) or whose fields cannot be read is skipped and counted. A cloud with per-point times (a
+// `t` or `time` field, or organised) gets them and the odometry at its first and last point time,
+// for de-skewing; where tf does not reach those times the scan goes without (the pipeline counts
+// it).
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -34,6 +41,11 @@ struct BagScanOptions {
   // Organised clouds without a time field: their columns are taken as fired over this long
   // (deskew.sweep_duration_s; io/point_times.h).
   double column_sweep_duration_s = 0.1;
+  // The sensor's extrinsic, the nodelet's ros.base_frame and ros.T_base_sensor (points of the
+  // cloud's frame into base_frame); unset: tf from odom_frame to the cloud's frame.
+  std::string base_frame = "base_link";
+  std::optional<Eigen::Isometry3d> T_base_sensor;
+  std::string extrinsic_origin;  // where T_base_sensor came from, for the log ("--extrinsic")
 };
 
 // The poses on `topic`: geometry_msgs/PointStamped (position-only) or nav_msgs/Odometry, stamped
@@ -54,6 +66,13 @@ class BagScanSource : public ScanSource {
   void set_column_sweep_duration_s(double seconds) { options_.column_sweep_duration_s = seconds; }
 
  private:
+  // Reads /tf, /tf_static, the odometry topic and the reference in one pass over the bag.
+  void read_poses();
+  // T_odom_sensor of a cloud in `frame` at `stamp_s`, from tf alone or through the extrinsic;
+  // false with the reason when tf cannot give it.
+  bool lookup_sensor_pose(const std::string& frame, double stamp_s,
+                          Eigen::Isometry3d* T_odom_sensor, std::string* reason);
+
   std::string path_;
   BagScanOptions options_;
   io::rosbag::BagReader bag_;
@@ -63,8 +82,9 @@ class BagScanSource : public ScanSource {
   // The points nearer than min_range_m left out, with their times.
   void keep_points(const io::PointCloud& points, SourceScan* scan) const;
   // scan->sweep from tf at the scan's first and last point time.
-  void look_up_sweep(const std::string& frame, SourceScan* scan) const;
+  void look_up_sweep(const std::string& frame, SourceScan* scan);
   int64_t dropped_non_finite_points_ = 0;
+  bool extrinsic_logged_ = false;
 };
 
 }  // namespace tools

@@ -3,7 +3,8 @@
 //
 //   "#ROSBAG V2.0\n"
 //   bag header record, padded to 4096 bytes (index_pos, conn_count, chunk_count)
-//   per chunk: chunk record (connection and message-data records, here uncompressed),
+//   per chunk: chunk record (connection and message-data records, uncompressed or compressed
+//              as one lz4 or bz2 stream; BagWriter writes them uncompressed),
 //              then one index-data record per connection in the chunk (stamp and offset of
 //              each of its messages inside the chunk)
 //   at index_pos: every connection record, then one chunk-info record per chunk
