@@ -74,6 +74,27 @@ geometry_msgs::Pose to_pose_msg(const Eigen::Isometry3d& pose) {
   return msg;
 }
 
+namespace {
+
+geometry_msgs::Point point_msg(const Vec3f& p) {
+  geometry_msgs::Point point;
+  point.x = p.x;
+  point.y = p.y;
+  point.z = p.z;
+  return point;
+}
+
+std_msgs::ColorRGBA opaque_color_msg(const Rgb8& c) {
+  std_msgs::ColorRGBA color;
+  color.r = c.r / 255.0f;
+  color.g = c.g / 255.0f;
+  color.b = c.b / 255.0f;
+  color.a = 1.0f;
+  return color;
+}
+
+}  // namespace
+
 visualization_msgs::Marker mesh_marker(const map::Mesh& mesh, const std::vector<Rgb8>& colors,
                                        const Eigen::Isometry3d& pose, const std::string& frame,
                                        const ros::Time& stamp, const std::string& ns, int id) {
@@ -93,19 +114,8 @@ visualization_msgs::Marker mesh_marker(const map::Mesh& mesh, const std::vector<
   if (colored) marker.colors.reserve(mesh.triangles.size());
   for (uint32_t index : mesh.triangles) {
     if (index >= mesh.vertices_m.size()) continue;  // never from the mesher; guards rviz
-    geometry_msgs::Point point;
-    point.x = mesh.vertices_m[index].x;
-    point.y = mesh.vertices_m[index].y;
-    point.z = mesh.vertices_m[index].z;
-    marker.points.push_back(point);
-    if (colored) {
-      std_msgs::ColorRGBA color;
-      color.r = colors[index].r / 255.0f;
-      color.g = colors[index].g / 255.0f;
-      color.b = colors[index].b / 255.0f;
-      color.a = 1.0f;
-      marker.colors.push_back(color);
-    }
+    marker.points.push_back(point_msg(mesh.vertices_m[index]));
+    if (colored) marker.colors.push_back(opaque_color_msg(colors[index]));
   }
   // rviz needs whole triangles.
   marker.points.resize(marker.points.size() / 3 * 3);
@@ -139,19 +149,8 @@ visualization_msgs::Marker face_colored_mesh_marker(const map::Mesh& mesh,
     const size_t vertices = mesh.vertices_m.size();
     // Never from the mesher; guards rviz, which needs one colour per whole triangle.
     if (corners[0] >= vertices || corners[1] >= vertices || corners[2] >= vertices) continue;
-    for (int c = 0; c < 3; ++c) {
-      geometry_msgs::Point point;
-      point.x = mesh.vertices_m[corners[c]].x;
-      point.y = mesh.vertices_m[corners[c]].y;
-      point.z = mesh.vertices_m[corners[c]].z;
-      marker.points.push_back(point);
-    }
-    std_msgs::ColorRGBA color;
-    color.r = face_colors[t].r / 255.0f;
-    color.g = face_colors[t].g / 255.0f;
-    color.b = face_colors[t].b / 255.0f;
-    color.a = 1.0f;
-    marker.colors.push_back(color);
+    for (int c = 0; c < 3; ++c) marker.points.push_back(point_msg(mesh.vertices_m[corners[c]]));
+    marker.colors.push_back(opaque_color_msg(face_colors[t]));
   }
   return marker;
 }

@@ -164,6 +164,55 @@ void expect_pointcloud_matches_the_room(const sensor_msgs::PointCloud2& cloud) {
             << " of " << compared << " comparable ones within one voxel\n";
 }
 
+// The flight goes on (the clock moves, so mission -> odom is published) while finish_map and
+// generate_mesh (which re-sends every mesh) run one after the other, on the services' thread;
+// none may hold the correction back.
+void expect_tf_flows_during_service_calls(const fs::path& folder) {
+  std::string message;
+  const std::string second = (folder / "second.bag").string();
+  write_bag(second, kStart_s + kClouds * kCloudPeriod_s + 1.0, 3 * kClouds, false);
+  std::atomic<bool> playing{true};
+  std::thread player([&] {
+    std::string play_log;
+    play_bag(folder, second, &play_log);
+    playing = false;
+  });
+  std::this_thread::sleep_for(std::chrono::milliseconds(3500));  // past rosbag's 2 s delay
+  // A call's first 30 ms are left out: what was sent just before it may still be arriving.
+  const auto settle = std::chrono::milliseconds(30);
+  double call_time_s = 0.0, longest_call_s = 0.0;
+  std::vector<std::pair<Clock::time_point, Clock::time_point>> windows;
+  int calls = 0;
+  while (playing && calls < 6) {
+    const auto start = Clock::now();
+    const bool ok = call_trigger(calls % 2 == 0 ? "finish_map" : "generate_mesh", &message);
+    const auto end = Clock::now();
+    EXPECT_TRUE(ok) << message;
+    ++calls;
+    if (!playing) break;  // the clock stopped during the call: no correction to expect
+    const double duration_s = std::chrono::duration<double>(end - start).count();
+    longest_call_s = std::max(longest_call_s, duration_s);
+    if (duration_s <= 0.03) continue;
+    call_time_s += duration_s - 0.03;
+    windows.emplace_back(start + settle, end);
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  }
+  player.join();
+  int during_calls = 0;
+  for (const auto& window : windows)
+    during_calls += corrections_between(window.first, window.second);
+  // tf_publish_period_s is 0.05 s. A thread shared with the services sends nothing while a call
+  // runs; its own thread keeps the rate (a loaded machine may delay some sends).
+  const double expected = call_time_s / 0.05;
+  EXPECT_GE(calls, 2);
+  EXPECT_GE(expected, 3.0) << "the calls were too short to tell (" << call_time_s << " s)";
+  EXPECT_GE(during_calls, 0.5 * expected) << during_calls << " mission -> odom transforms during "
+                                          << call_time_s << " s of service calls";
+  std::cout << "planner rostest: " << calls << " service calls (" << call_time_s
+            << " s, the longest " << longest_call_s << " s): " << during_calls
+            << " mission -> odom transforms meanwhile, " << expected << " at the full rate\n";
+}
+
 TEST(CovoxSlamPlanner, EsdfForPlannersAndTfWhileServicesRun) {
   if (!planner_checks()) GTEST_SKIP() << "checked in covoxslam_nodelet_planner.test";
   ros::NodeHandle node;
@@ -217,51 +266,7 @@ TEST(CovoxSlamPlanner, EsdfForPlannersAndTfWhileServicesRun) {
     expect_pointcloud_matches_the_room(esdf_cloud);
   }
 
-  // The flight goes on (the clock moves, so mission -> odom is published) while finish_map and
-  // generate_mesh (which re-sends every mesh) run one after the other, on the services' thread;
-  // none may hold the correction back.
-  const std::string second = (folder / "second.bag").string();
-  write_bag(second, kStart_s + kClouds * kCloudPeriod_s + 1.0, 3 * kClouds, false);
-  std::atomic<bool> playing{true};
-  std::thread player([&] {
-    std::string play_log;
-    play_bag(folder, second, &play_log);
-    playing = false;
-  });
-  std::this_thread::sleep_for(std::chrono::milliseconds(3500));  // past rosbag's 2 s delay
-  // A call's first 30 ms are left out: what was sent just before it may still be arriving.
-  const auto settle = std::chrono::milliseconds(30);
-  double call_time_s = 0.0, longest_call_s = 0.0;
-  std::vector<std::pair<Clock::time_point, Clock::time_point>> windows;
-  int calls = 0;
-  while (playing && calls < 6) {
-    const auto start = Clock::now();
-    const bool ok = call_trigger(calls % 2 == 0 ? "finish_map" : "generate_mesh", &message);
-    const auto end = Clock::now();
-    EXPECT_TRUE(ok) << message;
-    ++calls;
-    if (!playing) break;  // the clock stopped during the call: no correction to expect
-    const double duration_s = std::chrono::duration<double>(end - start).count();
-    longest_call_s = std::max(longest_call_s, duration_s);
-    if (duration_s <= 0.03) continue;
-    call_time_s += duration_s - 0.03;
-    windows.emplace_back(start + settle, end);
-    std::this_thread::sleep_for(std::chrono::milliseconds(200));
-  }
-  player.join();
-  int during_calls = 0;
-  for (const auto& window : windows)
-    during_calls += corrections_between(window.first, window.second);
-  // tf_publish_period_s is 0.05 s. A thread shared with the services sends nothing while a call
-  // runs; its own thread keeps the rate (a loaded machine may delay some sends).
-  const double expected = call_time_s / 0.05;
-  EXPECT_GE(calls, 2);
-  EXPECT_GE(expected, 3.0) << "the calls were too short to tell (" << call_time_s << " s)";
-  EXPECT_GE(during_calls, 0.5 * expected) << during_calls << " mission -> odom transforms during "
-                                          << call_time_s << " s of service calls";
-  std::cout << "planner rostest: " << calls << " service calls (" << call_time_s
-            << " s, the longest " << longest_call_s << " s): " << during_calls
-            << " mission -> odom transforms meanwhile, " << expected << " at the full rate\n";
+  expect_tf_flows_during_service_calls(folder);
   {
     std::lock_guard<std::mutex> lock(tf_record.mutex);
     EXPECT_GT(tf_record.submap_frames_on_tf, 0);
