@@ -44,7 +44,8 @@ DEBIAN_ROS_PACKAGES := catkin ros-core-dev libroscpp-dev libnodeletlib-dev libno
   libtf2-ros-dev libtf2-eigen-dev libpcl-dev libpcl-conversions-dev librosbag-dev pluginlib-dev \
   libsensor-msgs-dev libnav-msgs-dev libvisualization-msgs-dev libgeometry-msgs-dev \
   libstd-srvs-dev ros-message-generation librostest-dev python3-rostest libnodeletlib-tools rosbash \
-  python3-rosbag python3-roslaunch libmessage-filters-dev libdiagnostic-msgs-dev libtf2-dev \
+  python3-rosbag python3-roslaunch libmessage-filters-dev libdiagnostic-msgs-dev \
+  libdiagnostic-updater-dev libtf2-dev \
   python3-std-srvs python3-diagnostic-msgs
 # What the documented ROS commands run: rviz, rostopic / rosservice / rosnode with the Python
 # message packages of the node's inputs and outputs, and the tf tools (tf_echo, view_frames).
@@ -110,8 +111,10 @@ demo: demo-deps
 # the messages (C++ and Python) in $(BUILD_DIR)/devel.
 ROS_TARGETS := covoxslam_ros covoxslam_node covoxslam_generate_messages
 
+# grep reads the whole target list (no -q): quitting at the first match would close the pipe on
+# cmake, which then reports "execution of make failed".
 ros: configure
-	@cmake --build $(BUILD_DIR) --target help | grep -q covoxslam_ros || \
+	@cmake --build $(BUILD_DIR) --target help | grep covoxslam_ros >/dev/null || \
 	  { echo "covoxslam: the ROS layer is not configured (see CMake's warning above)"; exit 1; }
 	cmake --build $(BUILD_DIR) -j $(JOBS) --target $(ROS_TARGETS)
 	@echo "covoxslam: ROS layer built; in each new shell: source $(BUILD_DIR)/devel/setup.bash"

@@ -10,7 +10,8 @@ if(NOT catkin_FOUND)
 endif()
 
 set(COVOX_ROS_COMPONENTS roscpp nodelet pluginlib tf2 tf2_ros tf2_eigen sensor_msgs nav_msgs geometry_msgs
-    std_msgs std_srvs visualization_msgs diagnostic_msgs message_filters rosbag message_generation)
+    std_msgs std_srvs visualization_msgs diagnostic_msgs diagnostic_updater message_filters rosbag
+    message_generation)
 find_package(catkin QUIET COMPONENTS ${COVOX_ROS_COMPONENTS})
 # catkin skips a missing component silently when QUIET: check each one, and without all of them
 # build the non-ROS part only, naming what is missing (make deps installs it).
@@ -28,11 +29,11 @@ endif()
 set(COVOX_ROS_ENABLED ON)
 
 add_message_files(DIRECTORY msg FILES LoopClosure.msg SubmapPose.msg SubmapPoses.msg)
-add_service_files(DIRECTORY srv FILES FilePath.srv)
+add_service_files(DIRECTORY srv FILES EsdfQuery.srv FilePath.srv)
 generate_messages(DEPENDENCIES std_msgs geometry_msgs)
 
 catkin_package(
   INCLUDE_DIRS include
   LIBRARIES covoxslam covoxslam_ros
   CATKIN_DEPENDS roscpp nodelet sensor_msgs nav_msgs geometry_msgs std_msgs std_srvs visualization_msgs
-                 diagnostic_msgs message_runtime)
+                 diagnostic_msgs diagnostic_updater message_runtime)

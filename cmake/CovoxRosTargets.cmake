@@ -19,7 +19,8 @@ target_link_libraries(covoxslam_node PRIVATE covoxslam_ros)
 if(COVOX_BUILD_TESTS AND CATKIN_ENABLE_TESTING)
   find_package(rostest QUIET)
   if(rostest_FOUND)
-    add_executable(covoxslam_rostest_node ${CMAKE_CURRENT_SOURCE_DIR}/test/ros/covoxslam_rostest_node.cpp)
+    add_executable(covoxslam_rostest_node ${CMAKE_CURRENT_SOURCE_DIR}/test/ros/covoxslam_rostest_node.cpp
+                   ${CMAKE_CURRENT_SOURCE_DIR}/test/ros/planner_rostest.cpp)
     target_link_libraries(covoxslam_rostest_node PRIVATE covoxslam_ros GTest::gtest)
     # The start-up test runs the node binary by its path: rosrun skips everything under
     # <package>/build/, which is where `make` builds (rosrun's own exclusion rule).
@@ -28,6 +29,7 @@ if(COVOX_BUILD_TESTS AND CATKIN_ENABLE_TESTING)
     add_rostest(test/ros/covoxslam_nodelet.test DEPENDENCIES covoxslam_rostest_node covoxslam_node covoxslam_ros)
     add_rostest(test/ros/covoxslam_nodelet_odometry.test DEPENDENCIES covoxslam_rostest_node covoxslam_node covoxslam_ros)
     add_rostest(test/ros/covoxslam_nodelet_depth.test DEPENDENCIES covoxslam_rostest_node covoxslam_node covoxslam_ros)
+    add_rostest(test/ros/covoxslam_nodelet_planner.test DEPENDENCIES covoxslam_rostest_node covoxslam_node covoxslam_ros)
   else()
     message(STATUS "covoxslam: rostest not found; the ROS integration test is not registered")
   endif()

@@ -1,6 +1,6 @@
 // Mesh display colours (map/mesh_colors.h): the height colour map is never dark and follows the
 // world height, fused colours are kept, black (unobserved) vertices are coloured by height, and
-// the PLY writer writes exactly those colours.
+// the PLY writer writes exactly those colours; face colours are shaded alike from both sides.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -76,6 +76,33 @@ TEST(MeshColors, BlackVerticesTakeTheColourOfTheirWorldHeight) {
   uncolored.colors.clear();
   const std::vector<Rgb8> by_height = map::display_colors(uncolored, T_world_mesh, range);
   EXPECT_TRUE(same(by_height[1], map::height_color(5.0f, range)));
+}
+
+// A flat roof and a wall, each in both windings (seen from above / outside, or from below /
+// inside): one colour per triangle, the same for either winding, never dark; the roof faces the
+// light more squarely than the wall, so it is brighter; the hue is the centre's height colour.
+TEST(MeshColors, FaceColoursAreShadedAlikeFromBothSidesAndNeverDark) {
+  map::Mesh mesh;
+  mesh.vertices_m = {Vec3f(0, 0, 3), Vec3f(1, 0, 3), Vec3f(0, 1, 3),   // roof at 3 m
+                     Vec3f(0, 0, 0), Vec3f(1, 0, 0), Vec3f(0, 0, 3)};  // wall in the x-z plane
+  mesh.triangles = {0, 1, 2, 0, 2, 1, 3, 4, 5, 3, 5, 4, 0, 1, 9};      // the last: a bad index
+  const map::HeightColorRange range{0.0f, 10.0f};
+  const std::vector<Rgb8> colors =
+      map::shaded_face_colors(mesh, Eigen::Isometry3d::Identity(), range);
+  ASSERT_EQ(colors.size(), 5u);
+  EXPECT_TRUE(same(colors[0], colors[1]));
+  EXPECT_TRUE(same(colors[2], colors[3]));
+  for (const Rgb8& color : colors) EXPECT_GE(brightest_channel(color), 100);
+  EXPECT_GT(brightest_channel(colors[0]), brightest_channel(colors[2]));
+  // Shading scales every channel of the centre's height colour alike.
+  const Rgb8 roof_height = map::height_color(3.0f, range);
+  const double shade = colors[0].g / double(roof_height.g);
+  EXPECT_GT(shade, 0.5);
+  EXPECT_LE(shade, 1.0);
+  EXPECT_NEAR(colors[0].r, shade * roof_height.r, 1.0);
+  EXPECT_NEAR(colors[0].b, shade * roof_height.b, 1.0);
+  // The bad triangle keeps the unshaded colour of its two valid corners' centre (3 m).
+  EXPECT_TRUE(same(colors[4], roof_height));
 }
 
 TEST(MeshColors, PlyWriterColoursBlackVerticesByTheMeshHeights) {

@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "covoxslam/core/device_algorithms.h"
 #include "covoxslam/core/error.h"
 #include "covoxslam/integrators/internal/esdf_queries_ops.h"
 
@@ -74,6 +75,43 @@ std::vector<SlicePoint> esdf_squashed_slice(const map::TsdfMap& map, float z_min
   const int32_t layer_min = static_cast<int32_t>(std::floor(z_min_m / map.voxel_size_m()));
   const int32_t layer_max = static_cast<int32_t>(std::floor(z_max_m / map.voxel_size_m()));
   return collect_slice(map, layer_min, layer_max, 0.5f * (z_min_m + z_max_m), stream);
+}
+
+std::vector<SlicePoint> esdf_voxels_within(const map::TsdfMap& map, float max_distance_m,
+                                           const Stream& stream) {
+  auto& mutable_map = const_cast<map::TsdfMap&>(map);
+  Buffer<Index3D> block_indices(map.device());
+  Buffer<uint32_t> block_slots(map.device());
+  map.blocks().export_entries(&block_indices, &block_slots);
+  const int32_t side = map.voxels_per_side();
+  const int64_t blocks = static_cast<int64_t>(block_indices.size());
+  const int64_t total = blocks * side * side * side;
+  if (total == 0) return {};
+  // Flag, scan for each voxel's place in the output, gather.
+  Buffer<uint32_t> flags(map.device(), total);
+  Buffer<uint32_t> offsets(map.device(), total);
+  dispatch(map.device(), [&](auto backend) {
+    esdf_flag_band(backend, mutable_map.esdf().view(), block_slots.data(), blocks, side,
+                   max_distance_m, flags.data(), stream);
+  });
+  algorithms::exclusive_scan(map.device(), stream, flags.data(), total, offsets.data());
+  const int64_t count = static_cast<int64_t>(offsets.element(total - 1, stream)) +
+                        static_cast<int64_t>(flags.element(total - 1, stream));
+  Buffer<Vec3f> positions(map.device(), static_cast<size_t>(count));
+  Buffer<float> distances(map.device(), static_cast<size_t>(count));
+  dispatch(map.device(), [&](auto backend) {
+    esdf_gather_band(backend, mutable_map.esdf().view(), block_indices.data(), block_slots.data(),
+                     blocks, side, map.voxel_size_m(), flags.data(), offsets.data(),
+                     positions.data(), distances.data(), stream);
+  });
+  const std::vector<Vec3f> host_positions = positions.to_host(stream);
+  const std::vector<float> host_distances = distances.to_host(stream);
+  std::vector<SlicePoint> voxels(static_cast<size_t>(count));
+  for (int64_t i = 0; i < count; ++i) {
+    voxels[i].position_m = host_positions[i];
+    voxels[i].distance_m = host_distances[i];
+  }
+  return voxels;
 }
 
 }  // namespace covox::integrators

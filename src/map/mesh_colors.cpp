@@ -64,6 +64,43 @@ std::vector<Rgb8> display_colors(const Mesh& mesh, const Eigen::Isometry3d& T_wo
   return colors;
 }
 
+std::vector<Rgb8> shaded_face_colors(const Mesh& mesh, const Eigen::Isometry3d& T_world_mesh,
+                                     const HeightColorRange& range) {
+  const Eigen::Vector3d light = Eigen::Vector3d(0.3, 0.5, 0.8).normalized();
+  std::vector<Rgb8> colors;
+  colors.reserve(mesh.triangle_count());
+  for (size_t t = 0; t + 2 < mesh.triangles.size(); t += 3) {
+    Eigen::Vector3d corners[3];
+    int valid = 0;
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    for (int c = 0; c < 3; ++c) {
+      const uint32_t index = mesh.triangles[t + c];
+      if (index >= mesh.vertices_m.size()) continue;
+      const Vec3f& v = mesh.vertices_m[index];
+      corners[valid] = T_world_mesh * Eigen::Vector3d(v.x, v.y, v.z);
+      centre += corners[valid++];
+    }
+    if (valid == 0) {
+      colors.push_back(height_color(std::nanf(""), range));
+      continue;
+    }
+    centre /= valid;
+    const Rgb8 base = height_color(static_cast<float>(centre.z()), range);
+    const Eigen::Vector3d normal = valid == 3
+                                       ? (corners[1] - corners[0]).cross(corners[2] - corners[0])
+                                       : Eigen::Vector3d::Zero();
+    const double length = normal.norm();
+    const double shade = length > 0.0 && std::isfinite(length)
+                             ? 0.55 + 0.45 * std::abs(normal.dot(light)) / length
+                             : 1.0;
+    auto scaled = [shade](uint8_t value) {
+      return static_cast<uint8_t>(std::lround(std::min(255.0, value * shade)));
+    };
+    colors.push_back(Rgb8{scaled(base.r), scaled(base.g), scaled(base.b)});
+  }
+  return colors;
+}
+
 HeightColorRange vertex_height_range(const Mesh& mesh) {
   bool any = false;
   HeightColorRange range{0.0f, 0.0f};

@@ -74,6 +74,27 @@ geometry_msgs::Pose to_pose_msg(const Eigen::Isometry3d& pose) {
   return msg;
 }
 
+namespace {
+
+geometry_msgs::Point point_msg(const Vec3f& p) {
+  geometry_msgs::Point point;
+  point.x = p.x;
+  point.y = p.y;
+  point.z = p.z;
+  return point;
+}
+
+std_msgs::ColorRGBA opaque_color_msg(const Rgb8& c) {
+  std_msgs::ColorRGBA color;
+  color.r = c.r / 255.0f;
+  color.g = c.g / 255.0f;
+  color.b = c.b / 255.0f;
+  color.a = 1.0f;
+  return color;
+}
+
+}  // namespace
+
 visualization_msgs::Marker mesh_marker(const map::Mesh& mesh, const std::vector<Rgb8>& colors,
                                        const Eigen::Isometry3d& pose, const std::string& frame,
                                        const ros::Time& stamp, const std::string& ns, int id) {
@@ -93,19 +114,8 @@ visualization_msgs::Marker mesh_marker(const map::Mesh& mesh, const std::vector<
   if (colored) marker.colors.reserve(mesh.triangles.size());
   for (uint32_t index : mesh.triangles) {
     if (index >= mesh.vertices_m.size()) continue;  // never from the mesher; guards rviz
-    geometry_msgs::Point point;
-    point.x = mesh.vertices_m[index].x;
-    point.y = mesh.vertices_m[index].y;
-    point.z = mesh.vertices_m[index].z;
-    marker.points.push_back(point);
-    if (colored) {
-      std_msgs::ColorRGBA color;
-      color.r = colors[index].r / 255.0f;
-      color.g = colors[index].g / 255.0f;
-      color.b = colors[index].b / 255.0f;
-      color.a = 1.0f;
-      marker.colors.push_back(color);
-    }
+    marker.points.push_back(point_msg(mesh.vertices_m[index]));
+    if (colored) marker.colors.push_back(opaque_color_msg(colors[index]));
   }
   // rviz needs whole triangles.
   marker.points.resize(marker.points.size() / 3 * 3);
@@ -124,59 +134,25 @@ visualization_msgs::Marker deletion_marker(const std::string& frame, const ros::
   return marker;
 }
 
-std::vector<visualization_msgs::Marker> height_band_markers(const map::Mesh& mesh,
-                                                            const Eigen::Isometry3d& T_world_mesh,
-                                                            const map::HeightColorRange& range,
-                                                            int bands, const std::string& frame,
-                                                            const ros::Time& stamp,
-                                                            const std::string& ns, int id) {
-  std::vector<visualization_msgs::Marker> markers;
-  for (int band = 0; band < bands; ++band) {
-    visualization_msgs::Marker marker =
-        deletion_marker(frame, stamp, ns + "_height_" + std::to_string(band), id);
-    marker.type = visualization_msgs::Marker::TRIANGLE_LIST;
-    marker.pose.orientation.w = 1.0;
-    marker.scale.x = marker.scale.y = marker.scale.z = 1.0;
-    const float width_m = range.max_height_m - range.min_height_m;
-    const Rgb8 color =
-        map::height_color(range.min_height_m + (band + 0.5f) * width_m / bands, range);
-    marker.color.r = color.r / 255.0f;
-    marker.color.g = color.g / 255.0f;
-    marker.color.b = color.b / 255.0f;
-    marker.color.a = 1.0f;
-    markers.push_back(marker);
+visualization_msgs::Marker face_colored_mesh_marker(const map::Mesh& mesh,
+                                                    const std::vector<Rgb8>& face_colors,
+                                                    const std::string& frame,
+                                                    const ros::Time& stamp, const std::string& ns,
+                                                    int id) {
+  visualization_msgs::Marker marker =
+      mesh_marker(map::Mesh(), {}, Eigen::Isometry3d::Identity(), frame, stamp, ns, id);
+  const size_t triangles = std::min(mesh.triangle_count(), face_colors.size());
+  marker.points.reserve(3 * triangles);
+  marker.colors.reserve(triangles);
+  for (size_t t = 0; t < triangles; ++t) {
+    const uint32_t* corners = &mesh.triangles[3 * t];
+    const size_t vertices = mesh.vertices_m.size();
+    // Never from the mesher; guards rviz, which needs one colour per whole triangle.
+    if (corners[0] >= vertices || corners[1] >= vertices || corners[2] >= vertices) continue;
+    for (int c = 0; c < 3; ++c) marker.points.push_back(point_msg(mesh.vertices_m[corners[c]]));
+    marker.colors.push_back(opaque_color_msg(face_colors[t]));
   }
-  const Eigen::Vector3d z_row = T_world_mesh.linear().row(2).transpose();
-  const double z_offset_m = T_world_mesh.translation().z();
-  const double width_m = range.max_height_m - range.min_height_m;
-  for (size_t t = 0; t + 2 < mesh.triangles.size(); t += 3) {
-    const uint32_t corners[3] = {mesh.triangles[t], mesh.triangles[t + 1], mesh.triangles[t + 2]};
-    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
-    bool valid = true;
-    for (uint32_t index : corners) {
-      valid = valid && index < mesh.vertices_m.size();  // never from the mesher; guards rviz
-      if (!valid) break;
-      const Vec3f& v = mesh.vertices_m[index];
-      centre += Eigen::Vector3d(v.x, v.y, v.z) / 3.0;
-    }
-    if (!valid) continue;
-    const double z_m = z_row.dot(centre) + z_offset_m;
-    double slice = width_m > 0.0 ? (z_m - range.min_height_m) / width_m * bands : 0.0;
-    if (!std::isfinite(slice)) slice = 0.0;
-    const int band = std::clamp(static_cast<int>(std::floor(slice)), 0, bands - 1);
-    visualization_msgs::Marker& marker = markers[static_cast<size_t>(band)];
-    for (uint32_t index : corners) {
-      geometry_msgs::Point point;
-      point.x = mesh.vertices_m[index].x;
-      point.y = mesh.vertices_m[index].y;
-      point.z = mesh.vertices_m[index].z;
-      marker.points.push_back(point);
-    }
-  }
-  for (visualization_msgs::Marker& marker : markers) {
-    if (!marker.points.empty()) marker.action = visualization_msgs::Marker::ADD;
-  }
-  return markers;
+  return marker;
 }
 
 namespace {

@@ -86,6 +86,15 @@ void read_time_and_mesh_options(const RosParameterSource& source, NodeOptions* o
     bad("mesh_height_color_max_m", "must be above mesh_height_color_min_m");
 }
 
+// The 3-D ESDF cloud, the ESDF query service and the submap frames' re-broadcast.
+void read_planner_options(const RosParameterSource& source, NodeOptions* options) {
+  read_flag(source, "publish_esdf_pointcloud", &options->publish_esdf_pointcloud);
+  read_amount(source, "esdf_pointcloud_max_distance_m", &options->esdf_pointcloud_max_distance_m);
+  read_count(source, "esdf_pointcloud_max_points", &options->esdf_pointcloud_max_points, 1);
+  read_count(source, "esdf_query_max_points", &options->esdf_query_max_points, 1);
+  read_amount(source, "submap_tf_period_s", &options->submap_tf_period_s);
+}
+
 }  // namespace
 
 std::string NodeOptions::default_output_dir() {
@@ -127,7 +136,12 @@ const std::vector<std::string>& node_option_names() {
                                                  "time_jump_min_s",
                                                  "mesh_height_color_min_m",
                                                  "mesh_height_color_max_m",
-                                                 "output_dir"};
+                                                 "output_dir",
+                                                 "publish_esdf_pointcloud",
+                                                 "esdf_pointcloud_max_distance_m",
+                                                 "esdf_pointcloud_max_points",
+                                                 "esdf_query_max_points",
+                                                 "submap_tf_period_s"};
   return names;
 }
 
@@ -178,6 +192,7 @@ NodeOptions read_node_options(const ros::NodeHandle& private_node) {
   read_time_and_mesh_options(source, &options);
   if (source.get_text("output_dir", &options.output_dir) && options.output_dir.empty())
     bad("output_dir", "must not be empty (the folder of the file services)");
+  read_planner_options(source, &options);
   return options;
 }
 

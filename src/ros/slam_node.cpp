@@ -76,6 +76,9 @@ SlamNode::SlamNode(ros::NodeHandle node, ros::NodeHandle private_node)
     : node_(node),
       private_node_(private_node),
       output_node_(private_node),
+      tf_node_(private_node),
+      service_node_(private_node),
+      query_node_(private_node),
       options_(read_node_options(private_node)),
       tf_buffer_(ros::Duration(std::max(10.0, options_.odometry_buffer_s))),
       odometry_buffer_(pipeline::StampedPoseBufferConfig{options_.odometry_buffer_s,
@@ -128,12 +131,60 @@ SlamNode::SlamNode(ros::NodeHandle node, ros::NodeHandle private_node)
       });
 
   start_output();
-  output_spinner_ = std::make_unique<ros::AsyncSpinner>(1, &output_queue_);
-  output_spinner_->start();
+  start_tf_output();
+  start_diagnostics();
+  start_services();
+  // One thread per output queue (see the class comment).
+  for (ros::CallbackQueue* queue : {&tf_queue_, &output_queue_, &service_queue_, &query_queue_}) {
+    output_spinners_.push_back(std::make_unique<ros::AsyncSpinner>(1, queue));
+    output_spinners_.back()->start();
+  }
+}
+
+void SlamNode::start_tf_output() {
+  // Its own queue and thread: the correction the robot navigates by never waits behind a service
+  // call or a slice.
+  tf_node_.setCallbackQueue(&tf_queue_);
+  if (options_.publish_tf) {
+    tf_timer_ = tf_node_.createWallTimer(ros::WallDuration(options_.tf_publish_period_s),
+                                         &SlamNode::publish_tf, this);
+  }
+  submap_frames_timer_ = tf_node_.createWallTimer(ros::WallDuration(options_.submap_tf_period_s),
+                                                  &SlamNode::rebroadcast_submap_frames, this);
+}
+
+void SlamNode::start_diagnostics() {
+  // On /diagnostics, where rqt_robot_monitor and diagnostic_aggregator look; status name
+  // "<node>: slam". Sent by the wall timer (the simulated clock may stand still).
+  diagnostics_updater_ = std::make_unique<diagnostic_updater::Updater>(
+      output_node_, private_node_, private_node_.getNamespace());
+  diagnostics_updater_->setHardwareID(describe_device(slam_->config().device));
+  diagnostics_updater_->add("slam", this, &SlamNode::fill_diagnostics);
+  diagnostics_timer_ = output_node_.createWallTimer(
+      ros::WallDuration(options_.diagnostics_period_s), &SlamNode::publish_diagnostics, this);
+}
+
+void SlamNode::start_services() {
+  // Map services on their own queue; the ESDF query on another, so a planner is not answered
+  // after a long save_map.
+  service_node_.setCallbackQueue(&service_queue_);
+  services_.push_back(service_node_.advertiseService("save_map", &SlamNode::save_map, this));
+  services_.push_back(service_node_.advertiseService("load_map", &SlamNode::load_map, this));
+  services_.push_back(
+      service_node_.advertiseService("save_trajectory", &SlamNode::save_trajectory, this));
+  services_.push_back(service_node_.advertiseService("save_mesh", &SlamNode::save_mesh, this));
+  services_.push_back(
+      service_node_.advertiseService("generate_mesh", &SlamNode::generate_mesh, this));
+  services_.push_back(service_node_.advertiseService("finish_map", &SlamNode::finish_map, this));
+  services_.push_back(
+      service_node_.advertiseService("optimize_pose_graph", &SlamNode::optimize_pose_graph, this));
+  services_.push_back(service_node_.advertiseService("reset", &SlamNode::reset, this));
+  query_node_.setCallbackQueue(&query_queue_);
+  services_.push_back(query_node_.advertiseService("query_esdf", &SlamNode::query_esdf, this));
 }
 
 void SlamNode::start_output() {
-  // Publishers, timers and services on the second queue.
+  // Visualisation publishers and timers on the visualisation queue.
   output_node_.setCallbackQueue(&output_queue_);
   path_publisher_ = output_node_.advertise<nav_msgs::Path>("pose_history", 1, true);
   submap_poses_publisher_ = output_node_.advertise<covoxslam::SubmapPoses>("submap_poses", 1, true);
@@ -156,39 +207,23 @@ void SlamNode::start_output() {
       output_node_.advertise<sensor_msgs::PointCloud2>("submap_esdf_slice", 1, true);
   active_submap_esdf_slice_publisher_ =
       output_node_.advertise<sensor_msgs::PointCloud2>("active_submap_esdf_slice", 1, true);
-  diagnostics_publisher_ =
-      output_node_.advertise<diagnostic_msgs::DiagnosticArray>("diagnostics", 1, true);
-  if (options_.publish_tf) {
-    tf_timer_ = output_node_.createWallTimer(ros::WallDuration(options_.tf_publish_period_s),
-                                             &SlamNode::publish_tf, this);
-  }
+  esdf_pointcloud_publisher_ =
+      output_node_.advertise<sensor_msgs::PointCloud2>("esdf_pointcloud", 1, true);
   visualization_timer_ = output_node_.createWallTimer(
       ros::WallDuration(options_.visualization_period_s), &SlamNode::publish_visualization, this);
-  diagnostics_timer_ = output_node_.createWallTimer(
-      ros::WallDuration(options_.diagnostics_period_s), &SlamNode::publish_diagnostics, this);
   if (options_.publish_esdf_slices && options_.active_submap_esdf_slice_period_s > 0.0) {
     active_slice_timer_ =
         output_node_.createWallTimer(ros::WallDuration(options_.active_submap_esdf_slice_period_s),
                                      &SlamNode::publish_active_submap_slice, this);
   }
-  services_.push_back(output_node_.advertiseService("save_map", &SlamNode::save_map, this));
-  services_.push_back(output_node_.advertiseService("load_map", &SlamNode::load_map, this));
-  services_.push_back(
-      output_node_.advertiseService("save_trajectory", &SlamNode::save_trajectory, this));
-  services_.push_back(output_node_.advertiseService("save_mesh", &SlamNode::save_mesh, this));
-  services_.push_back(
-      output_node_.advertiseService("generate_mesh", &SlamNode::generate_mesh, this));
-  services_.push_back(output_node_.advertiseService("finish_map", &SlamNode::finish_map, this));
-  services_.push_back(
-      output_node_.advertiseService("optimize_pose_graph", &SlamNode::optimize_pose_graph, this));
-  services_.push_back(output_node_.advertiseService("reset", &SlamNode::reset, this));
 }
 
 SlamNode::~SlamNode() {
-  // Stop the output thread before the SLAM system it reads goes away.
-  if (output_spinner_) output_spinner_->stop();
+  // Stop the output threads before the SLAM system they read goes away.
+  for (auto& spinner : output_spinners_) spinner->stop();
   services_.clear();
   tf_timer_.stop();
+  submap_frames_timer_.stop();
   visualization_timer_.stop();
   diagnostics_timer_.stop();
   active_slice_timer_.stop();

@@ -1,6 +1,7 @@
-// SlamNode output: the mission -> odom correction on tf, the corrected path, submap poses,
-// submap frames on /tf_static, meshes (per submap, sent once when new or re-meshed), bounding
-// boxes, the pose graph, ESDF slices and diagnostics. Runs on the output thread.
+// SlamNode output: the mission -> odom correction and the submap frames on tf (tf thread), the
+// corrected path, submap poses, meshes (per submap, sent once when new or re-meshed), bounding
+// boxes, the pose graph, ESDF slices and diagnostics (visualisation thread; the services publish
+// the map through publish_map() too).
 #include <covoxslam/SubmapPoses.h>
 #include <geometry_msgs/TransformStamped.h>
 #include <nav_msgs/Path.h>
@@ -16,10 +17,17 @@ namespace {
 
 std::string submap_frame(int64_t id) { return "submap_" + std::to_string(id); }
 
-// Submap meshes: namespace of the per-vertex coloured marker, and the number of height slices a
-// mesh without fused colour is sent in (half a metre each over the default 10 m range).
+// Submap meshes: the namespace of their markers (id = submap id).
 constexpr const char* kMeshNamespace = "submap_mesh";
-constexpr int kHeightBands = 20;
+
+geometry_msgs::TransformStamped frame_transform(const std::string& parent, int64_t id,
+                                                const Eigen::Isometry3d& T_parent_submap) {
+  geometry_msgs::TransformStamped frame;
+  frame.header.frame_id = parent;
+  frame.child_frame_id = submap_frame(id);
+  frame.transform = to_transform_msg(T_parent_submap);
+  return frame;
+}
 
 bool same_pose(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
   // 1 mm / about 0.06 degrees: below what rviz shows, above solver noise.
@@ -121,17 +129,46 @@ void SlamNode::publish_tf(const ros::WallTimerEvent&) {
   tf_broadcaster_.sendTransform(transform);
 }
 
+void SlamNode::rebroadcast_submap_frames(const ros::WallTimerEvent&) {
+  std::lock_guard<std::mutex> lock(frames_mutex_);
+  std::vector<geometry_msgs::TransformStamped> frames;
+  for (const auto& frame : submap_frames_)
+    frames.push_back(frame_transform(options_.mission_frame, frame.first, frame.second));
+  send_submap_frames_locked(std::move(frames));
+}
+
+void SlamNode::send_submap_frames_locked(std::vector<geometry_msgs::TransformStamped> frames) {
+  const ros::Time now = ros::Time::now();
+  if (frames.empty() || now.isZero()) return;
+  // Strictly later than the previous send: a listener drops a frame's repeated stamp. While the
+  // simulated clock stands still that is a microsecond later; a clock that jumped back (a bag
+  // played again) starts over at its time.
+  if (now > frames_stamp_ || now + ros::Duration(1.0) < frames_stamp_) {
+    frames_stamp_ = now;
+  } else {
+    frames_stamp_ += ros::Duration(0, 1000);
+  }
+  for (geometry_msgs::TransformStamped& frame : frames) frame.header.stamp = frames_stamp_;
+  tf_broadcaster_.sendTransform(frames);
+}
+
 void SlamNode::publish_visualization(const ros::WallTimerEvent&) {
+  std::lock_guard<std::mutex> lock(publish_mutex_);
   // The input thread reset the map (time went backwards): the markers show the discarded one.
   if (markers_reset_requested_.exchange(false)) {
-    clear_published_markers();
-    publish_map(false, true);
+    clear_published_markers_locked();
+    publish_map_locked(false, true);
     return;
   }
-  publish_map(false, false);
+  publish_map_locked(false, false);
 }
 
 void SlamNode::clear_published_markers() {
+  std::lock_guard<std::mutex> lock(publish_mutex_);
+  clear_published_markers_locked();
+}
+
+void SlamNode::clear_published_markers_locked() {
   visualization_msgs::Marker clear;
   clear.header.frame_id = options_.mission_frame;
   clear.header.stamp = ros::Time::now();
@@ -148,6 +185,10 @@ void SlamNode::clear_published_markers() {
   published_submaps_.clear();
   published_trajectory_size_ = static_cast<size_t>(-1);  // publish the (empty) path again
   map_changed_ = true;
+  esdf_pointcloud_stale_ = true;
+  // The discarded submaps' frames are no longer sent (listeners forget them after tf's cache).
+  std::lock_guard<std::mutex> lock(frames_mutex_);
+  submap_frames_.clear();
 }
 
 void SlamNode::publish_path(const std::vector<pipeline::StampedPose>& trajectory,
@@ -188,86 +229,79 @@ void SlamNode::publish_submap_poses(const std::vector<pipeline::SubmapInfo>& sub
 }
 
 void SlamNode::publish_submap_frames(const std::vector<pipeline::SubmapInfo>& submaps, bool force) {
-  std::vector<geometry_msgs::TransformStamped> frames;
+  std::lock_guard<std::mutex> lock(frames_mutex_);
+  std::map<int64_t, Eigen::Isometry3d> current;
+  std::vector<geometry_msgs::TransformStamped> changed;
   for (const pipeline::SubmapInfo& submap : submaps) {
-    auto published = published_frames_.find(submap.id);
-    if (!force && published != published_frames_.end() &&
-        same_pose(published->second, submap.T_world_submap)) {
-      continue;
-    }
-    geometry_msgs::TransformStamped frame;
-    frame.header.stamp = ros::Time::now();
-    frame.header.frame_id = options_.mission_frame;
-    frame.child_frame_id = submap_frame(submap.id);
-    frame.transform = to_transform_msg(submap.T_world_submap);
-    frames.push_back(frame);
-    published_frames_[submap.id] = submap.T_world_submap;
+    current[submap.id] = submap.T_world_submap;
+    auto sent = submap_frames_.find(submap.id);
+    if (force || sent == submap_frames_.end() || !same_pose(sent->second, submap.T_world_submap))
+      changed.push_back(frame_transform(options_.mission_frame, submap.id, submap.T_world_submap));
   }
-  // The broadcaster re-sends every frame it ever sent, with these updated, as one latched list.
-  if (!frames.empty()) static_broadcaster_.sendTransform(frames);
+  // Only the changed frames now; the tf thread sends all of them every submap_tf_period_s.
+  submap_frames_ = std::move(current);
+  send_submap_frames_locked(std::move(changed));
 }
 
 visualization_msgs::MarkerArray SlamNode::submap_mesh_markers(const std::vector<int64_t>& ids,
-                                                              const std::vector<int64_t>& removed,
-                                                              const ros::Time& stamp) {
+                                                              const std::vector<int64_t>& removed) {
+  // Stamp zero: rviz places the markers at the latest transform of their frame (the frames move
+  // on /tf, and a new frame's first transform may be stamped after the marker was made).
+  const ros::Time stamp;
+
   visualization_msgs::MarkerArray markers;
   const map::HeightColorRange range{static_cast<float>(options_.mesh_height_color_min_m),
                                     static_cast<float>(options_.mesh_height_color_max_m)};
   for (int64_t id : removed) {
     markers.markers.push_back(
         deletion_marker(submap_frame(id), stamp, kMeshNamespace, static_cast<int>(id)));
-    for (int band = 0; band < kHeightBands; ++band) {
-      markers.markers.push_back(deletion_marker(
-          submap_frame(id), stamp, std::string(kMeshNamespace) + "_height_" + std::to_string(band),
-          static_cast<int>(id)));
-    }
   }
   for (int64_t id : ids) {
     map::Mesh mesh;
     Eigen::Isometry3d T_world_submap;
     if (!slam_->submap_mesh(id, &mesh, &T_world_submap)) continue;
     // Vertices in the submap's own frame, which tf places: moving the submap moves the marker.
-    // Heights for the colours are taken at the submap's pose of now. A mesh with fused colours
-    // is one marker with per-vertex colours (black vertices by height); one without is sent as
-    // height slices of one colour each. Either way the other form is deleted.
-    const bool colored = map::has_observed_colors(mesh);
-    std::vector<visualization_msgs::Marker> bands =
-        height_band_markers(colored ? map::Mesh() : mesh, T_world_submap, range, kHeightBands,
-                            submap_frame(id), stamp, kMeshNamespace, static_cast<int>(id));
-    visualization_msgs::Marker vertex_colored =
-        colored ? mesh_marker(mesh, map::display_colors(mesh, T_world_submap, range),
-                              Eigen::Isometry3d::Identity(), submap_frame(id), stamp,
-                              kMeshNamespace, static_cast<int>(id))
-                : deletion_marker(submap_frame(id), stamp, kMeshNamespace, static_cast<int>(id));
-    bands.push_back(std::move(vertex_colored));
-    for (visualization_msgs::Marker& marker : bands) {
-      marker.frame_locked = true;
-      markers.markers.push_back(std::move(marker));
-    }
+    // Colours are taken at the submap's pose of now. rviz draws a marker with colours unlit, so
+    // neither side of a surface shows black: a mesh with fused colours gets them per vertex
+    // (black vertices by height), one without gets a height colour per triangle, shaded by its
+    // slope alike from both sides (map::shaded_face_colors).
+    visualization_msgs::Marker marker =
+        map::has_observed_colors(mesh)
+            ? mesh_marker(mesh, map::display_colors(mesh, T_world_submap, range),
+                          Eigen::Isometry3d::Identity(), submap_frame(id), stamp, kMeshNamespace,
+                          static_cast<int>(id))
+            : face_colored_mesh_marker(mesh, map::shaded_face_colors(mesh, T_world_submap, range),
+                                       submap_frame(id), stamp, kMeshNamespace,
+                                       static_cast<int>(id));
+    marker.frame_locked = true;
+    markers.markers.push_back(std::move(marker));
   }
   return markers;
 }
 
 void SlamNode::send_meshes_to_new_subscriber(const ros::SingleSubscriberPublisher& subscriber) {
+  std::lock_guard<std::mutex> lock(publish_mutex_);
   if (!options_.publish_separated_mesh || published_submaps_.empty()) return;
   std::vector<int64_t> ids;
   for (const auto& published : published_submaps_) ids.push_back(published.first);
-  subscriber.publish(submap_mesh_markers(ids, {}, ros::Time::now()));
+  subscriber.publish(submap_mesh_markers(ids, {}));
 }
 
 void SlamNode::publish_map(bool resend_meshes, bool with_combined_mesh) {
-  const ros::Time stamp = ros::Time::now();
-  const std::vector<pipeline::StampedPose> trajectory = slam_->corrected_trajectory();
-  const std::vector<pipeline::SubmapInfo> submaps = slam_->submaps();
+  std::lock_guard<std::mutex> lock(publish_mutex_);
+  publish_map_locked(resend_meshes, with_combined_mesh);
+}
 
+bool SlamNode::compare_with_published(const std::vector<pipeline::SubmapInfo>& submaps,
+                                      bool resend_meshes, std::vector<int64_t>* meshed,
+                                      std::vector<int64_t>* removed) const {
   // A new or re-meshed submap sends its mesh; a moved one only its frame.
-  std::vector<int64_t> meshed, removed;
   bool moved = false;
   for (const pipeline::SubmapInfo& submap : submaps) {
     auto it = published_submaps_.find(submap.id);
     if (resend_meshes || it == published_submaps_.end() ||
         it->second.mesh_triangles != submap.mesh_triangles) {
-      meshed.push_back(submap.id);
+      meshed->push_back(submap.id);
     } else if (!same_pose(it->second.T_world_submap, submap.T_world_submap)) {
       moved = true;
     }
@@ -277,12 +311,25 @@ void SlamNode::publish_map(bool resend_meshes, bool with_combined_mesh) {
     bool present = false;
     for (const pipeline::SubmapInfo& submap : submaps)
       present = present || submap.id == published.first;
-    if (!present) removed.push_back(published.first);
+    if (!present) removed->push_back(published.first);
   }
+  return moved;
+}
+
+void SlamNode::publish_map_locked(bool resend_meshes, bool with_combined_mesh) {
+  const ros::Time stamp = ros::Time::now();
+  const std::vector<pipeline::StampedPose> trajectory = slam_->corrected_trajectory();
+  const std::vector<pipeline::SubmapInfo> submaps = slam_->submaps();
+
+  std::vector<int64_t> meshed, removed;
+  const bool moved = compare_with_published(submaps, resend_meshes, &meshed, &removed);
   const bool graph_changed = resend_meshes || with_combined_mesh || map_changed_ || moved ||
                              !meshed.empty() || !removed.empty();
   if (graph_changed || trajectory.size() != published_trajectory_size_)
     publish_path(trajectory, stamp);
+  esdf_pointcloud_stale_ = esdf_pointcloud_stale_ || graph_changed;
+  // Also when a subscriber came after a change it was not computed for.
+  publish_esdf_pointcloud_locked(with_combined_mesh, stamp);
   if (!graph_changed) return;
   map_changed_ = false;
 
@@ -290,12 +337,16 @@ void SlamNode::publish_map(bool resend_meshes, bool with_combined_mesh) {
   // The frames go out before the markers drawn in them.
   publish_submap_frames(submaps, resend_meshes);
   if (options_.publish_separated_mesh && (!meshed.empty() || !removed.empty()))
-    separated_mesh_publisher_.publish(submap_mesh_markers(meshed, removed, stamp));
+    separated_mesh_publisher_.publish(submap_mesh_markers(meshed, removed));
   for (int64_t id : removed) published_submaps_.erase(id);
   for (const pipeline::SubmapInfo& submap : submaps) {
     published_submaps_[submap.id] = PublishedSubmap{submap.T_world_submap, submap.mesh_triangles};
   }
+  publish_map_overview(submaps, with_combined_mesh, stamp);
+}
 
+void SlamNode::publish_map_overview(const std::vector<pipeline::SubmapInfo>& submaps,
+                                    bool with_combined_mesh, const ros::Time& stamp) {
   // The combined mesh holds every triangle in the world frame, so any moved submap changes it:
   // it is published on request only (finish_map, generate_mesh, reset, load_map), latched.
   if (options_.publish_combined_mesh && with_combined_mesh) {
@@ -381,11 +432,12 @@ void SlamNode::add_input_diagnostics(diagnostic_msgs::DiagnosticStatus* status, 
 }
 
 void SlamNode::publish_diagnostics(const ros::WallTimerEvent&) {
+  diagnostics_updater_->force_update();
+}
+
+void SlamNode::fill_diagnostics(diagnostic_updater::DiagnosticStatusWrapper& status) {
   const pipeline::SlamCounters counters = slam_->counters();
   const pipeline::SlamTimings timings = slam_->timings();
-  diagnostic_msgs::DiagnosticStatus status;
-  status.name = "covoxslam";
-  status.hardware_id = describe_device(slam_->config().device);
   int64_t node_drops = 0;
   std::string state;
   add_input_diagnostics(&status, &node_drops, &state);
@@ -415,10 +467,6 @@ void SlamNode::publish_diagnostics(const ros::WallTimerEvent&) {
     status.message = state;
   }
   last_dropped_total_ = dropped_total;
-  diagnostic_msgs::DiagnosticArray array;
-  array.header.stamp = ros::Time::now();
-  array.status.push_back(status);
-  diagnostics_publisher_.publish(array);
 }
 
 }  // namespace ros_layer

@@ -49,18 +49,12 @@
 #include <visualization_msgs/Marker.h>
 #include <visualization_msgs/MarkerArray.h>
 
-namespace {
+#include "rostest_scene.h"
 
-namespace fs = std::filesystem;
+namespace covox_rostest {
 
 // ---- The synthetic scene ---------------------------------------------------------------------
 
-// An axis-aligned room (the sensor is inside) and a pillar (the sensor is outside).
-const Eigen::Vector3d kRoomMin(-6.0, -5.0, 0.0), kRoomMax(6.0, 5.0, 3.0);
-const Eigen::Vector3d kPillarMin(1.0, 1.0, 0.0), kPillarMax(2.0, 2.0, 3.0);
-constexpr double kStart_s = 100.0;  // bag time of the first message
-constexpr int kClouds = 12;         // valid clouds, at 2 Hz
-constexpr double kCloudPeriod_s = 0.5;
 constexpr int kRings = 24, kColumns = 240;
 
 Eigen::Isometry3d base_pose_at(double t_s) {
@@ -258,8 +252,7 @@ Eigen::Isometry3d base_to_sensor() { return depth_images() ? base_to_camera() : 
 
 // `clouds` valid clouds from `start_s` on the same path (a later start continues the flight), with
 // the bad clouds of the first bag when `bad_clouds`.
-void write_bag(const std::string& path, double start_s = kStart_s, int clouds = kClouds,
-               bool bad_clouds = true) {
+void write_bag(const std::string& path, double start_s, int clouds, bool bad_clouds) {
   rosbag::Bag bag(path, rosbag::bagmode::Write);
   auto latched = boost::make_shared<ros::M_string>();
   (*latched)["latching"] = "1";
@@ -342,6 +335,37 @@ int64_t non_finite_points_in_first_bag() {
   return count;
 }
 
+std::string ns(const std::string& name) { return "/covoxslam/" + name; }
+
+bool call_trigger(const std::string& name, std::string* message) {
+  std_srvs::Trigger trigger;
+  if (!ros::service::call(ns(name), trigger)) {
+    *message = "the call failed";
+    return false;
+  }
+  *message = trigger.response.message;
+  return trigger.response.success;
+}
+
+bool call_file(const std::string& name, const std::string& path, std::string* message,
+               bool overwrite) {
+  covoxslam::FilePath file;
+  file.request.file_path = path;
+  file.request.overwrite = overwrite;
+  if (!ros::service::call(ns(name), file)) {
+    *message = "the call failed";
+    return false;
+  }
+  *message = file.response.message;
+  return file.response.success;
+}
+
+}  // namespace covox_rostest
+
+namespace {
+
+using namespace covox_rostest;
+
 // ---- What the nodelet publishes --------------------------------------------------------------
 
 struct Latest {
@@ -349,8 +373,7 @@ struct Latest {
   nav_msgs::Path path;
   covoxslam::SubmapPoses submaps;
   visualization_msgs::Marker combined_mesh;
-  // Markers by (namespace, id): a submap's mesh is one per-vertex coloured marker or several
-  // height slices, all with the submap's id.
+  // Markers by (namespace, id): a submap's mesh is one marker with the submap's id.
   std::map<std::pair<std::string, int>, visualization_msgs::Marker> separated_meshes;
   std::map<int, int> mesh_sends;  // in how many messages each submap's mesh came
   sensor_msgs::PointCloud2 esdf_slice;
@@ -403,31 +426,6 @@ bool wait_for(const std::function<bool()>& condition, double timeout_s) {
 int64_t diagnostic_value(const std::string& key) {
   auto it = latest.diagnostics.find(key);
   return it == latest.diagnostics.end() ? -1 : std::stoll(it->second);
-}
-
-std::string ns(const std::string& name) { return "/covoxslam/" + name; }
-
-bool call_trigger(const std::string& name, std::string* message) {
-  std_srvs::Trigger trigger;
-  if (!ros::service::call(ns(name), trigger)) {
-    *message = "the call failed";
-    return false;
-  }
-  *message = trigger.response.message;
-  return trigger.response.success;
-}
-
-bool call_file(const std::string& name, const std::string& path, std::string* message,
-               bool overwrite = false) {
-  covoxslam::FilePath file;
-  file.request.file_path = path;
-  file.request.overwrite = overwrite;
-  if (!ros::service::call(ns(name), file)) {
-    *message = "the call failed";
-    return false;
-  }
-  *message = file.response.message;
-  return file.response.success;
 }
 
 // A bad request is answered, not crashed on: names outside ~ros/output_dir are refused, and the
@@ -578,15 +576,15 @@ void expect_late_subscriber_gets_every_mesh(ros::NodeHandle& node, ros::Subscrib
     EXPECT_TRUE(marker.frame_locked);
     EXPECT_EQ(marker.type, visualization_msgs::Marker::TRIANGLE_LIST);
     EXPECT_EQ(marker.points.size() % 3, 0u);
-    // Per-vertex colours, or one colour for the whole marker (a height slice): never black.
-    if (marker.colors.empty()) {
-      EXPECT_GT(marker.color.r + marker.color.g + marker.color.b, 0.5f) << marker.ns;
-    } else {
-      ASSERT_EQ(marker.colors.size(), marker.points.size()) << frame;
-      int black = 0;
-      for (const auto& color : marker.colors) black += color.r + color.g + color.b == 0.0f;
-      EXPECT_EQ(black, 0) << frame;
-    }
+    // Per-vertex colours (fused), or one per triangle (by height, shaded): never black. With
+    // colours rviz draws a triangle list unlit, so neither side of a face is black either.
+    ASSERT_TRUE(marker.colors.size() == marker.points.size() ||
+                marker.colors.size() * 3 == marker.points.size())
+        << frame << ": " << marker.colors.size() << " colours for " << marker.points.size()
+        << " points";
+    int black = 0;
+    for (const auto& color : marker.colors) black += color.r + color.g + color.b == 0.0f;
+    EXPECT_EQ(black, 0) << frame;
   }
   const std::map<int, size_t> late_points = points_per_submap(late.meshes);
   for (const auto& submap : submaps) {
@@ -732,12 +730,14 @@ TEST_F(CovoxSlamNodeletTest, MapsABagAndServesTheMap) {
     latest.esdf_slice = *m;
     ++latest.slice_messages;
   };
+  // diagnostic_updater's status of the node on /diagnostics: "<node name>: slam".
   auto on_diagnostics = [](const diagnostic_msgs::DiagnosticArray::ConstPtr& m) {
     std::lock_guard<std::mutex> lock(latest.mutex);
     for (const auto& status : m->status) {
+      if (status.name != "covoxslam: slam") continue;
       for (const auto& value : status.values) latest.diagnostics[value.key] = value.value;
+      ++latest.diagnostics_messages;
     }
-    ++latest.diagnostics_messages;
   };
   ros::Subscriber s1 = node.subscribe<nav_msgs::Path>(ns("pose_history"), 5, +on_path);
   ros::Subscriber s2 = node.subscribe<covoxslam::SubmapPoses>(ns("submap_poses"), 5, +on_submaps);
@@ -747,7 +747,7 @@ TEST_F(CovoxSlamNodeletTest, MapsABagAndServesTheMap) {
       node.subscribe<visualization_msgs::MarkerArray>(ns("separated_mesh"), 50, +on_separated);
   ros::Subscriber s5 = node.subscribe<sensor_msgs::PointCloud2>(ns("esdf_slice"), 5, +on_slice);
   ros::Subscriber s6 =
-      node.subscribe<diagnostic_msgs::DiagnosticArray>(ns("diagnostics"), 5, +on_diagnostics);
+      node.subscribe<diagnostic_msgs::DiagnosticArray>("/diagnostics", 5, +on_diagnostics);
   auto on_active_slice = [](const sensor_msgs::PointCloud2::ConstPtr& m) {
     std::lock_guard<std::mutex> lock(latest.mutex);
     latest.active_esdf_slice = *m;

@@ -39,4 +39,10 @@ std::vector<SlicePoint> esdf_slice(const map::TsdfMap& map, float z_m, const Str
 std::vector<SlicePoint> esdf_squashed_slice(const map::TsdfMap& map, float z_min_m, float z_max_m,
                                             const Stream& stream);
 
+// Every observed voxel whose distance is at most max_distance_m (obstacles and the free space
+// near them; negative distances lie inside surfaces), at its centre in the map's frame: the 3-D
+// ESDF a planner subscribes to.
+std::vector<SlicePoint> esdf_voxels_within(const map::TsdfMap& map, float max_distance_m,
+                                           const Stream& stream);
+
 }  // namespace covox::integrators

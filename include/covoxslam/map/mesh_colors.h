@@ -36,6 +36,16 @@ bool has_observed_colors(const Mesh& mesh);
 std::vector<Rgb8> display_colors(const Mesh& mesh, const Eigen::Isometry3d& T_world_mesh,
                                  const HeightColorRange& range);
 
+// One colour per triangle (mesh.triangles in threes) for a mesh without fused colours, lit the same
+// from both sides: the height colour of the triangle's world centre, scaled by a shade of
+// 0.55 + 0.45 |n . l| for its world normal n and a fixed light l from above and aside. Viewers
+// that light one side only (rviz's triangle lists leave a face seen from behind unlit, black)
+// draw such a colour unlit, so either side shows the same shaded colour. A degenerate triangle (or
+// one with an index past the vertices) gets the unshaded height colour of its valid corners, or
+// the map's middle colour.
+std::vector<Rgb8> shaded_face_colors(const Mesh& mesh, const Eigen::Isometry3d& T_world_mesh,
+                                     const HeightColorRange& range);
+
 // The lowest and highest finite vertex of `mesh` as a range (0 to 0 without one): the PLY writer
 // spreads a whole map's heights over the colour map with it.
 HeightColorRange vertex_height_range(const Mesh& mesh);

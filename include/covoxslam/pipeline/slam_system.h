@@ -439,8 +439,27 @@ class SlamSystem {
   // nothing. Exact (the same distances the finished submap will have) for the copied TSDF.
   std::vector<integrators::SlicePoint> esdf_slice_active_submap(double height_m,
                                                                 int64_t* submap_id);
+  // The ESDF of the finished submaps at points of the world (mission) frame, for planners: each
+  // point is moved into every submap's frame at its corrected pose and sampled there
+  // (integrators::query_esdf: trilinear over the 8 voxels around it); where several submaps
+  // observe it, the smaller distance wins, as in esdf_slice_world(). The gradient is rotated
+  // into the world frame. `valid` is 0 where no finished submap observes the 8 voxels around the
+  // point (unknown space): distance and gradient mean nothing there.
+  std::vector<integrators::EsdfSample> query_esdf_world(const std::vector<Vec3f>& points_world_m);
+  // Every observed voxel of the finished submaps with a distance of at most max_distance_m, moved
+  // into the world frame and merged on a world grid of the voxel size (a cell keeps the smallest
+  // distance, as in esdf_slice_world()), reported at the cell centres. When more than
+  // `max_points` cells remain, the ones with the smallest distances are kept (obstacles and the
+  // space nearest to them) and `*truncated` is set.
+  std::vector<integrators::SlicePoint> esdf_voxels_world(double max_distance_m, size_t max_points,
+                                                         bool* truncated);
 
  private:
+  // Calls `visit` with the voxels and the corrected pose of every finished submap, holding
+  // backend_mutex_ so that none is removed meanwhile; a compacted submap is brought back for the
+  // visit and is the first to leave again (the memory budget holds afterwards).
+  void visit_finished_submaps(
+      const std::function<void(const map::TsdfMap&, const Eigen::Isometry3d&)>& visit);
   struct TrajectoryEntry {
     double stamp_s;
     int64_t submap_id;

@@ -36,18 +36,14 @@ geometry_msgs::Pose to_pose_msg(const Eigen::Isometry3d& pose);
 visualization_msgs::Marker mesh_marker(const map::Mesh& mesh, const std::vector<Rgb8>& colors,
                                        const Eigen::Isometry3d& pose, const std::string& frame,
                                        const ros::Time& stamp, const std::string& ns, int id);
-// The triangles of `mesh` (in `frame`, at the identity) grouped by the world height of their
-// centre, (T_world_mesh * centre).z, into `bands` equal slices of `range` (clamped at its ends):
-// one TRIANGLE_LIST of one colour, height_color() of the slice's middle, per slice. Without
-// per-vertex colours a triangle costs 72 bytes instead of 120, for meshes without fused colour.
-// Slice k is marker `id` in namespace "<ns>_height_<k>"; an empty slice gives a DELETE there, so
-// that re-sending a mesh leaves no stale slice behind.
-std::vector<visualization_msgs::Marker> height_band_markers(const map::Mesh& mesh,
-                                                            const Eigen::Isometry3d& T_world_mesh,
-                                                            const map::HeightColorRange& range,
-                                                            int bands, const std::string& frame,
-                                                            const ros::Time& stamp,
-                                                            const std::string& ns, int id);
+// A triangle list of `mesh` (in `frame`, at the identity) with one colour per triangle
+// (`face_colors`, e.g. map::shaded_face_colors()): 88 bytes a triangle against 120 with per-vertex
+// colours. rviz draws a triangle list with colours unlit, so both sides show the colour.
+visualization_msgs::Marker face_colored_mesh_marker(const map::Mesh& mesh,
+                                                    const std::vector<Rgb8>& face_colors,
+                                                    const std::string& frame,
+                                                    const ros::Time& stamp, const std::string& ns,
+                                                    int id);
 // A DELETE of marker `id` in namespace `ns`.
 visualization_msgs::Marker deletion_marker(const std::string& frame, const ros::Time& stamp,
                                            const std::string& ns, int id);

@@ -63,6 +63,17 @@ struct NodeOptions {
 
   // $ROS_HOME/covoxslam, or ~/.ros/covoxslam when ROS_HOME is not set.
   static std::string default_output_dir();
+  // ~esdf_pointcloud: the finished submaps' voxels with a distance of at most this many metres
+  // (obstacles and the free space around them), at most this many points (the smallest
+  // distances kept beyond). Computed only while someone subscribes (and latched).
+  bool publish_esdf_pointcloud = true;
+  double esdf_pointcloud_max_distance_m = 1.0;
+  int esdf_pointcloud_max_points = 300000;
+  // ~query_esdf refuses a request with more points than this.
+  int esdf_query_max_points = 100000;
+  // Every submap frame (mission_frame -> submap_<id>) is sent on /tf again this often, so that a
+  // late listener gets them; a new or moved frame goes out at once.
+  double submap_tf_period_s = 1.0;
 };
 
 // Reads every option set under the private node handle's `ros` namespace (defaults for the

@@ -5,9 +5,13 @@
 // computes lives in the library; this class only converts, waits and publishes.
 //
 // Threads: sensor and odometry callbacks run on the node handle's own queue (the nodelet's
-// single-threaded queue); publishing timers and services run on a second queue with its own
-// spinner thread, because slices and service calls may wait for the SLAM backend and the
-// sensor input must never wait for them. `input_mutex_` guards what both sides touch.
+// single-threaded queue). The outputs have four queues, each with its own spinner thread, so that
+// nothing waits behind a slower one: tf (mission -> odom and the submap frames: what the robot
+// navigates by, never behind a service), visualisation (meshes, slices, diagnostics: may wait
+// for the SLAM backend), the map services (save / load / finish ... may take seconds) and the
+// ESDF query service (a planner's question, not queued behind a save_map). `input_mutex_` guards
+// what the input and the services touch, `publish_mutex_` the record of what was published
+// (visualisation thread and services), `frames_mutex_` the submap frames (visualisation and tf).
 //
 // A cloud whose pose is not known yet waits (in arrival order) for up to tf_wait_timeout_s of
 // wall time; then it is dropped and counted, with a rate-limited warning that names the frames
@@ -21,10 +25,11 @@
 // time_jump_policy "refuse", refuses clouds until reset or load_map. ~diagnostics carries the
 // state and the reason of the latest refusal.
 //
-// Meshes: each submap's mesh is one marker in the submap's own frame (submap_<id>, on
-// /tf_static under mission_frame), sent once when the submap is new or re-meshed; a submap that
-// moves costs a transform on /tf_static, not its triangles. A new ~separated_mesh subscriber is
-// sent every submap's marker on connecting.
+// Meshes: each submap's mesh is one marker in the submap's own frame (submap_<id>, on /tf under
+// mission_frame), sent once when the submap is new or re-meshed; a submap that moves costs a
+// transform on /tf, not its triangles. Every submap frame is sent again each submap_tf_period_s
+// for late listeners. A new ~separated_mesh subscriber is sent every submap's marker on
+// connecting.
 #include <atomic>
 #include <deque>
 #include <map>
@@ -34,6 +39,7 @@
 #include <vector>
 
 #include <diagnostic_msgs/DiagnosticArray.h>
+#include <diagnostic_updater/diagnostic_updater.h>
 #include <message_filters/subscriber.h>
 #include <message_filters/sync_policies/approximate_time.h>
 #include <message_filters/synchronizer.h>
@@ -45,11 +51,11 @@
 #include <sensor_msgs/PointCloud2.h>
 #include <std_srvs/Trigger.h>
 #include <tf2_ros/buffer.h>
-#include <tf2_ros/static_transform_broadcaster.h>
 #include <tf2_ros/transform_broadcaster.h>
 #include <tf2_ros/transform_listener.h>
 #include <visualization_msgs/MarkerArray.h>
 
+#include "covoxslam/EsdfQuery.h"
 #include "covoxslam/FilePath.h"
 #include "covoxslam/LoopClosure.h"
 #include "covoxslam/io/output_folder.h"
@@ -157,9 +163,18 @@ class SlamNode {
   void start_output();
 
   // ---- Output (slam_node_output.cpp) ----
+  // Advertises the outputs of one queue each (slam_node.cpp).
+  void start_tf_output();
+  void start_diagnostics();
+  void start_services();
+  // mission -> odom every tf_publish_period_s; every submap frame each submap_tf_period_s.
   void publish_tf(const ros::WallTimerEvent&);
+  void rebroadcast_submap_frames(const ros::WallTimerEvent&);
   void publish_visualization(const ros::WallTimerEvent&);
+  // Sends the status now (diagnostic_updater publishes on /diagnostics).
   void publish_diagnostics(const ros::WallTimerEvent&);
+  // The diagnostic_updater task: the node's and the SLAM system's counters, state and level.
+  void fill_diagnostics(diagnostic_updater::DiagnosticStatusWrapper& status);
   // The node's own counters and state (`state` also receives it); `node_drops` their drop total.
   void add_input_diagnostics(diagnostic_msgs::DiagnosticStatus* status, int64_t* node_drops,
                              std::string* state);
@@ -168,19 +183,38 @@ class SlamNode {
   // moved ones), boxes, graph and slices. Visualisation thread only.
   // `resend_meshes`: every submap's mesh and frame (generate_mesh); `with_combined_mesh`: also
   // ~combined_mesh (finish_map, generate_mesh, reset, load_map).
+  // Both lock publish_mutex_ (services call them too); the _locked forms need it held.
   void publish_map(bool resend_meshes, bool with_combined_mesh);
+  void publish_map_locked(bool resend_meshes, bool with_combined_mesh);
+  // Against published_submaps_: the submaps whose mesh is to be sent (new, re-meshed, or all
+  // with `resend_meshes`) and those gone; returns whether one of the others moved.
+  bool compare_with_published(const std::vector<pipeline::SubmapInfo>& submaps, bool resend_meshes,
+                              std::vector<int64_t>* meshed, std::vector<int64_t>* removed) const;
+  // What publish_map() sends of the whole map once it changed: the combined mesh (when asked
+  // for), boxes, pose graph and slices.
+  void publish_map_overview(const std::vector<pipeline::SubmapInfo>& submaps,
+                            bool with_combined_mesh, const ros::Time& stamp);
   void publish_path(const std::vector<pipeline::StampedPose>& trajectory, const ros::Time& stamp);
   void publish_submap_poses(const std::vector<pipeline::SubmapInfo>& submaps,
                             const ros::Time& stamp);
-  // mission_frame -> submap_<id> on /tf_static for every submap whose pose is new or moved.
+  // Records every submap's frame (mission_frame -> submap_<id>) and sends the new or moved ones
+  // on /tf (all with `force`); frames of submaps no longer in the map are dropped.
   void publish_submap_frames(const std::vector<pipeline::SubmapInfo>& submaps, bool force);
+  // Sends `frames` on /tf with one stamp, later than any sent before (listeners ignore a repeated
+  // stamp, and the simulated clock may stand still). Needs frames_mutex_.
+  void send_submap_frames_locked(std::vector<geometry_msgs::TransformStamped> frames);
   // Markers of the given submaps' meshes (in their own frames) and deletions of `removed`.
   visualization_msgs::MarkerArray submap_mesh_markers(const std::vector<int64_t>& ids,
-                                                      const std::vector<int64_t>& removed,
-                                                      const ros::Time& stamp);
+                                                      const std::vector<int64_t>& removed);
   // A new ~separated_mesh subscriber gets every published submap's mesh.
   void send_meshes_to_new_subscriber(const ros::SingleSubscriberPublisher& subscriber);
   void clear_published_markers();
+  void clear_published_markers_locked();
+
+  // ---- Planner outputs (slam_node_planner.cpp) ----
+  // ~esdf_pointcloud: when the map changed (or `force`) and someone subscribes; latched.
+  void publish_esdf_pointcloud_locked(bool force, const ros::Time& stamp);
+  bool query_esdf(covoxslam::EsdfQuery::Request& request, covoxslam::EsdfQuery::Response& response);
 
   // ---- Services (slam_node_services.cpp) ----
   bool save_map(covoxslam::FilePath::Request& request, covoxslam::FilePath::Response& response);
@@ -196,10 +230,16 @@ class SlamNode {
 
   ros::NodeHandle node_;
   ros::NodeHandle private_node_;
-  // The second queue: timers and services (see the class comment).
+  // The output queues (see the class comment): visualisation, tf, map services, ESDF queries.
   ros::CallbackQueue output_queue_;
   ros::NodeHandle output_node_;
-  std::unique_ptr<ros::AsyncSpinner> output_spinner_;
+  ros::CallbackQueue tf_queue_;
+  ros::NodeHandle tf_node_;
+  ros::CallbackQueue service_queue_;
+  ros::NodeHandle service_node_;
+  ros::CallbackQueue query_queue_;
+  ros::NodeHandle query_node_;
+  std::vector<std::unique_ptr<ros::AsyncSpinner>> output_spinners_;
 
   NodeOptions options_;
   // The only folder the file services read and write (~ros/output_dir), created and opened here
@@ -210,7 +250,6 @@ class SlamNode {
   tf2_ros::Buffer tf_buffer_;
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
   tf2_ros::TransformBroadcaster tf_broadcaster_;
-  tf2_ros::StaticTransformBroadcaster static_broadcaster_;
 
   // Input side, guarded by input_mutex_.
   std::mutex input_mutex_;
@@ -265,23 +304,30 @@ class SlamNode {
   ros::Publisher esdf_slice_publisher_;
   ros::Publisher submap_esdf_slice_publisher_;
   ros::Publisher active_submap_esdf_slice_publisher_;
-  ros::Publisher diagnostics_publisher_;
+  ros::Publisher esdf_pointcloud_publisher_;
+  std::unique_ptr<diagnostic_updater::Updater> diagnostics_updater_;
   ros::WallTimer tf_timer_;
+  ros::WallTimer submap_frames_timer_;
   ros::WallTimer visualization_timer_;
   ros::WallTimer diagnostics_timer_;
   ros::WallTimer active_slice_timer_;
   std::vector<ros::ServiceServer> services_;
-  // What was published per submap: its frame's pose on /tf_static and its mesh's size, to send
-  // a moved submap's pose and a new or re-meshed submap's mesh only.
+  // What was published (guarded by publish_mutex_): per submap its pose and its mesh's size, to
+  // send a moved submap's pose and a new or re-meshed submap's mesh only.
+  std::mutex publish_mutex_;
   struct PublishedSubmap {
     Eigen::Isometry3d T_world_submap;
     int64_t mesh_triangles;
   };
   std::map<int64_t, PublishedSubmap> published_submaps_;
-  // Submap frames ever sent on /tf_static (a static transform cannot be withdrawn).
-  std::map<int64_t, Eigen::Isometry3d> published_frames_;
   size_t published_trajectory_size_ = 0;
   bool map_changed_ = true;
+  // The map changed since ~esdf_pointcloud was last published.
+  bool esdf_pointcloud_stale_ = true;
+  // The submap frames on /tf and the stamp they were last sent with (guarded by frames_mutex_).
+  std::mutex frames_mutex_;
+  std::map<int64_t, Eigen::Isometry3d> submap_frames_;
+  ros::Time frames_stamp_;
   int64_t last_dropped_total_ = 0;
   ros::Time last_tf_stamp_;
 };

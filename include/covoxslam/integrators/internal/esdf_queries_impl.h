@@ -51,11 +51,54 @@ int64_t esdf_collect_layer(Backend backend, VoxelView<map::EsdfVoxel, Layout::kS
   return runs - (has_unused ? 1 : 0);
 }
 
+// Per voxel of every block: 1 when it is observed and its distance is at most max_distance_m,
+// else 0 (the flags a scan turns into output positions).
+template <class Backend>
+void esdf_flag_band(Backend backend, VoxelView<map::EsdfVoxel, Layout::kSoA> esdf,
+                    const uint32_t* block_slots, int64_t block_count, int32_t side,
+                    float max_distance_m, uint32_t* flags, const Stream& stream) {
+  const int64_t per_block = static_cast<int64_t>(side) * side * side;
+  parallel_for(backend, stream, block_count * per_block, [=] COVOX_HD(int64_t i) {
+    const int64_t index =
+        static_cast<int64_t>(block_slots[i / per_block]) * per_block + i % per_block;
+    flags[i] = esdf.get<&map::EsdfVoxel::observed>(index) &&
+                       esdf.get<&map::EsdfVoxel::distance_m>(index) <= max_distance_m
+                   ? 1u
+                   : 0u;
+  });
+}
+
+// Writes each flagged voxel's centre (metres, map frame) and distance at its scanned offset.
+template <class Backend>
+void esdf_gather_band(Backend backend, VoxelView<map::EsdfVoxel, Layout::kSoA> esdf,
+                      const Index3D* block_indices, const uint32_t* block_slots,
+                      int64_t block_count, int32_t side, float voxel_size_m, const uint32_t* flags,
+                      const uint32_t* offsets, Vec3f* positions_m, float* distances_m,
+                      const Stream& stream) {
+  const int64_t per_block = static_cast<int64_t>(side) * side * side;
+  parallel_for(backend, stream, block_count * per_block, [=] COVOX_HD(int64_t i) {
+    if (!flags[i]) return;
+    const int64_t b = i / per_block, k = i % per_block;
+    const Index3D v = map::global_voxel(block_indices[b], k, side);
+    const int64_t index = static_cast<int64_t>(block_slots[b]) * per_block + k;
+    positions_m[offsets[i]] = Vec3f((v.x + 0.5f) * voxel_size_m, (v.y + 0.5f) * voxel_size_m,
+                                    (v.z + 0.5f) * voxel_size_m);
+    distances_m[offsets[i]] = esdf.get<&map::EsdfVoxel::distance_m>(index);
+  });
+  stream.synchronize();
+}
+
 #define COVOX_INSTANTIATE_ESDF_QUERIES(Backend)                                                   \
   template void esdf_query_points<Backend>(Backend, EsdfLookup, const Vec3f*, int64_t,            \
                                            EsdfSample*, const Stream&);                           \
   template int64_t esdf_collect_layer<Backend>(                                                   \
       Backend, VoxelView<map::EsdfVoxel, Layout::kSoA>, const Index3D*, const uint32_t*, int64_t, \
-      int32_t, int32_t, int32_t, Buffer<uint64_t>*, Buffer<float>*, const Stream&);
+      int32_t, int32_t, int32_t, Buffer<uint64_t>*, Buffer<float>*, const Stream&);               \
+  template void esdf_flag_band<Backend>(Backend, VoxelView<map::EsdfVoxel, Layout::kSoA>,         \
+                                        const uint32_t*, int64_t, int32_t, float, uint32_t*,      \
+                                        const Stream&);                                           \
+  template void esdf_gather_band<Backend>(                                                        \
+      Backend, VoxelView<map::EsdfVoxel, Layout::kSoA>, const Index3D*, const uint32_t*, int64_t, \
+      int32_t, float, const uint32_t*, const uint32_t*, Vec3f*, float*, const Stream&);
 
 }  // namespace covox::integrators

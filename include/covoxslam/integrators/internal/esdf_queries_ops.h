@@ -74,4 +74,16 @@ int64_t esdf_collect_layer(Backend backend, VoxelView<map::EsdfVoxel, Layout::kS
                            Buffer<uint64_t>* column_keys, Buffer<float>* distances,
                            const Stream& stream);
 
+template <class Backend>
+void esdf_flag_band(Backend backend, VoxelView<map::EsdfVoxel, Layout::kSoA> esdf,
+                    const uint32_t* block_slots, int64_t block_count, int32_t side,
+                    float max_distance_m, uint32_t* flags, const Stream& stream);
+
+template <class Backend>
+void esdf_gather_band(Backend backend, VoxelView<map::EsdfVoxel, Layout::kSoA> esdf,
+                      const Index3D* block_indices, const uint32_t* block_slots,
+                      int64_t block_count, int32_t side, float voxel_size_m, const uint32_t* flags,
+                      const uint32_t* offsets, Vec3f* positions_m, float* distances_m,
+                      const Stream& stream);
+
 }  // namespace covox::integrators
