@@ -87,11 +87,11 @@ void print_summary(const sim::SimulatedMission& mission, size_t total_points) {
   const double distance_m = mission.distance_flown_m(truth.size());
   std::printf("odometry drift: final %.2f m (%.2f %% of %.1f m flown), max %.2f m\n", final_drift,
               distance_m > 0.0 ? 100.0 * final_drift / distance_m : 0.0, distance_m, max_drift);
-  const sim::SimulationOptions& options = mission.options();
   std::printf("motion: peak yaw rate %.1f deg/s; scans %s\n",
-              sim::peak_yaw_rate_deg_per_s(mission.path(), options.flight),
-              options.lidar.instantaneous ? "instantaneous (--instantaneous-scan)"
-                                          : "distorted over each sweep, with per-point times");
+              sim::peak_yaw_rate_deg_per_s(mission.path(), mission.options().flight),
+              mission.options().lidar.instantaneous
+                  ? "cast at once (--instantaneous-scan)"
+                  : "distorted by the motion over each sweep, with per-point times");
 }
 
 }  // namespace

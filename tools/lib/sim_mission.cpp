@@ -182,10 +182,11 @@ std::string describe_flight(const SimulatedMission& mission) {
   char text[320];
   std::snprintf(text, sizeof(text),
                 "%.1f m in %zu lap%s of a %.1f m figure 8 (lobes %.1f x %.1f m) at %.1f m/s, %zu "
-                "scans of %d x %d beams, seed %llu",
+                "%s scans of %d x %d beams, seed %llu",
                 path.length_m(), path.lap_count(), path.lap_count() == 1 ? "" : "s",
                 path.lap_length_m(), 2.0 * path.lobe_half_length_m(), path.lobe_width_m(),
-                options.flight.speed_m_per_s, mission.size(), options.lidar.columns,
+                options.flight.speed_m_per_s, mission.size(),
+                options.lidar.instantaneous ? "instantaneous" : "distorted", options.lidar.columns,
                 options.lidar.rows, static_cast<unsigned long long>(options.seed));
   return text;
 }
