@@ -107,17 +107,24 @@ size_t plan_laps(const FlightConfig& config, double longest_m, double* lap_m, bo
   return static_cast<size_t>(laps);
 }
 
+// A value for a message: as short as it reads ("10", "0.25").
+std::string shortest(double value) {
+  char text[32];
+  std::snprintf(text, sizeof(text), "%g", value);
+  return text;
+}
+
 // The yaw sweep and the odometry rate; throws covox::Error naming the parameter.
 void validate_motion(const FlightConfig& config) {
   if (!(config.yaw_sweep_amplitude_deg >= 0.0 && config.yaw_sweep_amplitude_deg <= 90.0)) {
     throw Error(
         "flight: the yaw sweep amplitude (--yaw-sweep-amplitude-deg) must be in [0, 90] "
         "degrees, got " +
-        std::to_string(config.yaw_sweep_amplitude_deg));
+        shortest(config.yaw_sweep_amplitude_deg));
   }
   if (!(config.yaw_sweep_period_s > 0.0 && std::isfinite(config.yaw_sweep_period_s))) {
     throw Error("flight: the yaw sweep period (--yaw-sweep-period-s) must be positive, got " +
-                std::to_string(config.yaw_sweep_period_s));
+                shortest(config.yaw_sweep_period_s));
   }
   const double per_scan = config.odometry_rate_hz / config.scan_rate_hz;
   if (!(per_scan >= 1.0 && per_scan <= 1000.0) ||
@@ -125,8 +132,8 @@ void validate_motion(const FlightConfig& config) {
     throw Error(
         "flight: the odometry rate (--odometry-rate-hz) must be a whole multiple of the "
         "scan rate of " +
-        std::to_string(config.scan_rate_hz) + " Hz (at most 1000 of it), got " +
-        std::to_string(config.odometry_rate_hz) + " Hz");
+        shortest(config.scan_rate_hz) + " Hz, at most 1000 times it, got " +
+        shortest(config.odometry_rate_hz) + " Hz");
   }
 }
 
