@@ -23,6 +23,8 @@ namespace covox {
 namespace sim {
 namespace {
 
+constexpr double kPi = 3.14159265358979323846;
+
 LidarConfig exact_lidar(int columns = 128, int rows = 32) {
   LidarConfig config;
   config.columns = columns;
@@ -38,6 +40,23 @@ Eigen::Isometry3d pose_at(const Eigen::Vector3d& position_m, double yaw_rad = 0.
   pose.translation() = position_m;
   return pose;
 }
+
+// A world of one closed box to cast from inside: every beam hits a wall.
+Box box_room(const Eigen::Vector3d& centre_m, const Eigen::Vector3d& half_extent_m) {
+  Box room;
+  room.centre_m = centre_m;
+  room.half_extent_m = half_extent_m;
+  return room;
+}
+World room_world(const Box& room) {
+  World world;
+  world.add(room);
+  world.build();
+  return world;
+}
+
+// Bit for bit.
+bool same_point(const Vec3f& a, const Vec3f& b) { return a.x == b.x && a.y == b.y && a.z == b.z; }
 
 Eigen::Vector3d to_world(const Eigen::Isometry3d& pose, const Vec3f& p) {
   return pose * Eigen::Vector3d(p.x, p.y, p.z);
@@ -127,12 +146,8 @@ TEST(Simulator, RangesMatchAnalyticDistancesToAPlane) {
 }
 
 TEST(Simulator, RangesMatchAnalyticDistancesInsideABoxRoom) {
-  World world;
-  Box room;
-  room.centre_m = Eigen::Vector3d(0.5, 0.0, 1.0);
-  room.half_extent_m = Eigen::Vector3d(4.0, 3.0, 2.5);
-  world.add(room);
-  world.build();
+  const Box room = box_room(Eigen::Vector3d(0.5, 0.0, 1.0), Eigen::Vector3d(4.0, 3.0, 2.5));
+  const World world = room_world(room);
   const LidarConfig lidar = exact_lidar();
   const Eigen::Isometry3d pose = pose_at(Eigen::Vector3d(0.0, 0.5, 1.2), -0.3);
   const std::vector<Vec3f> points = simulate_scan(world, lidar, pose, 1);
@@ -177,6 +192,96 @@ TEST(Simulator, RangesMatchAnalyticDistancesToACylinder) {
       (pole.base_centre_m.head<2>() - pose.translation().head<2>()).norm() - pole.radius_m;
   const Eigen::Vector3d towards = (pose.inverse() * Eigen::Vector3d(6.0, 1.0, 0.0)).normalized();
   EXPECT_NEAR(world.intersect(pose.translation(), pose.linear() * towards), expected, 1e-9);
+}
+
+TEST(SimulatorSweep, ColumnTimesIncreaseAndSpanOneSweep) {
+  for (const int columns : {64, 256, 1024, 2048}) {
+    const LidarConfig lidar = exact_lidar(columns, 4);
+    const double period_s = 0.1;
+    EXPECT_EQ(column_time_ns(lidar, period_s, 0), 0u);
+    for (int column = 1; column < columns; ++column) {
+      ASSERT_GT(column_time_ns(lidar, period_s, column),
+                column_time_ns(lidar, period_s, column - 1))
+          << columns << " " << column;
+    }
+    // The last column fires one column's time before the sweep ends.
+    EXPECT_NEAR(column_time_ns(lidar, period_s, columns - 1), 1e8 * (columns - 1) / columns, 0.5);
+    EXPECT_LT(column_time_ns(lidar, period_s, columns - 1), 100000000u);
+  }
+  // The scan's points carry the time of their beam's column, found from the point's azimuth.
+  const World world = room_world(box_room(Eigen::Vector3d::Zero(), Eigen::Vector3d(6.0, 5.0, 4.0)));
+  const LidarConfig lidar = exact_lidar(90, 8);
+  const SweepScan scan = simulate_sweep(
+      world, lidar, [](double) { return pose_at(Eigen::Vector3d(0.5, 0.0, 0.0)); }, 0.1, 1);
+  ASSERT_EQ(scan.points_sensor_m.size(), 90u * 8u);
+  ASSERT_EQ(scan.times_ns.size(), scan.points_sensor_m.size());
+  for (size_t i = 0; i < scan.points_sensor_m.size(); ++i) {
+    const Vec3f& p = scan.points_sensor_m[i];
+    const double azimuth_deg = std::atan2(p.y, p.x) * 180.0 / kPi;
+    const int column = static_cast<int>(std::lround(
+                           (azimuth_deg < -0.5 ? azimuth_deg + 360.0 : azimuth_deg) / 4.0)) %
+                       90;
+    ASSERT_EQ(scan.times_ns[i], static_cast<uint32_t>(std::llround(column * 1e8 / 90.0))) << i;
+  }
+}
+
+// A world point's distance to the nearest face of `room` (the sensor is inside).
+double distance_to_walls(const Box& room, const Eigen::Vector3d& point_m) {
+  const Eigen::Vector3d local = (point_m - room.centre_m).cwiseAbs();
+  return (room.half_extent_m - local).minCoeff();
+}
+
+TEST(SimulatorSweep, StillSensorGivesTheInstantaneousScan) {
+  const Site site = build_site(SiteConfig(), Figure8Path(FlightConfig()), 3);
+  LidarConfig lidar;
+  lidar.columns = 128;  // noise and dropouts on: they are the same either way
+  LidarConfig instantaneous = lidar;
+  instantaneous.instantaneous = true;
+  const Eigen::Isometry3d pose = pose_at(Eigen::Vector3d(10.0, 2.0, 3.5), 0.7);
+  const PoseAtTime still = [&](double) { return pose; };
+  const SweepScan distorted = simulate_sweep(site.world, lidar, still, 0.1, 17);
+  const SweepScan at_once = simulate_sweep(site.world, instantaneous, still, 0.1, 17);
+  const std::vector<Vec3f> reference = simulate_scan(site.world, lidar, pose, 17);
+  ASSERT_GT(reference.size(), 1000u);
+  ASSERT_EQ(distorted.points_sensor_m.size(), reference.size());
+  ASSERT_EQ(at_once.points_sensor_m.size(), reference.size());
+  EXPECT_EQ(distorted.times_ns.size(), reference.size());
+  EXPECT_TRUE(at_once.times_ns.empty());
+  for (size_t i = 0; i < reference.size(); ++i) {
+    ASSERT_TRUE(same_point(distorted.points_sensor_m[i], reference[i])) << i;
+    ASSERT_TRUE(same_point(at_once.points_sensor_m[i], reference[i])) << i;
+  }
+}
+
+TEST(SimulatorSweep, MovingSensorCastsEachColumnFromItsPoseAtItsTime) {
+  const Box room = box_room(Eigen::Vector3d(1.0, 0.5, 1.0), Eigen::Vector3d(9.0, 7.0, 3.0));
+  const World world = room_world(room);
+  const LidarConfig lidar = exact_lidar(120, 16);
+  // 2 m/s forward, climbing at 0.5 m/s, yawing at 60 deg/s.
+  const PoseAtTime moving = [](double t) {
+    return pose_at(Eigen::Vector3d(-1.0 + 2.0 * t, 0.3, 1.0 + 0.5 * t), 0.2 + kPi / 3.0 * t);
+  };
+  const SweepScan scan = simulate_sweep(world, lidar, moving, 0.1, 5);
+  ASSERT_EQ(scan.points_sensor_m.size(), 120u * 16u);  // a closed room: every beam hits
+  double largest_shift_m = 0.0;
+  const std::vector<Vec3f> at_start = simulate_scan(world, lidar, moving(0.0), 5);
+  for (int column = 0; column < lidar.columns; column += 7) {
+    const double t = column_time_ns(lidar, 0.1, column) * 1e-9;
+    const std::vector<Vec3f> at_firing = simulate_scan(world, lidar, moving(t), 5);
+    for (int row = 0; row < lidar.rows; ++row) {
+      const size_t i = static_cast<size_t>(row * lidar.columns + column);
+      ASSERT_DOUBLE_EQ(scan.times_ns[i] * 1e-9, t);
+      // In the sensor frame at its time: the instantaneous cast from the pose at that time, and
+      // moved into the world with that pose it lies on the room's walls.
+      ASSERT_TRUE(same_point(scan.points_sensor_m[i], at_firing[i])) << row << " " << column;
+      EXPECT_NEAR(distance_to_walls(room, to_world(moving(t), scan.points_sensor_m[i])), 0.0, 1e-4);
+      largest_shift_m = std::max(largest_shift_m, (to_world(moving(t), scan.points_sensor_m[i]) -
+                                                   to_world(moving(0.0), at_start[i]))
+                                                      .norm());
+    }
+  }
+  // Late columns see the room from up to 0.2 m further along and 6 degrees further round.
+  EXPECT_GT(largest_shift_m, 0.15);
 }
 
 TEST(Simulator, HierarchyFindsTheSameHitsAsTestingEveryPrimitive) {
@@ -244,6 +349,85 @@ TEST(Simulator, FlightHasTheRequestedShapeAndOdometryDriftsAtLeastAsConfigured) 
   EXPECT_LT(final_drift_m(truth, exact), 1e-9);
   EXPECT_GE(final_drift_m(truth, simulate_odometry(truth, DriftConfig().scaled(0.5), 11)), 3.0);
   EXPECT_THROW(DriftConfig().scaled(-1.0), Error);
+}
+
+TEST(Simulator, TruthIsAFunctionOfTimeAndTurnsAsFastAsADrone) {
+  const FlightConfig flight;
+  const Figure8Path path(flight);
+  const std::vector<StampedIsometry> truth = simulate_truth(path, flight);
+  // The samples are the function at the samples' times, bit for bit; from their stamps (which
+  // round the time a little) the function gives nearly the same poses.
+  for (size_t k = 0; k < truth.size(); k += 37) {
+    const double t = static_cast<double>(k) * (1.0 / flight.scan_rate_hz);
+    ASSERT_TRUE(truth_pose_at(path, flight, t).matrix() == truth[k].pose.matrix()) << k;
+    const Eigen::Isometry3d at =
+        truth_pose_at(path, flight, truth[k].stamp_s - flight.start_time_s);
+    ASSERT_TRUE(at.isApprox(truth[k].pose, 1e-9)) << k;
+  }
+  // The yaw sweep: a quarter period in, the drone looks the full amplitude left of its heading.
+  FlightConfig forward = flight;
+  forward.yaw_sweep_amplitude_deg = 0.0;
+  const Eigen::Matrix3d swept =
+      truth_pose_at(path, flight, 0.25 * flight.yaw_sweep_period_s).linear();
+  const Eigen::Matrix3d ahead =
+      truth_pose_at(path, forward, 0.25 * flight.yaw_sweep_period_s).linear();
+  const double yaw_offset_deg =
+      std::remainder(std::atan2(swept(1, 0), swept(0, 0)) - std::atan2(ahead(1, 0), ahead(0, 0)),
+                     2.0 * kPi) *
+      180.0 / kPi;
+  EXPECT_NEAR(yaw_offset_deg, flight.yaw_sweep_amplitude_deg, 1e-9);
+  // The default flight turns at up to about 60 deg/s; the path alone, in its tightest turn at
+  // 2 m/s, at about 13 deg/s.
+  const double peak_deg_per_s = peak_yaw_rate_deg_per_s(path, flight);
+  const double path_only_deg_per_s = peak_yaw_rate_deg_per_s(path, forward);
+  std::printf("peak yaw rate: %.1f deg/s (path alone %.1f deg/s)\n", peak_deg_per_s,
+              path_only_deg_per_s);
+  EXPECT_GT(peak_deg_per_s, 55.0);
+  EXPECT_LT(peak_deg_per_s, 65.0);
+  EXPECT_GT(path_only_deg_per_s, 8.0);
+  EXPECT_LT(path_only_deg_per_s, 20.0);
+  FlightConfig bad = flight;
+  bad.odometry_rate_hz = 25.0;  // not a whole multiple of 10 Hz
+  EXPECT_THROW(Figure8Path{bad}, Error);
+}
+
+TEST(Simulator, OdometryExistsBetweenTheScanSamples) {
+  const FlightConfig flight;
+  const Figure8Path path(flight);
+  const std::vector<StampedIsometry> truth = simulate_truth(path, flight);
+  const std::vector<StampedIsometry> odometry = simulate_odometry(truth, DriftConfig(), 11);
+  const auto truth_at = [&](double stamp_s) {
+    return truth_pose_at(path, flight, stamp_s - flight.start_time_s);
+  };
+  const auto drift_at = [&](double stamp_s) {
+    return odometry_at(truth, odometry, stamp_s, truth_at(stamp_s)) * truth_at(stamp_s).inverse();
+  };
+  for (size_t k = 0; k + 1 < truth.size(); k += 53) {
+    // At a sample's stamp: the sample itself.
+    const Eigen::Isometry3d sample = odometry_at(truth, odometry, truth[k].stamp_s, truth[k].pose);
+    ASSERT_TRUE(sample.matrix() == odometry[k].pose.matrix()) << k;
+    // Between two samples the drift moves from one sample's to the other's: halfway, the drift's
+    // translation is the mean of theirs and its rotation half of the way.
+    const Eigen::Isometry3d before = odometry[k].pose * truth[k].pose.inverse();
+    const Eigen::Isometry3d after = odometry[k + 1].pose * truth[k + 1].pose.inverse();
+    const Eigen::Isometry3d middle = drift_at(0.5 * (truth[k].stamp_s + truth[k + 1].stamp_s));
+    EXPECT_LT((middle.translation() - 0.5 * (before.translation() + after.translation())).norm(),
+              1e-9);
+    const Eigen::Quaterniond q_before(before.linear()), q_after(after.linear());
+    EXPECT_TRUE(Eigen::Quaterniond(middle.linear()).isApprox(q_before.slerp(0.5, q_after), 1e-9));
+    // Roll and pitch are the truth's: the drift is a yaw.
+    EXPECT_NEAR(middle.linear()(2, 2), 1.0, 1e-12);
+  }
+  // Past the last sample (the last sweep) the last drift holds.
+  const double late_s = truth.back().stamp_s + 0.05;
+  const Eigen::Isometry3d last = odometry.back().pose * truth.back().pose.inverse();
+  EXPECT_TRUE(drift_at(late_s).isApprox(last, 1e-9));
+  // Without drift the odometry is the truth at any time.
+  const std::vector<StampedIsometry> exact =
+      simulate_odometry(truth, DriftConfig().scaled(0.0), 11);
+  for (double stamp_s = truth[3].stamp_s + 0.013; stamp_s < truth[40].stamp_s; stamp_s += 0.37)
+    EXPECT_TRUE(
+        odometry_at(truth, exact, stamp_s, truth_at(stamp_s)).isApprox(truth_at(stamp_s), 1e-12));
 }
 
 // Writes the first `scans` scans of the default flight (seed `seed`, a small LiDAR) as a bag and

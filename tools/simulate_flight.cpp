@@ -1,7 +1,9 @@
 // simulate_flight: simulates an ARCHE-like flight (figure 8 through a search-and-rescue site,
 // Ouster OS1-64, drifting odometry) and writes, into one folder:
-//   flight.bag        ROS bag with the ARCHE topic layout (tools/lib/sim_flight_bag.h): clouds,
-//                     tf odom -> imu from the odometry, static LiDAR extrinsics, truth positions
+//   flight.bag        ROS bag with the ARCHE topic layout (tools/lib/sim_flight_bag.h): clouds
+//                     (distorted by the motion over each sweep, with per-point times, unless
+//                     --instantaneous-scan), tf odom -> imu from the odometry at 100 Hz, static
+//                     LiDAR extrinsics, truth positions
 //   world.ply         the ground-truth world mesh
 //   truth.tum         ground-truth poses of the cloud frame os1_lidar (TUM)
 //   odometry.tum      odometry poses of os1_lidar (TUM)
@@ -20,6 +22,7 @@
 #include "sim_flight.h"
 #include "sim_flight_bag.h"
 #include "sim_mission.h"
+#include "sim_mission_bag.h"
 
 namespace {
 
@@ -51,12 +54,11 @@ size_t write_bag(const std::string& path, const sim::SimulatedMission& mission,
   const size_t count = mission.size();
   for (size_t k = 0; k < count; ++k) {
     const auto start = std::chrono::steady_clock::now();
-    const std::vector<Vec3f> points = mission.scan(k);
+    const sim::SweepScan scan = mission.scan(k);
     *generation_s +=
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    total_points += points.size();
-    writer.write_scan(mission.truth()[k].stamp_s, mission.truth()[k].pose,
-                      mission.odometry()[k].pose, points, {});
+    total_points += scan.points_sensor_m.size();
+    sim::write_mission_scan(&writer, mission, k, scan);
     if (k % 20 == 0 || k + 1 == count) {
       std::fprintf(stderr, "\rsimulating scan %zu / %zu", k + 1, count);
     }
@@ -85,6 +87,11 @@ void print_summary(const sim::SimulatedMission& mission, size_t total_points) {
   const double distance_m = mission.distance_flown_m(truth.size());
   std::printf("odometry drift: final %.2f m (%.2f %% of %.1f m flown), max %.2f m\n", final_drift,
               distance_m > 0.0 ? 100.0 * final_drift / distance_m : 0.0, distance_m, max_drift);
+  std::printf("motion: peak yaw rate %.1f deg/s; scans %s\n",
+              sim::peak_yaw_rate_deg_per_s(mission.path(), mission.options().flight),
+              mission.options().lidar.instantaneous
+                  ? "cast at once (--instantaneous-scan)"
+                  : "distorted by the motion over each sweep, with per-point times");
 }
 
 }  // namespace

@@ -107,6 +107,36 @@ size_t plan_laps(const FlightConfig& config, double longest_m, double* lap_m, bo
   return static_cast<size_t>(laps);
 }
 
+// A value for a message: as short as it reads ("10", "0.25").
+std::string shortest(double value) {
+  char text[32];
+  std::snprintf(text, sizeof(text), "%g", value);
+  return text;
+}
+
+// The yaw sweep and the odometry rate; throws covox::Error naming the parameter.
+void validate_motion(const FlightConfig& config) {
+  if (!(config.yaw_sweep_amplitude_deg >= 0.0 && config.yaw_sweep_amplitude_deg <= 90.0)) {
+    throw Error(
+        "flight: the yaw sweep amplitude (--yaw-sweep-amplitude-deg) must be in [0, 90] "
+        "degrees, got " +
+        shortest(config.yaw_sweep_amplitude_deg));
+  }
+  if (!(config.yaw_sweep_period_s > 0.0 && std::isfinite(config.yaw_sweep_period_s))) {
+    throw Error("flight: the yaw sweep period (--yaw-sweep-period-s) must be positive, got " +
+                shortest(config.yaw_sweep_period_s));
+  }
+  const double per_scan = config.odometry_rate_hz / config.scan_rate_hz;
+  if (!(per_scan >= 1.0 && per_scan <= 1000.0) ||
+      std::abs(per_scan - std::round(per_scan)) > 1e-9 * per_scan) {
+    throw Error(
+        "flight: the odometry rate (--odometry-rate-hz) must be a whole multiple of the "
+        "scan rate of " +
+        shortest(config.scan_rate_hz) + " Hz, at most 1000 times it, got " +
+        shortest(config.odometry_rate_hz) + " Hz");
+  }
+}
+
 }  // namespace
 
 Figure8Path::Figure8Path(const FlightConfig& config)
@@ -118,6 +148,7 @@ Figure8Path::Figure8Path(const FlightConfig& config)
         "flight: lobe half length, path length, speed, scan rate and lap blend length must be "
         "positive, the lap length positive or 0");
   }
+  validate_motion(config);
   // The length grows with B: bisect for the B that gives the requested lap length.
   double low = 0.05 * a_, high = 3.0 * a_;
   const double shortest_m = lemniscate_length(a_, low), longest_m = lemniscate_length(a_, high);
@@ -252,42 +283,68 @@ double Figure8Path::passage_x_at_m(double y_m) const {
   return a_ * std::sin(0.5 * (low + high));
 }
 
+Eigen::Isometry3d truth_pose_at(const Figure8Path& path, const FlightConfig& config,
+                                double flight_time_s) {
+  const double duration_s = path.length_m() / config.speed_m_per_s;
+  const auto position = [&](double t_s) {
+    const double s = std::min(t_s, duration_s) * config.speed_m_per_s;
+    const Eigen::Vector2d xy = path.position_m(s);
+    return Eigen::Vector3d(xy.x(), xy.y(), path.altitude_m(s));
+  };
+  const double t = flight_time_s;
+  const Eigen::Vector2d heading = path.direction(std::min(t, duration_s) * config.speed_m_per_s);
+  const double sweep_rad = config.yaw_sweep_amplitude_deg * kPi / 180.0 *
+                           std::sin(2.0 * kPi * t / config.yaw_sweep_period_s);
+  const double yaw = std::atan2(heading.y(), heading.x()) + sweep_rad;
+  // Horizontal acceleration by central differences (one step of 0.05 s), in the yawed frame.
+  // At the ends the stencil moves inwards by a step: the path has no point before its start or
+  // after its end, and a stencil clamped there divides the velocity by h (the first and last
+  // poses were tilted by 76 degrees).
+  const double h = 0.05;
+  const double centre = std::min(std::max(t, h), std::max(h, duration_s - h));
+  const Eigen::Vector3d acceleration =
+      (position(centre + h) - 2.0 * position(centre) + position(centre - h)) / (h * h);
+  const Eigen::Vector3d local = yaw_rotation(-yaw) * acceleration;
+  // Thrust tilts towards the acceleration: forward needs pitch down (positive about y in a
+  // forward-left-up frame), left needs roll to the left (negative about x).
+  const double pitch = std::atan2(local.x(), kGravity_m_per_s2);
+  const double roll = -std::atan2(local.y(), kGravity_m_per_s2);
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.linear() = (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) *
+                   Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
+                   Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()))
+                      .toRotationMatrix();
+  pose.translation() = position(t);
+  return pose;
+}
+
 std::vector<StampedIsometry> simulate_truth(const Figure8Path& path, const FlightConfig& config) {
   const double dt = 1.0 / config.scan_rate_hz;
   const double duration_s = path.length_m() / config.speed_m_per_s;
   const size_t count = static_cast<size_t>(std::floor(duration_s * config.scan_rate_hz)) + 1;
   std::vector<StampedIsometry> poses(count);
-  const auto position = [&](double t_s) {
-    const double s = t_s * config.speed_m_per_s;
-    const Eigen::Vector2d xy = path.position_m(s);
-    return Eigen::Vector3d(xy.x(), xy.y(), path.altitude_m(s));
-  };
   for (size_t k = 0; k < count; ++k) {
     const double t = k * dt;
-    const double s = t * config.speed_m_per_s;
-    const Eigen::Vector2d heading = path.direction(s);
-    const double yaw = std::atan2(heading.y(), heading.x());
-    // Horizontal acceleration by central differences (one step of 0.05 s), in the yawed frame.
-    // At the ends the stencil moves inwards by a step: the path has no point before its start or
-    // after its end, and a stencil clamped there divides the velocity by h (the first and last
-    // poses were tilted by 76 degrees).
-    const double h = 0.05;
-    const double centre = std::min(std::max(t, h), std::max(h, duration_s - h));
-    const Eigen::Vector3d acceleration =
-        (position(centre + h) - 2.0 * position(centre) + position(centre - h)) / (h * h);
-    const Eigen::Vector3d local = yaw_rotation(-yaw) * acceleration;
-    // Thrust tilts towards the acceleration: forward needs pitch down (positive about y in a
-    // forward-left-up frame), left needs roll to the left (negative about x).
-    const double pitch = std::atan2(local.x(), kGravity_m_per_s2);
-    const double roll = -std::atan2(local.y(), kGravity_m_per_s2);
     poses[k].stamp_s = config.start_time_s + t;
-    poses[k].pose.linear() = (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) *
-                              Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
-                              Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()))
-                                 .toRotationMatrix();
-    poses[k].pose.translation() = position(t);
+    poses[k].pose = truth_pose_at(path, config, t);
   }
   return poses;
+}
+
+double peak_yaw_rate_deg_per_s(const Figure8Path& path, const FlightConfig& config, double step_s) {
+  const double duration_s = path.length_m() / config.speed_m_per_s;
+  const auto yaw_at = [&](double t) {
+    const Eigen::Matrix3d rotation = truth_pose_at(path, config, t).linear();
+    return std::atan2(rotation(1, 0), rotation(0, 0));
+  };
+  double peak_rad_per_s = 0.0, previous = yaw_at(0.0);
+  for (double t = step_s; t <= duration_s; t += step_s) {
+    const double yaw = yaw_at(t);
+    const double change = std::remainder(yaw - previous, 2.0 * kPi);
+    peak_rad_per_s = std::max(peak_rad_per_s, std::abs(change) / step_s);
+    previous = yaw;
+  }
+  return peak_rad_per_s * 180.0 / kPi;
 }
 
 DriftConfig DriftConfig::scaled(double factor) const {
@@ -319,6 +376,37 @@ std::vector<StampedIsometry> simulate_odometry(const std::vector<StampedIsometry
     odometry = drifted(truth, config, seed, scale);
   }
   return odometry;
+}
+
+Eigen::Isometry3d odometry_at(const std::vector<StampedIsometry>& truth,
+                              const std::vector<StampedIsometry>& odometry, double stamp_s,
+                              const Eigen::Isometry3d& truth_at_stamp) {
+  if (truth.empty() || odometry.size() != truth.size()) {
+    throw Error("odometry_at: " + std::to_string(odometry.size()) + " odometry samples for " +
+                std::to_string(truth.size()) + " truth samples");
+  }
+  // The first sample after stamp_s.
+  const size_t after = static_cast<size_t>(
+      std::upper_bound(truth.begin(), truth.end(), stamp_s,
+                       [](double s, const StampedIsometry& sample) { return s < sample.stamp_s; }) -
+      truth.begin());
+  if (after > 0 && truth[after - 1].stamp_s == stamp_s) return odometry[after - 1].pose;
+  const auto drift = [&](size_t k) { return odometry[k].pose * truth[k].pose.inverse(); };
+  if (after == 0) return drift(0) * truth_at_stamp;
+  if (after == truth.size()) return drift(after - 1) * truth_at_stamp;
+  const Eigen::Isometry3d before = drift(after - 1), later = drift(after);
+  const double fraction =
+      (stamp_s - truth[after - 1].stamp_s) / (truth[after].stamp_s - truth[after - 1].stamp_s);
+  const auto yaw_of = [](const Eigen::Isometry3d& T) {
+    return std::atan2(T.linear()(1, 0), T.linear()(0, 0));
+  };
+  const double yaw_before = yaw_of(before);
+  const double yaw_change = std::remainder(yaw_of(later) - yaw_before, 2.0 * kPi);
+  Eigen::Isometry3d interpolated = Eigen::Isometry3d::Identity();
+  interpolated.linear() = yaw_rotation(yaw_before + fraction * yaw_change);
+  interpolated.translation() =
+      before.translation() + fraction * (later.translation() - before.translation());
+  return interpolated * truth_at_stamp;
 }
 
 double final_drift_m(const std::vector<StampedIsometry>& truth,

@@ -3,8 +3,11 @@
 // cos(theta)) flown at constant speed, starting at the crossing point, whose +x lobe end runs
 // straight through a building (the "passage": the lobe is nearly straight there, with a curvature
 // radius of B^2 / A). Altitude drops from cruise to indoor height around the passage.
-// Orientation: yaw along the direction of travel, roll and pitch from the horizontal acceleration
-// as a multicopter tilts to produce it.
+// Orientation: yaw along the direction of travel plus a sweep as the drone looks around (yaw =
+// heading + amplitude * sin(2 pi t / period); the defaults turn it at up to about 60 deg/s with
+// the path's own turning, as fast as drones turn), roll and pitch from the horizontal
+// acceleration as a multicopter tilts to produce it. The pose is a function of time
+// (truth_pose_at), so a LiDAR sweeping over 0.1 s can be cast from the pose of each column.
 //
 // A flight longer than one figure 8 flies it as repeated laps, each starting and ending at the
 // crossing point (up to the offsets below). The first lap is the nominal figure 8; every later lap
@@ -16,7 +19,9 @@
 //
 // Odometry = truth + drift, as visual-inertial odometry drifts in the four unobservable degrees
 // of freedom (x, y, z, yaw): a yaw error that grows as a random walk with a bias rotates every
-// later displacement, and the position picks up its own random walk with a bias.
+// later displacement, and the position picks up its own random walk with a bias. The drift is
+// drawn at the scan rate; between the samples it is interpolated (odometry_at), so the odometry
+// exists at any time, as a visual-inertial odometry's high-rate output does.
 #include <cstdint>
 #include <vector>
 
@@ -34,6 +39,11 @@ struct FlightConfig {
   double lap_length_m = 0.0;
   double speed_m_per_s = 2.0;
   double scan_rate_hz = 10.0;
+  // Odometry poses a second (the bag's tf odom -> imu); a whole multiple of the scan rate.
+  double odometry_rate_hz = 100.0;
+  // The yaw sweep on top of the direction of travel; amplitude 0 flies facing forward.
+  double yaw_sweep_amplitude_deg = 30.0;
+  double yaw_sweep_period_s = 4.0;
   double lobe_half_length_m =
       55.0;  // A: the figure 8 spans x in [-A, A]; B follows from the length
   double cruise_altitude_m = 3.5;
@@ -118,12 +128,32 @@ class Figure8Path {
   std::vector<double> arc_length_;      // ...and the length travelled up to each
 };
 
-// Ground-truth sensor poses at the scan rate, from the start to the end of the path.
+// The ground-truth sensor pose T_world_sensor `flight_time_s` seconds after the start (stamp
+// config.start_time_s). Past the end of the path the drone hovers there, still sweeping its yaw.
+Eigen::Isometry3d truth_pose_at(const Figure8Path& path, const FlightConfig& config,
+                                double flight_time_s);
+
+// Ground-truth sensor poses at the scan rate (truth_pose_at sampled), from the start to the end
+// of the path.
 std::vector<StampedIsometry> simulate_truth(const Figure8Path& path, const FlightConfig& config);
+
+// The largest yaw rate of the truth (deg/s), from the yaw of the poses (atan2 of the rotation's
+// first column) sampled every `step_s` over the whole flight.
+double peak_yaw_rate_deg_per_s(const Figure8Path& path, const FlightConfig& config,
+                               double step_s = 0.01);
 
 // Odometry for `truth` (first pose exact). Deterministic from `seed`.
 std::vector<StampedIsometry> simulate_odometry(const std::vector<StampedIsometry>& truth,
                                                const DriftConfig& config, uint64_t seed);
+
+// The odometry at `stamp_s`, given the samples `truth` and `odometry` (same stamps, increasing)
+// and the truth at `stamp_s`: the drift of the samples on either side (odometry * truth^-1, a yaw
+// rotation and a translation) interpolated linearly in yaw and translation, applied to
+// `truth_at_stamp`. At a sample's own stamp it is that sample; before the first or after the last
+// sample the nearest sample's drift holds.
+Eigen::Isometry3d odometry_at(const std::vector<StampedIsometry>& truth,
+                              const std::vector<StampedIsometry>& odometry, double stamp_s,
+                              const Eigen::Isometry3d& truth_at_stamp);
 
 // Distance between the last odometry and truth positions.
 double final_drift_m(const std::vector<StampedIsometry>& truth,

@@ -1,6 +1,7 @@
 #include "sim_lidar.h"
 
 #include <cmath>
+#include <string>
 
 #include "covoxslam/core/error.h"
 #include "sim_random.h"
@@ -30,21 +31,28 @@ Eigen::Vector3d beam_direction(const LidarConfig& config, int row, int column) {
                          std::cos(elevation) * std::sin(azimuth), std::sin(elevation));
 }
 
-std::vector<Vec3f> simulate_scan(const World& world, const LidarConfig& config,
-                                 const Eigen::Isometry3d& T_world_sensor, uint64_t scan_seed) {
-  validate(config);
+uint32_t column_time_ns(const LidarConfig& config, double sweep_period_s, int column) {
+  return static_cast<uint32_t>(
+      std::llround(1e9 * sweep_period_s * static_cast<double>(column) / config.columns));
+}
+
+namespace {
+
+// The noisy range of every beam (0: no return), one slot per beam so that threads never contend.
+// Column c is cast from column_poses[c], or from column_poses[0] when there is only one.
+std::vector<float> cast_ranges(const World& world, const LidarConfig& config,
+                               const std::vector<Eigen::Isometry3d>& column_poses,
+                               uint64_t scan_seed) {
   const int beams = config.rows * config.columns;
-  // One slot per beam so threads never contend; compacted in beam order afterwards, which keeps
-  // the output independent of scheduling.
   std::vector<float> ranges(beams, 0.0f);
-  const Eigen::Vector3d origin = T_world_sensor.translation();
-  const Eigen::Matrix3d rotation = T_world_sensor.linear();
+  const bool one_pose = column_poses.size() == 1;
 #pragma omp parallel for schedule(dynamic, 8)
   for (int row = 0; row < config.rows; ++row) {
     for (int column = 0; column < config.columns; ++column) {
       const int beam = row * config.columns + column;
-      const Eigen::Vector3d direction = rotation * beam_direction(config, row, column);
-      const double range = world.intersect(origin, direction, config.max_range_m);
+      const Eigen::Isometry3d& pose = column_poses[one_pose ? 0 : column];
+      const Eigen::Vector3d direction = pose.linear() * beam_direction(config, row, column);
+      const double range = world.intersect(pose.translation(), direction, config.max_range_m);
       if (!(range >= config.min_range_m && range <= config.max_range_m)) continue;
       Random random(stream_seed(scan_seed, static_cast<uint64_t>(beam)));
       if (config.dropout_probability > 0.0 && random.uniform() < config.dropout_probability)
@@ -54,18 +62,57 @@ std::vector<Vec3f> simulate_scan(const World& world, const LidarConfig& config,
       if (noisy > 0.0) ranges[beam] = static_cast<float>(noisy);
     }
   }
-  std::vector<Vec3f> points;
-  points.reserve(beams);
+  return ranges;
+}
+
+// The returns in beam order (which keeps the output independent of scheduling), each along its
+// beam in the sensor frame of its column, with its column's time when `column_times_ns` is given.
+SweepScan compact(const LidarConfig& config, const std::vector<float>& ranges,
+                  const std::vector<uint32_t>& column_times_ns) {
+  SweepScan scan;
+  scan.points_sensor_m.reserve(ranges.size());
+  if (!column_times_ns.empty()) scan.times_ns.reserve(ranges.size());
   for (int row = 0; row < config.rows; ++row) {
     for (int column = 0; column < config.columns; ++column) {
       const float range = ranges[row * config.columns + column];
       if (range <= 0.0f) continue;
       const Eigen::Vector3d p = beam_direction(config, row, column) * static_cast<double>(range);
-      points.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()),
-                          static_cast<float>(p.z()));
+      scan.points_sensor_m.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()),
+                                        static_cast<float>(p.z()));
+      if (!column_times_ns.empty()) scan.times_ns.push_back(column_times_ns[column]);
     }
   }
-  return points;
+  return scan;
+}
+
+}  // namespace
+
+SweepScan simulate_sweep(const World& world, const LidarConfig& config,
+                         const PoseAtTime& T_world_sensor_at, double sweep_period_s,
+                         uint64_t scan_seed) {
+  validate(config);
+  if (config.instantaneous) {
+    return compact(config, cast_ranges(world, config, {T_world_sensor_at(0.0)}, scan_seed), {});
+  }
+  if (!(sweep_period_s > 0.0 && sweep_period_s < 4.0)) {
+    throw Error("LiDAR model: the sweep period must be in (0, 4) s, got " +
+                std::to_string(sweep_period_s));
+  }
+  std::vector<uint32_t> column_times_ns(config.columns);
+  std::vector<Eigen::Isometry3d> column_poses(config.columns);
+  for (int column = 0; column < config.columns; ++column) {
+    column_times_ns[column] = column_time_ns(config, sweep_period_s, column);
+    // Cast at the recorded time itself, so that a point and its time agree to the nanosecond.
+    column_poses[column] = T_world_sensor_at(static_cast<double>(column_times_ns[column]) * 1e-9);
+  }
+  return compact(config, cast_ranges(world, config, column_poses, scan_seed), column_times_ns);
+}
+
+std::vector<Vec3f> simulate_scan(const World& world, const LidarConfig& config,
+                                 const Eigen::Isometry3d& T_world_sensor, uint64_t scan_seed) {
+  validate(config);
+  return compact(config, cast_ranges(world, config, {T_world_sensor}, scan_seed), {})
+      .points_sensor_m;
 }
 
 }  // namespace sim

@@ -3,6 +3,9 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <string>
+
+#include "covoxslam/core/error.h"
 
 #include "sim_random.h"
 
@@ -17,6 +20,11 @@ const char kSimulationUsage[] =
     "  --range-noise-m S        range noise standard deviation (default 0.02)\n"
     "  --dropout P              probability that a beam returns nothing (default 0.01)\n"
     "  --max-range-m R          LiDAR range limit (default 120)\n"
+    "  --instantaneous-scan     cast every beam of a scan at once from the pose at its stamp (no\n"
+    "                           per-point times); by default the columns fire one after the other\n"
+    "                           over the 0.1 s sweep along the flight, so scans are distorted by\n"
+    "                           the motion as a real spinning LiDAR's are, with the time of each\n"
+    "                           point in the cloud's field t\n"
     "  --path-length-m L        flight length (default 400: one lap of the figure 8)\n"
     "  --duration-s S           flight length as a duration at the speed (instead of "
     "--path-length-m)\n"
@@ -25,6 +33,13 @@ const char kSimulationUsage[] =
     "                           of at most 9 A; laps after the first are shifted by up to 1 m\n"
     "                           sideways and 0.5 m in altitude)\n"
     "  --speed-m-per-s V        flight speed (default 2)\n"
+    "  --yaw-sweep-amplitude-deg A\n"
+    "                           the drone looks around: yaw = direction of travel\n"
+    "                           + A sin(2 pi t / period) (default 30; 0: facing forward)\n"
+    "  --yaw-sweep-period-s P   period of that sweep (default 4: with the path's turns, yaw rates\n"
+    "                           up to about 60 deg/s)\n"
+    "  --odometry-rate-hz R     odometry poses a second, the bag's tf odom -> imu (default 100; a\n"
+    "                           whole multiple of the 10 Hz scan rate)\n"
     "  --min-drift-m D          least final odometry drift (default 3)\n"
     "  --drift-percent P        odometry ends P % of the distance flown off the truth (instead "
     "of\n"
@@ -49,6 +64,7 @@ void read_lidar_options(tools::CommandLine& args, LidarConfig* lidar) {
   lidar->range_noise_m = args.number("--range-noise-m", lidar->range_noise_m, 0.0, 10.0);
   lidar->dropout_probability = args.number("--dropout", lidar->dropout_probability, 0.0, 1.0);
   lidar->max_range_m = args.number("--max-range-m", lidar->max_range_m, 0.1, 1000.0);
+  lidar->instantaneous = args.flag("--instantaneous-scan");
 }
 
 void read_flight_options(tools::CommandLine& args, FlightConfig* flight) {
@@ -59,6 +75,13 @@ void read_flight_options(tools::CommandLine& args, FlightConfig* flight) {
   flight->lobe_half_length_m =
       args.number("--lobe-half-length-m", flight->lobe_half_length_m, 1.0, 10000.0);
   flight->lap_length_m = args.number("--lap-length-m", flight->lap_length_m, 0.0, kMaxPathLengthM);
+  flight->yaw_sweep_amplitude_deg =
+      args.number("--yaw-sweep-amplitude-deg", flight->yaw_sweep_amplitude_deg, 0.0, 180.0);
+  flight->yaw_sweep_period_s =
+      args.number("--yaw-sweep-period-s", flight->yaw_sweep_period_s, 0.1, 1.0e6);
+  flight->odometry_rate_hz =
+      args.number("--odometry-rate-hz", flight->odometry_rate_hz, 1.0, 10000.0);
+  // The yaw sweep and the odometry rate are checked with the path (Figure8Path), which names them.
   if (!(flight->speed_m_per_s > 0.0)) args.fail("--speed-m-per-s must be positive");
   if (!(flight->lobe_half_length_m > 0.0)) args.fail("--lobe-half-length-m must be positive");
   if (!(flight->lap_length_m >= 0.0)) args.fail("--lap-length-m must be positive");
@@ -113,17 +136,49 @@ SimulationOptions read_simulation_options(tools::CommandLine& args) {
 SimulatedMission::SimulatedMission(const SimulationOptions& options, size_t max_scans)
     : options_(options), path_((validate(options.lidar), options.flight)) {
   site_ = build_site(SiteConfig().scaled_to(path_), path_, options_.seed);
-  truth_ = simulate_truth(path_, options_.flight);
-  odometry_ = simulate_odometry(truth_, options_.drift.scaled(options_.drift_scale), options_.seed);
+  flight_truth_ = simulate_truth(path_, options_.flight);
+  flight_odometry_ =
+      simulate_odometry(flight_truth_, options_.drift.scaled(options_.drift_scale), options_.seed);
+  truth_ = flight_truth_;
+  odometry_ = flight_odometry_;
   if (max_scans > 0 && max_scans < truth_.size()) {
     truth_.resize(max_scans);
     odometry_.resize(max_scans);
   }
 }
 
-std::vector<Vec3f> SimulatedMission::scan(size_t k) const {
-  return simulate_scan(site_.world, options_.lidar, truth_.at(k).pose,
-                       stream_seed(options_.seed, 0x5CA7, k));
+Eigen::Isometry3d SimulatedMission::truth_at(double stamp_s) const {
+  return truth_pose_at(path_, options_.flight, stamp_s - options_.flight.start_time_s);
+}
+
+Eigen::Isometry3d SimulatedMission::odometry_at(double stamp_s) const {
+  return sim::odometry_at(flight_truth_, flight_odometry_, stamp_s, truth_at(stamp_s));
+}
+
+std::vector<double> SimulatedMission::odometry_stamps(size_t k) const {
+  const double stamp_s = truth_.at(k).stamp_s;
+  const int per_scan = static_cast<int>(
+      std::lround(options_.flight.odometry_rate_hz / options_.flight.scan_rate_hz));
+  std::vector<double> stamps;
+  if (k == 0) stamps.push_back(stamp_s);
+  for (int i = 1; i < per_scan; ++i) stamps.push_back(stamp_s + i * sweep_period_s() / per_scan);
+  stamps.push_back(k + 1 < truth_.size() ? truth_[k + 1].stamp_s : stamp_s + sweep_period_s());
+  return stamps;
+}
+
+SweepScan SimulatedMission::scan(size_t k) const {
+  // The flight time of scan k as simulate_truth computes it, so that the pose at the sweep's
+  // start is truth()[k] bit for bit.
+  const double scan_time_s = static_cast<double>(k) * (1.0 / options_.flight.scan_rate_hz);
+  if (k >= truth_.size()) {
+    throw Error("scan " + std::to_string(k) + " asked of a mission of " +
+                std::to_string(truth_.size()) + " scans");
+  }
+  const PoseAtTime pose_at = [&](double seconds_after_start) {
+    return truth_pose_at(path_, options_.flight, scan_time_s + seconds_after_start);
+  };
+  return simulate_sweep(site_.world, options_.lidar, pose_at, sweep_period_s(),
+                        stream_seed(options_.seed, 0x5CA7, k));
 }
 
 double SimulatedMission::distance_flown_m(size_t count) const {
@@ -139,10 +194,11 @@ std::string describe_flight(const SimulatedMission& mission) {
   char text[320];
   std::snprintf(text, sizeof(text),
                 "%.1f m in %zu lap%s of a %.1f m figure 8 (lobes %.1f x %.1f m) at %.1f m/s, %zu "
-                "scans of %d x %d beams, seed %llu",
+                "%s scans of %d x %d beams, seed %llu",
                 path.length_m(), path.lap_count(), path.lap_count() == 1 ? "" : "s",
                 path.lap_length_m(), 2.0 * path.lobe_half_length_m(), path.lobe_width_m(),
-                options.flight.speed_m_per_s, mission.size(), options.lidar.columns,
+                options.flight.speed_m_per_s, mission.size(),
+                options.lidar.instantaneous ? "instantaneous" : "distorted", options.lidar.columns,
                 options.lidar.rows, static_cast<unsigned long long>(options.seed));
   return text;
 }

@@ -1,7 +1,9 @@
 #pragma once
 // A whole simulated flight from the simulator's options: the site, the truth and odometry poses at
-// the scan rate (a few hundred bytes a scan, kept), and the scans themselves, generated one at a
-// time on demand so that memory stays flat in the flight's length. simulate_flight (which writes
+// the scan rate (a few hundred bytes a scan, kept; both also at any time in between), and the
+// scans themselves, generated one at a time on demand so that memory stays flat in the flight's
+// length. Each scan is a sweep: its columns fire one after the other along the true trajectory
+// (sim_lidar.h), unless the LiDAR is instantaneous. simulate_flight (which writes
 // a bag) and run_slam --simulate (which maps in process) both read their options through
 // read_simulation_options and fly a SimulatedMission: the same options give the same scans.
 #include <cstdint>
@@ -45,9 +47,23 @@ class SimulatedMission {
   const std::vector<StampedIsometry>& truth() const { return truth_; }        // T_world_os1_sensor
   const std::vector<StampedIsometry>& odometry() const { return odometry_; }  // T_odom_os1_sensor
 
-  // The points of scan `k` in the os1_sensor frame; the same for the same options and `k`,
-  // whatever the order scans are asked for in and the thread count.
-  std::vector<Vec3f> scan(size_t k) const;
+  // One sweep: the scan rate's period.
+  double sweep_period_s() const { return 1.0 / options_.flight.scan_rate_hz; }
+  // T_world_os1_sensor and T_odom_os1_sensor at any stamp (seconds on the scans' clock); at a
+  // scan's stamp, that scan's truth() and odometry() pose. The odometry between the scan-rate
+  // samples: sim::odometry_at over the whole flight's samples (also with `max_scans`).
+  Eigen::Isometry3d truth_at(double stamp_s) const;
+  Eigen::Isometry3d odometry_at(double stamp_s) const;
+  // The stamps of the odometry samples that a bag must hold before scan `k`'s cloud and did not
+  // hold before scan k - 1's: at the odometry rate from the scan's stamp (from the first scan's
+  // for k = 0) up to the end of its sweep, which is the next scan's stamp (for the last scan,
+  // its stamp plus the sweep period). Increasing.
+  std::vector<double> odometry_stamps(size_t k) const;
+
+  // Scan `k`: its points in the os1_sensor frame at their firing times and those times (none if
+  // the LiDAR is instantaneous); the same for the same options and `k`, whatever the order scans
+  // are asked for in and the thread count.
+  SweepScan scan(size_t k) const;
 
   // Distance between the first `count` truth positions, one after the other.
   double distance_flown_m(size_t count) const;
@@ -57,6 +73,8 @@ class SimulatedMission {
   Figure8Path path_;
   Site site_;
   std::vector<StampedIsometry> truth_, odometry_;
+  // The whole flight's samples, which the odometry between samples interpolates.
+  std::vector<StampedIsometry> flight_truth_, flight_odometry_;
 };
 
 // One line describing the flight ("1200.0 m: 3 laps of a 400.0 m figure 8 ...").

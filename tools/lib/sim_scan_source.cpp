@@ -1,5 +1,6 @@
 #include "sim_scan_source.h"
 
+#include <algorithm>
 #include <chrono>
 
 #include "sim_flight_bag.h"
@@ -28,17 +29,37 @@ bool SimScanSource::next(SourceScan* scan) {
   if (next_scan_ >= mission_.size()) return false;
   const auto start = std::chrono::steady_clock::now();
   const size_t k = next_scan_++;
-  const std::vector<Eigen::Vector3f> points_lidar_m = sim::to_os1_lidar(mission_.scan(k));
+  const sim::SweepScan sweep = mission_.scan(k);
+  const std::vector<Eigen::Vector3f> points_lidar_m = sim::to_os1_lidar(sweep.points_sensor_m);
+  const Eigen::Isometry3d T_sensor_lidar = sim::T_os1_sensor_os1_lidar();
   scan->stamp_s = mission_.truth()[k].stamp_s;
-  scan->T_odom_sensor = mission_.odometry()[k].pose * sim::T_os1_sensor_os1_lidar();
+  scan->T_odom_sensor = mission_.odometry()[k].pose * T_sensor_lidar;
   scan->colors.clear();
   scan->points_sensor_m.clear();
   scan->points_sensor_m.reserve(points_lidar_m.size());
+  scan->point_times_s.clear();
+  scan->point_times_s.reserve(sweep.times_ns.size());
   // The same test, in the same precision, as BagScanSource's.
   const float min_range_squared = static_cast<float>(min_range_m_ * min_range_m_);
-  for (const Eigen::Vector3f& p : points_lidar_m) {
+  for (size_t i = 0; i < points_lidar_m.size(); ++i) {
+    const Eigen::Vector3f& p = points_lidar_m[i];
     if (p.squaredNorm() < min_range_squared) continue;
     scan->points_sensor_m.emplace_back(p.x(), p.y(), p.z());
+    if (!sweep.times_ns.empty())
+      scan->point_times_s.push_back(sim::point_time_s(sweep.times_ns[i]));
+  }
+  // The odometry at the first and the last point time, as the bag's tf gives it there.
+  scan->sweep = pipeline::SweepOdometry();
+  if (!scan->point_times_s.empty()) {
+    const auto [first, last] =
+        std::minmax_element(scan->point_times_s.begin(), scan->point_times_s.end());
+    scan->sweep.begin_s = *first;
+    scan->sweep.end_s = *last;
+    scan->sweep.T_odom_sensor_begin =
+        mission_.odometry_at(scan->stamp_s + scan->sweep.begin_s) * T_sensor_lidar;
+    scan->sweep.T_odom_sensor_end =
+        mission_.odometry_at(scan->stamp_s + scan->sweep.end_s) * T_sensor_lidar;
+    scan->sweep.known = true;
   }
   generation_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return true;

@@ -3,8 +3,12 @@
 // asks for it, so a mission of any length maps without a bag and with memory flat in its length.
 // The scans are those simulate_flight writes into its bag for the same options, read back as
 // BagScanSource reads them: points in the os1_lidar frame in single precision, nearer than
-// `min_range_m` left out, with the odometry pose of os1_lidar. The reference is the ground truth
-// (positions and orientations of os1_lidar).
+// `min_range_m` left out, with the odometry pose of os1_lidar. A distorted scan (the default,
+// sim_lidar.h) also carries each point's time (the bag's field t, nanoseconds, in seconds as a
+// float: sim::point_time_s) and the odometry of os1_lidar at the first and last of those times
+// (SourceScan::sweep, from SimulatedMission::odometry_at, which the bag's tf samples at 100 Hz);
+// an instantaneous scan carries neither. The reference is the ground truth (positions and
+// orientations of os1_lidar).
 #include <memory>
 #include <string>
 
