@@ -8,7 +8,8 @@
 # world's true surface, m) of each, and writes them as a benchmark report.
 #   tools/deskew_study.sh [-b BUILD_DIR] [-o OUTPUT_DIR] [-j REPORT.json] SEED...
 # Environment: STUDY_COLUMNS (LiDAR columns, default 256), STUDY_DEVICE (auto|cpu|cuda),
-# STUDY_JOBS (seeds mapped side by side, default 1).
+# STUDY_JOBS (seeds mapped side by side, default 1), STUDY_SIM_ARGS (more simulate_flight options,
+# e.g. "--duration-s 30 --lobe-half-length-m 12" for a quick look).
 set -euo pipefail
 build=build
 out=deskew_output
@@ -36,7 +37,8 @@ done
 
 mkdir -p "$out"
 printf 'deskew:\n  enabled: false\n' > "$out/no_deskew.yaml"
-export bin out device columns
+sim_args=${STUDY_SIM_ARGS:-}
+export bin out device columns sim_args
 
 # map_flight FLIGHT_DIR LABEL SEED [run_slam options]: maps, evaluates, appends a row to the
 # seed's results.
@@ -59,12 +61,15 @@ map_flight() {
 # study_seed SEED: both scans of the flight, the three mappings.
 study_seed() {
   local seed=$1 scan flight
+  # A seed whose three mappings are done is not mapped again (a study stopped halfway resumes).
+  [ -f "$out/rows_seed$seed.tsv" ] && [ "$(wc -l < "$out/rows_seed$seed.tsv")" -eq 3 ] && return 0
   : > "$out/rows_seed$seed.tsv"
   for scan in distorted instantaneous; do
     flight="$out/flight_seed${seed}_${columns}col_$scan"
     if [ ! -f "$flight/flight.bag" ]; then
       local extra=()
-      [ "$scan" = instantaneous ] && extra=(--instantaneous-scan)
+      read -r -a extra <<< "$sim_args"
+      [ "$scan" = instantaneous ] && extra+=(--instantaneous-scan)
       "$bin/simulate_flight" --output-dir "$flight" --seed "$seed" --columns "$columns" \
         "${extra[@]}" > "$out/simulate_${scan}_seed$seed.txt" 2>&1
     fi
