@@ -8,6 +8,7 @@
 #include <unordered_map>
 
 #include "covoxslam/core/error.h"
+#include "covoxslam/core/number_text.h"
 
 namespace covox {
 namespace backend {
@@ -36,13 +37,10 @@ class LineParser {
   [[noreturn]] void fail(const std::string& what) const {
     throw Error(source_ + ":" + std::to_string(line_) + ": " + what);
   }
-  // std::from_chars ignores the locale, unlike strtod.
+  // covox::parse_double ignores the locale, unlike strtod.
   double number(std::string_view token) const {
-    if (!token.empty() && token.front() == '+') token.remove_prefix(1);
     double value = 0.0;
-    const auto [end, error] = std::from_chars(token.data(), token.data() + token.size(), value);
-    if (error != std::errc() || end != token.data() + token.size())
-      fail("'" + std::string(token) + "' is not a number");
+    if (!parse_double(token, &value)) fail("'" + std::string(token) + "' is not a number");
     return value;
   }
   int64_t integer(std::string_view token) const {
