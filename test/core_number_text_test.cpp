@@ -66,5 +66,21 @@ TEST(NumberText, ReadsOnlyTheViewNotTheCharactersAfterIt) {
   EXPECT_EQ(value, 2.5);
 }
 
+TEST(NumberText, FormatsTheShortestTextThatReadsBack) {
+  EXPECT_EQ(format_double(0.1), "0.1");
+  EXPECT_EQ(format_double(100.0), "100");
+  EXPECT_EQ(format_double(1e6), "1e+06");
+  EXPECT_EQ(format_double(-2.5e-7), "-2.5e-07");
+  EXPECT_EQ(format_double(std::numeric_limits<double>::infinity()), "inf");
+  std::mt19937_64 random(11);
+  std::uniform_real_distribution<double> mantissa(-1.0, 1.0);
+  for (int i = 0; i < 500; ++i) {
+    const double value = std::ldexp(mantissa(random), i % 200 - 100);
+    double back = 0.0;
+    ASSERT_TRUE(parse_double(format_double(value), &back));
+    EXPECT_EQ(back, value) << format_double(value);
+  }
+}
+
 }  // namespace
 }  // namespace covox

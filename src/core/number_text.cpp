@@ -4,6 +4,7 @@
 #include <stdlib.h>  // strtod_l
 
 #include <cerrno>
+#include <cstdio>
 #include <cmath>
 #include <string>
 
@@ -51,6 +52,22 @@ bool parse_double(std::string_view token, double* value) {
   if (errno == ERANGE && std::isinf(parsed)) return false;  // overflow; underflow rounds
   *value = parsed;
   return true;
+}
+
+std::string format_double(double value) {
+  // %g at each precision in turn, in the "C" locale; among the texts that read back exactly, the
+  // shortest (the first of equal length). 17 significant digits always read back.
+  const locale_t previous = uselocale(classic_locale());
+  std::string best;
+  for (int precision = 1; precision <= 17; ++precision) {
+    char text[40];
+    std::snprintf(text, sizeof(text), "%.*g", precision, value);
+    double back = 0.0;
+    const bool exact = parse_double(text, &back) && (back == value || std::isnan(value));
+    if (exact && (best.empty() || std::string_view(text).size() < best.size())) best = text;
+  }
+  uselocale(previous);
+  return best;
 }
 
 }  // namespace covox
