@@ -4,7 +4,8 @@
 # space. catkin installs package.xml and the generated messages itself.
 #
 # The CMake package exports covox::covoxslam (with covox::dependencies, the Eigen / OpenMP /
-# Thrust / CUDA runtime interface it links, and covox::image_codecs). Plain CMake installs
+# Thrust / CUDA runtime interface it links, covox::image_codecs and covox::bag_codecs). Plain
+# CMake installs
 # lib/cmake/covoxslam/covoxslamConfig.cmake; under catkin the same targets come through catkin's
 # own share/covoxslam/cmake/covoxslamConfig.cmake (its CFG_EXTRAS, cmake/covoxslam-extras.cmake
 # .installspace.in), so catkin packages and plain CMake projects both find_package(covoxslam).
@@ -27,13 +28,16 @@ endif()
 
 set_target_properties(covox_dependencies PROPERTIES EXPORT_NAME dependencies)
 set_target_properties(covox_image_codecs PROPERTIES EXPORT_NAME image_codecs)
-install(TARGETS covoxslam covox_dependencies covox_image_codecs EXPORT covoxslamTargets
+set_target_properties(covox_bag_codecs PROPERTIES EXPORT_NAME bag_codecs)
+install(TARGETS covoxslam covox_dependencies covox_image_codecs covox_bag_codecs
+        EXPORT covoxslamTargets
         ARCHIVE DESTINATION ${COVOX_INSTALL_LIBDIR}
         LIBRARY DESTINATION ${COVOX_INSTALL_LIBDIR}
         RUNTIME DESTINATION ${COVOX_INSTALL_BINDIR})
 install(DIRECTORY include/covoxslam DESTINATION ${COVOX_INSTALL_INCLUDEDIR})
 install(EXPORT covoxslamTargets NAMESPACE covox:: DESTINATION ${COVOX_INSTALL_CMAKEDIR})
-install(FILES cmake/CovoxCudaRuntime.cmake ${CMAKE_CURRENT_BINARY_DIR}/covoxslamDependencies.cmake
+install(FILES cmake/CovoxCudaRuntime.cmake cmake/FindLZ4.cmake
+              ${CMAKE_CURRENT_BINARY_DIR}/covoxslamDependencies.cmake
         DESTINATION ${COVOX_INSTALL_CMAKEDIR})
 
 # What the exported interface links, recorded as it was found here (covoxslamDependencies.cmake
