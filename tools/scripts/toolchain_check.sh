@@ -145,10 +145,12 @@ check_cuda() {
     -DCOVOX_CUDA_ARCHITECTURES="$CUDA_ARCHITECTURES" -DCOVOX_THRUST_INCLUDE_DIR="$TOOLKIT/include" \
     >"$BUILD/cuda.configure.log" || { cat "$BUILD/cuda.configure.log"; return 1; }
   local objects=() source
-  for source in cuda/*/*.cu; do objects+=("CMakeFiles/covoxslam.dir/$source.o"); done
+  for source in cuda/*/*.cu $(libstdcxx_extension_sources); do
+    objects+=("CMakeFiles/covoxslam.dir/$source.o")
+  done
   (cd "$BUILD/cuda" && make -j "$JOBS" -f CMakeFiles/covoxslam.dir/build.make "${objects[@]}") \
     >"$BUILD/cuda.log" 2>&1 || { show_errors "$BUILD/cuda.log"; return 1; }
-  say "CUDA: ${#objects[@]} sources compiled for $CUDA_ARCHITECTURES"
+  say "CUDA: ${#objects[@]} sources compiled for $CUDA_ARCHITECTURES (with the C++ ones that use libstdc++ extensions)"
 }
 
 # CMake 3.16.3 and clang 14 against libc++ 14 in C++17 mode: every C++ source of the library.
@@ -162,9 +164,23 @@ check_cxx() {
     -DCMAKE_CXX_COMPILER=clang++-14 -DCMAKE_CXX_FLAGS="$flags" \
     -DCMAKE_TRY_COMPILE_TARGET_TYPE=STATIC_LIBRARY -DCOVOX_THRUST_INCLUDE_DIR="$TOOLKIT/include" \
     >"$BUILD/cxx.configure.log" || { cat "$BUILD/cxx.configure.log"; return 1; }
-  "$CMAKE" --build "$BUILD/cxx" --target covoxslam -- -j "$JOBS" >"$BUILD/cxx.log" 2>&1 ||
-    { show_errors "$BUILD/cxx.log"; return 1; }
-  say "C++: the library compiles against libc++ 14"
+  local objects=() source
+  for source in $(library_cpp_sources | grep -v -x -F -f <(libstdcxx_extension_sources) || true); do
+    objects+=("CMakeFiles/covoxslam.dir/$source.o")
+  done
+  (cd "$BUILD/cxx" && make -j "$JOBS" -f CMakeFiles/covoxslam.dir/build.make "${objects[@]}") \
+    >"$BUILD/cxx.log" 2>&1 || { show_errors "$BUILD/cxx.log"; return 1; }
+  say "C++: ${#objects[@]} library sources compile against libc++ 14"
+}
+
+# The library's C++ sources (the layers CMakeLists.txt globs), and those of them that include a
+# libstdc++ extension (<ext/...>, which GCC 9 has and libc++ has not): those compile with g++-11
+# in the CUDA step instead.
+library_cpp_sources() {
+  ls src/{core,map,integrators,backend,pipeline,io}/*.cpp
+}
+libstdcxx_extension_sources() {
+  library_cpp_sources | xargs grep -l '#include <ext/' || true
 }
 
 # A compiler's errors (with a few lines of context) from a build log, without the warnings of
