@@ -9,6 +9,12 @@
 #   make ros    installs what is missing (ROS 1, rviz, the message and tf command-line tools) and
 #               builds the ROS layer (nodelet, node, messages) into BUILD_DIR; then
 #               `source build/devel/setup.bash` makes roslaunch / rosrun / rostopic find it
+#   make toolchain-check   compiles the library with a JetPack 5 robot's toolchain without one:
+#               CMake 3.16.3, nvcc 11.8 for sm_72/sm_87, libc++ 14 in C++17 mode
+#               (tools/scripts/toolchain_check.sh; downloads cached in ~/.cache/covoxslam-toolchain)
+#   make install-check     installs BUILD_DIR into INSTALL_PREFIX (default install/) and checks
+#               it as a user would: roslaunch, nodelet, rostest, a downstream CMake project
+#               (tools/scripts/install_check.sh)
 #
 # Settings (make VAR=value):
 #   CUDA_ARCH   CUDA architectures to compile for. Default: 90 (one architecture, because nvcc on
@@ -66,7 +72,8 @@ DEMO_CMAKE_FLAGS := -DCMAKE_BUILD_TYPE=Release -DCOVOX_WITH_CUDA=$(DEMO_WITH_CUD
 
 DEMO_TARGETS := simulate_flight run_slam evaluate_trajectory
 
-.PHONY: all deps demo-deps configure build test demo ros release clean format format-check
+.PHONY: all deps demo-deps configure build test demo ros release clean format format-check \
+  toolchain-check install-check
 
 all: build
 
@@ -118,6 +125,18 @@ ros: configure
 	  { echo "covoxslam: the ROS layer is not configured (see CMake's warning above)"; exit 1; }
 	cmake --build $(BUILD_DIR) -j $(JOBS) --target $(ROS_TARGETS)
 	@echo "covoxslam: ROS layer built; in each new shell: source $(BUILD_DIR)/devel/setup.bash"
+
+toolchain-check:
+	tools/scripts/toolchain_check.sh
+
+# The install space of BUILD_DIR's configuration, with the rostest node and its test files.
+INSTALL_PREFIX ?= $(CURDIR)/install
+
+install-check: deps
+	cmake -S . -B $(BUILD_DIR) $(CMAKE_FLAGS) -DCMAKE_INSTALL_PREFIX="$(INSTALL_PREFIX)" \
+	  -DCOVOX_INSTALL_TESTS=ON
+	cmake --build $(BUILD_DIR) -j $(JOBS) --target install
+	tools/scripts/install_check.sh "$(INSTALL_PREFIX)" "$(BUILD_DIR)"
 
 # What a release builds: every supported CUDA architecture.
 release:

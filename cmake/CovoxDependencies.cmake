@@ -1,9 +1,12 @@
 # Finds what the non-ROS library needs and describes it as one interface target,
 # `covox_dependencies`, plus the function covox_configure_cuda_target().
 
-# Eigen: its CMake package where installed (Debian), else a plain header folder (some GPU images
-# ship only the headers; pass -DCOVOX_EIGEN_INCLUDE_DIR=<folder holding Eigen/Core>).
-find_package(Eigen3 3.3 QUIET NO_MODULE)
+# Eigen 3.3 or 3.4: its CMake package where installed (Debian), else a plain header folder (some
+# GPU images ship only the headers). -DCOVOX_EIGEN_INCLUDE_DIR=<folder holding Eigen/Core> picks
+# that folder even where the package is installed (e.g. to build against another version).
+if(NOT COVOX_EIGEN_INCLUDE_DIR)
+  find_package(Eigen3 3.3 QUIET NO_MODULE)
+endif()
 if(NOT TARGET Eigen3::Eigen)
   find_path(COVOX_EIGEN_INCLUDE_DIR Eigen/Core PATH_SUFFIXES eigen3
             DOC "Folder holding Eigen/Core")
@@ -43,11 +46,18 @@ if(COVOX_WITH_CUDA)
   endif()
   check_language(CUDA)
   if(CMAKE_CUDA_COMPILER)
+    # CMake 3.18+ turns CMAKE_CUDA_ARCHITECTURES into nvcc flags; 3.16/3.17 get explicit
+    # -gencode flags from covox_configure_cuda_target() instead.
     set(CMAKE_CUDA_ARCHITECTURES ${COVOX_CUDA_ARCHITECTURES})
     enable_language(CUDA)
-    set(CMAKE_CUDA_STANDARD 17)
-    set(CMAKE_CUDA_STANDARD_REQUIRED ON)
-    find_package(CUDAToolkit REQUIRED)
+    if(CMAKE_VERSION VERSION_LESS 3.18)
+      # CUDA_STANDARD knows 17 from CMake 3.18 on.
+      set(CMAKE_CUDA_FLAGS "${CMAKE_CUDA_FLAGS} -std=c++17")
+    else()
+      set(CMAKE_CUDA_STANDARD 17)
+      set(CMAKE_CUDA_STANDARD_REQUIRED ON)
+    endif()
+    include(CovoxCudaRuntime)
     set(COVOX_CUDA_ENABLED ON)
   else()
     message(WARNING "covoxslam: COVOX_WITH_CUDA is ON but no nvcc was found; building the CPU backend only")
@@ -85,10 +95,22 @@ if(COVOX_CUDA_ENABLED)
 endif()
 
 function(covox_configure_cuda_target target)
-  if(COVOX_CUDA_ENABLED)
-    set_target_properties(${target} PROPERTIES
-      CUDA_ARCHITECTURES "${COVOX_CUDA_ARCHITECTURES}"
-      CUDA_SEPARABLE_COMPILATION OFF)
+  if(NOT COVOX_CUDA_ENABLED)
+    return()
+  endif()
+  set_target_properties(${target} PROPERTIES CUDA_SEPARABLE_COMPILATION OFF)
+  if(CMAKE_VERSION VERSION_LESS 3.18)
+    # What CUDA_ARCHITECTURES "87" means: SASS for sm_87 and PTX for compute_87.
+    foreach(architecture ${COVOX_CUDA_ARCHITECTURES})
+      if(NOT architecture MATCHES "^[0-9]+$")
+        message(FATAL_ERROR "covoxslam: COVOX_CUDA_ARCHITECTURES entry '${architecture}' is not a "
+                            "number; CMake ${CMAKE_VERSION} needs them spelled out (e.g. 72 or 87)")
+      endif()
+      target_compile_options(${target} PRIVATE
+        "$<$<COMPILE_LANGUAGE:CUDA>:--generate-code=arch=compute_${architecture},code=[compute_${architecture},sm_${architecture}]>")
+    endforeach()
+  else()
+    set_target_properties(${target} PROPERTIES CUDA_ARCHITECTURES "${COVOX_CUDA_ARCHITECTURES}")
   endif()
 endfunction()
 

@@ -36,4 +36,6 @@ catkin_package(
   INCLUDE_DIRS include
   LIBRARIES covoxslam covoxslam_ros
   CATKIN_DEPENDS roscpp nodelet sensor_msgs nav_msgs geometry_msgs std_msgs std_srvs visualization_msgs
-                 diagnostic_msgs diagnostic_updater message_runtime)
+                 diagnostic_msgs diagnostic_updater message_runtime
+  # The exported CMake targets (covox::covoxslam) in the install space: cmake/CovoxInstall.cmake.
+  CFG_EXTRAS covoxslam-extras.cmake)

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <system_error>
 
+#include "covoxslam/core/number_text.h"
+
 namespace covox {
 namespace io {
 namespace {
@@ -45,15 +47,10 @@ std::string quoted(std::string_view text) { return "'" + std::string(text) + "'"
 
 std::string parse_number_value(std::string_view text, double* value) {
   if (!is_decimal_number(text)) return "expected a finite decimal number, got " + quoted(text);
-  // from_chars takes no leading '+'.
-  const std::string_view digits = text.front() == '+' ? text.substr(1) : text;
+  // The grammar is checked above, so parse_double refuses only a magnitude beyond a double's.
   double parsed = 0.0;
-  const std::from_chars_result result =
-      std::from_chars(digits.data(), digits.data() + digits.size(), parsed);
-  if (result.ec == std::errc::result_out_of_range || !std::isfinite(parsed))
+  if (!parse_double(text, &parsed) || !std::isfinite(parsed))
     return "the number " + quoted(text) + " is out of a double's range";
-  if (result.ec != std::errc() || result.ptr != digits.data() + digits.size())
-    return "expected a finite decimal number, got " + quoted(text);
   *value = parsed;
   return std::string();
 }
@@ -82,11 +79,7 @@ std::string parse_bool_value(std::string_view text, bool* value) {
   return "expected true or false, got " + quoted(text);
 }
 
-std::string format_setting_number(double value) {
-  char text[64];
-  const std::to_chars_result result = std::to_chars(text, text + sizeof(text), value);
-  return std::string(text, result.ptr);
-}
+std::string format_setting_number(double value) { return format_double(value); }
 
 }  // namespace io
 }  // namespace covox

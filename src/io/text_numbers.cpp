@@ -1,22 +1,9 @@
 #include "covoxslam/io/internal/text_numbers.h"
 
-#include <charconv>
-#include <system_error>
-
 #include "covoxslam/core/error.h"
 
 namespace covox {
 namespace io {
-
-bool parse_double(std::string_view token, double* value) {
-  if (!token.empty() && token.front() == '+') token.remove_prefix(1);
-  if (token.empty()) return false;
-  const char* end = token.data() + token.size();
-  const std::from_chars_result result = std::from_chars(token.data(), end, *value);
-  // out-of-range (e.g. 1e400) is reported as an error by from_chars; we treat it as a bad number
-  // too, because a pose or coordinate that large is corrupt anyway.
-  return result.ec == std::errc() && result.ptr == end;
-}
 
 std::vector<std::string_view> split_whitespace(std::string_view line) {
   std::vector<std::string_view> tokens;

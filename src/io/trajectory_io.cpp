@@ -1,6 +1,5 @@
 #include "covoxslam/io/trajectory_io.h"
 
-#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -11,6 +10,7 @@
 #include <vector>
 
 #include "covoxslam/core/error.h"
+#include "covoxslam/core/number_text.h"
 #include "covoxslam/io/file_bytes.h"
 
 namespace covox {
@@ -25,15 +25,6 @@ constexpr double kQuaternionNormTolerance = 1e-2;
 
 std::string location(const std::string& source_name, int line_number) {
   return source_name + ":" + std::to_string(line_number) + ": ";
-}
-
-// strtod accepts "nan" and "inf"; trajectories with those would poison every statistic, so the
-// caller rejects non-finite values separately to give a precise message.
-bool parse_double(const std::string& token, double* value) {
-  errno = 0;
-  char* end = nullptr;
-  *value = std::strtod(token.c_str(), &end);
-  return end == token.c_str() + token.size() && !token.empty() && errno != ERANGE;
 }
 
 bool is_comment_or_blank(const std::string& line) {

@@ -7,6 +7,11 @@
 // `backend` is a tag (CpuBackend or CudaBackend). The CPU versions use OpenMP and Thrust's
 // omp::par; the CUDA versions, visible only to nvcc, launch a kernel or use Thrust's
 // cuda::par_nosync on the stream. Functors must be COVOX_HD (or `[=] COVOX_HD` lambdas).
+//
+// CUDA 11.4 (JetPack 5) ships Thrust/CUB 1.x, which lack par_nosync and
+// cub::DeviceReduce::TransformReduce: the version checks below pick `par` (which waits for the
+// stream after each algorithm: the same results, more synchronisation) and a reduction over a
+// transforming iterator there, and leave the newer toolkits' calls as they are.
 #include <algorithm>
 #include <cstdint>
 #include <type_traits>
@@ -35,6 +40,9 @@
 #include <cub/device/device_reduce.cuh>
 #include <cub/device/device_scan.cuh>
 #include <thrust/system/cuda/execution_policy.h>
+#if CUB_VERSION < 200400
+#include <cub/iterator/transform_input_iterator.cuh>
+#endif
 #include "covoxslam/core/internal/cuda_check.cuh"
 #include "covoxslam/core/internal/cuda_temporary_allocator.cuh"
 #endif
@@ -49,8 +57,30 @@ inline auto execution_policy(CpuBackend, const Stream& stream) {
 #if defined(__CUDACC__)
 inline auto execution_policy(CudaBackend, const Stream& stream) {
   const auto cuda_stream = static_cast<cudaStream_t>(stream.native_handle());
+#if THRUST_VERSION >= 101600
   return thrust::cuda::par_nosync(CudaTemporaryAllocator{stream.native_handle()}).on(cuda_stream);
+#else
+  return thrust::cuda::par(CudaTemporaryAllocator{stream.native_handle()}).on(cuda_stream);
+#endif
 }
+
+namespace internal {
+// cub::DeviceReduce::TransformReduce where CUB has it (2.4 and later), else the same reduction
+// of transform(data[i]) through cub::TransformInputIterator; one signature for both.
+template <class InputIterator, class Output, class Result, class Transform, class ReduceOp>
+cudaError_t cub_transform_reduce(void* temporary, size_t& temporary_bytes, InputIterator data,
+                                 Output out, int items, ReduceOp op, Transform transform,
+                                 Result init, cudaStream_t cuda_stream) {
+#if CUB_VERSION >= 200400
+  return cub::DeviceReduce::TransformReduce(temporary, temporary_bytes, data, out, items, op,
+                                            transform, init, cuda_stream);
+#else
+  const cub::TransformInputIterator<Result, Transform, InputIterator> values(data, transform);
+  return cub::DeviceReduce::Reduce(temporary, temporary_bytes, values, out, items, op, init,
+                                   cuda_stream);
+#endif
+}
+}  // namespace internal
 #endif
 
 // --- parallel_for -----------------------------------------------------------------------------
@@ -262,18 +292,18 @@ Result transform_reduce(CudaBackend, const Stream& stream, InputIterator data, i
   if (count <= 0) return init;
   const auto cuda_stream = static_cast<cudaStream_t>(stream.native_handle());
   size_t temporary_bytes = 0;
-  cuda_check(cub::DeviceReduce::TransformReduce(
-                 nullptr, temporary_bytes, data, static_cast<Result*>(nullptr),
-                 static_cast<int>(count), op, transform, init, cuda_stream),
-             "transform_reduce (sizing)");
+  cuda_check(
+      internal::cub_transform_reduce(nullptr, temporary_bytes, data, static_cast<Result*>(nullptr),
+                                     static_cast<int>(count), op, transform, init, cuda_stream),
+      "transform_reduce (sizing)");
   // The result sits (aligned) in front of CUB's scratch: one allocation from the cache.
   const size_t result_bytes = (sizeof(Result) + 255) / 256 * 256;
   CudaTemporaryAllocator allocator{stream.native_handle()};
   char* temporary = allocator.allocate(static_cast<std::ptrdiff_t>(result_bytes + temporary_bytes));
   Result* result = reinterpret_cast<Result*>(temporary);
   cuda_check(
-      cub::DeviceReduce::TransformReduce(temporary + result_bytes, temporary_bytes, data, result,
-                                         static_cast<int>(count), op, transform, init, cuda_stream),
+      internal::cub_transform_reduce(temporary + result_bytes, temporary_bytes, data, result,
+                                     static_cast<int>(count), op, transform, init, cuda_stream),
       "transform_reduce");
   Result host;
   copy_bytes(&host, Device::kCpu, result, Device::kCuda, sizeof(Result), stream);  // staged, waits
@@ -297,16 +327,16 @@ void transform_reduce_into(CudaBackend, const Stream& stream, InputIterator data
   const auto cuda_stream = static_cast<cudaStream_t>(stream.native_handle());
   const int items = static_cast<int>(std::max<int64_t>(count, 0));
   size_t temporary_bytes = 0;
-  cuda_check(cub::DeviceReduce::TransformReduce(nullptr, temporary_bytes, data, out, items, op,
-                                                transform, init, cuda_stream),
+  cuda_check(internal::cub_transform_reduce(nullptr, temporary_bytes, data, out, items, op,
+                                            transform, init, cuda_stream),
              "transform_reduce_into (sizing)");
   temporary_bytes = std::max<size_t>(temporary_bytes, 1);
   // The scratch goes back to the stream's cache at once: work on one stream runs in order, so
   // whoever takes it next cannot start before this reduction has finished.
   CudaTemporaryAllocator allocator{stream.native_handle()};
   char* temporary = allocator.allocate(static_cast<std::ptrdiff_t>(temporary_bytes));
-  cuda_check(cub::DeviceReduce::TransformReduce(temporary, temporary_bytes, data, out, items, op,
-                                                transform, init, cuda_stream),
+  cuda_check(internal::cub_transform_reduce(temporary, temporary_bytes, data, out, items, op,
+                                            transform, init, cuda_stream),
              "transform_reduce_into");
   allocator.deallocate(temporary, temporary_bytes);
 }

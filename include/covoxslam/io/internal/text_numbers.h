@@ -1,17 +1,14 @@
 #pragma once
-// Locale-independent number parsing for the text formats (pose files, intrinsics, ASCII PCD).
-// strtod would read "0,5" under a German locale that a ROS node may have set; from_chars never
-// looks at the locale.
+// Splitting and number parsing for the text formats (pose files, intrinsics, ASCII PCD); the
+// numbers go through covox::parse_double (core/number_text.h), which ignores the locale.
 #include <string>
 #include <string_view>
 #include <vector>
 
+#include "covoxslam/core/number_text.h"
+
 namespace covox {
 namespace io {
-
-// Parses the whole token as a double ("nan", "inf", a leading '+' accepted); false on anything
-// else, including trailing characters.
-bool parse_double(std::string_view token, double* value);
 
 // Splits on spaces, tabs and carriage returns.
 std::vector<std::string_view> split_whitespace(std::string_view line);
