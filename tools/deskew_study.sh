@@ -47,7 +47,8 @@ map_flight() {
   shift 3
   local log="$out/run_slam_${label}_seed$seed.txt"
   "$bin/run_slam" --bag "$flight/flight.bag" --device "$device" --quiet "$@" \
-    --trajectory "$out/${label}_seed$seed.tum" --mesh "$out/${label}_seed$seed.ply" > "$log"
+    --trajectory "$out/${label}_seed$seed.tum" --mesh "$out/${label}_seed$seed.ply" > "$log" 2>&1 ||
+    { echo "seed $seed $label: run_slam failed:" >&2; tail -3 "$log" >&2; return 1; }
   local odometry covoxslam mesh
   odometry=$(sed -n 's/^  odometry alone *\([0-9.]*\) m RMSE.*/\1/p' "$log")
   covoxslam=$(sed -n 's/^  covoxslam *\([0-9.]*\) m RMSE.*/\1/p' "$log")
@@ -71,7 +72,8 @@ study_seed() {
       read -r -a extra <<< "$sim_args"
       [ "$scan" = instantaneous ] && extra+=(--instantaneous-scan)
       "$bin/simulate_flight" --output-dir "$flight" --seed "$seed" --columns "$columns" \
-        "${extra[@]}" > "$out/simulate_${scan}_seed$seed.txt" 2>&1
+        "${extra[@]}" > "$out/simulate_${scan}_seed$seed.txt" 2>&1 ||
+        { echo "seed $seed: simulate_flight failed:" >&2; tail -3 "$out/simulate_${scan}_seed$seed.txt" >&2; return 1; }
     fi
   done
   map_flight "$out/flight_seed${seed}_${columns}col_instantaneous" instantaneous "$seed"
@@ -82,9 +84,14 @@ study_seed() {
 export -f map_flight study_seed
 
 # Seeds side by side (the GPU and the cores are shared; each flight's result is its own).
-printf '%s\n' "$@" | xargs -P "${STUDY_JOBS:-1}" -I{} bash -c 'study_seed {}'
+printf '%s\n' "$@" | xargs -P "${STUDY_JOBS:-1}" -I{} bash -c 'study_seed {}' ||
+  { echo "deskew_study: a seed failed (see above and $out)" >&2; exit 1; }
 results="$out/results.tsv"
 for seed in "$@"; do cat "$out/rows_seed$seed.tsv"; done > "$results"
+if grep -q nan "$results"; then
+  echo "deskew_study: a mapping gave no figure (see the logs in $out)" >&2
+  exit 1
+fi
 
 device_name=$(sed -n 's/^device: //p' "$out/run_slam_deskewed_seed$1.txt" | head -n 1)
 python3 - "$results" "$report" "$device_name" "$columns" "$0 $*" <<'PY'
