@@ -168,6 +168,26 @@ double band_rmse_m(const map::TsdfMap& map, const AnalyticScene& scene, float tr
   return count ? std::sqrt(squared / count) : INFINITY;
 }
 
+// The scan's points and times uploaded to the map's device and integrated at `begin`, de-skewed
+// by the sweep from `begin` to `end`.
+integrators::IntegrationStats integrate_timed(const TimedScan& scan, const Eigen::Isometry3d& begin,
+                                              const Eigen::Isometry3d& end, map::TsdfMap* map) {
+  const Stream stream(map->device());
+  Buffer<Vec3f> points(map->device());
+  Buffer<float> times(map->device());
+  points.copy_from_host(scan.points, stream);
+  times.copy_from_host(scan.times_s, stream);
+  integrators::PointCloudView view;
+  view.points = points.data();
+  view.count = static_cast<int64_t>(scan.points.size());
+  view.times_s = times.data();
+  view.sweep = integrators::make_sweep_motion(begin, begin, end, 0.0, kSweepS);
+  const integrators::IntegrationStats stats =
+      integrators::TsdfIntegrator(room_config()).integrate(*map, view, begin, stream);
+  stream.synchronize();
+  return stats;
+}
+
 class TsdfDeskewTest : public DeviceTest {};
 
 TEST_P(TsdfDeskewTest, DeskewedSweepMapsLikeTheSamePointsMovedOnTheHost) {
@@ -179,20 +199,8 @@ TEST_P(TsdfDeskewTest, DeskewedSweepMapsLikeTheSamePointsMovedOnTheHost) {
 
   // De-skewed on the device, from the uploaded points and times.
   map::TsdfMap deskewed(device(), map::TsdfMapConfig{0.1f, 8, {}});
-  integrators::TsdfIntegrator integrator(config);
-  Buffer<Vec3f> points(device());
-  Buffer<float> times(device());
-  const Stream stream(device());
-  points.copy_from_host(scan.points, stream);
-  times.copy_from_host(scan.times_s, stream);
-  integrators::PointCloudView view;
-  view.points = points.data();
-  view.count = static_cast<int64_t>(scan.points.size());
-  view.times_s = times.data();
-  view.sweep = integrators::make_sweep_motion(begin, begin, end, 0.0, kSweepS);
-  const integrators::IntegrationStats stats = integrator.integrate(deskewed, view, begin, stream);
-  stream.synchronize();
-  EXPECT_EQ(stats.points_deskewed, view.count);
+  const integrators::IntegrationStats stats = integrate_timed(scan, begin, end, &deskewed);
+  EXPECT_EQ(stats.points_deskewed, static_cast<int64_t>(scan.points.size()));
 
   map::TsdfMap moved(device(), map::TsdfMapConfig{0.1f, 8, {}});
   integrators::TsdfIntegrator(config).integrate(moved, scan.points_at_stamp, {}, begin);
@@ -218,19 +226,7 @@ TEST(TsdfDeskewParity, CpuAndCudaBuildTheSameDeskewedMap) {
   std::vector<std::vector<map::HostBlock>> snapshots;
   for (Device device : {Device::kCpu, Device::kCuda}) {
     map::TsdfMap map(device, map::TsdfMapConfig{0.1f, 8, {}});
-    integrators::TsdfIntegrator integrator(room_config());
-    Buffer<Vec3f> points(device);
-    Buffer<float> times(device);
-    const Stream stream(device);
-    points.copy_from_host(scan.points, stream);
-    times.copy_from_host(scan.times_s, stream);
-    integrators::PointCloudView view;
-    view.points = points.data();
-    view.count = static_cast<int64_t>(scan.points.size());
-    view.times_s = times.data();
-    view.sweep = integrators::make_sweep_motion(begin, begin, end, 0.0, kSweepS);
-    integrator.integrate(map, view, begin, stream);
-    stream.synchronize();
+    integrate_timed(scan, begin, end, &map);
     snapshots.push_back(map.snapshot());
   }
   ASSERT_EQ(snapshots[0].size(), snapshots[1].size());
