@@ -205,10 +205,10 @@ void BagScanSource::look_up_sweep(const std::string& frame, SourceScan* scan) {
   pipeline::SweepOdometry& sweep = scan->sweep;
   sweep.begin_s = *earliest;
   sweep.end_s = *latest;
-  sweep.known = lookup_sensor_pose(frame, scan->stamp_s + sweep.begin_s,
-                                   &sweep.T_odom_sensor_begin, nullptr) &&
-                lookup_sensor_pose(frame, scan->stamp_s + sweep.end_s, &sweep.T_odom_sensor_end,
-                                   nullptr);
+  sweep.known =
+      lookup_sensor_pose(frame, scan->stamp_s + sweep.begin_s, &sweep.T_odom_sensor_begin,
+                         nullptr) &&
+      lookup_sensor_pose(frame, scan->stamp_s + sweep.end_s, &sweep.T_odom_sensor_end, nullptr);
 }
 
 bool BagScanSource::lookup_sensor_pose(const std::string& frame, double stamp_s,
