@@ -144,13 +144,20 @@ check_cuda() {
     -DCMAKE_CUDA_COMPILER="$TOOLKIT/bin/nvcc" -DCMAKE_CUDA_FLAGS="-cudart shared" \
     -DCOVOX_CUDA_ARCHITECTURES="$CUDA_ARCHITECTURES" -DCOVOX_THRUST_INCLUDE_DIR="$TOOLKIT/include" \
     >"$BUILD/cuda.configure.log" || { cat "$BUILD/cuda.configure.log"; return 1; }
-  local objects=() source
-  for source in cuda/*/*.cu $(libstdcxx_extension_sources); do
-    objects+=("CMakeFiles/covoxslam.dir/$source.o")
-  done
-  (cd "$BUILD/cuda" && make -j "$JOBS" -f CMakeFiles/covoxslam.dir/build.make "${objects[@]}") \
-    >"$BUILD/cuda.log" 2>&1 || { show_errors "$BUILD/cuda.log"; return 1; }
-  say "CUDA: ${#objects[@]} sources compiled for $CUDA_ARCHITECTURES (with the C++ ones that use libstdc++ extensions)"
+  local sources
+  sources=$(ls cuda/*/*.cu; libstdcxx_extension_sources)
+  compile_objects cuda $sources || return 1
+  say "CUDA: $(wc -w <<< "$sources") sources compiled for $CUDA_ARCHITECTURES (with the C++ ones that use libstdc++ extensions)"
+}
+
+# compile_objects NAME SOURCE...: the library's objects of SOURCE... in $BUILD/NAME (configured
+# already), without linking; the first errors of NAME.log on failure.
+compile_objects() {
+  local name=$1 objects=() source
+  shift
+  for source in "$@"; do objects+=("CMakeFiles/covoxslam.dir/$source.o"); done
+  (cd "$BUILD/$name" && make -j "$JOBS" -f CMakeFiles/covoxslam.dir/build.make "${objects[@]}") \
+    >"$BUILD/$name.log" 2>&1 || { show_errors "$BUILD/$name.log"; return 1; }
 }
 
 # CMake 3.16.3 and clang 14 against libc++ 14 in C++17 mode: every C++ source of the library.
@@ -164,13 +171,10 @@ check_cxx() {
     -DCMAKE_CXX_COMPILER=clang++-14 -DCMAKE_CXX_FLAGS="$flags" \
     -DCMAKE_TRY_COMPILE_TARGET_TYPE=STATIC_LIBRARY -DCOVOX_THRUST_INCLUDE_DIR="$TOOLKIT/include" \
     >"$BUILD/cxx.configure.log" || { cat "$BUILD/cxx.configure.log"; return 1; }
-  local objects=() source
-  for source in $(library_cpp_sources | grep -v -x -F -f <(libstdcxx_extension_sources) || true); do
-    objects+=("CMakeFiles/covoxslam.dir/$source.o")
-  done
-  (cd "$BUILD/cxx" && make -j "$JOBS" -f CMakeFiles/covoxslam.dir/build.make "${objects[@]}") \
-    >"$BUILD/cxx.log" 2>&1 || { show_errors "$BUILD/cxx.log"; return 1; }
-  say "C++: ${#objects[@]} library sources compile against libc++ 14"
+  local sources
+  sources=$(library_cpp_sources | grep -v -x -F -f <(libstdcxx_extension_sources) || true)
+  compile_objects cxx $sources || return 1
+  say "C++: $(wc -w <<< "$sources") library sources compile against libc++ 14"
 }
 
 # The library's C++ sources (the layers CMakeLists.txt globs), and those of them that include a
