@@ -142,6 +142,8 @@ std::map<std::string, Expectation> expectations() {
        {"0", [](const SlamConfig& c) { return c.optimize_every_n_submaps == 0; }}},
       {"pose_graph.optimize_spacing_fraction",
        {"0.25", [](const SlamConfig& c) { return c.optimize_spacing_fraction == 0.25; }}},
+      {"pose_graph.max_solves_per_new_submap",
+       {"7", [](const SlamConfig& c) { return c.max_solves_per_new_submap == 7; }}},
       {"pose_graph.interpolate_trajectory_correction",
        {"false", [](const SlamConfig& c) { return !c.interpolate_trajectory_correction; }}},
       {"pose_graph.external_stamp_tolerance_s",

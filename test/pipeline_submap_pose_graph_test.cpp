@@ -14,6 +14,8 @@
 #include "covoxslam/backend/pose_graph_solver.h"
 #include "covoxslam/core/error.h"
 #include "covoxslam/pipeline/external_constraints.h"
+#include "covoxslam/pipeline/graph_optimizer.h"
+#include "covoxslam/pipeline/slam_system.h"
 #include "covoxslam/pipeline/submap.h"
 #include "covoxslam/pipeline/submap_pose_graph.h"
 
@@ -456,6 +458,82 @@ TEST(PipelineSubmapPoseGraph, CauchyLossKeepsTheWrongRevisitFromBendingTheLoop) 
       error_plain, error_robust, error_oracle);
   EXPECT_LT(robust.graph.constraints()[robust.wrong_index].weight, 0.1);
   EXPECT_LT(error_robust - error_oracle, 0.25 * (error_plain - error_oracle));
+}
+
+// A pose graph of its own as the optimiser's graph (what the SLAM system gives it).
+class PlainGraph : public OptimizedGraph {
+ public:
+  explicit PlainGraph(SubmapPoseGraph* graph) : graph_(graph) {}
+  void edit(const std::function<void(SubmapPoseGraph&)>& change) override { change(*graph_); }
+  SolverInput solver_input() override {
+    SolverInput input;
+    input.graph = graph_->to_backend_graph();
+    return input;
+  }
+  void apply(const SubmapPoseGraph::BackendGraph& solved, const backend::PoseGraphSolverSummary&,
+             double) override {
+    graph_->apply_solution(solved);
+  }
+  std::vector<double> path_at_node_m() override { return std::vector<double>(graph_->size(), 0.0); }
+
+ private:
+  SubmapPoseGraph* graph_;
+};
+
+SlamConfig gated_config(int max_solves_per_new_submap) {
+  SlamConfig config;
+  config.registration.gate.max_residual_m = 0.5;
+  config.max_solves_per_new_submap = max_solves_per_new_submap;
+  return config;
+}
+
+// The optimiser's gate ends where the graph without the wrong revisit is (solved by hand), and
+// its report counts the solves of its rounds: solve, set one aside, solve, nothing left.
+TEST(PipelineGraphOptimizer, GateEndsAtTheGraphWithoutTheWrongRevisit) {
+  GateLoop oracle = gate_loop();
+  oracle.graph.set_active(oracle.wrong_index, false);
+  solve(&oracle.graph);
+  GateLoop loop = gate_loop();
+  PlainGraph graph(&loop.graph);
+  const OptimizationReport report = GraphOptimizer(gated_config(100)).optimize(graph, 1);
+  EXPECT_TRUE(report.gate_finished);
+  EXPECT_FALSE(report.budget_exhausted);
+  EXPECT_EQ(report.set_aside, 1);
+  EXPECT_EQ(report.solves, 2);
+  EXPECT_EQ(report.failed_solves, 0);
+  EXPECT_FALSE(loop.graph.constraints()[loop.wrong_index].active);
+  for (size_t k = 0; k < loop.truth.size(); ++k)
+    expect_pose_near(loop.graph.nodes()[k].pose, oracle.graph.nodes()[k].pose, 1e-4);
+}
+
+// A budget of one solve stops the gate after its first round: the graph keeps the plain solve
+// of every constraint (solved by hand), the report says the budget ran out, and the budget
+// scales with the submaps that entered the graph since the previous optimisation.
+TEST(PipelineGraphOptimizer, BudgetStopsTheRoundsWithTheLatestSolutionKept) {
+  GateLoop plain = gate_loop();
+  solve(&plain.graph);
+  GateLoop loop = gate_loop();
+  PlainGraph graph(&loop.graph);
+  const OptimizationReport report = GraphOptimizer(gated_config(1)).optimize(graph, 1);
+  EXPECT_TRUE(report.budget_exhausted);
+  EXPECT_FALSE(report.gate_finished);
+  EXPECT_EQ(report.budget, 1);
+  EXPECT_EQ(report.solves, 1);
+  for (size_t k = 0; k < loop.truth.size(); ++k)
+    expect_pose_near(loop.graph.nodes()[k].pose, plain.graph.nodes()[k].pose, 1e-9);
+
+  GateLoop again = gate_loop();
+  PlainGraph graph_again(&again.graph);
+  const OptimizationReport two_new = GraphOptimizer(gated_config(1)).optimize(graph_again, 2);
+  EXPECT_EQ(two_new.budget, 2);
+  EXPECT_TRUE(two_new.gate_finished);
+  EXPECT_EQ(two_new.solves, 2);
+}
+
+TEST(PipelineGraphOptimizer, RejectsABudgetBelowOneSolve) {
+  SlamConfig config;
+  config.max_solves_per_new_submap = 0;
+  EXPECT_THROW(validate(config), Error);
 }
 
 }  // namespace

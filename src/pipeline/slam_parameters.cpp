@@ -279,6 +279,8 @@ void add_pose_graph_parameters(std::vector<SlamParameter>* table) {
                             COVOX_FIELD(optimize_every_n_submaps), 0, 1000000),
           number_parameter("pose_graph.optimize_spacing_fraction",
                            COVOX_FIELD(optimize_spacing_fraction), non_negative),
+          integer_parameter("pose_graph.max_solves_per_new_submap",
+                            COVOX_FIELD(max_solves_per_new_submap), 1, 1000000),
           bool_parameter("pose_graph.interpolate_trajectory_correction",
                          COVOX_FIELD(interpolate_trajectory_correction)),
           number_parameter("pose_graph.external_stamp_tolerance_s",

@@ -65,6 +65,9 @@ void validate(const SlamConfig& config) {
       std::isfinite(config.external_stamp_tolerance_s) && config.external_stamp_tolerance_s >= 0.0,
       "pose_graph.external_stamp_tolerance_s must be >= 0, got " +
           std::to_string(config.external_stamp_tolerance_s));
+  require(config.max_solves_per_new_submap >= 1,
+          "pose_graph.max_solves_per_new_submap must be at least 1, got " +
+              std::to_string(config.max_solves_per_new_submap));
   require(std::isfinite(config.revisit_drift_min_path_m) && config.revisit_drift_min_path_m >= 0.0,
           "pose_graph.revisit_drift_min_path_m must be >= 0, got " +
               std::to_string(config.revisit_drift_min_path_m));
@@ -96,9 +99,6 @@ namespace {
 // marching cubes interpolates from the quantised TSDF.
 constexpr float kMeshStepsPerVoxel = 256.0f;
 
-// (value / bound)^2: a drift as a factor on the variances of a configured drift.
-double square_ratio(double value, double bound) { return (value / bound) * (value / bound); }
-
 // Validates before any member is built, so a bad configuration fails with its own message.
 const SlamConfig& validated(const SlamConfig& config) {
   validate(config);
@@ -122,6 +122,7 @@ SlamSystem::SlamSystem(const SlamConfig& config)
       esdf_integrator_(config.esdf),
       mesh_integrator_(config.mesh),
       backend_stream_(Stream::create(config.device)),
+      optimizer_(config),
       place_recognizer_(config.place_recognition) {
   if (config_.device == Device::kCuda) {
     set_device_memory_cache_limit(static_cast<size_t>(config_.memory.device_cache_mb * 1048576.0));
@@ -773,197 +774,73 @@ int SlamSystem::integrate_pending_constraints_locked(bool final) {
   return added;
 }
 
-bool SlamSystem::solve_robust_locked() {
-  const double scale = config_.registration_loss_scale_sigmas;
-  if (!(scale > 0.0)) return solve_graph_locked();
-  // Iteratively reweighted least squares: each solve's weights come from the previous solution,
-  // starting from the plain least-squares one; a few rounds settle the weights.
-  {
-    std::lock_guard<std::mutex> lock(state_mutex_);
-    for (size_t k = 0; k < pose_graph_.constraints().size(); ++k) pose_graph_.set_weight(k, 1.0);
-  }
-  const int max_rounds = 8;
-  for (int round = 0; round < max_rounds; ++round) {
-    if (!solve_graph_locked()) return false;
-    double change = 0.0;
-    {
-      std::lock_guard<std::mutex> lock(state_mutex_);
-      change = reweight_registrations_cauchy(&pose_graph_, scale);
-    }
-    if (change < 0.01) break;
-  }
-  return solve_graph_locked();
-}
+// The SLAM system's pose graph as the optimiser sees it (graph_optimizer.h); the caller holds
+// backend_mutex_, and each call takes state_mutex_ for itself.
+class SlamSystem::GraphAccess : public OptimizedGraph {
+ public:
+  explicit GraphAccess(SlamSystem& system) : system_(system) {}
 
-RevisitDrift SlamSystem::revisit_drift_locked() const {
-  if (!(config_.revisit_drift_min_path_m > 0.0)) return RevisitDrift();
-  std::lock_guard<std::mutex> lock(state_mutex_);
-  // The path from the first submap to each submap's start, in the graph's order.
-  std::vector<double> path_at_node_m(graph_submaps_.size(), 0.0);
-  for (size_t k = 1; k < graph_submaps_.size(); ++k) {
-    path_at_node_m[k] =
-        path_at_node_m[k - 1] + graph_submaps_[k - 1].submap->statistics().distance_travelled_m;
+  void edit(const std::function<void(SubmapPoseGraph&)>& change) override {
+    std::lock_guard<std::mutex> lock(system_.state_mutex_);
+    change(system_.pose_graph_);
   }
-  return estimate_revisit_drift(pose_graph_, path_at_node_m, config_.revisit_drift_min_path_m);
-}
 
-bool SlamSystem::estimate_odometry_noise_locked() {
-  // The configured drift bounds the estimate from above: without it there is nothing to estimate.
-  if (!config_.estimate_odometry_noise || !(config_.odometry_drift_m_per_m > 0.0) ||
-      !(config_.odometry_drift_deg_per_m > 0.0)) {
-    return true;
+  SolverInput solver_input() override {
+    std::lock_guard<std::mutex> lock(system_.state_mutex_);
+    SolverInput input;
+    input.graph = system_.pose_graph_.to_backend_graph();
+    input.terms = system_.joint_terms_locked(input.graph);
+    for (const SubmapConstraint& c : system_.pose_graph_.constraints())
+      input.has_absolute = input.has_absolute || c.is_absolute();
+    return input;
   }
-  const double floor_m =
-      std::min(1.0, config_.min_odometry_drift_m_per_m / config_.odometry_drift_m_per_m);
-  const double floor_deg =
-      std::min(1.0, config_.min_odometry_drift_deg_per_m / config_.odometry_drift_deg_per_m);
-  const auto bounded = [](double value, double low) { return std::min(1.0, std::max(low, value)); };
-  // The revisits' drift raises the floors: the estimate may not claim an odometry better than
-  // what its own revisits show.
-  const RevisitDrift revisits = revisit_drift_locked();
-  const double deg_per_rad = 180.0 / 3.14159265358979323846;
-  const double floor_t =
-      std::max(floor_m * floor_m, square_ratio(revisits.m_per_m, config_.odometry_drift_m_per_m));
-  const double floor_yaw =
-      std::max(floor_deg * floor_deg,
-               square_ratio(revisits.rad_per_m * deg_per_rad, config_.odometry_drift_deg_per_m));
-  // Variance-component estimation: each round scales the odometry's factors by the residuals'
-  // ratios at the latest solution and solves again; the ratios tend to 1 as the factors settle.
-  // The bounds keep the factors where the configuration says the odometry can be.
-  const int max_rounds = 10;
-  for (int round = 0; round < max_rounds; ++round) {
-    bool settled = true;
-    {
-      std::lock_guard<std::mutex> lock(state_mutex_);
-      const VarianceRatios ratios = estimate_variance_ratios(pose_graph_);
-      const VarianceFactors old = pose_graph_.variance_factors(SubmapConstraintKind::kOdometry);
-      const VarianceFactors factors{bounded(old.translation * ratios.odometry.translation, floor_t),
-                                    bounded(old.yaw * ratios.odometry.yaw, floor_yaw)};
-      pose_graph_.set_variance_factors(SubmapConstraintKind::kOdometry, factors);
-      log_message(LogLevel::kDebug, "SLAM backend: odometry variance factors ", factors.translation,
-                  " ", factors.yaw, " (redundancy ", ratios.odometry_redundancy.translation, " ",
-                  ratios.odometry_redundancy.yaw, "; registration ratios ",
-                  ratios.registration.translation, " ", ratios.registration.yaw, "; revisits ",
-                  revisits.revisits, " showing ", revisits.m_per_m * 100.0, " % and ",
-                  revisits.rad_per_m * deg_per_rad, " deg/m)");
-      counters_.odometry_drift_estimate_m_per_m =
-          config_.odometry_drift_m_per_m * std::sqrt(factors.translation);
-      counters_.odometry_drift_estimate_deg_per_m =
-          config_.odometry_drift_deg_per_m * std::sqrt(factors.yaw);
-      counters_.revisits_measuring_drift = revisits.revisits;
-      counters_.revisit_drift_m_per_m = revisits.m_per_m;
-      counters_.revisit_drift_deg_per_m = revisits.rad_per_m * deg_per_rad;
-      // Standard deviations within 2 % of the last ones: the solution would barely move.
-      settled = std::abs(std::log(factors.translation / old.translation)) < 0.04 &&
-                std::abs(std::log(factors.yaw / old.yaw)) < 0.04;
-    }
-    if (settled) break;
-    if (!solve_robust_locked()) return false;
+
+  void apply(const SubmapPoseGraph::BackendGraph& solved,
+             const backend::PoseGraphSolverSummary& summary, double solve_s) override {
+    std::lock_guard<std::mutex> lock(system_.state_mutex_);
+    system_.timings_.backend.add(solve_s);
+    ++system_.counters_.optimizations;
+    system_.last_summary_ = summary;
+    system_.pose_graph_.apply_solution(solved);
+    for (size_t k = 0; k < system_.graph_submaps_.size(); ++k)
+      system_.graph_submaps_[k].submap->set_pose(system_.pose_graph_.nodes()[k].pose);
+    system_.update_correction_counters_locked();
   }
-  return true;
-}
+
+  std::vector<double> path_at_node_m() override {
+    std::lock_guard<std::mutex> lock(system_.state_mutex_);
+    const std::vector<GraphSubmap>& submaps = system_.graph_submaps_;
+    std::vector<double> path_m(submaps.size(), 0.0);
+    for (size_t k = 1; k < submaps.size(); ++k)
+      path_m[k] = path_m[k - 1] + submaps[k - 1].submap->statistics().distance_travelled_m;
+    return path_m;
+  }
+
+ private:
+  SlamSystem& system_;
+};
 
 void SlamSystem::optimize_locked() {
+  int64_t new_submaps = 0;
   {
     std::lock_guard<std::mutex> lock(state_mutex_);
+    new_submaps = static_cast<int64_t>(pose_graph_.size()) -
+                  static_cast<int64_t>(std::min(submaps_at_last_optimization_, pose_graph_.size()));
     submaps_at_last_optimization_ = pose_graph_.size();
   }
-  const double max_residual_m = config_.registration.gate.max_residual_m;
-  if (!(max_residual_m > 0.0)) {
-    if (solve_robust_locked()) estimate_odometry_noise_locked();
-    return;
-  }
-  // The consistency gate: every optimisation starts from all registration constraints, so one set
-  // aside before comes back when the graph has come to agree with it.
-  {
-    std::lock_guard<std::mutex> lock(state_mutex_);
-    const std::vector<SubmapConstraint>& constraints = pose_graph_.constraints();
-    for (size_t k = 0; k < constraints.size(); ++k) {
-      if (constraints[k].kind == SubmapConstraintKind::kRegistration)
-        pose_graph_.set_active(k, true);
-    }
-  }
-  // Each round sets aside at least one constraint, so the rounds end; the cap bounds the time.
-  // Worst-first rounds (gate.worst_fraction) set aside fewer per round, so they get more.
-  const double worst_fraction = config_.registration.gate.worst_fraction;
-  const int max_rounds = worst_fraction > 0.0 ? 25 : 10;
-  int set_aside = 0;
-  for (int round = 0; round < max_rounds; ++round) {
-    if (!solve_robust_locked()) return;
-    int now = 0;
-    {
-      std::lock_guard<std::mutex> lock(state_mutex_);
-      now = set_aside_inconsistent_registrations(&pose_graph_, max_residual_m, worst_fraction);
-    }
-    set_aside += now;
-    if (now == 0) break;
-    if (round + 1 == max_rounds) solve_robust_locked();  // without the last ones set aside
-  }
-  estimate_odometry_noise_locked();
+  GraphAccess graph(*this);
+  const OptimizationReport report = optimizer_.optimize(graph, new_submaps);
   std::lock_guard<std::mutex> lock(state_mutex_);
-  counters_.registrations_set_aside = set_aside;
-}
-
-bool SlamSystem::solve_graph_locked() {
-  // Absolute constraints are linearised at the current yaw (their lever arm, see
-  // submap_pose_graph.h): re-solve a few times while the yaw still moves.
-  const int passes = 5;
-  for (int pass = 0; pass < passes; ++pass) {
-    SubmapPoseGraph::BackendGraph graph;
-    std::vector<backend::RegistrationTerm> terms;
-    bool has_absolute = false;
-    {
-      std::lock_guard<std::mutex> lock(state_mutex_);
-      try {
-        graph = pose_graph_.to_backend_graph();
-        terms = joint_terms_locked(graph);
-      } catch (const std::exception& error) {
-        ++counters_.optimizations_failed;
-        log_error("SLAM backend: building the pose graph failed: ", error.what());
-        return false;
-      }
-      for (const SubmapConstraint& c : pose_graph_.constraints())
-        has_absolute = has_absolute || c.is_absolute();
-    }
-    if (graph.graph.poses.size() < 2) return true;  // one (fixed) vertex: nothing to solve
-    const std::vector<backend::Pose4Dof> before = graph.graph.poses;
-    // Solved outside state_mutex_, so the accessors never wait for the solver; backend_mutex_
-    // keeps the graph from changing meanwhile.
-    const auto start = Clock::now();
-    backend::PoseGraphSolverSummary summary;
-    try {
-      summary =
-          terms.empty()
-              ? backend::solve_pose_graph(&graph.graph, config_.device, config_.solver)
-              : backend::solve_pose_graph(&graph.graph, terms, config_.device, config_.solver);
-    } catch (const std::exception& error) {
-      std::lock_guard<std::mutex> lock(state_mutex_);
-      ++counters_.optimizations_failed;
-      log_error("SLAM backend: pose-graph optimisation failed: ", error.what());
-      return false;
-    }
-    const double solve_s = seconds_since(start);
-    log_message(LogLevel::kDebug, "SLAM backend: ", graph.graph.poses.size(), " submaps, ",
-                graph.graph.constraints.size(), " constraints: ", summary.report());
-    double max_yaw_change = 0.0;
-    for (size_t k = 0; k < before.size(); ++k) {
-      const double change =
-          std::remainder(graph.graph.poses[k].yaw - before[k].yaw, 2.0 * 3.14159265358979323846);
-      max_yaw_change = std::max(max_yaw_change, std::abs(change));
-    }
-    {
-      std::lock_guard<std::mutex> lock(state_mutex_);
-      timings_.backend.add(solve_s);
-      ++counters_.optimizations;
-      last_summary_ = summary;
-      pose_graph_.apply_solution(graph);
-      for (size_t k = 0; k < graph_submaps_.size(); ++k)
-        graph_submaps_[k].submap->set_pose(pose_graph_.nodes()[k].pose);
-      update_correction_counters_locked();
-    }
-    if (!has_absolute || max_yaw_change < 1e-6) break;
+  counters_.optimizations_failed += report.failed_solves;
+  if (report.budget_exhausted) ++counters_.optimizations_over_budget;
+  if (report.gate_finished) counters_.registrations_set_aside = report.set_aside;
+  if (report.noise_estimated) {
+    counters_.odometry_drift_estimate_m_per_m = report.odometry_drift_m_per_m;
+    counters_.odometry_drift_estimate_deg_per_m = report.odometry_drift_deg_per_m;
+    counters_.revisits_measuring_drift = report.revisits.revisits;
+    counters_.revisit_drift_m_per_m = report.revisits.m_per_m;
+    counters_.revisit_drift_deg_per_m = report.revisits.rad_per_m * 180.0 / 3.14159265358979323846;
   }
-  return true;
 }
 
 void SlamSystem::update_correction_counters_locked() {

@@ -104,6 +104,7 @@ void add_slam_counters(diagnostic_msgs::DiagnosticStatus* status,
       {"loop_closures_added", counters.loop_closures.added},
       {"optimizations", counters.optimizations},
       {"optimizations_failed", counters.optimizations_failed},
+      {"optimizations_over_budget", counters.optimizations_over_budget},
       {"resets", counters.resets}};
   for (const auto& value : values)
     status->values.push_back(entry(value.key, std::to_string(value.value)));

@@ -60,6 +60,7 @@
 #include "covoxslam/map/tsdf_map.h"
 #include "covoxslam/pipeline/bounded_queue.h"
 #include "covoxslam/pipeline/external_constraints.h"
+#include "covoxslam/pipeline/graph_optimizer.h"
 #include "covoxslam/pipeline/place_recognition.h"
 #include "covoxslam/pipeline/registration_constraints.h"
 #include "covoxslam/pipeline/revisit_drift.h"
@@ -138,6 +139,11 @@ struct SlamConfig {
   // graph's size (submaps_between_optimizations), which keeps the solve time per new submap
   // bounded. Below that size nothing changes. 0: every n-th submap however large the graph.
   double optimize_spacing_fraction = 1.0 / 32.0;
+  // The solve budget of one optimisation (graph_optimizer.h): this many solves per submap that
+  // entered the graph since the previous optimisation. The gate's rounds, the robust loss's
+  // reweighting and the noise estimation nest solves; past the budget the optimisation stops
+  // with its latest solution, counted (optimizations_over_budget).
+  int max_solves_per_new_submap = 50;
   // Corrected trajectory: true: a scan between the first scans of submap k and of the next
   // submap in the graph gets the correction blended linearly in time between the two submaps'
   // corrections (blend_corrected_pose), as odometry drift grows over the submap; the last submap
@@ -224,6 +230,8 @@ struct SlamCounters {
   int64_t odometry_constraints = 0;
   int64_t optimizations = 0;
   int64_t optimizations_failed = 0;
+  // Optimisations stopped by their solve budget (pose_graph.max_solves_per_new_submap).
+  int64_t optimizations_over_budget = 0;
   // Registration constraints set aside by the consistency gate (registration.gate.max_residual_m)
   // in the latest optimisation.
   int64_t registrations_set_aside = 0;
@@ -535,17 +543,9 @@ class SlamSystem {
   // Moves waiting external constraints whose submaps are in the graph into it; `final`: no more
   // submaps will come, so those still waiting are dropped (counted). Returns how many entered.
   int integrate_pending_constraints_locked(bool final);
-  // Solves the graph; with registration.gate.max_residual_m, also runs the consistency gate.
+  // One optimisation of the graph by optimizer_ (graph_optimizer.h), its outcome counted.
   void optimize_locked();
-  // One solve of the graph as it is (false: the solve failed, logged and counted).
-  bool solve_graph_locked();
-  // solve_graph_locked under the robust loss on registration constraints (above), if any.
-  bool solve_robust_locked();
-  // pose_graph.estimate_odometry_noise: after a solve, estimates the odometry's variance factors
-  // and re-solves until they settle (false when a solve failed; true at once when off).
-  bool estimate_odometry_noise_locked();
-  // The odometry's drift as the graph's revisits show it (revisit_drift_min_path_m; zeros when 0).
-  RevisitDrift revisit_drift_locked() const;
+  class GraphAccess;  // the graph as optimizer_ sees it
   // kJoint: the dense registration terms of joint_pairs_ for `graph`; needs state_mutex_ (and
   // backend_mutex_ for the lifetime of the submaps they point to).
   std::vector<backend::RegistrationTerm> joint_terms_locked(
@@ -616,6 +616,7 @@ class SlamSystem {
   integrators::EsdfIntegrator esdf_integrator_;
   integrators::MeshIntegrator mesh_integrator_;
   Stream backend_stream_;
+  GraphOptimizer optimizer_;
 
   // Caller side of add_scan.
   std::mutex input_mutex_;
