@@ -20,7 +20,9 @@ if(COVOX_BUILD_TESTS AND CATKIN_ENABLE_TESTING)
   find_package(rostest QUIET)
   if(rostest_FOUND)
     add_executable(covoxslam_rostest_node ${CMAKE_CURRENT_SOURCE_DIR}/test/ros/covoxslam_rostest_node.cpp
-                   ${CMAKE_CURRENT_SOURCE_DIR}/test/ros/planner_rostest.cpp)
+                   ${CMAKE_CURRENT_SOURCE_DIR}/test/ros/planner_rostest.cpp
+                   ${CMAKE_CURRENT_SOURCE_DIR}/test/ros/demo_flight_esdf_rostest.cpp
+                   ${CMAKE_CURRENT_SOURCE_DIR}/test/ros/world_mesh_reference.cpp)
     target_link_libraries(covoxslam_rostest_node PRIVATE covoxslam_ros GTest::gtest)
     # The start-up test runs the node binary by its path: rosrun skips everything under
     # <package>/build/, which is where `make` builds (rosrun's own exclusion rule).
@@ -30,6 +32,13 @@ if(COVOX_BUILD_TESTS AND CATKIN_ENABLE_TESTING)
     add_rostest(test/ros/covoxslam_nodelet_odometry.test DEPENDENCIES covoxslam_rostest_node covoxslam_node covoxslam_ros)
     add_rostest(test/ros/covoxslam_nodelet_depth.test DEPENDENCIES covoxslam_rostest_node covoxslam_node covoxslam_ros)
     add_rostest(test/ros/covoxslam_nodelet_planner.test DEPENDENCIES covoxslam_rostest_node covoxslam_node covoxslam_ros)
+    # The demo-flight test simulates its flight with simulate_flight (a tool: COVOX_BUILD_TOOLS),
+    # run by its build path as well.
+    if(TARGET simulate_flight)
+      target_compile_definitions(covoxslam_rostest_node PRIVATE COVOXSLAM_SIMULATE_FLIGHT_PATH="$<TARGET_FILE:simulate_flight>")
+      add_dependencies(covoxslam_rostest_node simulate_flight)
+      add_rostest(test/ros/covoxslam_demo_flight_esdf.test DEPENDENCIES covoxslam_rostest_node covoxslam_ros simulate_flight)
+    endif()
   else()
     message(STATUS "covoxslam: rostest not found; the ROS integration test is not registered")
   endif()
