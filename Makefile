@@ -73,7 +73,7 @@ DEMO_CMAKE_FLAGS := -DCMAKE_BUILD_TYPE=Release -DCOVOX_WITH_CUDA=$(DEMO_WITH_CUD
 DEMO_TARGETS := simulate_flight run_slam evaluate_trajectory
 
 .PHONY: all deps demo-deps configure build test demo ros release clean format format-check \
-  toolchain-check install-check
+  toolchain-check install-check layer-check
 
 all: build
 
@@ -156,3 +156,10 @@ format:
 format-check:
 	$(call install_missing,clang-format)
 	clang-format --dry-run --Werror $(FORMAT_SOURCES)
+
+# Fails, naming the file, the include and the rule, when a library source includes a header of a
+# layer it may not use (the table in cmake/CovoxLayerTable.cmake, which the script reads with
+# cmake -P; docs/design.md, "Layers").
+layer-check:
+	$(call install_missing,cmake)
+	tools/scripts/check_layers.sh

@@ -3,9 +3,10 @@
 # ROS package lays them out, so that roslaunch, rosrun, nodelet and rviz find them in an install
 # space. catkin installs package.xml and the generated messages itself.
 #
-# The CMake package exports covox::covoxslam (with covox::dependencies, the Eigen / OpenMP /
-# Thrust / CUDA runtime interface it links, covox::image_codecs and covox::bag_codecs). Plain
-# CMake installs
+# The CMake package exports covox::covoxslam, the umbrella, and the layer libraries it links
+# (covox::core, covox::map, covox::integrators, covox::backend, covox::io, covox::pipeline), with
+# covox::dependencies (the Eigen / OpenMP / Thrust / CUDA runtime interface they link),
+# covox::image_codecs and covox::bag_codecs. Plain CMake installs
 # lib/cmake/covoxslam/covoxslamConfig.cmake; under catkin the same targets come through catkin's
 # own share/covoxslam/cmake/covoxslamConfig.cmake (its CFG_EXTRAS, cmake/covoxslam-extras.cmake
 # .installspace.in), so catkin packages and plain CMake projects both find_package(covoxslam).
@@ -29,7 +30,7 @@ endif()
 set_target_properties(covox_dependencies PROPERTIES EXPORT_NAME dependencies)
 set_target_properties(covox_image_codecs PROPERTIES EXPORT_NAME image_codecs)
 set_target_properties(covox_bag_codecs PROPERTIES EXPORT_NAME bag_codecs)
-install(TARGETS covoxslam covox_dependencies covox_image_codecs covox_bag_codecs
+install(TARGETS covoxslam ${COVOX_LAYER_TARGETS} covox_dependencies covox_image_codecs covox_bag_codecs
         EXPORT covoxslamTargets
         ARCHIVE DESTINATION ${COVOX_INSTALL_LIBDIR}
         LIBRARY DESTINATION ${COVOX_INSTALL_LIBDIR}

@@ -32,10 +32,17 @@ add_message_files(DIRECTORY msg FILES LoopClosure.msg SubmapPose.msg SubmapPoses
 add_service_files(DIRECTORY srv FILES EsdfQuery.srv FilePath.srv)
 generate_messages(DEPENDENCIES std_msgs geometry_msgs)
 
+# The nodelet library, then the library's layer libraries, top layer first (the link order):
+# covoxslam itself is an interface target, with no file for catkin's users to link.
+include(CovoxLayerTable)
+set(COVOX_CATKIN_LIBRARIES covoxslam_ros)
+foreach(layer ${COVOX_LAYERS})
+  list(INSERT COVOX_CATKIN_LIBRARIES 1 covoxslam_${layer})
+endforeach()
 catkin_package(
   INCLUDE_DIRS include
-  LIBRARIES covoxslam covoxslam_ros
+  LIBRARIES ${COVOX_CATKIN_LIBRARIES}
   CATKIN_DEPENDS roscpp nodelet sensor_msgs nav_msgs geometry_msgs std_msgs std_srvs visualization_msgs
                  diagnostic_msgs diagnostic_updater message_runtime
-  # The exported CMake targets (covox::covoxslam) in the install space: cmake/CovoxInstall.cmake.
+  # The exported CMake targets (covox::covoxslam and the layers) in the install space: cmake/CovoxInstall.cmake.
   CFG_EXTRAS covoxslam-extras.cmake)

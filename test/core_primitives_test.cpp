@@ -14,7 +14,7 @@
 #include "covoxslam/core/device_algorithms.h"
 #include "covoxslam/core/error.h"
 #include "covoxslam/core/memory.h"
-#include "covoxslam/core/internal/run_sums.h"
+#include "covoxslam/core/run_sums.h"
 #include "support/test_devices.h"
 
 namespace covox {

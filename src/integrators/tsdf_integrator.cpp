@@ -5,7 +5,7 @@
 
 #include "covoxslam/core/error.h"
 #include "covoxslam/core/log.h"
-#include "covoxslam/core/internal/radix_sort.h"
+#include "covoxslam/core/radix_sort.h"
 #include "covoxslam/core/stage_profiler.h"
 #include "covoxslam/integrators/internal/tsdf_frame_strategy.h"
 #include "covoxslam/integrators/internal/tsdf_integrator_ops.h"

@@ -151,13 +151,23 @@ check_cuda() {
 }
 
 # compile_objects NAME SOURCE...: the library's objects of SOURCE... in $BUILD/NAME (configured
-# already), without linking; the first errors of NAME.log on failure.
+# already), without linking; the first errors of NAME.log on failure. src/<layer>/ and
+# cuda/<layer>/ sources belong to the layer's target, covoxslam_<layer>.
 compile_objects() {
-  local name=$1 objects=() source
+  local name=$1 source layer
+  local -A objects=()
   shift
-  for source in "$@"; do objects+=("CMakeFiles/covoxslam.dir/$source.o"); done
-  (cd "$BUILD/$name" && make -j "$JOBS" -f CMakeFiles/covoxslam.dir/build.make "${objects[@]}") \
-    >"$BUILD/$name.log" 2>&1 || { show_errors "$BUILD/$name.log"; return 1; }
+  for source in "$@"; do
+    layer=${source#*/}
+    layer=${layer%%/*}
+    objects[$layer]+=" CMakeFiles/covoxslam_$layer.dir/$source.o"
+  done
+  : >"$BUILD/$name.log"
+  for layer in "${!objects[@]}"; do
+    # shellcheck disable=SC2086  # the object list splits into words
+    (cd "$BUILD/$name" && make -j "$JOBS" -f "CMakeFiles/covoxslam_$layer.dir/build.make" ${objects[$layer]}) \
+      >>"$BUILD/$name.log" 2>&1 || { show_errors "$BUILD/$name.log"; return 1; }
+  done
 }
 
 # CMake 3.16.3 and clang 14 against libc++ 14 in C++17 mode: every C++ source of the library.
@@ -177,11 +187,11 @@ check_cxx() {
   say "C++: $(wc -w <<< "$sources") library sources compile against libc++ 14"
 }
 
-# The library's C++ sources (the layers CMakeLists.txt globs), and those of them that include a
+# The library's C++ sources (the layers cmake/CovoxLayers.cmake globs), and those of them that include a
 # libstdc++ extension (<ext/...>, which GCC 9 has and libc++ has not): those compile with g++-11
 # in the CUDA step instead.
 library_cpp_sources() {
-  ls src/{core,map,integrators,backend,pipeline,io}/*.cpp
+  ls src/{core,map,integrators,backend,io,pipeline}/*.cpp
 }
 libstdcxx_extension_sources() {
   library_cpp_sources | xargs grep -l '#include <ext/' || true

@@ -6,7 +6,7 @@
 
 #include "covoxslam/backend/registration.h"
 #include "covoxslam/core/macros.h"
-#include "covoxslam/integrators/internal/esdf_queries_ops.h"
+#include "covoxslam/integrators/esdf_lookup.h"
 
 namespace covox {
 namespace backend {

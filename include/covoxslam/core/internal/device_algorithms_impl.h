@@ -5,8 +5,8 @@
 #include "covoxslam/core/atomics.h"
 #include "covoxslam/core/internal/device_algorithms_primitives.h"
 #include "covoxslam/core/parallel.h"
-#include "covoxslam/core/internal/radix_sort.h"
-#include "covoxslam/core/internal/run_sums.h"
+#include "covoxslam/core/radix_sort.h"
+#include "covoxslam/core/run_sums.h"
 
 namespace covox {
 namespace algorithms {

@@ -3,8 +3,8 @@
 // for both backends.
 #include "covoxslam/core/atomics.h"
 #include "covoxslam/core/parallel.h"
-#include "covoxslam/core/internal/radix_sort.h"
-#include "covoxslam/core/internal/sorted_search.h"
+#include "covoxslam/core/radix_sort.h"
+#include "covoxslam/core/sorted_search.h"
 #include "covoxslam/integrators/internal/marching_cubes.h"
 #include "covoxslam/integrators/mesh_integrator.h"
 #include "covoxslam/map/block_voxel_indexer.h"

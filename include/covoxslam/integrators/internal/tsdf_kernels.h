@@ -8,7 +8,7 @@
 #include "covoxslam/core/index3d.h"
 #include "covoxslam/core/macros.h"
 #include "covoxslam/core/vec3.h"
-#include "covoxslam/core/internal/warp_reduce.h"
+#include "covoxslam/core/warp_reduce.h"
 #include "covoxslam/integrators/tsdf_integrator_config.h"
 
 namespace covox::integrators::tsdf {

@@ -8,7 +8,7 @@
 #include <cstdint>
 #include <type_traits>
 
-#include "covoxslam/core/internal/radix_sort.h"
+#include "covoxslam/core/radix_sort.h"
 #include "covoxslam/integrators/internal/tsdf_stage_walk_visits.h"
 
 namespace covox::integrators::tsdf {

@@ -12,7 +12,7 @@
 #include "covoxslam/core/memory.h"
 #include "covoxslam/core/parallel.h"
 #include "covoxslam/core/stage_profiler.h"
-#include "covoxslam/core/internal/warp_reduce.h"
+#include "covoxslam/core/warp_reduce.h"
 #include "covoxslam/integrators/internal/tsdf_frame_plan.h"
 #include "covoxslam/integrators/internal/tsdf_ray_tally.h"
 #include "covoxslam/integrators/internal/tsdf_ray_merging.h"

@@ -7,7 +7,7 @@
 #include <cstdint>
 
 #include "covoxslam/core/parallel.h"
-#include "covoxslam/core/internal/sorted_search.h"
+#include "covoxslam/core/sorted_search.h"
 #include "covoxslam/integrators/internal/tsdf_frame_plan.h"
 
 namespace covox::integrators::tsdf {

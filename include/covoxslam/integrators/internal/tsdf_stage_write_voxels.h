@@ -8,8 +8,8 @@
 #include <cstdint>
 
 #include "covoxslam/core/parallel.h"
-#include "covoxslam/core/internal/run_sums.h"
-#include "covoxslam/core/internal/warp_reduce.h"
+#include "covoxslam/core/run_sums.h"
+#include "covoxslam/core/warp_reduce.h"
 #include "covoxslam/integrators/internal/tsdf_stage_blocks.h"
 #include "covoxslam/integrators/internal/tsdf_stage_group_records.h"
 #include "covoxslam/integrators/internal/tsdf_stage_merge_rays.h"

@@ -32,7 +32,7 @@
 #include "covoxslam/core/macros.h"
 #include "covoxslam/core/memory.h"
 #include "covoxslam/core/parallel.h"
-#include "covoxslam/core/internal/sorted_search.h"
+#include "covoxslam/core/sorted_search.h"
 #include "covoxslam/core/stream.h"
 #include "covoxslam/integrators/internal/tsdf_kernels.h"
 

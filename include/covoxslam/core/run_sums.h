@@ -35,7 +35,7 @@
 #include "covoxslam/core/macros.h"
 #include "covoxslam/core/parallel.h"
 #include "covoxslam/core/stream.h"
-#include "covoxslam/core/internal/warp_reduce.h"
+#include "covoxslam/core/warp_reduce.h"
 
 #if defined(__CUDACC__)
 #include <cub/block/block_scan.cuh>
