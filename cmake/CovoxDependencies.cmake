@@ -132,7 +132,7 @@ covox_optional_library(covox_image_codecs PNG PNG::PNG COVOX_HAVE_PNG)
 covox_optional_library(covox_image_codecs JPEG JPEG::JPEG COVOX_HAVE_JPEG)
 message(STATUS "covoxslam: PNG reader ${PNG_FOUND}, JPEG reader ${JPEG_FOUND}")
 
-# --- zlib compresses the tools' PNG plots (tools/lib/png_plot.h). Optional: without it a plot is
+# --- zlib compresses the tools' PNG plots (eval/png_plot.h). Optional: without it a plot is
 #     written in stored (uncompressed) deflate blocks, a few MB instead of tens of kB.
 add_library(covox_zlib INTERFACE)
 covox_optional_library(covox_zlib ZLIB ZLIB::ZLIB COVOX_HAVE_ZLIB)

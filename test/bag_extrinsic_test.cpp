@@ -1,4 +1,4 @@
-// The sensor extrinsic of a bag run (tools/lib/bag_extrinsic.h, run_slam --extrinsic): a bag
+// The sensor extrinsic of a bag run (runner/bag_extrinsic.h, run_slam --extrinsic): a bag
 // without the static transform from the robot to its LiDAR, given that transform as the
 // extrinsic, yields the same scans (poses and points) and maps the same as the bag that carries
 // it on /tf_static; the extrinsic wins over the bag's own tf with a log line naming both; the
@@ -14,15 +14,15 @@
 #include <string>
 #include <vector>
 
-#include "bag_extrinsic.h"
-#include "bag_scan_source.h"
+#include "runner/bag_extrinsic.h"
+#include "runner/bag_scan_source.h"
 #include "covoxslam/core/error.h"
 #include "covoxslam/core/log.h"
 #include "covoxslam/io/rosbag_messages.h"
 #include "covoxslam/io/rosbag_writer.h"
 #include "covoxslam/io/transform_numbers.h"
 #include "covoxslam/pipeline/slam_config_files.h"
-#include "slam_run.h"
+#include "runner/slam_run.h"
 #include "support/analytic_scene.h"
 
 namespace covox {

@@ -9,8 +9,8 @@
 #include <sstream>
 #include <string>
 
-#include "benchmark_report.h"
-#include "command_line.h"
+#include "benchmark/benchmark_report.h"
+#include "cli/command_line.h"
 
 namespace covox {
 namespace tools {

@@ -13,7 +13,7 @@
 
 #include "covoxslam/core/error.h"
 #include "covoxslam/io/data_directory.h"
-#include "dataset_scan_sources.h"
+#include "runner/dataset_scan_sources.h"
 
 namespace covox {
 namespace tools {

@@ -22,7 +22,7 @@
 #include "covoxslam/map/tsdf_map.h"
 #include "covoxslam/pipeline/registration_constraints.h"
 #include "covoxslam/pipeline/slam_system.h"
-#include "slam_run.h"
+#include "runner/slam_run.h"
 #include "support/test_devices.h"
 
 namespace covox {

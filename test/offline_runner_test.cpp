@@ -1,4 +1,4 @@
-// The offline runner (tools/run_slam, tools/lib/slam_run.*) on a tiny simulated flight: the
+// The offline runner (tools/run_slam, runner/slam_run.*) on a tiny simulated flight: the
 // library run integrates every scan with the odometry read back exactly as the simulator wrote
 // it; the run_slam program writes the trajectory, the mesh, the map and the timing table; a
 // missing bag or a wrong topic ends it with an error that names the problem. Parameter files
@@ -17,18 +17,18 @@
 #include <string>
 #include <vector>
 
-#include "bag_scan_source.h"
+#include "runner/bag_scan_source.h"
 #include "covoxslam/core/error.h"
 #include "covoxslam/io/data_directory.h"
 #include "covoxslam/io/map_file.h"
-#include "dataset_scan_sources.h"
+#include "runner/dataset_scan_sources.h"
 #include "covoxslam/pipeline/slam_config_files.h"
-#include "sim_flight.h"
-#include "sim_flight_bag.h"
-#include "sim_lidar.h"
-#include "sim_random.h"
-#include "sim_site.h"
-#include "slam_run.h"
+#include "sim/sim_flight.h"
+#include "sim/sim_flight_bag.h"
+#include "sim/sim_lidar.h"
+#include "sim/sim_random.h"
+#include "sim/sim_site.h"
+#include "runner/slam_run.h"
 
 namespace covox {
 namespace tools {
@@ -108,7 +108,7 @@ TEST_F(OfflineRunner, LibraryRunIntegratesEveryScanWithTheBagsOdometry) {
     ASSERT_LT((result.odometry.poses[k].position_m - expected).norm(), 1e-6) << "scan " << k;
   }
   const SlamRunEvaluation evaluation =
-      evaluate_slam_run(source, result, AlignmentMode::kTranslationYaw, 0.1);
+      evaluate_slam_run(source, result, eval::AlignmentMode::kTranslationYaw, 0.1);
   ASSERT_TRUE(evaluation.available) << evaluation.problem;
   EXPECT_EQ(evaluation.corrected.aligned.size(), kScans);
 }

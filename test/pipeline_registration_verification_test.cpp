@@ -13,18 +13,18 @@
 #include <string>
 #include <vector>
 
-#include "constraint_evaluation.h"
+#include "eval/constraint_evaluation.h"
 #include "covoxslam/backend/pose_graph_solver.h"
 #include "covoxslam/core/error.h"
 #include "covoxslam/io/data_directory.h"
 #include "covoxslam/pipeline/registration_constraints.h"
 #include "covoxslam/pipeline/slam_config_files.h"
-#include "dataset_scan_sources.h"
-#include "sim_flight.h"
-#include "sim_lidar.h"
-#include "sim_random.h"
-#include "sim_site.h"
-#include "slam_run.h"
+#include "runner/dataset_scan_sources.h"
+#include "sim/sim_flight.h"
+#include "sim/sim_lidar.h"
+#include "sim/sim_random.h"
+#include "sim/sim_site.h"
+#include "runner/slam_run.h"
 
 namespace covox {
 namespace pipeline {
@@ -186,17 +186,17 @@ TEST(RegistrationVerification, RedkitchenRevisitsAcceptOnlyRightRegistrations) {
   const tools::SlamRunResult result = tools::run_slam_system(source, config, run_options);
 
   const double tolerance_m = 0.1, tolerance_rad = 5.0 * kPi / 180.0;
-  const tools::ConstraintEvaluation evaluation = tools::evaluate_registration_constraints(
+  const eval::ConstraintEvaluation evaluation = eval::evaluate_registration_constraints(
       source.reference(), result.submaps, result.constraints, tolerance_m, tolerance_rad);
   EXPECT_EQ(evaluation.unevaluated, 0);
   EXPECT_GE(evaluation.constraints.size(), 10u);  // the revisits are not all thrown away
-  for (const tools::ConstraintError& e : evaluation.constraints) {
+  for (const eval::ConstraintError& e : evaluation.constraints) {
     EXPECT_LE(e.error_m, tolerance_m) << "submap " << e.from_submap << " -> " << e.to_submap;
     EXPECT_LE(e.error_yaw_rad, tolerance_rad)
         << "submap " << e.from_submap << " -> " << e.to_submap;
   }
   const tools::SlamRunEvaluation ate =
-      tools::evaluate_slam_run(source, result, tools::AlignmentMode::kTranslationYaw, 0.1);
+      tools::evaluate_slam_run(source, result, eval::AlignmentMode::kTranslationYaw, 0.1);
   ASSERT_TRUE(ate.available) << ate.problem;
   EXPECT_LT(ate.corrected.absolute_position_m.rmse, ate.odometry.absolute_position_m.rmse);
 }
@@ -301,11 +301,11 @@ TEST(RegistrationVerification, SimulatedFlightAcceptsOnlyRightRegistrations) {
   // are not in the solution, the rest must all be right.
   const double tolerance_m = 3.0 * config.registration.information.min_sigma_m;
   const double tolerance_rad = 3.0 * config.registration.information.min_sigma_yaw_rad;
-  const tools::ConstraintEvaluation evaluation = tools::evaluate_registration_constraints(
+  const eval::ConstraintEvaluation evaluation = eval::evaluate_registration_constraints(
       source.reference(), result.submaps, result.constraints, tolerance_m, tolerance_rad);
   EXPECT_EQ(evaluation.unevaluated, 0);
   int64_t used = 0;
-  for (const tools::ConstraintError& e : evaluation.constraints) {
+  for (const eval::ConstraintError& e : evaluation.constraints) {
     if (!e.active) continue;
     ++used;
     EXPECT_LE(e.error_m, tolerance_m) << "submap " << e.from_submap << " -> " << e.to_submap;
@@ -313,7 +313,7 @@ TEST(RegistrationVerification, SimulatedFlightAcceptsOnlyRightRegistrations) {
         << "submap " << e.from_submap << " -> " << e.to_submap;
   }
   EXPECT_GE(used, 20);  // the revisits are not all thrown away
-  tools::print_constraint_evaluation(evaluation, stdout);
+  eval::print_constraint_evaluation(evaluation, stdout);
   // The noise estimate honours the revisits' drift as its floor (below the configured ceiling).
   const SlamCounters& counters = result.counters;
   ASSERT_GT(counters.revisits_measuring_drift, 0);
@@ -330,7 +330,7 @@ TEST(RegistrationVerification, SimulatedFlightAcceptsOnlyRightRegistrations) {
       static_cast<long long>(counters.revisits_measuring_drift), counters.revisit_drift_m_per_m,
       counters.revisit_drift_deg_per_m);
   const tools::SlamRunEvaluation ate =
-      tools::evaluate_slam_run(source, result, tools::AlignmentMode::kTranslationYaw, 0.1);
+      tools::evaluate_slam_run(source, result, eval::AlignmentMode::kTranslationYaw, 0.1);
   ASSERT_TRUE(ate.available) << ate.problem;
   EXPECT_LT(ate.corrected.absolute_position_m.rmse, ate.odometry.absolute_position_m.rmse);
   std::printf("ATE odometry %.3f m, covoxslam %.3f m\n", ate.odometry.absolute_position_m.rmse,
@@ -369,12 +369,12 @@ TEST(RegistrationVerification, SimulatedFlightAcceptsOnlyRightRegistrations) {
     lidar_frame.push_back(other_frame);
   }
   const auto wrong = [&](const std::vector<SubmapConstraint>& constraints) {
-    return tools::evaluate_registration_constraints(source.reference(), result.submaps, constraints,
-                                                    tolerance_m, tolerance_rad)
+    return eval::evaluate_registration_constraints(source.reference(), result.submaps, constraints,
+                                                   tolerance_m, tolerance_rad)
         .wrong;
   };
   const int64_t count = static_cast<int64_t>(right.size());
-  const tools::ConstraintEvaluation exact = tools::evaluate_registration_constraints(
+  const eval::ConstraintEvaluation exact = eval::evaluate_registration_constraints(
       source.reference(), result.submaps, right, tolerance_m, tolerance_rad);
   EXPECT_LT(exact.max_error_m, 1e-6);
   EXPECT_LT(exact.max_error_yaw_rad, 1e-6);

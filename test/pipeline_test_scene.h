@@ -10,8 +10,8 @@
 
 #include "covoxslam/pipeline/slam_system.h"
 #include "support/small_slam_config.h"
-#include "sim_lidar.h"
-#include "sim_world.h"
+#include "sim/sim_lidar.h"
+#include "sim/sim_world.h"
 
 namespace covox {
 namespace pipeline {

@@ -26,7 +26,7 @@
 #include "covoxslam/io/ply_reader.h"
 #include "covoxslam/io/rgbd_folder.h"
 #include "covoxslam/map/tsdf_map.h"
-#include "mesh_distance.h"
+#include "eval/mesh_distance.h"
 
 namespace covox {
 namespace {
@@ -95,7 +95,7 @@ void check_replica_surface_accuracy(Device device) {
 
   const map::Mesh truth = io::read_mesh_ply(truth_path);
   // 10 cm cells: a query meets a few dozen triangles of Replica's dense mesh, not thousands.
-  const tools::MeshDistance truth_distance(truth, 0.1);
+  const eval::MeshDistance truth_distance(truth, 0.1);
   constexpr double kFarM = 0.5;  // beyond this a vertex counts as "far" (no truth surface near)
   std::vector<double> distances_m;
   distances_m.reserve(reconstructed.vertices_m.size());
@@ -116,7 +116,7 @@ void check_replica_surface_accuracy(Device device) {
       const Vec3f& a = truth.vertices_m[truth.triangles[3 * t]];
       const Vec3f& b = truth.vertices_m[truth.triangles[3 * t + 1]];
       const Vec3f& c = truth.vertices_m[truth.triangles[3 * t + 2]];
-      const Eigen::Vector3d closest = tools::closest_point_on_triangle(
+      const Eigen::Vector3d closest = eval::closest_point_on_triangle(
           p, Eigen::Vector3d(a.x, a.y, a.z), Eigen::Vector3d(b.x, b.y, b.z),
           Eigen::Vector3d(c.x, c.y, c.z));
       brute_force_m = std::min(brute_force_m, (closest - p).norm());

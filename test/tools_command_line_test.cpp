@@ -1,4 +1,4 @@
-// The tools' option parser (tools/lib/command_line.h) and the value parsing it shares with the
+// The tools' option parser (cli/command_line.h) and the value parsing it shares with the
 // configuration files and the node (io/setting_values.h): each kind of bad value is refused with
 // the option's name and the accepted range, and a seeded fuzz over random values, long numbers,
 // NaN, repeated options and random bytes - through the parser and through the YAML reader -
@@ -19,7 +19,7 @@
 #include <string>
 #include <vector>
 
-#include "command_line.h"
+#include "cli/command_line.h"
 #include "covoxslam/core/error.h"
 #include "covoxslam/io/setting_values.h"
 #include "covoxslam/io/yaml_subset.h"

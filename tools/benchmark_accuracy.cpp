@@ -1,5 +1,5 @@
 // benchmark_accuracy: the trajectory accuracy of covoxslam against odometry alone on the inputs
-// the project evaluates, one offline SLAM run each (tools/lib/slam_run.h), recorded in
+// the project evaluates, one offline SLAM run each (runner/slam_run.h), recorded in
 // one report (default docs/benchmarks/accuracy.json):
 //   simulated flight   simulate_flight's bag (if --bag is given): ATE RMSE against the truth
 //   7-Scenes           redkitchen RGB-D, the dataset's poses perturbed by a deterministic drift of
@@ -27,18 +27,18 @@
 #include <memory>
 #include <string>
 
-#include "bag_scan_source.h"
-#include "benchmark_report.h"
-#include "command_line.h"
-#include "constraint_evaluation.h"
+#include "runner/bag_scan_source.h"
+#include "benchmark/benchmark_report.h"
+#include "cli/command_line.h"
+#include "eval/constraint_evaluation.h"
 #include "covoxslam/core/device.h"
 #include "covoxslam/core/error.h"
 #include "covoxslam/io/data_directory.h"
 #include "covoxslam/io/trajectory_io.h"
 #include "covoxslam/pipeline/slam_config_files.h"
-#include "dataset_scan_sources.h"
-#include "sim_scan_source.h"
-#include "slam_run.h"
+#include "runner/dataset_scan_sources.h"
+#include "runner/sim_scan_source.h"
+#include "runner/slam_run.h"
 
 namespace {
 
@@ -258,10 +258,10 @@ int64_t report_closures(const CaseRun& run, const tools::SlamRunResult& result,
       run.source->reference_kind() != tools::ReferenceKind::kGroundTruth) {
     return 0;
   }
-  const tools::ConstraintEvaluation constraints = tools::evaluate_registration_constraints(
+  const eval::ConstraintEvaluation constraints = eval::evaluate_registration_constraints(
       run.source->reference(), result.submaps, result.constraints, kWrongConstraintM,
       kWrongConstraintRad);
-  tools::print_closure_evaluation(constraints, stdout);
+  eval::print_closure_evaluation(constraints, stdout);
   const pipeline::PlaceRecognitionCounts& counts = result.counters.place_recognition;
   report->add(run.name, "place recognition candidates", static_cast<double>(counts.candidates), "");
   report->add(run.name, "loop closures accepted", static_cast<double>(counts.accepted), "");
@@ -281,7 +281,7 @@ int64_t run_case(CaseRun& run, const std::string& trajectories_dir,
   tools::print_slam_run(result, stdout);
   // Keyframes 0.76 s apart: the association tolerance must span one keyframe gap.
   const tools::SlamRunEvaluation evaluation =
-      tools::evaluate_slam_run(*run.source, result, tools::AlignmentMode::kTranslationYaw, 1.0);
+      tools::evaluate_slam_run(*run.source, result, eval::AlignmentMode::kTranslationYaw, 1.0);
   const bool truth = run.source->reference_kind() == tools::ReferenceKind::kGroundTruth;
   const std::string metric = truth ? "ATE RMSE" : "distance to reference RMSE";
   report->add(run.name, "scans", static_cast<double>(result.scans_given), "");
@@ -294,7 +294,7 @@ int64_t run_case(CaseRun& run, const std::string& trajectories_dir,
   if (auto* rgbd = dynamic_cast<tools::RgbdScanSource*>(run.source.get())) {
     report->add(run.name, "odometry final drift", rgbd->final_drift_m(), "m");
     // True poses: every registration constraint against the reference.
-    const tools::ConstraintEvaluation constraints = tools::evaluate_registration_constraints(
+    const eval::ConstraintEvaluation constraints = eval::evaluate_registration_constraints(
         run.source->reference(), result.submaps, result.constraints, kWrongConstraintM,
         kWrongConstraintRad);
     report->add(run.name, "registrations wrong by > 0.1 m or 5 deg",

@@ -15,7 +15,7 @@
 //  * registration graphs: n submaps of a street with odometry between consecutive ones and
 //    dense registration terms k -> k+1, k -> k+2, k+1 -> k (Huber), about
 //    points-per-submap points per term, each an ESDF/TSDF lookup with trilinear interpolation and
-//    Jacobians w.r.t. both poses (tools/lib/registration_benchmark_world.h: distinct-submaps real
+//    Jacobians w.r.t. both poses (benchmark/registration_benchmark_world.h: distinct-submaps real
 //    submaps whose fields are reused along a periodic street, because building a thousand real
 //    submaps is too slow on a small CPU);
 //  * pose-graphs/parking-garage.g2o in SE(3) mode;
@@ -34,7 +34,7 @@
 #include <string>
 #include <vector>
 
-#include "benchmark_report.h"
+#include "benchmark/benchmark_report.h"
 #include "covoxslam/backend/ceres_pose_graph_oracle.h"
 #include "covoxslam/backend/ceres_registration_oracle.h"
 #include "covoxslam/backend/g2o_reader.h"
@@ -44,7 +44,7 @@
 #include "covoxslam/core/error.h"
 #include "covoxslam/io/atomic_file.h"
 #include "covoxslam/io/data_directory.h"
-#include "registration_benchmark_world.h"
+#include "benchmark/registration_benchmark_world.h"
 
 namespace covox {
 namespace {

@@ -12,10 +12,10 @@
 #include <string>
 #include <vector>
 
-#include "benchmark_datasets.h"
-#include "benchmark_report.h"
-#include "benchmark_run.h"
-#include "command_line.h"
+#include "benchmark/benchmark_datasets.h"
+#include "benchmark/benchmark_report.h"
+#include "benchmark/benchmark_run.h"
+#include "cli/command_line.h"
 #include "covoxslam/core/device.h"
 #include "covoxslam/integrators/esdf_integrator.h"
 #include "covoxslam/integrators/mesh_integrator.h"

@@ -19,10 +19,10 @@
 #include <string>
 #include <vector>
 
-#include "benchmark_datasets.h"
-#include "benchmark_report.h"
-#include "benchmark_run.h"
-#include "command_line.h"
+#include "benchmark/benchmark_datasets.h"
+#include "benchmark/benchmark_report.h"
+#include "benchmark/benchmark_run.h"
+#include "cli/command_line.h"
 #include "covoxslam/core/buffer.h"
 #include "covoxslam/core/device.h"
 #include "covoxslam/core/error.h"

@@ -8,15 +8,15 @@
 #include <string>
 #include <vector>
 
-#include "bag_scan_source.h"
-#include "command_line.h"
+#include "runner/bag_scan_source.h"
+#include "cli/command_line.h"
 #include "covoxslam/core/error.h"
 #include "covoxslam/io/ply_reader.h"
 #include "covoxslam/io/rosbag_reader.h"
 #include "covoxslam/io/trajectory_io.h"
-#include "png_plot.h"
-#include "sim_reconstruction_evaluation.h"
-#include "trajectory_evaluation.h"
+#include "eval/png_plot.h"
+#include "eval/reconstruction_evaluation.h"
+#include "eval/trajectory_evaluation.h"
 
 namespace {
 
@@ -56,11 +56,11 @@ std::string file_stem(const std::string& path) {
 
 void evaluate_trajectories(tools::CommandLine& args, const std::string& reference_path,
                            const std::string& estimates_text) {
-  tools::TrajectoryEvaluationOptions options;
-  options.alignment = tools::parse_alignment_mode(args.text("--align", "4dof"));
+  eval::TrajectoryEvaluationOptions options;
+  options.alignment = eval::parse_alignment_mode(args.text("--align", "4dof"));
   options.association.max_time_gap_s = args.number("--max-time-gap-s", 0.1, 0.0, 3600.0);
   options.relative.delta = args.number("--rpe-delta", 10.0, 1e-6, 1e9);
-  options.relative.unit = tools::parse_relative_delta_unit(args.text("--rpe-unit", "m"));
+  options.relative.unit = eval::parse_relative_delta_unit(args.text("--rpe-unit", "m"));
   const std::vector<std::string> estimate_paths = split_commas(estimates_text);
   std::vector<std::string> labels = split_commas(args.text("--labels", ""));
   const std::string plot_path = args.output_file("--plot", "");
@@ -84,31 +84,31 @@ void evaluate_trajectories(tools::CommandLine& args, const std::string& referenc
   }
 
   const io::Trajectory reference = read_trajectory(reference_path);
-  tools::TrajectoryFigure figure;
-  figure.top_view_m.push_back({"REFERENCE", tools::Rgb{60, 60, 60}, {}});
+  eval::TrajectoryFigure figure;
+  figure.top_view_m.push_back({"REFERENCE", eval::Rgb{60, 60, 60}, {}});
   for (const io::StampedPose& pose : reference.poses) {
     figure.top_view_m.back().points.push_back({pose.position_m.x(), pose.position_m.y()});
   }
   const std::string rpe_unit =
-      options.relative.unit == tools::RelativeDeltaUnit::kFrames ? " frames" : " m";
+      options.relative.unit == eval::RelativeDeltaUnit::kFrames ? " frames" : " m";
   std::printf("reference: %s (%zu poses); alignment %s; RPE over %g%s\n", reference_path.c_str(),
-              reference.size(), tools::alignment_mode_name(options.alignment).c_str(),
+              reference.size(), eval::alignment_mode_name(options.alignment).c_str(),
               options.relative.delta, rpe_unit.c_str());
   std::printf("%-16s %8s %10s %10s %10s %10s %12s %12s\n", "estimate", "matched", "ATE rmse",
               "ATE mean", "ATE median", "ATE max", "RPE rmse m", "RPE rmse deg");
   const double start_s = reference.empty() ? 0.0 : reference.poses.front().timestamp_s;
   for (size_t k = 0; k < estimate_paths.size(); ++k) {
     const io::Trajectory estimate = read_trajectory(estimate_paths[k]);
-    const tools::TrajectoryEvaluation evaluation =
-        tools::evaluate_trajectory(reference, estimate, options);
-    const tools::ErrorStatistics& ate = evaluation.absolute_position_m;
-    const tools::RelativePoseError& rpe = evaluation.relative;
+    const eval::TrajectoryEvaluation evaluation =
+        eval::evaluate_trajectory(reference, estimate, options);
+    const eval::ErrorStatistics& ate = evaluation.absolute_position_m;
+    const eval::RelativePoseError& rpe = evaluation.relative;
     std::printf("%-16s %8zu %10.4f %10.4f %10.4f %10.4f %12.4f %12s\n", labels[k].c_str(),
                 ate.count, ate.rmse, ate.mean, ate.median, ate.max, rpe.translation_m.rmse,
                 rpe.has_rotation ? std::to_string(rpe.rotation_deg.rmse).c_str() : "-");
-    const tools::Rgb colour = tools::series_colour(k);
-    tools::PlotSeries top{labels[k], colour, {}};
-    tools::PlotSeries error{labels[k], colour, {}};
+    const eval::Rgb colour = eval::series_colour(k);
+    eval::PlotSeries top{labels[k], colour, {}};
+    eval::PlotSeries error{labels[k], colour, {}};
     for (size_t i = 0; i < evaluation.aligned.size(); ++i) {
       const Eigen::Vector3d& p = evaluation.aligned.estimate_positions_m[i];
       top.points.push_back({p.x(), p.y()});
@@ -119,22 +119,22 @@ void evaluate_trajectories(tools::CommandLine& args, const std::string& referenc
     figure.error_over_time.push_back(std::move(error));
   }
   if (!plot_path.empty()) {
-    tools::write_png(plot_path, tools::render_trajectory_figure(figure));
+    eval::write_png(plot_path, eval::render_trajectory_figure(figure));
     std::printf("plot: %s\n", plot_path.c_str());
   }
 }
 
 void evaluate_mesh(tools::CommandLine& args, const std::string& mesh_path,
                    const std::string& truth_path) {
-  tools::ReconstructionEvaluationOptions options;
+  eval::ReconstructionEvaluationOptions options;
   options.thresholds_m = args.numbers("--thresholds-m", {0.1, 0.2, 0.5}, 1e-6, 1000.0);
   options.sample_spacing_m = args.number("--sample-spacing-m", 0.1, 0.001, 100.0);
   args.finish();
   const map::Mesh reconstruction = io::read_mesh_ply(mesh_path);
   const map::Mesh truth = io::read_mesh_ply(truth_path);
-  const tools::ReconstructionEvaluation evaluation =
-      tools::evaluate_reconstruction(reconstruction, truth, options);
-  tools::print_reconstruction_evaluation(std::cout, evaluation);
+  const eval::ReconstructionEvaluation evaluation =
+      eval::evaluate_reconstruction(reconstruction, truth, options);
+  eval::print_reconstruction_evaluation(std::cout, evaluation);
 }
 
 }  // namespace

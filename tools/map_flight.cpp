@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "command_line.h"
+#include "cli/command_line.h"
 #include "covoxslam/core/device.h"
 #include "covoxslam/core/error.h"
 #include "covoxslam/core/stream.h"
@@ -19,9 +19,9 @@
 #include "covoxslam/integrators/tsdf_integrator.h"
 #include "covoxslam/io/mesh_ply.h"
 #include "covoxslam/map/tsdf_map.h"
-#include "bag_scan_source.h"
+#include "runner/bag_scan_source.h"
 #include "covoxslam/io/trajectory_io.h"
-#include "trajectory_evaluation.h"
+#include "eval/trajectory_evaluation.h"
 
 namespace {
 
@@ -159,7 +159,7 @@ bool fusion_pose(const Options& o, const io::Trajectory& truth_poses, const tool
   *pose = scan.T_odom_sensor;
   if (o.pose_source != "truth") return true;
   io::StampedPose stamped;
-  if (!tools::interpolate_pose(truth_poses, scan.stamp_s, &stamped)) return false;
+  if (!eval::interpolate_pose(truth_poses, scan.stamp_s, &stamped)) return false;
   pose->linear() = stamped.orientation.normalized().toRotationMatrix();
   pose->translation() = stamped.position_m;
   return true;
@@ -218,14 +218,14 @@ void print_timings(const Mapper& m, double wall_s, double flight_s) {
 // The odometry's ATE against the bag's reference, without and with a translation + yaw
 // alignment.
 void print_odometry_ate(const io::Trajectory& reference, const io::Trajectory& estimate) {
-  tools::TrajectoryEvaluationOptions options;
-  for (tools::AlignmentMode mode :
-       {tools::AlignmentMode::kNone, tools::AlignmentMode::kTranslationYaw}) {
+  eval::TrajectoryEvaluationOptions options;
+  for (eval::AlignmentMode mode :
+       {eval::AlignmentMode::kNone, eval::AlignmentMode::kTranslationYaw}) {
     options.alignment = mode;
-    const tools::TrajectoryEvaluation evaluation =
-        tools::evaluate_trajectory(reference, estimate, options);
+    const eval::TrajectoryEvaluation evaluation =
+        eval::evaluate_trajectory(reference, estimate, options);
     std::printf("odometry ATE RMSE (alignment %s): %.3f m (max %.3f m)\n",
-                tools::alignment_mode_name(mode).c_str(), evaluation.absolute_position_m.rmse,
+                eval::alignment_mode_name(mode).c_str(), evaluation.absolute_position_m.rmse,
                 evaluation.absolute_position_m.max);
   }
 }

@@ -30,7 +30,7 @@
 #include <string>
 #include <vector>
 
-#include "command_line.h"
+#include "cli/command_line.h"
 #include "covoxslam/core/device.h"
 #include "covoxslam/core/error.h"
 #include "covoxslam/core/stream.h"
@@ -41,8 +41,8 @@
 #include "covoxslam/pipeline/submap.h"
 #include "covoxslam/pipeline/submap_pose_graph.h"
 #include "covoxslam/pipeline/wall_map.h"
-#include "slam_run.h"
-#include "trajectory_evaluation.h"
+#include "runner/slam_run.h"
+#include "eval/trajectory_evaluation.h"
 
 using namespace covox;
 
@@ -90,7 +90,7 @@ std::map<int64_t, double> read_submap_stamps(const std::string& path) {
 Eigen::Isometry3d true_pose_at(const io::Trajectory& truth, double stamp_s,
                                const std::string& path) {
   io::StampedPose stamped;
-  if (!tools::interpolate_pose(truth, stamp_s, &stamped)) {
+  if (!eval::interpolate_pose(truth, stamp_s, &stamped)) {
     throw Error(path + " does not cover stamp " + std::to_string(stamp_s));
   }
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();

@@ -1,12 +1,12 @@
 // run_slam: the offline runner. Feeds a ROS bag (simulate_flight's, an ARCHE flight, or any bag
 // with PointCloud2 and tf or Odometry) or a dataset folder (RGB-D or LiDAR keyframes, see
-// tools/lib/dataset_scan_sources.h) through the same SlamSystem a robot runs - sensor queue,
+// runner/dataset_scan_sources.h) through the same SlamSystem a robot runs - sensor queue,
 // frontend thread building submaps, submap queue, backend thread finishing them, registering
 // them and optimising the pose graph - as fast as the machine allows, without ROS. Writes the
 // corrected and the odometry trajectories (TUM), the combined mesh (PLY), optionally the map,
 // prints a per-module timing table with the real-time factor, and evaluates both trajectories
 // against the input's reference (ATE RMSE). With --simulate the scans come from a simulated flight
-// generated in process instead (tools/lib/sim_scan_source.h).
+// generated in process instead (runner/sim_scan_source.h).
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -17,11 +17,11 @@
 #include <string>
 #include <vector>
 
-#include "bag_extrinsic.h"
-#include "bag_scan_source.h"
-#include "benchmark_report.h"
-#include "command_line.h"
-#include "constraint_evaluation.h"
+#include "runner/bag_extrinsic.h"
+#include "runner/bag_scan_source.h"
+#include "benchmark/benchmark_report.h"
+#include "cli/command_line.h"
+#include "eval/constraint_evaluation.h"
 #include "covoxslam/core/device.h"
 #include "covoxslam/core/error.h"
 #include "covoxslam/core/log.h"
@@ -29,13 +29,13 @@
 #include "covoxslam/io/file_bytes.h"
 #include "covoxslam/io/mesh_ply.h"
 #include "covoxslam/io/trajectory_io.h"
-#include "dataset_scan_sources.h"
-#include "png_plot.h"
+#include "runner/dataset_scan_sources.h"
+#include "eval/png_plot.h"
 #include "covoxslam/pipeline/slam_config_files.h"
 #include "covoxslam/pipeline/submap.h"
-#include "sim_scan_source.h"
-#include "slam_run.h"
-#include "trajectory_evaluation.h"
+#include "runner/sim_scan_source.h"
+#include "runner/slam_run.h"
+#include "eval/trajectory_evaluation.h"
 
 namespace {
 
@@ -360,7 +360,7 @@ void write_outputs(const RunnerSettings& s, const tools::ScanSource& source,
 }
 
 void print_evaluation(const tools::SlamRunEvaluation& evaluation, bool truth,
-                      tools::AlignmentMode alignment) {
+                      eval::AlignmentMode alignment) {
   if (!evaluation.available) {
     std::printf("\nno trajectory evaluation: %s\n", evaluation.problem.c_str());
     return;
@@ -368,7 +368,7 @@ void print_evaluation(const tools::SlamRunEvaluation& evaluation, bool truth,
   std::printf("\n%s (%s alignment, %zu poses):\n",
               truth ? "ATE RMSE against the ground truth"
                     : "distance to the reference (another estimate, not truth)",
-              tools::alignment_mode_name(alignment).c_str(), evaluation.corrected.aligned.size());
+              eval::alignment_mode_name(alignment).c_str(), evaluation.corrected.aligned.size());
   std::printf("  odometry alone   %.3f m RMSE (max %.3f m)\n",
               evaluation.odometry.absolute_position_m.rmse,
               evaluation.odometry.absolute_position_m.max);
@@ -465,15 +465,15 @@ void write_timeline_plot(const std::string& path,
                          const std::vector<tools::TimelineSample>& timeline) {
   using Field = double tools::TimelineSample::*;
   auto series = [&](const char* label, size_t colour, Field field) {
-    tools::PlotSeries line;
+    eval::PlotSeries line;
     line.label = label;
-    line.colour = tools::series_colour(colour);
+    line.colour = eval::series_colour(colour);
     // The sample after finish() is left out: its window is the flush and the final solve.
     for (const tools::TimelineSample& t : timeline)
-      if (!t.end) line.points.push_back(tools::PlotPoint{t.mission_s, t.*field});
+      if (!t.end) line.points.push_back(eval::PlotPoint{t.mission_s, t.*field});
     return line;
   };
-  std::vector<tools::PlotPanel> panels(3);
+  std::vector<eval::PlotPanel> panels(3);
   panels[0].title = "MEMORY (MB) OVER MISSION TIME (S)";
   panels[0].series = {series("host RSS", 0, &tools::TimelineSample::host_rss_mb),
                       series("map voxels", 1, &tools::TimelineSample::map_memory_mb)};
@@ -486,7 +486,7 @@ void write_timeline_plot(const std::string& path,
   panels[2].title = "PER SUBMAP (MS): REGISTRATION, POSE-GRAPH SOLVE";
   panels[2].series = {series("registration", 0, &tools::TimelineSample::registration_ms_per_submap),
                       series("solve", 1, &tools::TimelineSample::solve_ms_per_submap)};
-  tools::write_png(path, tools::render_stacked_panels(panels));
+  eval::write_png(path, eval::render_stacked_panels(panels));
   std::printf("timeline plot -> %s\n", path.c_str());
 }
 
@@ -539,7 +539,7 @@ constexpr double kVerifyToleranceYawRad = 2.0 * 3.14159265358979323846 / 180.0;
 
 void run(RunnerSettings& s, int argc, char** argv) {
   if (s.debug_log) set_min_log_level(LogLevel::kDebug);
-  const tools::AlignmentMode alignment = tools::parse_alignment_mode(s.align_text);
+  const eval::AlignmentMode alignment = eval::parse_alignment_mode(s.align_text);
   const Device device = select_device(parse_device_request(s.device_text));
   std::unique_ptr<tools::ScanSource> source = open_source(s);
   const pipeline::SlamConfig config = build_config(s, *source, device);
@@ -584,16 +584,16 @@ void run(RunnerSettings& s, int argc, char** argv) {
   const bool truth = source->reference_kind() == tools::ReferenceKind::kGroundTruth;
   print_evaluation(evaluation, truth, alignment);
   if (s.verify_constraints && !source->reference().empty()) {
-    const tools::ConstraintEvaluation constraints = tools::evaluate_registration_constraints(
+    const eval::ConstraintEvaluation constraints = eval::evaluate_registration_constraints(
         source->reference(), result.submaps, result.constraints, s.verify_tolerance_m,
         kVerifyToleranceYawRad);
-    tools::print_constraint_evaluation(constraints, stdout);
+    eval::print_constraint_evaluation(constraints, stdout);
   } else if (config.place_recognition.enabled && truth && !source->reference().empty()) {
     // A wrong loop closure bends the whole map: with ground truth, closures are always checked.
-    tools::print_closure_evaluation(tools::evaluate_registration_constraints(
-                                        source->reference(), result.submaps, result.constraints,
-                                        s.verify_tolerance_m, kVerifyToleranceYawRad),
-                                    stdout);
+    eval::print_closure_evaluation(eval::evaluate_registration_constraints(
+                                       source->reference(), result.submaps, result.constraints,
+                                       s.verify_tolerance_m, kVerifyToleranceYawRad),
+                                   stdout);
   }
   if (!s.json_path.empty()) write_report(s, config, argc, argv, result, evaluation, truth);
 }

@@ -1,6 +1,6 @@
 // simulate_flight: simulates an ARCHE-like flight (figure 8 through a search-and-rescue site,
 // Ouster OS1-64, drifting odometry) and writes, into one folder:
-//   flight.bag        ROS bag with the ARCHE topic layout (tools/lib/sim_flight_bag.h): clouds
+//   flight.bag        ROS bag with the ARCHE topic layout (sim/sim_flight_bag.h): clouds
 //                     (distorted by the motion over each sweep, with per-point times, unless
 //                     --instantaneous-scan), tf odom -> imu from the odometry at 100 Hz, static
 //                     LiDAR extrinsics, truth positions
@@ -15,14 +15,14 @@
 #include <iostream>
 #include <string>
 
-#include "command_line.h"
+#include "cli/command_line.h"
 #include "covoxslam/core/error.h"
 #include "covoxslam/io/mesh_ply.h"
 #include "covoxslam/io/trajectory_io.h"
-#include "sim_flight.h"
-#include "sim_flight_bag.h"
-#include "sim_mission.h"
-#include "sim_mission_bag.h"
+#include "sim/sim_flight.h"
+#include "sim/sim_flight_bag.h"
+#include "sim/sim_mission.h"
+#include "sim/sim_mission_bag.h"
 
 namespace {
 
