@@ -4,6 +4,7 @@
 // files, and its refusals.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <string>
@@ -128,6 +129,56 @@ TEST_P(MapperTest, MeshOfAScannedSphereLiesOnItAndIsSavedAsIs) {
   const map::Mesh saved = io::read_mesh_ply(folder.file("sphere.ply"));
   EXPECT_EQ(saved.triangle_count(), mesh.triangle_count());
   EXPECT_EQ(saved.vertices_m.size(), mesh.vertices_m.size());
+}
+
+// One 0.1 s sweep of a LiDAR in the sphere while it flies 0.5 m along y and turns 30 degrees:
+// column c fires at c / 256 of the sweep from the pose interpolated between the sweep's ends,
+// each point in the sensor frame at its firing time, with that time.
+Scan distorted_sweep() {
+  Scan scan;
+  scan.sweep.known = true;
+  scan.sweep.end_s = 0.1;
+  scan.sweep.T_odom_sensor_end.linear() =
+      Eigen::AngleAxisd(M_PI / 6.0, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  scan.sweep.T_odom_sensor_end.translation() = Eigen::Vector3d(0.0, 0.5, 0.0);
+  for (int c = 0; c < 256; ++c) {
+    const double fraction = c / 256.0;
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    pose.linear() = Eigen::AngleAxisd(fraction * M_PI / 6.0, Eigen::Vector3d::UnitZ()).matrix();
+    pose.translation() = Eigen::Vector3d(0.0, 0.5 * fraction, 0.0);
+    for (int r = 0; r < 24; ++r) {
+      const double azimuth = 2.0 * M_PI * fraction,
+                   elevation = (r / 23.0 - 0.5) * 40.0 * M_PI / 180;
+      const Eigen::Vector3d direction(std::cos(elevation) * std::cos(azimuth),
+                                      std::cos(elevation) * std::sin(azimuth), std::sin(elevation));
+      const double range_m = sphere().intersect(pose.translation(), pose.linear() * direction);
+      const Eigen::Vector3f point = (direction * range_m).cast<float>();
+      scan.points_sensor_m.emplace_back(point.x(), point.y(), point.z());
+      scan.point_times_s.push_back(static_cast<float>(0.1 * fraction));
+    }
+  }
+  return scan;
+}
+
+// The share of the mesh's vertices within half a voxel of the sphere after one distorted sweep.
+double sweep_mesh_on_sphere(Device device, bool deskew) {
+  MapperConfig config = arche_on(device);
+  config.deskew.enabled = deskew;
+  Mapper mapper(config);
+  const Scan scan = distorted_sweep();
+  const integrators::IntegrationStats stats = mapper.integrate(scan, scan.T_odom_sensor);
+  EXPECT_EQ(stats.points_deskewed, deskew ? stats.points_in : 0);
+  const map::Mesh mesh = mapper.extract_mesh();
+  EXPECT_GT(mesh.triangle_count(), 500u);
+  return static_cast<double>(vertices_on_surface(mesh, sphere(), 0.5 * kVoxel_m)) /
+         std::max<size_t>(1, mesh.vertices_m.size());
+}
+
+TEST_P(MapperTest, PointTimesDeskewASweepOntoTheSurface) {
+  const double deskewed = sweep_mesh_on_sphere(device(), true);
+  const double as_measured = sweep_mesh_on_sphere(device(), false);
+  EXPECT_GE(deskewed, 0.98);
+  EXPECT_LT(as_measured, 0.9);
 }
 
 // A depth camera at the room's centre turning about z, as io::RgbdFolder delivers its frames.

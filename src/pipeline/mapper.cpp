@@ -119,16 +119,8 @@ integrators::IntegrationStats Mapper::integrate(const Scan& scan,
                 " s because " + problem);
   }
   const DeskewPlan deskew = plan_deskew(config_.deskew, scan);
-  const bool deskewed = deskew.outcome == DeskewOutcome::kDeskewed;
-  points_.copy_from_host(scan.points_sensor_m, stream_);
-  colors_.copy_from_host(scan.colors, stream_);
-  if (deskewed) times_s_.copy_from_host(scan.point_times_s, stream_);
-  integrators::PointCloudView cloud;
-  cloud.points = points_.data();
-  cloud.colors = scan.colors.empty() ? nullptr : colors_.data();
-  cloud.count = static_cast<int64_t>(scan.points_sensor_m.size());
-  cloud.times_s = deskewed ? times_s_.data() : nullptr;
-  cloud.sweep = deskew.motion;
+  const integrators::PointCloudView cloud =
+      upload_scan(scan, deskew, &points_, &colors_, &times_s_, stream_);
   return integrate(cloud, T_map_sensor);
 }
 
