@@ -81,9 +81,9 @@ struct Options {
   std::string preset;
   std::string config_path;
   // Overrides of the preset; NaN: not given.
-  double voxel_size_m = 0.0;
-  double truncation_m = 0.0;
-  double max_ray_m = 0.0;
+  double voxel_size_m = std::numeric_limits<double>::quiet_NaN();
+  double truncation_m = std::numeric_limits<double>::quiet_NaN();
+  double max_ray_m = std::numeric_limits<double>::quiet_NaN();
   int64_t esdf_every = 10;
   int64_t mesh_every = 10;
   int64_t max_scans = 0;
@@ -102,10 +102,9 @@ Options parse_options(int argc, char** argv) {
   o.device_text = args.text("--device", "auto");
   o.preset = args.text("--preset", "arche_sim");
   o.config_path = args.text("--config", "");
-  const double unset = std::numeric_limits<double>::quiet_NaN();
-  o.voxel_size_m = args.number("--voxel-size-m", unset, 0.005, 10.0);
-  o.truncation_m = args.number("--truncation-m", unset, 0.005, 100.0);
-  o.max_ray_m = args.number("--max-ray-m", unset, 0.1, 1000.0);
+  o.voxel_size_m = args.number("--voxel-size-m", o.voxel_size_m, 0.005, 10.0);
+  o.truncation_m = args.number("--truncation-m", o.truncation_m, 0.005, 100.0);
+  o.max_ray_m = args.number("--max-ray-m", o.max_ray_m, 0.1, 1000.0);
   o.esdf_every = args.integer("--esdf-every", 10, 1, 1000000);
   o.mesh_every = args.integer("--mesh-every", 10, 1, 1000000);
   o.max_scans = args.integer("--max-scans", 0, 0, tools::CommandLine::kIntMax);
