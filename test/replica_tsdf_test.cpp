@@ -16,16 +16,12 @@
 
 #include <Eigen/Core>
 
-#include "covoxslam/core/buffer.h"
 #include "covoxslam/core/device.h"
-#include "covoxslam/core/stream.h"
-#include "covoxslam/integrators/mesh_integrator.h"
-#include "covoxslam/integrators/tsdf_integrator.h"
 #include "covoxslam/io/data_directory.h"
 #include "covoxslam/io/image_codecs.h"
 #include "covoxslam/io/ply_reader.h"
 #include "covoxslam/io/rgbd_folder.h"
-#include "covoxslam/map/tsdf_map.h"
+#include "covoxslam/pipeline/mapper.h"
 #include "eval/mesh_distance.h"
 
 namespace covox {
@@ -42,6 +38,43 @@ double percentile(std::vector<double> values, double fraction) {
   return values[k];
 }
 
+// The `rgbd` preset's weighting at 2 cm, 4 voxels of truncation and 12 m rays.
+pipeline::MapperConfig replica_config(Device device) {
+  pipeline::MapperConfig config = pipeline::load_mapper_config({"rgbd"});
+  config.device = device;
+  config.map.voxel_size_m = kVoxelSizeM;
+  config.map.voxels_per_side = 8;
+  config.tsdf.truncation_distance_m = 4.0f * kVoxelSizeM;
+  config.tsdf.max_ray_length_m = 12.0f;
+  // Noise-free renders: only the band matters here, and carving the free space of 800k rays of
+  // up to 10 m would cost most of the run time.
+  config.tsdf.voxel_carving_enabled = false;
+  config.tsdf.integrate_color = false;
+  return config;
+}
+
+// Pixel (kPixelStride u, kPixelStride v) of the frame: a camera with focal lengths and principal
+// point divided by the stride.
+io::RgbdFrame every_other_pixel(const io::RgbdFrame& frame) {
+  io::RgbdFrame subsampled;
+  subsampled.T_world_camera = frame.T_world_camera;
+  const int width = frame.depth.width / kPixelStride, height = frame.depth.height / kPixelStride;
+  subsampled.intrinsics = io::CameraIntrinsics{frame.intrinsics.fx / kPixelStride,
+                                               frame.intrinsics.fy / kPixelStride,
+                                               frame.intrinsics.cx / kPixelStride,
+                                               frame.intrinsics.cy / kPixelStride,
+                                               width,
+                                               height};
+  subsampled.depth.width = width;
+  subsampled.depth.height = height;
+  subsampled.depth.depth_m.resize(static_cast<size_t>(width) * height);
+  for (int v = 0; v < height; ++v) {
+    for (int u = 0; u < width; ++u)
+      subsampled.depth.depth_m[v * width + u] = frame.depth.at(v * kPixelStride, u * kPixelStride);
+  }
+  return subsampled;
+}
+
 void check_replica_surface_accuracy(Device device) {
   const std::string folder = io::data_directory() + "/nvblox-testdata/replica/office0";
   const std::string truth_path = io::data_directory() + "/nvblox-testdata/replica/office0_mesh.ply";
@@ -53,44 +86,13 @@ void check_replica_surface_accuracy(Device device) {
 
   const io::RgbdFolder replica = io::RgbdFolder::open(folder);
   ASSERT_EQ(replica.size(), 4u);
-  map::TsdfMap map(device, map::TsdfMapConfig{kVoxelSizeM, 8, {}});
-  integrators::TsdfIntegratorConfig config;
-  config.truncation_distance_m = 4.0f * kVoxelSizeM;
-  config.max_ray_length_m = 12.0f;
-  // Noise-free renders: only the band matters here, and carving the free space of 800k rays of
-  // up to 10 m would cost most of the run time.
-  config.voxel_carving_enabled = false;
-  config.integrate_color = false;
-  integrators::TsdfIntegrator integrator(config);
-  const Stream stream(device);
-
+  pipeline::Mapper mapper(replica_config(device));
   int64_t rays = 0;
   for (size_t index = 0; index < replica.size(); ++index) {
-    const io::RgbdFrame frame = replica.read_frame(index, nullptr, false);
-    // Subsampling pixel (stride u, stride v) is a camera with focal lengths and principal point
-    // divided by the stride.
-    const int width = frame.depth.width / kPixelStride, height = frame.depth.height / kPixelStride;
-    std::vector<float> depth_m(static_cast<size_t>(width) * height);
-    for (int v = 0; v < height; ++v) {
-      for (int u = 0; u < width; ++u)
-        depth_m[v * width + u] = frame.depth.at(v * kPixelStride, u * kPixelStride);
-    }
-    const Buffer<float> depth_device = Buffer<float>::from_host(device, depth_m);
-    integrators::DepthImageView image;
-    image.depth_m = depth_device.data();
-    image.intrinsics = integrators::PinholeIntrinsics{float(frame.intrinsics.fx / kPixelStride),
-                                                      float(frame.intrinsics.fy / kPixelStride),
-                                                      float(frame.intrinsics.cx / kPixelStride),
-                                                      float(frame.intrinsics.cy / kPixelStride),
-                                                      width,
-                                                      height};
-    const integrators::IntegrationStats stats =
-        integrator.integrate_depth(map, image, frame.T_world_camera, stream);
-    rays += stats.surface_rays;
+    rays += mapper.integrate_depth(every_other_pixel(replica.read_frame(index, nullptr, false)))
+                .surface_rays;
   }
-
-  integrators::MeshIntegrator mesher;
-  const map::Mesh reconstructed = mesher.extract_all(map, stream);
+  const map::Mesh reconstructed = mapper.extract_mesh();
   ASSERT_GT(reconstructed.vertices_m.size(), 10000u);
 
   const map::Mesh truth = io::read_mesh_ply(truth_path);

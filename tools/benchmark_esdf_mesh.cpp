@@ -6,8 +6,9 @@
 // After each integration (not timed) the incremental ESDF update and the incremental mesh update
 // of the touched blocks (on the device) are timed, then the copy of the new block meshes to the
 // host, separately; at the end one full ESDF recomputation and one full mesh extraction of the
-// whole map. Cases: the Ouster OS1-64 scans at 0.2 m (truncation 3 voxels, 16 m rays) and
-// 7-Scenes frames 0-69 at 5 cm, as the TSDF benchmark integrates them.
+// whole map. Cases: the Ouster OS1-64 scans at 0.2 m (the `arche` preset: truncation 3 voxels,
+// 16 m rays) and 7-Scenes frames 0-69 at 5 cm, each mapped by a pipeline::Mapper configured as
+// the TSDF benchmark configures it.
 #include <iostream>
 #include <string>
 #include <vector>
@@ -19,9 +20,8 @@
 #include "covoxslam/core/device.h"
 #include "covoxslam/integrators/esdf_integrator.h"
 #include "covoxslam/integrators/mesh_integrator.h"
-#include "covoxslam/integrators/tsdf_integrator.h"
 #include "covoxslam/io/data_directory.h"
-#include "covoxslam/map/tsdf_map.h"
+#include "covoxslam/pipeline/mapper.h"
 
 namespace covox {
 namespace {
@@ -55,25 +55,19 @@ struct Reports {
 // Integrates frame (i mod frame_count) `updates` times; after each, times the incremental ESDF
 // and mesh updates. The first pass over the frames is a warm-up and not recorded.
 template <class IntegrateFrame>
-void run_case(const std::string& name, const Stream& stream, map::TsdfMap& map, size_t frame_count,
-              int updates, float esdf_max_distance_m, IntegrateFrame&& integrate_frame,
-              const Reports& reports) {
-  integrators::EsdfIntegratorConfig esdf_config;
-  esdf_config.esdf_max_distance_m = esdf_max_distance_m;
-  integrators::EsdfIntegrator esdf(esdf_config);
-  integrators::MeshIntegrator mesh;
+void run_case(const std::string& name, pipeline::Mapper& mapper, size_t frame_count, int updates,
+              IntegrateFrame&& integrate_frame, const Reports& reports) {
+  const Stream& stream = mapper.stream();
   std::vector<double> esdf_ms, mesh_ms, mesh_download_ms, changed_blocks, meshed_blocks;
   const int warm_up = static_cast<int>(frame_count);
   for (int i = 0; i < warm_up + updates; ++i) {
     integrate_frame(static_cast<size_t>(i) % frame_count);
     integrators::EsdfUpdateStats esdf_stats;
     integrators::MeshUpdateStats mesh_stats;
-    const double e =
-        tools::stream_milliseconds(stream, [&] { esdf_stats = esdf.update(map, stream); });
-    const double m =
-        tools::stream_milliseconds(stream, [&] { mesh_stats = mesh.update(map, stream); });
+    const double e = tools::stream_milliseconds(stream, [&] { esdf_stats = mapper.update_esdf(); });
+    const double m = tools::stream_milliseconds(stream, [&] { mesh_stats = mapper.update_mesh(); });
     // What a node that publishes every frame pays on top: the new block meshes copied to the host.
-    const double d = tools::stream_milliseconds(stream, [&] { mesh.block_meshes(stream); });
+    const double d = tools::stream_milliseconds(stream, [&] { mapper.block_meshes(); });
     if (i < warm_up) continue;
     esdf_ms.push_back(e);
     mesh_ms.push_back(m);
@@ -81,18 +75,17 @@ void run_case(const std::string& name, const Stream& stream, map::TsdfMap& map, 
     changed_blocks.push_back(static_cast<double>(esdf_stats.changed_blocks));
     meshed_blocks.push_back(static_cast<double>(mesh_stats.blocks_meshed));
   }
-  const double full_esdf_ms =
-      tools::stream_milliseconds(stream, [&] { esdf.update_all(map, stream); });
+  const double full_esdf_ms = tools::stream_milliseconds(stream, [&] { mapper.update_esdf_all(); });
   size_t triangles = 0;
   const double full_mesh_ms = tools::stream_milliseconds(
-      stream, [&] { triangles = mesh.extract_all(map, stream).triangle_count(); });
+      stream, [&] { triangles = mapper.extract_mesh().triangle_count(); });
 
   tools::print_stage_profile(name);
   reports.esdf->add(name, "incremental update (median)", tools::median_of(esdf_ms), "ms/frame");
   reports.esdf->add(name, "changed blocks per frame (median)", tools::median_of(changed_blocks),
                     "blocks");
   reports.esdf->add(name, "full update", full_esdf_ms, "ms");
-  reports.esdf->add(name, "map blocks", static_cast<double>(map.block_count()), "blocks");
+  reports.esdf->add(name, "map blocks", static_cast<double>(mapper.map().block_count()), "blocks");
   reports.mesh->add(name, "incremental update (median)", tools::median_of(mesh_ms), "ms/frame");
   reports.mesh->add(name, "block meshes to the host (median)", tools::median_of(mesh_download_ms),
                     "ms/frame");
@@ -102,46 +95,36 @@ void run_case(const std::string& name, const Stream& stream, map::TsdfMap& map, 
   reports.mesh->add(name, "triangles", static_cast<double>(triangles), "triangles");
 }
 
+// The `arche` preset's map (as benchmark_tsdf's OS1-64 0.2 m case) with a 2 m ESDF.
 void benchmark_lidar(Device device, const Options& options, const Reports& reports) {
-  const Stream stream(device);
   const tools::DeviceScans scans = tools::load_ouster_scans(options.data, device);
-  map::TsdfMapConfig map_config;
-  map_config.voxel_size_m = 0.2f;
-  map::TsdfMap map(device, map_config);
-  integrators::TsdfIntegratorConfig config;  // voxgraph's ARCHE setting, as in benchmark_tsdf
-  config.truncation_distance_m = 0.6f;
-  config.max_ray_length_m = 16.0f;
-  config.use_const_weight = true;
-  config.use_sparsity_compensation_factor = true;
-  config.sparsity_compensation_factor = 20.0f;
-  integrators::TsdfIntegrator integrator(config);
+  pipeline::MapperConfig config = pipeline::load_mapper_config({"arche"});
+  config.device = device;
+  config.map.voxel_size_m = 0.2f;
+  config.tsdf.truncation_distance_m = 0.6f;
+  config.esdf.esdf_max_distance_m = 2.0f;
+  pipeline::Mapper mapper(config);
   run_case(
-      std::string(to_string(device)) + " OS1-64 0.2 m, ESDF 2 m", stream, map, scans.size(),
-      options.updates, 2.0f,
-      [&](size_t f) {
-        integrator.integrate(map, scans.view(f), Eigen::Isometry3d::Identity(), stream);
-      },
-      reports);
+      std::string(to_string(device)) + " OS1-64 0.2 m, ESDF 2 m", mapper, scans.size(),
+      options.updates,
+      [&](size_t f) { mapper.integrate(scans.view(f), Eigen::Isometry3d::Identity()); }, reports);
 }
 
+// The `rgbd` preset's weighting at 5 cm with nvblox's truncation (as benchmark_tsdf's 5 cm case).
 void benchmark_rgbd(Device device, const Options& options, const Reports& reports) {
-  const Stream stream(device);
   const tools::DeviceRgbdFrames frames = tools::load_7scenes_frames(options.data, 70, device);
-  map::TsdfMapConfig map_config;
-  map_config.voxel_size_m = 0.05f;
-  map_config.voxels_per_side = 8;
-  map::TsdfMap map(device, map_config);
-  integrators::TsdfIntegratorConfig config;
-  config.truncation_distance_m = 0.2f;  // 4 voxels, nvblox's default
-  config.max_ray_length_m = 5.0f;
-  integrators::TsdfIntegrator integrator(config);
+  pipeline::MapperConfig config = pipeline::load_mapper_config({"rgbd"});
+  config.device = device;
+  config.map.voxel_size_m = 0.05f;
+  config.map.voxels_per_side = 8;
+  config.tsdf.truncation_distance_m = 0.2f;  // 4 voxels, nvblox's default
+  config.tsdf.max_ray_length_m = 5.0f;
+  config.esdf.esdf_max_distance_m = 2.0f;
+  pipeline::Mapper mapper(config);
   run_case(
-      std::string(to_string(device)) + " 7-Scenes 5 cm, ESDF 2 m", stream, map, frames.size(),
-      options.updates, 2.0f,
-      [&](size_t f) {
-        integrator.integrate_depth(map, frames.view(f), frames.T_world_camera[f], stream);
-      },
-      reports);
+      std::string(to_string(device)) + " 7-Scenes 5 cm, ESDF 2 m", mapper, frames.size(),
+      options.updates,
+      [&](size_t f) { mapper.integrate_depth(frames.view(f), frames.T_world_camera[f]); }, reports);
 }
 
 }  // namespace

@@ -7,9 +7,11 @@
 // --case runs only the cases whose name contains TEXT (for example "2 cm colour carving"), so
 // that a kernel profiler sees one case's frames from the start.
 //
-// Cases: Ouster OS1-64 (newer_06) at 0.1 and 0.2 m voxels, truncation 3 voxels, 16 m
-// rays (voxgraph's ARCHE setting); KITTI HDL-64 at 0.2 m with 50 m rays; 7-Scenes at 5 cm and
-// 2 cm with colour, frames 0-69 (what nvblox was timed on).
+// Each case maps its frames with a pipeline::Mapper configured from a preset of config/ and the
+// case's own sizes. Cases: Ouster OS1-64 (newer_06) at 0.1 and 0.2 m voxels, truncation 3 voxels,
+// 16 m rays (the `arche` preset, voxgraph's ARCHE setting); KITTI HDL-64 at 0.2 m with 50 m rays;
+// 7-Scenes at 5 cm and 2 cm with colour (the `rgbd` preset's weighting), frames 0-69 (what nvblox
+// was timed on).
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -29,7 +31,7 @@
 #include "covoxslam/core/stage_profiler.h"
 #include "covoxslam/integrators/tsdf_integrator.h"
 #include "covoxslam/io/data_directory.h"
-#include "covoxslam/map/tsdf_map.h"
+#include "covoxslam/pipeline/mapper.h"
 
 namespace covox {
 namespace {
@@ -74,11 +76,12 @@ struct Timing {
   double updates_per_frame = 0.0;  // voxel updates before the segmented reduce
 };
 
-// Integrates frames round-robin into one map `integrations` times; the first pass over the
-// frames is a warm-up (allocation of blocks and scratch), neither timed nor profiled.
+// Integrates frames round-robin into the mapper's map `integrations` times; the first pass over
+// the frames is a warm-up (allocation of blocks and scratch), neither timed nor profiled.
 template <class IntegrateFrame>
-Timing time_integrations(const Stream& stream, size_t frame_count, int integrations,
-                         map::TsdfMap& map, IntegrateFrame&& integrate_frame) {
+Timing time_integrations(const pipeline::Mapper& mapper, size_t frame_count, int integrations,
+                         IntegrateFrame&& integrate_frame) {
+  const Stream& stream = mapper.stream();
   for (size_t f = 0; f < frame_count; ++f) integrate_frame(f);
   stream.synchronize();
   // The stage profile (COVOX_PROFILE_STAGES) of the timed frames only: the warm-up's first frame
@@ -97,7 +100,7 @@ Timing time_integrations(const Stream& stream, size_t frame_count, int integrati
     updates += stats.voxel_updates;
     rays += stats.rays_cast;
   }
-  return Timing{tools::median_of(times), updates / (total_ms * 1e-3), map.block_count(),
+  return Timing{tools::median_of(times), updates / (total_ms * 1e-3), mapper.map().block_count(),
                 static_cast<double>(rays) / integrations,
                 static_cast<double>(updates) / integrations};
 }
@@ -127,24 +130,16 @@ void benchmark_lidar(Device device, const Options& options, const std::string& l
                      const integrators::SweepMotion* sweep = nullptr) {
   const std::string name = std::string(to_string(device)) + " " + label + ", " + to_string(method);
   if (!options.runs(name)) return;
-  const Stream stream(device);
-  map::TsdfMapConfig map_config;
-  map_config.voxel_size_m = voxel_size;
-  map_config.voxels_per_side = 16;
-  map::TsdfMap map(device, map_config);
-  integrators::TsdfIntegratorConfig config;
-  config.truncation_distance_m = 3.0f * voxel_size;
-  config.max_ray_length_m = max_ray_m;
-  config.use_const_weight = true;  // voxgraph's ARCHE configuration
-  config.use_weight_dropoff = true;
-  config.use_sparsity_compensation_factor = true;
-  config.sparsity_compensation_factor = 20.0f;
-  config.method = method;
-  integrators::TsdfIntegrator integrator(config);
+  pipeline::MapperConfig config = pipeline::load_mapper_config({"arche"});
+  config.device = device;
+  config.map.voxel_size_m = voxel_size;
+  config.tsdf.truncation_distance_m = 3.0f * voxel_size;
+  config.tsdf.max_ray_length_m = max_ray_m;
+  config.tsdf.method = method;
+  pipeline::Mapper mapper(config);
   const Timing timing =
-      time_integrations(stream, scans.size(), options.integrations, map, [&](size_t f) {
-        return integrator.integrate(map, scans.view(f, sweep), Eigen::Isometry3d::Identity(),
-                                    stream);
+      time_integrations(mapper, scans.size(), options.integrations, [&](size_t f) {
+        return mapper.integrate(scans.view(f, sweep), Eigen::Isometry3d::Identity());
       });
   add_rows(report, name, timing);
 }
@@ -157,20 +152,17 @@ void benchmark_rgbd(Device device, const Options& options, const tools::DeviceRg
                            std::to_string(int(voxel_size * 100 + 0.5)) + " cm colour" +
                            (carving ? " carving" : " band only");
   if (!options.runs(name)) return;
-  const Stream stream(device);
-  map::TsdfMapConfig map_config;
-  map_config.voxel_size_m = voxel_size;
-  map_config.voxels_per_side = 8;
-  map::TsdfMap map(device, map_config);
-  integrators::TsdfIntegratorConfig config;
-  config.truncation_distance_m = 4.0f * voxel_size;  // nvblox's default truncation
-  config.max_ray_length_m = 5.0f;
-  config.voxel_carving_enabled = carving;
-  integrators::TsdfIntegrator integrator(config);
-  const Timing timing =
-      time_integrations(stream, frames.size(), options.integrations, map, [&](size_t f) {
-        return integrator.integrate_depth(map, frames.view(f), frames.T_world_camera[f], stream);
-      });
+  pipeline::MapperConfig config = pipeline::load_mapper_config({"rgbd"});
+  config.device = device;
+  config.map.voxel_size_m = voxel_size;
+  config.map.voxels_per_side = 8;
+  config.tsdf.truncation_distance_m = 4.0f * voxel_size;  // nvblox's default truncation
+  config.tsdf.max_ray_length_m = 5.0f;
+  config.tsdf.voxel_carving_enabled = carving;
+  pipeline::Mapper mapper(config);
+  const Timing timing = time_integrations(
+      mapper, frames.size(), options.integrations,
+      [&](size_t f) { return mapper.integrate_depth(frames.view(f), frames.T_world_camera[f]); });
   add_rows(report, name, timing);
 }
 

@@ -1,12 +1,15 @@
 // map_flight: maps a flight bag (simulate_flight's flight.bag, or any bag run_slam reads) the way
-// the SLAM front end does, without any drift correction: every scan is fused into one TSDF at its
-// odometry pose (or its true pose from a TUM file, for the reference map), the ESDF and the mesh
-// follow incrementally. Prints per-module timings, the map size and the odometry's ATE against the
-// bag's reference, and writes the mesh. run_slam is the same with submaps and drift correction.
+// the SLAM front end does, without any drift correction: every scan is fused into one map
+// (pipeline::Mapper, configured from a preset of config/) at its odometry pose (or its true pose
+// from a TUM file, for the reference map), the ESDF and the mesh follow incrementally. Prints
+// per-module timings, the map size and the odometry's ATE against the bag's reference, and writes
+// the mesh. run_slam is the same with submaps and drift correction.
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -14,14 +17,12 @@
 #include "covoxslam/core/device.h"
 #include "covoxslam/core/error.h"
 #include "covoxslam/core/stream.h"
-#include "covoxslam/integrators/esdf_integrator.h"
-#include "covoxslam/integrators/mesh_integrator.h"
-#include "covoxslam/integrators/tsdf_integrator.h"
 #include "covoxslam/io/mesh_ply.h"
-#include "covoxslam/map/tsdf_map.h"
-#include "runner/bag_scan_source.h"
 #include "covoxslam/io/trajectory_io.h"
+#include "covoxslam/pipeline/mapper.h"
+#include "covoxslam/pipeline/slam_config_files.h"
 #include "eval/trajectory_evaluation.h"
+#include "runner/bag_scan_source.h"
 
 namespace {
 
@@ -35,9 +36,12 @@ const char kUsage[] =
     "  --truth FILE.tum       cloud-frame poses for --poses truth (default truth.tum next to the "
     "bag)\n"
     "  --device auto|cpu|cuda (default auto)\n"
-    "  --voxel-size-m S       (default 0.2, voxgraph's ARCHE setting)\n"
-    "  --truncation-m T       (default 0.6)\n"
-    "  --max-ray-m R          points farther only clear space (default 16)\n"
+    "  --preset NAME          the map's configuration: a file in config/ (COVOX_CONFIG_DIR)\n"
+    "                         (default arche_sim, what run_slam maps bags with)\n"
+    "  --config FILE.yaml     a configuration file applied over the preset\n"
+    "  --voxel-size-m S       overrides map.voxel_size_m\n"
+    "  --truncation-m T       overrides tsdf.truncation_distance_m\n"
+    "  --max-ray-m R          overrides tsdf.max_ray_length_m (points farther only clear space)\n"
     "  --esdf-every N         ESDF update every N scans (default 10: 1 Hz at 10 Hz scans)\n"
     "  --mesh-every N         mesh update every N scans (default 10)\n"
     "  --max-scans N          stop after N scans (0: all)\n"
@@ -74,9 +78,12 @@ struct Options {
   std::string pose_source;
   std::string truth_path;
   std::string device_text;
-  double voxel_size_m = 0.2;
-  double truncation_m = 0.6;
-  double max_ray_m = 16.0;
+  std::string preset;
+  std::string config_path;
+  // Overrides of the preset; NaN: not given.
+  double voxel_size_m = std::numeric_limits<double>::quiet_NaN();
+  double truncation_m = std::numeric_limits<double>::quiet_NaN();
+  double max_ray_m = std::numeric_limits<double>::quiet_NaN();
   int64_t esdf_every = 10;
   int64_t mesh_every = 10;
   int64_t max_scans = 0;
@@ -93,9 +100,11 @@ Options parse_options(int argc, char** argv) {
       "--truth", (slash == std::string::npos ? std::string() : o.flight_path.substr(0, slash + 1)) +
                      "truth.tum");
   o.device_text = args.text("--device", "auto");
-  o.voxel_size_m = args.number("--voxel-size-m", 0.2, 0.005, 10.0);
-  o.truncation_m = args.number("--truncation-m", 0.6, 0.005, 100.0);
-  o.max_ray_m = args.number("--max-ray-m", 16.0, 0.1, 1000.0);
+  o.preset = args.text("--preset", "arche_sim");
+  o.config_path = args.text("--config", "");
+  o.voxel_size_m = args.number("--voxel-size-m", o.voxel_size_m, 0.005, 10.0);
+  o.truncation_m = args.number("--truncation-m", o.truncation_m, 0.005, 100.0);
+  o.max_ray_m = args.number("--max-ray-m", o.max_ray_m, 0.1, 1000.0);
   o.esdf_every = args.integer("--esdf-every", 10, 1, 1000000);
   o.mesh_every = args.integer("--mesh-every", 10, 1, 1000000);
   o.max_scans = args.integer("--max-scans", 0, 0, tools::CommandLine::kIntMax);
@@ -106,40 +115,22 @@ Options parse_options(int argc, char** argv) {
   return o;
 }
 
-map::TsdfMapConfig map_config(const Options& o) {
-  map::TsdfMapConfig config;
-  config.voxel_size_m = static_cast<float>(o.voxel_size_m);
-  config.voxels_per_side = 16;
-  return config;
+// The preset, the --config file over it, then the command line's overrides.
+pipeline::MapperConfig mapper_config(const Options& o, Device device) {
+  pipeline::SlamConfig config = pipeline::load_preset(o.preset);
+  if (!o.config_path.empty()) pipeline::load_slam_config(o.config_path, &config);
+  config.device = device;
+  if (!std::isnan(o.voxel_size_m)) config.map.voxel_size_m = static_cast<float>(o.voxel_size_m);
+  if (!std::isnan(o.truncation_m))
+    config.tsdf.truncation_distance_m = static_cast<float>(o.truncation_m);
+  if (!std::isnan(o.max_ray_m)) config.tsdf.max_ray_length_m = static_cast<float>(o.max_ray_m);
+  return pipeline::mapper_config(config);
 }
 
-// voxgraph's ARCHE configuration: constant weight with drop-off, sparsity compensation.
-integrators::TsdfIntegratorConfig tsdf_config(const Options& o) {
-  integrators::TsdfIntegratorConfig config;
-  config.truncation_distance_m = static_cast<float>(o.truncation_m);
-  config.max_ray_length_m = static_cast<float>(o.max_ray_m);
-  config.use_const_weight = true;
-  config.use_weight_dropoff = true;
-  config.use_sparsity_compensation_factor = true;
-  config.sparsity_compensation_factor = 20.0f;
-  return config;
-}
-
-// The map and the three integrators that keep it, on one device and stream, with the time each
-// module took.
-struct Mapper {
-  Mapper(Device device, const Options& o)
-      : map(device, map_config(o)),
-        tsdf(tsdf_config(o)),
-        esdf(integrators::EsdfIntegratorConfig{}),
-        stream(device) {}
-  map::TsdfMap map;
-  integrators::TsdfIntegrator tsdf;
-  integrators::EsdfIntegrator esdf;
-  integrators::MeshIntegrator mesher;
-  const Stream stream;
-  ModuleTimer read_timer{"read scan"}, tsdf_timer{"tsdf integrate"}, esdf_timer{"esdf update"},
-      mesh_timer{"mesh update"}, final_timer{"final mesh"};
+// The time each module took.
+struct ModuleTimers {
+  ModuleTimer read{"read scan"}, tsdf{"tsdf integrate"}, esdf{"esdf update"}, mesh{"mesh update"},
+      final_mesh{"final mesh"};
 };
 
 // What the mapping loop gathered: the odometry of every scan read, the points seen, the scans
@@ -151,6 +142,18 @@ struct FlightRun {
   map::Mesh mesh;
   double wall_s = 0.0;
 };
+
+// The scan's data moved into the pipeline's scan (points with their times, for de-skewing).
+pipeline::Scan to_pipeline_scan(tools::SourceScan* scan) {
+  pipeline::Scan input;
+  input.stamp_s = scan->stamp_s;
+  input.T_odom_sensor = scan->T_odom_sensor;
+  input.points_sensor_m = std::move(scan->points_sensor_m);
+  input.colors = std::move(scan->colors);
+  input.point_times_s = std::move(scan->point_times_s);
+  input.sweep = scan->sweep;
+  return input;
+}
 
 // The pose `scan` is fused at: its odometry pose, or under --poses truth the true pose at its
 // stamp (false when the truth does not cover it).
@@ -168,13 +171,14 @@ bool fusion_pose(const Options& o, const io::Trajectory& truth_poses, const tool
 // Fuses up to `total` scans, with the ESDF and mesh updates every esdf_every / mesh_every scans,
 // then catches up with the scans after the last periodic update and extracts the welded mesh.
 FlightRun map_scans(const Options& o, tools::BagScanSource& reader,
-                    const io::Trajectory& truth_poses, size_t total, Mapper& m) {
+                    const io::Trajectory& truth_poses, size_t total, pipeline::Mapper& mapper,
+                    ModuleTimers& t) {
   FlightRun run;
   tools::SourceScan scan;
   const auto start = Clock::now();
   for (size_t k = 0; k < total; ++k) {
     bool have = false;
-    timed(&m.read_timer, m.stream, [&] { have = reader.next(&scan); });
+    timed(&t.read, mapper.stream(), [&] { have = reader.next(&scan); });
     if (!have) break;
     io::StampedPose stamped;
     stamped.timestamp_s = scan.stamp_s;
@@ -187,27 +191,23 @@ FlightRun map_scans(const Options& o, tools::BagScanSource& reader,
       ++run.scans_without_truth;
       continue;
     }
-    timed(&m.tsdf_timer, m.stream,
-          [&] { m.tsdf.integrate(m.map, scan.points_sensor_m, {}, pose); });
-    if ((k + 1) % o.esdf_every == 0)
-      timed(&m.esdf_timer, m.stream, [&] { m.esdf.update(m.map, m.stream); });
-    if ((k + 1) % o.mesh_every == 0)
-      timed(&m.mesh_timer, m.stream, [&] { m.mesher.update(m.map, m.stream); });
+    timed(&t.tsdf, mapper.stream(), [&] { mapper.integrate(to_pipeline_scan(&scan), pose); });
+    if ((k + 1) % o.esdf_every == 0) timed(&t.esdf, mapper.stream(), [&] { mapper.update_esdf(); });
+    if ((k + 1) % o.mesh_every == 0) timed(&t.mesh, mapper.stream(), [&] { mapper.update_mesh(); });
     if (k % 10 == 0 || k + 1 == total) {
       draw_progress(k + 1, total, std::chrono::duration<double>(Clock::now() - start).count());
     }
   }
-  timed(&m.esdf_timer, m.stream, [&] { m.esdf.update(m.map, m.stream); });
-  timed(&m.final_timer, m.stream, [&] { run.mesh = m.mesher.extract_all(m.map, m.stream); });
+  timed(&t.esdf, mapper.stream(), [&] { mapper.update_esdf(); });
+  timed(&t.final_mesh, mapper.stream(), [&] { run.mesh = mapper.extract_mesh(); });
   std::fprintf(stderr, "\n");
   run.wall_s = std::chrono::duration<double>(Clock::now() - start).count();
   return run;
 }
 
-void print_timings(const Mapper& m, double wall_s, double flight_s) {
+void print_timings(const ModuleTimers& m, double wall_s, double flight_s) {
   std::printf("\n%-16s %8s %10s %12s\n", "module", "calls", "total s", "ms/call");
-  for (const ModuleTimer* t :
-       {&m.read_timer, &m.tsdf_timer, &m.esdf_timer, &m.mesh_timer, &m.final_timer}) {
+  for (const ModuleTimer* t : {&m.read, &m.tsdf, &m.esdf, &m.mesh, &m.final_mesh}) {
     std::printf("%-16s %8lld %10.2f %12.2f\n", t->name.c_str(), static_cast<long long>(t->calls),
                 t->seconds, t->calls ? 1000.0 * t->seconds / t->calls : 0.0);
   }
@@ -230,11 +230,14 @@ void print_odometry_ate(const io::Trajectory& reference, const io::Trajectory& e
   }
 }
 
-void print_report(const Options& o, Device device, const tools::BagScanSource& reader,
-                  const Mapper& m, const FlightRun& run) {
+void print_report(const Options& o, const tools::BagScanSource& reader,
+                  const pipeline::Mapper& mapper, const ModuleTimers& timers,
+                  const FlightRun& run) {
   const size_t scans = run.odometry.size();
   const double flight_s = reader.duration_s() * scans / std::max<size_t>(1, reader.size());
-  std::printf("device: %s\n", describe_device(device).c_str());
+  const map::TsdfMap& map = mapper.map();
+  std::printf("device: %s\npreset: %s%s%s\n", describe_device(mapper.device()).c_str(),
+              o.preset.c_str(), o.config_path.empty() ? "" : ", config ", o.config_path.c_str());
   std::printf("flight: %s, %zu scans (%.1f s), %.0f points/scan, fused at %s poses\n",
               o.flight_path.c_str(), scans, flight_s, scans ? double(run.points) / scans : 0.0,
               o.pose_source.c_str());
@@ -243,14 +246,14 @@ void print_report(const Options& o, Device device, const tools::BagScanSource& r
                 static_cast<long long>(run.scans_without_truth),
                 static_cast<long long>(reader.dropped()));
   }
-  print_timings(m, run.wall_s, flight_s);
+  print_timings(timers, run.wall_s, flight_s);
   const double voxel_bytes =
       sizeof(map::TsdfVoxel) + sizeof(map::ColorVoxel) + sizeof(map::EsdfVoxel);
   std::printf(
       "\nmap: %lld blocks of %d^3 voxels at %.2f m (%.1f MiB of voxels); mesh %zu triangles -> "
       "%s\n",
-      static_cast<long long>(m.map.block_count()), m.map.voxels_per_side(), o.voxel_size_m,
-      m.map.block_count() * m.map.voxels_per_block() * voxel_bytes / (1024.0 * 1024.0),
+      static_cast<long long>(map.block_count()), map.voxels_per_side(), map.voxel_size_m(),
+      map.block_count() * map.voxels_per_block() * voxel_bytes / (1024.0 * 1024.0),
       run.mesh.triangle_count(), o.mesh_path.c_str());
   if (scans >= 3 && reader.reference().size() >= 3)
     print_odometry_ate(reader.reference(), run.odometry);
@@ -267,10 +270,11 @@ int main(int argc, char** argv) {
         o.max_scans > 0 ? std::min<size_t>(o.max_scans, reader.size()) : reader.size();
     io::Trajectory truth_poses;
     if (o.pose_source == "truth") truth_poses = io::read_tum_trajectory(o.truth_path);
-    Mapper mapper(device, o);
-    const FlightRun run = map_scans(o, reader, truth_poses, total, mapper);
+    pipeline::Mapper mapper(mapper_config(o, device));
+    ModuleTimers timers;
+    const FlightRun run = map_scans(o, reader, truth_poses, total, mapper, timers);
     io::write_mesh_ply(o.mesh_path, run.mesh);
-    print_report(o, device, reader, mapper, run);
+    print_report(o, reader, mapper, timers, run);
   } catch (const Error& error) {
     std::cerr << "\nmap_flight: " << error.what() << std::endl;
     return 1;

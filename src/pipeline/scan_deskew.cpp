@@ -52,6 +52,22 @@ DeskewPlan plan_deskew(const DeskewConfig& config, const Scan& scan) {
   return plan;
 }
 
+integrators::PointCloudView upload_scan(const Scan& scan, const DeskewPlan& plan,
+                                        Buffer<Vec3f>* points, Buffer<Rgb8>* colors,
+                                        Buffer<float>* times_s, const Stream& stream) {
+  const bool deskewed = plan.outcome == DeskewOutcome::kDeskewed;
+  points->copy_from_host(scan.points_sensor_m, stream);
+  colors->copy_from_host(scan.colors, stream);
+  if (deskewed) times_s->copy_from_host(scan.point_times_s, stream);
+  integrators::PointCloudView cloud;
+  cloud.points = points->data();
+  cloud.colors = scan.colors.empty() ? nullptr : colors->data();
+  cloud.count = static_cast<int64_t>(scan.points_sensor_m.size());
+  cloud.times_s = deskewed ? times_s->data() : nullptr;
+  cloud.sweep = plan.motion;
+  return cloud;
+}
+
 double motion_displacement_m(const Eigen::Isometry3d& T_a, const Eigen::Isometry3d& T_b,
                              double range_m) {
   const Eigen::Isometry3d T_ab = T_a.inverse() * T_b;

@@ -5,7 +5,11 @@
 // sweep is known; otherwise its points are used as they are, and the reason is counted.
 #include <Eigen/Geometry>
 
+#include "covoxslam/core/buffer.h"
+#include "covoxslam/core/stream.h"
+#include "covoxslam/core/vec3.h"
 #include "covoxslam/integrators/sweep_motion.h"
+#include "covoxslam/integrators/tsdf_integrator.h"
 #include "covoxslam/pipeline/slam_system.h"
 
 namespace covox {
@@ -30,6 +34,14 @@ struct DeskewPlan {
 
 // What to do with a scan that passed point_times_problem().
 DeskewPlan plan_deskew(const DeskewConfig& config, const Scan& scan);
+
+// The cloud the TSDF integrator takes for `scan`: its points, its colours (when it has them) and,
+// when `plan` de-skews it, its point times with the plan's motion, copied into the buffers (of
+// the integrating device) on `stream`. The buffers must stay untouched until the integration is
+// done.
+integrators::PointCloudView upload_scan(const Scan& scan, const DeskewPlan& plan,
+                                        Buffer<Vec3f>* points, Buffer<Rgb8>* colors,
+                                        Buffer<float>* times_s, const Stream& stream);
 
 // How far (m) a point `range_m` from the sensor moves between two poses: the translation plus the
 // arc of the rotation. Between consecutive scans it bounds the distortion within one sweep.
