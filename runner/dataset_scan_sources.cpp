@@ -285,6 +285,12 @@ double LidarKeyframeGraphScanSource::duration_s() const {
   return static_cast<double>(stamps_s_.size()) * options_.keyframe_interval_s;
 }
 
+std::string default_preset(const ScanSource& source) {
+  if (dynamic_cast<const RgbdScanSource*>(&source)) return "rgbd";
+  if (dynamic_cast<const KeyframeFolderScanSource*>(&source)) return "lidar_keyframes";
+  return "arche_sim";
+}
+
 std::unique_ptr<ScanSource> open_dataset_scan_source(
     const std::string& path, const RgbdScanOptions& rgbd_options,
     const LidarKeyframeScanOptions& lidar_options) {

@@ -1,21 +1,24 @@
 // benchmark_accuracy: the trajectory accuracy of covoxslam against odometry alone on the inputs
-// the project evaluates, one offline SLAM run each (runner/slam_run.h), recorded in
-// one report (default docs/benchmarks/accuracy.json):
-//   simulated flight   simulate_flight's bag (if --bag is given): ATE RMSE against the truth
-//   7-Scenes           redkitchen RGB-D, the dataset's poses perturbed by a deterministic drift of
+// the project evaluates, one offline SLAM run each (runner/slam_run.h) with the configuration
+// run_slam gives that kind of input (tools::default_preset: nothing per case), in one report:
+//   sim                simulated 200 s drone flights generated in process (run_slam --simulate
+//                      --seed N --columns 256): ATE RMSE against the truth
+//   bag                a flight bag (--bag; make demo writes one)
+//   7scenes            redkitchen RGB-D, the dataset's poses perturbed by a deterministic drift of
 //                      >= 0.3 m as odometry: ATE RMSE against the dataset's poses
-//   7-Scenes long      redkitchen frames 0-599 (revisits): drift seeds 1-5 and no drift
-//   MulRan             Riverside02 keyframes, LiDAR-inertial odometry: distance to
+//   7scenes-long       redkitchen frames 0-599 (revisits): drift seeds 1-5 and no drift
+//   mulran             Riverside02 keyframes, LiDAR-inertial odometry: distance to
 //                      optimized_poses.txt, another SLAM system's estimate ("distance to
 //                      reference", never accuracy)
-//   KITTI 07 keyframes the lidar-scans dump (5 keyframes, graph.txt poses, another SLAM system's
+//   kitti07            the lidar-scans dump (5 keyframes, graph.txt poses, another SLAM system's
 //                      estimate): no drift (covoxslam must leave the given poses alone) and the
 //                      simulator's drift of >= 0.3 m (covoxslam must come closer than odometry)
-//   simulated loops    long simulated flights generated in process, with place recognition:
-//                      two laps of a large figure 8 whose odometry ends tens of metres off, and
-//                      the same flight without drift (with place recognition and without). Every
-//                      loop closure is checked against the truth; the program exits with 2 when
-//                      one is wrong.
+//   loops              long simulated flights generated in process: two laps of a large figure 8
+//                      whose odometry ends tens of metres off (--loop-drift-percent), and seed 0:
+//                      the same flight without drift. Every loop closure is checked against the
+//                      truth; the program exits with 2 when one is wrong.
+// `--cases all` is the whole matrix (docs/benchmarks/accuracy_matrix.json): sim seeds 1-15,
+// 7scenes, 7scenes-long, mulran, kitti07, loops seeds 0-26 at 1 % and 1-13 at 2 % drift.
 // All with translation + yaw alignment (the ARCHE protocol). The real data is read through
 // COVOX_DATA_DIR (io::data_directory()); a missing dataset is skipped with a message.
 // The real data is non-commercial (7-Scenes: Microsoft's terms; MulRan: its own terms).
@@ -23,9 +26,11 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <functional>
 #include <iostream>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "runner/bag_scan_source.h"
 #include "benchmark/benchmark_report.h"
@@ -47,21 +52,23 @@ using namespace covox;
 const char kUsage[] =
     "usage: benchmark_accuracy [options]\n"
     "  --device auto|cpu|cuda   (default auto)\n"
-    "  --cases LIST             comma-separated: sim,7scenes,7scenes-long,mulran,kitti07,loops\n"
-    "                           (default all that are available but loops, which runs only\n"
-    "                           when named)\n"
-    "  --loop-seeds LIST        seeds of the loops case; 0: seed 1 without drift, with and "
-    "without\n"
-    "                           place recognition (default 0,1,2,3,4,5)\n"
+    "  --cases LIST             comma-separated: "
+    "sim,bag,7scenes,7scenes-long,mulran,kitti07,loops,\n"
+    "                           or all: the whole matrix (default: sim and the real data that is\n"
+    "                           available)\n"
+    "  --sim-seeds LIST         seeds of the sim case (default 1)\n"
+    "  --loop-seeds LIST        seeds of the loops case; 0: seed 1 without drift (default "
+    "0,1,2,3,4,5)\n"
     "  --loop-drift-percent P   the loops case's odometry ends P % of the 1980 m off (default 1:\n"
     "                           about 20 m; real LiDAR or visual odometry: 0.5 to 2)\n"
-    "  --bag FILE               simulated flight bag for the sim case (default "
+    "  --bag FILE               flight bag of the bag case (default "
     "demo_output/flight_seed1_256col/flight.bag)\n"
     "  --data-dir DIR           shared data (default: COVOX_DATA_DIR or the build's default)\n"
     "  --config FILE.yaml       a configuration file applied over every case's settings (to\n"
     "                           compare a setting across the cases; its `ros` section is ignored)\n"
     "  --trajectories-dir DIR   also write each case's trajectories as TUM files there\n"
-    "  --output FILE            report (default docs/benchmarks/accuracy.json)\n";
+    "  --output FILE            report (default docs/benchmarks/accuracy.json; with --cases all\n"
+    "                           docs/benchmarks/accuracy_matrix.json)\n";
 
 struct CaseRun {
   std::string name;
@@ -69,15 +76,48 @@ struct CaseRun {
   pipeline::SlamConfig config;
 };
 
-// A preset of config/ (pipeline::load_preset) on `device`.
-pipeline::SlamConfig preset_config(const std::string& preset, Device device) {
-  pipeline::SlamConfig config = pipeline::load_preset(preset);
+// A case as run_slam maps its input: the preset for the input's kind (tools::default_preset),
+// on `device`, nothing else.
+CaseRun shipped_case(const std::string& name, std::unique_ptr<tools::ScanSource> source,
+                     Device device) {
+  pipeline::SlamConfig config = pipeline::load_preset(tools::default_preset(*source));
   config.device = device;
-  return config;
+  return {name, std::move(source), config};
 }
 
-bool wanted(const std::string& cases, const std::string& name) {
-  return cases.empty() || ("," + cases + ",").find("," + name + ",") != std::string::npos;
+// Comma-separated seeds (integers >= 0) of `option`.
+std::vector<uint64_t> parse_seeds(const std::string& option, const std::string& seeds) {
+  std::vector<uint64_t> list;
+  for (size_t begin = 0; begin < seeds.size();) {
+    const size_t end = std::min(seeds.find(',', begin), seeds.size());
+    const std::string item = seeds.substr(begin, end - begin);
+    if (item.empty() || item.size() > 9 ||
+        item.find_first_not_of("0123456789") != std::string::npos) {
+      throw Error(option + ": '" + item + "' is not a seed (comma-separated integers >= 0)");
+    }
+    list.push_back(std::stoull(item));
+    begin = end + 1;
+  }
+  return list;
+}
+
+std::string seed_range(int first, int last) {
+  std::string list;
+  for (int seed = first; seed <= last; ++seed)
+    list += (list.empty() ? "" : ",") + std::to_string(seed);
+  return list;
+}
+
+// The simulated 200 s flight of `seed` at 256 columns, as run_slam --simulate flies it.
+void add_sim_runs(const std::string& seeds, Device device, std::vector<CaseRun>* runs) {
+  for (uint64_t seed : parse_seeds("--sim-seeds", seeds)) {
+    sim::SimulationOptions options;
+    options.seed = seed;
+    options.flight.variation_seed = seed;
+    options.lidar.columns = 256;
+    runs->push_back(shipped_case("simulated flight seed " + std::to_string(seed),
+                                 std::make_unique<tools::SimScanSource>(options, 0.5), device));
+  }
 }
 
 // 7-Scenes redkitchen frames 0-599, where the camera returns to places it saw: drift seeds 1-5
@@ -95,8 +135,8 @@ void add_kitchen_long_runs(const std::string& data_dir, Device device, std::vect
     options.drift_scale = seed == 0 ? 0.0 : 1.0;
     const std::string name = seed == 0 ? "7-Scenes redkitchen-long no drift"
                                        : "7-Scenes redkitchen-long seed " + std::to_string(seed);
-    runs->push_back({name, std::make_unique<tools::RgbdScanSource>(folder, options),
-                     preset_config("rgbd", device)});
+    runs->push_back(
+        shipped_case(name, std::make_unique<tools::RgbdScanSource>(folder, options), device));
   }
 }
 
@@ -111,18 +151,17 @@ void add_kitti_keyframe_runs(const std::string& data_dir, Device device,
   for (double scale : {0.0, 1.0}) {
     tools::LidarKeyframeScanOptions options;
     options.drift_scale = scale;
-    runs->push_back({scale == 0.0 ? "KITTI 07 keyframes no drift" : "KITTI 07 keyframes seed 1",
-                     std::make_unique<tools::LidarKeyframeGraphScanSource>(folder, options),
-                     preset_config("lidar_keyframes", device)});
+    runs->push_back(shipped_case(
+        scale == 0.0 ? "KITTI 07 keyframes no drift" : "KITTI 07 keyframes seed 1",
+        std::make_unique<tools::LidarKeyframeGraphScanSource>(folder, options), device));
   }
 }
 
 // The loops case's flight: two laps of a figure 8 twice the default's length (990 m a lap, its
 // crossing in the open), 256 columns, the odometry drift_percent % of the distance off at the end
 // (1 %: about 20 m, so the second lap passes the first's places 10-30 m from where the odometry
-// puts them, beyond the registration's search), mapped with the arche_sim preset, 24 m rays and
-// no weight drop-off, the odometry's noise estimated and place recognition; drift_percent 0:
-// the same flight with the odometry equal to the truth.
+// puts them, beyond the registration's search); drift_percent 0: the same flight with the
+// odometry equal to the truth.
 constexpr double kLoopLobeHalfLengthM = 110.0;
 
 std::unique_ptr<tools::ScanSource> loop_flight(uint64_t seed, double drift_percent) {
@@ -140,30 +179,6 @@ std::unique_ptr<tools::ScanSource> loop_flight(uint64_t seed, double drift_perce
   return std::make_unique<tools::SimScanSource>(options, 0.5);
 }
 
-pipeline::SlamConfig loop_config(Device device) {
-  pipeline::SlamConfig config = preset_config("arche_sim", device);
-  // The odometry's noise estimated from the data, between a floor of 0.2 % (0.005 degrees) per
-  // metre and a ceiling of 2 % (0.1 degrees): a 5 s link covers 10 m, so the ceiling gives a link
-  // about 0.2 m and a degree. The revisits' drift (pose_graph.revisit_drift_min_path_m) keeps the
-  // estimate from claiming a drifting odometry better than its loops show; without drift the
-  // estimate falls to its floor and the registrations cannot bend a good odometry.
-  config.odometry_translation_sigma_m = 0.05;
-  config.odometry_yaw_sigma_rad = 0.005;
-  config.odometry_drift_m_per_m = 0.02;
-  config.odometry_drift_deg_per_m = 0.1;
-  config.estimate_odometry_noise = true;
-  config.min_odometry_drift_m_per_m = 0.002;
-  config.min_odometry_drift_deg_per_m = 0.005;
-  // Rays to 24 m see each wall from more places than the preset's 16 m, and without the weight
-  // drop-off a visit behind a surface weighs as much as one in front of it, whatever the angle
-  // of the ray: two submaps that saw a wall from different places put it in the same place, so
-  // the registrations that link the laps between closures come out less short.
-  config.tsdf.max_ray_length_m = 24.0;
-  config.tsdf.use_weight_dropoff = false;
-  config.place_recognition.enabled = true;
-  return config;
-}
-
 void add_loop_runs(const std::string& seeds, double drift_percent, Device device,
                    std::vector<CaseRun>* runs) {
   if (!(drift_percent > 0.0 && drift_percent <= 10.0)) {
@@ -172,78 +187,89 @@ void add_loop_runs(const std::string& seeds, double drift_percent, Device device
                   drift_percent);
     throw Error(message);
   }
-  std::vector<uint64_t> list;
-  for (size_t begin = 0; begin < seeds.size();) {
-    const size_t end = std::min(seeds.find(',', begin), seeds.size());
-    const std::string item = seeds.substr(begin, end - begin);
-    if (item.empty() || item.find_first_not_of("0123456789") != std::string::npos) {
-      throw Error("--loop-seeds: '" + item + "' is not a seed (comma-separated integers >= 0)");
-    }
-    list.push_back(std::stoull(item));
-    begin = end + 1;
-  }
-  for (uint64_t seed : list) {
+  for (uint64_t seed : parse_seeds("--loop-seeds", seeds)) {
     if (seed > 0) {
       char name[96];
       std::snprintf(name, sizeof(name), "simulated loops seed %llu, %g %% drift",
                     static_cast<unsigned long long>(seed), drift_percent);
-      runs->push_back({name, loop_flight(seed, drift_percent), loop_config(device)});
+      runs->push_back(shipped_case(name, loop_flight(seed, drift_percent), device));
       continue;
     }
-    // Seed 0: seed 1's flight without drift, with place recognition and without it (what the
-    // closures themselves move on a perfect odometry).
-    runs->push_back({"simulated loops no drift", loop_flight(1, 0.0), loop_config(device)});
-    pipeline::SlamConfig without = loop_config(device);
-    without.place_recognition.enabled = false;
-    runs->push_back(
-        {"simulated loops no drift, no place recognition", loop_flight(1, 0.0), without});
+    runs->push_back(shipped_case("simulated loops no drift", loop_flight(1, 0.0), device));
   }
 }
 
-// The cases asked for whose inputs exist, each with its preset; a missing input is skipped with
-// a message.
-std::vector<CaseRun> collect_runs(const std::string& cases, const std::string& bag_path,
-                                  const std::string& data_dir, const std::string& loop_seeds,
-                                  double loop_drift_percent, Device device) {
+// What to run: the --cases list and the seeds of the simulated cases.
+struct Selection {
+  std::string cases;  // empty: sim and the real data; "all": the whole matrix
+  std::string sim_seeds, loop_seeds;
+  double loop_drift_percent = 1.0;
+  std::string bag_path, data_dir;
+};
+
+bool wanted(const Selection& selection, const std::string& name) {
+  const std::string& cases = selection.cases;
+  return cases.empty() || cases == "all" ||
+         ("," + cases + ",").find("," + name + ",") != std::string::npos;
+}
+
+// A dataset folder's case when the folder exists; a message otherwise.
+void add_if_present(const std::string& name, const std::string& folder,
+                    const std::function<std::unique_ptr<tools::ScanSource>()>& open, Device device,
+                    std::vector<CaseRun>* runs) {
+  if (!std::filesystem::exists(folder)) {
+    std::printf("skipping %s: no folder '%s'\n", name.c_str(), folder.c_str());
+    return;
+  }
+  runs->push_back(shipped_case(name, open(), device));
+}
+
+// The cases asked for whose inputs exist, each as run_slam maps it; a missing input is skipped
+// with a message.
+std::vector<CaseRun> collect_runs(const Selection& selection, Device device) {
+  const bool matrix = selection.cases == "all";
   std::vector<CaseRun> runs;
-  if (wanted(cases, "sim")) {
-    if (std::filesystem::exists(bag_path)) {
-      runs.push_back({"simulated flight",
-                      std::make_unique<tools::BagScanSource>(bag_path, tools::BagScanOptions()),
-                      preset_config("arche_sim", device)});
-    } else {
-      std::printf("skipping the simulated flight: no bag '%s' (make demo writes it)\n",
-                  bag_path.c_str());
-    }
+  if (wanted(selection, "sim"))
+    add_sim_runs(matrix ? seed_range(1, 15) : selection.sim_seeds, device, &runs);
+  if (!selection.cases.empty() && !matrix && wanted(selection, "bag")) {
+    add_if_present(
+        "flight bag", selection.bag_path,
+        [&] {
+          return std::make_unique<tools::BagScanSource>(selection.bag_path,
+                                                        tools::BagScanOptions());
+        },
+        device, &runs);
   }
-  const std::string kitchen = data_dir + "/7scenes-redkitchen";
-  if (wanted(cases, "7scenes")) {
-    if (std::filesystem::exists(kitchen)) {
-      tools::RgbdScanOptions options;
-      options.pixel_stride = 4;
-      runs.push_back({"7-Scenes redkitchen",
-                      std::make_unique<tools::RgbdScanSource>(kitchen, options),
-                      preset_config("rgbd", device)});
-    } else {
-      std::printf("skipping 7-Scenes: no folder '%s'\n", kitchen.c_str());
-    }
+  const std::string kitchen = selection.data_dir + "/7scenes-redkitchen";
+  if (wanted(selection, "7scenes")) {
+    add_if_present(
+        "7-Scenes redkitchen", kitchen,
+        [&] {
+          tools::RgbdScanOptions options;
+          options.pixel_stride = 4;
+          return std::make_unique<tools::RgbdScanSource>(kitchen, options);
+        },
+        device, &runs);
   }
-  if (wanted(cases, "7scenes-long")) add_kitchen_long_runs(data_dir, device, &runs);
-  const std::string riverside = data_dir + "/mulran-riverside02";
-  if (wanted(cases, "mulran")) {
-    if (std::filesystem::exists(riverside)) {
-      runs.push_back({"MulRan Riverside02",
-                      std::make_unique<tools::LidarKeyframeScanSource>(
-                          riverside, tools::LidarKeyframeScanOptions()),
-                      preset_config("lidar_keyframes", device)});
-    } else {
-      std::printf("skipping MulRan: no folder '%s'\n", riverside.c_str());
-    }
+  if (wanted(selection, "7scenes-long")) add_kitchen_long_runs(selection.data_dir, device, &runs);
+  const std::string riverside = selection.data_dir + "/mulran-riverside02";
+  if (wanted(selection, "mulran")) {
+    add_if_present(
+        "MulRan Riverside02", riverside,
+        [&] {
+          return std::make_unique<tools::LidarKeyframeScanSource>(
+              riverside, tools::LidarKeyframeScanOptions());
+        },
+        device, &runs);
   }
-  if (wanted(cases, "kitti07")) add_kitti_keyframe_runs(data_dir, device, &runs);
+  if (wanted(selection, "kitti07")) add_kitti_keyframe_runs(selection.data_dir, device, &runs);
   // Long flights (minutes each on a GPU, tens of minutes on the CPU): only when named.
-  if (!cases.empty() && wanted(cases, "loops"))
-    add_loop_runs(loop_seeds, loop_drift_percent, device, &runs);
+  if (matrix) {
+    add_loop_runs(seed_range(0, 26), 1.0, device, &runs);
+    add_loop_runs(seed_range(1, 13), 2.0, device, &runs);
+  } else if (!selection.cases.empty() && wanted(selection, "loops")) {
+    add_loop_runs(selection.loop_seeds, selection.loop_drift_percent, device, &runs);
+  }
   return runs;
 }
 
@@ -251,11 +277,11 @@ std::vector<CaseRun> collect_runs(const std::string& cases, const std::string& b
 constexpr double kWrongConstraintM = 0.1;
 constexpr double kWrongConstraintRad = 5.0 * 3.14159265358979323846 / 180.0;
 
-// Place recognition's closures against the truth: rows, and the count of wrong ones.
+// Place recognition's closures against the truth (none when it is off): rows, and the count of
+// wrong ones.
 int64_t report_closures(const CaseRun& run, const tools::SlamRunResult& result,
                         tools::BenchmarkReport* report) {
-  if (!run.config.place_recognition.enabled ||
-      run.source->reference_kind() != tools::ReferenceKind::kGroundTruth) {
+  if (run.source->reference_kind() != tools::ReferenceKind::kGroundTruth) {
     return 0;
   }
   const eval::ConstraintEvaluation constraints = eval::evaluate_registration_constraints(
@@ -354,21 +380,24 @@ void apply_config_file(const std::string& path, std::vector<CaseRun>* runs) {
 int main(int argc, char** argv) {
   tools::CommandLine args(argc, argv, kUsage);
   const std::string device_text = args.text("--device", "auto");
-  const std::string cases = args.text("--cases", "");
-  const std::string bag_path = args.text("--bag", "demo_output/flight_seed1_256col/flight.bag");
-  const std::string data_dir = args.text("--data-dir", io::data_directory());
+  Selection selection;
+  selection.cases = args.text("--cases", "");
+  selection.sim_seeds = args.text("--sim-seeds", "1");
+  selection.loop_seeds = args.text("--loop-seeds", "0,1,2,3,4,5");
+  selection.loop_drift_percent = args.number("--loop-drift-percent", 1.0, 0.0, 100.0);
+  selection.bag_path = args.text("--bag", "demo_output/flight_seed1_256col/flight.bag");
+  selection.data_dir = args.text("--data-dir", io::data_directory());
   const std::string trajectories_dir = args.text("--trajectories-dir", "");
-  const std::string output = args.output_file("--output", "docs/benchmarks/accuracy.json");
-  const std::string loop_seeds = args.text("--loop-seeds", "0,1,2,3,4,5");
-  const double loop_drift_percent = args.number("--loop-drift-percent", 1.0, 0.0, 100.0);
+  const std::string output =
+      args.output_file("--output", selection.cases == "all" ? "docs/benchmarks/accuracy_matrix.json"
+                                                            : "docs/benchmarks/accuracy.json");
   const std::string config_path = args.text("--config", "");
   args.finish();
 
   try {
     const Device device = select_device(parse_device_request(device_text));
     tools::BenchmarkReport report("accuracy", describe_device(device), argc, argv);
-    std::vector<CaseRun> runs =
-        collect_runs(cases, bag_path, data_dir, loop_seeds, loop_drift_percent, device);
+    std::vector<CaseRun> runs = collect_runs(selection, device);
     if (runs.empty()) throw Error("no case to run (see the messages above)");
     if (!config_path.empty()) apply_config_file(config_path, &runs);
     int64_t wrong_closures = 0;

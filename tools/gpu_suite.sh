@@ -12,8 +12,10 @@
 #   bench[:NAME,...]     benchmarks: hash_table, tsdf, esdf_mesh, backend (default: all four)
 #   flight               simulate the 1024-column drone flight and map it on the GPU
 #                        (docs/benchmarks/pipeline.json)
-#   accuracy             the accuracy cases (simulated flight, 7-Scenes, MulRan) on the GPU
-#                        (docs/benchmarks/accuracy.json; the real-data cases need COVOX_DATA_DIR)
+#   accuracy             the accuracy cases on the GPU with the shipped defaults: simulated flight,
+#                        7-Scenes, MulRan, KITTI (docs/benchmarks/accuracy.json; the real-data
+#                        cases need COVOX_DATA_DIR); ACCURACY_ARGS="--cases all" runs the whole
+#                        matrix (docs/benchmarks/accuracy_matrix.json)
 #
 # Environment (all optional):
 #   CUDA_ARCH                 CUDA architectures; default: the first GPU's compute capability
@@ -25,6 +27,7 @@
 #   COVOX_EIGEN_INCLUDE_DIR   Eigen's headers, where Eigen is not installed
 #   COVOX_GTEST_SOURCE_DIR    GoogleTest's sources, where GoogleTest is not installed
 #   BENCH_ARGS                extra arguments for every benchmark
+#   ACCURACY_ARGS             extra arguments for benchmark_accuracy (e.g. "--cases all")
 set -uo pipefail
 cd "$(dirname "$0")/.." || exit 1
 OUT=${OUT:-$PWD/gpu_suite_out}
@@ -122,12 +125,10 @@ step_flight() {
 
 step_accuracy() {
   echo "== accuracy (benchmark_accuracy --device cuda)"
-  simulate 1 256 "$OUT/flight_seed1_256col" || return 1
   local extra=()
   [ -n "${COVOX_DATA_DIR:-}" ] && extra+=(--data-dir "$COVOX_DATA_DIR")
-  "./$BUILD/benchmark_accuracy" --device cuda --bag "$OUT/flight_seed1_256col/flight.bag" \
-    "${extra[@]}" > "$OUT/benchmark_accuracy.log" 2>&1 ||
-    { tail -20 "$OUT/benchmark_accuracy.log"; return 1; }
+  "./$BUILD/benchmark_accuracy" --device cuda "${extra[@]}" ${ACCURACY_ARGS:-} \
+    > "$OUT/benchmark_accuracy.log" 2>&1 || { tail -20 "$OUT/benchmark_accuracy.log"; return 1; }
   tail -30 "$OUT/benchmark_accuracy.log"
 }
 

@@ -320,13 +320,7 @@ std::unique_ptr<tools::ScanSource> open_source(RunnerSettings& s) {
 // command line's overrides.
 pipeline::SlamConfig build_config(RunnerSettings& s, const tools::ScanSource& source,
                                   Device device) {
-  if (s.preset.empty()) {
-    s.preset = dynamic_cast<const tools::RgbdScanSource*>(&source)            ? "rgbd"
-               : dynamic_cast<const tools::LidarKeyframeScanSource*>(&source) ? "lidar_keyframes"
-               : dynamic_cast<const tools::LidarKeyframeGraphScanSource*>(&source)
-                   ? "lidar_keyframes"
-                   : "arche_sim";
-  }
+  if (s.preset.empty()) s.preset = tools::default_preset(source);
   pipeline::SlamConfig config = pipeline::load_preset(s.preset);
   if (!s.config_path.empty()) {
     const pipeline::SlamConfigFileUse use = pipeline::load_slam_config(s.config_path, &config);
