@@ -18,6 +18,7 @@
 #include <functional>
 #include <limits>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "covoxslam/core/error.h"
@@ -935,6 +936,33 @@ TEST(IoPly, AsciiWithPolygonsExtraPropertiesAndElements) {
   expect_error_mentioning([&] { io::read_mesh_ply(path); }, {path, "truncated"});
   write_text(path, "solid ascii stl\n");
   expect_error_mentioning([&] { io::read_mesh_ply(path); }, {path, "not a PLY"});
+}
+
+// Each malformed header line is refused naming the file, its line and what was expected.
+TEST(IoPly, MalformedHeaderLinesAreRefusedByFileAndLine) {
+  ScratchFolder scratch;
+  const std::string path = scratch.file("bad.ply");
+  const std::string vertex = "element vertex 1\nproperty float x\n";
+  const std::vector<std::pair<std::string, std::vector<std::string>>> cases = {
+      {"ply\nformat\n" + vertex + "end_header\n", {path + ":2", "format line without"}},
+      {"ply\nformat ascii 1.0\nelement vertex\nend_header\n", {path + ":3", "element <name>"}},
+      {"ply\nformat ascii 1.0\nelement vertex 2x\nend_header\n", {path + ":3", "<count>"}},
+      {"ply\nformat ascii 1.0\nproperty float x\nend_header\n",
+       {path + ":3", "before any element"}},
+      {"ply\nformat ascii 1.0\nelement vertex 1\nproperty quad x\nend_header\n",
+       {path + ":4", "cannot parse property"}},
+      {"ply\nformat ascii 1.0\nelement face 1\nproperty list float int idx\nend_header\n",
+       {path + ":4", "cannot parse property"}},
+      {"ply\nformat ascii 1.0\n" + vertex + "vertices 3\nend_header\n",
+       {path + ":5", "unknown PLY header keyword 'vertices'"}},
+      {"ply\n" + vertex + "end_header\n0\n", {path, "no format line"}},
+      {"ply\nformat ascii 1.0\n" + vertex, {path, "no end_header"}},
+  };
+  for (const auto& [text, fragments] : cases) {
+    SCOPED_TRACE(text);
+    write_text(path, text);
+    expect_error_mentioning([&] { io::read_mesh_ply(path); }, fragments);
+  }
 }
 
 TEST(IoPly, ReplicaGroundTruthMesh) {

@@ -74,6 +74,46 @@ size_t type_bytes(PlyType type) {
 
 bool is_float(PlyType type) { return type == PlyType::kFloat32 || type == PlyType::kFloat64; }
 
+using Tokens = std::vector<std::string_view>;
+
+// "format ascii|binary_little_endian <version>"; `where` names the file and line.
+PlyFormat parse_format_line(const Tokens& tokens, const std::string& where) {
+  if (tokens.size() < 2) throw Error(where + ": format line without a format");
+  if (tokens[1] == "ascii") return PlyFormat::kAscii;
+  if (tokens[1] == "binary_little_endian") return PlyFormat::kBinaryLittleEndian;
+  throw Error(where + ": PLY format '" + std::string(tokens[1]) +
+              "' is not supported (ascii and binary_little_endian are)");
+}
+
+// "element <name> <count>".
+PlyElement parse_element_line(const Tokens& tokens, const std::string& where) {
+  PlyElement element;
+  const char* count_end = tokens.size() == 3 ? tokens[2].data() + tokens[2].size() : nullptr;
+  if (tokens.size() != 3 ||
+      std::from_chars(tokens[2].data(), count_end, element.count).ptr != count_end) {
+    throw Error(where + ": expected 'element <name> <count>'");
+  }
+  element.name = std::string(tokens[1]);
+  return element;
+}
+
+// "property <type> <name>" or "property list <count type> <type> <name>" (an integer count).
+PlyProperty parse_property_line(const Tokens& tokens, const std::string& where) {
+  PlyProperty property;
+  bool ok = false;
+  if (tokens.size() == 5 && tokens[1] == "list") {
+    property.is_list = true;
+    ok = parse_type(tokens[2], &property.count_type) && parse_type(tokens[3], &property.type) &&
+         !is_float(property.count_type);
+    property.name = std::string(tokens[4]);
+  } else if (tokens.size() == 3) {
+    ok = parse_type(tokens[1], &property.type);
+    property.name = std::string(tokens[2]);
+  }
+  if (!ok) throw Error(where + ": cannot parse property line");
+  return property;
+}
+
 PlyHeader parse_header(const std::vector<uint8_t>& bytes, const std::string& path) {
   const std::string_view all(reinterpret_cast<const char*>(bytes.data()), bytes.size());
   if (all.substr(0, 3) != "ply" || (all.size() > 3 && all[3] != '\n' && all[3] != '\r')) {
@@ -89,48 +129,20 @@ PlyHeader parse_header(const std::vector<uint8_t>& bytes, const std::string& pat
       throw Error("'" + path + "': PLY header has no end_header line (truncated file?)");
     }
     ++line_number;
-    const std::vector<std::string_view> tokens =
-        split_whitespace(all.substr(position, line_end - position));
+    const Tokens tokens = split_whitespace(all.substr(position, line_end - position));
     position = line_end + 1;
     const std::string where = path + ":" + std::to_string(line_number);
     if (tokens.empty() || tokens[0] == "comment" || tokens[0] == "obj_info" || tokens[0] == "ply")
       continue;
     if (tokens[0] == "end_header") break;
     if (tokens[0] == "format") {
-      if (tokens.size() < 2) throw Error(where + ": format line without a format");
-      if (tokens[1] == "ascii") {
-        header.format = PlyFormat::kAscii;
-      } else if (tokens[1] == "binary_little_endian") {
-        header.format = PlyFormat::kBinaryLittleEndian;
-      } else {
-        throw Error(where + ": PLY format '" + std::string(tokens[1]) +
-                    "' is not supported (ascii and binary_little_endian are)");
-      }
+      header.format = parse_format_line(tokens, where);
       have_format = true;
     } else if (tokens[0] == "element") {
-      PlyElement element;
-      const char* count_end = tokens.size() == 3 ? tokens[2].data() + tokens[2].size() : nullptr;
-      if (tokens.size() != 3 ||
-          std::from_chars(tokens[2].data(), count_end, element.count).ptr != count_end) {
-        throw Error(where + ": expected 'element <name> <count>'");
-      }
-      element.name = std::string(tokens[1]);
-      header.elements.push_back(std::move(element));
+      header.elements.push_back(parse_element_line(tokens, where));
     } else if (tokens[0] == "property") {
       if (header.elements.empty()) throw Error(where + ": property before any element");
-      PlyProperty property;
-      bool ok = false;
-      if (tokens.size() == 5 && tokens[1] == "list") {
-        property.is_list = true;
-        ok = parse_type(tokens[2], &property.count_type) && parse_type(tokens[3], &property.type) &&
-             !is_float(property.count_type);
-        property.name = std::string(tokens[4]);
-      } else if (tokens.size() == 3) {
-        ok = parse_type(tokens[1], &property.type);
-        property.name = std::string(tokens[2]);
-      }
-      if (!ok) throw Error(where + ": cannot parse property line");
-      header.elements.back().properties.push_back(std::move(property));
+      header.elements.back().properties.push_back(parse_property_line(tokens, where));
     } else {
       throw Error(where + ": unknown PLY header keyword '" + std::string(tokens[0]) + "'");
     }

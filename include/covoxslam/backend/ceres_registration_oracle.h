@@ -1,19 +1,12 @@
 #pragma once
 // Ceres as the oracle for 4-DoF pose graphs with dense registration terms (registration_terms.h),
-// for tests and benchmarks only (like ceres_pose_graph_oracle.h: empty unless COVOX_HAVE_CERES).
-//
-// As voxgraph does it: one ceres::CostFunction per submap pair, one residual per registration
-// point, over the two 4-DoF pose blocks. Each point's residual and analytic Jacobians come from
-// registration_residual() evaluated on the host against a host copy of submap j's field (the same
-// trilinear interpolation as the device kernels); Ceres does everything else (its own LM, normal
-// equations, linear solver). A point outside j's field contributes residual 0 and a zero row,
-// exactly as the solver drops it.
-//
-// Robust losses: Ceres applies a LossFunction to a whole residual block, and a block here is a
-// whole pair, so the per-point loss is folded into the residual instead: s = sign(r) sqrt(rho(r^2))
-// has 0.5 s^2 = 0.5 rho(r^2), the same cost as the solver's, and ds/dr = rho'(r^2) r / s. The
-// objective is identical; only the Gauss-Newton Hessian differs from the solver's IRLS one, so
-// both converge to the same minimum along different paths.
+// for tests and benchmarks only (empty unless COVOX_HAVE_CERES). As voxgraph does it: one
+// ceres::CostFunction per submap pair, one residual per registration point, evaluated on the host
+// by registration_residual() against a host copy of submap j's field (a point outside it gives 0
+// and a zero row, as the solver drops it). Ceres applies a loss to a whole residual block (here a
+// pair), so the per-point loss is folded into the residual: s = sign(r) sqrt(rho(r^2)) has
+// 0.5 s^2 = 0.5 rho(r^2), the solver's cost, and ds/dr = rho'(r^2) r / s. Only the Gauss-Newton
+// Hessian differs from the solver's IRLS one, so both reach the same minimum by other paths.
 #if COVOX_HAVE_CERES
 #include <ceres/ceres.h>
 

@@ -1,23 +1,12 @@
 #pragma once
-// Residuals and analytic Jacobians of the pose-graph constraints, one "model" per mode. The solver
-// is written once over a model:
-//
+// Residuals and analytic Jacobians of the pose-graph constraints, one "model" per mode (Se3Model,
+// FourDofModel below, each with its residual). The solver is written once over a model:
 //   Model::kDim                  tangent dimension D of a pose (6 or 4)
 //   Model::Pose / ::Constraint   the types of pose_graph_types.h
 //   Model::evaluate(c, poses, f, Ji, Jj)   whitened residual f = S r (D values) and its Jacobians
 //                                with respect to the tangent updates of poses[c.from] and
 //                                poses[c.to] (D x D, row-major; Jj is zero for unary constraints)
 //   Model::plus(pose, delta)     the pose moved by a tangent step
-//
-// SE(3) residual (documented choice, the Ceres oracle in the tests uses the same one):
-//   E = Z_ij^-1 * T_i^-1 * T_j,   r = [ t(E) ; log(R(E)) ]   (translation first, as g2o orders its
-//   information matrix; log is the rotation vector with angle in [0, pi]).
-// SE(3) update: t <- t + dt, R <- R Exp(dtheta) (rotation perturbed on the right).
-//
-// 4-DoF residuals (voxgraph's odometry form):
-//   relative: r = [ Rz(yaw_i)^T (p_j - p_i) - dp ; wrap(yaw_j - yaw_i - dyaw) ]
-//   absolute: r = [ p_i - p_measured ; 0 ]
-// 4-DoF update: plain addition (yaw is not wrapped; residuals are).
 #include <Eigen/Core>
 
 #include "covoxslam/backend/pose_graph_types.h"
@@ -56,6 +45,10 @@ COVOX_HD_INLINE double half_squared_whitened_norm(const double* sqrt_information
   return 0.5 * sum;
 }
 
+// SE(3) residual (documented choice, the Ceres oracle in the tests uses the same one):
+//   E = Z_ij^-1 * T_i^-1 * T_j,   r = [ t(E) ; log(R(E)) ]   (translation first, as g2o orders its
+//   information matrix; log is the rotation vector with angle in [0, pi]).
+// SE(3) update: t <- t + dt, R <- R Exp(dtheta) (rotation perturbed on the right).
 struct Se3Model {
   static constexpr int kDim = 6;
   using Pose = Se3Pose;
@@ -151,6 +144,10 @@ struct Se3Model {
   }
 };
 
+// 4-DoF residuals (voxgraph's odometry form):
+//   relative: r = [ Rz(yaw_i)^T (p_j - p_i) - dp ; wrap(yaw_j - yaw_i - dyaw) ]
+//   absolute: r = [ p_i - p_measured ; 0 ]
+// 4-DoF update: plain addition (yaw is not wrapped; residuals are).
 struct FourDofModel {
   static constexpr int kDim = 4;
   using Pose = Pose4Dof;

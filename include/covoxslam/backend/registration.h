@@ -1,25 +1,12 @@
 #pragma once
-// Submap-to-submap registration (paper III-F; voxgraph's `explicit_to_implicit`):
-//   1. registration points of submap i: its surface voxels (|TSDF| small, weight high enough),
-//      deterministically subsampled with `sampling_ratio`, kept on the device;
-//   2. per point p the residual r = sqrt(w) * (D_j(T_Sj^-1 T_Si p) - d_target), where D_j is the
-//      trilinearly interpolated distance field of submap j, with analytic Jacobians with respect
-//      to both 4-DoF poses (x, y, z, yaw) from the field's gradient;
-//   3. a small Levenberg-Marquardt aligner over the relative pose (4x4 system on the host,
-//      residuals, Jacobians and their J^T J reduction in parallel on the device; many pairs at
-//      once in registration_batch.h, which the aligners below run with one pair);
-//   4. an overlap test and a pose-graph constraint built from an alignment.
-//
-// Why D_j is not always the plain ESDF: this library's ESDF is the exact distance to the nearest
-// surface *site* (a voxel centre with |TSDF| <= site threshold), so it is zero on a band about
-// two voxels thick and steps in whole voxels next to it. That flat band would leave the aligner
-// blind to sub-voxel offsets (a 5 cm error at 10 cm voxels). With
-// RegistrationDistance::kTsdfNearSurface (the default) corners whose TSDF is observed and within
-// `tsdf_band_m` of the surface use the TSDF distance (sub-voxel accurate), all others the ESDF
-// (far-field gradient that pulls large offsets in). The point's own TSDF distance is then the
-// target (a voxel centre 3 cm in front of the surface should read 3 cm in submap j too), which
-// avoids projecting points onto the isosurface. RegistrationDistance::kEsdf is voxgraph's
-// formulation: the ESDF only, target 0.
+// Submap-to-submap registration (paper III-F; voxgraph's `explicit_to_implicit`): registration
+// points of submap i (its surface voxels, deterministically subsampled, kept on the device); per
+// point p the residual r = sqrt(w) * (D_j(T_Sj^-1 T_Si p) - d_target), D_j the trilinearly
+// interpolated distance field of submap j (RegistrationDistance), with analytic Jacobians with
+// respect to both 4-DoF poses; a small Levenberg-Marquardt aligner over the relative pose (4x4
+// system on the host, residuals and their J^T J reduction on the device; many pairs at once in
+// registration_batch.h, which the aligners below run with one pair); an overlap test and the
+// pose-graph constraint built from an alignment. docs/design.md ("Registration") has the rest.
 #include <Eigen/Core>
 #include <cstdint>
 #include <vector>
@@ -63,6 +50,14 @@ RegistrationPoints extract_registration_points(const map::TsdfMap& map,
                                                const Stream& stream);
 
 enum class RobustLoss { kNone, kHuber, kCauchy };
+// Why D_j is not always the plain ESDF: this library's ESDF is the exact distance to the nearest
+// surface *site* (a voxel centre with |TSDF| <= site threshold), so it is zero on a band about
+// two voxels thick and steps in whole voxels next to it, which would leave the aligner blind to
+// sub-voxel offsets. With kTsdfNearSurface (the default) corners whose TSDF is observed and
+// within `tsdf_band_m` of the surface use the TSDF distance (sub-voxel accurate), all others the
+// ESDF (a far-field gradient that pulls large offsets in), and the point's own TSDF distance is
+// the target (a voxel centre 3 cm in front of the surface should read 3 cm in submap j too), so
+// points are not projected onto the isosurface. kEsdf is voxgraph's formulation: ESDF, target 0.
 enum class RegistrationDistance { kEsdf, kTsdfNearSurface };
 
 struct RegistrationResidualConfig {

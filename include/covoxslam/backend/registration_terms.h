@@ -1,14 +1,11 @@
 #pragma once
 // Dense registration terms inside the 4-DoF pose graph (voxgraph's formulation: the registration
-// residuals of every overlapping submap pair are part of the optimisation, not summarised into
-// one relative-pose constraint first).
-//
-// A term joins vertex i (whose registration points are used) and vertex j (whose distance field
-// is looked up): per point p of submap i the residual r = sqrt(w) (D_j(T_Sj^-1 T_Si p) - target)
-// of registration.h, with its robust loss. The solver evaluates the residuals and Jacobians of all
-// terms in one launch, reduces them per pair into the 4x4 blocks H_ii, H_ij, H_jj, g_i, g_j
-// (robust losses by IRLS weights: H = sum rho' J^T J, g = sum rho' J^T r) and adds those blocks
-// to the block-sparse normal equations next to the ordinary constraints. Its cost is
+// residuals of every overlapping pair are part of the optimisation, not summarised into one
+// relative-pose constraint first). A term joins vertex i (whose registration points are used) and
+// vertex j (whose distance field is looked up), with registration.h's residual and robust loss
+// per point. The solver evaluates all terms in one launch, reduces them per pair into the 4x4
+// blocks H_ii, H_ij, H_jj, g_i, g_j (IRLS: H = sum rho' J^T J, g = sum rho' J^T r) and adds them
+// to the block-sparse normal equations beside the ordinary constraints. Its cost is
 // sum 0.5 rho(r^2) over the points that fall inside submap j's observed field.
 #include <cstdint>
 #include <vector>

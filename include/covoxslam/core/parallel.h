@@ -1,17 +1,12 @@
 #pragma once
-// Parallel primitives with one call site for both backends.
-//
-//   parallel_for(backend, stream, n, functor)      functor(i) for i in [0, n)
-//   exclusive_scan / sort_by_key / reduce_by_key / unique / reduce / count_if
-//
-// `backend` is a tag (CpuBackend or CudaBackend). The CPU versions use OpenMP and Thrust's
-// omp::par; the CUDA versions, visible only to nvcc, launch a kernel or use Thrust's
-// cuda::par_nosync on the stream. Functors must be COVOX_HD (or `[=] COVOX_HD` lambdas).
-//
-// CUDA 11.4 (JetPack 5) ships Thrust/CUB 1.x, which lack par_nosync and
-// cub::DeviceReduce::TransformReduce: the version checks below pick `par` (which waits for the
-// stream after each algorithm: the same results, more synchronisation) and a reduction over a
-// transforming iterator there, and leave the newer toolkits' calls as they are.
+// Parallel primitives with one call site for both backends: parallel_for(backend, stream, n,
+// functor) calls functor(i) for i in [0, n); exclusive_scan, sort_by_key, reduce_by_key, unique,
+// reduce, count_if. `backend` is a tag (CpuBackend or CudaBackend). The CPU versions use OpenMP
+// and Thrust's omp::par; the CUDA versions, visible only to nvcc, launch a kernel or use Thrust's
+// cuda::par_nosync on the stream. Functors must be COVOX_HD (or `[=] COVOX_HD` lambdas). CUDA
+// 11.4's Thrust/CUB 1.x lacks par_nosync and cub::DeviceReduce::TransformReduce: the version
+// checks below pick `par` (the same results, a wait after each algorithm) and a reduction over a
+// transforming iterator there.
 #include <algorithm>
 #include <cstdint>
 #include <type_traits>

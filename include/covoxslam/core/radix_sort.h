@@ -1,19 +1,9 @@
 #pragma once
 // Stable radix sort of (unsigned key, value) pairs by the low `key_bits` bits of the keys, on both
-// backends. Keys are 64- or 32-bit (a frame whose keys fit in 32 bits moves half the key bytes).
-// The value is any trivially copyable type: an index to permute large records by, or a small
-// record itself (a TSDF visit record travels with its key, so no gather follows). Integration
-// keys are built relative to the frame's bounding box, so a frame's keys need 20-30 bits, not 64:
-// sorting only those bits takes 3-4 passes of 8 bits instead of the 8 a full 64-bit sort pays
-// for (CUB's begin/end bits on the GPU; an OpenMP LSD radix sort on the CPU twin). Both are
-// stable, so both backends produce the same order.
-//
-// `keys_alt` and `values_alt` are scratch arrays of at least `count` elements on the same device.
-// Keys must be < 2^key_bits (bits above are ignored, so larger keys would sort wrongly).
-//
-// radix_sort_pairs_swapping() leaves the result in whichever pair of arrays the last pass wrote
-// and swaps the pointers so that `keys` / `values` name it: an odd number of passes then costs
-// no copy back (up to 12 bytes per pair, and two more device operations).
+// backends (CUB's begin/end bits on the GPU; an OpenMP LSD radix sort on the CPU twin), so both
+// produce the same order. Keys are 64- or 32-bit; the value is any trivially copyable type (an
+// index, or a TSDF visit record travelling with its key, so no gather follows). Integration keys
+// are relative to the frame's box and need 20-30 bits: 3-4 passes of 8 bits instead of 8.
 #include <algorithm>
 #include <cstdint>
 #include <cstring>
@@ -35,6 +25,11 @@
 
 namespace covox {
 
+// `keys_alt` and `values_alt` are scratch arrays of at least `count` elements on the same device.
+// Keys must be < 2^key_bits (bits above are ignored, so larger keys would sort wrongly). The
+// result is left in whichever pair of arrays the last pass wrote, and the pointers are swapped so
+// that `keys` / `values` name it: an odd number of passes then costs no copy back (up to 12 bytes
+// per pair, and two more device operations).
 template <class Key, class Value>
 void radix_sort_pairs_swapping(CpuBackend, const Stream&, Key*& keys, Value*& values, int64_t count,
                                int key_bits, Key*& keys_alt, Value*& values_alt) {

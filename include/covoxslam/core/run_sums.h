@@ -1,29 +1,11 @@
 #pragma once
-// Sums of the runs of equal keys in sorted records, handed straight to the caller's consumer
-// instead of being written to arrays of merged keys and sums (a reduction by key followed by a
-// kernel that reads its output back):
-//
-//   consume_run_sums<SumT>(backend, stream, keys, count, term, op, consume, scratch)
-//
-// calls consume(first, sum) once per run of equal keys among keys[0, count), with the index of
-// the run's first record and op-sum of term(j) over the run's records j. A TSDF frame's visit
-// records sorted by voxel, say: one call per voxel with its merged update, which the consumer
-// writes to the map.
-//
-// The records are cut into tiles of kRunSumTile. Each tile sums the runs that start and end in it
-// and hands them over itself; a run that goes on past its tile leaves its partial sums (the start
-// tile's tail, the head of each tile it reaches) for a second kernel, one thread per tile, in
-// which the run's start tile adds them up in tile order. On the GPU a tile is one thread block:
-// each thread sums kRunSumItems consecutive records, a segmented scan over the block joins the
-// threads' partial runs, and the runs that end in the tile are listed in shared memory and
-// consumed one per thread; on the CPU each tile is summed left to right by one thread. Either
-// way the order of the additions is fixed by the records' positions, so the sums are the same
-// every run (the two backends may round differently: the GPU adds a run's pieces as a tree).
-//
-// Why not a device-wide reduction by key: CUB's, on wide coloured updates, needs many registers
-// per thread (few threads resident, much time at barriers) and writes its output to memory, from
-// where a second kernel reads it back for the writes. Here a run's sum goes from registers (or
-// shared memory) straight to the consumer.
+// consume_run_sums: sums of the runs of equal keys in sorted records, handed straight to the
+// caller's consumer (a TSDF frame's visit records sorted by voxel: one call per voxel with its
+// merged update, which the consumer writes to the map), instead of a device-wide reduction by key
+// that writes merged keys and sums for a second kernel to read back (CUB's, on wide coloured
+// updates, also needs many registers per thread). The order of the additions is fixed by the
+// records' positions, so the sums are the same every run (the two backends may round
+// differently: the GPU adds a run's pieces as a tree).
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -258,7 +240,14 @@ void sum_tiles(CudaBackend, const Stream& stream, const KeyT* keys, int64_t coun
 
 }  // namespace internal
 
-// See the top of the file. Needs count < 2^32 - 1; `scratch` holds the tiles' parts (resized
+// Calls consume(first, sum) once per run of equal keys among keys[0, count), with the index of
+// the run's first record and op-sum of term(j) over the run's records j. Each tile of kRunSumTile
+// records sums the runs that start and end in it and hands them over itself; a run that goes on
+// past its tile leaves its partial sums for a second kernel, one thread per tile, in which the
+// run's start tile adds them up in tile order. On the GPU a tile is one thread block (each thread
+// sums kRunSumItems records, a segmented block scan joins the threads' partial runs, the runs
+// that end in the tile are consumed one per thread); on the CPU one thread sums a tile left to
+// right. Needs count < 2^32 - 1; `scratch` holds the tiles' parts (resized
 // here, on the backend's device). `run_count`, when given (memory of the backend's device), is
 // increased by the number of runs. `live_count`, when given (memory of the backend's device),
 // says how many of the `count` records are there (known on the device only: the rest are

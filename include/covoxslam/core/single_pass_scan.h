@@ -1,28 +1,11 @@
 #pragma once
-// Exclusive prefix sums of 32-bit values given by a functor, in one kernel launch on the GPU:
-//
-//   exclusive_scan_of(backend, stream, count, value_of, out)   out[i] = value_of(0) + ... +
-//   value_of(i - 1)
-//
-// value_of(i) is called exactly once for each i in [0, count) (so it may also write something of
-// its own, such as the piece table beside the piece sizes), and `out` may be the array value_of
-// reads, since each element is read before it is written. Sums wrap modulo 2^32. `out` may also
-// be a functor, called as out(i, prefix) once for each i after value_of(i) (scan_output below):
-// what a kernel after the scan would have done with each prefix, without its launch.
-//
-// Why not CUB's DeviceScan: a frame's small scans are bound by their launches, not by their
-// kernels, and CUB's scan costs a sizing call, an init kernel and a scan kernel; a scan of a
-// functor also saves the kernel that would have written the values first. The GPU version is a
-// decoupled look-back scan (Merrill and Garland, 2016) whose tile descriptors carry an epoch: a
-// descriptor left by an earlier scan on the same stream reads as "not yet published", so the
-// descriptors need no init kernel. Tiles of 256 x kItems values (2048 by default), one thread
-// block each: a block sums its tile, publishes the sum, finds its prefix from its predecessors'
-// published sums (one warp looking back 32 tiles at a time) and publishes its inclusive prefix.
-// Like CUB's scan it relies on blocks starting in index order (a block waits only for
-// lower-numbered ones).
-//
-// The CPU version (parallel.h) writes the values to `out` and scans them in place (Thrust,
-// OpenMP). This header holds the GPU version; include parallel.h for both.
+// The GPU version of exclusive_scan_of (include parallel.h for both backends; the CPU's writes
+// the values to `out` and scans them in place with Thrust): exclusive prefix sums of 32-bit
+// values given by a functor, in one kernel launch. A frame's small scans are bound by their
+// launches, and CUB's DeviceScan costs a sizing call, an init kernel and a scan kernel (and a
+// scan of stored values the kernel that writes them). This is a decoupled look-back scan
+// (Merrill and Garland, 2016) whose tile descriptors carry an epoch: a descriptor left by an
+// earlier scan on the same stream reads as "not yet published", so they need no init kernel.
 #include <cstdint>
 
 #include "covoxslam/core/device.h"
@@ -168,6 +151,15 @@ __global__ void __launch_bounds__(kThreads)
 
 }  // namespace internal
 
+// out[i] = value_of(0) + ... + value_of(i - 1), sums modulo 2^32. value_of(i) is called exactly
+// once for each i in [0, count) (so it may also write something of its own, such as the piece
+// table beside the piece sizes), and `out` may be the array value_of reads, since each element is
+// read before it is written. `out` may also be a functor, called as out(i, prefix) once for each
+// i after value_of(i) (scan_output): what a kernel after the scan would have done with each
+// prefix, without its launch. Tiles of 256 x kItems values, one thread block each: a block sums
+// its tile, publishes the sum, finds its prefix from its predecessors' published sums (one warp
+// looking back 32 tiles at a time) and publishes its inclusive prefix. Like CUB's scan it relies
+// on blocks starting in index order (a block waits only for lower-numbered ones).
 template <int kItems = kScanItemsPerThread, class ValueOf, class Output>
 void exclusive_scan_of(CudaBackend, const Stream& stream, int64_t count, const ValueOf& value_of,
                        Output out) {

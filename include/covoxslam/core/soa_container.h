@@ -1,17 +1,10 @@
 #pragma once
 // VoxelStorage<Voxel, Layout>: an array of voxels whose fields are stored either as separate
 // arrays (SoA: one contiguous array per field) or as an array of structs (AoS), behind the same
-// accessors. Kernels take the trivially copyable view():
-//
-//   view.load(i)                      the whole voxel
-//   view.store(i, voxel)
-//   view.template get<&Voxel::m>(i)   a reference to one field: in SoA only that field's array
-//                                     is touched, which is what makes lookups of one field cheap
-//
-// A voxel type opts in by listing its fields once:
-//   template <> struct VoxelFields<TsdfVoxel> {
-//     using type = FieldList<&TsdfVoxel::distance_m, &TsdfVoxel::weight>;
-//   };
+// accessors. Kernels take the trivially copyable view(): view.load(i), view.store(i, voxel), and
+// view.template get<&Voxel::m>(i), a reference to one field (in SoA only that field's array is
+// touched, which makes lookups of one field cheap). A voxel type opts in by listing its fields
+// once (VoxelFields<TsdfVoxel>::type = FieldList<&TsdfVoxel::distance_m, &TsdfVoxel::weight>).
 // Everything is resolved at compile time (member pointers are template arguments), so the
 // abstraction costs nothing at run time.
 #include <cstddef>

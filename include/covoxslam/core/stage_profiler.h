@@ -1,21 +1,12 @@
 #pragma once
 // Opt-in wall-clock breakdown of a multi-stage GPU algorithm, for finding where a frame's time
-// goes on a machine without Nsight Systems. Enabled by the environment variable
-// COVOX_PROFILE_STAGES=1 (read once); when disabled, mark() is one branch and costs nothing else.
-//
-// When enabled, mark() synchronises the stream and charges the wall time since the previous mark
-// (or since begin()) to the named stage, so each stage's figure holds its kernels, its host work
-// and its own synchronisations. The synchronisations themselves slow the whole down a little:
-// read the table for the shares, not the absolute sum.
-// COVOX_PROFILE_STAGES=host charges the host's time between marks without synchronising: where
-// the host spends a frame (its launches, its own work and the waits the code itself does), with
-// the GPU running ahead as it does unprofiled. Each mark costs the host a lookup under a lock,
-// so every stage reads high by that much.
-//
-// Usage (the integrators do this):
-//   StageProfiler::Scope profile("tsdf", stream);   // begin
-//   ...; profile.mark("rays"); ...; profile.mark("sort");
-// and a tool prints StageProfiler::report() at the end.
+// goes without Nsight Systems. Enabled by COVOX_PROFILE_STAGES=1 (read once); disabled, mark() is
+// one branch. Enabled, mark() synchronises the stream and charges the wall time since the
+// previous mark (or the scope's start) to the named stage, kernels, host work and waits alike;
+// the synchronisations slow the whole a little, so read the shares, not the sum.
+// COVOX_PROFILE_STAGES=host charges the host's time between marks without synchronising (its
+// launches, its own work and the code's own waits, the GPU running ahead as unprofiled); each
+// mark costs the host a lookup under a lock, so every stage reads high by that much.
 #include <cstdint>
 #include <string>
 
@@ -23,6 +14,11 @@
 
 namespace covox {
 
+// Usage (the integrators do this; the TSDF frame's labels are its stages' numbers and names,
+// docs/design.md):
+//   StageProfiler::Scope profile("tsdf", stream);   // begin
+//   ...; profile.mark("1 rays: merge + tally"); ...; profile.mark("2b walk: traverse");
+// and a tool prints StageProfiler::report() at the end.
 class StageProfiler {
  public:
   static bool enabled();

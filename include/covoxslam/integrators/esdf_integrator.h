@@ -1,19 +1,12 @@
 #pragma once
 // EsdfIntegrator: exact Euclidean signed distances on the voxel grid, from the TSDF's surface
-// sites, up to esdf_max_distance_m.
-//
-// Why not wavefront propagation between blocks (voxblox, nvblox, the paper's queues): copying the
-// nearest-site "parent" from neighbour to neighbour is fast but not exact - a voxel's nearest
-// site can be missed when no neighbour has it as parent - and propagation cannot cross
-// unobserved blocks, although distances in metres do. Here each update computes the exact
-// separable distance transform (Felzenszwalb-Huttenlocher 1-D lower envelopes along x, then y,
-// then z, the same three sweeps as PBA) over a dense window:
-//   write region = changed blocks + esdf_max_distance_m on every side (every voxel whose
-//                  distance can have changed: raise and lower alike)
-//   window       = write region + esdf_max_distance_m (every site that can be nearest)
-// Sites are recomputed from the TSDF, never from old distances, so a site that disappears raises
-// its neighbours' distances correctly. Only blocks whose TSDF changed since the last update
-// (map.block_changed()) define the window, which keeps the work proportional to what changed.
+// sites, up to esdf_max_distance_m, by the exact separable distance transform
+// (Felzenszwalb-Huttenlocher lower envelopes along x, y, z) over a dense window around the
+// blocks whose TSDF changed (map.block_changed()): the write region is those blocks grown by
+// esdf_max_distance_m, the window that region grown once more. Sites are recomputed from the
+// TSDF, so a vanished site raises its neighbours' distances, and distances cross unobserved
+// blocks, which wavefront propagation (voxblox, nvblox) neither guarantees nor does: its copied
+// "parent" sites can miss a voxel's nearest one. docs/design.md ("ESDF").
 #include <cstdint>
 #include <memory>
 

@@ -1,43 +1,11 @@
 #pragma once
 // TsdfIntegrator: fuses point clouds (LiDAR, or depth images turned into points on the device)
 // into a TsdfMap by raycasting, with the "merged" update of the coVoxSLAM paper (III-C/D). A frame
-// is a short sequence of named stages (tsdf_integrator_impl.h), steered by one plan decided from
-// the configuration, the backend and the frame's tally (internal/tsdf_frame_plan.h):
-//   1. rays: one per valid point, or with the merged method one per bundle of points whose
-//      surface falls into one voxel (bundled in a hash table with integer sums, ranked by their
-//      first point: tsdf_ray_merging.h); a ray's voxel count is known in closed form, so one
-//      tally gives the frame's visits, its box of voxels and its longest ray;
-//   2. visits: each ray walks its voxels (Amanatides-Woo, in pieces of ~8 voxels). A visit is
-//      merged per voxel in one of three ways (internal/tsdf_frame_strategy.h): as a record (the
-//      voxel's key with its update, or with colour the ray's index, from which the update is
-//      recomputed: tsdf_traverse.h) that is sorted and reduced; or, for a free-space visit
-//      (distance clamped to +truncation, no colour), by adding its weight to the voxel's cell of
-//      a fixed-point grid over the frame's box, only the band's visits kept as records; or, when
-//      the box's cells fit config.fixed_point_sums_max_scratch_mb, every visit so (distance,
-//      weight and colour: tsdf::VoxelSumCells), with no record at all, the rays then walked in
-//      groups of 32 neighbours without a piece table (tsdf_traverse.h, RayGroups). The walk also
-//      marks the blocks its kept visits fall in, in a flag array over the box;
-//   3. records are grouped by voxel: a stable radix sort by key (the CPU twin groups them by
-//      block and sums each block's in a dense array instead: tsdf_group_updates_cpu.h);
-//   4. the frame's blocks are listed (a scan of the marks, or from the sorted records when the
-//      box has more blocks than records) and allocated in one BlockHashTable batch, before the
-//      sort on the GPU so that the sort hides the wait for the activation's totals; a frame that
-//      sums every visit activates each block in the scan that lists it (block_activator.h) and
-//      reads the totals at its end;
-//   5. each voxel's records are summed (a segmented reduction in tiles, core/run_sums.h) and the
-//      sum, with the voxel's fixed-point sum, goes straight into one weighted-average write per
-//      voxel; a pass over the listed blocks' cells then writes the voxels that had summed visits
-//      only.
-// No atomics touch voxel data (only integer sums in scratch: the merge's sums of points and the
-// visits' fixed-point sums, exact in any order), and every float sum is taken in an order fixed
-// by the input, so results are deterministic run to run. The CPU twin runs the same kernels
-// except in four places, each with the same result (step 3's sums within float rounding: the GPU
-// adds a long run's pieces as a tree): step 3's grouping (with it the counts of dropped records,
-// which the GPU finds where their runs start in its sorted keys), the piece table of step 2
-// (written one ray at a time, its cut voxels kept for the traverse; on the GPU one thread per
-// piece, inside the scan of the pieces' sizes), the merge's tally (a reduction instead of
-// per-warp atomics), and step 4's activation (queued on the GPU for the blocks counted on the
-// device; on the CPU after reading the count).
+// runs the stages 0 de-skew, 1 rays, 2 walk, 3 group, 4 blocks and 5 write
+// (internal/tsdf_integrator_impl.h), steered by one plan decided from the configuration, the
+// backend and the frame's tally (internal/tsdf_frame_plan.h). No atomics touch voxel data and
+// every float sum is taken in an order fixed by the input, so a frame's map is the same run to
+// run. docs/design.md ("TSDF integration") describes the stages and where the CPU twin differs.
 #include <cstdint>
 #include <memory>
 #include <vector>

@@ -1,15 +1,12 @@
 #pragma once
-// Files written whole or not at all, and never through a symbolic link.
-//
-// A WriteTarget is a name inside an open folder. AtomicFile creates a temporary beside it with a
-// random name, exclusively and without following links (O_CREAT | O_EXCL | O_NOFOLLOW: a link or
-// file planted under the temporary's name makes the creation fail and another name is drawn,
-// nothing is written through it), and on commit() syncs it and renames it onto the name. The
-// rename replaces whatever entry has that name - a symbolic link is replaced, its target is
-// never written. Without overwrite, the rename refuses when the name exists at that moment
-// (renameat2 RENAME_NOREPLACE, or link + unlink where the file system lacks it), so a file that
-// appeared after the first check is not replaced either. A reader never sees half a file, and a
-// failure (or an AtomicFile destroyed before commit) leaves the name as it was.
+// Files written whole or not at all, and never through a symbolic link. A WriteTarget is a name
+// inside an open folder. AtomicFile creates a temporary beside it with a random name, exclusively
+// and without following links (O_CREAT | O_EXCL | O_NOFOLLOW: a link planted under that name
+// makes the creation fail and another name is drawn), and on commit() syncs it and renames it
+// onto the name, which replaces a symbolic link there rather than writing its target. Without
+// overwrite the rename refuses an existing name (renameat2 RENAME_NOREPLACE, or link + unlink
+// where the file system lacks it), also one that appeared after the first check. A reader never
+// sees half a file, and a failure (or no commit) leaves the name as it was.
 #include <functional>
 #include <memory>
 #include <ostream>

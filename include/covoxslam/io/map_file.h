@@ -1,24 +1,11 @@
 #pragma once
 // Map files: a collection of submaps (TSDF, colour, submap poses, map parameters) in one
-// versioned binary file with a checksum.
-//
-// Version 2 (written), little-endian: "COVOXMAP" magic, format version (u32), flags (u32, 0),
-// voxel size (f32), voxels per side (i32), distance scale (f32, the submap codec's); then one
-// record per submap: tag 1 (u8), id (i64), pose T_world_submap (4x4 doubles, row major), the
-// length (u64) and bytes of its compact form (io/submap_codec.h); then tag 0 (u8) and the submap
-// count (u64); finally the FNV-1a 64 checksum of everything before it. The ESDF is not stored:
-// loading recomputes it. MapFileWriter streams the file submap by submap (peak memory: one
-// submap's compact form and a write buffer), into a temporary file beside the target that is
-// synced and then renamed over it, so a crash never leaves a half-written map under the real name.
-//
-// Version 1 (read only): the same magic, version, flags (bit 0: ESDF stored), voxel size, voxels
-// per side, submap count (u64); per submap its id, pose and blocks at full precision (index, then
-// TSDF, colour and optionally ESDF voxels field by field); the checksum.
-//
+// versioned little-endian binary file with a checksum (the layouts: kMapFileVersion below).
+// MapFileWriter streams the file submap by submap into a temporary file that is synced and then
+// renamed over the target, so a crash never leaves a half-written map under the real name.
 // Loading checks magic, version, sizes, every submap's compact form and the checksum before it
-// returns anything: a truncated, corrupted or foreign file throws covox::Error and the caller's
-// running map is untouched. Version 2 files are read twice from disk (checksum, then records), so
-// loading never holds the file's bytes in memory at once.
+// returns anything (reading the file twice, so never holding it whole): a truncated, corrupted or
+// foreign file throws covox::Error and the caller's running map is untouched.
 #include <Eigen/Geometry>
 
 #include <cstdint>
@@ -33,6 +20,15 @@
 namespace covox {
 namespace io {
 
+// Version 2 (written), little-endian: "COVOXMAP" magic, format version (u32), flags (u32, 0),
+// voxel size (f32), voxels per side (i32), distance scale (f32, the submap codec's); then one
+// record per submap: tag 1 (u8), id (i64), pose T_world_submap (4x4 doubles, row major), the
+// length (u64) and bytes of its compact form (io/submap_codec.h); then tag 0 (u8) and the submap
+// count (u64); finally the FNV-1a 64 checksum of everything before it. The ESDF is not stored:
+// loading recomputes it.
+// Version 1 (read only): the same magic, version, flags (bit 0: ESDF stored), voxel size, voxels
+// per side, submap count (u64); per submap its id, pose and blocks at full precision (index, then
+// TSDF, colour and optionally ESDF voxels field by field); the checksum.
 constexpr uint32_t kMapFileVersion = 2;
 
 struct SubmapRecord {

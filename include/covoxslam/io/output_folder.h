@@ -3,15 +3,9 @@
 // the ROS network may call) cannot leave. A name is accepted only when it is relative and plain:
 // no leading '/', no '..' or '.' component, no empty component ("a//b", a trailing '/'), no NUL
 // or control character. Its folders are opened one by one below the folder with O_NOFOLLOW, so
-// no symbolic link is followed on the way (a link planted inside the folder cannot point the
-// write or the read outside); the file itself must be a regular file or not exist - a link, a
-// device, a FIFO, a socket or a folder under the name is refused. Writes go through AtomicFile
-// (io/atomic_file.h): an existing file is replaced only when asked for.
-//
-// Every refusal is a covox::Error that says why and where names are taken from, e.g.
-//   refused: 'a/../b' contains '..'; give a name relative to ~ros/output_dir (/root/.ros/covoxslam)
-// A refused name is judged by its text or by what lies inside the folder, never by a lookup
-// outside it, so a refusal does not tell whether some path outside exists.
+// no symbolic link is followed on the way; the file itself must be a regular file or not exist
+// (a link, a device, a FIFO, a socket or a folder under the name is refused). Writes go through
+// AtomicFile (io/atomic_file.h): an existing file is replaced only when asked for.
 #include <memory>
 #include <string>
 
@@ -20,6 +14,10 @@
 namespace covox {
 namespace io {
 
+// Every refusal is a covox::Error that says why and where names are taken from, e.g.
+//   refused: 'a/../b' contains '..'; give a name relative to ~ros/output_dir (/root/.ros/covoxslam)
+// A refused name is judged by its text or by what lies inside the folder, never by a lookup
+// outside it, so a refusal does not tell whether some path outside exists.
 class OutputFolder {
  public:
   // Creates `path` (and missing parents, mode 0755) and opens it. `label` names the setting it

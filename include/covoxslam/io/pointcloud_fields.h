@@ -1,17 +1,9 @@
 #pragma once
 // Decoding the bytes of a sensor_msgs/PointCloud2 into points (and colours) without ROS types.
-//
 // The ROS layer copies the message's field table and sizes into a PointCloudLayout and hands the
 // data bytes over; everything that can go wrong with a foreign cloud - no x/y/z, a point step
 // too small for its fields, data shorter than width x height, big-endian data, NaN points - is
 // decided here, where the main test suite (which has no ROS) checks it.
-//
-// Accepted: x, y, z as FLOAT32 (required) at any offsets, in any order, with any point step;
-// optional colour from a packed `rgb` / `rgba` field (4 bytes, PCL's 0x00RRGGBB, stored as FLOAT32,
-// UINT32 or INT32) or, when there is no colour, an `intensity` field of any numeric type shown as
-// grey (intensity / intensity_max_value); per-point times from a `t` or `time` field or an
-// organised cloud's column order (point_times.h). Points with a non-finite coordinate are dropped
-// and counted; organised clouds (height > 1) are read row by row honouring row_step.
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -80,6 +72,13 @@ struct CloudDecodeResult {
 // Checks `layout` (and that `data_size` bytes cover it) without reading any point.
 CloudDecodeResult check_point_cloud_layout(const PointCloudLayout& layout, size_t data_size);
 
+// Accepted: x, y, z as FLOAT32 (required) at any offsets, in any order, with any point step;
+// optional colour from a packed `rgb` / `rgba` field (4 bytes, PCL's 0x00RRGGBB, stored as FLOAT32,
+// UINT32 or INT32) or, when there is no colour, an `intensity` field of any numeric type shown as
+// grey (intensity / intensity_max_value); per-point times from a `t` or `time` field or an
+// organised cloud's column order (point_times.h). Points with a non-finite coordinate are dropped
+// and counted; organised clouds (height > 1) are read row by row honouring row_step.
+//
 // Decodes `data` (data_size bytes) into `cloud` (cleared first). On an error `cloud` is left
 // empty and the result names the problem.
 CloudDecodeResult decode_point_cloud(const PointCloudLayout& layout, const uint8_t* data,

@@ -1,17 +1,8 @@
 #pragma once
-// The record layer of the ROS bag format 2.0, shared by BagWriter and BagReader.
-//
-//   "#ROSBAG V2.0\n"
-//   bag header record, padded to 4096 bytes (index_pos, conn_count, chunk_count)
-//   per chunk: chunk record (connection and message-data records, uncompressed or compressed
-//              as one lz4 or bz2 stream; BagWriter writes them uncompressed),
-//              then one index-data record per connection in the chunk (stamp and offset of
-//              each of its messages inside the chunk)
-//   at index_pos: every connection record, then one chunk-info record per chunk
-//
-// A record is: uint32 header length, header, uint32 data length, data. A header is a sequence of
-// fields, each uint32 length then "name=value" with a binary value; the field "op" says the
-// record's kind.
+// The record layer of the ROS bag format 2.0, shared by BagWriter and BagReader (the file's
+// layout: kBagMagic below). A record is: uint32 header length, header, uint32 data length, data.
+// A header is a sequence of fields, each uint32 length then "name=value" with a binary value; the
+// field "op" says the record's kind.
 #include <cstdint>
 #include <map>
 #include <string>
@@ -23,6 +14,14 @@ namespace covox {
 namespace io {
 namespace rosbag {
 
+// A bag file:
+//   "#ROSBAG V2.0\n"
+//   bag header record, padded to 4096 bytes (index_pos, conn_count, chunk_count)
+//   per chunk: chunk record (connection and message-data records, uncompressed or compressed
+//              as one lz4 or bz2 stream; BagWriter writes them uncompressed),
+//              then one index-data record per connection in the chunk (stamp and offset of
+//              each of its messages inside the chunk)
+//   at index_pos: every connection record, then one chunk-info record per chunk
 constexpr char kBagMagic[] = "#ROSBAG V2.0\n";
 constexpr size_t kBagMagicSize = 13;
 constexpr size_t kBagHeaderRecordSize = 4096;  // rosbag pads the bag header so it can be rewritten

@@ -6,12 +6,6 @@
 // message of another chunk is read, so reading in time order decompresses each chunk once. A
 // build without liblz4 or libbz2 refuses such bags at open, naming the library. An unindexed bag
 // (recording cut short) is refused with the fix in the message (`rosbag reindex`).
-//
-//   rosbag::BagReader bag("flight.bag");
-//   for (const rosbag::IndexEntry& entry : bag.index({"/tf", "/tf_static"})) {
-//     const rosbag::BagMessage message = bag.read(entry);
-//     ... rosbag::parse_tf_message(message.data.data(), message.data.size(), ...)
-//   }
 #include <cstdint>
 #include <fstream>
 #include <string>
@@ -47,6 +41,11 @@ struct BagMessage {
   std::vector<uint8_t> data;  // the serialised message
 };
 
+//   rosbag::BagReader bag("flight.bag");
+//   for (const rosbag::IndexEntry& entry : bag.index({"/tf", "/tf_static"})) {
+//     const rosbag::BagMessage message = bag.read(entry);
+//     ... rosbag::parse_tf_message(message.data.data(), message.data.size(), ...)
+//   }
 class BagReader {
  public:
   // Reads the bag header, the connections and every chunk's index. Throws covox::Error naming the

@@ -2,16 +2,10 @@
 // Writes ROS bag format 2.0 files without ROS, so that the simulator runs where ROS is absent:
 // uncompressed chunks, index-data records after each chunk, and the connection and chunk-info
 // index at the end, so `rosbag info`, `rosbag play` and the rosbag C++/Python APIs read the file
-// as one that `rosbag record` wrote.
-//
-//   rosbag::BagWriter bag("flight.bag");
-//   const uint32_t points = bag.add_connection("/points", rosbag::point_cloud2_type());
-//   bag.write(points, stamp, rosbag::serialize(cloud));
-//   bag.close();
-//
-// The bag is written as "<path>.active" (rosbag record's name for a bag in progress) and renamed
-// into place by close(): a run cut short never leaves a bag that looks complete. The bytes depend
-// only on what is written (no wall-clock time, no host name), so equal input gives an equal file.
+// as one that `rosbag record` wrote. The bag is written as "<path>.active" (rosbag record's name
+// for a bag in progress) and renamed into place by close(): a run cut short never leaves a bag
+// that looks complete. The bytes depend only on what is written (no wall-clock time, no host
+// name), so equal input gives an equal file.
 #include <cstdint>
 #include <fstream>
 #include <map>
@@ -26,6 +20,10 @@ namespace covox {
 namespace io {
 namespace rosbag {
 
+//   rosbag::BagWriter bag("flight.bag");
+//   const uint32_t points = bag.add_connection("/points", rosbag::point_cloud2_type());
+//   bag.write(points, stamp, rosbag::serialize(cloud));
+//   bag.close();
 class BagWriter {
  public:
   // A chunk is closed once its data exceeds `chunk_threshold_bytes` (rosbag record's default).

@@ -1,9 +1,20 @@
 #pragma once
 // The compact form of one finished submap's voxels: what a map file stores per submap and what a
-// submap held outside the device keeps. It holds the TSDF and colour layers in fewer bytes; the
-// ESDF is not stored (it is recomputed from the decoded TSDF, see EsdfIntegrator::update_all).
-//
-// Quantisation (each step is documented so its effect can be bounded):
+// submap held outside the device keeps. It holds the TSDF and colour layers in fewer bytes (the
+// quantisation and the layout: kSubmapCodecVersion below); the ESDF is not stored (it is
+// recomputed from the decoded TSDF, see EsdfIntegrator::update_all). Quantisation is idempotent:
+// encode(decode(encode(m))) == encode(m) byte for byte, so a submap that went through the codec
+// once can leave and come back any number of times unchanged.
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "covoxslam/map/tsdf_map.h"
+
+namespace covox {
+namespace io {
+
+// Quantisation (each step documented so its effect can be bounded):
 //   - distance: int16 of clamp(distance / distance_scale_m, -1, 1) * 32767, rounded to nearest:
 //     at most distance_scale_m / 65534 (half a step) plus the float rounding of the decoded value
 //     (distance_scale_m * 2^-23) off for |distance| <= distance_scale_m (the TSDF's truncation
@@ -16,24 +27,12 @@
 // voxels is dropped. A block stores a bit mask of its observed voxels and their fields only; its
 // colour only where some observed voxel has colour (the sensor gave colour there).
 //
-// Quantisation is idempotent: encode(decode(encode(m))) == encode(m) byte for byte, so a submap
-// that went through the codec once can leave and come back any number of times unchanged.
-//
 // Layout (little-endian): "CVXS", codec version (u32), voxels per side (u32), distance scale
 // (f32), block count (u64); per block, in increasing index order: index (3 x i32), flags (u8,
 // bit 0: colour present), the observed mask (voxels_per_block / 8 bytes, voxel k is bit k % 8 of
 // byte k / 8, voxels in the block's linear order), then for the n observed voxels in order:
 // n distances (i16), n weights (u16 half); with colour: n x (r, g, b) bytes, n colour weights
 // (u16 half).
-#include <cstddef>
-#include <cstdint>
-#include <vector>
-
-#include "covoxslam/map/tsdf_map.h"
-
-namespace covox {
-namespace io {
-
 constexpr uint32_t kSubmapCodecVersion = 1;
 
 // IEEE binary16 conversions (round to nearest even; finite values above 65504 saturate, NaN and

@@ -1,19 +1,10 @@
 #pragma once
-// A reader for the subset of YAML that the configuration files in config/ use, so that the
-// library (which must not depend on a YAML library) loads them on any machine:
-//
-//   # a comment                      whole-line and trailing comments (a '#' after a space)
-//   voxel_size_m: 0.2                `key: value`, one a line; keys are [A-Za-z0-9_-]+
-//   registration:                    a key with no value opens a nested mapping: the lines
-//     gate:                          below it, indented further (spaces only) and all by the
-//       max_residual_m: 0.3          same amount, are its entries
-//   base_frame: "imu"                quoted scalars ('...' or "..." without escapes)
-//   T_base_sensor: [0, 0, 0, 1]      a flow list of plain scalars, kept as its text
-//
-// Everything else is refused with "file:line: what" - block lists ("- item"), tabs in the
-// indentation, flow mappings, anchors, tags, block scalars, a key given twice, a key without a
-// value and without entries, an indentation that matches no open mapping. Values are kept as
-// text; their meaning is the caller's (pipeline/slam_parameters.h reads them).
+// A reader for the subset of YAML that the configuration files in config/ use (the grammar:
+// read_yaml_subset below), so that the library, which must not depend on a YAML library, loads
+// them on any machine. Everything else is refused with "file:line: what" - block lists
+// ("- item"), tabs in the indentation, flow mappings, anchors, tags, block scalars, a key given
+// twice, a key without a value and without entries, an indentation that matches no open mapping.
+// Values are kept as text; their meaning is the caller's (pipeline/slam_parameters.h reads them).
 #include <string>
 #include <vector>
 
@@ -34,6 +25,15 @@ struct YamlDocument {
   std::string where(const YamlEntry& entry) const;
 };
 
+// The subset:
+//   # a comment                      whole-line and trailing comments (a '#' after a space)
+//   voxel_size_m: 0.2                `key: value`, one a line; keys are [A-Za-z0-9_-]+
+//   registration:                    a key with no value opens a nested mapping: the lines
+//     gate:                          below it, indented further (spaces only) and all by the
+//       max_residual_m: 0.3          same amount, are its entries
+//   base_frame: "imu"                quoted scalars ('...' or "..." without escapes)
+//   T_base_sensor: [0, 0, 0, 1]      a flow list of plain scalars, kept as its text
+//
 // Throws covox::Error ("file:line: problem") for anything outside the subset, and when the file
 // cannot be read.
 YamlDocument read_yaml_subset(const std::string& path);

@@ -1,16 +1,13 @@
 #pragma once
 // Insert-if-absent of distinct block keys one at a time, from inside the caller's own kernel
-// (BlockHashTable::begin_in_kernel_activation): for a caller that lists its keys in a kernel
-// anyway, which then needs no activation kernel of its own. A TSDF frame lists its blocks in the
-// scan of its traverse's marks and activates each as its rank is known
-// (internal/tsdf_stage_blocks.h), which saves the frame one launch and the activation kernel's pass
-// over the keys. Each new key takes the next slot by an atomic counter (freed slots first, from the
-// top of the free stack, then never-used ones): the same set of slots as activate() hands out for
-// the same keys, in an order set by thread timing. The keys must be distinct within one activation
-// (a known key's slot is read at once; a second occurrence of a key new in this batch could read it
-// before its slot is written). One thread of a later kernel hands the totals over and clears the
-// counters (hand_over_totals); the host passes them to
-// BlockHashTable::finish_in_kernel_activation().
+// (BlockHashTable::begin_in_kernel_activation), for a caller that lists its keys in a kernel
+// anyway: a TSDF frame activates each block in the scan of its walk's marks as its rank is known
+// (stage 4a, internal/tsdf_stage_blocks.h), saving a launch and a pass over the keys. Each new key
+// takes the next slot by an atomic counter (freed slots first, then never-used ones): the slots
+// activate() would hand out, in an order set by thread timing. Keys must be distinct within one
+// activation (a second occurrence of a new key could read its slot before it is written). One
+// thread of a later kernel hands the totals over and clears the counters (hand_over_totals); the
+// host passes them to BlockHashTable::finish_in_kernel_activation().
 #include <cstdint>
 
 #include "covoxslam/core/atomics.h"

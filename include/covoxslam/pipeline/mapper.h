@@ -1,17 +1,9 @@
 #pragma once
 // Mapper: one map without the SLAM threads. It owns a TsdfMap (TSDF, colour and ESDF layers) on
-// one device, the three integrators that keep it (TSDF, ESDF, mesh) and the stream they run on,
-// and does everything synchronously in the caller's thread: a call returns when its work is done.
-//
-//   pipeline::Mapper mapper(pipeline::load_mapper_config({"rgbd"}));
-//   for (...) mapper.integrate_depth(frame);           // or mapper.integrate(scan, T_map_sensor)
-//   mapper.update_esdf();
-//   mapper.save_mesh("mesh.ply");
-//
-// It is configured from the configuration files the SLAM system reads (config/*.yaml,
-// pipeline/slam_config_files.h): a MapperConfig is the map's part of a SlamConfig, so a preset
-// means the same map to run_slam, the nodelet and a Mapper. SlamSystem's submaps are maps of the
-// same kind, kept by integrators that its threads share between submaps.
+// one device, the TSDF, ESDF and mesh integrators that keep it and the stream they run on, and
+// works synchronously: a call returns when its work is done (examples/map_depth_folder.cpp).
+// It is configured from the files the SLAM system reads (config/*.yaml), so a preset means the
+// same map to run_slam, the nodelet and a Mapper; docs/design.md, "The data path", says more.
 #include <string>
 #include <vector>
 

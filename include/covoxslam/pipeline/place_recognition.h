@@ -1,56 +1,12 @@
 #pragma once
 // Place recognition over finished submaps: loop closures that do not depend on the current pose
-// estimate.
-//
-// Registration (registration_constraints.h) aligns a new submap only to the earlier submaps that
-// its current corrected pose makes it overlap, from that pose (plus the wall search of a few
-// metres around it). Once the odometry has drifted further than that, a revisit goes unnoticed.
-// Here every finished submap gets a descriptor of its geometry alone, and the earlier submaps
-// whose descriptors resemble the new one's are aligned to it from the relative pose the two
-// descriptors suggest, whatever the estimate says.
-//
-// Descriptor (Scan-Context-like). The submap's surface columns (voxel columns (x, y) holding a
-// TSDF surface voxel: weight > 0 and |distance| under the surface band) in the submap frame S,
-// which is gravity aligned, binned on a polar grid of `rings` x `sectors` around a centre out to
-// max_radius_m. A cell holds the vertical extent of its surfaces (highest top minus lowest
-// bottom, metres) when it is at least half a metre, else 0: ground alone, which every submap has
-// around its path, would make any two submaps alike. The extent does not depend on the height
-// of the path (which changes along a flight) or on the odometry's drift in z. The ring key (each
-// ring's mean over its sectors) does not change when the submap turns about z, so it is what
-// the index searches. Descriptors are taken about several anchors along the submap's path (its
-// scans' positions, every anchor_spacing_m): two passes over the same place cut their submaps at
-// different points, so their origins lie metres apart along the path, but some pair of anchors
-// lies within half the spacing. The grids keep S's axes, so a sector shift between two anchors'
-// descriptors is the submaps' relative yaw. The columns about the origin on a Cartesian grid of
-// the ring width (the bird's-eye image) give the translation and the yaw.
-//
-// Search. Each anchor's ring key is looked up among the earlier anchors' keys (Euclidean, a k-d
-// tree; the submaps of the last exclude_recent_submaps ids are left out: they overlap the new one
-// anyway and the odometry links them); the earlier submaps with the nearest keys, each at its
-// best pair of anchors, are scored by that pair's polar descriptors at their best sector shift:
-// the distance is 1 minus the mean cosine similarity of the sector columns over the sectors where
-// either has structure (one side empty: similarity 0); its shift is a first guess of the
-// relative yaw. The two bird's-eye images are then correlated over +-translation_search_m around
-// the origins' coincidence at every sector's yaw, starting from the shift's (which wins ties),
-// and refined to half a sector; the score is the overlap of the two extents, sum min(a, b) over
-// the matched cells divided by the smaller of the two totals (at most 1).
-//
-// Verification. A candidate that passes max_descriptor_distance and min_overlap_score is aligned
-// by the registration's own aligner started from the matched relative pose (with its wall search
-// and every acceptance test, registration_constraint_from_guess); the residual test is made at
-// least as strict as max_residual_rms_vox, and the relative pose is checked against the
-// odometry with at least the closures' drift per metre of path between the two submaps (an
-// alike place whose offset the odometry cannot explain is rejected). Each rejection is counted
-// by reason.
-//
-// Confirmation. A submap of a different place with the same kind of structure (two alike
-// buildings) can pass every test above. A verified closure therefore waits until a closure of
-// another new submap agrees with it (the two closures and the odometry between their ends form a
-// cycle that closes, see PlaceRecognitionConfig); then both enter the graph as registration
-// constraints marked from_place_recognition. Two passes over a place give several closures in a
-// row, an alike place rarely two that agree. The registration's consistency gate does not judge
-// confirmed closures: after a long path a revisit moves the graph by metres, which the gate would
-// read as disagreement; the robust loss of the pose graph still weighs them.
+// estimate. Registration (registration_constraints.h) aligns a new submap only to the submaps its
+// current corrected pose makes it overlap, so once the odometry has drifted further than that a
+// revisit goes unnoticed. Here every finished submap gets descriptors of its geometry alone
+// (PlaceDescriptor), and the earlier submaps whose descriptors resemble the new one's are aligned
+// to it from the relative pose the descriptors suggest, verified and confirmed (PlaceRecognizer).
+// docs/design.md ("Registration", place recognition) says why confirmed closures bypass the
+// consistency gate.
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -127,6 +83,19 @@ struct SurfaceColumn {
 std::vector<SurfaceColumn> surface_columns(const map::TsdfMap& map, double surface_band_m,
                                            const Stream& stream);
 
+// Descriptor (Scan-Context-like). The submap's surface columns (voxel columns (x, y) holding a
+// TSDF surface voxel: weight > 0 and |distance| under the surface band) in the submap frame S,
+// which is gravity aligned, binned on a polar grid of `rings` x `sectors` around a centre out to
+// max_radius_m. A cell holds the vertical extent of its surfaces (highest top minus lowest
+// bottom, metres) when it is at least half a metre, else 0: ground alone, which every submap has
+// around its path, would make any two submaps alike. The extent does not depend on the height
+// of the path or on the odometry's drift in z. The ring key (each ring's mean over its sectors)
+// does not change when the submap turns about z, so it is what the index searches. Descriptors
+// are taken about several anchors along the submap's path (path_anchors): two passes over a place
+// cut their submaps at different points, but some pair of anchors lies within half the spacing.
+// The grids keep S's axes, so a sector shift between two anchors' descriptors is the submaps'
+// relative yaw. The columns about the origin on a Cartesian grid of the ring width (the
+// bird's-eye image) give the translation and the yaw.
 struct PlaceDescriptor {
   int rings = 0;
   int sectors = 0;
@@ -161,6 +130,10 @@ struct DescriptorMatch {
   int shift = 0;          // sector s of `moving` matches sector s + shift of `fixed`
   double yaw_rad = 0.0;   // the yaw of T_fixed_moving that the shift means, in (-pi, pi]
 };
+// The distance at the best sector shift: 1 minus the mean cosine similarity of the sector
+// columns over the sectors where either has structure (one side empty: similarity 0); the shift
+// is a first guess of the relative yaw.
+//
 // Both descriptors must have the same grid.
 DescriptorMatch match_descriptors(const PlaceDescriptor& moving, const PlaceDescriptor& fixed);
 
@@ -168,6 +141,10 @@ struct BirdEyeMatch {
   backend::Pose4Dof T_fixed_moving;  // x, y and yaw; z 0
   double score = 0.0;                // in [0, 1]
 };
+// The images are correlated around the origins' coincidence at every sector's yaw, starting from
+// the descriptors' shift (which wins ties); the score is the overlap of the two extents,
+// sum min(a, b) over the matched cells divided by the smaller of the two totals (at most 1).
+//
 // The best overlap of the two bird's-eye images over offsets within +-translation_search_m and
 // every sector's yaw from `yaw_rad` on, refined to half a sector.
 BirdEyeMatch match_bird_eye(const PlaceDescriptor& moving, const PlaceDescriptor& fixed,
@@ -241,6 +218,19 @@ struct PlaceCandidate {
   double overlap_score = 0.0;
 };
 
+// Search: each anchor's ring key is looked up among the earlier anchors' keys (the submaps of the
+// last exclude_recent_submaps ids left out: they overlap the new one anyway and the odometry
+// links them); the earlier submaps with the nearest keys, each at its best pair of anchors, are
+// scored by match_descriptors and match_bird_eye. Verification: a candidate that passes
+// max_descriptor_distance and min_overlap_score is aligned by the registration's own aligner from
+// the matched relative pose (registration_constraint_from_guess, with its wall search and every
+// acceptance test, the residual test at least as strict as max_residual_rms_vox), and checked
+// against the odometry with at least the closures' drift per metre of path between the two
+// submaps; each rejection is counted by reason. Confirmation: a submap of a different place with
+// the same kind of structure (two alike buildings) can pass all that, so a verified closure waits
+// until a closure of another new submap agrees with it (closure_disagreement); then both enter
+// the graph as registration constraints marked from_place_recognition.
+//
 // The descriptors of the finished submaps and their index.
 class PlaceRecognizer {
  public:

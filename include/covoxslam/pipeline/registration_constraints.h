@@ -1,35 +1,11 @@
 #pragma once
 // Registration constraints for a finished submap (paper III-F, voxgraph's explicit_to_implicit):
-// the submap's registration points are aligned to every earlier submap it overlaps, starting from
+// the submap's registration points are aligned to the earlier submaps it overlaps, starting from
 // the relative pose of their current corrected poses, and each plausible alignment becomes a
-// relative 4-DoF constraint from the earlier submap to the new one.
-//
-// Acceptance. An alignment is believed when the aligner converged with at least min_points
-// points inside the earlier submap's field and moved the relative pose no further from its guess
-// than max_correction_m / max_correction_rad: odometry does not drift more between two looks at
-// one place.
-//
-// Revisits. At a revisit the guess carries all the drift since the last visit (metres, degrees),
-// outside the fine cost's basin. Two things widen it: the coarse-to-fine alignment (the ESDF
-// sampled every 2^L voxels first), and the start from the walls (pipeline/wall_map.h) - the top
-// views' wall columns of the two submaps matched over a grid around the guess.
-//
-// Weights. The aligner's residuals are metres times sqrt(TSDF weight), and TSDF weights depend on
-// the weighting scheme (constant, inverse square, sparsity compensation), so a sigma in those
-// units would change meaning with the integrator settings. Here the weights are normalised to a
-// mean of 1 over the submap's registration points: point_sigma_m is the noise of one point's
-// distance in metres, the information is sum_k w_k/mean(w) J_k^T J_k / point_sigma_m^2, and the
-// robust loss scale is in metres as well.
-//
-// Accuracy floor. That information treats thousands of points as independent, so it claims
-// millimetres and hundredths of a degree, while an alignment of two submaps is only as good as
-// the submaps themselves (their own drift, TSDF quantisation, sparse walls). A constraint that
-// claims far more than it knows overrides the odometry and, at a revisit, pulls the whole graph.
-// So the constraint's covariance is the points' covariance plus a floor: min_sigma_m on x, y and
-// z and min_sigma_yaw_rad on yaw,
-//   information = ((J^T J / sigma^2)^-1 + diag(min_sigma_m^2 x3, min_sigma_yaw_rad^2))^-1,
-// which keeps the points' shape (a direction the overlap does not constrain - ground only: x, y
-// and yaw - stays weak) but caps every direction at what the registration really achieves.
+// relative 4-DoF constraint from the earlier submap to the new one, its information floored at
+// what a registration achieves (SubmapRegistrationConfig::Information). A revisit's guess
+// carries all the drift since the last visit; the coarse-to-fine alignment and the start from
+// the walls (pipeline/wall_map.h) widen the aligner's basin. docs/design.md ("Registration").
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -93,7 +69,9 @@ struct SubmapRegistrationConfig {
     // few voxels. 0: the fine residual only.
     int coarse_levels = 2;
   } alignment;
-  // When an alignment becomes a constraint (see above); each rejection is counted.
+  // When an alignment becomes a constraint: the aligner converged with at least min_points points
+  // inside the earlier submap's field and moved the relative pose no further from its guess than
+  // odometry drifts between two looks at one place. Each rejection is counted.
   struct Acceptance {
     // Fewer registration points inside the earlier submap's field: no constraint.
     int64_t min_points = 100;
@@ -107,7 +85,17 @@ struct SubmapRegistrationConfig {
     // off) leaves surfaces apart by voxels. Above this, no constraint. 0: off.
     double max_residual_rms_vox = 0.0;
   } acceptance;
-  // The constraint's information (see above).
+  // The constraint's information. The aligner's residuals are metres times sqrt(TSDF weight),
+  // and TSDF weights depend on the weighting scheme, so the weights are normalised to a mean of 1
+  // over the submap's registration points: the points' information is
+  // sum_k w_k/mean(w) J_k^T J_k / point_sigma_m^2, and the robust loss scale is in metres too.
+  // That treats thousands of points as independent and claims millimetres, while an alignment is
+  // only as good as the submaps (their own drift, TSDF quantisation, sparse walls); a constraint
+  // that claims far more than it knows overrides the odometry and, at a revisit, pulls the whole
+  // graph. So a floor is added to the points' covariance:
+  //   information = ((J^T J / sigma^2)^-1 + diag(min_sigma_m^2 x3, min_sigma_yaw_rad^2))^-1,
+  // which keeps the points' shape (a direction the overlap does not constrain - ground only: x, y
+  // and yaw - stays weak) but caps every direction at what the registration really achieves.
   struct Information {
     // Noise of one registration point's distance. The points of a map are not independent
     // (interpolation, one TSDF), so this is larger than the TSDF noise itself.
@@ -182,7 +170,7 @@ double odometry_mahalanobis_sq(const backend::Pose4Dof& measured,
 
 // The information of a registration constraint: `points_information` (over x, y, z, yaw; may be
 // singular where the overlap leaves a direction free) with the accuracy floor added to its
-// covariance (see above). Zero floors return it unchanged.
+// covariance (SubmapRegistrationConfig::Information). Zero floors return it unchanged.
 Eigen::Matrix4d floored_information(const Eigen::Matrix4d& points_information, double min_sigma_m,
                                     double min_sigma_yaw_rad);
 

@@ -1,20 +1,11 @@
 #pragma once
 // Reading a SlamConfig from named parameters (a configuration file, the ROS parameter server, a
-// test's table), with every value checked at start-up and a bad one reported by its name.
-//
-// Names are the configuration files' paths of nested keys joined by '.', e.g.
-// "registration.gate.max_residual_m" for
-//   registration:
-//     gate:
-//       max_residual_m: 0.3
-// (the ROS parameter server holds the same as ~registration/gate/max_residual_m);
-// docs/parameters.md lists every one with its unit and default. The source is an interface so
-// that configuration files (slam_config_files.h), the ROS layer (ros::NodeHandle) and the tests
-// (a plain map) share this code.
-// A parameter that is not set keeps the SlamConfig default; one set with the wrong type or an
-// invalid value throws covox::Error naming it. After the per-parameter checks the library's
-// own validate(SlamConfig) runs, so relations between parameters (truncation >= voxel size,
-// max ray > min ray) are checked where the library defines them.
+// test's table), with every value checked at start-up and a bad one reported by its name
+// (docs/parameters.md lists every one with its unit and default). The source is an interface so
+// that configuration files (slam_config_files.h), the ROS layer and the tests share this code. A
+// parameter that is not set keeps the SlamConfig default; one set with the wrong type or an
+// invalid value throws covox::Error naming it. Then validate(SlamConfig) checks the relations
+// between parameters (truncation >= voxel size, max ray > min ray) where the library defines them.
 #include <cstdint>
 #include <map>
 #include <string>
@@ -25,6 +16,12 @@
 namespace covox {
 namespace pipeline {
 
+// Names are the configuration files' paths of nested keys joined by '.', e.g.
+// "registration.gate.max_residual_m" for
+//   registration:
+//     gate:
+//       max_residual_m: 0.3
+// (the ROS parameter server holds the same as ~registration/gate/max_residual_m).
 class ParameterSource {
  public:
   virtual ~ParameterSource() = default;

@@ -1,35 +1,13 @@
 #pragma once
-// SlamSystem: the pure C++ SLAM pipeline (no ROS): the data path.
-//
-//   add_scan() ──► sensor queue ──► frontend thread: integrate each scan into the active submap
-//                                   at its odometry pose in the submap frame; the creation
-//                                   policy decides when the active submap is handed over
-//                  submap queue ◄──┘
-//                       │
-//                       ▼
-//                  backend thread: finish the submap (ESDF, mesh, bounding box, registration
-//                                  points), add an odometry constraint to the previous submap and
-//                                  registration constraints to the earlier submaps it overlaps,
-//                                  add the loop closures / GNSS / heights that were waiting for
-//                                  it, optimise the 4-DoF graph
-//
-// Both queues are bounded (sizes are parameters). The frontend never waits for the backend and
-// the caller never waits for the frontend: a full queue drops its OLDEST entry and counts it.
-// Bad input (non-finite or non-rigid pose, empty cloud, stamp not increasing, colour count not
-// matching the point count) is counted and dropped, never thrown.
-//
-// Lifecycle: the threads start in the constructor (or in start() when config.start_threads is
-// false). finish() flushes both queues - every queued scan is integrated, the active submap is
-// handed over and finished - and runs a final optimisation. shutdown() (and the destructor) stop
-// at once and discard queued work. After either, add_scan() is refused (counted). resume() after
-// finish() starts the threads again: the finished submaps stay, the next scan starts a new
-// submap. reset() and load_submaps() replace the map, with or without the threads running.
-//
-// Drift correction: the odometry constraints carry the odometry's relative poses; registration
-// constraints (registration_constraints.h) measure the true relative pose of overlapping
-// submaps from their geometry, so the optimised poses follow the geometry where submaps overlap
-// and the odometry elsewhere. External constraints (loop closures, GNSS, heights) name scans by
-// stamp; they wait until the submaps holding those scans are in the graph.
+// SlamSystem: the pure C++ SLAM pipeline (no ROS), the data path of docs/design.md: add_scan()
+// feeds the sensor queue, a frontend thread integrates each scan into the active submap at its
+// odometry pose, the submap queue carries finished submaps to a backend thread that finishes
+// them, adds their odometry, registration and waiting external constraints and optimises the
+// 4-DoF graph. Both queues are bounded; a full one drops its oldest entry and counts it, so the
+// caller never waits; bad input is counted and dropped, never thrown. The threads start in the
+// constructor (or start()); finish() flushes and optimises, shutdown() stops at once, and after
+// either add_scan() is refused until resume() (after finish()) starts a new submap; reset() and
+// load_submaps() replace the map. External constraints name scans by stamp and wait for them.
 #include <atomic>
 #include <cstddef>
 #include <cstdint>

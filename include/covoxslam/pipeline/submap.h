@@ -1,16 +1,12 @@
 #pragma once
 // Submap: one piece of the map, built by the frontend from consecutive scans and then frozen
-// (paper III-F, voxgraph's submaps). It holds its TSDF, colour and ESDF layers (one TsdfMap),
-// its pose T_W_S, its bounding box and statistics, and - once finished - its ESDF and mesh.
-//
-// Frames. The submap frame S is the gravity-aligned pose of the first scan's sensor in the
-// odometry frame (position and yaw only), so a submap pose has 4 degrees of freedom (x, y, z,
-// yaw) as in voxgraph: odometry from a VIO or LiDAR-inertial system observes roll and pitch, so
-// the pose graph corrects only what drifts. T_odom_S is fixed at creation; T_W_S (the corrected
-// pose in the world / mission frame) starts equal to it and is updated by the backend.
-//
-// A Submap is not thread-safe: the frontend owns it while it is active, then hands it over to the
-// backend through the submap queue; SlamSystem guards the pose that both sides read.
+// (paper III-F, voxgraph's submaps). It holds its TSDF, colour and ESDF layers (one TsdfMap), its
+// pose T_W_S, its bounding box and statistics, and - once finished - its ESDF and mesh. The
+// submap frame S is the gravity-aligned pose of its first scan's sensor in the odometry frame (4
+// DoF, docs/design.md "Submaps"); T_odom_S is fixed at creation, T_W_S (the corrected pose in the
+// mission frame) starts equal to it and is updated by the backend. A Submap is not thread-safe:
+// the frontend owns it while it is active, then hands it to the backend through the submap
+// queue; SlamSystem guards the pose that both sides read.
 #include <cstdint>
 #include <string>
 #include <utility>

@@ -1,22 +1,11 @@
 #pragma once
 // SubmapPoseGraph: the SLAM system's pose graph in terms of submaps (ids, corrected poses and the
-// constraints between them), turned into the backend's 4-DoF graph for each solve.
-//
-// Why a layer above backend::PoseGraph4Dof:
-//  * Submaps loaded from a map file keep their stored poses. They all share one fixed vertex (the
-//    first loaded submap's), each at its stored offset from it, so the solver cannot move them
-//    and no stiff "rigid" constraints are needed. A relative constraint from a loaded submap a
-//    (offset O_a from its vertex V) to a submap b with its own vertex becomes exact in V:
-//      measurement O_a * Z_ab, and since r_a = blockdiag(Rz(yaw(O_a))^T, 1) r_V, information
-//      R Lambda R^T with R = blockdiag(Rz(yaw(O_a)), 1).
-//  * Absolute positions (GNSS) and heights are measured at the sensor, which sits at a lever arm
-//    l (its position in the submap frame) from the submap origin; the backend's absolute
-//    constraint has no lever arm. At every solve the measured position is moved to the origin
-//    with the submap's current yaw: p_origin = p_sensor - Rz(yaw) l (height: z - l_z, exact).
-//    Repeated solves converge to the lever-arm solution as yaw settles (the yaw comes from the
-//    far stronger odometry and registration constraints).
-//  * The gauge: vertex 0 is fixed (voxgraph: the first submap) unless horizontal absolute
-//    positions on at least two vertices pin the graph, and never when submaps were loaded.
+// constraints between them), turned into the backend's 4-DoF graph for each solve. A layer above
+// backend::PoseGraph4Dof because submaps loaded from a map file keep their stored poses on one
+// shared fixed vertex, absolute positions and heights carry the sensor's lever arm (both:
+// SubmapPoseGraph below), and the gauge depends on them: vertex 0 is fixed (voxgraph: the first
+// submap) unless horizontal absolute positions on at least two vertices pin the graph, and never
+// when submaps were loaded.
 #include <Eigen/Core>
 #include <cstdint>
 #include <string>
@@ -78,6 +67,16 @@ struct SubmapPoseGraphNode {
   bool loaded = false;     // from a map file: pose fixed
 };
 
+// Loaded submaps all share one fixed vertex V (the first loaded submap's), each at its stored
+// offset O_a from it, so the solver cannot move them and no stiff "rigid" constraints are needed.
+// A relative constraint from a loaded submap a to a submap b with its own vertex becomes exact in
+// V: measurement O_a * Z_ab, and since r_a = blockdiag(Rz(yaw(O_a))^T, 1) r_V, information
+// R Lambda R^T with R = blockdiag(Rz(yaw(O_a)), 1).
+// Absolute positions (GNSS) and heights are measured at the sensor, at lever arm l (its position
+// in the submap frame) from the submap origin; the backend's absolute constraint has none, so at
+// every solve the measurement moves to the origin with the submap's current yaw:
+// p_origin = p_sensor - Rz(yaw) l (height: z - l_z, exact). Repeated solves converge to the
+// lever-arm solution as the yaw (set by the far stronger odometry and registrations) settles.
 class SubmapPoseGraph {
  public:
   // Appends a submap (ids must increase; loaded submaps only before any other). Throws

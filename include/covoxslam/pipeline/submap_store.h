@@ -1,31 +1,13 @@
 #pragma once
-// SubmapStore: where finished submaps' voxels and meshes live under a memory budget.
-//
-// A submap is in one of three places,
-//   resident - its full TsdfMap (TSDF, colour, ESDF) on the map's device,
-//   compact  - only its compact bytes (io/submap_codec.h), in host memory,
-//   on disk  - its compact bytes in the spill file (spill_directory).
-// Finished submaps stay resident with their voxels as integrated until the resident maps exceed
-// device_budget_mb; then the least recently used resident submaps (added or acquired longest
-// ago) are encoded and released, so the partners of a revisit stay while it goes on.
-// Encoding quantises (int16 distance, half weights), so a submap's first compaction is the one
-// step that changes it: it comes back (decode, load, ESDF recomputed by
-// EsdfIntegrator::update_all) as the decoded compact form, and later compactions reuse the bytes
-// it came back from, so leaving and coming back again is lossless. A flight whose finished
-// submaps fit the budget is never quantised. Once the compact bytes in memory exceed
-// host_budget_mb, the least recently used compact submaps go to disk. A failed spill write is
-// logged and counted, and the submap stays in memory: nothing is ever lost.
-//
-// The store also holds every finished submap's mesh (taken from the submap when it is added, so
-// the ROS queries read it under the store's mutex while the backend compacts). A resident
-// submap's mesh is kept as the mesher made it; at its first compaction it is encoded with
-// io/mesh_codec.h (vertices on a grid of mesh_step_m) on a worker thread, so the compaction does
-// not wait for it; the bytes, taken when done or first needed, are counted with the compact
-// form's against host_budget_mb and spilled with it, and mesh() decodes them. Without a budget
-// (device_budget_mb 0) the meshes are held as made and nothing else is done.
-//
-// The store is driven by SlamSystem under its backend_mutex_ (every call that changes a submap's
-// voxels), and keeps its own mutex for the counters and the bytes it holds.
+// SubmapStore: where finished submaps' voxels and meshes live under a memory budget. A submap is
+// resident (its full TsdfMap on the map's device), compact (its io/submap_codec.h bytes in host
+// memory) or on disk (those bytes in the spill file). Over device_budget_mb the least recently
+// used resident submaps are encoded and released; over host_budget_mb the least recently used
+// compact ones go to disk. The first compaction is the one step that changes a submap (later ones
+// reuse the bytes it came back from); a failed spill write is logged and counted and the submap
+// stays in memory. Meshes are kept as made, then encoded (io/mesh_codec.h) on a worker thread at
+// the first compaction and budgeted and spilled with the voxels. Driven by SlamSystem under its
+// backend_mutex_; the store's own mutex guards its counters and bytes. docs/design.md ("Submaps").
 #include <cstdint>
 #include <future>
 #include <mutex>

@@ -1,21 +1,13 @@
 #pragma once
 // Top-view wall maps of submaps and a correlative search between two of them: the start of a
-// revisit's registration.
-//
-// Why: a revisit starts as far off as the odometry drifted since the last visit, which can be
-// more than the distance-field aligner's basin: started metres off the true relative pose, it
-// stops in a local minimum short of it. The aligner sees walls only
-// through registration points whose eight trilinear corners are observed in the partner, which
-// walls (unobserved behind themselves, holed between sparse LiDAR rays) rarely give; the ground,
-// which says nothing about x, y and yaw, carries the rest. A top view needs no observed
-// neighbourhood: a column of the map holds a wall when one of its surface voxels has a TSDF
-// gradient within about 25 degrees of horizontal. Two submaps' wall columns are matched over a
-// grid of horizontal offsets and yaws by the number of columns that land on a wall of the other
-// (a Gaussian of the distance). The search covers the whole offset range at once, so its result
-// does not depend on a basin, and the aligner then refines from inside its own.
-//
-// The search (tens of millions of table look-ups per pair) runs on the caller's device and is
-// deterministic: the best score wins, ties go to the first grid pose.
+// revisit's registration, which may begin metres off, outside the distance-field aligner's basin.
+// That aligner sees walls only through registration points whose eight trilinear corners are
+// observed in the partner, which walls (unobserved behind, holed between sparse LiDAR rays)
+// rarely give. A top view needs no observed neighbourhood: a column holds a wall when one of its
+// surface voxels has a TSDF gradient within about 25 degrees of horizontal. Two submaps' wall
+// columns are matched over a grid of offsets and yaws by the columns landing on a wall of the
+// other (a Gaussian of the distance), so the result does not depend on a basin. The search runs
+// on the caller's device and is deterministic: the best score wins, ties go to the first pose.
 #include <cstdint>
 #include <memory>
 #include <mutex>

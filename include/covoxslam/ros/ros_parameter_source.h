@@ -1,15 +1,12 @@
 #pragma once
 // The node's parameters as a pipeline::ParameterSource, read the way the offline runner reads a
-// configuration file: the files named by ~config_file and ~extra_config_file (the launch files
-// pass them) are read by the library's reader (pipeline::read_config_files, the YAML subset), and
-// a parameter set on the server (a <param> line, `rosparam set`) replaces a file's value. Both go
-// through the same text parsing (io/setting_values.h): a server value is turned into its text
-// first (a double in its shortest exact form), so "1e-1" or "0.2" in quotes read the same in a
-// file, in `rosparam load` and in run_slam, and a file works in both or fails in both.
-//
-// The library's dotted names are nested parameters: "registration.gate.max_residual_m" is
-// ~registration/gate/max_residual_m; a section's source ("ros", the nodelet's own options) reads
-// ~ros/<name> and the files' "ros.<name>" entries.
+// configuration file: the files named by ~config_file and ~extra_config_file are read by the
+// library's reader (pipeline::read_config_files), and a parameter set on the server replaces a
+// file's value. Both go through the same text parsing (io/setting_values.h; a server value is
+// turned into its text first, a double in its shortest exact form), so a file works in both or
+// fails in both. Dotted names are nested parameters ("registration.gate.max_residual_m" is
+// ~registration/gate/max_residual_m); a section's source ("ros") reads ~ros/<name> and the
+// files' "ros.<name>" entries.
 #include <string>
 #include <vector>
 

@@ -1,35 +1,13 @@
 #pragma once
-// SlamNode: the ROS face of pipeline::SlamSystem, shared by the nodelet (covoxslam/
-// CovoxSlamNodelet) and the node wrapper (covoxslam_node). It turns messages into scans, looks up
-// their poses, publishes what the SLAM system knows and serves the map services. Everything that
-// computes lives in the library; this class only converts, waits and publishes.
-//
-// Threads: sensor and odometry callbacks run on the node handle's own queue (the nodelet's
-// single-threaded queue). The outputs have four queues, each with its own spinner thread, so that
-// nothing waits behind a slower one: tf (mission -> odom and the submap frames: what the robot
-// navigates by, never behind a service), visualisation (meshes, slices, diagnostics: may wait
-// for the SLAM backend), the map services (save / load / finish ... may take seconds) and the
-// ESDF query service (a planner's question, not queued behind a save_map). `input_mutex_` guards
-// what the input and the services touch, `publish_mutex_` the record of what was published
-// (visualisation thread and services), `frames_mutex_` the submap frames (visualisation and tf).
-//
-// A cloud whose pose is not known yet waits (in arrival order) for up to tf_wait_timeout_s of
-// wall time; then it is dropped and counted, with a rate-limited warning that names the frames
-// and tf's reason (unknown frame, extrapolation). A cloud older than what tf or the odometry
-// buffer holds is dropped at once (its pose can never arrive).
-//
-// Map lifecycle: finish_map freezes what exists (SlamSystem::finish) and mapping continues in a
-// new submap (SlamSystem::resume); reset and load_map replace the map and mapping continues too.
-// Time going backwards - the simulated ROS clock, or two cloud (or odometry) stamps in a row more
-// than time_jump_min_s before the newest: a bag played again or looped - resets the map or, with
-// time_jump_policy "refuse", refuses clouds until reset or load_map. ~diagnostics carries the
-// state and the reason of the latest refusal.
-//
-// Meshes: each submap's mesh is one marker in the submap's own frame (submap_<id>, on /tf under
-// mission_frame), sent once when the submap is new or re-meshed; a submap that moves costs a
-// transform on /tf, not its triangles. Every submap frame is sent again each submap_tf_period_s
-// for late listeners. A new ~separated_mesh subscriber is sent every submap's marker on
-// connecting.
+// SlamNode: the ROS face of pipeline::SlamSystem, shared by the nodelet
+// (covoxslam/CovoxSlamNodelet) and the node (covoxslam_node). It turns messages into scans, looks
+// up their poses, publishes what the SLAM system knows and serves the map services; everything
+// that computes lives in the library. Sensor callbacks run on the node handle's own queue, the
+// outputs on four queues with a spinner thread each (tf, visualisation, map services, ESDF
+// queries), so that nothing waits behind a slower one. `input_mutex_` guards what the input and
+// the services touch, `publish_mutex_` the record of what was published, `frames_mutex_` the
+// submap frames. docs/design.md ("The ROS layer") and docs/ros.md describe the clouds' wait for
+// their pose, time jumps, the map's lifecycle and the meshes in the submaps' frames.
 #include <atomic>
 #include <deque>
 #include <map>

@@ -1,27 +1,12 @@
 #pragma once
 // The scalar side of preconditioned conjugate gradients kept in the device's memory, written once
-// for both backends (included through pose_graph_solver_impl.h).
-//
-// A CG iteration needs three dot products, and each decides what the next step does (the step
-// length, whether to stop, the next direction). Read back to the host, every one is a wait for
-// the device between small kernels, which on a pose graph of a few thousand unknowns costs more
-// than the kernels. Here the dot products are reduced into a CgState in the device's memory and
-// the kernels that need them read them there: the host enqueues iterations without waiting and
-// reads the state only every few iterations to learn whether CG has stopped. Once it has, the
-// kernels of the iterations already enqueued change nothing, so the result is that of a loop that
-// tests after every iteration.
-//
-// One iteration, in order (each line one kernel or reduction):
-//   q = A p                                 (the caller's matrix product)
-//   pq = p.q
-//   cg_update:    x += (rz / pq) p, r -= (rz / pq) q      unless stopped or pq <= 0
-//   rr = r.r
-//   z = M^-1 r                              (the caller's preconditioner)
-//   rz_next = r.z
-//   cg_advance:   counts the iteration; stops on pq <= 0 or |r| <= tolerance |b|, else beta
-//   cg_direction: p = z + beta p            unless stopped
-// `stopped` is written only by cg_start and cg_advance, single-thread kernels, so no kernel reads
-// a flag that it or a kernel running beside it writes.
+// for both backends (included through pose_graph_solver_impl.h). Each of an iteration's three dot
+// products decides the next step (its length, whether to stop, the next direction); read back,
+// each would be a wait between small kernels, which on a pose graph of a few thousand unknowns
+// costs more than the kernels. Here they are reduced into a CgState in the device's memory where
+// the kernels read them: the host enqueues iterations without waiting and reads the state only
+// every few iterations. Once CG has stopped, the iterations already enqueued change nothing, so
+// the result is that of a loop that tests after every iteration.
 #include <cmath>
 #include <cstdint>
 
@@ -33,6 +18,17 @@
 namespace covox {
 namespace backend {
 
+// One iteration, in order (each line one kernel or reduction):
+//   q = A p                                 (the caller's matrix product)
+//   pq = p.q
+//   cg_update:    x += (rz / pq) p, r -= (rz / pq) q      unless stopped or pq <= 0
+//   rr = r.r
+//   z = M^-1 r                              (the caller's preconditioner)
+//   rz_next = r.z
+//   cg_advance:   counts the iteration; stops on pq <= 0 or |r| <= tolerance |b|, else beta
+//   cg_direction: p = z + beta p            unless stopped
+// `stopped` is written only by cg_start and cg_advance, single-thread kernels, so no kernel reads
+// a flag that it or a kernel running beside it writes.
 struct CgState {
   double rz = 0.0;       // r.z of the current residual and preconditioned residual
   double rz_next = 0.0;  // r.z after this iteration's update

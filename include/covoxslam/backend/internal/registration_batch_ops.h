@@ -1,15 +1,12 @@
 #pragma once
 // The data-parallel step of batched pair registration (registration_batch.h): the IRLS sums of
-// many registration terms at once, written once for both backends (defined in
-// registration_batch_impl.h, instantiated with the rest of registration).
-//
-// A term is one direction of one pair: the points of one submap in the field of the other, its
-// sums taken with respect to one of the two poses. The points stay in their own buffers. The sums
-// are a tree of fixed shape: a thread sums one chunk of at most kRegistrationBatchChunkPoints
-// consecutive points of a term in order (evaluating their residuals as it goes), then each level
+// many registration terms at once, for both backends (defined in registration_batch_impl.h). A
+// term is one direction of one pair: the points of one submap in the field of the other, summed
+// with respect to one of the two poses. The sums are a tree of fixed shape: a thread sums a chunk
+// of at most kRegistrationBatchChunkPoints consecutive points of a term in order, then each level
 // sums runs of at most kRegistrationBatchFanIn consecutive rows of a term in order, until one row
-// per term is left. No run crosses a term, so the order is fixed, the same on both backends, and a
-// term's sums do not depend on which other terms share the batch.
+// per term is left. No run crosses a term, so the order is fixed, the same on both backends, and
+// a term's sums do not depend on which other terms share the batch.
 #include <cstdint>
 
 #include "covoxslam/backend/internal/registration_ops.h"

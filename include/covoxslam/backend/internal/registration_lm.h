@@ -1,15 +1,12 @@
 #pragma once
-// The Levenberg-Marquardt of one pair's alignment (registration.h, RegistrationAlignerConfig) as a
-// state machine: it names the pose (and level) whose sums it needs next, takes those sums, and
-// moves on, so that a driver can evaluate the requests of many pairs together
-// (registration_batch.h).
-//
-// Coarse-to-fine: the LM on the ESDF every 2^L voxels, L = coarse_levels ... 1, each level from
-// where the previous ended (a level that fails leaves the start unchanged), then the LM on the
-// fine residual, whose failure is the pair's. Each level: damping relative to the diagonal
-// (Marquardt), a step kept when the mean cost per used point does not rise (points leaving the
-// other field drop out of the sum), converged when a step is below the tolerances (a coarse
-// level's scaled with its stride, and capped at coarse_max_iterations steps).
+// The Levenberg-Marquardt of one pair's alignment (registration.h, RegistrationAlignerConfig) as
+// a state machine that names the pose (and level) whose sums it needs next, so that a driver can
+// evaluate the requests of many pairs together (registration_batch.h). Coarse-to-fine: the LM on
+// the ESDF every 2^L voxels, L = coarse_levels ... 1, each level from where the previous ended (a
+// failed level leaves the start unchanged), then on the fine residual, whose failure is the
+// pair's. Each level: Marquardt damping, a step kept when the mean cost per used point does not
+// rise (points leaving the other field drop out of the sum), converged when a step is below the
+// tolerances (a coarse level's scaled with its stride, and at most coarse_max_iterations steps).
 #include <string>
 
 #include "covoxslam/backend/registration_batch.h"

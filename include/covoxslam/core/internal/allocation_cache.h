@@ -1,17 +1,12 @@
 #pragma once
-// AllocationCache: freed GPU allocations kept for reuse instead of handed back to the driver.
-//
-// cudaMalloc and cudaFree cost far more than the kernels around them when a submap's pools come
-// and go (a restore allocates a whole map, a compaction frees one), and cudaFree waits for the
-// whole device. The cache keeps freed blocks up to max_cached_bytes and hands one out again for a
-// request it fits with little waste (the request at least 3/4 of the block).
-//
-// Reuse is safe across streams: a block freed while kernels on some stream may still use it is
-// handed out again only after a device-wide synchronisation that came after its free (one
-// synchronisation makes every block freed before it safe), which is what cudaFree would have done
-// at the free. A backend allocation that fails is retried once after the cache is flushed.
-//
-// The backend is injected so that the policy is tested on the host.
+// AllocationCache: freed GPU allocations kept for reuse instead of handed back to the driver
+// (cudaMalloc and cudaFree cost far more than the kernels around them when a submap's pools come
+// and go, and cudaFree waits for the whole device). It keeps freed blocks up to max_cached_bytes
+// and hands one out for a request that uses at least 3/4 of it. Reuse is safe across streams: a
+// block freed while kernels may still use it is handed out again only after a device-wide
+// synchronisation that came after its free, which is what cudaFree would have done. A backend
+// allocation that fails is retried once after the cache is flushed. The backend is injected so
+// that the policy is tested on the host.
 #include <cstddef>
 #include <cstdint>
 #include <functional>

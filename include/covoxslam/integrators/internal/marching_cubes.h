@@ -61,63 +61,69 @@ COVOX_HD_INLINE float crossing_fraction(const float* values, int e) {
   return a / (a - b);
 }
 
-// Calls emit(edge_a, edge_b, edge_c) for each triangle of the cube, vertices named by cube edge.
-// `values` are the 8 corner distances; orientation is fixed afterwards by orient().
-template <class Emit>
-COVOX_HD_INLINE int polygonize(const float* values, Emit&& emit) {
-  int signs = 0;
-  for (int c = 0; c < 8; ++c) signs |= inside(values[c]) ? (1 << c) : 0;
-  if (signs == 0 || signs == 0xff) return 0;
-  // Each crossing edge gets one partner per adjacent face.
+// The crossing edges of a cube, each with its two partners: the crossing edges that share one of
+// its faces and that the face's segment joins it to (-1 where none).
+struct EdgeLoops {
   int8_t partner[12][2];
-  for (int e = 0; e < 12; ++e) partner[e][0] = partner[e][1] = -1;
-  auto link = [&](int a, int b) {
+
+  COVOX_HD_INLINE void link(int a, int b) {
     partner[a][partner[a][0] < 0 ? 0 : 1] = static_cast<int8_t>(b);
     partner[b][partner[b][0] < 0 ? 0 : 1] = static_cast<int8_t>(a);
-  };
-  for (int face = 0; face < 6; ++face) {
-    int corner[4];
-    bool in[4];
-    int crossings = 0;
-    for (int k = 0; k < 4; ++k) {
-      corner[k] = face_corner(face, k);
-      in[k] = (signs >> corner[k]) & 1;
-    }
-    int crossing_edges[4];
-    for (int k = 0; k < 4; ++k) {
-      if (in[k] != in[(k + 1) & 3])
-        crossing_edges[crossings++] = edge_between(corner[k], corner[(k + 1) & 3]);
-    }
-    if (crossings == 2) {
-      link(crossing_edges[0], crossing_edges[1]);
-    } else if (crossings == 4) {
-      // Alternating corners: crossing_edges[k] lies between corner k and k + 1.
-      const float centre =
-          0.25f * (values[corner[0]] + values[corner[1]] + values[corner[2]] + values[corner[3]]);
-      if (inside(centre) == in[0]) {
-        // corners 0 and 2 are joined through the centre: cut off corners 1 and 3
-        link(crossing_edges[0], crossing_edges[1]);
-        link(crossing_edges[2], crossing_edges[3]);
-      } else {
-        // corners 1 and 3 are joined: cut off corners 0 and 2
-        link(crossing_edges[3], crossing_edges[0]);
-        link(crossing_edges[1], crossing_edges[2]);
-      }
-    }
   }
-  // Walk the loops and fan-triangulate each.
+};
+
+// The segments of one face (signs: bit c set when corner c is inside). Two crossings give one
+// segment; four (alternating corners) give two, which cut off the corners on the other side of
+// the face centre from corner 0.
+COVOX_HD_INLINE void link_face_crossings(const float* values, int signs, int face,
+                                         EdgeLoops* loops) {
+  int corner[4];
+  bool in[4];
+  for (int k = 0; k < 4; ++k) {
+    corner[k] = face_corner(face, k);
+    in[k] = (signs >> corner[k]) & 1;
+  }
+  int crossing_edges[4];
+  int crossings = 0;
+  for (int k = 0; k < 4; ++k) {
+    if (in[k] != in[(k + 1) & 3])
+      crossing_edges[crossings++] = edge_between(corner[k], corner[(k + 1) & 3]);
+  }
+  if (crossings == 2) {
+    loops->link(crossing_edges[0], crossing_edges[1]);
+    return;
+  }
+  if (crossings != 4) return;
+  // Alternating corners: crossing_edges[k] lies between corner k and k + 1.
+  const float centre =
+      0.25f * (values[corner[0]] + values[corner[1]] + values[corner[2]] + values[corner[3]]);
+  if (inside(centre) == in[0]) {
+    // corners 0 and 2 are joined through the centre: cut off corners 1 and 3
+    loops->link(crossing_edges[0], crossing_edges[1]);
+    loops->link(crossing_edges[2], crossing_edges[3]);
+  } else {
+    // corners 1 and 3 are joined: cut off corners 0 and 2
+    loops->link(crossing_edges[3], crossing_edges[0]);
+    loops->link(crossing_edges[1], crossing_edges[2]);
+  }
+}
+
+// Walks each closed loop of partners once and fan-triangulates it; returns the triangle count.
+template <class Emit>
+COVOX_HD_INLINE int emit_loop_fans(const EdgeLoops& loops, Emit&& emit) {
   bool visited[12] = {false, false, false, false, false, false,
                       false, false, false, false, false, false};
   int triangles = 0;
   for (int start = 0; start < 12; ++start) {
-    if (partner[start][0] < 0 || visited[start]) continue;
+    if (loops.partner[start][0] < 0 || visited[start]) continue;
     int loop[12];
     int length = 0;
     int previous = -1, current = start;
     do {
       visited[current] = true;
       loop[length++] = current;
-      const int next = partner[current][0] != previous ? partner[current][0] : partner[current][1];
+      const int8_t* partner = loops.partner[current];
+      const int next = partner[0] != previous ? partner[0] : partner[1];
       previous = current;
       current = next;
     } while (current != start && length < 12);
@@ -127,6 +133,20 @@ COVOX_HD_INLINE int polygonize(const float* values, Emit&& emit) {
     }
   }
   return triangles;
+}
+
+// Calls emit(edge_a, edge_b, edge_c) for each triangle of the cube, vertices named by cube edge.
+// `values` are the 8 corner distances; orientation is fixed afterwards by orient().
+template <class Emit>
+COVOX_HD_INLINE int polygonize(const float* values, Emit&& emit) {
+  int signs = 0;
+  for (int c = 0; c < 8; ++c) signs |= inside(values[c]) ? (1 << c) : 0;
+  if (signs == 0 || signs == 0xff) return 0;
+  // Each crossing edge gets one partner per adjacent face.
+  EdgeLoops loops;
+  for (int e = 0; e < 12; ++e) loops.partner[e][0] = loops.partner[e][1] = -1;
+  for (int face = 0; face < 6; ++face) link_face_crossings(values, signs, face, &loops);
+  return emit_loop_fans(loops, emit);
 }
 
 // The gradient of the trilinear field at the cube centre (which way is free space).

@@ -97,7 +97,7 @@ struct TsdfFramePlan {
   bool sums_every_visit() const { return visits == VisitMerging::kSumEveryVisit; }
   bool sums_free_space() const { return visits == VisitMerging::kSumFreeSpace; }
   bool sums_visits() const { return visits != VisitMerging::kSortEveryVisit; }
-  // Records the walk writes (every visit, free-space ones as zero-weight fill) and step 5 reads.
+  // Records the walk writes (every visit, free-space ones as zero-weight fill) and stage 5 reads.
   int64_t record_space() const { return sums_every_visit() ? 0 : total_updates; }
 };
 

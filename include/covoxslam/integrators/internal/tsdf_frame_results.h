@@ -26,7 +26,7 @@ struct FrameResults {
   // first record outside the box (sorted before them), 0: none.
   uint32_t zero_weight_first;
   uint32_t out_of_range_first;
-  // Runs of equal keys that step 5 summed.
+  // Runs of equal keys that stage 5 summed.
   uint32_t runs;
   // With fixed-point sums: the voxels that had only summed visits (with every visit summed: every
   // voxel the pass wrote), those of them in blocks the hash table rejected, and the summed visits
@@ -48,7 +48,7 @@ inline FrameResults read_frame_results(const Buffer<FrameResults>& results, cons
   return host;
 }
 
-// Written by one thread of the kernel that lists the blocks (before step 5 runs). The queued
+// Written by one thread of the kernel that lists the blocks (before stage 5 runs). The queued
 // activation's totals and the band records' count are written by their own kernels.
 COVOX_HD_INLINE void start_frame_results(FrameResults* results, uint32_t blocks) {
   results->blocks = blocks;
@@ -61,7 +61,7 @@ COVOX_HD_INLINE void start_frame_results(FrameResults* results, uint32_t blocks)
   results->table_full_blocks = 0u;
 }
 
-// Step 5's consumer at the run of a dropped kind: each kind is one key, so one run and one call.
+// Stage 5's consumer at the run of a dropped kind: each kind is one key, so one run and one call.
 COVOX_HD_INLINE void note_dropped_run(FrameResults* results, bool zero_weight, int64_t first) {
   uint32_t* word = zero_weight ? &results->zero_weight_first : &results->out_of_range_first;
   *word = static_cast<uint32_t>(first + 1);

@@ -1,5 +1,5 @@
 #pragma once
-// Step 3 of a TSDF frame on the CPU twin: group the visit records by voxel and sum each voxel's,
+// Stage 3 of a TSDF frame on the CPU twin: group the visit records by voxel and sum each voxel's,
 // with the same result as the GPU's stable radix sort by key plus reduction by key (merged keys
 // ascending, each voxel's records summed left to right in record order), with less memory
 // traffic.

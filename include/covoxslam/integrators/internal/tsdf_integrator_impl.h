@@ -1,7 +1,8 @@
 #pragma once
-// A TSDF frame (see tsdf_integrator.h for the algorithm), written once for both backends: a short
-// sequence of named stages, each in a header of its own under internal/, steered by the frame's
-// plan (internal/tsdf_frame_plan.h).
+// A TSDF frame, written once for both backends: the stages 0 de-skew, 1 rays, 2 walk, 3 group,
+// 4 blocks and 5 write, each in a tsdf_stage_*.h header of its own, steered by the frame's plan
+// (tsdf_frame_plan.h). The profiler's labels (COVOX_PROFILE_STAGES) carry the same numbers and
+// names; docs/design.md ("TSDF integration") describes the stages.
 #include <cstdint>
 
 #include <Eigen/Geometry>
@@ -23,20 +24,21 @@
 namespace covox::integrators {
 namespace tsdf {
 
-// Stages 2b to 5 with the frame's record types: KeyT 32-bit when the frame's box allows (almost
-// always: half the key bytes through the walk's writes, every radix pass and the reduction);
-// ValueT tsdf::DistanceUpdate without colour, summed as it is, tsdf::ColorVisit with colour,
-// whose update is computed from its ray and voxel as the sum reads it (tsdf_traverse.h).
+// Stages 2b walk, 3 group, 4 blocks and 5 write with the frame's record types: KeyT 32-bit when the
+// frame's box allows (almost always: half the key bytes through the walk's writes, every radix pass
+// and the reduction); ValueT tsdf::DistanceUpdate without colour, summed as it is, tsdf::ColorVisit
+// with colour, whose update is computed from its ray and voxel as the sum reads it
+// (tsdf_traverse.h).
 template <class KeyT, class ValueT, class Backend>
 void fuse_visits(const FrameContext<Backend>& frame, const TsdfFramePlan& plan,
                  const FrameUpdates& updates, IntegrationStats* stats) {
   FrameRecords<KeyT, ValueT> records = prepare_records<KeyT, ValueT>(frame, plan);
   walk_visits(frame, plan, updates, &records);
-  frame.profile.mark("2b traverse");
+  frame.profile.mark("2b walk: traverse");
   stats->records_grouped = records.record_count;
   if (plan.groups_on_cpu) {
     group_records_on_cpu(frame, plan, updates, &records);
-    frame.profile.mark("3 group by voxel");
+    frame.profile.mark("3 group: by block (CPU)");
   }
   BlockListing listing;
   prepare_block_listing(frame, plan, records, &listing);
@@ -44,28 +46,31 @@ void fuse_visits(const FrameContext<Backend>& frame, const TsdfFramePlan& plan,
       frame.map.blocks(), &frame.scratch.results.data()->new_blocks, frame.stream);
   if (plan.marks_blocks) {  // before the sort, which then hides the wait for the activation
     list_marked_blocks(frame, plan, records, &listing);
-    frame.profile.mark("4a list and activate marked blocks");
+    frame.profile.mark("4a blocks: list marked, activate");
   }
   if (!records.grouped && !plan.sums_every_visit()) {
     sort_records(frame, plan, &records);
-    frame.profile.mark("3 sort records");
+    frame.profile.mark("3 group: sort records");
   }
   if (!plan.marks_blocks) {
     list_sorted_blocks(frame, plan, records, &listing);
-    frame.profile.mark("4a list and activate sorted blocks");
+    frame.profile.mark("4a blocks: list sorted, activate");
   }
   stats->blocks_allocated = finish_activation(frame, plan, &listing);
   if (!plan.sums_every_visit()) clear_new_blocks(frame, listing);
-  frame.profile.mark("4d clear new blocks");
-  if (!plan.sums_every_visit()) write_record_voxels(frame, plan, updates, records, listing);
+  frame.profile.mark("4d blocks: clear new");
+  if (!plan.sums_every_visit()) {
+    write_record_voxels(frame, plan, updates, records, listing);
+    frame.profile.mark("5a write: record runs");
+  }
   if (plan.sums_visits()) {
     write_summed_cells(frame, plan, records, listing);
-    frame.profile.mark(plan.sums_every_visit() ? "5 write summed voxels" : "5b free-space voxels");
+    frame.profile.mark("5b write: listed cells");
   }
   reset_merge_tally(frame.backend, frame.scratch.merge, frame.stream);  // for the next frame
   stats->blocks_allocated = read_frame_end(frame, plan, records, &listing);
   count_frame_voxels(frame, plan, records, listing, stats);
-  frame.profile.mark("5 sum and write voxels");
+  frame.profile.mark("5c write: frame end");
 }
 
 template <class Backend>
@@ -113,8 +118,8 @@ inline WeightParameters weight_parameters_of(const TsdfIntegratorConfig& config,
                           config.sparsity_compensation_factor};
 }
 
-// A frame: a timed cloud's points de-skewed (stage 0), its rays and tally (stage 1), its plan,
-// how its visits are walked (stage 2a), then stages 2b to 5.
+// A frame: a timed cloud's points de-skewed (stage 0 de-skew), its rays and tally (stage 1 rays),
+// its plan, how its visits are walked (stage 2a), then stages 2b to 5 (fuse_visits).
 template <class Backend>
 IntegrationStats integrate_frame(Backend backend, const TsdfIntegratorConfig& config,
                                  const FrameStrategy& strategy, map::TsdfMap& map,
@@ -129,7 +134,7 @@ IntegrationStats integrate_frame(Backend backend, const TsdfIntegratorConfig& co
   const FramePoints points = timed ? deskew_points(backend, input, scratch.input, stream) : input;
   if (timed) {
     stats.points_deskewed = input.cloud.count;
-    profile.mark("0 de-skew points");
+    profile.mark("0 de-skew");
   }
   const float voxel_size = map.voxel_size_m();
   const RayParameters ray_parameters = ray_parameters_of(config, voxel_size, T_map_sensor);
@@ -142,7 +147,7 @@ IntegrationStats integrate_frame(Backend backend, const TsdfIntegratorConfig& co
         make_merge_keys(ray_parameters.T_world_sensor.translation, config.max_ray_length_m,
                         voxel_size, map.voxels_per_side());
     rays = merge_rays(frame, points, ray_parameters, merge_keys);
-    profile.mark("1 merge rays + tally");
+    profile.mark("1 rays: merge + tally");
   } else {
     rays = point_rays(frame, points, ray_parameters);
   }
@@ -153,10 +158,10 @@ IntegrationStats integrate_frame(Backend backend, const TsdfIntegratorConfig& co
   FrameUpdates updates;
   if (plan.sums_every_visit()) {
     updates = ray_groups_frame(plan, rays, voxel_size, weight_parameters);
-    profile.mark("2a ray groups");
+    profile.mark("2a walk: ray groups");
   } else {
     updates = ray_pieces_frame(frame, plan, rays, voxel_size, weight_parameters);
-    profile.mark("2a ray pieces");
+    profile.mark("2a walk: piece table");
   }
   fuse_frame(frame, plan, updates, &stats);
   return stats;

@@ -242,12 +242,12 @@ int64_t finish_activation(const FrameContext<Backend>& frame, const TsdfFramePla
     listing->activation = frame.map.blocks().finish_queued_activation(
         listing->results.new_blocks, listing->results.rejected_blocks, frame.stream);
   }
-  frame.profile.mark("4b hash activate");
+  frame.profile.mark("4b blocks: activation totals");
   frame.map.ensure_pool_capacity(frame.stream);
   // (with the activation deferred, new slots past the pool wait for a second pass)
   listing->pool_slots =
       static_cast<uint32_t>(std::min<int64_t>(frame.map.pool_slots(), map::kInvalidSlot));
-  frame.profile.mark("4c pool capacity");
+  frame.profile.mark("4c blocks: pool capacity");
   return listing->activation.num_new;
 }
 

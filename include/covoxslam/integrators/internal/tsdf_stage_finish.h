@@ -1,6 +1,7 @@
 #pragma once
-// The end of a TSDF frame: its figures, from the results read back (tsdf_stage_write_voxels.h,
-// read_frame_end) and, rarely, a count of the voxels whose block the hash table rejected.
+// Stage 5c of a TSDF frame, its end: the figures, from the results read back
+// (tsdf_stage_write_voxels.h, read_frame_end) and, rarely, a count of the voxels whose block the
+// hash table rejected.
 #include <cstdint>
 #include <string>
 

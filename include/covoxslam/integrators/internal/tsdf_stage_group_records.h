@@ -1,6 +1,6 @@
 #pragma once
 // Stage 3 of a TSDF frame that keeps records: the records grouped by voxel. A stable radix sort
-// by key keeps each voxel's records in ray order, so the float sums that step 5 takes are the
+// by key keeps each voxel's records in ray order, so the float sums that stage 5 takes are the
 // same every run; records to drop (outside the key range, zero weight) sort last, one run per
 // kind. The CPU twin groups them in dense per-block arrays instead (tsdf_group_updates_cpu.h):
 // the same voxels and (within rounding) sums as the sort and the run sums, with a third of the
@@ -13,7 +13,7 @@
 
 namespace covox::integrators::tsdf {
 
-// Step 5's terms when the records are sums already (no colour, or the CPU twin's merged voxels).
+// Stage 5's terms when the records are sums already (no colour, or the CPU twin's merged voxels).
 template <class SumT>
 struct ArrayTerm {
   const SumT* sums;

@@ -72,14 +72,14 @@ FrameRays point_rays(const FrameContext<Backend>& frame, const FramePoints& poin
   const float inverse_voxel_size = 1.0f / ray_parameters.voxel_size_m;
   if (points.depth_image) {
     unproject_depth(frame.backend, *points.depth_image, scratch.input, frame.stream);
-    frame.profile.mark("0 unproject");
+    frame.profile.mark("1 rays: unproject depth");
   }
   FrameRays rays;
   // Why points did or did not become rays, and the box of voxels their own rays traverse.
   rays.tally =
       transform_reduce(frame.backend, frame.stream, points.cloud.points, n,
                        TallyPoint{ray_parameters, inverse_voxel_size}, RayTally{}, AddTallies{});
-  frame.profile.mark("1 rays + tally");
+  frame.profile.mark("1 rays: per point + tally");
   scratch.rays.rays.resize_discard(n);
   scratch.rays.pieces.resize_discard(n + 1);
   parallel_for(frame.backend, frame.stream, n + 1,

@@ -34,7 +34,7 @@ struct FrameRecords {
   // places of the scratch arrays (then swapped in), so that the sort and the reduction see a bound
   // the host knows without a read-back.
   BandRecords<KeyT, ValueT> band;
-  // What step 5 reads: the records' keys (sorted, or the CPU twin's merged voxels) and how many.
+  // What stage 5 reads: the records' keys (sorted, or the CPU twin's merged voxels) and how many.
   const KeyT* record_keys = nullptr;
   int64_t record_count = 0;
   // The CPU twin's grouping: one merged record per voxel, with its sum.

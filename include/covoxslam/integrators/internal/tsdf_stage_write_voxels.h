@@ -367,10 +367,10 @@ void write_summed_cells(const FrameContext<Backend>& frame, const TsdfFramePlan&
   }
 }
 
-// The frame's one wait: its results read back. A frame that activated its blocks while listing
-// them finishes the activation with their totals, and any block whose new slot lies past the
-// voxel pool (rare: the pool grows geometrically) is written by a second pass once the pool has
-// grown. Returns the new blocks.
+// Stage 5c: the frame's one wait, its results read back. A frame that activated its blocks while
+// listing them finishes the activation with their totals, and any block whose new slot lies past
+// the voxel pool (rare: the pool grows geometrically) is written by a second pass once the pool
+// has grown. Returns the new blocks.
 template <class KeyT, class ValueT, class Backend>
 int64_t read_frame_end(const FrameContext<Backend>& frame, const TsdfFramePlan& plan,
                        const FrameRecords<KeyT, ValueT>& records, BlockListing* listing) {

@@ -1,28 +1,13 @@
 #pragma once
-// Step 2b of a TSDF frame: every ray piece (tsdf_kernels.h) emits one visit record (key, value)
-// per voxel it visits, into its own contiguous range [piece_offsets[p], piece_offsets[p + 1]) of
-// the record arrays. The key is the voxel's (or the zero-weight key when the visit carries no
-// weight); the value is
-// - for a frame without colour, the distance update itself (8 bytes), summed as it is;
-// - for a coloured frame, one word (ColorVisit, tsdf_kernels.h): in the band, the index of the ray
-//   that made the visit; the update, with the ray's colour when the visit takes it, is computed
-//   again from the ray and the voxel where the reduction reads the record (VoxelUpdateOfRecord),
-//   with the same function: moving 4 bytes through the traverse's writes and every radix pass
-//   costs less than moving a 32-byte coloured update, while for an 8-byte update without colour
-//   the recomputation would cost about what it saves. In free space, where the distance is the
-//   truncation and no colour is taken, the word is the visit's weight itself, so the reduction
-//   needs neither the ray nor the voxel.
-// The per-voxel arithmetic is one __host__ __device__ function for both backends; only how the
-// records reach memory differs:
-// - CPU: each OpenMP thread writes its pieces' records directly (contiguous per thread).
-// - CUDA: one thread per piece would make every warp store to 32 scattered places (each thread's
-//   run of ~8 records), so a block first collects its pieces' records in shared memory, where the
-//   ranges of consecutive pieces are consecutive, and then copies them out with coalesced
-//   stores. A block whose records do not fit (pieces much longer than kVoxelsPerPiece, which the
-//   cut rule does not produce) writes directly, as the CPU does.
-// With free-space sums only the band's records are kept, compacted (BandRecords): the CPU writes
-// every record and compacts them afterwards; the GPU's blocks compact theirs as they copy them
-// out, placed by a look-back over the blocks before them.
+// Stage 2b of a TSDF frame: every ray piece (tsdf_kernels.h) emits one visit record (key, value)
+// per voxel it visits, into its own range [piece_offsets[p], piece_offsets[p + 1]) of the record
+// arrays. The value is the distance update itself (no colour) or one ColorVisit word: in the
+// band the ray's index, the update recomputed from ray and voxel where the records are summed
+// (VoxelUpdateOfRecord); in free space the visit's weight. The per-voxel arithmetic is one
+// function for both backends; the CPU writes each piece's records directly, a CUDA thread block
+// gathers its pieces' records in shared memory and copies them out with coalesced stores
+// (directly when they do not fit). With free-space sums only the band's records are kept
+// (BandRecords): compacted afterwards on the CPU, as they are copied out on the GPU.
 #include <algorithm>
 #include <cstdint>
 
@@ -246,7 +231,7 @@ struct VoxelUpdateOfRecord {
 // With free-space sums (PieceTraversal::free_space_sums) only the band's records are wanted: they
 // go compacted, in visit order, into the first places of `keys` / `values`, at most `bound` of
 // them, and their count to *kept (memory of the backend's device). The places after them, up to
-// the bound, hold keys that sort last and that step 5 does not read (its live count is *kept):
+// the bound, hold keys that sort last and that stage 5 does not read (its live count is *kept):
 // the zero-weight key on the CPU, all bits set on the GPU (a memset).
 template <class KeyT, class ValueT>
 struct BandRecords {

@@ -1,16 +1,12 @@
 #pragma once
 // The BlockHashTable algorithms, written once over a backend tag and instantiated twice:
 // src/map/block_hash_table_cpu.cpp (CpuBackend) and cuda/map/block_hash_table_cuda.cu
-// (CudaBackend). Only those two files include this header.
-//
-// activate(keys) in four data-parallel passes, none of which waits on another thread:
-//   1. insert:  each key probes and CASes itself into an empty bucket (or finds itself);
-//               the CAS winner flags "new"
-//   2. scan:    exclusive scan of the "new" flags ranks the new keys 0..n_new-1 (input order)
-//   3. assign:  new key with rank r takes freed slot r from the top of the free stack, or the
-//               next never-used slot, and writes it to its bucket
-//   4. gather:  every key (duplicates too) reads its bucket's slot
-// Splitting 3 and 4 is what lets duplicates of a key in one batch see the winner's slot
+// (CudaBackend). Only those two files include this header. activate(keys) runs passes none of
+// which waits on another thread: insert (each key probes and CASes itself into an empty bucket,
+// or finds itself; the CAS winner flags "new"), rank (a scan of the flags numbers the new keys in
+// input order), assign (new key r takes freed slot r from the top of the free stack, or the next
+// never-used slot), the three in one launch; then gather (every key, duplicates too, reads its
+// bucket's slot). A separate gather lets duplicates of a key in one batch see the winner's slot
 // without spinning on it.
 #include <algorithm>
 #include <cmath>
