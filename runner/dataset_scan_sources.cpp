@@ -25,14 +25,6 @@ std::string six_digits(int number) {
   return text;
 }
 
-io::StampedPose to_stamped(double stamp_s, const Eigen::Isometry3d& pose) {
-  io::StampedPose stamped;
-  stamped.timestamp_s = stamp_s;
-  stamped.position_m = pose.translation();
-  stamped.orientation = Eigen::Quaterniond(pose.linear()).normalized();
-  return stamped;
-}
-
 // Every frame's reference pose without decoding any image (the drift needs the whole trajectory
 // before the first frame is mapped).
 std::vector<Eigen::Isometry3d> read_reference_poses(const io::RgbdFolder& folder) {
@@ -69,7 +61,7 @@ RgbdScanSource::RgbdScanSource(const std::string& path, const RgbdScanOptions& o
   for (size_t i = 0; i < frames; ++i) {
     truth[i].stamp_s = folder_.frame_numbers()[i] / options_.frame_rate_hz;
     truth[i].pose = reference[i];
-    reference_.poses.push_back(to_stamped(truth[i].stamp_s, reference[i]));
+    reference_.poses.push_back(stamped_pose(truth[i].stamp_s, reference[i]));
   }
   reference_.has_orientations = true;
   reference_kind_ = ReferenceKind::kGroundTruth;
@@ -152,7 +144,7 @@ LidarKeyframeScanSource::LidarKeyframeScanSource(const std::string& path,
   if (fs::exists(reference_path)) {
     const std::vector<Eigen::Isometry3d> reference = io::read_kitti_pose_file(reference_path);
     for (size_t i = 0; i < std::min(count, reference.size()); ++i)
-      reference_.poses.push_back(to_stamped(stamps_s_[i], reference[i]));
+      reference_.poses.push_back(stamped_pose(stamps_s_[i], reference[i]));
     reference_.has_orientations = true;
     reference_kind_ = ReferenceKind::kOtherEstimate;
   }
@@ -248,7 +240,7 @@ LidarKeyframeGraphScanSource::LidarKeyframeGraphScanSource(const std::string& pa
   for (size_t i = 0; i < count; ++i) {
     truth[i].stamp_s = static_cast<double>(i) * options_.keyframe_interval_s;
     truth[i].pose = given[i];
-    reference_.poses.push_back(to_stamped(truth[i].stamp_s, given[i]));
+    reference_.poses.push_back(stamped_pose(truth[i].stamp_s, given[i]));
   }
   reference_.has_orientations = true;
   reference_kind_ = ReferenceKind::kOtherEstimate;

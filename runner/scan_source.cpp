@@ -12,5 +12,13 @@ void log_dropped_scan(int64_t dropped_so_far, const std::string& reason, int64_t
   }
 }
 
+io::StampedPose stamped_pose(double stamp_s, const Eigen::Isometry3d& pose) {
+  io::StampedPose stamped;
+  stamped.timestamp_s = stamp_s;
+  stamped.position_m = pose.translation();
+  stamped.orientation = Eigen::Quaterniond(pose.linear()).normalized();
+  return stamped;
+}
+
 }  // namespace tools
 }  // namespace covox

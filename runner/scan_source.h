@@ -59,5 +59,8 @@ class ScanSource {
 // input does not flood the terminal but is never silent.
 void log_dropped_scan(int64_t dropped_so_far, const std::string& reason, int64_t limit = 5);
 
+// A pose of a trajectory (io::Trajectory) from a stamp and a rigid transform.
+io::StampedPose stamped_pose(double stamp_s, const Eigen::Isometry3d& pose);
+
 }  // namespace tools
 }  // namespace covox

@@ -39,14 +39,6 @@ void draw_progress(size_t done, size_t total, double elapsed_s, const pipeline::
                slam.submap_queue_length());
 }
 
-io::StampedPose to_stamped(double stamp_s, const Eigen::Isometry3d& pose) {
-  io::StampedPose stamped;
-  stamped.timestamp_s = stamp_s;
-  stamped.position_m = pose.translation();
-  stamped.orientation = Eigen::Quaterniond(pose.linear()).normalized();
-  return stamped;
-}
-
 void print_timing(FILE* out, const char* name, const pipeline::ModuleTiming& timing) {
   std::fprintf(out, "%-20s %8lld %10.2f %10.2f %10.2f\n", name,
                static_cast<long long>(timing.calls), timing.total_s, timing.mean_ms(),
@@ -223,7 +215,7 @@ SlamRunResult run_slam_system(ScanSource& source, const pipeline::SlamConfig& co
     if (!more) break;
     if (result.scans_given == 0) first_stamp_s = scan.stamp_s;
     last_stamp_s = scan.stamp_s;
-    result.odometry.poses.push_back(to_stamped(scan.stamp_s, scan.T_odom_sensor));
+    result.odometry.poses.push_back(stamped_pose(scan.stamp_s, scan.T_odom_sensor));
     pipeline::Scan input;
     input.stamp_s = scan.stamp_s;
     input.T_odom_sensor = scan.T_odom_sensor;
@@ -258,7 +250,7 @@ SlamRunResult run_slam_system(ScanSource& source, const pipeline::SlamConfig& co
     result.input_duration_s = n > 1 ? (last_stamp_s - first_stamp_s) * n / (n - 1) : 0.0;
   }
   for (const pipeline::StampedPose& pose : slam.corrected_trajectory()) {
-    result.corrected.poses.push_back(to_stamped(pose.stamp_s, pose.T_world_sensor));
+    result.corrected.poses.push_back(stamped_pose(pose.stamp_s, pose.T_world_sensor));
   }
   result.mesh = slam.combined_mesh();
   result.counters = slam.counters();
