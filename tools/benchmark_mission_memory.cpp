@@ -28,16 +28,16 @@
 #include <string>
 #include <vector>
 
-#include "benchmark_report.h"
-#include "command_line.h"
+#include "benchmark/benchmark_report.h"
+#include "cli/command_line.h"
 #include "covoxslam/core/device.h"
 #include "covoxslam/core/error.h"
 #include "covoxslam/pipeline/slam_config_files.h"
-#include "png_plot.h"
-#include "sim_mission.h"
-#include "sim_scan_source.h"
-#include "slam_run.h"
-#include "trajectory_evaluation.h"
+#include "eval/png_plot.h"
+#include "eval/trajectory_evaluation.h"
+#include "runner/sim_scan_source.h"
+#include "runner/slam_run.h"
+#include "sim/sim_mission.h"
 
 namespace {
 
@@ -102,17 +102,17 @@ double process_mb(const tools::TimelineSample& t) {
 }
 
 // Least-squares slope of y against x; NaN for fewer than two distinct x.
-double slope(const std::vector<tools::PlotPoint>& points) {
+double slope(const std::vector<eval::PlotPoint>& points) {
   if (points.size() < 2) return kNaN;
   double mean_x = 0.0, mean_y = 0.0;
-  for (const tools::PlotPoint& p : points) {
+  for (const eval::PlotPoint& p : points) {
     mean_x += p.x;
     mean_y += p.y;
   }
   mean_x /= points.size();
   mean_y /= points.size();
   double sxy = 0.0, sxx = 0.0;
-  for (const tools::PlotPoint& p : points) {
+  for (const eval::PlotPoint& p : points) {
     sxy += (p.x - mean_x) * (p.y - mean_y);
     sxx += (p.x - mean_x) * (p.x - mean_x);
   }
@@ -137,20 +137,20 @@ struct MemoryFigures {
 
 // Each window's lowest host RSS, at the window's middle, over the samples in `after`; a window
 // with fewer than `min_samples` (the first and the last, cut short) is left out.
-std::vector<tools::PlotPoint> window_floors(const std::vector<tools::TimelineSample>& after,
-                                            double window_s, size_t min_samples) {
-  std::vector<tools::PlotPoint> floors;
+std::vector<eval::PlotPoint> window_floors(const std::vector<tools::TimelineSample>& after,
+                                           double window_s, size_t min_samples) {
+  std::vector<eval::PlotPoint> floors;
   std::vector<size_t> counts;
   for (const tools::TimelineSample& t : after) {
     const double middle = (std::floor(t.mission_s / window_s) + 0.5) * window_s;
     if (floors.empty() || floors.back().x != middle) {
-      floors.push_back(tools::PlotPoint{middle, t.host_rss_mb});
+      floors.push_back(eval::PlotPoint{middle, t.host_rss_mb});
       counts.push_back(0);
     }
     floors.back().y = std::min(floors.back().y, t.host_rss_mb);
     ++counts.back();
   }
-  std::vector<tools::PlotPoint> full;
+  std::vector<eval::PlotPoint> full;
   for (size_t i = 0; i < floors.size(); ++i)
     if (counts[i] >= min_samples) full.push_back(floors[i]);
   return full;
@@ -173,11 +173,11 @@ MemoryFigures memory_figures(const std::vector<tools::TimelineSample>& timeline,
     }
     if (std::isfinite(f.budgets_reached_s)) after.push_back(t);
   }
-  std::vector<tools::PlotPoint> rss, less_resident;
+  std::vector<eval::PlotPoint> rss, less_resident;
   for (const tools::TimelineSample& t : after) {
-    rss.push_back(tools::PlotPoint{t.mission_s, t.host_rss_mb});
+    rss.push_back(eval::PlotPoint{t.mission_s, t.host_rss_mb});
     less_resident.push_back(
-        tools::PlotPoint{t.mission_s, t.host_rss_mb - t.memory.resident_bytes / kBytesPerMb});
+        eval::PlotPoint{t.mission_s, t.host_rss_mb - t.memory.resident_bytes / kBytesPerMb});
   }
   f.samples_after = after.size();
   f.rss_growth_mb_per_s = slope(rss);
@@ -276,10 +276,10 @@ void add_summary_rows(tools::BenchmarkReport* report, const std::string& name, c
   report->add(name, "growth limit met", v.growth_met ? 1.0 : 0.0, "");
 }
 
-tools::PlotSeries series(const std::string& label, size_t colour) {
-  tools::PlotSeries line;
+eval::PlotSeries series(const std::string& label, size_t colour) {
+  eval::PlotSeries line;
   line.label = label;
-  line.colour = tools::series_colour(colour);
+  line.colour = eval::series_colour(colour);
   return line;
 }
 
@@ -287,14 +287,14 @@ tools::PlotSeries series(const std::string& label, size_t colour) {
 // the limit and the budgets as level lines.
 void write_plot(const std::string& path, const std::vector<tools::TimelineSample>& timeline,
                 const Settings& s, const pipeline::MemoryBudgetConfig& budgets) {
-  std::vector<tools::PlotPanel> panels(2);
+  std::vector<eval::PlotPanel> panels(2);
   panels[0].title = "MEMORY (MB) OVER MISSION TIME (S): DEVICE USED + HOST RSS, LIMIT";
-  tools::PlotSeries process = series("device used + host RSS", 0), rss = series("host RSS", 1),
-                    device = series("device used", 2), limit = series("limit", 3);
+  eval::PlotSeries process = series("device used + host RSS", 0), rss = series("host RSS", 1),
+                   device = series("device used", 2), limit = series("limit", 3);
   panels[1].title = "FINISHED SUBMAPS (MB): RESIDENT, COMPACT IN HOST MEMORY, BUDGETS";
-  tools::PlotSeries resident = series("resident", 0), compact = series("compact", 1),
-                    device_budget = series("device budget", 2),
-                    host_budget = series("host budget", 3);
+  eval::PlotSeries resident = series("resident", 0), compact = series("compact", 1),
+                   device_budget = series("device budget", 2),
+                   host_budget = series("host budget", 3);
   for (const tools::TimelineSample& t : timeline) {
     if (t.end) continue;
     process.points.push_back({t.mission_s, process_mb(t)});
@@ -311,7 +311,7 @@ void write_plot(const std::string& path, const std::vector<tools::TimelineSample
     panels[0].series.push_back(device);
   panels[0].series.push_back(limit);
   panels[1].series = {resident, compact, device_budget, host_budget};
-  tools::write_png(path, tools::render_stacked_panels(panels));
+  eval::write_png(path, eval::render_stacked_panels(panels));
   std::printf("timeline plot -> %s\n", path.c_str());
 }
 
@@ -359,7 +359,7 @@ int run(Settings& s, int argc, char** argv) {
   options.timeline_interval_s = s.sample_interval_s;
   const tools::SlamRunResult result = tools::run_slam_system(source, config, options);
   const tools::SlamRunEvaluation evaluation = tools::evaluate_slam_run(
-      source, result, tools::AlignmentMode::kTranslationYaw, /*max_time_gap_s=*/0.1);
+      source, result, eval::AlignmentMode::kTranslationYaw, /*max_time_gap_s=*/0.1);
   const MemoryFigures figures = memory_figures(result.timeline, s);
   const double ate_m = evaluation.available ? evaluation.corrected.absolute_position_m.rmse : kNaN;
   const Verdict verdict = check(s, figures, ate_m);
