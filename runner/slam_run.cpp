@@ -116,6 +116,7 @@ class TimelineRecorder {
         counters.registration.attempted - previous_counters_.registration.attempted, submaps);
     s.restores_per_submap =
         per_submap(counters.memory.restores - previous_counters_.memory.restores, submaps);
+    s.memory = counters.memory;
     previous_ = timings;
     previous_counters_ = counters;
     return s;

@@ -59,6 +59,8 @@ struct TimelineSample {
   // submaps brought back for them, per submap.
   double partners_per_submap = 0.0;
   double restores_per_submap = 0.0;
+  // Where the finished submaps were then (resident, compact, on disk) and their bytes.
+  pipeline::SubmapStoreCounters memory;
 };
 
 struct SlamRunResult {

@@ -386,7 +386,7 @@ TEST(SlamParameterFiles, EveryKeyOfEveryShippedFileIsKnown) {
           << file << ": '" << key << "' is not a documented parameter of the nodelet";
     }
   }
-  EXPECT_EQ(preset_names(), (std::vector<std::string>{"arche", "arche_sim", "covoxslam",
+  EXPECT_EQ(preset_names(), (std::vector<std::string>{"arche", "arche_sim", "covoxslam", "jetson",
                                                       "lidar_keyframes", "rgbd"}));
 }
 
@@ -408,12 +408,14 @@ std::string describe(const SlamConfig& config) {
        << c.registration.verification.max_mahalanobis_sq << ' ' << c.odometry_drift_m_per_m << ' '
        << c.odometry_drift_deg_per_m << ' ' << c.registration_loss_scale_sigmas << ' '
        << c.estimate_odometry_noise << ' ' << c.min_odometry_drift_m_per_m << ' '
-       << c.min_odometry_drift_deg_per_m;
+       << c.min_odometry_drift_deg_per_m << ' ' << c.memory.device_budget_mb << ' '
+       << c.memory.host_budget_mb << ' ' << c.memory.device_cache_mb;
   return text.str();
 }
 
 TEST(SlamParameterFiles, PresetsListOnlyWhatDiffersFromTheDefaults) {
-  for (const char* preset : {"arche", "arche_sim", "rgbd", "lidar_keyframes", "covoxslam"}) {
+  for (const char* preset :
+       {"arche", "arche_sim", "rgbd", "lidar_keyframes", "covoxslam", "jetson"}) {
     const io::YamlDocument document = io::read_yaml_subset(preset_path(preset));
     for (const io::YamlEntry& entry : document.entries) {
       if (entry.key.compare(0, 4, "ros.") == 0) continue;
@@ -503,6 +505,23 @@ TEST(SlamParameterFiles, PresetsGiveTheirDocumentedValues) {
   EXPECT_EQ(keyframes.registration.alignment.coarse_levels, 0);
   EXPECT_FALSE(keyframes.interpolate_trajectory_correction);
   EXPECT_EQ(keyframes.odometry_translation_sigma_m, 0.1);
+}
+
+// The Jetson preset holds memory budgets only: loaded over another preset, it leaves that one's
+// sensor and mapping settings as they are.
+TEST(SlamParameterFiles, JetsonPresetSetsOnlyMemoryBudgets) {
+  for (const io::YamlEntry& entry : io::read_yaml_subset(preset_path("jetson")).entries)
+    EXPECT_EQ(entry.key.rfind("memory.", 0), 0u) << entry.key;
+  const SlamConfig sim = load_preset("arche_sim");
+  SlamConfig config = sim;
+  load_slam_config(preset_path("jetson"), &config);
+  EXPECT_EQ(config.memory.device_budget_mb, 768.0);
+  EXPECT_EQ(config.memory.host_budget_mb, 256.0);
+  EXPECT_EQ(config.memory.device_cache_mb, 128.0);
+  EXPECT_EQ(config.memory.spill_directory, "");
+  config.memory = sim.memory;
+  EXPECT_EQ(describe(config), describe(sim));
+  EXPECT_NO_THROW(validate(config));
 }
 
 // A temporary configuration folder, found through COVOX_CONFIG_DIR while it lives.

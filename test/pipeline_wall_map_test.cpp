@@ -1,7 +1,7 @@
 // Top-view wall maps and the revisit start from the walls (pipeline/wall_map.h): distances
 // against brute force, a known offset recovered from a partial view, the room's walls found from
-// its TSDF, and a registration that starts 1.5 m off ending at the truth when the walls give its
-// start.
+// its TSDF, the cache built again after a release, and a registration that starts 1.5 m off
+// ending at the truth when the walls give its start.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -181,6 +181,28 @@ TEST_P(WallMapTest, TheRoomsWallsAreItsWallColumns) {
       "[ walls    ] %zu wall columns, %lld within 0.25 m of a wall, %lld further than 0.6 m\n",
       wall.columns().size(), static_cast<long long>(near_a_wall),
       static_cast<long long>(far_from_walls));
+}
+
+// The cache keeps the first map's walls until release() (a compaction), then builds them from the
+// map it is given next: the voxels brought back.
+TEST_P(WallMapTest, TheCacheBuildsAgainAfterARelease) {
+  const testing_support::AnalyticScene room = testing_support::registration_room();
+  const std::unique_ptr<map::TsdfMap> first =
+      testing_support::scan_room_submap(device(), room, Pose4Dof{}, 0.1f);
+  const std::unique_ptr<map::TsdfMap> moved =
+      testing_support::scan_room_submap(device(), room, Pose4Dof{0.6, -0.4, 0.0, 0.0}, 0.1f);
+  const Stream stream(device());
+  const WallMap first_walls = WallMap::from_map(*first, WallMapCache::kCapM, stream);
+  const WallMap moved_walls = WallMap::from_map(*moved, WallMapCache::kCapM, stream);
+  ASSERT_NE(first_walls.columns(), moved_walls.columns());
+  WallMapCache cache;
+  EXPECT_FALSE(cache.holds_walls());
+  EXPECT_EQ(cache.get(*first, stream).columns(), first_walls.columns());
+  EXPECT_EQ(cache.get(*moved, stream).columns(), first_walls.columns());  // kept
+  EXPECT_TRUE(cache.holds_walls());
+  cache.release();
+  EXPECT_FALSE(cache.holds_walls());
+  EXPECT_EQ(cache.get(*moved, stream).columns(), moved_walls.columns());
 }
 
 TEST_P(WallMapTest, ARevisitStartedFromTheWallsEndsAtTheTruth) {

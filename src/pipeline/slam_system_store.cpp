@@ -38,17 +38,26 @@ void SlamSystem::enforce_budget_locked(int64_t keep, const std::unordered_set<in
                                        bool return_memory) {
   if (!store_->enabled()) return;
   std::vector<Submap*> candidates;
+  std::vector<WallMapCache*> candidate_walls;
   {
     std::lock_guard<std::mutex> lock(state_mutex_);
     // kJoint solves read the field submaps of its pairs at every optimisation: they stay.
     std::unordered_set<int64_t> pinned = also_kept;
     for (const JointPair& pair : joint_pairs_) pinned.insert(pair.field_submap);
     for (const GraphSubmap& entry : graph_submaps_) {
-      if (entry.submap && !pinned.count(entry.submap->id()))
+      if (entry.submap && !pinned.count(entry.submap->id())) {
         candidates.push_back(entry.submap.get());
+        candidate_walls.push_back(entry.walls.get());
+      }
     }
   }
   store_->enforce(candidates, keep, return_memory);
+  // A compacted submap's wall map goes with its voxels (wall_map.h): otherwise every finished
+  // submap would keep one in host memory outside the budgets. Nothing reads the wall map of a
+  // submap that is not resident: registration brings its partners back first.
+  for (size_t i = 0; i < candidates.size(); ++i) {
+    if (candidates[i]->map().block_count() == 0) candidate_walls[i]->release();
+  }
 }
 
 void SlamSystem::acquire_partners_locked(const std::vector<const RegistrationPartner*>& partners) {

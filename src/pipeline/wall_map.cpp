@@ -106,6 +106,16 @@ const WallMap& WallMapCache::get(const map::TsdfMap& map, const Stream& stream) 
   return *walls_;
 }
 
+void WallMapCache::release() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  walls_.reset();
+}
+
+bool WallMapCache::holds_walls() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return walls_ != nullptr;
+}
+
 double WallMap::distance_m(double x, double y) const {
   const int64_t ix = static_cast<int64_t>(std::floor(x / cell_m_)) - origin_x_;
   const int64_t iy = static_cast<int64_t>(std::floor(y / cell_m_)) - origin_y_;

@@ -67,15 +67,22 @@ class WallMap {
   std::vector<float> distance_;
 };
 
-// A finished submap's wall map, built at most once (at the first revisit that needs it) and
-// shared by every later registration with that submap: building one extracts and evaluates every
-// surface voxel of the submap, and a submap is the partner of several revisits.
+// A finished submap's wall map, built at most once while its voxels stay (at the first revisit
+// that needs it) and shared by every later registration with that submap: building one extracts
+// and evaluates every surface voxel of the submap, and a submap is the partner of several
+// revisits. When the memory budget compacts the submap its wall map is released with its voxels
+// (release()), so that what a finished submap keeps in memory stays small, and the next get()
+// builds it again from the voxels brought back.
 class WallMapCache {
  public:
   // Distances capped at this (m): beyond three Gaussian sigmas of the search a column scores 0.
   static constexpr double kCapM = 1.0;
-  // The wall map of `map` (the same map at every call).
+  // The wall map of `map` (the same map at every call since the last release()).
   const WallMap& get(const map::TsdfMap& map, const Stream& stream);
+  // Frees the wall map; a reference get() returned before is invalid afterwards.
+  void release();
+  // Whether a wall map is held.
+  bool holds_walls();
 
  private:
   std::mutex mutex_;
