@@ -210,6 +210,9 @@ def shown_command(command):
         return command
     if not words:
         return command
+    # A script (or one run with environment settings) is shown as it was given.
+    if "=" in words[0] or words[0].endswith(".sh"):
+        return command
     shown = ["build/" + os.path.basename(words[0])]
     skip = False
     for word in words[1:]:
