@@ -243,7 +243,9 @@ TEST(ToolsCommandLineFuzz, RandomArgumentListsEndInAValueOrAMessage) {
       args.finish();
     });
     for (const std::string& name : names) {
-      if (given[name] > 1) ASSERT_FALSE(message.empty()) << name << " given twice was accepted";
+      if (given[name] > 1) {
+        ASSERT_FALSE(message.empty()) << name << " given twice was accepted";
+      }
     }
   }
 }

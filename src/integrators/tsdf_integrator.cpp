@@ -171,9 +171,10 @@ IntegrationStats TsdfIntegrator::integrate(map::TsdfMap& map, const std::vector<
   }
   scratch_->buffers.input.points.copy_from_host(points, stream);
   scratch_->buffers.input.colors.copy_from_host(colors, stream);
-  PointCloudView view{scratch_->buffers.input.points.data(),
-                      colors.empty() ? nullptr : scratch_->buffers.input.colors.data(),
-                      static_cast<int64_t>(points.size())};
+  PointCloudView view;
+  view.points = scratch_->buffers.input.points.data();
+  view.colors = colors.empty() ? nullptr : scratch_->buffers.input.colors.data();
+  view.count = static_cast<int64_t>(points.size());
   return integrate(map, view, T_map_sensor, stream);
 }
 

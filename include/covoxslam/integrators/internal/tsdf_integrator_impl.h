@@ -191,8 +191,10 @@ IntegrationStats tsdf_integrate_depth_image(Backend backend, const TsdfIntegrato
   // unprojection before the simple method's first kernel.
   scratch.input.points.resize_discard(pixels);
   if (image.colors) scratch.input.colors.resize_discard(pixels);
-  const PointCloudView cloud{scratch.input.points.data(),
-                             image.colors ? scratch.input.colors.data() : nullptr, pixels};
+  PointCloudView cloud;
+  cloud.points = scratch.input.points.data();
+  cloud.colors = image.colors ? scratch.input.colors.data() : nullptr;
+  cloud.count = pixels;
   return tsdf::integrate_frame(backend, config, strategy, map,
                                tsdf::frame_points(config, cloud, &image), T_map_camera, scratch,
                                stream);
