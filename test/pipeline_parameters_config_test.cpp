@@ -233,7 +233,7 @@ std::map<std::string, Expectation> expectations() {
       {"registration.gate.worst_fraction",
        {"0.25", [](const SlamConfig& c) { return c.registration.gate.worst_fraction == 0.25; }}},
       {"place_recognition.enabled",
-       {"true", [](const SlamConfig& c) { return c.place_recognition.enabled; }}},
+       {"false", [](const SlamConfig& c) { return !c.place_recognition.enabled; }}},
       {"place_recognition.rings",
        {"12", [](const SlamConfig& c) { return c.place_recognition.rings == 12; }}},
       {"place_recognition.sectors",

@@ -24,7 +24,7 @@ namespace pipeline {
 
 // Section `place_recognition` of the configuration files (docs/parameters.md).
 struct PlaceRecognitionConfig {
-  bool enabled = false;
+  bool enabled = true;
   int rings = 20;
   int sectors = 60;
   double max_radius_m = 20.0;
