@@ -4,8 +4,8 @@
 // runs the stages 0 de-skew, 1 rays, 2 walk, 3 group, 4 blocks and 5 write
 // (internal/tsdf_integrator_impl.h), steered by one plan decided from the configuration, the
 // backend and the frame's tally (internal/tsdf_frame_plan.h). No atomics touch voxel data and
-// every float sum is taken in an order fixed by the input, so a frame's map is the same run to
-// run. docs/design.md ("TSDF integration") describes the stages and where the CPU twin differs.
+// every float sum is taken in an order fixed by the input, so a frame gives one map whatever
+// the threads do. docs/design.md ("TSDF integration") describes the stages and the CPU twin.
 #include <cstdint>
 #include <memory>
 #include <vector>
