@@ -92,8 +92,11 @@ std::vector<StampedIsometry> odometry_drifting_by_percent(const std::vector<Stam
 
 // The number of laps and the length of one: the configured lap length, or the path split into
 // the fewest whole laps no longer than 9 A (nor than `longest_m`, the longest a figure 8 of half
-// length A can be). `whole` tells whether the laps fill the path.
-size_t plan_laps(const FlightConfig& config, double longest_m, double* lap_m, bool* whole) {
+// length A can be). A path shorter than `shortest_m` (the shortest such figure 8) flies the start
+// of one lap: the default flight's where these lobes can fly it, so a short flight is the start
+// of the default one. `whole` tells whether the laps fill the path.
+size_t plan_laps(const FlightConfig& config, double shortest_m, double longest_m, double* lap_m,
+                 bool* whole) {
   if (config.lap_length_m > 0.0) {
     *lap_m = config.lap_length_m;
     const double laps = std::max(1.0, std::ceil(config.path_length_m / *lap_m - 1e-9));
@@ -104,6 +107,11 @@ size_t plan_laps(const FlightConfig& config, double longest_m, double* lap_m, bo
       1.0, std::ceil(config.path_length_m / std::min(longest_m, 9.0 * config.lobe_half_length_m)));
   *lap_m = config.path_length_m / laps;
   *whole = true;
+  if (*lap_m < shortest_m) {
+    const double longest_lap_m = std::min(longest_m, 9.0 * config.lobe_half_length_m);
+    *lap_m = std::clamp(FlightConfig().path_length_m, shortest_m, longest_lap_m);
+    *whole = false;
+  }
   return static_cast<size_t>(laps);
 }
 
@@ -154,7 +162,7 @@ Figure8Path::Figure8Path(const FlightConfig& config)
   const double shortest_m = lemniscate_length(a_, low), longest_m = lemniscate_length(a_, high);
   double lap_m = 0.0;
   bool whole_laps = false;
-  lap_count_ = plan_laps(config, longest_m, &lap_m, &whole_laps);
+  lap_count_ = plan_laps(config, shortest_m, longest_m, &lap_m, &whole_laps);
   if (shortest_m > lap_m || longest_m < lap_m) {
     // The length scales with A at a fixed B / A: the half lengths that can fly this lap.
     char text[320];

@@ -160,9 +160,13 @@ TEST(SimMission, DurationSetsTheLengthAndImpossibleFlightsNameTheOptionToChange)
     EXPECT_NE(std::string(error.what()).find("--lobe-half-length-m"), std::string::npos);
     EXPECT_NE(std::string(error.what()).find("--lap-length-m"), std::string::npos);
   }
+  // A path shorter than any figure 8 of these lobes: the start of one default-sized lap.
   FlightConfig too_short;
   too_short.path_length_m = 100.0;
-  EXPECT_THROW(Figure8Path{too_short}, Error);
+  const Figure8Path short_path(too_short);
+  EXPECT_EQ(short_path.lap_count(), 1u);
+  EXPECT_DOUBLE_EQ(short_path.length_m(), 100.0);
+  EXPECT_NEAR(short_path.lap_length_m(), FlightConfig().path_length_m, 0.01);
   // Given lap length: 2.5 laps, the last one partial.
   FlightConfig partial;
   partial.lap_length_m = 300.0;

@@ -122,6 +122,33 @@ TEST(Simulator, ALargerFigureEightGetsAProportionallyBuiltUpSite) {
   EXPECT_EQ(site.buildings.size(), static_cast<size_t>(1 + scaled.extra_buildings));
 }
 
+TEST(Simulator, AFlightShorterThanALapFliesTheStartOfTheDefaultFlight) {
+  // 10 s at 2 m/s: 20 m, shorter than any figure 8 of the default lobes can be. It flies the
+  // default flight's first 20 m, pose for pose, and ends there.
+  const FlightConfig full;
+  FlightConfig short_flight;
+  short_flight.path_length_m = 20.0;
+  const Figure8Path full_path(full), short_path(short_flight);
+  EXPECT_DOUBLE_EQ(short_path.lap_length_m(), full_path.lap_length_m());
+  const std::vector<StampedIsometry> truth = simulate_truth(short_path, short_flight);
+  ASSERT_GE(truth.size(), 100u);
+  EXPECT_LE(truth.size(), 102u);
+  // The last pose is where the short flight stops: the same place, level as a hovering drone.
+  for (const StampedIsometry& pose : truth) {
+    const double t_s = pose.stamp_s - short_flight.start_time_s;
+    const Eigen::Isometry3d expected = truth_pose_at(full_path, full, t_s);
+    ASSERT_TRUE(pose.pose.translation().isApprox(expected.translation(), 1e-12)) << t_s;
+    if (&pose != &truth.back()) ASSERT_TRUE(pose.pose.isApprox(expected, 1e-12)) << t_s;
+  }
+  const double flown_m =
+      (truth.back().pose.translation() - truth.front().pose.translation()).norm();
+  EXPECT_GT(flown_m, 15.0);
+  EXPECT_LE(flown_m, 20.0 + 1e-6);
+  // A lap given explicitly that these lobes cannot fly is still refused.
+  short_flight.lap_length_m = 20.0;
+  EXPECT_THROW(Figure8Path{short_flight}, Error);
+}
+
 TEST(Simulator, RangesMatchAnalyticDistancesToAPlane) {
   World world;
   world.add(Plane{});  // z = 0, facing up
