@@ -4,8 +4,7 @@
 //  * the registration candidates of a new submap are at most overlap.max_partners, those sharing
 //    most blocks, with and without kept footprints alike;
 //  * the optimisation spacing keeps every n-th submap on small graphs, and bounds the summed
-//    graph sizes solved per new submap (a solve's cost grows with the graph) on long missions;
-//  * the offline runner's nearest-rank percentiles match a sorted reference.
+//    graph sizes solved per new submap (a solve's cost grows with the graph) on long missions.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -22,7 +21,6 @@
 #include "covoxslam/map/tsdf_map.h"
 #include "covoxslam/pipeline/registration_constraints.h"
 #include "covoxslam/pipeline/slam_system.h"
-#include "runner/slam_run.h"
 #include "support/test_devices.h"
 
 namespace covox {
@@ -231,29 +229,6 @@ TEST(OptimisationSpacing, EveryNthOnSmallGraphsBoundedSolveWorkOnLongMissions) {
     }
   }
   EXPECT_GT(static_cast<double>(every_submap_sizes) / 4000.0, 1000.0);
-}
-
-TEST(OfflineRunnerTimeline, NearestRankPercentilesMatchASortedReference) {
-  std::vector<double> values;
-  for (int k = 100; k >= 1; --k) values.push_back(static_cast<double>(k));
-  std::mt19937 rng(5);
-  std::shuffle(values.begin(), values.end(), rng);
-  std::vector<double> copy = values;
-  EXPECT_EQ(tools::nearest_rank_percentile(&copy, 50.0), 50.0);
-  EXPECT_EQ(tools::nearest_rank_percentile(&copy, 95.0), 95.0);
-  EXPECT_EQ(tools::nearest_rank_percentile(&copy, 100.0), 100.0);
-  EXPECT_EQ(tools::nearest_rank_percentile(&copy, 0.5), 1.0);
-  // Seven values: the nearest rank of p is ceil(p / 100 x 7) in sorted order.
-  std::vector<double> seven = {0.7, 0.1, 0.5, 0.3, 0.2, 0.6, 0.4};
-  std::vector<double> sorted = seven;
-  std::sort(sorted.begin(), sorted.end());
-  for (const double p : {10.0, 50.0, 95.0, 100.0}) {
-    std::vector<double> work = seven;
-    const size_t rank = static_cast<size_t>(std::ceil(p / 100.0 * 7.0));
-    EXPECT_EQ(tools::nearest_rank_percentile(&work, p), sorted[rank - 1]) << "p" << p;
-  }
-  std::vector<double> empty;
-  EXPECT_TRUE(std::isnan(tools::nearest_rank_percentile(&empty, 50.0)));
 }
 
 }  // namespace

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "covoxslam/core/error.h"
+#include "covoxslam/pipeline/map_integrators.h"
 #include "covoxslam/pipeline/place_recognition.h"
 #include "covoxslam/pipeline/registration_constraints.h"
 #include "covoxslam/pipeline/submap.h"
@@ -263,9 +264,7 @@ std::unique_ptr<Submap> yard_submap(int64_t id, const sim::World& yard,
                                     const Eigen::Isometry3d& T_world_sensor,
                                     const Eigen::Isometry3d& T_odom_world, const Stream& stream) {
   const SlamConfig config = test_scene::yard_config();
-  integrators::TsdfIntegrator integrator(config.tsdf);
-  integrators::EsdfIntegrator esdf(config.esdf);
-  integrators::MeshIntegrator mesher;
+  MapIntegrators integrators(config.tsdf, config.esdf, config.mesh, Stream(Device::kCpu));
   auto submap = std::make_unique<Submap>(id, Device::kCpu, config.map,
                                          gravity_aligned(T_odom_world * T_world_sensor));
   for (int k = 0; k < 4; ++k) {
@@ -277,9 +276,9 @@ std::unique_ptr<Submap> yard_submap(int64_t id, const sim::World& yard,
     integrators::PointCloudView view;
     view.points = device_points.data();
     view.count = static_cast<int64_t>(points.size());
-    submap->integrate(integrator, view, T_odom_world * pose, 0.1 * (10 * id + k), stream);
+    submap->integrate(integrators, view, T_odom_world * pose, 0.1 * (10 * id + k));
   }
-  submap->finish(esdf, mesher, stream);
+  submap->finish(integrators);
   return submap;
 }
 

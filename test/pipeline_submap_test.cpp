@@ -3,10 +3,14 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <limits>
+#include <memory>
 #include <string>
+#include <vector>
 
 #include "covoxslam/core/error.h"
+#include "covoxslam/pipeline/map_integrators.h"
 #include "covoxslam/pipeline/submap.h"
 #include "support/analytic_scene.h"
 
@@ -24,6 +28,63 @@ SubmapStatistics active_submap(int64_t scans, double start_stamp_s, double dista
   statistics.blocks = blocks;
   return statistics;
 }
+
+// The TSDF and ESDF of every block, in snapshot order, as the bits of their numbers: equal when
+// the two maps hold the same voxels bit for bit.
+std::vector<uint32_t> voxel_bits(const map::TsdfMap& map) {
+  std::vector<uint32_t> bits;
+  const auto append = [&bits](float value) {
+    uint32_t word = 0;
+    std::memcpy(&word, &value, sizeof(word));
+    bits.push_back(word);
+  };
+  for (const map::HostBlock& block : map.snapshot()) {
+    bits.push_back(static_cast<uint32_t>(block.index.x));
+    bits.push_back(static_cast<uint32_t>(block.index.y));
+    bits.push_back(static_cast<uint32_t>(block.index.z));
+    for (const map::TsdfVoxel& voxel : block.tsdf) {
+      append(voxel.distance_m);
+      append(voxel.weight);
+    }
+    for (const map::EsdfVoxel& voxel : block.esdf) {
+      append(voxel.distance_m);
+      bits.push_back(voxel.observed);
+    }
+  }
+  return bits;
+}
+
+// A hollow sphere of radius 3 m around the origin and the settings its submaps are built with.
+struct SphereSetting {
+  SphereSetting() {
+    scene.shape = testing_support::Shape::kSphere;
+    scene.radius = 3.0;
+    map.voxel_size_m = 0.2f;
+    map.voxels_per_side = 8;
+    tsdf.max_ray_length_m = 8.0f;
+    esdf.esdf_max_distance_m = 1.0f;
+  }
+  std::unique_ptr<MapIntegrators> stage() const {
+    return std::make_unique<MapIntegrators>(tsdf, esdf, integrators::MeshIntegratorConfig(),
+                                            Stream(Device::kCpu));
+  }
+  // A simulated scan of the sphere from `pose` (`columns` x 16 beams) integrated into `submap`.
+  void integrate_scan(Submap* submap, MapIntegrators* stage, const Eigen::Isometry3d& pose,
+                      int columns, double stamp_s) const {
+    const std::vector<Vec3f> points =
+        testing_support::simulate_lidar(scene, pose, columns, 16, 60.0, 10.0);
+    Buffer<Vec3f> device_points = Buffer<Vec3f>::from_host(Device::kCpu, points, stage->stream());
+    integrators::PointCloudView view;
+    view.points = device_points.data();
+    view.count = static_cast<int64_t>(points.size());
+    submap->integrate(*stage, view, pose, stamp_s);
+  }
+
+  testing_support::AnalyticScene scene;
+  map::TsdfMapConfig map;
+  integrators::TsdfIntegratorConfig tsdf;
+  integrators::EsdfIntegratorConfig esdf;
+};
 
 TEST(PipelineSubmapPolicy, TimeIntervalEndsASubmapWhenTheIntervalHasPassed) {
   SubmapPolicyConfig config;
@@ -152,35 +213,16 @@ TEST(PipelineSubmapPose, InvalidPosesAreRecognised) {
 }
 
 TEST(PipelineSubmap, IntegratedScansAreCountedAndFinishingGivesMeshEsdfAndBox) {
-  testing_support::AnalyticScene scene;
-  scene.shape = testing_support::Shape::kSphere;
-  scene.radius = 3.0;
-  map::TsdfMapConfig map_config;
-  map_config.voxel_size_m = 0.2f;
-  map_config.voxels_per_side = 8;
-  integrators::TsdfIntegratorConfig tsdf_config;
-  tsdf_config.max_ray_length_m = 8.0f;
-  integrators::TsdfIntegrator integrator(tsdf_config);
-  integrators::EsdfIntegratorConfig esdf_config;
-  esdf_config.esdf_max_distance_m = 1.0f;
-  integrators::EsdfIntegrator esdf(esdf_config);
-  integrators::MeshIntegrator mesher;
-  const Stream stream(Device::kCpu);
-
+  const SphereSetting setting;
+  const std::unique_ptr<MapIntegrators> stage = setting.stage();
   Eigen::Isometry3d first = Eigen::Isometry3d::Identity();
   first.translation() = Eigen::Vector3d(0.5, 0.0, 0.0);
   first.linear() = Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-  Submap submap(7, Device::kCpu, map_config, gravity_aligned(first));
+  Submap submap(7, Device::kCpu, setting.map, gravity_aligned(first));
   for (int k = 0; k < 3; ++k) {
     Eigen::Isometry3d pose = first;
     pose.translation().x() += 0.2 * k;
-    const std::vector<Vec3f> points =
-        testing_support::simulate_lidar(scene, pose, 64, 16, 60.0, 10.0);
-    Buffer<Vec3f> device_points = Buffer<Vec3f>::from_host(Device::kCpu, points, stream);
-    integrators::PointCloudView view;
-    view.points = device_points.data();
-    view.count = static_cast<int64_t>(points.size());
-    submap.integrate(integrator, view, pose, 10.0 + k, stream);
+    setting.integrate_scan(&submap, stage.get(), pose, 64, 10.0 + k);
   }
   EXPECT_EQ(submap.id(), 7);
   EXPECT_EQ(submap.statistics().scans, 3);
@@ -191,7 +233,7 @@ TEST(PipelineSubmap, IntegratedScansAreCountedAndFinishingGivesMeshEsdfAndBox) {
   EXPECT_FALSE(submap.finished());
   EXPECT_TRUE(submap.bounding_box_submap().isEmpty());
 
-  submap.finish(esdf, mesher, stream);
+  submap.finish(*stage);
   EXPECT_TRUE(submap.finished());
   EXPECT_GT(submap.mesh().triangle_count(), 100u);
   // The sphere (radius 3 around the world origin) lies inside the world box, and the box is
@@ -200,7 +242,7 @@ TEST(PipelineSubmap, IntegratedScansAreCountedAndFinishingGivesMeshEsdfAndBox) {
   EXPECT_TRUE(box.contains(Eigen::Vector3d(2.9, 0.0, 0.0)));
   EXPECT_TRUE(box.contains(Eigen::Vector3d(-2.9, 0.0, 0.0)));
   EXPECT_LT(box.sizes().maxCoeff(),
-            2 * 3.0 + 4 * map_config.voxel_size_m * map_config.voxels_per_side);
+            2 * 3.0 + 4 * setting.map.voxel_size_m * setting.map.voxels_per_side);
   // Some ESDF voxel got a finite, non-clamped distance.
   bool esdf_written = false;
   for (const map::HostBlock& block : submap.map().snapshot()) {
@@ -215,7 +257,52 @@ TEST(PipelineSubmap, IntegratedScansAreCountedAndFinishingGivesMeshEsdfAndBox) {
   integrators::PointCloudView view;
   view.points = one.data();
   view.count = 0;
-  EXPECT_THROW(submap.integrate(integrator, view, first, 20.0, stream), Error);
+  EXPECT_THROW(submap.integrate(*stage, view, first, 20.0), Error);
+}
+
+// SlamSystem builds every submap with one integration stage per thread. Two submaps built in turn
+// by one stage (its scratch memory sized by the larger scans, then reused for the smaller ones)
+// hold the same voxels and meshes, bit for bit, as the same submaps built each by a stage of its
+// own: a stage carries nothing from one map into the next.
+TEST(PipelineSubmap, SubmapsSharingOneStageEqualSubmapsWithStagesOfTheirOwn) {
+  const SphereSetting setting;
+  const std::unique_ptr<MapIntegrators> shared = setting.stage();
+  const std::unique_ptr<MapIntegrators> own[2] = {setting.stage(), setting.stage()};
+
+  // Submap 0 from fine scans near the centre, submap 1 from coarse ones 1.5 m off.
+  const int columns[2] = {64, 24};
+  Eigen::Isometry3d origins[2] = {Eigen::Isometry3d::Identity(), Eigen::Isometry3d::Identity()};
+  origins[1].translation() = Eigen::Vector3d(1.5, -0.5, 0.2);
+  std::vector<std::unique_ptr<Submap>> by_shared, by_own;
+  for (int s = 0; s < 2; ++s) {
+    by_shared.push_back(std::make_unique<Submap>(s, Device::kCpu, setting.map, origins[s]));
+    by_own.push_back(std::make_unique<Submap>(s, Device::kCpu, setting.map, origins[s]));
+  }
+  for (int k = 0; k < 3; ++k) {
+    for (int s = 0; s < 2; ++s) {
+      Eigen::Isometry3d pose = origins[s];
+      pose.translation().y() += 0.25 * k;
+      setting.integrate_scan(by_shared[s].get(), shared.get(), pose, columns[s], k);
+      setting.integrate_scan(by_own[s].get(), own[s].get(), pose, columns[s], k);
+    }
+  }
+  for (int s = 0; s < 2; ++s) {
+    by_shared[s]->finish(*shared);
+    by_own[s]->finish(*own[s]);
+  }
+  for (int s = 0; s < 2; ++s) {
+    SCOPED_TRACE("submap " + std::to_string(s));
+    EXPECT_GT(by_own[s]->mesh_triangles(), 100);
+    EXPECT_EQ(voxel_bits(by_shared[s]->map()), voxel_bits(by_own[s]->map()));
+    const map::Mesh& a = by_shared[s]->mesh();
+    const map::Mesh& b = by_own[s]->mesh();
+    EXPECT_EQ(a.triangles, b.triangles);
+    ASSERT_EQ(a.vertices_m.size(), b.vertices_m.size());
+    EXPECT_EQ(0, std::memcmp(a.vertices_m.data(), b.vertices_m.data(),
+                             a.vertices_m.size() * sizeof(Vec3f)));
+  }
+  // The two submaps differ, so the comparison above could tell them apart.
+  EXPECT_NE(voxel_bits(by_own[0]->map()), voxel_bits(by_own[1]->map()));
 }
 
 }  // namespace

@@ -102,11 +102,8 @@ const MapperConfig& validated(const MapperConfig& config) {
 
 Mapper::Mapper(const MapperConfig& config)
     : config_(validated(config)),
-      stream_(config.device),
+      integrators_(config.tsdf, config.esdf, config.mesh, Stream(config.device)),
       map_(config.device, config.map),
-      tsdf_(config.tsdf),
-      esdf_(config.esdf),
-      mesher_(config.mesh),
       points_(config.device),
       colors_(config.device),
       times_s_(config.device),
@@ -120,21 +117,19 @@ integrators::IntegrationStats Mapper::integrate(const Scan& scan,
   }
   const DeskewPlan deskew = plan_deskew(config_.deskew, scan);
   const integrators::PointCloudView cloud =
-      upload_scan(scan, deskew, &points_, &colors_, &times_s_, stream_);
+      upload_scan(scan, deskew, &points_, &colors_, &times_s_, stream());
   return integrate(cloud, T_map_sensor);
 }
 
 integrators::IntegrationStats Mapper::integrate(const integrators::PointCloudView& cloud,
                                                 const Eigen::Isometry3d& T_map_sensor) {
-  const integrators::IntegrationStats stats = tsdf_.integrate(map_, cloud, T_map_sensor, stream_);
-  stream_.synchronize();
-  return stats;
+  return integrators_.integrate(map_, cloud, T_map_sensor);
 }
 
 integrators::IntegrationStats Mapper::integrate_depth(const io::RgbdFrame& frame) {
   check_image_sizes(frame);
-  depth_m_.copy_from_host(frame.depth.depth_m, stream_);
-  colors_.copy_from_host(rgb_pixels(frame.color), stream_);
+  depth_m_.copy_from_host(frame.depth.depth_m, stream());
+  colors_.copy_from_host(rgb_pixels(frame.color), stream());
   const io::CameraIntrinsics& k = frame.intrinsics;
   integrators::DepthImageView image;
   image.depth_m = depth_m_.data();
@@ -151,37 +146,20 @@ integrators::IntegrationStats Mapper::integrate_depth(const io::RgbdFrame& frame
 integrators::IntegrationStats Mapper::integrate_depth(const integrators::DepthImageView& image,
                                                       const Eigen::Isometry3d& T_map_camera) {
   require(is_valid_rigid_pose(T_map_camera), "the camera pose is not a finite rigid transform");
-  const integrators::IntegrationStats stats =
-      tsdf_.integrate_depth(map_, image, T_map_camera, stream_);
-  stream_.synchronize();
-  return stats;
+  return integrators_.integrate_depth(map_, image, T_map_camera);
 }
 
-integrators::EsdfUpdateStats Mapper::update_esdf() {
-  const integrators::EsdfUpdateStats stats = esdf_.update(map_, stream_);
-  stream_.synchronize();
-  return stats;
-}
+integrators::EsdfUpdateStats Mapper::update_esdf() { return integrators_.update_esdf(map_); }
 
 integrators::EsdfUpdateStats Mapper::update_esdf_all() {
-  const integrators::EsdfUpdateStats stats = esdf_.update_all(map_, stream_);
-  stream_.synchronize();
-  return stats;
+  return integrators_.update_esdf_all(map_);
 }
 
-integrators::MeshUpdateStats Mapper::update_mesh() {
-  const integrators::MeshUpdateStats stats = mesher_.update(map_, stream_);
-  stream_.synchronize();
-  return stats;
-}
+integrators::MeshUpdateStats Mapper::update_mesh() { return integrators_.update_mesh(map_); }
 
-const std::map<Index3D, map::Mesh>& Mapper::block_meshes() { return mesher_.block_meshes(stream_); }
+const std::map<Index3D, map::Mesh>& Mapper::block_meshes() { return integrators_.block_meshes(); }
 
-map::Mesh Mapper::extract_mesh() {
-  map::Mesh mesh = mesher_.extract_all(map_, stream_);
-  stream_.synchronize();
-  return mesh;
-}
+map::Mesh Mapper::extract_mesh() { return integrators_.extract_mesh(map_); }
 
 void Mapper::save_mesh(const std::string& path) { io::write_mesh_ply(path, extract_mesh()); }
 

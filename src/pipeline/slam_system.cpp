@@ -110,8 +110,7 @@ SlamSystem::SlamSystem(const SlamConfig& config)
     : config_(validated(config)),
       sensor_queue_(config.sensor_queue_size, "sensor queue"),
       submap_queue_(config.submap_queue_size, "submap queue"),
-      tsdf_integrator_(config.tsdf),
-      frontend_stream_(Stream::create(config.device)),
+      frontend_integrators_(config.tsdf, config.esdf, config.mesh, Stream::create(config.device)),
       points_buffer_(config.device),
       colors_buffer_(config.device),
       times_buffer_(config.device),
@@ -119,9 +118,7 @@ SlamSystem::SlamSystem(const SlamConfig& config)
                                            config.map.voxel_size_m / kMeshStepsPerVoxel)),
       restore_esdf_(config.esdf),
       restore_stream_(Stream::create(config.device)),
-      esdf_integrator_(config.esdf),
-      mesh_integrator_(config.mesh),
-      backend_stream_(Stream::create(config.device)),
+      backend_integrators_(config.tsdf, config.esdf, config.mesh, Stream::create(config.device)),
       optimizer_(config),
       place_recognizer_(config.place_recognition) {
   if (config_.device == Device::kCuda) {
@@ -376,19 +373,12 @@ void SlamSystem::process_scan(const QueuedScan& queued) {
 integrators::IntegrationStats SlamSystem::integrate_scan(const Scan& scan) {
   const DeskewPlan deskew = plan_deskew(config_.deskew, scan);
   const bool deskewed = deskew.outcome == DeskewOutcome::kDeskewed;
-  points_buffer_.copy_from_host(scan.points_sensor_m, frontend_stream_);
-  colors_buffer_.copy_from_host(scan.colors, frontend_stream_);
-  if (deskewed) times_buffer_.copy_from_host(scan.point_times_s, frontend_stream_);
-  integrators::PointCloudView view;
-  view.points = points_buffer_.data();
-  view.colors = scan.colors.empty() ? nullptr : colors_buffer_.data();
-  view.count = static_cast<int64_t>(scan.points_sensor_m.size());
-  view.times_s = deskewed ? times_buffer_.data() : nullptr;
-  view.sweep = deskew.motion;
-  const integrators::IntegrationStats stats = active_submap_->integrate(
-      tsdf_integrator_, view, scan.T_odom_sensor, scan.stamp_s, frontend_stream_);
-  // Drained before the next scan overwrites the upload buffers.
-  frontend_stream_.synchronize();
+  const integrators::PointCloudView view =
+      upload_scan(scan, deskew, &points_buffer_, &colors_buffer_, &times_buffer_,
+                  frontend_integrators_.stream());
+  // Returns when the scan is in the map, before the next scan overwrites the upload buffers.
+  const integrators::IntegrationStats stats =
+      active_submap_->integrate(frontend_integrators_, view, scan.T_odom_sensor, scan.stamp_s);
   // A cloud without times from a sensor that moved more than a voxel at the longest ray since the
   // previous scan (within a second: the same time line) is smeared, if it came from a spinning
   // LiDAR; a depth camera's frame or a de-skewed keyframe is not, so this is a count and one
@@ -503,12 +493,13 @@ bool SlamSystem::process_submap(QueuedSubmap item) {
   }
   // Finishing and point extraction touch only this submap: no lock, so reset() need not wait.
   try {
-    times = submap->finish(esdf_integrator_, mesh_integrator_, backend_stream_);
+    times = submap->finish(backend_integrators_);
     store_->add(*submap);
     const auto start = Clock::now();
-    StageProfiler::Scope profile("submap registration", backend_stream_);
+    StageProfiler::Scope profile("submap registration", backend_integrators_.stream());
     if (config_.registration.enabled)
-      points = prepare_registration_points(submap->map(), config_.registration, backend_stream_);
+      points = prepare_registration_points(submap->map(), config_.registration,
+                                           backend_integrators_.stream());
     profile.mark("points");
     points_s = seconds_since(start);
   } catch (const std::exception& error) {
@@ -533,7 +524,7 @@ bool SlamSystem::process_submap(QueuedSubmap item) {
   const auto start = Clock::now();
   const int64_t id = submap->id();
   try {
-    StageProfiler::Scope profile("submap registration", backend_stream_);
+    StageProfiler::Scope profile("submap registration", backend_integrators_.stream());
     add_to_pose_graph_locked(std::move(submap), std::move(points));
     profile.mark("pose graph");
     enforce_budget_locked(-1);
@@ -655,7 +646,7 @@ void SlamSystem::add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
   PlaceRecognitionCounts recognition_counts;
   std::vector<SubmapConstraint> registrations;
   std::vector<int64_t> joint_pair_partners;
-  StageProfiler::Scope profile("new submap", backend_stream_);
+  StageProfiler::Scope profile("new submap", backend_integrators_.stream());
   auto walls = std::make_unique<WallMapCache>();
   auto footprint =
       std::make_unique<backend::SubmapFootprint>(backend::submap_footprint(submap->map()));
@@ -666,9 +657,9 @@ void SlamSystem::add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
     profile.mark("choose partners");
     acquire_partners_locked(chosen);
     profile.mark("partners back");
-    registrations = registration_constraints_with(submap->id(), submap->map(), *points, guess,
-                                                  chosen, config_.registration, backend_stream_,
-                                                  &counts, walls.get(), own_odometry);
+    registrations = registration_constraints_with(
+        submap->id(), submap->map(), *points, guess, chosen, config_.registration,
+        backend_integrators_.stream(), &counts, walls.get(), own_odometry);
     profile.mark("registration");
     if (config_.registration.enabled) {
       for (const RegistrationPartner* partner : overlapping_partners(
@@ -713,7 +704,7 @@ void SlamSystem::propose_place_recognition_locked(
   for (const RegistrationPartner& partner : earlier) earlier_ids.push_back(partner.id);
   const std::vector<PlaceCandidate> candidates =
       place_recognizer_.search(submap.id(), submap.map(), submap_path_locked(submap), earlier_ids,
-                               linked, backend_stream_, counts);
+                               linked, backend_integrators_.stream(), counts);
   // The candidates were found from their descriptors alone: their maps may be compact or on disk.
   std::vector<const RegistrationPartner*> wanted;
   for (const PlaceCandidate& candidate : candidates) {
@@ -722,9 +713,9 @@ void SlamSystem::propose_place_recognition_locked(
     }
   }
   acquire_partners_locked(wanted);
-  const std::vector<VerifiedClosure> verified =
-      place_recognizer_.verify(submap.id(), submap.map(), points, guess, candidates, earlier,
-                               config_.registration, backend_stream_, walls, odometry, counts);
+  const std::vector<VerifiedClosure> verified = place_recognizer_.verify(
+      submap.id(), submap.map(), points, guess, candidates, earlier, config_.registration,
+      backend_integrators_.stream(), walls, odometry, counts);
   for (const SubmapConstraint& c : place_recognizer_.confirm(submap.id(), verified, counts)) {
     registrations->push_back(c);
   }

@@ -229,10 +229,10 @@ void SlamSystem::reset() {
 }
 
 SlamSystem::GraphSubmap SlamSystem::stage_loaded_submap(SubmapSnapshot& snapshot,
-                                                        integrators::EsdfIntegrator& esdf,
-                                                        integrators::MeshIntegrator& mesher,
-                                                        const Stream& stream, double* room_bytes,
+                                                        MapIntegrators& integrators,
+                                                        double* room_bytes,
                                                         std::vector<uint8_t>* compact) {
+  const Stream& stream = integrators.stream();
   const std::string name = "load_submaps: submap " + std::to_string(snapshot.id);
   auto submap =
       std::make_unique<Submap>(snapshot.id, config_.device, config_.map, snapshot.T_world_submap);
@@ -246,7 +246,7 @@ SlamSystem::GraphSubmap SlamSystem::stage_loaded_submap(SubmapSnapshot& snapshot
     throw Error(name + ": " + error.what());
   }
   std::vector<map::HostBlock>().swap(snapshot.blocks);
-  submap->finish(esdf, mesher, stream);
+  submap->finish(integrators);
   std::unique_ptr<SubmapRegistrationPoints> points;
   if (config_.registration.enabled)
     points = prepare_registration_points(submap->map(), config_.registration, stream);
@@ -290,9 +290,7 @@ void SlamSystem::load_submaps(std::vector<SubmapSnapshot> submaps) {
   // replaced, on this thread with its own integrators: a bad submap leaves the map as it was.
   // The old map's resident submaps stay until the reset, so the new ones may use what is left of
   // the device budget; past it they are released to their compact forms as they are staged.
-  const Stream stream(config_.device);
-  integrators::EsdfIntegrator esdf(config_.esdf);
-  integrators::MeshIntegrator mesher(config_.mesh);
+  MapIntegrators integrators(config_.tsdf, config_.esdf, config_.mesh, Stream(config_.device));
   double room_bytes = std::numeric_limits<double>::infinity();
   if (store_->enabled()) {
     room_bytes = config_.memory.device_budget_mb * 1024.0 * 1024.0 -
@@ -302,8 +300,7 @@ void SlamSystem::load_submaps(std::vector<SubmapSnapshot> submaps) {
   std::vector<std::vector<uint8_t>> compact_forms(submaps.size());
   loaded.reserve(submaps.size());
   for (size_t k = 0; k < submaps.size(); ++k) {
-    loaded.push_back(
-        stage_loaded_submap(submaps[k], esdf, mesher, stream, &room_bytes, &compact_forms[k]));
+    loaded.push_back(stage_loaded_submap(submaps[k], integrators, &room_bytes, &compact_forms[k]));
   }
 
   // New submaps (even one the frontend starts before the reset below) get ids after the loaded

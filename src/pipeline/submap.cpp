@@ -7,6 +7,7 @@
 
 #include "covoxslam/core/buffer.h"
 #include "covoxslam/core/error.h"
+#include "covoxslam/pipeline/map_integrators.h"
 
 namespace covox {
 namespace pipeline {
@@ -154,16 +155,16 @@ Submap::Submap(int64_t id, Device device, const map::TsdfMapConfig& map_config,
   }
 }
 
-integrators::IntegrationStats Submap::integrate(integrators::TsdfIntegrator& integrator,
+integrators::IntegrationStats Submap::integrate(MapIntegrators& integrators,
                                                 const integrators::PointCloudView& cloud,
                                                 const Eigen::Isometry3d& T_odom_sensor,
-                                                double stamp_s, const Stream& stream) {
+                                                double stamp_s) {
   if (finished_) {
     throw Error("submap " + std::to_string(id_) +
                 ": cannot integrate a scan into a finished submap");
   }
   const integrators::IntegrationStats stats =
-      integrator.integrate(map_, cloud, submap_from_odometry(T_odom_sensor), stream);
+      integrators.integrate(map_, cloud, submap_from_odometry(T_odom_sensor));
   const Eigen::Vector3d position_m = T_odom_sensor.translation();
   if (statistics_.scans == 0) {
     statistics_.start_stamp_s = stamp_s;
@@ -179,29 +180,26 @@ integrators::IntegrationStats Submap::integrate(integrators::TsdfIntegrator& int
   return stats;
 }
 
-SubmapFinishTimes Submap::finish(integrators::EsdfIntegrator& esdf,
-                                 integrators::MeshIntegrator& mesher, const Stream& stream) {
+SubmapFinishTimes Submap::finish(MapIntegrators& integrators) {
   SubmapFinishTimes times;
   if (finished_) return times;
 
   // The whole ESDF at once: the submap will not change again, so incremental bookkeeping would
   // only cost time.
   auto start = Clock::now();
-  esdf.update_all(map_, stream);
-  stream.synchronize();
+  integrators.update_esdf_all(map_);
   times.esdf_s = seconds_since(start);
 
   start = Clock::now();
-  mesh_ = mesher.extract_all(map_, stream);
+  mesh_ = integrators.extract_mesh(map_);
   mesh_triangles_ = static_cast<int64_t>(mesh_.triangle_count());
-  stream.synchronize();
   times.mesh_s = seconds_since(start);
 
   // The box of the allocated blocks: block b spans [b, b + 1) * block size on each axis.
   Buffer<Index3D> keys(map_.device());
   Buffer<uint32_t> slots(map_.device());
   map_.blocks().export_entries(&keys, &slots);
-  const std::vector<Index3D> indices = keys.to_host(stream);
+  const std::vector<Index3D> indices = keys.to_host(integrators.stream());
   bounding_box_submap_.setEmpty();
   const double block_m = map_.block_size_m();
   for (const Index3D& index : indices) {

@@ -1,9 +1,11 @@
 #pragma once
 // Mapper: one map without the SLAM threads. It owns a TsdfMap (TSDF, colour and ESDF layers) on
-// one device, the TSDF, ESDF and mesh integrators that keep it and the stream they run on, and
-// works synchronously: a call returns when its work is done (examples/map_depth_folder.cpp).
-// It is configured from the files the SLAM system reads (config/*.yaml), so a preset means the
-// same map to run_slam, the nodelet and a Mapper; docs/design.md, "The data path", says more.
+// one device and the integration stage that keeps it (pipeline/map_integrators.h: the TSDF, ESDF
+// and mesh integrators and the stream they run on), and works synchronously: a call returns when
+// its work is done (examples/map_depth_folder.cpp); a SLAM submap is the same map, kept by a stage
+// SlamSystem lends it. It is configured from the files the SLAM system reads (config/*.yaml), so a
+// preset means the same map to run_slam, the nodelet and a Mapper; docs/design.md, "The data
+// path", says more.
 #include <string>
 #include <vector>
 
@@ -19,6 +21,7 @@
 #include "covoxslam/io/sensor_data.h"
 #include "covoxslam/map/mesh.h"
 #include "covoxslam/map/tsdf_map.h"
+#include "covoxslam/pipeline/map_integrators.h"
 #include "covoxslam/pipeline/slam_system.h"
 
 namespace covox {
@@ -55,7 +58,7 @@ class Mapper {
   const MapperConfig& config() const { return config_; }
   Device device() const { return config_.device; }
   // The stream every call runs on (drained before each call returns).
-  const Stream& stream() const { return stream_; }
+  const Stream& stream() const { return integrators_.stream(); }
   map::TsdfMap& map() { return map_; }
   const map::TsdfMap& map() const { return map_; }
 
@@ -94,11 +97,8 @@ class Mapper {
 
  private:
   MapperConfig config_;
-  Stream stream_;
+  MapIntegrators integrators_;
   map::TsdfMap map_;
-  integrators::TsdfIntegrator tsdf_;
-  integrators::EsdfIntegrator esdf_;
-  integrators::MeshIntegrator mesher_;
   // Upload buffers of the host-memory inputs, kept between calls.
   Buffer<Vec3f> points_;
   Buffer<Rgb8> colors_;

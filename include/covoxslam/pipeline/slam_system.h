@@ -39,6 +39,7 @@
 #include "covoxslam/pipeline/bounded_queue.h"
 #include "covoxslam/pipeline/external_constraints.h"
 #include "covoxslam/pipeline/graph_optimizer.h"
+#include "covoxslam/pipeline/map_integrators.h"
 #include "covoxslam/pipeline/place_recognition.h"
 #include "covoxslam/pipeline/registration_constraints.h"
 #include "covoxslam/pipeline/revisit_drift.h"
@@ -493,8 +494,7 @@ class SlamSystem {
   // The remaining helpers need backend_mutex_.
   // A submap of load_submaps() built, finished and, past `room_bytes` of device memory (which it
   // lowers), released to its compact form `compact` (empty when it stays resident).
-  GraphSubmap stage_loaded_submap(SubmapSnapshot& snapshot, integrators::EsdfIntegrator& esdf,
-                                  integrators::MeshIntegrator& mesher, const Stream& stream,
+  GraphSubmap stage_loaded_submap(SubmapSnapshot& snapshot, MapIntegrators& integrators,
                                   double* room_bytes, std::vector<uint8_t>* compact);
   void add_to_pose_graph_locked(std::unique_ptr<Submap> submap,
                                 std::unique_ptr<SubmapRegistrationPoints> points);
@@ -558,9 +558,8 @@ class SlamSystem {
 
   // The graph's size at the latest optimisation (backend_mutex_): the spacing on long missions.
   size_t submaps_at_last_optimization_ = 0;
-  // Frontend thread only.
-  integrators::TsdfIntegrator tsdf_integrator_;
-  Stream frontend_stream_;
+  // Frontend thread only. Its integration stage builds every active submap in turn.
+  MapIntegrators frontend_integrators_;
   Buffer<Vec3f> points_buffer_;
   Buffer<Rgb8> colors_buffer_;
   Buffer<float> times_buffer_;
@@ -590,10 +589,9 @@ class SlamSystem {
   integrators::EsdfIntegrator restore_esdf_;
   Stream restore_stream_;
 
-  // Backend thread only (and finish() after the threads have joined).
-  integrators::EsdfIntegrator esdf_integrator_;
-  integrators::MeshIntegrator mesh_integrator_;
-  Stream backend_stream_;
+  // Backend thread only (and finish() after the threads have joined). Its integration stage
+  // finishes every submap; its stream also runs the registrations.
+  MapIntegrators backend_integrators_;
   GraphOptimizer optimizer_;
 
   // Caller side of add_scan.

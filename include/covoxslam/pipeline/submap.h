@@ -1,12 +1,13 @@
 #pragma once
 // Submap: one piece of the map, built by the frontend from consecutive scans and then frozen
-// (paper III-F, voxgraph's submaps). It holds its TSDF, colour and ESDF layers (one TsdfMap), its
-// pose T_W_S, its bounding box and statistics, and - once finished - its ESDF and mesh. The
-// submap frame S is the gravity-aligned pose of its first scan's sensor in the odometry frame (4
-// DoF, docs/design.md "Submaps"); T_odom_S is fixed at creation, T_W_S (the corrected pose in the
-// mission frame) starts equal to it and is updated by the backend. A Submap is not thread-safe:
-// the frontend owns it while it is active, then hands it to the backend through the submap
-// queue; SlamSystem guards the pose that both sides read.
+// (paper III-F, voxgraph's submaps). It holds the map a Mapper owns (one TsdfMap: TSDF, colour and
+// ESDF layers), its pose T_W_S, bounding box and statistics, and once finished its mesh; the
+// integration stage that builds it (pipeline/map_integrators.h) is lent by each call, so scratch
+// memory is per thread, not per submap. Its frame S is the gravity-aligned pose of its first
+// scan's sensor in the odometry frame (4 DoF, docs/design.md "Submaps"); T_odom_S is fixed at
+// creation, T_W_S (the corrected pose in the mission frame) starts equal to it and is updated by
+// the backend. Not thread-safe: the frontend owns it while it is active, then hands it to the
+// backend through the submap queue; SlamSystem guards the pose that both sides read.
 #include <cstdint>
 #include <string>
 #include <utility>
@@ -15,15 +16,14 @@
 
 #include "covoxslam/backend/pose_graph_types.h"
 #include "covoxslam/core/device.h"
-#include "covoxslam/core/stream.h"
-#include "covoxslam/integrators/esdf_integrator.h"
-#include "covoxslam/integrators/mesh_integrator.h"
 #include "covoxslam/integrators/tsdf_integrator.h"
 #include "covoxslam/map/mesh.h"
 #include "covoxslam/map/tsdf_map.h"
 
 namespace covox {
 namespace pipeline {
+
+class MapIntegrators;
 
 // ---- 4-DoF pose helpers ------------------------------------------------------------------------
 
@@ -113,20 +113,19 @@ class Submap {
   const SubmapStatistics& statistics() const { return statistics_; }
 
   // Integrates a scan taken at odometry pose T_odom_sensor (device memory of the map's device)
-  // at its pose in the submap frame, and updates the statistics. Throws covox::Error after
-  // finish().
-  integrators::IntegrationStats integrate(integrators::TsdfIntegrator& integrator,
+  // with `integrators` at its pose in the submap frame, and updates the statistics. Returns when
+  // the scan is in the map. Throws covox::Error after finish().
+  integrators::IntegrationStats integrate(MapIntegrators& integrators,
                                           const integrators::PointCloudView& cloud,
-                                          const Eigen::Isometry3d& T_odom_sensor, double stamp_s,
-                                          const Stream& stream);
+                                          const Eigen::Isometry3d& T_odom_sensor, double stamp_s);
   // T_S_sensor for a scan at odometry pose T_odom_sensor.
   Eigen::Isometry3d submap_from_odometry(const Eigen::Isometry3d& T_odom_sensor) const {
     return T_odom_submap().inverse() * T_odom_sensor;
   }
 
-  // Freezes the submap: computes the whole ESDF, the mesh and the bounding box. Idempotent.
-  SubmapFinishTimes finish(integrators::EsdfIntegrator& esdf, integrators::MeshIntegrator& mesher,
-                           const Stream& stream);
+  // Freezes the submap: computes the whole ESDF and the mesh with `integrators`, and the
+  // bounding box. Idempotent.
+  SubmapFinishTimes finish(MapIntegrators& integrators);
   bool finished() const { return finished_; }
 
   // Mesh in the submap frame (empty before finish() and after take_mesh()).
