@@ -23,10 +23,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <map>
 #include <memory>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -42,6 +40,7 @@
 #include "covoxslam/pipeline/submap_pose_graph.h"
 #include "covoxslam/pipeline/wall_map.h"
 #include "runner/slam_run.h"
+#include "eval/submap_truth.h"
 #include "eval/trajectory_evaluation.h"
 
 using namespace covox;
@@ -68,36 +67,6 @@ constexpr double kPi = 3.14159265358979323846;
 constexpr double kGoldenAngleRad = 2.399963229728653;
 
 double wrap_angle(double a) { return std::atan2(std::sin(a), std::cos(a)); }
-
-// First-scan stamps per submap id from a run_slam --graph dump ('submap ID START_S END_S ...').
-std::map<int64_t, double> read_submap_stamps(const std::string& path) {
-  std::ifstream file(path);
-  if (!file) throw Error("cannot open graph dump " + path);
-  std::map<int64_t, double> stamps;
-  std::string line;
-  while (std::getline(file, line)) {
-    std::istringstream fields(line);
-    std::string kind;
-    int64_t id = 0;
-    double start_s = 0.0;
-    if (fields >> kind && kind == "submap" && fields >> id >> start_s) stamps[id] = start_s;
-  }
-  if (stamps.empty()) throw Error("graph dump " + path + " has no 'submap' lines");
-  return stamps;
-}
-
-// The true pose at `stamp_s` (trajectory_evaluation's interpolation); throws outside the file.
-Eigen::Isometry3d true_pose_at(const io::Trajectory& truth, double stamp_s,
-                               const std::string& path) {
-  io::StampedPose stamped;
-  if (!eval::interpolate_pose(truth, stamp_s, &stamped)) {
-    throw Error(path + " does not cover stamp " + std::to_string(stamp_s));
-  }
-  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-  pose.linear() = stamped.orientation.toRotationMatrix();
-  pose.translation() = stamped.position_m;
-  return pose;
-}
 
 double median(std::vector<double> values) {
   if (values.empty()) return NAN;
@@ -189,7 +158,7 @@ Options parse_options(int argc, char** argv) {
 struct Inputs {
   pipeline::SlamConfig config;
   io::MapFileContents contents;
-  std::map<int64_t, double> stamps;
+  std::map<int64_t, eval::SubmapSpan> spans;
   io::Trajectory truth;
   std::vector<std::unique_ptr<map::TsdfMap>> maps;
 };
@@ -201,7 +170,7 @@ Inputs load_inputs(const Options& o, Device device) {
   if (!o.config_path.empty()) pipeline::load_slam_config(o.config_path, &in.config);
   pipeline::validate(in.config.registration);
   in.contents = io::load_map_file(o.map_path);
-  in.stamps = read_submap_stamps(o.graph_path);
+  in.spans = eval::read_submap_spans(o.graph_path);
   in.truth = io::read_tum_trajectory(o.truth_path);
   if (!in.truth.has_orientations) throw Error(o.truth_path + " has no orientations");
   in.maps = io::make_maps(in.contents, device);
@@ -295,11 +264,11 @@ pipeline::SubmapConstraint realign(pipeline::SubmapConstraint c, const NewSubmap
 void evaluate_submap(size_t k, const Options& o, const Inputs& in, const Stream& stream,
                      Evaluation& ev) {
   const int64_t id = in.contents.submaps[k].id;
-  const auto stamp = in.stamps.find(id);
-  if (stamp == in.stamps.end())
+  const auto span = in.spans.find(id);
+  if (span == in.spans.end())
     throw Error("submap " + std::to_string(id) + " is not in " + o.graph_path);
-  const backend::Pose4Dof truth_k =
-      pipeline::pose_4dof_from_isometry(true_pose_at(in.truth, stamp->second, o.truth_path));
+  const backend::Pose4Dof truth_k = pipeline::pose_4dof_from_isometry(
+      eval::true_pose_at(in.truth, span->second.start_s, o.truth_path));
   ev.true_pose[id] = truth_k;
   const backend::Pose4Dof start = start_pose(truth_k, k, o);
   ev.kept_points.push_back(
