@@ -280,7 +280,7 @@ double LidarKeyframeGraphScanSource::duration_s() const {
 std::string default_preset(const ScanSource& source) {
   if (dynamic_cast<const RgbdScanSource*>(&source)) return "rgbd";
   if (dynamic_cast<const KeyframeFolderScanSource*>(&source)) return "lidar_keyframes";
-  return "arche_sim";
+  return "arche";
 }
 
 std::unique_ptr<ScanSource> open_dataset_scan_source(

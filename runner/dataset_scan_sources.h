@@ -121,7 +121,7 @@ std::unique_ptr<ScanSource> open_dataset_scan_source(const std::string& path,
                                                      const LidarKeyframeScanOptions& lidar_options);
 
 // The preset (config/NAME.yaml) an input of this kind is mapped with when none is given: `rgbd`
-// for RGB-D folders, `lidar_keyframes` for keyframe folders, `arche_sim` for flights (bags and
+// for RGB-D folders, `lidar_keyframes` for keyframe folders, `arche` for flights (bags and
 // the simulator). run_slam and the accuracy benchmark both choose through it.
 std::string default_preset(const ScanSource& source);
 

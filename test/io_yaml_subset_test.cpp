@@ -22,7 +22,7 @@ TEST(YamlSubset, ReadsNestedMappingsCommentsQuotesAndFlowLists) {
       "registration:\n"
       "  enabled: true\n"
       "  gate:\n"
-      "      max_residual_m: 0.3\n"
+      "      max_residual_vox: 2.0\n"
       "      worst_fraction: 0.7 #\n"
       "  mode: 'pairwise'\n"
       "ros:\n"
@@ -35,7 +35,7 @@ TEST(YamlSubset, ReadsNestedMappingsCommentsQuotesAndFlowLists) {
   const std::vector<YamlEntry> expected = {
       {"device", "auto", 3},
       {"registration.enabled", "true", 6},
-      {"registration.gate.max_residual_m", "0.3", 8},
+      {"registration.gate.max_residual_vox", "2.0", 8},
       {"registration.gate.worst_fraction", "0.7", 9},
       {"registration.mode", "pairwise", 10},
       {"ros.base_frame", "imu # not a comment", 12},

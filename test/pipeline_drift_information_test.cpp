@@ -72,16 +72,16 @@ TEST(PipelineDriftInformation, ZeroFloorsLeaveThePointsInformationUnchanged) {
 TEST(PipelineDriftInformation, FloorsAreValidatedByName) {
   SubmapRegistrationConfig config;
   validate(config);
-  config.information.min_sigma_m = -0.1;
+  config.information.min_sigma_vox = -0.1;
   try {
     validate(config);
-    FAIL() << "a negative min_sigma_m was accepted";
+    FAIL() << "a negative min_sigma_vox was accepted";
   } catch (const std::exception& error) {
-    EXPECT_NE(std::string(error.what()).find("registration.information.min_sigma_m"),
+    EXPECT_NE(std::string(error.what()).find("registration.information.min_sigma_vox"),
               std::string::npos)
         << error.what();
   }
-  config.information.min_sigma_m = 0.2;
+  config.information.min_sigma_vox = 1.0;
   config.information.min_sigma_yaw_rad = std::numeric_limits<double>::quiet_NaN();
   EXPECT_THROW(validate(config), std::exception);
 }

@@ -272,34 +272,33 @@ sim::FlightConfig small_forward_flight() {
 
 // One lap of a 160 m figure 8 (it crosses its start half way and ends there) flown facing along
 // the path (no yaw sweep; instantaneous scans, as this source casts them), 256 x 64 beams, the
-// arche_sim preset with the registrations verified: every registration the solution uses lies
-// within three of its claimed standard deviations of the true relative pose of its two submaps,
-// and the corrected trajectory beats the odometry. Then the check itself: constraints set to the
-// simulator's true relative poses pass, and the same constraints moved or turned by twice the
-// tolerance, or taken in the LiDAR frame, fail.
+// arche preset with this flight's former gate and drift bound: every registration the solution
+// uses lies within three of its claimed standard deviations of the true relative pose of its two
+// submaps, and the corrected trajectory beats the odometry. Then the check itself: constraints set
+// to the simulator's true relative poses pass, and the same constraints moved or turned by twice
+// the tolerance, or taken in the LiDAR frame, fail.
 TEST(RegistrationVerification, SimulatedFlightAcceptsOnlyRightRegistrations) {
   sim::LidarConfig lidar;
   lidar.columns = 256;
   SimulatedFlightSource source(small_forward_flight(), lidar, 1);
-  // The arche_sim preset with the verification the rgbd preset uses: residual RMS under a voxel,
-  // agreement with an odometry drifting at most 5 % and 0.5 degrees per metre (the simulated
-  // drift, at least 3 m at the end, stays under that), the robust loss and the noise estimate.
-  SlamConfig config = load_preset("arche_sim");
-  config.registration.acceptance.max_residual_rms_vox = 1.0;
-  config.registration.verification.max_mahalanobis_sq = 18.5;
+  // The shipped configuration (residual RMS under a voxel, the robust loss, the noise estimate)
+  // with this flight's former gate of 1.5 voxels (0.3 m) and an odometry drifting at most 5 % and
+  // 0.5 degrees per metre (the simulated drift, at least 3 m at the end, stays under that). With
+  // the shipped gate of 3 voxels revisits up to 0.68 m off stay in the solution.
+  SlamConfig config = load_preset("arche");
+  config.registration.gate.max_residual_vox = 1.5;
   config.odometry_drift_m_per_m = 0.05;
   config.odometry_drift_deg_per_m = 0.5;
-  config.registration_loss_scale_sigmas = 3.0;
-  config.estimate_odometry_noise = true;
   config.revisit_drift_min_path_m = 40.0;  // the lobes are 50 m long: revisits span 40 m or more
   tools::SlamRunOptions run_options;
   run_options.progress_bar = false;
   const tools::SlamRunResult result = tools::run_slam_system(source, config, run_options);
 
   // Wrong: beyond three standard deviations of the accuracy every registration claims (the
-  // preset's floors: 0.2 m and 1 degree). The consistency gate sets some aside at the end; those
+  // floors: one voxel, 0.2 m, and 1 degree). The consistency gate sets some aside at the end; those
   // are not in the solution, the rest must all be right.
-  const double tolerance_m = 3.0 * config.registration.information.min_sigma_m;
+  const double tolerance_m =
+      3.0 * config.registration.information.min_sigma_vox * config.map.voxel_size_m;
   const double tolerance_rad = 3.0 * config.registration.information.min_sigma_yaw_rad;
   const eval::ConstraintEvaluation evaluation = eval::evaluate_registration_constraints(
       source.reference(), result.submaps, result.constraints, tolerance_m, tolerance_rad);

@@ -137,8 +137,8 @@ TEST(SlamParameters, BadValuesAreReportedByName) {
   expect_error_names({{"tsdf.method", "fast"}}, "tsdf.method");
   expect_error_names({{"tsdf.use_const_weight", "yes"}}, "tsdf.use_const_weight");
   expect_error_names({{"device", "tpu"}}, "device");
-  expect_error_names({{"pose_graph.odometry_translation_sigma_m", "nan"}},
-                     "pose_graph.odometry_translation_sigma_m");
+  expect_error_names({{"pose_graph.odometry_translation_sigma_vox", "nan"}},
+                     "pose_graph.odometry_translation_sigma_vox");
   // Relations are checked by the integrator's validate(), which names the fields.
   expect_error_names({{"map.voxel_size_m", "0.5"}, {"tsdf.truncation_distance_m", "0.3"}},
                      "truncation_distance_m");

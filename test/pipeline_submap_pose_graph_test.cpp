@@ -480,9 +480,12 @@ class PlainGraph : public OptimizedGraph {
   SubmapPoseGraph* graph_;
 };
 
+// The gate alone: plain least squares and fixed odometry sigmas, so that every solve is a round.
 SlamConfig gated_config(int max_solves_per_new_submap) {
   SlamConfig config;
-  config.registration.gate.max_residual_m = 0.5;
+  config.registration.gate.max_residual_vox = 0.5 / config.map.voxel_size_m;  // 0.5 m
+  config.registration_loss_scale_sigmas = 0.0;
+  config.estimate_odometry_noise = false;
   config.max_solves_per_new_submap = max_solves_per_new_submap;
   return config;
 }

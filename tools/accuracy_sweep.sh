@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Simulated flights, one per seed: simulates each flight (cached in the output folder), maps it
-# with the offline runner (arche_sim preset) and prints a table of the odometry's and covoxslam's
+# with the offline runner (arche preset) and prints a table of the odometry's and covoxslam's
 # ATE RMSE against the ground truth (translation + yaw alignment, as run_slam reports it).
 #   tools/accuracy_sweep.sh [-b BUILD_DIR] [-o OUTPUT_DIR] SEED...
 # Environment: SWEEP_COLUMNS (LiDAR columns, default 256 as make demo), SWEEP_DEVICE

@@ -48,7 +48,7 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 const char kUsage[] =
     "usage: benchmark_mission_memory [options] [simulator options]\n"
-    "  --config FILE.yaml              configuration applied over the arche_sim preset (default\n"
+    "  --config FILE.yaml              configuration applied over the arche preset (default\n"
     "                                  config/jetson.yaml)\n"
     "  --device auto|cuda|cpu          (default auto)\n"
     "  --sample-interval-s S           a memory sample every S s of mission time (default 2)\n"
@@ -336,7 +336,7 @@ void print_figures(const Settings& s, const tools::SlamRunEvaluation& evaluation
 
 int run(Settings& s, int argc, char** argv) {
   const Device device = select_device(parse_device_request(s.device_text));
-  pipeline::SlamConfig config = pipeline::load_preset("arche_sim");
+  pipeline::SlamConfig config = pipeline::load_preset("arche");
   pipeline::load_slam_config(s.config_path, &config);
   config.device = device;
   pipeline::validate(config);
@@ -349,7 +349,7 @@ int run(Settings& s, int argc, char** argv) {
     s.case_name = name;
   }
   std::printf(
-      "device: %s\ninput: %s\nconfig: arche_sim + %s (device budget %.0f MB, host budget "
+      "device: %s\ninput: %s\nconfig: arche + %s (device budget %.0f MB, host budget "
       "%.0f MB, device cache %.0f MB)\n",
       describe_device(device).c_str(), source.describe().c_str(), s.config_path.c_str(),
       config.memory.device_budget_mb, config.memory.host_budget_mb, config.memory.device_cache_mb);

@@ -37,7 +37,7 @@ const char kUsage[] =
     "bag)\n"
     "  --device auto|cpu|cuda (default auto)\n"
     "  --preset NAME          the map's configuration: a file in config/ (COVOX_CONFIG_DIR)\n"
-    "                         (default arche_sim, what run_slam maps bags with)\n"
+    "                         (default arche, what run_slam maps bags with)\n"
     "  --config FILE.yaml     a configuration file applied over the preset\n"
     "  --voxel-size-m S       overrides map.voxel_size_m\n"
     "  --truncation-m T       overrides tsdf.truncation_distance_m\n"
@@ -100,7 +100,7 @@ Options parse_options(int argc, char** argv) {
       "--truth", (slash == std::string::npos ? std::string() : o.flight_path.substr(0, slash + 1)) +
                      "truth.tum");
   o.device_text = args.text("--device", "auto");
-  o.preset = args.text("--preset", "arche_sim");
+  o.preset = args.text("--preset", "arche");
   o.config_path = args.text("--config", "");
   o.voxel_size_m = args.number("--voxel-size-m", o.voxel_size_m, 0.005, 10.0);
   o.truncation_m = args.number("--truncation-m", o.truncation_m, 0.005, 100.0);

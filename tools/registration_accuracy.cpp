@@ -7,7 +7,7 @@
 // (each submap's first-scan stamp) and the flight's true sensor poses (TUM). Each submap is
 // placed at its true pose (gravity aligned) and registered to every earlier submap it overlaps,
 // exactly as the SLAM system does (pipeline::registration_constraints: coarse-to-fine levels,
-// symmetric solve, acceptance tests), with the registration settings of the arche_sim preset and an
+// symmetric solve, acceptance tests), with the registration settings of the arche preset and an
 // optional `--config` file over it. With `--start-offset-m D` the new submap starts D metres
 // from its true position, in a direction that turns by the golden angle from one submap to the
 // next, and `--start-yaw-deg A` adds a yaw error of alternating sign: the basin, not just the bias.
@@ -52,7 +52,7 @@ const char* kUsage =
     "  --map FILE             map saved by run_slam --map (submaps with their ESDF)\n"
     "  --graph FILE           the same run's run_slam --graph dump (submap first-scan stamps)\n"
     "  --truth FILE.tum       true sensor poses (simulate_flight's truth.tum)\n"
-    "  --config FILE.yaml     a configuration file over the arche_sim preset (only registration "
+    "  --config FILE.yaml     a configuration file over the arche preset (only registration "
     "matters)\n"
     "  --device auto|cpu|cuda (default auto)\n"
     "  --start-offset-m D     start each new submap D m from its true position (default 0)\n"
@@ -165,7 +165,7 @@ struct Inputs {
 
 Inputs load_inputs(const Options& o, Device device) {
   Inputs in;
-  in.config = pipeline::load_preset("arche_sim");
+  in.config = pipeline::load_preset("arche");
   in.config.device = device;
   if (!o.config_path.empty()) pipeline::load_slam_config(o.config_path, &in.config);
   pipeline::validate(in.config.registration);

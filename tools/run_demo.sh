@@ -7,8 +7,8 @@
 #   tools/run_demo.sh [BUILD_DIR] [OUTPUT_DIR]
 # Settings (environment): DEMO_COLUMNS (LiDAR columns, default 256 so that the CPU twin maps the
 # whole flight in minutes; 1024 is the real OS1-64), DEMO_DEVICE (auto|cpu|cuda), DEMO_SEED.
-# run_slam maps a bag with the arche_sim preset (config/arche_sim.yaml); the flight bag is what
-# launch/arche.launch plays for the rviz variant (config:=arche_sim.yaml, the same file).
+# run_slam maps a bag with the arche preset (config/arche.yaml); the flight bag is what
+# launch/arche.launch plays for the rviz variant (its default config, the same file).
 set -euo pipefail
 build=${1:-build}
 out=${2:-demo_output}
@@ -67,5 +67,5 @@ $(sed -n 's/^de-skewing: /  de-skewing:        /p' "$out/run_slam.txt")
   trajectory plot:   $out/trajectory.png
   flight bag:        $flight/flight.bag (rosbag play-able, ARCHE topics)
   in rviz (ROS), from the repository root in any shell:
-    make ros && source build/devel/setup.bash && roslaunch covoxslam arche.launch bag:=$(cd "$flight" && pwd)/flight.bag rviz:=true config:=arche_sim.yaml
+    make ros && source build/devel/setup.bash && roslaunch covoxslam arche.launch bag:=$(cd "$flight" && pwd)/flight.bag rviz:=true
 SUMMARY

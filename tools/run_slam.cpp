@@ -83,11 +83,10 @@ const char kUsage[] =
     "                              applies); the simulator's options are listed at the end\n"
     "mapping (defaults from the preset; each option below overrides it):\n"
     "  --device auto|cpu|cuda      (default auto)\n"
-    "  --preset NAME               a configuration file in config/ (COVOX_CONFIG_DIR): arche_sim\n"
-    "                              (the default for bags), arche (voxgraph's ARCHE settings), "
-    "rgbd\n"
-    "                              (the default for RGB-D folders), lidar_keyframes (the default\n"
-    "                              for keyframe folders); docs/parameters.md lists the parameters\n"
+    "  --preset NAME               a configuration file in config/ (COVOX_CONFIG_DIR) with the\n"
+    "                              sensor's facts: arche (the default for bags and --simulate),\n"
+    "                              rgbd (the default for RGB-D folders), lidar_keyframes (the\n"
+    "                              default for keyframe folders); docs/parameters.md lists them\n"
     "  --config FILE.yaml          a configuration file applied over the preset (of its `ros`\n"
     "                              section, the nodelet's, only the extrinsic keys are read)\n"
     "  --voxel-size-m S            voxel size\n"
@@ -304,7 +303,7 @@ std::unique_ptr<tools::ScanSource> open_source(RunnerSettings& s) {
   }
   if (!s.bag_path.empty()) {
     // The extrinsic is read from the same configuration files as the mapping parameters.
-    if (s.preset.empty()) s.preset = "arche_sim";
+    if (s.preset.empty()) s.preset = "arche";
     std::vector<std::string> config_paths = {pipeline::preset_path(s.preset)};
     if (!s.config_path.empty()) config_paths.push_back(s.config_path);
     tools::resolve_bag_extrinsic(config_paths, s.base_frame_text, s.extrinsic_text, &s.bag_options);

@@ -179,7 +179,7 @@ TEST_F(BagExtrinsic, BagWithoutTheStaticTransformGivesTheSameScansWithTheExtrins
 }
 
 TEST_F(BagExtrinsic, BagWithoutTheStaticTransformMapsTheSameWithTheExtrinsic) {
-  pipeline::SlamConfig config = pipeline::load_preset("arche_sim");
+  pipeline::SlamConfig config = pipeline::load_preset("arche");
   config.submaps.interval_s = 0.5;  // several submaps: registration and the pose graph run
   SlamRunOptions run;
   run.progress_bar = false;

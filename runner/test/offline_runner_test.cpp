@@ -87,7 +87,7 @@ TinyFlight* OfflineRunner::flight_ = nullptr;
 
 TEST_F(OfflineRunner, LibraryRunIntegratesEveryScanWithTheBagsOdometry) {
   BagScanSource source(bag(), BagScanOptions());
-  pipeline::SlamConfig config = pipeline::load_preset("arche_sim");
+  pipeline::SlamConfig config = pipeline::load_preset("arche");
   config.submaps.interval_s = 0.5;  // four submaps, so that the backend has a graph to optimise
   SlamRunOptions options;
   options.progress_bar = false;
@@ -118,7 +118,7 @@ TEST_F(OfflineRunner, LibraryRunIntegratesEveryScanWithTheBagsOdometry) {
 // and the last sample's map is the run's.
 TEST_F(OfflineRunner, TimelineWindowsPartitionTheScansAndSubmaps) {
   BagScanSource source(bag(), BagScanOptions());
-  pipeline::SlamConfig config = pipeline::load_preset("arche_sim");
+  pipeline::SlamConfig config = pipeline::load_preset("arche");
   config.submaps.interval_s = 0.5;
   SlamRunOptions options;
   options.progress_bar = false;

@@ -201,7 +201,7 @@ class GraphOptimizer::Run {
 };
 
 GraphOptimizer::GraphOptimizer(const SlamConfig& config)
-    : max_residual_m_(config.registration.gate.max_residual_m),
+    : max_residual_m_(config.registration.gate.max_residual_vox * config.map.voxel_size_m),
       worst_fraction_(config.registration.gate.worst_fraction),
       loss_scale_sigmas_(config.registration_loss_scale_sigmas),
       estimate_noise_(config.estimate_odometry_noise),

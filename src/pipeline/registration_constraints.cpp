@@ -59,8 +59,8 @@ void validate_information(const SubmapRegistrationConfig::Information& config) {
   require(
       positive_finite(config.point_sigma_m),
       "information.point_sigma_m must be positive, got " + std::to_string(config.point_sigma_m));
-  require(std::isfinite(config.min_sigma_m) && config.min_sigma_m >= 0.0,
-          "information.min_sigma_m must be >= 0, got " + std::to_string(config.min_sigma_m));
+  require(std::isfinite(config.min_sigma_vox) && config.min_sigma_vox >= 0.0,
+          "information.min_sigma_vox must be >= 0, got " + std::to_string(config.min_sigma_vox));
   require(std::isfinite(config.min_sigma_yaw_rad) && config.min_sigma_yaw_rad >= 0.0,
           "information.min_sigma_yaw_rad must be >= 0, got " +
               std::to_string(config.min_sigma_yaw_rad));
@@ -81,9 +81,9 @@ void validate_revisits(const SubmapRegistrationConfig::Revisits& config) {
 }
 
 void validate_gate(const SubmapRegistrationConfig::Gate& config) {
-  require(std::isfinite(config.max_residual_m) && config.max_residual_m >= 0.0,
-          "gate.max_residual_m must be >= 0 (metres; 0: off), got " +
-              std::to_string(config.max_residual_m));
+  require(std::isfinite(config.max_residual_vox) && config.max_residual_vox >= 0.0,
+          "gate.max_residual_vox must be >= 0 (voxels; 0: off), got " +
+              std::to_string(config.max_residual_vox));
   require(std::isfinite(config.worst_fraction) && config.worst_fraction >= 0.0 &&
               config.worst_fraction < 1.0,
           "gate.worst_fraction must be in [0, 1), got " + std::to_string(config.worst_fraction));
@@ -349,7 +349,8 @@ SubmapConstraint accepted_constraint(const PairContext& context, int64_t partner
   c.to_submap = context.id;
   c.measurement = constraint.measurement;
   c.information = floored_information(sqrt_information.transpose() * sqrt_information,
-                                      information.min_sigma_m, information.min_sigma_yaw_rad);
+                                      information.min_sigma_vox * context.map->voxel_size_m(),
+                                      information.min_sigma_yaw_rad);
   return c;
 }
 

@@ -47,10 +47,10 @@ void validate(const SlamConfig& config) {
               std::to_string(config.deskew.sweep_duration_s));
   require(config.sensor_queue_size >= 1, "queues.sensor_scans must be at least 1");
   require(config.submap_queue_size >= 1, "queues.submaps must be at least 1");
-  require(std::isfinite(config.odometry_translation_sigma_m) &&
-              config.odometry_translation_sigma_m > 0.0,
-          "pose_graph.odometry_translation_sigma_m must be positive, got " +
-              std::to_string(config.odometry_translation_sigma_m));
+  require(std::isfinite(config.odometry_translation_sigma_vox) &&
+              config.odometry_translation_sigma_vox > 0.0,
+          "pose_graph.odometry_translation_sigma_vox must be positive, got " +
+              std::to_string(config.odometry_translation_sigma_vox));
   require(std::isfinite(config.odometry_yaw_sigma_rad) && config.odometry_yaw_sigma_rad > 0.0,
           "pose_graph.odometry_yaw_sigma_rad must be positive, got " +
               std::to_string(config.odometry_yaw_sigma_rad));
@@ -557,7 +557,7 @@ Eigen::Matrix4d SlamSystem::odometry_link_information(const SubmapStatistics& pr
   const double drift_m = config_.odometry_drift_m_per_m * path_m;
   const double drift_rad =
       config_.odometry_drift_deg_per_m * path_m * 3.14159265358979323846 / 180.0;
-  const double sigma_m = config_.odometry_translation_sigma_m;
+  const double sigma_m = config_.odometry_translation_sigma_vox * config_.map.voxel_size_m;
   const double sigma_rad = config_.odometry_yaw_sigma_rad;
   Eigen::Matrix4d information = Eigen::Matrix4d::Zero();
   information(0, 0) = information(1, 1) = information(2, 2) =

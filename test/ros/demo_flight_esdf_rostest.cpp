@@ -1,7 +1,7 @@
 // rostest of ~query_esdf on the demo's flight (test/ros/covoxslam_demo_flight_esdf.test, in the
 // rostest node): simulate_flight writes the first scans of the flight `make demo` maps (seed 1,
 // 256 columns, motion-distorted scans, the demo's drifting odometry and site), the node maps them
-// with the demo's settings (launch/arche.launch, config/arche_sim.yaml), and the distances it
+// with the demo's settings (launch/arche.launch, config/arche.yaml), and the distances it
 // answers at points near the observed surfaces are compared with the exact distance to the
 // simulator's world (its world.ply, world_mesh_reference.h).
 //
@@ -61,7 +61,7 @@ namespace {
 
 using namespace covox_rostest;
 
-constexpr double kVoxel_m = 0.2;  // config/covoxslam.yaml's map.voxel_size_m (arche_sim keeps it)
+constexpr double kVoxel_m = 0.2;  // config/covoxslam.yaml's map.voxel_size_m (arche keeps it)
 // Query points: offset from a surface point along its normal by this much, and kept where the
 // exact distance to the whole world lies in the same band.
 constexpr double kNearSurfaceMin_m = 0.2, kNearSurfaceMax_m = 1.0;

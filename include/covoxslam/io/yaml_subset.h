@@ -30,7 +30,7 @@ struct YamlDocument {
 //   voxel_size_m: 0.2                `key: value`, one a line; keys are [A-Za-z0-9_-]+
 //   registration:                    a key with no value opens a nested mapping: the lines
 //     gate:                          below it, indented further (spaces only) and all by the
-//       max_residual_m: 0.3          same amount, are its entries
+//       max_residual_vox: 3.0        same amount, are its entries
 //   base_frame: "imu"                quoted scalars ('...' or "..." without escapes)
 //   T_base_sensor: [0, 0, 0, 1]      a flow list of plain scalars, kept as its text
 //

@@ -66,7 +66,7 @@ class GraphOptimizer {
  private:
   class Run;  // one optimisation's state (graph, budget, report)
 
-  double max_residual_m_;
+  double max_residual_m_;  // registration.gate.max_residual_vox x map.voxel_size_m
   double worst_fraction_;
   double loss_scale_sigmas_;
   bool estimate_noise_;

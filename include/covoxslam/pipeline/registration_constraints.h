@@ -83,7 +83,7 @@ struct SubmapRegistrationConfig {
     // mean of 1), in voxels of the new submap. A right alignment leaves the surfaces' own noise,
     // under a voxel; one stuck in a wrong minimum (a repeated structure, a revisit started far
     // off) leaves surfaces apart by voxels. Above this, no constraint. 0: off.
-    double max_residual_rms_vox = 0.0;
+    double max_residual_rms_vox = 1.0;
   } acceptance;
   // The constraint's information. The aligner's residuals are metres times sqrt(TSDF weight),
   // and TSDF weights depend on the weighting scheme, so the weights are normalised to a mean of 1
@@ -93,17 +93,19 @@ struct SubmapRegistrationConfig {
   // only as good as the submaps (their own drift, TSDF quantisation, sparse walls); a constraint
   // that claims far more than it knows overrides the odometry and, at a revisit, pulls the whole
   // graph. So a floor is added to the points' covariance:
-  //   information = ((J^T J / sigma^2)^-1 + diag(min_sigma_m^2 x3, min_sigma_yaw_rad^2))^-1,
+  //   information = ((J^T J / sigma^2)^-1 + diag(s^2 x3, min_sigma_yaw_rad^2))^-1,
+  // with s = min_sigma_vox x the voxel size,
   // which keeps the points' shape (a direction the overlap does not constrain - ground only: x, y
   // and yaw - stays weak) but caps every direction at what the registration really achieves.
   struct Information {
     // Noise of one registration point's distance. The points of a map are not independent
     // (interpolation, one TSDF), so this is larger than the TSDF noise itself.
     double point_sigma_m = 0.1;
-    // The accuracy floor; 0 and 0: the points' information alone. It depends on the voxel size
-    // and the sensor, so a configuration for one sets it (config/arche_sim.yaml).
-    double min_sigma_m = 0.0;
-    double min_sigma_yaw_rad = 0.0;
+    // The accuracy floor, in voxels of the new submap so that it scales with the map's
+    // resolution (an alignment is as good as the TSDF it aligns to); 0 and 0: the points'
+    // information alone.
+    double min_sigma_vox = 1.0;
+    double min_sigma_yaw_rad = 0.017453292519943295;  // 1 degree
   } information;
   // The start from the walls (pipeline/wall_map.h): for pairs at least min_id_gap submap ids
   // apart, the top views' wall columns are matched over +-wall_search_range_m and +-3 degrees
@@ -119,17 +121,18 @@ struct SubmapRegistrationConfig {
     double wall_search_min_jump_m = 0.5;
   } revisits;
   // Consistency gate in the pose graph (SlamSystem's optimisation): after a solve, registration
-  // constraints whose measurement lies further than max_residual_m (horizontal distance) from
-  // the relative pose of their two submaps in the solution are set aside and the graph solved
-  // again, until every remaining one agrees; each optimisation starts again from all of them, so
-  // a constraint set aside earlier comes back once the graph agrees with it. A revisit that
-  // landed in a wrong minimum of the registration cost (repeated structure) disagrees with the
-  // chain of the other constraints by metres.
+  // constraints whose measurement lies further than max_residual_vox voxels (horizontal
+  // distance) from the relative pose of their two submaps in the solution are set aside and the
+  // graph solved again, until every remaining one agrees; each optimisation starts again from all
+  // of them, so a constraint set aside earlier comes back once the graph agrees with it. A revisit
+  // that landed in a wrong minimum of the registration cost (repeated structure) disagrees with
+  // the chain of the other constraints by metres.
   struct Gate {
-    // 0: off. In metres, so a configuration for one sensor and voxel size sets it.
-    double max_residual_m = 0.0;
+    // In voxels of the map, so that it scales with the resolution the registrations achieve;
+    // 0: off.
+    double max_residual_vox = 3.0;
     // Each round sets aside only the constraints further than this fraction of the largest
-    // residual (and than max_residual_m), the worst first: when wrong revisits pull the
+    // residual (and than max_residual_vox), the worst first: when wrong revisits pull the
     // solution, the right ones disagree with it too, and setting aside everything above the
     // threshold at once loses them with the wrong ones. In [0, 1); 0: all at once.
     double worst_fraction = 0.7;
@@ -141,7 +144,7 @@ struct SubmapRegistrationConfig {
   // disagreement over (x, y, z, yaw) follows a chi-square law with 4 degrees of freedom when the
   // alignment is right; max_mahalanobis_sq is its threshold. 0: off.
   struct Verification {
-    double max_mahalanobis_sq = 0.0;
+    double max_mahalanobis_sq = 18.5;  // the 0.999 quantile
   } verification;
 };
 

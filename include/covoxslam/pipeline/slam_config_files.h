@@ -4,10 +4,11 @@
 // settings (frames, waiting, publishing) that the library lists but does not read. A file sets
 // only what differs from the library defaults; docs/parameters.md lists every parameter.
 //
-// The named files are the presets: arche (voxgraph's ARCHE settings), arche_sim (the simulated
-// flight's, what `make demo` runs), rgbd, lidar_keyframes, and covoxslam (the nodelet's generic
-// default). The offline runner, the benchmarks, the nodelet's launch files and the tests all read
-// these files, so a preset exists once.
+// The named files are the presets, each the facts of one sensor (resolution, range, weighting,
+// submap length, frames) over the library's one configuration: arche (the OS1-64 of the ARCHE and
+// simulated flights, what `make demo` runs), rgbd, lidar_keyframes, covoxslam (the nodelet's
+// generic default) and jetson (memory budgets). The offline runner, the benchmarks, the nodelet's
+// launch files and the tests all read these files, so a preset exists once.
 #include <cstddef>
 #include <map>
 #include <string>

@@ -17,11 +17,11 @@ namespace covox {
 namespace pipeline {
 
 // Names are the configuration files' paths of nested keys joined by '.', e.g.
-// "registration.gate.max_residual_m" for
+// "registration.gate.max_residual_vox" for
 //   registration:
 //     gate:
-//       max_residual_m: 0.3
-// (the ROS parameter server holds the same as ~registration/gate/max_residual_m).
+//       max_residual_vox: 3.0
+// (the ROS parameter server holds the same as ~registration/gate/max_residual_vox).
 class ParameterSource {
  public:
   virtual ~ParameterSource() = default;

@@ -79,16 +79,22 @@ struct SlamConfig {
   // room instead, so nothing is dropped and the result does not depend on the machine's speed or
   // load (add_scan() then needs the threads running).
   bool wait_when_queues_full = false;
-  // Standard deviations of the odometry between consecutive submaps (information = 1 / sigma^2).
-  double odometry_translation_sigma_m = 0.1;
-  double odometry_yaw_sigma_rad = 0.01;
+  // Standard deviations of the odometry between consecutive submaps (information = 1 / sigma^2),
+  // added to the drift below: the part that does not grow with the path (a keyframe submap of one
+  // scan travels no path of its own). The translation's in voxels of the map, so that it follows
+  // the scale the sensor is mapped at (a room at 4 cm: 1 cm; a street at 0.5 m: 12.5 cm). With
+  // estimate_odometry_noise scaled alike with the drift.
+  double odometry_translation_sigma_vox = 0.25;
+  double odometry_yaw_sigma_rad = 0.002;
   // The odometry's drift per metre of path (per axis, and in yaw): two submaps' odometry relative
   // pose is believed to within these times the path between them. The odometry constraint of
   // consecutive submaps gets this drift over the earlier submap's path added to the sigmas above
   // (variances add), and a registration that disagrees with the odometry beyond it is rejected
-  // (registration.verification). 0 and 0: the sigmas alone.
-  double odometry_drift_m_per_m = 0.0;
-  double odometry_drift_deg_per_m = 0.0;
+  // (registration.verification). With estimate_odometry_noise these are the ceiling of the
+  // estimate: wide enough for a hand-held camera's visual odometry and for a drone's VIO alike.
+  // 0 and 0: the sigmas alone.
+  double odometry_drift_m_per_m = 0.1;
+  double odometry_drift_deg_per_m = 2.0;
   // True: the odometry's noise is estimated from the data after every optimisation (variance
   // components, estimate_odometry_variance_ratios in submap_pose_graph.h): the odometry's
   // variances in the solve (per-link sigmas and drift alike) are scaled by a factor fitted to its
@@ -96,9 +102,11 @@ struct SlamConfig {
   // lies between (min_odometry_drift / odometry_drift)^2 and 1: the configured drift is the
   // upper bound and stays what registrations are verified against. Off unless both drifts > 0;
   // a floor above its drift holds the factor at 1.
-  bool estimate_odometry_noise = false;
+  bool estimate_odometry_noise = true;
+  // The floors keep the estimate from collapsing onto the odometry: once the consistency gate has
+  // set registrations aside, the fewer left make the odometry look better than it is.
   double min_odometry_drift_m_per_m = 0.005;
-  double min_odometry_drift_deg_per_m = 0.1;
+  double min_odometry_drift_deg_per_m = 0.02;
   // estimate_odometry_noise: the drift the revisits show (pipeline/revisit_drift.h: registrations
   // between submaps at least this far apart along the path, against the odometry's relative pose)
   // is a lower bound on the estimate. A per-link estimate sees only each link's own error; a bias
@@ -109,7 +117,7 @@ struct SlamConfig {
   // reweighted solves): a constraint whose whitened residual r (r^2 = e^T information e at the
   // solution) is large gets its information times 1 / (1 + r^2 / c^2), c this scale in standard
   // deviations, so one wrong registration cannot bend the trajectory. 0: plain least squares.
-  double registration_loss_scale_sigmas = 0.0;
+  double registration_loss_scale_sigmas = 3.0;
   // Optimise after every n-th submap enters the graph, and when external constraints or
   // request_optimization() arrive; 0: only in finish() and on request_optimization().
   int optimize_every_n_submaps = 1;
@@ -211,7 +219,7 @@ struct SlamCounters {
   int64_t optimizations_failed = 0;
   // Optimisations stopped by their solve budget (pose_graph.max_solves_per_new_submap).
   int64_t optimizations_over_budget = 0;
-  // Registration constraints set aside by the consistency gate (registration.gate.max_residual_m)
+  // Registration constraints set aside by the consistency gate (registration.gate.max_residual_vox)
   // in the latest optimisation.
   int64_t registrations_set_aside = 0;
   // How far the latest solve moved the mapped submaps from their odometry: the RMS and the

@@ -61,7 +61,7 @@ const char* to_string(SubmapCreationPolicy policy);
 
 struct SubmapPolicyConfig {
   SubmapCreationPolicy policy = SubmapCreationPolicy::kTimeInterval;
-  double interval_s = 10.0;   // voxgraph's submap_creation_interval default
+  double interval_s = 5.0;    // half voxgraph's default: half the odometry drift in a submap
   double distance_m = 10.0;   // sensor path length per submap
   int64_t max_blocks = 1000;  // allocated TSDF blocks per submap
 };

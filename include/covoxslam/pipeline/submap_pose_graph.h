@@ -40,7 +40,7 @@ struct SubmapConstraint {
   Eigen::Matrix4d information = Eigen::Matrix4d::Zero();
   // Absolute constraints: the sensor's position in the submap frame.
   Eigen::Vector3d lever_arm_m = Eigen::Vector3d::Zero();
-  // False: set aside by the consistency gate (registration.gate.max_residual_m); kept in the
+  // False: set aside by the consistency gate (registration.gate.max_residual_vox); kept in the
   // graph's list but not given to the solver.
   bool active = true;
   // The solver sees information * weight: the robust loss on registration constraints
@@ -130,13 +130,13 @@ class SubmapPoseGraph {
   VarianceFactors registration_factors_;
 };
 
-// The consistency gate's step (SubmapRegistrationConfig::gate.max_residual_m): sets aside the
-// active registration constraints whose measurement lies further than `max_residual_m`
-// (horizontal distance in the frame of the `from` submap) from the relative pose of their two
-// submaps at the graph's current poses; returns how many. Other kinds are never touched.
-// `worst_fraction` > 0 sets aside only those further than max(max_residual_m, worst_fraction x the
-// largest residual): the worst first, so that constraints pulled off by them are judged again
-// after the next solve (SubmapRegistrationConfig::gate.worst_fraction).
+// The consistency gate's step (SubmapRegistrationConfig::gate.max_residual_vox, here in metres):
+// sets aside the active registration constraints whose measurement lies further than
+// `max_residual_m` (horizontal distance in the frame of the `from` submap) from the relative pose
+// of their two submaps at the graph's current poses; returns how many. Other kinds are never
+// touched. `worst_fraction` > 0 sets aside only those further than max(max_residual_m,
+// worst_fraction x the largest residual): the worst first, so that constraints pulled off by them
+// are judged again after the next solve (SubmapRegistrationConfig::gate.worst_fraction).
 int set_aside_inconsistent_registrations(SubmapPoseGraph* graph, double max_residual_m,
                                          double worst_fraction = 0.0);
 

@@ -4,8 +4,8 @@
 // library's reader (pipeline::read_config_files), and a parameter set on the server replaces a
 // file's value. Both go through the same text parsing (io/setting_values.h; a server value is
 // turned into its text first, a double in its shortest exact form), so a file works in both or
-// fails in both. Dotted names are nested parameters ("registration.gate.max_residual_m" is
-// ~registration/gate/max_residual_m); a section's source ("ros") reads ~ros/<name> and the
+// fails in both. Dotted names are nested parameters ("registration.gate.max_residual_vox" is
+// ~registration/gate/max_residual_vox); a section's source ("ros") reads ~ros/<name> and the
 // files' "ros.<name>" entries.
 #include <string>
 #include <vector>
@@ -35,7 +35,7 @@ class RosParameterSource : public pipeline::ParameterSource {
   // The file entries of this source's section that `known` does not list (misspelt keys).
   std::vector<std::string> unknown_file_keys(const std::vector<std::string>& known) const;
 
-  // "registration.gate.max_residual_m" -> "registration/gate/max_residual_m".
+  // "registration.gate.max_residual_vox" -> "registration/gate/max_residual_vox".
   static std::string ros_name(const std::string& name);
   // The private parameters naming the configuration files.
   static const std::vector<std::string>& file_parameter_names();
