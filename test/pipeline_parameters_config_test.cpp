@@ -594,6 +594,17 @@ TEST(SlamParameterFiles, FileErrorsNameTheFileAndLine) {
   const std::string flat = folder.write("flat.yaml", "voxel_size_m: 0.1\n");
   EXPECT_NE(error_of(flat).find(flat + ":1: unknown parameter 'voxel_size_m'"), std::string::npos)
       << error_of(flat);
+  // A trust setting that became a voxel count: the error names the new key and the conversion.
+  const std::string old_gate =
+      folder.write("old_gate.yaml", "registration:\n  gate:\n    max_residual_m: 0.3\n");
+  EXPECT_NE(error_of(old_gate).find(old_gate +
+                                    ":3: parameter 'registration.gate.max_residual_m': renamed "
+                                    "to 'registration.gate.max_residual_vox', in voxels"),
+            std::string::npos)
+      << error_of(old_gate);
+  const std::vector<std::string>& names = slam_parameter_names();
+  EXPECT_NE(std::find(names.begin(), names.end(), "registration.gate.max_residual_vox"),
+            names.end());
 }
 
 }  // namespace

@@ -44,7 +44,7 @@ namespace {
 
 const char* kUsage =
     "usage: surface_bias --map FILE --graph FILE --truth FILE.tum --world world.ply [options]\n"
-    "  --truncation-m T   the run's TSDF truncation (default 0.6, arche_sim)\n"
+    "  --truncation-m T   the run's TSDF truncation (default 0.6, the arche preset)\n"
     "  --write-map FILE   the map with true distances in place of the stored ones\n"
     "  --replace WHICH    which voxels --write-map replaces: all (default), same-sign (stored\n"
     "                     and true distance agree in sign), other-sign (they do not) or ground\n"

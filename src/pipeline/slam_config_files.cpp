@@ -36,6 +36,19 @@ bool is_node_key(const std::string& key) {
   return key.compare(0, sizeof(kNodeSection) - 1, kNodeSection) == 0;
 }
 
+// Parameters that became voxel counts: a file written for an earlier release names the new key
+// and how to convert, instead of only "unknown".
+std::string renamed_parameter_hint(const std::string& key) {
+  static const std::map<std::string, std::string> kInVoxels = {
+      {"registration.information.min_sigma_m", "registration.information.min_sigma_vox"},
+      {"registration.gate.max_residual_m", "registration.gate.max_residual_vox"},
+      {"pose_graph.odometry_translation_sigma_m", "pose_graph.odometry_translation_sigma_vox"}};
+  const auto renamed = kInVoxels.find(key);
+  if (renamed == kInVoxels.end()) return "";
+  return ": renamed to '" + renamed->second +
+         "', in voxels (the value in metres divided by map.voxel_size_m)";
+}
+
 }  // namespace
 
 ConfigFileValues read_config_files(const std::vector<std::string>& paths) {
@@ -45,6 +58,9 @@ ConfigFileValues read_config_files(const std::vector<std::string>& paths) {
     const io::YamlDocument document = io::read_yaml_subset(path);
     for (const io::YamlEntry& entry : document.entries) {
       if (!is_node_key(entry.key) && !is_slam_parameter(entry.key)) {
+        const std::string hint = renamed_parameter_hint(entry.key);
+        if (!hint.empty())
+          throw Error(document.where(entry) + ": parameter '" + entry.key + "'" + hint);
         throw Error(document.where(entry) + ": unknown parameter '" + entry.key +
                     "' (docs/parameters.md lists them; the nodelet's own go in the `ros` section)");
       }
