@@ -148,6 +148,11 @@ LidarKeyframeScanSource::LidarKeyframeScanSource(const std::string& path,
     reference_.has_orientations = true;
     reference_kind_ = ReferenceKind::kOtherEstimate;
   }
+  if (options_.added_drift_m < 0.0) {
+    throw Error("added odometry drift must be >= 0 m, got " +
+                std::to_string(options_.added_drift_m));
+  }
+  if (options_.added_drift_m > 0.0) add_drift(options_.added_drift_m, 1.0);
 }
 
 namespace {
@@ -164,6 +169,19 @@ void keep_points_beyond(const io::PointCloud& cloud, double min_range_m, SourceS
 }
 
 }  // namespace
+
+// The simulator's odometry model as it is (a vehicle's odometry), scaled to the asked drift.
+void KeyframeFolderScanSource::add_drift(double min_final_drift_m, double drift_scale) {
+  std::vector<sim::StampedIsometry> given(odometry_.size());
+  for (size_t i = 0; i < given.size(); ++i) given[i] = {stamps_s_[i], odometry_[i]};
+  sim::DriftConfig drift;
+  drift.min_final_drift_m = min_final_drift_m * drift_scale;
+  drift = drift.scaled(drift_scale);
+  const std::vector<sim::StampedIsometry> drifted =
+      sim::simulate_odometry(given, drift, options_.drift_seed);
+  for (size_t i = 0; i < drifted.size(); ++i) odometry_[i] = drifted[i].pose;
+  final_drift_m_ = sim::final_drift_m(given, drifted);
+}
 
 bool KeyframeFolderScanSource::next(SourceScan* scan) {
   while (next_scan_ < odometry_.size()) {
@@ -190,6 +208,10 @@ std::string LidarKeyframeScanSource::describe() const {
   std::ostringstream text;
   text << "LiDAR keyframes " << path_ << ", " << odometry_.size()
        << " scans, odometry odom_poses.txt";
+  if (options_.added_drift_m > 0.0) {
+    text << " with an added drift of " << final_drift_m_ << " m at the end (seed "
+         << options_.drift_seed << ")";
+  }
   if (reference_kind_ == ReferenceKind::kOtherEstimate)
     text << ", reference optimized_poses.txt (not ground truth)";
   return text.str();
@@ -244,18 +266,11 @@ LidarKeyframeGraphScanSource::LidarKeyframeGraphScanSource(const std::string& pa
   }
   reference_.has_orientations = true;
   reference_kind_ = ReferenceKind::kOtherEstimate;
-  // The simulator's odometry model as it is (a vehicle's odometry), scaled to the asked drift.
-  sim::DriftConfig drift;
-  drift.min_final_drift_m = options_.min_final_drift_m * options_.drift_scale;
-  drift = drift.scaled(options_.drift_scale);
-  for (const sim::StampedIsometry& pose :
-       sim::simulate_odometry(truth, drift, options_.drift_seed)) {
+  for (const sim::StampedIsometry& pose : truth) {
     stamps_s_.push_back(pose.stamp_s);
     odometry_.push_back(pose.pose);
   }
-  std::vector<sim::StampedIsometry> odometry(count);
-  for (size_t i = 0; i < count; ++i) odometry[i] = sim::StampedIsometry{stamps_s_[i], odometry_[i]};
-  final_drift_m_ = sim::final_drift_m(truth, odometry);
+  add_drift(options_.min_final_drift_m, options_.drift_scale);
 }
 
 io::PointCloud LidarKeyframeGraphScanSource::read_cloud(size_t index) const {

@@ -53,11 +53,15 @@ class RgbdScanSource : public ScanSource {
 struct LidarKeyframeScanOptions {
   double min_range_m = 2.0;  // the car's own body and the sensor mount
   size_t max_scans = 0;      // 0: all
-  // Keyframe graphs only (the MulRan layout has its own odometry and stamps).
+  // Keyframe graphs only (the MulRan layout has its own stamps).
   double keyframe_interval_s = 10.0;
   double min_final_drift_m = 0.3;
   uint64_t drift_seed = 1;
   double drift_scale = 1.0;
+  // MulRan layout only: > 0 adds the simulator's drift (seed drift_seed) to the recorded
+  // odometry, so that it ends at least this far from where it was recorded; 0 keeps the odometry
+  // as recorded.
+  double added_drift_m = 0.0;
 };
 
 // A folder of LiDAR keyframes: the stamps and odometry poses its constructor reads, and one cloud
@@ -67,6 +71,8 @@ class KeyframeFolderScanSource : public ScanSource {
  public:
   size_t size() const override { return odometry_.size(); }
   bool next(SourceScan* scan) override;
+  // How far the drift this source added moves the odometry's last pose (0: none added).
+  double final_drift_m() const { return final_drift_m_; }
 
  protected:
   KeyframeFolderScanSource(const std::string& path, const LidarKeyframeScanOptions& options)
@@ -74,16 +80,22 @@ class KeyframeFolderScanSource : public ScanSource {
   // The keyframe's points in the sensor frame; throws covox::Error when they cannot be read.
   virtual io::PointCloud read_cloud(size_t index) const = 0;
 
+  // odometry_ (stamped by stamps_s_) with the simulator's drift of at least min_final_drift_m
+  // at the end, its rates times drift_scale (0: unchanged); sets final_drift_m_.
+  void add_drift(double min_final_drift_m, double drift_scale);
+
   std::string path_;
   LidarKeyframeScanOptions options_;
   std::vector<double> stamps_s_;
   std::vector<Eigen::Isometry3d> odometry_;
+  double final_drift_m_ = 0.0;  // the drift add_drift gave the odometry
   size_t next_scan_ = 0;
 };
 
 // MulRan's layout: `Scans/NNNNNN.pcd` (point clouds in the sensor frame), `odom_poses.txt` (KITTI
-// format, sensor-to-world odometry: the odometry), `optimized_poses.txt` (another SLAM system's
-// estimate: the reference, NOT ground truth) and `times.txt` (one stamp per scan, seconds).
+// format, sensor-to-world odometry: the odometry, with added_drift_m of drift added when asked),
+// `optimized_poses.txt` (another SLAM system's estimate: the reference, NOT ground truth) and
+// `times.txt` (one stamp per scan, seconds).
 class LidarKeyframeScanSource : public KeyframeFolderScanSource {
  public:
   // Throws covox::Error naming the missing or inconsistent file.
@@ -110,7 +122,6 @@ class LidarKeyframeGraphScanSource : public KeyframeFolderScanSource {
 
  private:
   io::PointCloud read_cloud(size_t index) const override;
-  double final_drift_m_ = 0.0;
 };
 
 // Opens `path` as whichever dataset layout it holds (RGB-D folder, LiDAR keyframes or a LiDAR

@@ -10,6 +10,10 @@
 //   mulran             Riverside02 keyframes, LiDAR-inertial odometry: distance to
 //                      optimized_poses.txt, another SLAM system's estimate ("distance to
 //                      reference", never accuracy)
+//   livox              HKU-2 Livox keyframes, FAST-LIO2 odometry (already good): distance to
+//                      optimized_poses.txt (another SLAM system's loop-closed estimate), as
+//                      recorded (covoxslam must not end farther than the odometry) and with the
+//                      simulator's drift added, seeds 1-5 (covoxslam must bring it back)
 //   kitti07            the lidar-scans dump (5 keyframes, graph.txt poses, another SLAM system's
 //                      estimate): no drift (covoxslam must leave the given poses alone) and the
 //                      simulator's drift of >= 0.3 m (covoxslam must come closer than odometry)
@@ -18,10 +22,11 @@
 //                      the same flight without drift. Every loop closure is checked against the
 //                      truth; the program exits with 2 when one is wrong.
 // `--cases all` is the whole matrix (docs/benchmarks/accuracy_matrix.json): sim seeds 1-15,
-// 7scenes, 7scenes-long, mulran, kitti07, loops seeds 0-26 at 1 % and 1-13 at 2 % drift.
+// 7scenes, 7scenes-long, mulran, livox, kitti07, loops seeds 0-26 at 1 % and 1-13 at 2 % drift.
 // All with translation + yaw alignment (the ARCHE protocol). The real data is read through
 // COVOX_DATA_DIR (io::data_directory()); a missing dataset is skipped with a message.
-// The real data is non-commercial (7-Scenes: Microsoft's terms; MulRan: its own terms).
+// The real data is for research only (7-Scenes: Microsoft's terms; MulRan: its own terms; HKU-2:
+// no license stated).
 #include <cctype>
 #include <cmath>
 #include <cstdio>
@@ -53,7 +58,8 @@ const char kUsage[] =
     "usage: benchmark_accuracy [options]\n"
     "  --device auto|cpu|cuda   (default auto)\n"
     "  --cases LIST             comma-separated: "
-    "sim,bag,7scenes,7scenes-long,mulran,kitti07,loops,\n"
+    "sim,bag,7scenes,7scenes-long,mulran,livox,kitti07,\n"
+    "                           loops,\n"
     "                           or all: the whole matrix (default: sim and the real data that is\n"
     "                           available)\n"
     "  --sim-seeds LIST         seeds of the sim case (default 1)\n"
@@ -157,6 +163,27 @@ void add_kitti_keyframe_runs(const std::string& data_dir, Device device,
   }
 }
 
+// The HKU-2 Livox keyframes as recorded and with the simulator's drift added to their odometry
+// (at least kLivoxAddedDriftM at the end; the model's own rates give 1-2 m over the 103 s walk).
+constexpr double kLivoxAddedDriftM = 0.5;
+
+void add_livox_runs(const std::string& data_dir, Device device, std::vector<CaseRun>* runs) {
+  const std::string folder = data_dir + "/livox-hku-2";
+  if (!std::filesystem::exists(folder)) {
+    std::printf("skipping Livox HKU-2: no folder '%s'\n", folder.c_str());
+    return;
+  }
+  for (uint64_t seed = 0; seed <= 5; ++seed) {
+    tools::LidarKeyframeScanOptions options;
+    options.drift_seed = seed;
+    options.added_drift_m = seed == 0 ? 0.0 : kLivoxAddedDriftM;
+    const std::string name =
+        seed == 0 ? "Livox HKU-2 as recorded" : "Livox HKU-2 drift seed " + std::to_string(seed);
+    runs->push_back(shipped_case(
+        name, std::make_unique<tools::LidarKeyframeScanSource>(folder, options), device));
+  }
+}
+
 // The loops case's flight: two laps of a figure 8 twice the default's length (990 m a lap, its
 // crossing in the open), 256 columns, the odometry drift_percent % of the distance off at the end
 // (1 %: about 20 m, so the second lap passes the first's places 10-30 m from where the odometry
@@ -206,6 +233,26 @@ struct Selection {
   double loop_drift_percent = 1.0;
   std::string bag_path, data_dir;
 };
+
+const char* const kCaseNames[] = {"sim",    "bag",   "7scenes", "7scenes-long",
+                                  "mulran", "livox", "kitti07", "loops"};
+
+// Throws covox::Error naming the first item of `cases` that is no case.
+void check_case_names(const std::string& cases) {
+  if (cases.empty() || cases == "all") return;
+  for (size_t begin = 0; begin <= cases.size();) {
+    const size_t end = std::min(cases.find(',', begin), cases.size());
+    const std::string item = cases.substr(begin, end - begin);
+    bool known = false;
+    for (const char* name : kCaseNames) known = known || item == name;
+    if (!known) {
+      throw Error("--cases: '" + item +
+                  "' is no case (sim, bag, 7scenes, 7scenes-long, mulran, livox, kitti07, "
+                  "loops, or all)");
+    }
+    begin = end + 1;
+  }
+}
 
 bool wanted(const Selection& selection, const std::string& name) {
   const std::string& cases = selection.cases;
@@ -262,6 +309,7 @@ std::vector<CaseRun> collect_runs(const Selection& selection, Device device) {
         },
         device, &runs);
   }
+  if (wanted(selection, "livox")) add_livox_runs(selection.data_dir, device, &runs);
   if (wanted(selection, "kitti07")) add_kitti_keyframe_runs(selection.data_dir, device, &runs);
   // Long flights (minutes each on a GPU, tens of minutes on the CPU): only when named.
   if (matrix) {
@@ -327,6 +375,8 @@ int64_t run_case(CaseRun& run, const std::string& trajectories_dir,
                 static_cast<double>(constraints.wrong), "");
     report->add(run.name, "registration max error", constraints.max_error_m, "m");
   }
+  if (auto* keyframes = dynamic_cast<tools::KeyframeFolderScanSource*>(run.source.get()))
+    report->add(run.name, "odometry added drift", keyframes->final_drift_m(), "m");
   if (auto* simulated = dynamic_cast<tools::SimScanSource*>(run.source.get())) {
     const auto& truth = simulated->mission().truth();
     const auto& odometry = simulated->mission().odometry();
@@ -395,6 +445,7 @@ int main(int argc, char** argv) {
   args.finish();
 
   try {
+    check_case_names(selection.cases);
     const Device device = select_device(parse_device_request(device_text));
     tools::BenchmarkReport report("accuracy", describe_device(device), argc, argv);
     std::vector<CaseRun> runs = collect_runs(selection, device);

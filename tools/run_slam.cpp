@@ -71,12 +71,16 @@ const char kUsage[] =
     "  --pixel-stride N            RGB-D: every N-th pixel (default 2)\n"
     "  --frame-rate-hz F           RGB-D: frame rate for stamps (default 30)\n"
     "  --drift-m D                 RGB-D: least final odometry drift (default 0.3)\n"
-    "  --drift-seed N              RGB-D and keyframe graphs: drift seed (default 1)\n"
+    "  --drift-seed N              RGB-D, keyframe graphs, --added-drift-m: drift seed (default "
+    "1)\n"
     "  --drift-scale S             RGB-D and keyframe graphs: drift model and least drift times S\n"
     "                              (default 1; 0: odometry = reference)\n"
     "  --keyframe-drift-m D        keyframe graphs (graph.txt): least final odometry drift "
     "(default "
     "0.3)\n"
+    "  --added-drift-m D           LiDAR keyframes (MulRan layout): add the simulator's drift to\n"
+    "                              the recorded odometry, at least D m at the end (default 0:\n"
+    "                              the odometry as recorded)\n"
     "  --max-scans N               stop after N scans (0: all)\n"
     "  --simulate                  a simulated flight generated scan by scan in process, no bag\n"
     "                              (simulate_flight's scans for the same options; --min-range-m\n"
@@ -212,6 +216,7 @@ void read_input_options(tools::CommandLine& args, RunnerSettings* s) {
   s->lidar_options.min_final_drift_m = args.number("--keyframe-drift-m", 0.3, 0.0, 10000.0);
   s->lidar_options.drift_seed = rgbd.drift_seed;
   s->lidar_options.drift_scale = rgbd.drift_scale;
+  s->lidar_options.added_drift_m = args.number("--added-drift-m", 0.0, 0.0, 10000.0);
   s->max_scans = args.integer("--max-scans", 0, 0, kIntMax);
   s->simulate = args.flag("--simulate");
   if (s->simulate) s->simulation = sim::read_simulation_options(args);
