@@ -237,6 +237,39 @@ TEST_P(MeshIntegratorTest, WeldTableAndSortedWeldGiveTheSameBlockMeshes) {
   }
 }
 
+// The same blocks inserted in the opposite order into a nearly full table end in other buckets
+// (linear probing keeps the first insert of colliding keys in the home bucket); the whole-map
+// mesh must not follow the table's layout (it is written to files and compared between runs).
+TEST_P(MeshIntegratorTest, WholeMapMeshDoesNotDependOnTheHashTableLayout) {
+  map::TsdfMap filled(device(), map::TsdfMapConfig{kVoxel, 8, {}});
+  testing_support::fill_tsdf(filled, Eigen::Vector3d(-0.7, -0.7, -0.7),
+                             Eigen::Vector3d(0.7, 0.7, 0.7), 4 * kVoxel, box_sdf);
+  std::vector<map::HostBlock> blocks = filled.snapshot();
+  ASSERT_GT(blocks.size(), 50u);
+  map::TsdfMapConfig crowded{kVoxel, 8, {}};
+  crowded.block_table.initial_bucket_count = blocks.size() + 2;
+  crowded.block_table.max_load_factor = 0.99;
+  const Stream stream(device());
+  map::TsdfMap forward(device(), crowded), backward(device(), crowded);
+  forward.load_blocks(blocks, stream);
+  std::reverse(blocks.begin(), blocks.end());
+  backward.load_blocks(blocks, stream);
+  Buffer<Index3D> forward_order(device()), backward_order(device());
+  Buffer<uint32_t> slots(device());
+  forward.blocks().export_entries(&forward_order, &slots);
+  backward.blocks().export_entries(&backward_order, &slots);
+  ASSERT_NE(forward_order.to_host(stream), backward_order.to_host(stream))
+      << "both tables hold the blocks in the same order: the test shows nothing";
+
+  const map::Mesh a = integrators::MeshIntegrator().extract_all(forward, stream);
+  const map::Mesh b = integrators::MeshIntegrator().extract_all(backward, stream);
+  ASSERT_GT(a.triangle_count(), 100u);
+  EXPECT_EQ(a.triangles, b.triangles);
+  ASSERT_EQ(a.vertices_m.size(), b.vertices_m.size());
+  EXPECT_EQ(0, std::memcmp(a.vertices_m.data(), b.vertices_m.data(),
+                           a.vertices_m.size() * sizeof(Vec3f)));
+}
+
 TEST_P(MeshIntegratorTest, BinaryPlyHoldsEveryVertexAndFace) {
   const map::Mesh mesh = mesh_of(device(), &sphere_sdf);
   const std::string path = ::testing::TempDir() + "/covox_sphere.ply";

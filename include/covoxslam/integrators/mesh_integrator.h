@@ -123,7 +123,8 @@ struct MeshScratchBuffers {
   Buffer<uint32_t> affected;
 };
 
-// Meshes the cubes whose first corner lies in scratch.blocks. Returns the number of triangles;
+// Meshes the cubes whose first corner lies in scratch.blocks (kGlobal sorts them by block index
+// first, so the mesh does not depend on the hash table's layout). Returns the number of triangles;
 // fills scratch.vertices / vertex_colors / triangles (and the per-block ranges for kPerBlock).
 // kPerBlock welds through a table of every input block's cube edges while it has at most
 // `max_weld_table_entries` entries (3 (side + 1)^3 per block, 4 bytes each, plus two scan

@@ -7,6 +7,7 @@
 #include "covoxslam/core/sorted_search.h"
 #include "covoxslam/integrators/internal/marching_cubes.h"
 #include "covoxslam/integrators/mesh_integrator.h"
+#include "covoxslam/map/block_key.h"
 #include "covoxslam/map/block_voxel_indexer.h"
 
 namespace covox::integrators {
@@ -459,14 +460,41 @@ void mesh_find_neighbour_slots(Backend backend, map::TsdfMap& map, MeshScratchBu
   });
 }
 
+// Stage 0 of a whole-map extraction: scratch.blocks in increasing packed-key order. The hash
+// table exports its blocks in bucket order, and blocks whose keys collide land in the order their
+// inserts won (timing-dependent on either backend), so without this the same map could give its
+// triangles in another order; the welded mesh is then a function of the map alone.
+template <class Backend>
+void sort_blocks_by_index(Backend backend, MeshScratchBuffers& scratch, const Stream& stream) {
+  const int64_t count = static_cast<int64_t>(scratch.blocks.size());
+  if (count < 2) return;
+  scratch.keys.resize_discard(count);
+  scratch.order.resize_discard(count);
+  scratch.keys_alt.resize_discard(count);
+  scratch.order_alt.resize_discard(count);
+  Index3D* blocks = scratch.blocks.data();
+  uint64_t* keys = scratch.keys.data();
+  uint32_t* order = scratch.order.data();
+  parallel_for(backend, stream, count, [=] COVOX_HD(int64_t i) {
+    keys[i] = map::pack_block_key(blocks[i]);
+    order[i] = static_cast<uint32_t>(i);
+  });
+  radix_sort_pairs(backend, stream, keys, order, count, 3 * map::kBlockKeyBitsPerAxis,
+                   scratch.keys_alt.data(), scratch.order_alt.data());
+  parallel_for(backend, stream, count,
+               [=] COVOX_HD(int64_t i) { blocks[i] = map::unpack_block_key(keys[i]); });
+}
+
 template <class Backend>
 int64_t mesh_extract(Backend backend, map::TsdfMap& map, float min_weight, MeshWeld weld,
                      MeshScratchBuffers& scratch, int64_t* vertex_count, const Stream& stream,
                      int64_t max_weld_table_entries) {
   using namespace internal;
   *vertex_count = 0;
-  const ExtractShape shape = extract_shape(map, scratch);
   const bool per_block_weld = weld == MeshWeld::kPerBlock;
+  // Per-block meshes are kept by block index, so only the whole-map mesh needs the order.
+  if (!per_block_weld) sort_blocks_by_index(backend, scratch, stream);
+  const ExtractShape shape = extract_shape(map, scratch);
   if (per_block_weld) clear_block_ranges(scratch, shape.block_count, stream);
   if (shape.cubes == 0) return 0;
   mesh_find_neighbour_slots(backend, map, scratch, stream);
