@@ -1,6 +1,5 @@
 #include "runner/bag_scan_source.h"
 
-#include <algorithm>
 #include <optional>
 #include <sstream>
 
@@ -174,7 +173,10 @@ bool BagScanSource::next(SourceScan* scan) {
       scan->T_odom_sensor = T_odom_sensor;
       scan->colors.clear();
       keep_points(points, scan);
-      look_up_sweep(frame, scan);
+      scan->sweep = sweep_odometry(stamp_s, scan->point_times_s,
+                                   [&](double at_s, Eigen::Isometry3d* T_odom_sensor) {
+                                     return lookup_sensor_pose(frame, at_s, T_odom_sensor, nullptr);
+                                   });
       return true;
     } catch (const Error& error) {
       log_dropped_scan(++dropped_, error.what());
@@ -195,20 +197,6 @@ void BagScanSource::keep_points(const io::PointCloud& points, SourceScan* scan) 
     scan->points_sensor_m.emplace_back(p.x(), p.y(), p.z());
     if (timed) scan->point_times_s.push_back(points.times_s[i]);
   }
-}
-
-void BagScanSource::look_up_sweep(const std::string& frame, SourceScan* scan) {
-  scan->sweep = pipeline::SweepOdometry();
-  if (scan->point_times_s.empty()) return;
-  const auto [earliest, latest] =
-      std::minmax_element(scan->point_times_s.begin(), scan->point_times_s.end());
-  pipeline::SweepOdometry& sweep = scan->sweep;
-  sweep.begin_s = *earliest;
-  sweep.end_s = *latest;
-  sweep.known =
-      lookup_sensor_pose(frame, scan->stamp_s + sweep.begin_s, &sweep.T_odom_sensor_begin,
-                         nullptr) &&
-      lookup_sensor_pose(frame, scan->stamp_s + sweep.end_s, &sweep.T_odom_sensor_end, nullptr);
 }
 
 bool BagScanSource::lookup_sensor_pose(const std::string& frame, double stamp_s,

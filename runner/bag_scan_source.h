@@ -78,8 +78,6 @@ class BagScanSource : public ScanSource {
   size_t next_cloud_ = 0;
   // The points nearer than min_range_m left out, with their times.
   void keep_points(const io::PointCloud& points, SourceScan* scan) const;
-  // scan->sweep from tf at the scan's first and last point time.
-  void look_up_sweep(const std::string& frame, SourceScan* scan);
   int64_t dropped_non_finite_points_ = 0;
   bool extrinsic_logged_ = false;
 };

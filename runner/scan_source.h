@@ -4,6 +4,7 @@
 // to evaluate against. Implementations: a ROS bag (bag_scan_source.h) and the dataset folders of
 // the shared data (dataset_scan_sources.h).
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -58,6 +59,13 @@ class ScanSource {
 // Logs at most the first `limit` problems and then every 100th, with the running count, so a bad
 // input does not flood the terminal but is never silent.
 void log_dropped_scan(int64_t dropped_so_far, const std::string& reason, int64_t limit = 5);
+
+// The odometry across a scan's sweep: its first and last point time (seconds after `stamp_s`) and
+// T_odom_sensor there from `pose_at` (false where it has none, which leaves the sweep unknown);
+// unknown without point times.
+using PoseAtStamp = std::function<bool(double stamp_s, Eigen::Isometry3d* T_odom_sensor)>;
+pipeline::SweepOdometry sweep_odometry(double stamp_s, const std::vector<float>& point_times_s,
+                                       const PoseAtStamp& pose_at);
 
 // A pose of a trajectory (io::Trajectory) from a stamp and a rigid transform.
 io::StampedPose stamped_pose(double stamp_s, const Eigen::Isometry3d& pose);

@@ -1,9 +1,10 @@
 #include "runner/sim_scan_source.h"
 
-#include <algorithm>
 #include <chrono>
 
+#include "covoxslam/core/error.h"
 #include "sim/sim_flight_bag.h"
+#include "sim/sim_mission_bag.h"
 
 namespace covox {
 namespace tools {
@@ -17,7 +18,7 @@ SimScanSource::SimScanSource(const sim::SimulationOptions& options, double min_r
   for (const sim::StampedIsometry& truth : mission_.truth()) {
     const Eigen::Isometry3d T_world_lidar = truth.pose * T_sensor_lidar;
     io::StampedPose pose;
-    pose.timestamp_s = truth.stamp_s;
+    pose.timestamp_s = sim::bag_stamp_s(truth.stamp_s);
     pose.position_m = T_world_lidar.translation();
     pose.orientation = Eigen::Quaterniond(T_world_lidar.linear()).normalized();
     reference_.poses.push_back(pose);
@@ -31,9 +32,19 @@ bool SimScanSource::next(SourceScan* scan) {
   const size_t k = next_scan_++;
   const sim::SweepScan sweep = mission_.scan(k);
   const std::vector<Eigen::Vector3f> points_lidar_m = sim::to_os1_lidar(sweep.points_sensor_m);
-  const Eigen::Isometry3d T_sensor_lidar = sim::T_os1_sensor_os1_lidar();
-  scan->stamp_s = mission_.truth()[k].stamp_s;
-  scan->T_odom_sensor = mission_.odometry()[k].pose * T_sensor_lidar;
+  // The odometry as the bag's tf gives it: looked up in the tf of this sweep, which holds the
+  // bag's samples, at the stamp as the bag stores it.
+  const sim::ArcheBagLayout layout;
+  const io::rosbag::TfBuffer tf = sim::sweep_tf(mission_, k, layout);
+  const PoseAtStamp pose_at = [&](double stamp_s, Eigen::Isometry3d* T_odom_sensor) {
+    return tf.lookup(layout.odom_frame, layout.lidar_frame, stamp_s, T_odom_sensor);
+  };
+  scan->stamp_s = sim::bag_stamp_s(mission_.truth()[k].stamp_s);
+  std::string reason;
+  if (!tf.lookup(layout.odom_frame, layout.lidar_frame, scan->stamp_s, &scan->T_odom_sensor,
+                 &reason)) {
+    throw Error("simulated scan " + std::to_string(k) + ": " + reason);
+  }
   scan->colors.clear();
   scan->points_sensor_m.clear();
   scan->points_sensor_m.reserve(points_lidar_m.size());
@@ -48,19 +59,7 @@ bool SimScanSource::next(SourceScan* scan) {
     if (!sweep.times_ns.empty())
       scan->point_times_s.push_back(sim::point_time_s(sweep.times_ns[i]));
   }
-  // The odometry at the first and the last point time, as the bag's tf gives it there.
-  scan->sweep = pipeline::SweepOdometry();
-  if (!scan->point_times_s.empty()) {
-    const auto [first, last] =
-        std::minmax_element(scan->point_times_s.begin(), scan->point_times_s.end());
-    scan->sweep.begin_s = *first;
-    scan->sweep.end_s = *last;
-    scan->sweep.T_odom_sensor_begin =
-        mission_.odometry_at(scan->stamp_s + scan->sweep.begin_s) * T_sensor_lidar;
-    scan->sweep.T_odom_sensor_end =
-        mission_.odometry_at(scan->stamp_s + scan->sweep.end_s) * T_sensor_lidar;
-    scan->sweep.known = true;
-  }
+  scan->sweep = sweep_odometry(scan->stamp_s, scan->point_times_s, pose_at);
   generation_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return true;
 }

@@ -1,14 +1,17 @@
 #pragma once
 // A simulated flight as a ScanSource, generated in process: each scan is ray-cast when the runner
 // asks for it, so a mission of any length maps without a bag and with memory flat in its length.
-// The scans are those simulate_flight writes into its bag for the same options, read back as
-// BagScanSource reads them: points in the os1_lidar frame in single precision, nearer than
-// `min_range_m` left out, with the odometry pose of os1_lidar. A distorted scan (the default,
-// sim_lidar.h) also carries each point's time (the bag's field t, nanoseconds, in seconds as a
-// float: sim::point_time_s) and the odometry of os1_lidar at the first and last of those times
-// (SourceScan::sweep, from SimulatedMission::odometry_at, which the bag's tf samples at 100 Hz);
-// an instantaneous scan carries neither. The reference is the ground truth (positions and
-// orientations of os1_lidar).
+// It hands out what BagScanSource reads from the bag simulate_flight writes for the same options,
+// bit for bit: points in the os1_lidar frame in single precision, nearer than `min_range_m` left
+// out; the stamp as the bag stores it (whole nanoseconds); the odometry pose of os1_lidar there
+// and, for a distorted scan (the default, sim_lidar.h), each point's time (the bag's field t,
+// nanoseconds, in seconds as a float: sim::point_time_s) with the odometry at the first and last
+// of those times (SourceScan::sweep). Those poses are looked up, as the bag route does, in the tf
+// the bag holds around the sweep (sim::sweep_tf: the odometry sampled at its rate, 100 Hz by
+// default, and interpolated in between by TfBuffer), not evaluated at the times themselves: the
+// two differ by the interpolation's error (micrometres, up to a hundredth of a degree), which the
+// mapping amplifies into different registrations and trajectories. An instantaneous scan carries no
+// times and no sweep. The reference is the ground truth (positions and orientations of os1_lidar).
 #include <memory>
 #include <string>
 

@@ -72,35 +72,47 @@ void FlightBagWriter::write_scan(double stamp_s, const Eigen::Isometry3d& truth,
   write_cloud(stamp_s, stamp_s, truth, points_sensor_m, {}, intensities);
 }
 
-void FlightBagWriter::write_static(const rb::RosTime& stamp) {
-  // Stamped with the first message: rosbag play publishes it latched before anything else.
+rb::TfMessage static_tf_message(const ArcheBagLayout& layout, const rb::RosTime& stamp) {
   rb::TfMessage statics;
   rb::TransformStamped lever;
   lever.header.stamp = stamp;
-  lever.header.frame_id = layout_.imu_frame;
-  lever.child_frame_id = layout_.sensor_frame;
+  lever.header.frame_id = layout.imu_frame;
+  lever.child_frame_id = layout.sensor_frame;
   lever.T_parent_child = T_imu_os1_sensor();
   rb::TransformStamped yaw = lever;
-  yaw.header.frame_id = layout_.sensor_frame;
-  yaw.child_frame_id = layout_.lidar_frame;
+  yaw.header.frame_id = layout.sensor_frame;
+  yaw.child_frame_id = layout.lidar_frame;
   yaw.T_parent_child = T_os1_sensor_os1_lidar();
   statics.transforms = {lever, yaw};
-  bag_.write(tf_static_connection_, stamp, rb::serialize(statics));
+  return statics;
+}
+
+rb::TfMessage odometry_tf_message(const ArcheBagLayout& layout, double stamp_s,
+                                  const Eigen::Isometry3d& odometry, uint32_t sequence) {
+  rb::TfMessage tf;
+  rb::TransformStamped odom;
+  odom.header.seq = sequence;
+  odom.header.stamp = rb::RosTime::from_seconds(stamp_s);
+  odom.header.frame_id = layout.odom_frame;
+  odom.child_frame_id = layout.imu_frame;
+  odom.T_parent_child = odometry * T_imu_os1_sensor().inverse();
+  tf.transforms.push_back(odom);
+  return tf;
+}
+
+double bag_stamp_s(double stamp_s) { return rb::RosTime::from_seconds(stamp_s).to_seconds(); }
+
+void FlightBagWriter::write_static(const rb::RosTime& stamp) {
+  // Stamped with the first message: rosbag play publishes it latched before anything else.
+  bag_.write(tf_static_connection_, stamp, rb::serialize(static_tf_message(layout_, stamp)));
   static_written_ = true;
 }
 
 void FlightBagWriter::write_odometry(double stamp_s, const Eigen::Isometry3d& odometry) {
   const rb::RosTime stamp = rb::RosTime::from_seconds(stamp_s);
   if (!static_written_) write_static(stamp);
-  rb::TfMessage tf;
-  rb::TransformStamped odom;
-  odom.header.seq = tf_sequence_++;
-  odom.header.stamp = stamp;
-  odom.header.frame_id = layout_.odom_frame;
-  odom.child_frame_id = layout_.imu_frame;
-  odom.T_parent_child = odometry * T_imu_os1_sensor().inverse();
-  tf.transforms.push_back(odom);
-  bag_.write(tf_connection_, stamp, rb::serialize(tf));
+  bag_.write(tf_connection_, stamp,
+             rb::serialize(odometry_tf_message(layout_, stamp_s, odometry, tf_sequence_++)));
 }
 
 void FlightBagWriter::write_cloud(double stamp_s, double recorded_s, const Eigen::Isometry3d& truth,

@@ -46,6 +46,16 @@ Eigen::Isometry3d T_os1_sensor_os1_lidar();
 // clouds hold, bit for bit.
 std::vector<Eigen::Vector3f> to_os1_lidar(const std::vector<Vec3f>& points_sensor_m);
 
+// The /tf_static message (imu -> os1_sensor -> os1_lidar) stamped `stamp`, and the /tf message
+// odom -> imu at `stamp_s` from `odometry` (T_odom_os1_sensor): what the writer records.
+io::rosbag::TfMessage static_tf_message(const ArcheBagLayout& layout,
+                                        const io::rosbag::RosTime& stamp);
+io::rosbag::TfMessage odometry_tf_message(const ArcheBagLayout& layout, double stamp_s,
+                                          const Eigen::Isometry3d& odometry, uint32_t sequence);
+
+// `stamp_s` as the bag stores a stamp (whole nanoseconds) and a reader gets it back in seconds.
+double bag_stamp_s(double stamp_s);
+
 // `cloud` with one more field, a uint32 `name` after its others, holding `values` (one per point
 // of a dense cloud).
 void append_uint32_field(io::rosbag::PointCloud2Message* cloud, const std::string& name,

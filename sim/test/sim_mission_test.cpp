@@ -396,8 +396,9 @@ TEST(SimMission, InProcessScansEqualTheBagRoute) {
       EXPECT_EQ(a.sweep.end_s, static_cast<float>(*last * 1e-9));
       EXPECT_GT(a.sweep.end_s, 0.09);  // a 64-column sweep's last column fires at 98.4 ms
       EXPECT_LT(a.sweep.end_s, 0.1);
-      // The in-process source evaluates the odometry at the time itself, the bag holds it every
-      // 10 ms: they agree to the interpolation's error.
+      // The odometry there is the bag's tf interpolated between its 10 ms samples (this test's
+      // own interpolation of them; runner/test/sim_bag_route_test.cpp compares the in-process
+      // source with the bag reader's bit for bit).
       const auto expect_close = [k](const Eigen::Isometry3d& pose, const Eigen::Isometry3d& other) {
         EXPECT_LT((pose.translation() - other.translation()).norm(), 1e-4) << k;
         EXPECT_LT(Eigen::AngleAxisd(pose.linear().transpose() * other.linear()).angle(), 1e-5) << k;
@@ -406,12 +407,6 @@ TEST(SimMission, InProcessScansEqualTheBagRoute) {
                    interpolated_odometry(contents, a.stamp_s + a.sweep.begin_s));
       expect_close(a.sweep.T_odom_sensor_end,
                    interpolated_odometry(contents, a.stamp_s + a.sweep.end_s));
-      if (b.sweep.known) {  // the bag reader's own view of the sweep, where it gives one
-        EXPECT_EQ(a.sweep.begin_s, b.sweep.begin_s);
-        EXPECT_EQ(a.sweep.end_s, b.sweep.end_s);
-        expect_close(a.sweep.T_odom_sensor_begin, b.sweep.T_odom_sensor_begin);
-        expect_close(a.sweep.T_odom_sensor_end, b.sweep.T_odom_sensor_end);
-      }
     }
     EXPECT_FALSE(in_process.next(&a));
     EXPECT_FALSE(from_bag.next(&b));
