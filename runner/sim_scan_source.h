@@ -1,17 +1,12 @@
 #pragma once
 // A simulated flight as a ScanSource, generated in process: each scan is ray-cast when the runner
 // asks for it, so a mission of any length maps without a bag and with memory flat in its length.
-// It hands out what BagScanSource reads from the bag simulate_flight writes for the same options,
-// bit for bit: points in the os1_lidar frame in single precision, nearer than `min_range_m` left
-// out; the stamp as the bag stores it (whole nanoseconds); the odometry pose of os1_lidar there
-// and, for a distorted scan (the default, sim_lidar.h), each point's time (the bag's field t,
-// nanoseconds, in seconds as a float: sim::point_time_s) with the odometry at the first and last
-// of those times (SourceScan::sweep). Those poses are looked up, as the bag route does, in the tf
-// the bag holds around the sweep (sim::sweep_tf: the odometry sampled at its rate, 100 Hz by
-// default, and interpolated in between by TfBuffer), not evaluated at the times themselves: the
-// two differ by the interpolation's error (micrometres, up to a hundredth of a degree), which the
-// mapping amplifies into different registrations and trajectories. An instantaneous scan carries no
-// times and no sweep. The reference is the ground truth (positions and orientations of os1_lidar).
+// It hands out, bit for bit, what BagScanSource reads from the bag simulate_flight writes for the
+// same options: os1_lidar points in single precision (nearer than `min_range_m` left out), the
+// stamp in whole nanoseconds, the odometry there and, for a distorted scan, each point's time with
+// the odometry at the first and last of them, looked up in the tf the bag holds around the sweep
+// (sim::sweep_tf, interpolated by TfBuffer) rather than evaluated at those times: the micrometres
+// between the two change registrations. The reference is the ground truth; design.md has the rest.
 #include <memory>
 #include <string>
 

@@ -126,15 +126,19 @@ void add_sim_runs(const std::string& seeds, Device device, std::vector<CaseRun>*
   }
 }
 
+// Whether the dataset folder exists; says that `name` is skipped otherwise.
+bool dataset_present(const std::string& name, const std::string& folder) {
+  if (std::filesystem::exists(folder)) return true;
+  std::printf("skipping %s: no folder '%s'\n", name.c_str(), folder.c_str());
+  return false;
+}
+
 // 7-Scenes redkitchen frames 0-599, where the camera returns to places it saw: drift seeds 1-5
 // (seeds 4 and 5 were held out while the rgbd preset's verification was tuned) and no drift
 // (odometry = reference), at run_slam's default pixel stride.
 void add_kitchen_long_runs(const std::string& data_dir, Device device, std::vector<CaseRun>* runs) {
   const std::string folder = data_dir + "/7scenes-redkitchen-long";
-  if (!std::filesystem::exists(folder)) {
-    std::printf("skipping 7-Scenes redkitchen-long: no folder '%s'\n", folder.c_str());
-    return;
-  }
+  if (!dataset_present("7-Scenes redkitchen-long", folder)) return;
   for (int seed = 0; seed <= 5; ++seed) {
     tools::RgbdScanOptions options;
     options.drift_seed = seed == 0 ? 1 : static_cast<uint64_t>(seed);
@@ -150,10 +154,7 @@ void add_kitchen_long_runs(const std::string& data_dir, Device device, std::vect
 void add_kitti_keyframe_runs(const std::string& data_dir, Device device,
                              std::vector<CaseRun>* runs) {
   const std::string folder = data_dir + "/lidar-scans/kitti_07_dump";
-  if (!std::filesystem::exists(folder)) {
-    std::printf("skipping KITTI 07 keyframes: no folder '%s'\n", folder.c_str());
-    return;
-  }
+  if (!dataset_present("KITTI 07 keyframes", folder)) return;
   for (double scale : {0.0, 1.0}) {
     tools::LidarKeyframeScanOptions options;
     options.drift_scale = scale;
@@ -169,10 +170,7 @@ constexpr double kLivoxAddedDriftM = 0.5;
 
 void add_livox_runs(const std::string& data_dir, Device device, std::vector<CaseRun>* runs) {
   const std::string folder = data_dir + "/livox-hku-2";
-  if (!std::filesystem::exists(folder)) {
-    std::printf("skipping Livox HKU-2: no folder '%s'\n", folder.c_str());
-    return;
-  }
+  if (!dataset_present("Livox HKU-2", folder)) return;
   for (uint64_t seed = 0; seed <= 5; ++seed) {
     tools::LidarKeyframeScanOptions options;
     options.drift_seed = seed;
@@ -264,11 +262,7 @@ bool wanted(const Selection& selection, const std::string& name) {
 void add_if_present(const std::string& name, const std::string& folder,
                     const std::function<std::unique_ptr<tools::ScanSource>()>& open, Device device,
                     std::vector<CaseRun>* runs) {
-  if (!std::filesystem::exists(folder)) {
-    std::printf("skipping %s: no folder '%s'\n", name.c_str(), folder.c_str());
-    return;
-  }
-  runs->push_back(shipped_case(name, open(), device));
+  if (dataset_present(name, folder)) runs->push_back(shipped_case(name, open(), device));
 }
 
 // The cases asked for whose inputs exist, each as run_slam maps it; a missing input is skipped
