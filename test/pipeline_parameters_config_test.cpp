@@ -399,12 +399,13 @@ std::string describe(const SlamConfig& config) {
   const SlamConfig& c = config;
   text << c.map.voxel_size_m << ' ' << c.tsdf.truncation_distance_m << ' '
        << c.tsdf.max_ray_length_m << ' ' << c.tsdf.use_const_weight << ' '
-       << c.tsdf.use_sparsity_compensation_factor << ' ' << c.tsdf.sparsity_compensation_factor
-       << ' ' << c.submaps.interval_s << ' ' << c.odometry_translation_sigma_vox << ' '
-       << c.odometry_yaw_sigma_rad << ' ' << c.interpolate_trajectory_correction << ' '
-       << c.registration.alignment.coarse_levels << ' ' << c.registration.information.min_sigma_vox
-       << ' ' << c.registration.information.min_sigma_yaw_rad << ' '
-       << c.registration.revisits.wall_search << ' ' << c.registration.gate.max_residual_vox << ' '
+       << c.tsdf.use_weight_dropoff << ' ' << c.tsdf.use_sparsity_compensation_factor << ' '
+       << c.tsdf.sparsity_compensation_factor << ' ' << c.submaps.interval_s << ' '
+       << c.odometry_translation_sigma_vox << ' ' << c.odometry_yaw_sigma_rad << ' '
+       << c.interpolate_trajectory_correction << ' ' << c.registration.alignment.coarse_levels
+       << ' ' << c.registration.information.min_sigma_vox << ' '
+       << c.registration.information.min_sigma_yaw_rad << ' ' << c.registration.revisits.wall_search
+       << ' ' << c.registration.gate.max_residual_vox << ' '
        << c.registration.acceptance.max_residual_rms_vox << ' '
        << c.registration.verification.max_mahalanobis_sq << ' ' << c.odometry_drift_m_per_m << ' '
        << c.odometry_drift_deg_per_m << ' ' << c.registration_loss_scale_sigmas << ' '
@@ -446,6 +447,7 @@ TEST(SlamParameterFiles, PresetsHoldSensorFactsOnly) {
                                                  "tsdf.truncation_distance_m",
                                                  "tsdf.max_ray_length_m",
                                                  "tsdf.use_const_weight",
+                                                 "tsdf.use_weight_dropoff",
                                                  "tsdf.use_sparsity_compensation_factor",
                                                  "tsdf.sparsity_compensation_factor",
                                                  "submaps.interval_s",
@@ -491,7 +493,7 @@ TEST(SlamParameterFiles, DefaultsAndPresetsGiveTheirDocumentedValues) {
   const SlamConfig arche = load_preset("arche");  // the OS1-64 of the ARCHE and simulated flights
   EXPECT_EQ(arche.map.voxel_size_m, 0.2f);
   EXPECT_EQ(arche.tsdf.truncation_distance_m, 0.6f);
-  EXPECT_EQ(arche.tsdf.max_ray_length_m, 16.0f);
+  EXPECT_EQ(arche.tsdf.max_ray_length_m, 24.0f);
   EXPECT_TRUE(arche.tsdf.use_const_weight);
   EXPECT_TRUE(arche.tsdf.use_weight_dropoff);
   EXPECT_TRUE(arche.tsdf.use_sparsity_compensation_factor);
